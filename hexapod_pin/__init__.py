@@ -1,0 +1,26 @@
+"""hexapod_pin: kinematics and dynamics of closed-loop mechanisms on Pinocchio and ProxSuite.
+
+The rail-driven 6-DoF hexapod is the first and best-supported robot::
+
+    import hexapod_pin
+    robot = hexapod_pin.Hexapod.default()
+    q = robot.configuration(robot.home_pose)      # Pinocchio q, every closure holds
+"""
+
+from .closed_loop import AssemblyResult, ClosedLoopModel, RankInfo
+from .description import ClosureSpec, LoopsSpec, expand_xacro, load_loops, parse_loops, urdf_dir
+from .errors import (ActuatorSaturationError, AssemblyError, DescriptionError, GeometryError,
+                     HexapodPinError, InputError, SingularityError, SolverError,
+                     StrokeLimitError, UnreachablePoseError)
+from .geometry import HexapodGeometry
+from .hexapod import Hexapod
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "ActuatorSaturationError", "AssemblyError", "AssemblyResult", "ClosedLoopModel",
+    "ClosureSpec", "DescriptionError", "GeometryError", "Hexapod", "HexapodGeometry",
+    "HexapodPinError", "InputError", "LoopsSpec", "RankInfo", "SingularityError",
+    "SolverError", "StrokeLimitError", "UnreachablePoseError", "expand_xacro", "load_loops",
+    "parse_loops", "urdf_dir",
+]

@@ -1,0 +1,412 @@
+"""Generic closed-loop mechanism: a Pinocchio tree plus holonomic loop closures.
+
+:class:`ClosedLoopModel` is robot-agnostic. It owns the ``pin.Model`` of the tree,
+its data, one ``pin.RigidConstraintModel`` per closure (``CONTACT_3D`` for a
+point closure, ``CONTACT_6D`` for a weld), and the actuated-joint selection.
+
+Conventions:
+
+* ``q`` is a Pinocchio configuration (``model.nq``), ``v`` a Pinocchio velocity
+  (``model.nv``), both in Pinocchio's own conventions (free-flyer velocities in
+  the body frame).
+* The closure residual stacks, closure after closure, ``p1 - p2`` in world axes
+  (m) for a point closure and ``log6(oM2^-1 oM1)`` (m, rad; the twist of anchor 1
+  relative to anchor 2 in anchor-1 axes) for a weld.
+* The constraint Jacobian ``J_c`` (rows x nv) is the derivative of that residual
+  along ``pin.integrate(model, q, dv)``: ``residual(integrate(q, dv)) =
+  residual(q) + J_c dv + O(dv^2)``. A velocity ``v`` keeps the closures when
+  ``J_c v = 0``; an acceleration ``a`` when ``J_c a + gamma = 0`` with the drift
+  ``gamma`` from :meth:`ClosedLoopModel.constraint_drift`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import pinocchio as pin
+import scipy.linalg
+
+from .description import (WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro,
+                          load_loops)
+from .errors import AssemblyError, DescriptionError, InputError
+
+_EPS = np.finfo(float).eps
+
+
+@dataclass(frozen=True)
+class RankInfo:
+    """Rank of the constraint Jacobian at a configuration.
+
+    Attributes:
+        rank: numerical rank.
+        n_rows: number of constraint rows.
+        redundant_rows: indices of rows that depend on the others (a choice:
+            the rows left out by a column-pivoted QR of ``J_c^T``).
+        independent_rows: the complementary rows, sorted.
+        singular_values: singular values of ``J_c``, descending.
+        tolerance: the threshold used on the singular values.
+    """
+
+    rank: int
+    n_rows: int
+    redundant_rows: np.ndarray
+    independent_rows: np.ndarray
+    singular_values: np.ndarray
+    tolerance: float
+
+
+@dataclass(frozen=True)
+class AssemblyResult:
+    """Result of :meth:`ClosedLoopModel.assemble`.
+
+    Attributes:
+        q: the assembled configuration (``model.nq``).
+        residual_norm: max-abs closure residual at ``q`` (m / rad).
+        iterations: Newton iterations done.
+    """
+
+    q: np.ndarray
+    residual_norm: float
+    iterations: int
+
+
+class ClosedLoopModel:
+    """A kinematic tree with holonomic loop closures and an actuation selection.
+
+    Args:
+        model: the Pinocchio tree model (joints in depth-first order). It is
+            copied; anchor frames ``<closure>/anchor1`` and ``/anchor2`` are added.
+        loops: the parsed loops description.
+        name: a label for messages.
+
+    Raises:
+        DescriptionError: a frame or actuated joint that is not in the tree, an
+            actuated joint that is not 1-DoF, a closure joining a body to itself,
+            or a model failing Pinocchio's consistency check.
+    """
+
+    def __init__(self, model: pin.Model, loops: LoopsSpec, name: str = "closed-loop model"):
+        self.name = name
+        self.model = pin.Model(model)
+        if not self.model.check(self.model.createData()):
+            raise DescriptionError(name, "model fails Pinocchio's consistency check "
+                                         "(joints must be in depth-first order)")
+        self.closures: tuple[ClosureSpec, ...] = tuple(loops.closures)
+        self._anchor_frames: list[tuple[int, int]] = []
+        self.constraint_models: list[pin.RigidConstraintModel] = []
+        for closure in self.closures:
+            f1 = self._add_anchor(closure, closure.frame1, closure.offset1, "anchor1")
+            f2 = self._add_anchor(closure, closure.frame2, closure.offset2, "anchor2")
+            j1 = self.model.frames[f1].parentJoint
+            j2 = self.model.frames[f2].parentJoint
+            if j1 == j2:
+                raise DescriptionError(name, "closure joins two frames of the same body "
+                                             f"(joint {self.model.names[j1]!r})", closure.name)
+            self._anchor_frames.append((f1, f2))
+            ctype = (pin.ContactType.CONTACT_3D if closure.type == "point"
+                     else pin.ContactType.CONTACT_6D)
+            cm = pin.RigidConstraintModel(ctype, self.model, j1, self.model.frames[f1].placement,
+                                          j2, self.model.frames[f2].placement,
+                                          pin.ReferenceFrame.LOCAL)
+            cm.name = closure.name
+            self.constraint_models.append(cm)
+        self.data = self.model.createData()
+        self.constraint_datas = [cm.createData() for cm in self.constraint_models]
+        self.row_slices = []
+        start = 0
+        for closure in self.closures:
+            self.row_slices.append(slice(start, start + closure.n_rows))
+            start += closure.n_rows
+        self.n_rows = start
+        self.actuated_joints: tuple[str, ...] = tuple(loops.actuated)
+        self.actuated_v = np.array([self._actuated_index(j) for j in self.actuated_joints],
+                                   dtype=int)
+        mask = np.ones(self.model.nv, dtype=bool)
+        mask[self.actuated_v] = False
+        self.passive_v = np.flatnonzero(mask)
+
+    # -- construction ---------------------------------------------------------
+    @classmethod
+    def from_files(cls, urdf_path: str | Path, loops_path: str | Path,
+                   xacro_args: dict[str, str] | None = None) -> "ClosedLoopModel":
+        """Load a tree (URDF or xacro, expanded in Python) and its loops file."""
+        xml = expand_xacro(urdf_path, xacro_args)
+        model = build_model(xml, source=str(urdf_path))
+        return cls(model, load_loops(loops_path), name=Path(urdf_path).name)
+
+    def _frame_id(self, frame: str, closure: str) -> int:
+        for ftype in (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT,
+                      pin.FrameType.JOINT):
+            if self.model.existFrame(frame, ftype):
+                return self.model.getFrameId(frame, ftype)
+        raise DescriptionError(self.name, f"frame {frame!r} is not in the tree", closure)
+
+    def _add_anchor(self, closure: ClosureSpec, frame: str, offset: pin.SE3, tag: str) -> int:
+        if frame == WORLD and not self.model.existFrame(WORLD):
+            parent_joint, placement = 0, offset
+        else:
+            parent = self.model.frames[self._frame_id(frame, closure.name)]
+            parent_joint, placement = parent.parentJoint, parent.placement * offset
+        return self.model.addFrame(pin.Frame(f"{closure.name}/{tag}", parent_joint, placement,
+                                             pin.FrameType.OP_FRAME))
+
+    def _actuated_index(self, joint: str) -> int:
+        if not self.model.existJointName(joint):
+            raise DescriptionError(self.name, f"actuated joint {joint!r} is not in the tree",
+                                   joint)
+        jmodel = self.model.joints[self.model.getJointId(joint)]
+        if jmodel.nv != 1:
+            raise DescriptionError(self.name, f"actuated joint {joint!r} has {jmodel.nv} DoF; "
+                                              "only 1-DoF joints can be actuated", joint)
+        return jmodel.idx_v
+
+    # -- sizes and indices ------------------------------------------------------
+    @property
+    def nq(self) -> int:
+        """Size of a Pinocchio configuration of the tree."""
+        return self.model.nq
+
+    @property
+    def nv(self) -> int:
+        """Number of velocity DoF of the tree."""
+        return self.model.nv
+
+    @property
+    def n_actuated(self) -> int:
+        """Number of actuated joints."""
+        return len(self.actuated_joints)
+
+    def joint_q_index(self, joint: str) -> int:
+        """First index of ``joint`` in ``q``."""
+        return self.model.joints[self._joint_id(joint)].idx_q
+
+    def joint_v_index(self, joint: str) -> int:
+        """First index of ``joint`` in ``v``."""
+        return self.model.joints[self._joint_id(joint)].idx_v
+
+    def _joint_id(self, joint: str) -> int:
+        if not self.model.existJointName(joint):
+            raise InputError("joint", joint, f"no such joint in {self.name}")
+        return self.model.getJointId(joint)
+
+    def neutral(self) -> np.ndarray:
+        """Pinocchio's neutral configuration of the tree (closures not satisfied)."""
+        return pin.neutral(self.model)
+
+    # -- input checks -------------------------------------------------------------
+    def check_q(self, q, name: str = "q") -> np.ndarray:
+        """``q`` as a contiguous float64 array of size ``nq``; raises InputError."""
+        return _vector(q, self.model.nq, name)
+
+    def check_v(self, v, name: str = "v") -> np.ndarray:
+        """``v`` as a contiguous float64 array of size ``nv``; raises InputError."""
+        return _vector(v, self.model.nv, name)
+
+    # -- closures -----------------------------------------------------------------
+    def _update_placements(self, q: np.ndarray) -> None:
+        pin.framesForwardKinematics(self.model, self.data, q)
+
+    def residual(self, q) -> np.ndarray:
+        """Closure residual at ``q``, shape (n_rows,) (m for points, m/rad for welds)."""
+        q = self.check_q(q)
+        self._update_placements(q)
+        return self._residual_from_data()
+
+    def _residual_from_data(self) -> np.ndarray:
+        out = np.empty(self.n_rows)
+        for closure, rows, (f1, f2) in zip(self.closures, self.row_slices, self._anchor_frames):
+            m1, m2 = self.data.oMf[f1], self.data.oMf[f2]
+            if closure.type == "point":
+                out[rows] = m1.translation - m2.translation
+            else:
+                out[rows] = pin.log6(m2.actInv(m1)).vector
+        return out
+
+    def constraint_jacobian(self, q) -> np.ndarray:
+        """Constraint Jacobian ``J_c`` at ``q``, shape (n_rows, nv).
+
+        Derivative of :meth:`residual` along ``pin.integrate`` (see module doc).
+        """
+        q = self.check_q(q)
+        pin.computeJointJacobians(self.model, self.data, q)
+        pin.updateFramePlacements(self.model, self.data)
+        return self._jacobian_from_data()
+
+    def _jacobian_from_data(self) -> np.ndarray:
+        out = np.empty((self.n_rows, self.model.nv))
+        for closure, rows, (f1, f2) in zip(self.closures, self.row_slices, self._anchor_frames):
+            if closure.type == "point":
+                rf = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+                out[rows] = (pin.getFrameJacobian(self.model, self.data, f1, rf)[:3]
+                             - pin.getFrameJacobian(self.model, self.data, f2, rf)[:3])
+            else:
+                rf = pin.ReferenceFrame.LOCAL
+                m21 = self.data.oMf[f2].actInv(self.data.oMf[f1])
+                j1 = pin.getFrameJacobian(self.model, self.data, f1, rf)
+                j2 = pin.getFrameJacobian(self.model, self.data, f2, rf)
+                out[rows] = pin.Jlog6(m21) @ (j1 - m21.inverse().action @ j2)
+        return out
+
+    def constraint_drift(self, q, v) -> np.ndarray:
+        """Drift ``gamma = dJ_c/dt v`` (n_rows,): accelerations satisfy ``J_c a = -gamma``.
+
+        For a point closure it is the difference of the classical accelerations
+        of the two anchor points at zero joint acceleration, world axes (m/s^2).
+        For a weld it is ``Jlog6`` times the relative spatial acceleration bias in
+        anchor-1 axes (exact at an assembled configuration with ``J_c v = 0``).
+        """
+        q, v = self.check_q(q), self.check_v(v)
+        pin.forwardKinematics(self.model, self.data, q, v, np.zeros(self.model.nv))
+        pin.updateFramePlacements(self.model, self.data)
+        out = np.empty(self.n_rows)
+        lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        for closure, rows, (f1, f2) in zip(self.closures, self.row_slices, self._anchor_frames):
+            if closure.type == "point":
+                a1 = pin.getFrameClassicalAcceleration(self.model, self.data, f1, lwa).linear
+                a2 = pin.getFrameClassicalAcceleration(self.model, self.data, f2, lwa).linear
+                out[rows] = a1 - a2
+            else:
+                m21 = self.data.oMf[f2].actInv(self.data.oMf[f1])
+                loc = pin.ReferenceFrame.LOCAL
+                a1 = pin.getFrameAcceleration(self.model, self.data, f1, loc)
+                a2 = pin.getFrameAcceleration(self.model, self.data, f2, loc)
+                v1 = pin.getFrameVelocity(self.model, self.data, f1, loc)
+                v2 = pin.getFrameVelocity(self.model, self.data, f2, loc)
+                v2_in_1 = m21.actInv(v2)
+                # d/dt (v1 - Ad(M12) v2) = a1 - Ad(M12) a2 + v1 x Ad(M12) v2
+                rel = a1 - m21.actInv(a2) + v1.cross(v2_in_1)
+                out[rows] = pin.Jlog6(m21) @ rel.vector
+        return out
+
+    def rank(self, q, tol: float | None = None) -> RankInfo:
+        """Numerical rank of ``J_c`` at ``q`` and which rows are redundant.
+
+        Args:
+            q: configuration (nq,).
+            tol: singular-value threshold; default ``max(n_rows, nv) * eps * sigma_max``.
+        """
+        jac = self.constraint_jacobian(q)
+        if self.n_rows == 0:
+            empty = np.zeros(0, dtype=int)
+            return RankInfo(0, 0, empty, empty, np.zeros(0), 0.0)
+        sv = np.linalg.svd(jac, compute_uv=False)
+        if tol is None:
+            tol = max(jac.shape) * _EPS * max(sv[0], 1.0)
+        rank = int(np.sum(sv > tol))
+        _, _, piv = scipy.linalg.qr(jac.T, pivoting=True, mode="economic")
+        independent = np.sort(piv[:rank])
+        redundant = np.sort(piv[rank:])
+        return RankInfo(rank, self.n_rows, redundant, independent, sv, float(tol))
+
+    def mobility(self, q) -> int:
+        """Degrees of freedom of the closed mechanism at ``q``: ``nv - rank(J_c)``."""
+        return self.model.nv - self.rank(q).rank
+
+    # -- assembly -------------------------------------------------------------------
+    def assemble(self, q0, fixed: Sequence[int] | None = None, tol: float = 1e-12,
+                 max_iter: int = 50) -> AssemblyResult:
+        """Close every loop by Gauss-Newton, holding some velocity coordinates fixed.
+
+        Solves ``residual(q) = 0`` for the configuration nearest (in the Newton
+        sense) to ``q0``, moving only the velocity coordinates not in ``fixed``
+        (default: the actuated joints are held at their values in ``q0``). Each
+        step is the least-squares / minimum-norm solution on the free columns of
+        ``J_c`` (so redundant rows are harmless), applied with ``pin.integrate``
+        and halved while it does not decrease the residual.
+
+        Args:
+            q0: starting configuration (nq,).
+            fixed: indices into ``v`` held fixed; default the actuated ones.
+            tol: convergence threshold on the max-abs residual (m / rad).
+            max_iter: maximum Newton iterations.
+
+        Raises:
+            AssemblyError: no convergence within ``max_iter`` or a step that cannot
+                decrease the residual (a singular or unreachable configuration).
+        """
+        q = self.check_q(q0, "q0").copy()
+        fixed_idx = self.actuated_v if fixed is None else np.asarray(fixed, dtype=int)
+        if fixed_idx.size and (fixed_idx.min() < 0 or fixed_idx.max() >= self.model.nv):
+            raise InputError("fixed", fixed, f"indices must lie in [0, {self.model.nv})")
+        free = np.setdiff1d(np.arange(self.model.nv), fixed_idx)
+        res = self.residual(q)
+        err = float(np.max(np.abs(res), initial=0.0))
+        for iteration in range(max_iter + 1):
+            if err <= tol:
+                return AssemblyResult(q, err, iteration)
+            if iteration == max_iter:
+                break
+            jac = self.constraint_jacobian(q)[:, free]
+            step, *_ = np.linalg.lstsq(jac, -res, rcond=None)
+            dv = np.zeros(self.model.nv)
+            dv[free] = step
+            alpha, improved = 1.0, False
+            for _ in range(30):
+                trial = pin.integrate(self.model, q, alpha * dv)
+                trial_res = self.residual(trial)
+                trial_err = float(np.max(np.abs(trial_res)))
+                if np.isfinite(trial_err) and trial_err < err:
+                    improved = True
+                    break
+                alpha *= 0.5
+            if not improved:
+                raise AssemblyError("no step decreases the residual (singular or "
+                                    "unreachable configuration)", err, iteration, q)
+            q, res, err = trial, trial_res, trial_err
+        raise AssemblyError(f"no convergence to {tol:g} in {max_iter} iterations", err,
+                            max_iter, q)
+
+    # -- velocity / acceleration completion ------------------------------------------
+    def complete_velocity(self, q, known: Sequence[int], values) -> np.ndarray:
+        """Tree velocity keeping every closure, given some of its coordinates.
+
+        Solves ``J_c v = 0`` with ``v[known] = values`` for the other
+        coordinates (least squares / minimum norm when redundant).
+
+        Args:
+            q: an assembled configuration (nq,).
+            known: indices into ``v`` whose values are given.
+            values: their values (len(known),).
+
+        Returns:
+            v (nv,).
+        """
+        jac = self.constraint_jacobian(q)
+        return _complete(jac, np.zeros(self.n_rows), known, values, self.model.nv)
+
+    def complete_acceleration(self, q, v, known: Sequence[int], values) -> np.ndarray:
+        """Tree acceleration keeping every closure, given some of its coordinates.
+
+        Solves ``J_c a = -gamma(q, v)`` with ``a[known] = values``.
+        """
+        gamma = self.constraint_drift(q, v)
+        jac = self.constraint_jacobian(q)
+        return _complete(jac, -gamma, known, values, self.model.nv)
+
+
+def _complete(jac: np.ndarray, rhs: np.ndarray, known, values, nv: int) -> np.ndarray:
+    known = np.asarray(known, dtype=int)
+    values = np.asarray(values, dtype=float)
+    if values.shape != known.shape:
+        raise InputError("values", values, f"expected shape {known.shape}")
+    free = np.setdiff1d(np.arange(nv), known)
+    out = np.zeros(nv)
+    out[known] = values
+    sol, *_ = np.linalg.lstsq(jac[:, free], rhs - jac[:, known] @ values, rcond=None)
+    out[free] = sol
+    return out
+
+
+def _vector(value, size: int, name: str) -> np.ndarray:
+    try:
+        arr = np.ascontiguousarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(name, value, "not numeric") from None
+    if arr.shape != (size,):
+        raise InputError(name, value, f"expected shape ({size},), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(name, value, "contains NaN or inf")
+    return arr

@@ -1,0 +1,165 @@
+"""Exception hierarchy of hexapod_pin.
+
+Every exception derives from :class:`HexapodPinError` and carries the offending
+values as attributes, so a caller can react to the cause without parsing the
+message.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+
+class HexapodPinError(Exception):
+    """Base class of every error raised by hexapod_pin."""
+
+
+class GeometryError(HexapodPinError, ValueError):
+    """A design parameter is invalid (non-positive length or mass, ...).
+
+    Attributes:
+        field: name of the offending parameter.
+        value: its value.
+    """
+
+    def __init__(self, field: str, value: Any, reason: str):
+        self.field = field
+        self.value = value
+        self.reason = reason
+        super().__init__(f"invalid geometry parameter {field}={value!r}: {reason}")
+
+
+class InputError(HexapodPinError, ValueError):
+    """A numeric input has the wrong shape, or contains NaN or inf.
+
+    Attributes:
+        name: argument name.
+        value: the offending value (as given).
+    """
+
+    def __init__(self, name: str, value: Any, reason: str):
+        self.name = name
+        self.value = value
+        self.reason = reason
+        super().__init__(f"invalid {name}: {reason} (got {_short(value)})")
+
+
+class DescriptionError(HexapodPinError, ValueError):
+    """A URDF / xacro or loop-closure description is malformed.
+
+    Attributes:
+        source: file or description that is wrong.
+        culprit: the element (frame, joint, key) at fault, if known.
+    """
+
+    def __init__(self, source: str, reason: str, culprit: str | None = None):
+        self.source = source
+        self.culprit = culprit
+        self.reason = reason
+        where = f" [{culprit}]" if culprit is not None else ""
+        super().__init__(f"{source}{where}: {reason}")
+
+
+class AssemblyError(HexapodPinError, RuntimeError):
+    """The closed chain could not be assembled (no convergence, singular).
+
+    Attributes:
+        residual_norm: norm of the closure residual at the last iterate (m / rad).
+        iterations: Newton iterations done.
+        q: the last iterate (Pinocchio configuration).
+    """
+
+    def __init__(self, reason: str, residual_norm: float, iterations: int,
+                 q: np.ndarray | None = None):
+        self.residual_norm = float(residual_norm)
+        self.iterations = int(iterations)
+        self.q = None if q is None else np.array(q, copy=True)
+        super().__init__(
+            f"assembly failed: {reason} (residual {self.residual_norm:.3e} "
+            f"after {self.iterations} iterations)"
+        )
+
+
+class UnreachablePoseError(HexapodPinError, ValueError):
+    """A leg cannot reach its platform point from its rail.
+
+    Attributes:
+        carriages: indices of the carriages whose leg cannot reach.
+        shortfall: for each, how much too short the leg is (m): the distance
+            from the platform point to the rail line minus ``leg_length``.
+    """
+
+    def __init__(self, carriages, shortfall):
+        self.carriages = [int(c) for c in carriages]
+        self.shortfall = [float(s) for s in shortfall]
+        parts = ", ".join(f"carriage {c} short by {s:.6g} m"
+                          for c, s in zip(self.carriages, self.shortfall))
+        super().__init__(f"pose unreachable: {parts}")
+
+
+class StrokeLimitError(HexapodPinError, ValueError):
+    """A carriage leaves its stroke, or two carriages of a rail come too close.
+
+    Attributes:
+        q: the carriage positions (m), shape (6,).
+        violations: human-readable list of the violated limits.
+    """
+
+    def __init__(self, q, violations):
+        self.q = np.array(q, dtype=float, copy=True)
+        self.violations = list(violations)
+        super().__init__("stroke limits violated: " + "; ".join(self.violations))
+
+
+class SingularityError(HexapodPinError, RuntimeError):
+    """A configuration is singular where a regular one is needed.
+
+    Attributes:
+        sigma_min: smallest singular value of the matrix at fault.
+        what: which matrix (e.g. "workspace Jacobian").
+    """
+
+    def __init__(self, what: str, sigma_min: float):
+        self.what = what
+        self.sigma_min = float(sigma_min)
+        super().__init__(f"{what} is singular (smallest singular value {sigma_min:.3e})")
+
+
+class ActuatorSaturationError(HexapodPinError, RuntimeError):
+    """The motion needs more actuator force than the bounds allow.
+
+    Attributes:
+        needed: the unbounded actuator forces (N), shape (n_act,).
+        limit: the bound (N).
+    """
+
+    def __init__(self, needed, limit):
+        self.needed = np.array(needed, dtype=float, copy=True)
+        self.limit = np.array(limit, dtype=float, copy=True)
+        over = np.flatnonzero(np.abs(self.needed) > self.limit)
+        super().__init__(
+            f"actuator saturation: needed forces {np.array2string(self.needed, precision=4)} N "
+            f"exceed the bound {np.array2string(self.limit, precision=4)} N "
+            f"on actuators {over.tolist()}"
+        )
+
+
+class SolverError(HexapodPinError, RuntimeError):
+    """A numerical solver (ProxSuite QP, linear solve) did not succeed.
+
+    Attributes:
+        solver: name of the solver.
+        status: its status string.
+    """
+
+    def __init__(self, solver: str, status: str, detail: str = ""):
+        self.solver = solver
+        self.status = status
+        super().__init__(f"{solver} failed with status {status}" + (f": {detail}" if detail else ""))
+
+
+def _short(value: Any, limit: int = 120) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."

@@ -1,0 +1,158 @@
+"""The rail-driven hexapod: geometry + tree model + loop closures + closed forms.
+
+``Hexapod`` ties a :class:`HexapodGeometry` to the generic
+:class:`ClosedLoopModel` built from ``urdf/hexapod.urdf.xacro`` and
+``urdf/hexapod.loops.yaml``, and adds the hexapod's closed forms (kinematics,
+dynamics) as methods. Conventions: see :mod:`hexapod_pin.geometry` and
+:mod:`hexapod_pin.pose`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import pinocchio as pin
+
+from .closed_loop import ClosedLoopModel
+from .description import build_model, hexapod_urdf, load_loops, urdf_dir
+from .errors import AssemblyError
+from .geometry import HexapodGeometry
+from .kinematics import RAIL_OF, HexapodKinematics
+from .pose import as_array, rotation_from_rpy, rpy_from_rotation
+
+#: closure residual accepted for a closed-form configuration (m)
+CLOSED_FORM_TOL = 1e-12
+
+
+@dataclass(frozen=True)
+class HexapodIndices:
+    """Where the hexapod's coordinates sit in Pinocchio's ``q`` and ``v``.
+
+    Attributes:
+        carriage_q, carriage_v: carriage i's prismatic coordinate, shape (6,).
+        u_a_q, u_a_v: first universal-joint angle (about the rail), shape (6,).
+        u_b_q, u_b_v: second universal-joint angle, shape (6,).
+        platform_q: slice of the free-flyer (position, quaternion x y z w) in q.
+        platform_v: slice of the free-flyer velocity (body frame) in v.
+    """
+
+    carriage_q: np.ndarray
+    carriage_v: np.ndarray
+    u_a_q: np.ndarray
+    u_a_v: np.ndarray
+    u_b_q: np.ndarray
+    u_b_v: np.ndarray
+    platform_q: slice
+    platform_v: slice
+
+
+class Hexapod(HexapodKinematics):
+    """The rail-driven 6-DoF hexapod.
+
+    Args:
+        geometry: design parameters; default :class:`HexapodGeometry` ().
+
+    Example:
+        >>> robot = Hexapod.default()
+        >>> q = robot.configuration(robot.home_pose)   # Pinocchio q, closures hold
+    """
+
+    def __init__(self, geometry: HexapodGeometry | None = None):
+        self.geometry = HexapodGeometry() if geometry is None else geometry
+        if not isinstance(self.geometry, HexapodGeometry):
+            raise TypeError(f"geometry must be a HexapodGeometry, got {type(geometry).__name__}")
+        tree = build_model(hexapod_urdf(self.geometry), source="hexapod.urdf.xacro")
+        self.model = ClosedLoopModel(tree, load_loops(urdf_dir() / "hexapod.loops.yaml"),
+                                     name="hexapod")
+        self.indices = self._indices()
+
+    @classmethod
+    def default(cls) -> "Hexapod":
+        """The hexapod with the default (placeholder) geometry."""
+        return cls(HexapodGeometry())
+
+    def __repr__(self) -> str:
+        return f"Hexapod({self.geometry!r})"
+
+    def _indices(self) -> HexapodIndices:
+        m = self.model
+        names = [f"carriage_{i}" for i in range(6)]
+        ua = [f"u_{i}_a" for i in range(6)]
+        ub = [f"u_{i}_b" for i in range(6)]
+        qi = lambda js: np.array([m.joint_q_index(j) for j in js])  # noqa: E731
+        vi = lambda js: np.array([m.joint_v_index(j) for j in js])  # noqa: E731
+        pq, pv = m.joint_q_index("platform_joint"), m.joint_v_index("platform_joint")
+        return HexapodIndices(qi(names), vi(names), qi(ua), vi(ua), qi(ub), vi(ub),
+                              slice(pq, pq + 7), slice(pv, pv + 6))
+
+    # -- home ------------------------------------------------------------------------
+    @property
+    def home_q(self) -> np.ndarray:
+        """Carriage positions at home (m), shape (6,)."""
+        return self.geometry.home_q
+
+    @property
+    def home_pose(self) -> np.ndarray:
+        """Home pose (m, rad), shape (6,): level platform at ``geometry.home_height``."""
+        return self.geometry.home_pose
+
+    @cached_property
+    def home_configuration(self) -> np.ndarray:
+        """Pinocchio configuration at home (nq,), every closure satisfied."""
+        return self.configuration(self.home_pose)
+
+    # -- pose <-> tree configuration -----------------------------------------------------
+    def configuration(self, pose, branch=None) -> np.ndarray:
+        """Pinocchio configuration of the tree for a platform pose (closed form).
+
+        Carriages from :meth:`inverse_kinematics` (stroke limits not checked),
+        universal-joint angles from the leg directions, the free-flyer from the
+        pose. The second universal angle lies in (-pi/2, pi/2).
+
+        Args:
+            pose: ``(x, y, z, roll, pitch, yaw)`` (m, rad), shape (6,).
+            branch: root choice per carriage, see :meth:`inverse_kinematics`.
+
+        Returns:
+            q (nq,) satisfying all 18 closure equations to 1e-12 m.
+
+        Raises:
+            UnreachablePoseError: a leg cannot reach.
+            AssemblyError: the closed form misses the closures by more than
+                1e-12 m (a leg along its first universal axis).
+        """
+        pose = as_array(pose, (6,), "pose")
+        carriages = self.inverse_kinematics(pose, branch=branch, check_limits=False)
+        mids, dirs, _ = self._carriage_frames()
+        tips = self.platform_points_world(pose)[RAIL_OF]
+        legs = tips - (mids + carriages[:, None] * dirs)
+        unit = legs / self.geometry.leg_length
+        # carriage frame axes: x = u_k, y = z x u_k, z = world z
+        lateral = np.cross(np.array([0.0, 0.0, 1.0]), dirs)
+        dx = np.einsum("ij,ij->i", unit, dirs)
+        dy = np.einsum("ij,ij->i", unit, lateral)
+        dz = unit[:, 2]
+        idx = self.indices
+        q = self.model.neutral()
+        q[idx.carriage_q] = carriages
+        q[idx.u_b_q] = np.arcsin(np.clip(dx, -1.0, 1.0))
+        q[idx.u_a_q] = np.arctan2(-dy, dz)
+        q[idx.platform_q] = np.concatenate(
+            [pose[:3], pin.Quaternion(rotation_from_rpy(pose[3:])).coeffs()])
+        err = float(np.max(np.abs(self.model.residual(q))))
+        if err > CLOSED_FORM_TOL:
+            raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
+        return q
+
+    def pose_from_configuration(self, q) -> np.ndarray:
+        """Platform pose (6,) read from a Pinocchio configuration (nq,)."""
+        q = self.model.check_q(q)
+        ff = q[self.indices.platform_q]
+        rot = pin.Quaternion(ff[6], ff[3], ff[4], ff[5]).normalized().toRotationMatrix()
+        return np.concatenate([ff[:3], rpy_from_rotation(rot)])
+
+    def carriage_positions(self, q) -> np.ndarray:
+        """Carriage positions (6,) read from a Pinocchio configuration (nq,)."""
+        return self.model.check_q(q)[self.indices.carriage_q].copy()

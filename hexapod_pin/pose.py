@@ -1,0 +1,100 @@
+"""Platform poses and twists: conversions and input checks (vectorised numpy).
+
+A pose is ``(x, y, z, roll, pitch, yaw)``: the position of the platform origin
+in the world (m) and the rotation ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (rad) from
+platform axes to world axes. A twist is ``(v, w)``: the linear velocity of the
+platform origin and the angular velocity, both in world axes (m/s, rad/s).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InputError
+
+
+def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False) -> np.ndarray:
+    """Check and convert a numeric input.
+
+    Args:
+        value: array-like.
+        shape_tail: the expected shape (single) or trailing shape (batch).
+        name: argument name for the error message.
+        batch: when True, accept ``(N,) + shape_tail``.
+
+    Raises:
+        InputError: not numeric, wrong shape, or NaN / inf entries.
+    """
+    try:
+        arr = np.ascontiguousarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(name, value, "not numeric") from None
+    expected = ("N",) + shape_tail if batch else shape_tail
+    ok = (arr.ndim == len(shape_tail) + 1 and arr.shape[1:] == shape_tail) if batch \
+        else arr.shape == shape_tail
+    if not ok:
+        raise InputError(name, value, f"expected shape {expected}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = np.argwhere(~np.isfinite(arr))
+        raise InputError(name, value, f"contains NaN or inf at {bad[:5].tolist()}")
+    return arr
+
+
+def rotation_from_rpy(rpy: np.ndarray) -> np.ndarray:
+    """``Rz(yaw) Ry(pitch) Rx(roll)`` for ``rpy`` of shape (..., 3) -> (..., 3, 3)."""
+    rpy = np.asarray(rpy, dtype=float)
+    cr, sr = np.cos(rpy[..., 0]), np.sin(rpy[..., 0])
+    cp, sp = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
+    cy, sy = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
+    out = np.empty(rpy.shape[:-1] + (3, 3))
+    out[..., 0, 0] = cy * cp
+    out[..., 0, 1] = cy * sp * sr - sy * cr
+    out[..., 0, 2] = cy * sp * cr + sy * sr
+    out[..., 1, 0] = sy * cp
+    out[..., 1, 1] = sy * sp * sr + cy * cr
+    out[..., 1, 2] = sy * sp * cr - cy * sr
+    out[..., 2, 0] = -sp
+    out[..., 2, 1] = cp * sr
+    out[..., 2, 2] = cp * cr
+    return out
+
+
+def rpy_from_rotation(rot: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`rotation_from_rpy`, pitch in [-pi/2, pi/2]; (..., 3, 3) -> (..., 3).
+
+    At pitch = +-pi/2 (gimbal lock) roll is set to 0 and yaw absorbs the rest.
+    """
+    rot = np.asarray(rot, dtype=float)
+    pitch = np.arctan2(-rot[..., 2, 0], np.hypot(rot[..., 0, 0], rot[..., 1, 0]))
+    roll = np.arctan2(rot[..., 2, 1], rot[..., 2, 2])
+    yaw = np.arctan2(rot[..., 1, 0], rot[..., 0, 0])
+    locked = np.hypot(rot[..., 0, 0], rot[..., 1, 0]) < 1e-12
+    if np.any(locked):
+        roll = np.where(locked, 0.0, roll)
+        yaw = np.where(locked, np.arctan2(-rot[..., 0, 1], rot[..., 1, 1]), yaw)
+    return np.stack([roll, pitch, yaw], axis=-1)
+
+
+def euler_rates_matrix(rpy: np.ndarray) -> np.ndarray:
+    """``E`` with ``w = E @ d(rpy)/dt`` (world-axes angular velocity), shape (..., 3, 3)."""
+    rpy = np.asarray(rpy, dtype=float)
+    cp, sp = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
+    cy, sy = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
+    out = np.zeros(rpy.shape[:-1] + (3, 3))
+    out[..., 0, 0] = cy * cp
+    out[..., 1, 0] = sy * cp
+    out[..., 2, 0] = -sp
+    out[..., 0, 1] = -sy
+    out[..., 1, 1] = cy
+    out[..., 2, 2] = 1.0
+    return out
+
+
+def skew(vec: np.ndarray) -> np.ndarray:
+    """Cross-product matrix of ``vec`` (..., 3) -> (..., 3, 3)."""
+    vec = np.asarray(vec, dtype=float)
+    out = np.zeros(vec.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -vec[..., 2], vec[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = vec[..., 2], -vec[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -vec[..., 1], vec[..., 0]
+    return out

@@ -1,0 +1,55 @@
+"""Shared fixtures: the default hexapod, a second geometry, the reference states."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hexapod_pin as hp
+
+SECOND_GEOMETRY = dict(rail_radius=0.40, platform_radius=0.10, leg_length=0.50, carriage_home=0.18)
+# copy of shared/reference/reference_states.json (states computed by an independent implementation)
+REFERENCE = Path(__file__).resolve().parent / "data" / "reference_states.json"
+
+
+@pytest.fixture(scope="session")
+def robot():
+    return hp.Hexapod.default()
+
+
+@pytest.fixture(scope="session")
+def robot2():
+    return hp.Hexapod(hp.HexapodGeometry(**SECOND_GEOMETRY))
+
+
+@pytest.fixture(scope="session", params=["default", "second"])
+def any_robot(request, robot, robot2):
+    return robot if request.param == "default" else robot2
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)
+
+
+def random_pose(robot, rng, scale=1.0):
+    """A random reachable pose near home, inside the strokes (rejection sampling)."""
+    for _ in range(1000):
+        delta = np.concatenate([rng.uniform(-0.03, 0.03, 3), rng.uniform(-0.12, 0.12, 3)])
+        pose = robot.home_pose + scale * delta
+        try:
+            robot.inverse_kinematics(pose)
+        except hp.HexapodPinError:
+            continue
+        return pose
+    raise RuntimeError("no reachable random pose found")
+
+
+def load_reference():
+    return json.loads(REFERENCE.read_text())
+
+
+def geometry_from_reference(entry):
+    fields = {k: tuple(v) if isinstance(v, list) else v for k, v in entry["geometry"].items()}
+    return hp.HexapodGeometry(**fields)

@@ -1,0 +1,99 @@
+import numpy as np
+import pinocchio as pin
+import pytest
+import yourdfpy
+
+import hexapod_pin as hp
+from hexapod_pin.description import build_model, hexapod_urdf, parse_loops, urdf_dir
+from hexapod_pin.errors import DescriptionError
+
+
+@pytest.fixture(scope="module")
+def urdf_text():
+    return hexapod_urdf(hp.HexapodGeometry())
+
+
+def test_xacro_expands_and_loads_in_yourdfpy(urdf_text, tmp_path):
+    path = tmp_path / "hexapod.urdf"
+    path.write_text(urdf_text)
+    robot = yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False)
+    types = [j.type for j in robot.robot.joints]
+    assert types.count("prismatic") == 6
+    assert types.count("revolute") == 12
+    assert types.count("floating") == 1
+    # the leg of a rail is as long as the geometry says, in yourdfpy's own parse
+    leg = robot.link_map["leg_0"]
+    assert leg.inertial.mass == pytest.approx(0.3)
+    tip = robot.joint_map["leg_0_tip_mount"].origin
+    assert tip[2, 3] == pytest.approx(0.45)
+
+
+def test_xacro_arguments_change_the_model():
+    text = hexapod_urdf(hp.HexapodGeometry(leg_length=0.5, platform_mass=2.0))
+    model = build_model(text)
+    assert model.inertias[model.getJointId("platform_joint")].mass == pytest.approx(2.0)
+    fid = model.getFrameId("leg_3_tip")
+    assert model.frames[fid].placement.translation[2] == pytest.approx(0.5)
+
+
+def test_pinocchio_tree_has_the_expected_joints(urdf_text):
+    model = build_model(urdf_text)
+    assert (model.nq, model.nv, model.njoints) == (25, 24, 20)
+    assert model.check(model.createData())
+    kinds = {model.names[j]: model.joints[j].shortname() for j in range(1, model.njoints)}
+    for i in range(6):
+        assert kinds[f"carriage_{i}"] == "JointModelPX"
+        assert kinds[f"u_{i}_a"] == "JointModelRX"
+        assert kinds[f"u_{i}_b"] == "JointModelRY"
+        # depth-first: each leg chain is contiguous under its carriage
+        jc = model.getJointId(f"carriage_{i}")
+        assert model.parents[model.getJointId(f"u_{i}_a")] == jc
+        assert model.parents[model.getJointId(f"u_{i}_b")] == jc + 1
+    assert kinds["platform_joint"] == "JointModelFreeFlyer"
+    # total mass of the tree = 6 carriages + 6 legs + platform
+    data = model.createData()
+    assert pin.computeTotalMass(model, data) == pytest.approx(6 * 0.5 + 6 * 0.3 + 1.5)
+
+
+def test_carriage_joint_frames_follow_the_rails(urdf_text):
+    model = build_model(urdf_text)
+    g = hp.HexapodGeometry()
+    for i in range(6):
+        k = i // 2
+        placement = model.jointPlacements[model.getJointId(f"carriage_{i}")]
+        np.testing.assert_allclose(placement.translation, g.rail_midpoints[k], atol=1e-12)
+        # the prismatic axis (local x) is the rail direction u_k
+        np.testing.assert_allclose(placement.rotation[:, 0], g.rail_directions[k], atol=1e-12)
+
+
+def test_loops_file_parses():
+    spec = hp.load_loops(urdf_dir() / "hexapod.loops.yaml")
+    assert len(spec.closures) == 6 and all(c.type == "point" for c in spec.closures)
+    assert spec.actuated == tuple(f"carriage_{i}" for i in range(6))
+
+
+@pytest.mark.parametrize("text,culprit", [
+    ("closures: [", None),
+    ("- a\n- b", None),
+    ("closures: [{name: a, type: hinge, frame1: x, frame2: y}]", "a"),
+    ("closures: [{name: a, type: point, frame1: x}]", "closures[0]"),
+    ("closures: [{name: a, type: point, frame1: x, frame2: x}]", "a"),
+    ("closures: [{name: a, type: point, frame1: x, frame2: y}, {name: a, type: point, frame1: x, frame2: z}]", "a"),
+    ("closures: []\nactuated: [j, j]", "actuated"),
+    ("closures: []\nbogus: 1", "bogus"),
+    ("closures: [{name: a, type: point, frame1: x, frame2: y, offset1: {xyz: [1, 2]}}]", "a"),
+])
+def test_malformed_loops_raise(text, culprit):
+    with pytest.raises(DescriptionError) as info:
+        parse_loops(text, source="test.yaml")
+    assert info.value.culprit == culprit
+
+
+def test_missing_files_raise(tmp_path):
+    with pytest.raises(DescriptionError, match="not found"):
+        hp.expand_xacro(tmp_path / "none.urdf.xacro")
+    with pytest.raises(DescriptionError, match="not found"):
+        hp.load_loops(tmp_path / "none.yaml")
+    with pytest.raises(DescriptionError, match="Pinocchio could not parse"):
+        build_model("<robot name='x'><link name='a'/><joint name='j' type='revolute'>"
+                    "<parent link='a'/><child link='missing'/></joint></robot>")
