@@ -17,6 +17,7 @@ import pinocchio as pin
 
 from .closed_loop import ClosedLoopModel
 from .description import build_model, hexapod_urdf, load_loops, urdf_dir
+from .dynamics import HexapodDynamics
 from .errors import AssemblyError
 from .geometry import HexapodGeometry
 from .kinematics import RAIL_OF, HexapodKinematics
@@ -48,7 +49,7 @@ class HexapodIndices:
     platform_v: slice
 
 
-class Hexapod(HexapodKinematics):
+class Hexapod(HexapodKinematics, HexapodDynamics):
     """The rail-driven 6-DoF hexapod.
 
     Args:
