@@ -14,6 +14,8 @@ from .errors import (ActuatorSaturationError, AssemblyError, DescriptionError, G
                      StrokeLimitError, UnreachablePoseError)
 from .geometry import HexapodGeometry
 from .hexapod import Hexapod
+from .planar import (AssemblyPolynomial, Planar3PRR, PlanarForwardDynamics, PlanarGeometry,
+                     PlanarInverseDynamics)
 
 __version__ = "0.1.0"
 
@@ -22,5 +24,6 @@ __all__ = [
     "ClosureSpec", "DescriptionError", "GeometryError", "Hexapod", "HexapodGeometry",
     "HexapodPinError", "InputError", "LoopsSpec", "RankInfo", "SingularityError",
     "SolverError", "StrokeLimitError", "UnreachablePoseError", "expand_xacro", "load_loops",
-    "parse_loops", "urdf_dir",
+    "parse_loops", "urdf_dir", "AssemblyPolynomial", "Planar3PRR", "PlanarForwardDynamics",
+    "PlanarGeometry", "PlanarInverseDynamics",
 ]

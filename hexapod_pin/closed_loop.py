@@ -31,7 +31,7 @@ import scipy.linalg
 
 from .description import (WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro,
                           load_loops)
-from .errors import AssemblyError, DescriptionError, InputError
+from .errors import AssemblyError, DescriptionError, InputError, SolverError
 
 _EPS = np.finfo(float).eps
 
@@ -385,6 +385,142 @@ class ClosedLoopModel:
         gamma = self.constraint_drift(q, v)
         jac = self.constraint_jacobian(q)
         return _complete(jac, -gamma, known, values, self.model.nv)
+
+    # -- generic workspace kinematics (ProxSuite) -------------------------------------
+    def actuated_velocity_map(self, q, tol: float = 1e-13) -> np.ndarray:
+        """Linear map ``G`` (nv, n_actuated) from actuated to tree velocities: ``v = G qdot_act``.
+
+        Column j is the tree velocity that keeps every closure (``J_c v = 0``)
+        when actuated joint j moves at unit speed and the other actuated joints
+        are held, posed as the equality-constrained least-squares problem
+
+            minimise ``1/2 |v_p|^2``  subject to  ``J_c[:, p] v_p = -J_c[:, a] qdot_a``
+
+        over the passive coordinates ``p`` (actuated ones ``a`` fixed), solved with
+        ProxSuite's dense proximal QP. For a mechanism whose passive motion is
+        determined by its actuators (the hexapod) the objective is irrelevant and
+        the solution is the unique one; a redundant (rank-deficient) ``J_c`` is
+        harmless, and passive motion left free by the closures gets the least
+        norm. Free-flyer velocities are Pinocchio's (body frame).
+
+        Args:
+            q: an assembled configuration (nq,); the closures are assumed to hold.
+            tol: ProxSuite's absolute tolerance (primal and dual residuals).
+
+        Returns:
+            G, shape (nv, n_actuated).
+
+        Raises:
+            SolverError: ProxSuite did not report a solution, or the solution
+                misses the constraints by more than ``1e3 tol`` (inconsistent
+                closures: ``q`` not assembled or a singular configuration).
+        """
+        jac = self.constraint_jacobian(q)
+        rhs = -jac[:, self.actuated_v]                        # one column per actuator
+        sol = self._equality_qp(jac[:, self.passive_v], rhs, tol)
+        out = np.zeros((self.model.nv, self.n_actuated))
+        out[self.actuated_v, np.arange(self.n_actuated)] = 1.0
+        out[self.passive_v] = sol
+        return out
+
+    def velocity_from_actuated(self, q, qdot_act, tol: float = 1e-13) -> np.ndarray:
+        """Tree velocity (nv,) keeping every closure, given the actuated velocities.
+
+        Same problem as :meth:`actuated_velocity_map` with the right-hand side
+        ``qdot_act`` (n_actuated,) (m/s or rad/s per actuated joint), solved once.
+        """
+        qdot_act = _vector(qdot_act, self.n_actuated, "qdot_act")
+        jac = self.constraint_jacobian(q)
+        rhs = -jac[:, self.actuated_v] @ qdot_act
+        out = np.zeros(self.model.nv)
+        out[self.actuated_v] = qdot_act
+        out[self.passive_v] = self._equality_qp(jac[:, self.passive_v], rhs[:, None], tol)[:, 0]
+        return out
+
+    def acceleration_from_actuated(self, q, v, qddot_act, tol: float = 1e-13) -> np.ndarray:
+        """Tree acceleration (nv,) keeping every closure, given the actuated accelerations.
+
+        Solves ``J_c a = -gamma(q, v)`` (the drift of :meth:`constraint_drift`) with
+        ``a[actuated] = qddot_act`` as the ProxSuite least-squares problem of
+        :meth:`actuated_velocity_map`. ``v`` must itself keep the closures.
+        """
+        qddot_act = _vector(qddot_act, self.n_actuated, "qddot_act")
+        gamma = self.constraint_drift(q, v)
+        jac = self.constraint_jacobian(q)
+        rhs = -gamma - jac[:, self.actuated_v] @ qddot_act
+        out = np.zeros(self.model.nv)
+        out[self.actuated_v] = qddot_act
+        out[self.passive_v] = self._equality_qp(jac[:, self.passive_v], rhs[:, None], tol)[:, 0]
+        return out
+
+    def frame_jacobian_from_actuated(self, q, frame: str | int,
+                                     reference: pin.ReferenceFrame =
+                                     pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+                                     tol: float = 1e-13) -> np.ndarray:
+        """Workspace Jacobian of a frame with respect to the actuated velocities.
+
+        ``K = J_frame(q) G(q)`` (6, n_actuated): the spatial velocity of ``frame``
+        (linear; angular) in Pinocchio's ``reference`` convention produced by
+        actuated velocities, ``twist = K @ qdot_act``. With the default
+        ``LOCAL_WORLD_ALIGNED`` it is the velocity of the frame origin and the
+        angular velocity, both in world axes. For a non-redundant parallel robot
+        ``K`` is the inverse of the inverse-kinematics Jacobian.
+
+        Args:
+            q: an assembled configuration (nq,).
+            frame: frame name or id.
+            reference: ``pin.ReferenceFrame`` of the result.
+            tol: ProxSuite tolerance, see :meth:`actuated_velocity_map`.
+
+        Raises:
+            InputError: unknown frame.
+            SolverError: see :meth:`actuated_velocity_map`.
+        """
+        fid = self._lookup_frame(frame)
+        gmap = self.actuated_velocity_map(q, tol)
+        pin.computeJointJacobians(self.model, self.data, self.check_q(q))
+        pin.updateFramePlacements(self.model, self.data)
+        return pin.getFrameJacobian(self.model, self.data, fid, reference) @ gmap
+
+    def _lookup_frame(self, frame: str | int) -> int:
+        if isinstance(frame, (int, np.integer)) and not isinstance(frame, bool):
+            if 0 <= int(frame) < self.model.nframes:
+                return int(frame)
+        elif isinstance(frame, str) and self.model.existFrame(frame):
+            return self.model.getFrameId(frame)
+        raise InputError("frame", frame, f"no such frame in {self.name}")
+
+    @staticmethod
+    def _equality_qp(a_mat: np.ndarray, rhs: np.ndarray, tol: float) -> np.ndarray:
+        """Solve min 1/2 |x|^2 s.t. ``a_mat x = rhs[:, j]`` for each column j (ProxSuite)."""
+        import proxsuite
+
+        n, m = a_mat.shape[1], a_mat.shape[0]
+        qp = proxsuite.proxqp.dense.QP(n, m, 0)
+        qp.settings.eps_abs = tol
+        qp.settings.eps_rel = 0.0
+        qp.settings.verbose = False
+        a_mat = np.ascontiguousarray(a_mat)
+        out = np.empty((n, rhs.shape[1]))
+        for col in range(rhs.shape[1]):
+            b = np.ascontiguousarray(rhs[:, col])
+            if col == 0:
+                qp.init(np.eye(n), np.zeros(n), a_mat, b, None, None, None)
+            else:
+                qp.update(b=b)
+            qp.solve()
+            status = qp.results.info.status
+            if status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
+                raise SolverError("proxsuite.proxqp.dense", str(status),
+                                  f"velocity completion, column {col}")
+            x = np.array(qp.results.x)
+            miss = float(np.max(np.abs(a_mat @ x - b), initial=0.0))
+            if not miss <= 1e3 * tol * max(1.0, float(np.max(np.abs(b), initial=0.0))):
+                raise SolverError("proxsuite.proxqp.dense", "inconsistent",
+                                  f"constraints missed by {miss:.3e} (q not assembled, or "
+                                  "singular)")
+            out[:, col] = x
+        return out
 
 
 def _complete(jac: np.ndarray, rhs: np.ndarray, known, values, nv: int) -> np.ndarray:

@@ -1,12 +1,1235 @@
 """Dynamics of closed-loop mechanisms (generic) and of the hexapod (mixin).
 
-Being written: see issue 5. Generic functions take a
-:class:`hexapod_pin.closed_loop.ClosedLoopModel`; :class:`HexapodDynamics` adds
-the hexapod's pose/twist-level API to :class:`hexapod_pin.Hexapod`.
+Generic part (robot-agnostic, any :class:`~hexapod_pin.closed_loop.ClosedLoopModel`):
+
+* :func:`forward_dynamics_tree` -- tree acceleration and closure multipliers for given
+  generalised forces, three routes: ``pin.constraintDynamics`` ("pinocchio"), the
+  Gauss-principle QP solved by ProxSuite ("qp"), a numpy KKT solve ("kkt").
+* :func:`inverse_dynamics_tree` -- actuator forces and closure multipliers for a given
+  closure-consistent tree motion, as a ProxSuite QP with actuator bounds ("qp") or a
+  linear solve ("kkt"). Pinocchio has no closed-loop inverse dynamics; this is it.
+* :class:`ClosedLoopDynamics` -- the cached workspace behind both (Pinocchio data,
+  constraint data, ProxSuite problems), reachable with :func:`dynamics_of`.
+
+Equations and sign conventions (tree coordinates, Pinocchio's ``q``, ``v``, ``a``)::
+
+    M(q) a + h(q, v) = tau + J_c(q)^T lambda          (equation of motion)
+    J_c(q) a = -gamma(q, v)                            (closures at acceleration level)
+    tau = S^T u + tau_ext                              (actuation + external loads)
+
+``J_c`` and ``gamma`` are those of :meth:`ClosedLoopModel.constraint_jacobian` and
+:meth:`ClosedLoopModel.constraint_drift` (point-closure rows in world axes). With that
+row convention, ``J_c^T lambda`` is the generalised force the closures exert on the
+tree, and for a point closure ``lambda_c`` (N, world axes) is the force that the body
+of ``frame2`` exerts on the body of ``frame1`` at the joint (``-lambda_c`` acts on
+``frame2``'s body). ``S`` selects the actuated velocity coordinates (``clm.actuated_v``).
+
+For a weld the six multipliers pair with the ``log6`` rows (at an assembled
+configuration, the spatial force in anchor-1 axes). Pinocchio's own ``lambda_c``
+(LOCAL contact frames) is converted: ``lambda = R_c1 lambda_pin`` for a point.
+
+Redundant closures (rank-deficient ``J_c``): the accelerations and actuator forces
+stay unique and every route returns them; the multipliers are not unique and every
+route returns the minimum-norm ones. The rank of ``J_c`` is evaluated at the first
+call and assumed to be structural afterwards (re-evaluated whenever a route meets a
+singular system).
+
+Hexapod part: :class:`HexapodDynamics`, the mixin that gives
+:class:`hexapod_pin.Hexapod` its pose / twist-level dynamics API.
 """
 
 from __future__ import annotations
 
+import weakref
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+import pinocchio as pin
+import proxsuite
+
+from .closed_loop import ClosedLoopModel
+from .errors import (
+    ActuatorSaturationError,
+    HexapodPinError,
+    InputError,
+    SingularityError,
+    SolverError,
+)
+from .pose import as_array
+
+FORWARD_METHODS = ("pinocchio", "qp", "kkt")
+INVERSE_METHODS = ("qp", "kkt")
+
+#: relative tolerance on equation residuals before a route is declared failed
+_RESIDUAL_RTOL = 1e-9
+#: ProxSuite accuracy (absolute, on primal and dual residuals)
+_QP_EPS = 1e-13
+#: Pinocchio proximal settings used when the closures are redundant (the acceleration
+#: converges in a few iterations; the multipliers are then polished to minimum norm)
+_PIN_PROX_MU = 1e-6
+_PIN_PROX_ITERS = 5
+#: weight of the multipliers in the inverse-dynamics QP objective (relative to forces)
+_LAMBDA_WEIGHT = 1e-2
+
+_QP_STATUS = {
+    proxsuite.proxqp.PROXQP_SOLVED: "solved",
+    proxsuite.proxqp.PROXQP_MAX_ITER_REACHED: "max_iter_reached",
+    proxsuite.proxqp.PROXQP_PRIMAL_INFEASIBLE: "primal_infeasible",
+    proxsuite.proxqp.PROXQP_DUAL_INFEASIBLE: "dual_infeasible",
+    proxsuite.proxqp.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE: "solved_closest_primal_feasible",
+    proxsuite.proxqp.PROXQP_NOT_RUN: "not_run",
+}
+
+
+# --------------------------------------------------------------------------------------
+# results
+# --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TreeForwardDynamics:
+    """Result of :func:`forward_dynamics_tree`.
+
+    Attributes:
+        a: tree acceleration (nv,), Pinocchio convention (free-flyer part: derivative
+            of the body-frame velocity).
+        multipliers: closure multipliers (n_rows,), ``M a + h = tau + J_c^T multipliers``,
+            rows as in :meth:`ClosedLoopModel.constraint_jacobian` (N for point rows,
+            world axes). Minimum-norm when the closures are redundant.
+        method: the route used ("pinocchio", "qp" or "kkt").
+        status: "solved", or a note on how it was solved (redundant rows, fallback).
+        iterations: solver iterations (0 for a direct solve).
+        rank: rank of ``J_c`` assumed by the solve.
+        constraint_residual: max-abs of ``J_c a + gamma`` (m/s^2); -1.0 (not
+            computed, never NaN) for the "pinocchio" route, which does not form ``J_c``.
+    """
+
+    a: np.ndarray
+    multipliers: np.ndarray
+    method: str
+    status: str
+    iterations: int
+    rank: int
+    constraint_residual: float
+
+
+@dataclass(frozen=True)
+class TreeInverseDynamics:
+    """Result of :func:`inverse_dynamics_tree`.
+
+    Attributes:
+        actuator_forces: ``u`` (n_act,), generalised forces of the actuated joints
+            (N for prismatic, N m for revolute), in ``clm.actuated_joints`` order.
+        multipliers: closure multipliers (n_rows,), same convention as
+            :class:`TreeForwardDynamics` (minimum-norm when redundant).
+        residual: max-abs of ``M a + h - tau_ext - S^T u - J_c^T multipliers`` (N, N m).
+            Non-zero only when ``a`` does not keep the closures and the system is
+            over-determined (redundant rows), where the least-squares answer is given.
+        method: "qp" or "kkt".
+        status: solver status ("solved", ...).
+        iterations: solver iterations (0 for a direct solve).
+    """
+
+    actuator_forces: np.ndarray
+    multipliers: np.ndarray
+    residual: float
+    method: str
+    status: str
+    iterations: int
+
+
+# --------------------------------------------------------------------------------------
+# generic workspace
+# --------------------------------------------------------------------------------------
+class ClosedLoopDynamics:
+    """Cached dynamics workspace of one :class:`ClosedLoopModel`.
+
+    Owns its own ``pin.Data`` (it never touches ``clm.data``), the Pinocchio constraint
+    data for ``pin.constraintDynamics``, and the ProxSuite problems (kept and updated
+    from call to call). Get the shared instance of a model with :func:`dynamics_of`.
+
+    Args:
+        clm: the closed-loop model.
+    """
+
+    def __init__(self, clm: ClosedLoopModel):
+        if not isinstance(clm, ClosedLoopModel):
+            raise InputError("clm", clm, "expected a ClosedLoopModel")
+        self.clm = clm
+        self.model = clm.model
+        self.data = self.model.createData()
+        self.nv = self.model.nv
+        self.n_rows = clm.n_rows
+        self.n_act = clm.n_actuated
+        self._cms = pin.StdVec_RigidConstraintModel()
+        for cm in clm.constraint_models:
+            self._cms.append(cm)
+        self._cds = pin.StdVec_RigidConstraintData()
+        for cm in self._cms:
+            self._cds.append(cm.createData())
+        self._pin_ready = False
+        self._closures = []  # (is_point, rows, frame1_id, frame2_id, joint1, joint2)
+        for closure, rows, cm in zip(clm.closures, clm.row_slices, clm.constraint_models):
+            f1 = self.model.getFrameId(f"{closure.name}/anchor1")
+            f2 = self.model.getFrameId(f"{closure.name}/anchor2")
+            self._closures.append((closure.type == "point", rows, f1, f2,
+                                   cm.joint1_id, cm.joint2_id))
+        self._selection = np.zeros((self.nv, self.n_act))
+        self._selection[clm.actuated_v, np.arange(self.n_act)] = 1.0
+        self._zero_v = np.zeros(self.nv)
+        self._lower = np.tril_indices(self.nv, -1)
+        self._rank: int | None = None
+        self._qps: dict = {}
+
+    # -- rank ----------------------------------------------------------------------------
+    def _ensure_rank(self, q: np.ndarray, force: bool = False) -> int:
+        if self._rank is None or force:
+            self._rank = self.clm.rank(q).rank if self.n_rows else 0
+        return self._rank
+
+    @property
+    def redundant(self) -> bool | None:
+        """Whether the closures were found redundant (None before the first call)."""
+        return None if self._rank is None else self._rank < self.n_rows
+
+    # -- constraint terms -------------------------------------------------------------------
+    def constraint_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """``J_c`` (n_rows, nv) at ``q`` (same as :meth:`ClosedLoopModel.constraint_jacobian`)."""
+        pin.computeJointJacobians(self.model, self.data, q)
+        pin.updateFramePlacements(self.model, self.data)
+        return self._jacobian_from_data()
+
+    def _jacobian_from_data(self) -> np.ndarray:
+        out = np.empty((self.n_rows, self.nv))
+        model, data = self.model, self.data
+        lwa, loc = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ReferenceFrame.LOCAL
+        for is_point, rows, f1, f2, _, _ in self._closures:
+            if is_point:
+                out[rows] = (pin.getFrameJacobian(model, data, f1, lwa)[:3]
+                             - pin.getFrameJacobian(model, data, f2, lwa)[:3])
+            else:
+                m21 = data.oMf[f2].actInv(data.oMf[f1])
+                out[rows] = pin.Jlog6(m21) @ (pin.getFrameJacobian(model, data, f1, loc)
+                                              - m21.inverse().action
+                                              @ pin.getFrameJacobian(model, data, f2, loc))
+        return out
+
+    def constraint_drift(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``gamma`` (n_rows,) at ``(q, v)`` (same as :meth:`ClosedLoopModel.constraint_drift`)."""
+        model, data = self.model, self.data
+        pin.forwardKinematics(model, data, q, v, self._zero_v)
+        pin.updateFramePlacements(model, data)
+        out = np.empty(self.n_rows)
+        lwa, loc = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ReferenceFrame.LOCAL
+        for is_point, rows, f1, f2, _, _ in self._closures:
+            if is_point:
+                out[rows] = (pin.getFrameClassicalAcceleration(model, data, f1, lwa).linear
+                             - pin.getFrameClassicalAcceleration(model, data, f2, lwa).linear)
+            else:
+                m21 = data.oMf[f2].actInv(data.oMf[f1])
+                a1 = pin.getFrameAcceleration(model, data, f1, loc)
+                a2 = pin.getFrameAcceleration(model, data, f2, loc)
+                v1 = pin.getFrameVelocity(model, data, f1, loc)
+                v2 = pin.getFrameVelocity(model, data, f2, loc)
+                rel = a1 - m21.actInv(a2) + v1.cross(m21.actInv(v2))
+                out[rows] = pin.Jlog6(m21) @ rel.vector
+        return out
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """Joint-space inertia matrix ``M(q)`` (nv, nv), symmetric (kg, kg m, kg m^2)."""
+        mat = pin.crba(self.model, self.data, q).copy()   # upper triangle filled
+        mat[self._lower] = mat.T[self._lower]
+        return mat
+
+    def _closure_world_forces(self, multipliers: np.ndarray) -> list[pin.Force]:
+        """Spatial force (world frame, about the world origin) on body 1 of each closure.
+
+        Needs the frame placements of ``self.data`` up to date.
+        """
+        out = []
+        data = self.data
+        for is_point, rows, f1, f2, _, _ in self._closures:
+            lam = multipliers[rows]
+            p1 = data.oMf[f1].translation
+            if is_point:
+                out.append(pin.Force(lam, np.cross(p1, lam)))
+            else:
+                m21 = data.oMf[f2].actInv(data.oMf[f1])
+                local = pin.Force(pin.Jlog6(m21).T @ lam)      # in anchor-1 frame
+                out.append(data.oMf[f1].act(local))
+        return out
+
+    def _pin_to_row_multipliers(self, lam_pin: np.ndarray) -> np.ndarray:
+        """Convert Pinocchio's LOCAL contact forces into our row convention.
+
+        Point rows: ``lambda = R_c1 lambda_pin`` (``J_c = R_c1 J_pin``); weld rows:
+        ``lambda = Jlog6^-T lambda_pin`` (``J_c = Jlog6 J_pin``).
+        """
+        if self._all_points:
+            rots = np.array([cd.oMc1.rotation for cd in self._cd_list])
+            return np.einsum("kij,kj->ki", rots, lam_pin.reshape(-1, 3)).reshape(-1)
+        out = np.empty(self.n_rows)
+        for (is_point, rows, _, _, _, _), cd in zip(self._closures, self._cd_list):
+            if is_point:
+                out[rows] = cd.oMc1.rotation @ lam_pin[rows]
+            else:
+                jlog = pin.Jlog6(cd.c1Mc2.inverse())
+                out[rows] = np.linalg.solve(jlog.T, lam_pin[rows])
+        return out
+
+    # -- forward dynamics -----------------------------------------------------------------
+    def forward(self, q, v, tau, method: str = "pinocchio") -> TreeForwardDynamics:
+        """Constrained forward dynamics; see :func:`forward_dynamics_tree`."""
+        q = self.clm.check_q(q)
+        v = self.clm.check_v(v)
+        tau = self.clm.check_v(tau, "tau")
+        if method not in FORWARD_METHODS:
+            raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
+        rank = self._ensure_rank(q)
+        if method == "pinocchio":
+            return self._forward_pinocchio(q, v, tau, rank)
+        jac = self.constraint_jacobian(q)
+        gamma = self.constraint_drift(q, v)
+        mass = self.mass_matrix(q)
+        bias = pin.nonLinearEffects(self.model, self.data, q, v)
+        if method == "kkt":
+            return self._forward_kkt(mass, bias, jac, gamma, tau, rank)
+        return self._forward_qp(mass, bias, jac, gamma, tau, rank)
+
+    def _init_pinocchio(self) -> None:
+        pin.initConstraintDynamics(self.model, self.data, self._cms, self._cds)
+        self._prox_exact = pin.ProximalSettings(1e-13, 0.0, 1)
+        self._prox_redundant = pin.ProximalSettings(1e-13, _PIN_PROX_MU, _PIN_PROX_ITERS)
+        self._cd_list = list(self._cds)
+        self._all_points = all(c[0] for c in self._closures)
+        self._pin_ready = True
+
+    def _pin_call(self, q, v, tau, redundant: bool):
+        """One ``pin.constraintDynamics`` call; returns (a or None if it failed, prox)."""
+        if not self._pin_ready:
+            self._init_pinocchio()
+        prox = self._prox_redundant if redundant else self._prox_exact
+        acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self._cms, self._cds,
+                                     prox)
+        if not np.isfinite(acc.sum() + self.data.lambda_c.sum()):
+            return None, prox
+        return acc, prox
+
+    def _pin_min_norm_multipliers(self, acc, tau) -> np.ndarray:
+        """Minimum-norm LOCAL multipliers from Pinocchio's own ``M``, ``nle`` and ``J``.
+
+        ``J_pin^T lambda = M a + nle - tau``; the blocks of ``J_pin`` are rotations of
+        ours, so the minimum norm is the same in either row convention.
+        """
+        mass = self.data.M.copy()
+        mass[self._lower] = mass.T[self._lower]
+        force = mass @ acc + self.data.nle - tau
+        jac = pin.getConstraintsJacobian(self.model, self.data, self._cms, self._cds)
+        sol, *_ = np.linalg.lstsq(jac.T, force, rcond=None)
+        return sol
+
+    def _acceleration_pinocchio(self, q, v, tau) -> np.ndarray:
+        """Tree acceleration only (no multipliers), for integrators; no input checks."""
+        rank = self._ensure_rank(q)
+        acc, _ = self._pin_call(q, v, tau, rank < self.n_rows)
+        if acc is None:
+            return self._forward_pinocchio(q, v, tau, rank).a
+        return acc.copy()
+
+    def _forward_pinocchio(self, q, v, tau, rank) -> TreeForwardDynamics:
+        for attempt in range(2):
+            redundant = rank < self.n_rows
+            acc, prox = self._pin_call(q, v, tau, redundant)
+            if acc is not None:
+                if not redundant:
+                    lam_pin, status = self.data.lambda_c, "solved"
+                else:
+                    lam_pin = self._pin_min_norm_multipliers(acc, tau)
+                    status = (f"solved (redundant rows: proximal mu={_PIN_PROX_MU:g}, "
+                              f"{_PIN_PROX_ITERS} iterations; minimum-norm multipliers)")
+                return TreeForwardDynamics(acc.copy(), self._pin_to_row_multipliers(lam_pin),
+                                           "pinocchio", status, int(prox.iter), rank, -1.0)
+            if attempt == 0:
+                new_rank = self._ensure_rank(q, force=True)
+                if new_rank == rank and redundant:
+                    break
+                rank = new_rank
+        # last resort: the KKT route (reported in the status)
+        jac = self.constraint_jacobian(q)
+        gamma = self.constraint_drift(q, v)
+        mass = self.mass_matrix(q)
+        bias = pin.nonLinearEffects(self.model, self.data, q, v)
+        res = self._forward_kkt(mass, bias, jac, gamma, tau, rank)
+        return TreeForwardDynamics(res.a, res.multipliers, "pinocchio",
+                                   "pin.constraintDynamics failed; solved by the KKT route",
+                                   0, res.rank, res.constraint_residual)
+
+    def _forward_kkt(self, mass, bias, jac, gamma, tau, rank) -> TreeForwardDynamics:
+        nv, nr = self.nv, self.n_rows
+        kkt = np.zeros((nv + nr, nv + nr))
+        kkt[:nv, :nv] = mass
+        kkt[:nv, nv:] = jac.T
+        kkt[nv:, :nv] = jac
+        rhs = np.concatenate([tau - bias, -gamma])
+        sol = None
+        status = "solved"
+        if rank == nr:
+            try:
+                sol = np.linalg.solve(kkt, rhs)
+            except np.linalg.LinAlgError:
+                sol = None
+            if sol is not None and not _small(kkt @ sol - rhs, rhs):
+                sol = None
+            if sol is None:
+                rank = self._ensure_rank_from(jac)
+        if sol is None:
+            sol, *_ = np.linalg.lstsq(kkt, rhs, rcond=None)
+            status = "solved (redundant rows: minimum-norm multipliers)"
+        acc = sol[:nv]
+        lam = -sol[nv:]
+        return TreeForwardDynamics(acc, lam, "kkt", status, 0, rank,
+                                   _maxabs(jac @ acc + gamma))
+
+    def _ensure_rank_from(self, jac: np.ndarray) -> int:
+        self._rank = int(np.linalg.matrix_rank(jac))
+        return self._rank
+
+    def _qp_solve(self, key, n_in, args) -> proxsuite.proxqp.dense.QP:
+        """Initialise (first call) or update the cached ProxSuite problem ``key``; solve."""
+        entry = self._qps.get(key)
+        if entry is None:
+            hess, _, amat = args[0], args[1], args[2]
+            qp = proxsuite.proxqp.dense.QP(hess.shape[0], amat.shape[0], n_in)
+            qp.settings.eps_abs = _QP_EPS
+            qp.settings.eps_rel = 0.0
+            qp.settings.max_iter = 200
+            qp.settings.verbose = False
+            qp.settings.initial_guess = \
+                proxsuite.proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
+            qp.init(*args)
+            self._qps[key] = qp
+        else:
+            qp = entry
+            qp.update(*args, update_preconditioner=True)
+        qp.solve()
+        return qp
+
+    def _forward_qp(self, mass, bias, jac, gamma, tau, rank) -> TreeForwardDynamics:
+        # Gauss: min 1/2 (a - a_free)^T M (a - a_free) = 1/2 a^T M a + (h - tau)^T a + const
+        qp = self._qp_solve("fd", 0, (mass, bias - tau, jac, -gamma, None, None, None))
+        status = _QP_STATUS.get(qp.results.info.status, str(qp.results.info.status))
+        if status != "solved":
+            raise SolverError("ProxSuite (forward dynamics QP)", status,
+                              f"primal residual {qp.results.info.pri_res:.3e}, "
+                              f"dual residual {qp.results.info.dua_res:.3e}")
+        acc = qp.results.x.copy()
+        lam = -qp.results.y  # ProxSuite: H x + g + A^T y = 0
+        if rank < self.n_rows:
+            lam = _min_norm_multipliers(jac, lam)
+            status = "solved (redundant rows: minimum-norm multipliers)"
+        return TreeForwardDynamics(acc, lam, "qp", status, int(qp.results.info.iter), rank,
+                                   _maxabs(jac @ acc + gamma))
+
+    # -- inverse dynamics -------------------------------------------------------------------
+    def inverse(self, q, v, a, tau_ext=None, bounds=None,
+                method: str = "qp") -> TreeInverseDynamics:
+        """Closed-loop inverse dynamics; see :func:`inverse_dynamics_tree`."""
+        q = self.clm.check_q(q)
+        v = self.clm.check_v(v)
+        a = self.clm.check_v(a, "a")
+        tau_ext = self._zero_v if tau_ext is None else self.clm.check_v(tau_ext, "tau_ext")
+        bounds = self._check_bounds(bounds)
+        if method not in INVERSE_METHODS:
+            raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
+        rank = self._ensure_rank(q)
+        rhs = pin.rnea(self.model, self.data, q, v, a) - tau_ext
+        jac = self.constraint_jacobian(q)
+        return self._inverse_solve(jac, rhs, bounds, method, rank)
+
+    def _check_bounds(self, bounds) -> np.ndarray | None:
+        if bounds is None:
+            return None
+        arr = np.broadcast_to(np.asarray(bounds, dtype=float), (self.n_act,)).copy() \
+            if np.ndim(bounds) == 0 else np.asarray(bounds, dtype=float)
+        if arr.shape != (self.n_act,) or np.any(np.isnan(arr)) or np.any(arr <= 0.0):
+            raise InputError("bounds", bounds,
+                             f"expected a positive scalar or ({self.n_act},) positive values")
+        return None if np.all(np.isinf(arr)) else arr
+
+    def _inverse_solve(self, jac, rhs, bounds, method, rank) -> TreeInverseDynamics:
+        mat = np.empty((self.nv, self.n_act + self.n_rows))
+        mat[:, :self.n_act] = self._selection
+        mat[:, self.n_act:] = jac.T
+        if method == "kkt":
+            sol, status = self._inverse_kkt(mat, rhs, rank)
+            iters = 0
+        else:
+            sol, status, iters = self._inverse_qp(mat, rhs, bounds)
+        u = sol[:self.n_act]
+        if bounds is not None and np.any(np.abs(u) > bounds * (1.0 + _RESIDUAL_RTOL)):
+            raise ActuatorSaturationError(u, bounds)
+        return TreeInverseDynamics(u.copy(), sol[self.n_act:].copy(), _maxabs(mat @ sol - rhs),
+                                   method, status, iters)
+
+    def _inverse_kkt(self, mat, rhs, rank):
+        if mat.shape[0] == mat.shape[1] and rank == self.n_rows:
+            try:
+                sol = np.linalg.solve(mat, rhs)
+                if _small(mat @ sol - rhs, rhs):
+                    return sol, "solved"
+            except np.linalg.LinAlgError:
+                pass
+        sol, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
+        return sol, "solved (least squares / minimum norm)"
+
+    def _inverse_qp(self, mat, rhs, bounds):
+        n = self.n_act + self.n_rows
+        weights = np.concatenate([np.ones(self.n_act), np.full(self.n_rows, _LAMBDA_WEIGHT)])
+        hess = np.diag(weights)
+        zero_g = np.zeros(n)
+        if bounds is None:
+            qp = self._qp_solve("id", 0, (hess, zero_g, mat, rhs, None, None, None))
+        else:
+            cmat = np.zeros((self.n_act, n))
+            cmat[:, :self.n_act] = np.eye(self.n_act)
+            qp = self._qp_solve("id_bounded", self.n_act,
+                                (hess, zero_g, mat, rhs, cmat, -bounds, bounds))
+        status = _QP_STATUS.get(qp.results.info.status, str(qp.results.info.status))
+        sol = qp.results.x.copy()
+        ok = status == "solved" and _small(mat @ sol - rhs, rhs, rtol=1e-8)
+        if not ok:
+            needed, _ = self._inverse_kkt(mat, rhs, self._rank or self.n_rows)
+            if bounds is not None and np.any(np.abs(needed[:self.n_act]) > bounds):
+                raise ActuatorSaturationError(needed[:self.n_act], bounds)
+            raise SolverError("ProxSuite (inverse dynamics QP)", status,
+                              f"primal residual {qp.results.info.pri_res:.3e}")
+        return sol, status, int(qp.results.info.iter)
+
+    # -- joint reaction wrenches ------------------------------------------------------------
+    def joint_wrenches(self, q, v, a, multipliers, fext: Mapping[int, pin.Force] | None = None
+                       ) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        """Spatial force transmitted by every joint of the tree.
+
+        Runs ``pin.rnea`` with the closure forces (from ``multipliers``) and ``fext``
+        applied as external forces. Pinocchio's ``data.f[j]`` is then the spatial force
+        that the parent body exerts on the child body of joint ``j`` through the joint,
+        expressed in the joint's LOCAL frame at the joint origin: ``(f, m)`` (N, N m).
+        Its projection on the joint's motion subspace is the joint's generalised
+        force (the actuator force for an actuated joint, ~0 for a passive one).
+
+        Args:
+            q, v, a: tree configuration, velocity and acceleration.
+            multipliers: closure multipliers (n_rows,) as returned by the routes.
+            fext: extra external forces by joint id, each a ``pin.Force`` in that
+                joint's LOCAL frame (e.g. a load on a floating body).
+
+        Returns:
+            (wrenches by joint name, each (6,) = (f, m)), and the generalised force
+            ``tau`` (nv,) that rnea needs with those forces (``S^T u`` if consistent).
+        """
+        model, data = self.model, self.data
+        pin.forwardKinematics(model, data, q)
+        pin.updateFramePlacements(model, data)
+        forces = pin.StdVec_Force()
+        for _ in range(model.njoints):
+            forces.append(pin.Force.Zero())
+        for world, (_, _, _, _, j1, j2) in zip(self._closure_world_forces(multipliers),
+                                               self._closures):
+            forces[j1] = forces[j1] + data.oMi[j1].actInv(world)
+            forces[j2] = forces[j2] - data.oMi[j2].actInv(world)
+        for joint, force in (fext or {}).items():
+            forces[joint] = forces[joint] + force
+        tau = pin.rnea(model, data, q, v, a, forces)
+        out = {model.names[j]: data.f[j].vector.copy() for j in range(1, model.njoints)}
+        return out, tau.copy()
+
+
+_CACHE: weakref.WeakKeyDictionary[ClosedLoopModel, ClosedLoopDynamics] = \
+    weakref.WeakKeyDictionary()
+
+
+def dynamics_of(clm: ClosedLoopModel) -> ClosedLoopDynamics:
+    """The shared :class:`ClosedLoopDynamics` workspace of ``clm`` (created once)."""
+    try:
+        return _CACHE[clm]
+    except KeyError:
+        dyn = ClosedLoopDynamics(clm)
+        _CACHE[clm] = dyn
+        return dyn
+    except TypeError:
+        raise InputError("clm", clm, "expected a ClosedLoopModel") from None
+
+
+def forward_dynamics_tree(clm: ClosedLoopModel, q, v, tau,
+                          method: str = "pinocchio") -> TreeForwardDynamics:
+    """Constrained forward dynamics of a closed-loop mechanism on its tree.
+
+    Solves ``M a + h = tau + J_c^T lambda`` with ``J_c a = -gamma`` for the tree
+    acceleration ``a`` and the closure multipliers ``lambda`` (conventions in the
+    module docstring).
+
+    Args:
+        clm: the closed-loop model.
+        q: tree configuration (nq,), the closures satisfied.
+        v: tree velocity (nv,) with ``J_c v = 0`` (Pinocchio convention: free-flyer
+            velocities in the body frame).
+        tau: full generalised force on the tree (nv,): actuation ``S^T u`` plus any
+            external loads mapped to joint space (N, N m).
+        method: "pinocchio" (``pin.constraintDynamics``; when the closures are
+            redundant: proximal, mu = 1e-6, 5 iterations, and the multipliers polished
+            to minimum norm by least squares on Pinocchio's ``M``, ``nle``, ``J``), "qp" (Gauss principle, ``min 1/2 (a - a_free)^T M
+            (a - a_free)`` s.t. ``J_c a = -gamma``, ProxSuite dense, warm problem
+            reused), or "kkt" (numpy solve of the KKT system, least squares when
+            redundant).
+
+    Returns:
+        :class:`TreeForwardDynamics`.
+
+    Raises:
+        InputError: bad shapes, NaN / inf, unknown method.
+        SolverError: the QP did not converge.
+    """
+    return dynamics_of(clm).forward(q, v, tau, method)
+
+
+def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=None,
+                          method: str = "qp") -> TreeInverseDynamics:
+    """Closed-loop inverse dynamics: actuator forces that produce a tree motion.
+
+    Solves ``M a + h - tau_ext = S^T u + J_c^T lambda`` for the actuator forces ``u``
+    and the closure multipliers ``lambda``. ``a`` must keep the closures
+    (``J_c a = -gamma``), e.g. from :meth:`ClosedLoopModel.complete_acceleration`.
+
+    Args:
+        clm: the closed-loop model.
+        q, v, a: tree configuration (nq,), velocity and acceleration (nv,), Pinocchio
+            conventions, consistent with the closures.
+        tau_ext: generalised external force on the tree (nv,) (N, N m); default zero.
+        bounds: ``abs(u) <= bounds`` (scalar or (n_act,), N or N m); None (or inf): none.
+        method: "qp" (ProxSuite dense QP: minimise ``1/2 |u|^2 + 1/2 w |lambda|^2``,
+            ``w = 1e-2`` (it only picks the minimum-norm multipliers of redundant
+            rows), subject to the equation of motion and the box bounds) or "kkt" (the
+            square linear system ``[S^T J_c^T] [u; lambda] = rhs``, least squares /
+            minimum norm when it is not square or singular). Both agree to 1e-10 when
+            no bound is active.
+
+    Returns:
+        :class:`TreeInverseDynamics`.
+
+    Raises:
+        ActuatorSaturationError: the motion needs ``abs(u) > bounds``; carries the
+            needed (unbounded) forces. No clipped answer is ever returned.
+        InputError: bad shapes, NaN / inf, non-positive bounds, unknown method.
+        SolverError: the QP failed for another reason.
+    """
+    return dynamics_of(clm).inverse(q, v, a, tau_ext, bounds, method)
+
+
+# --------------------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------------------
+def _maxabs(x: np.ndarray) -> float:
+    return float(np.max(np.abs(x), initial=0.0))
+
+
+def _small(residual: np.ndarray, rhs: np.ndarray, rtol: float = _RESIDUAL_RTOL) -> bool:
+    scale = max(1.0, _maxabs(rhs))
+    return bool(np.all(np.isfinite(residual)) and _maxabs(residual) <= rtol * scale)
+
+
+def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of two 3-vectors (cheaper than ``np.cross`` for one pair)."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
+def _min_norm_multipliers(jac: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """The minimum-norm multipliers giving the same generalised force ``J_c^T lam``."""
+    sol, *_ = np.linalg.lstsq(jac.T, jac.T @ lam, rcond=None)
+    return sol
+
+
+# --------------------------------------------------------------------------------------
+# hexapod: pose / twist-level API
+# --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class InverseDynamicsResult:
+    """Result of :meth:`HexapodDynamics.inverse_dynamics`.
+
+    Attributes:
+        actuator_forces: ``tau`` (6,), force on carriage i along ``+u_k`` (N).
+        closure_forces: (6, 3), row i: the force that leg i's tip exerts on the
+            platform at its spherical joint, world axes (N). The platform exerts the
+            opposite force on the leg.
+        joint_wrenches: joint name -> (6,) spatial force ``(f, m)`` that the parent
+            body exerts on the child body through that joint, in the joint's LOCAL
+            frame at the joint origin (N, N m), from ``pin.rnea`` with the closure
+            forces and the wrench applied as external forces. For ``carriage_i`` the
+            x component is the actuator force; the passive joints transmit nothing
+            about their axes; ``platform_joint`` (floating, passive) transmits zero.
+            Empty when not requested.
+        multipliers: closure multipliers (18,), see :func:`inverse_dynamics_tree`.
+        configuration, velocity, acceleration: the tree state ``q``, ``v``, ``a``
+            (Pinocchio conventions) the motion maps to.
+        method, status, iterations, residual: solver information (residual: max-abs
+            of the tree equation of motion, N / N m).
+    """
+
+    actuator_forces: np.ndarray
+    closure_forces: np.ndarray
+    joint_wrenches: Mapping[str, np.ndarray]
+    multipliers: np.ndarray
+    configuration: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    method: str
+    status: str
+    iterations: int
+    residual: float
+
+
+@dataclass(frozen=True)
+class ForwardDynamicsResult:
+    """Result of :meth:`HexapodDynamics.forward_dynamics`.
+
+    Attributes:
+        twist_dot: time derivative of the world-axes twist ``(v, w)`` (6,) (m/s^2, rad/s^2).
+        qddot: carriage accelerations (6,) (m/s^2).
+        tree_acceleration: full tree acceleration ``a`` (nv,), Pinocchio convention.
+        closure_forces: (6, 3) force each leg tip exerts on the platform, world axes (N).
+        multipliers: closure multipliers (18,).
+        method, status, iterations: solver information.
+    """
+
+    twist_dot: np.ndarray
+    qddot: np.ndarray
+    tree_acceleration: np.ndarray
+    closure_forces: np.ndarray
+    multipliers: np.ndarray
+    method: str
+    status: str
+    iterations: int
+
+
+@dataclass(frozen=True)
+class ReducedDynamics:
+    """Dynamics in platform coordinates: ``J^T tau + wrench = M_x twist_dot + h_x``.
+
+    Unpacks as ``M_x, h_x = robot.reduced_dynamics(pose, twist)``.
+
+    Attributes:
+        mass_matrix: ``M_x = T^T M T`` (6, 6), symmetric positive definite (kg, kg m,
+            kg m^2), with ``T`` the map from the twist to the tree velocity.
+        bias: ``h_x = T^T (M a_0 + h)`` (6,) (N, N m): Coriolis, centrifugal and
+            gravity terms, ``a_0`` the tree acceleration at ``twist_dot = 0``.
+        jacobian: the workspace Jacobian ``J = S T`` (6, 6), ``qdot = J twist``.
+        velocity_map: ``T`` (nv, 6), ``v = T twist``.
+    """
+
+    mass_matrix: np.ndarray
+    bias: np.ndarray
+    jacobian: np.ndarray
+    velocity_map: np.ndarray
+
+    def __iter__(self):
+        return iter((self.mass_matrix, self.bias))
+
+
+@dataclass(frozen=True)
+class Energies:
+    """Mechanical energies of the whole mechanism (J).
+
+    Attributes:
+        kinetic: ``1/2 v^T M v``.
+        potential: gravity potential, zero when every centre of mass is at z = 0.
+        total: their sum.
+    """
+
+    kinetic: float
+    potential: float
+    total: float
+
+
+@dataclass(frozen=True)
+class BatchInverseDynamics:
+    """Result of :meth:`HexapodDynamics.inverse_dynamics_batch` for N states.
+
+    Attributes:
+        actuator_forces: (N, 6) (N).
+        closure_forces: (N, 6, 3) force each leg tip exerts on the platform, world (N).
+        residual: (N,) max-abs residual of each tree equation of motion (N, N m).
+    """
+
+    actuator_forces: np.ndarray
+    closure_forces: np.ndarray
+    residual: np.ndarray
+
+
+@dataclass(frozen=True)
+class InverseDynamicsDerivatives:
+    """Derivatives of the inverse-dynamics actuator forces (each (6, 6), row = carriage).
+
+    Attributes:
+        actuator_forces: the forces ``tau`` (6,) at the point (N).
+        d_pose: ``d tau / d pose``, pose = (x, y, z, roll, pitch, yaw), twist and
+            twist_dot held (N/m, N/rad).
+        d_twist: ``d tau / d twist`` (N s/m, N s/rad).
+        d_twist_dot: ``d tau / d twist_dot`` (kg, kg m).
+        d_wrench: ``d tau / d wrench`` (dimensionless, 1/m).
+    """
+
+    actuator_forces: np.ndarray
+    d_pose: np.ndarray
+    d_twist: np.ndarray
+    d_twist_dot: np.ndarray
+    d_wrench: np.ndarray
+
+
+class BatchActuatorSaturationError(ActuatorSaturationError):
+    """A state of a batch needs more actuator force than the bounds allow.
+
+    Attributes:
+        index: index of the first offending state.
+        needed, limit: as in :class:`ActuatorSaturationError`, for that state.
+    """
+
+    def __init__(self, index: int, needed, limit):
+        self.index = int(index)
+        super().__init__(needed, limit)
+        self.args = (f"state {self.index}: {self.args[0]}",)
+
+
+@dataclass
+class _HexapodWorkspace:
+    dyn: ClosedLoopDynamics
+    ff_v: np.ndarray
+    free_v: np.ndarray
+    leg_of_closure: np.ndarray
+    bounds: np.ndarray | None
+    last_pose: bytes = b""
+    last_q: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
 
 class HexapodDynamics:
-    """Dynamics methods of :class:`hexapod_pin.Hexapod` (a mixin)."""
+    """Dynamics methods of :class:`hexapod_pin.Hexapod` (a mixin).
+
+    Needs ``model`` (:class:`ClosedLoopModel`), ``geometry``, ``indices`` and
+    ``configuration`` from the host class. Conventions (see the README): pose
+    ``(x, y, z, roll, pitch, yaw)``, twist ``(v, w)`` of the platform origin in world
+    axes, ``twist_dot`` its plain time derivative, actuator force ``tau_i`` on carriage
+    i along ``+u_k`` (N), wrench ``(f, m)`` applied on the platform by the environment,
+    world axes, moment about the platform origin (N, N m).
+
+    Mapping to the tree: ``q = configuration(pose)``; free-flyer body velocity
+    ``(R^T v, R^T w)``, the other coordinates from ``J_c v = 0``; free-flyer
+    acceleration ``(R^T (vdot - w x v), R^T wdot)``, the others from
+    ``J_c a = -gamma``; the wrench enters as the free-flyer generalised force
+    ``(R^T f, R^T m)``.
+    """
+
+    # -- workspace ---------------------------------------------------------------------
+    @property
+    def dynamics(self) -> ClosedLoopDynamics:
+        """The generic dynamics workspace of the hexapod's tree (cached)."""
+        return self._workspace().dyn
+
+    def _workspace(self) -> _HexapodWorkspace:
+        ws = self.__dict__.get("_dyn_workspace")
+        if ws is not None:
+            return ws
+        clm = self.model
+        gravity = np.array([0.0, 0.0, -self.geometry.gravity, 0.0, 0.0, 0.0])
+        if not np.allclose(clm.model.gravity.vector, gravity, rtol=0.0, atol=0.0):
+            clm.model.gravity = pin.Motion(gravity)
+        dyn = dynamics_of(clm)
+        idx = self.indices
+        ff_v = np.arange(idx.platform_v.start, idx.platform_v.stop)
+        free_v = np.setdiff1d(np.arange(clm.nv), ff_v)
+        leg_of_closure = np.full(len(clm.closures), -1)
+        for c, closure in enumerate(clm.closures):
+            for i in range(6):
+                if closure.frame1 == f"leg_{i}_tip" and closure.frame2.startswith("platform"):
+                    leg_of_closure[c] = i
+        if sorted(leg_of_closure.tolist()) != list(range(6)) or any(
+                cl.type != "point" for cl in clm.closures):
+            raise HexapodPinError("the hexapod's loops must be six point closures "
+                                  "leg_<i>_tip -> platform_anchor_<k>")
+        limit = self.geometry.max_actuator_force
+        bounds = None if not np.isfinite(limit) else np.full(6, limit)
+        ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds)
+        self.__dict__["_dyn_workspace"] = ws
+        return ws
+
+    def _q_of(self, ws: _HexapodWorkspace, pose: np.ndarray) -> np.ndarray:
+        key = pose.tobytes()
+        if key != ws.last_pose:
+            ws.last_q = self.configuration(pose)
+            ws.last_pose = key
+        return ws.last_q
+
+    def _tree_state(self, pose, twist, twist_dot=None, q=None):
+        """(q, v, a or None, J_c, R, inverse of J_c[:, free]) for a platform state.
+
+        ``q`` (an assembled tree configuration) replaces ``configuration(pose)`` when given.
+        """
+        ws = self._workspace()
+        dyn = ws.dyn
+        if q is None:
+            q = self._q_of(ws, pose)
+        rot = pin.Quaternion(q[self.indices.platform_q][3:]).toRotationMatrix()
+        jac = dyn.constraint_jacobian(q)
+        jac_free = jac[:, ws.free_v]
+        jac_ff = jac[:, ws.ff_v]
+        try:
+            inv = np.linalg.inv(jac_free)
+        except np.linalg.LinAlgError:
+            inv = None
+        if inv is None or not np.isfinite(inv.sum()) or (
+                np.abs(inv).max() * np.abs(jac_free).max() > 1e12):
+            sv = np.linalg.svd(jac_free, compute_uv=False)
+            raise SingularityError("closure Jacobian w.r.t. the carriage and universal "
+                                   "joint coordinates (a leg perpendicular to its rail)",
+                                   sv[-1])
+        v = np.empty(dyn.nv)
+        v_ff = np.concatenate([rot.T @ twist[:3], rot.T @ twist[3:]])
+        v[ws.ff_v] = v_ff
+        v[ws.free_v] = inv @ (-jac_ff @ v_ff)
+        acc = None
+        if twist_dot is not None:
+            gamma = dyn.constraint_drift(q, v)
+            a_ff = np.concatenate([rot.T @ (twist_dot[:3] - _cross3(twist[3:], twist[:3])),
+                                   rot.T @ twist_dot[3:]])
+            acc = np.empty(dyn.nv)
+            acc[ws.ff_v] = a_ff
+            acc[ws.free_v] = inv @ (-gamma - jac_ff @ a_ff)
+        return q, v, acc, jac, rot, inv
+
+    def _tau_ext(self, ws, rot, wrench) -> np.ndarray:
+        tau = np.zeros(ws.dyn.nv)
+        if wrench is not None:
+            tau[ws.ff_v] = np.concatenate([rot.T @ wrench[:3], rot.T @ wrench[3:]])
+        return tau
+
+    def _closure_forces(self, ws, multipliers) -> np.ndarray:
+        out = np.empty((6, 3))
+        out[ws.leg_of_closure] = -multipliers.reshape(-1, 3)
+        return out
+
+    def _bounds(self, ws, bounded: bool):
+        return ws.bounds if bounded else None
+
+    # -- inverse dynamics --------------------------------------------------------------
+    def inverse_dynamics(self, pose, twist, twist_dot, wrench=None, method: str = "qp",
+                         bounded: bool = True,
+                         joint_wrenches: bool = True) -> InverseDynamicsResult:
+        """Actuator forces that produce a platform motion (closed-loop inverse dynamics).
+
+        Includes the inertia and weight of the platform, legs and carriages. Solved on
+        the tree with the closure multipliers (see :func:`inverse_dynamics_tree`).
+
+        Args:
+            pose: ``(x, y, z, roll, pitch, yaw)`` (m, rad), shape (6,).
+            twist: ``(v, w)`` of the platform origin, world axes (m/s, rad/s), (6,).
+            twist_dot: time derivative of the twist (m/s^2, rad/s^2), (6,).
+            wrench: ``(f, m)`` applied on the platform by the environment, world axes,
+                moment about the platform origin (N, N m), (6,); default zero.
+            method: "qp" (ProxSuite, actuator bounds as box constraints) or "kkt"
+                (square linear solve); they agree to 1e-10 when no bound is active.
+            bounded: enforce ``abs(tau) <= geometry.max_actuator_force``.
+            joint_wrenches: also compute the reaction wrench of every tree joint (one
+                more ``pin.rnea``).
+
+        Returns:
+            :class:`InverseDynamicsResult`.
+
+        Raises:
+            ActuatorSaturationError: the motion needs more than the bound (carries the
+                needed forces; no clipped answer).
+            UnreachablePoseError: the pose cannot be reached.
+            SingularityError: a leg is perpendicular to its rail (the platform motion
+                does not determine the carriage motion).
+            InputError: bad shapes, NaN / inf, unknown method.
+        """
+        pose, twist, twist_dot = self._check6(pose, "pose"), self._check6(twist, "twist"), \
+            self._check6(twist_dot, "twist_dot")
+        wrench = None if wrench is None else self._check6(wrench, "wrench")
+        if method not in INVERSE_METHODS:
+            raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
+        ws = self._workspace()
+        dyn = ws.dyn
+        q, v, acc, jac, rot, _ = self._tree_state(pose, twist, twist_dot)
+        tau_ext = self._tau_ext(ws, rot, wrench)
+        rhs = pin.rnea(dyn.model, dyn.data, q, v, acc) - tau_ext
+        res = dyn._inverse_solve(jac, rhs, self._bounds(ws, bounded), method,
+                                 dyn._ensure_rank(q))
+        wrenches: Mapping[str, np.ndarray] = MappingProxyType({})
+        if joint_wrenches:
+            fext = None
+            if wrench is not None:
+                joint = self.model.model.getJointId("platform_joint")
+                fext = {joint: pin.Force(tau_ext[ws.ff_v])}
+            table, _ = dyn.joint_wrenches(q, v, acc, res.multipliers, fext)
+            wrenches = MappingProxyType(table)
+        return InverseDynamicsResult(res.actuator_forces, self._closure_forces(ws, res.multipliers),
+                                     wrenches, res.multipliers, q.copy(), v, acc, res.method,
+                                     res.status, res.iterations, res.residual)
+
+    def _actuator_forces_at(self, q, twist, twist_dot, wrench=None,
+                            method: str = "kkt") -> np.ndarray:
+        """Unbounded ID actuator forces at an assembled tree configuration ``q`` (no checks)."""
+        ws = self._workspace()
+        dyn = ws.dyn
+        q, v, acc, jac, rot, _ = self._tree_state(None, twist, twist_dot, q=q)
+        rhs = pin.rnea(dyn.model, dyn.data, q, v, acc) - self._tau_ext(ws, rot, wrench)
+        return dyn._inverse_solve(jac, rhs, None, method, dyn._ensure_rank(q)).actuator_forces
+
+    def static_forces(self, pose, wrench=None, bounded: bool = True) -> np.ndarray:
+        """Actuator forces holding the platform at rest at ``pose`` under gravity and a wrench.
+
+        Inverse dynamics with zero twist and twist_dot (linear solve on the tree with
+        the generalised gravity). For the default geometry at home and no load:
+        about ``+1.651`` N on even carriages and ``-1.651`` N on odd ones.
+
+        Args:
+            pose: (6,) (m, rad).
+            wrench: ``(f, m)`` on the platform, world axes, about the platform origin
+                (N, N m); default zero.
+            bounded: raise when ``abs(tau) > geometry.max_actuator_force``.
+
+        Returns:
+            tau (6,) (N), force on carriage i along ``+u_k``.
+
+        Raises:
+            ActuatorSaturationError, UnreachablePoseError, SingularityError, InputError.
+        """
+        pose = self._check6(pose, "pose")
+        wrench = None if wrench is None else self._check6(wrench, "wrench")
+        ws = self._workspace()
+        dyn = ws.dyn
+        q = self._q_of(ws, pose)
+        rot = pin.Quaternion(q[self.indices.platform_q][3:]).toRotationMatrix()
+        jac = dyn.constraint_jacobian(q)
+        rhs = pin.computeGeneralizedGravity(dyn.model, dyn.data, q) - self._tau_ext(ws, rot, wrench)
+        res = dyn._inverse_solve(jac, rhs, self._bounds(ws, bounded), "kkt", dyn._ensure_rank(q))
+        return res.actuator_forces
+
+    # -- forward dynamics ----------------------------------------------------------------
+    def forward_dynamics(self, pose, twist, actuator_forces, wrench=None,
+                         method: str = "pinocchio") -> ForwardDynamicsResult:
+        """Platform acceleration produced by actuator forces (constrained forward dynamics).
+
+        Args:
+            pose: (6,) (m, rad).
+            twist: ``(v, w)`` world axes (m/s, rad/s), (6,).
+            actuator_forces: ``tau`` (6,), force on carriage i along ``+u_k`` (N).
+            wrench: ``(f, m)`` on the platform, world axes, about its origin; default 0.
+            method: "pinocchio" (``pin.constraintDynamics``), "qp" (Gauss principle,
+                ProxSuite) or "kkt" (numpy); they agree to 1e-10.
+
+        Returns:
+            :class:`ForwardDynamicsResult`.
+
+        Raises:
+            UnreachablePoseError, SingularityError, InputError, SolverError.
+        """
+        pose, twist = self._check6(pose, "pose"), self._check6(twist, "twist")
+        tau_act = self._check6(actuator_forces, "actuator_forces")
+        wrench = None if wrench is None else self._check6(wrench, "wrench")
+        if method not in FORWARD_METHODS:
+            raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
+        ws = self._workspace()
+        dyn = ws.dyn
+        q, v, _, _, rot, _ = self._tree_state(pose, twist)
+        tau = self._tau_ext(ws, rot, wrench)
+        tau[dyn.clm.actuated_v] += tau_act
+        res = dyn.forward(q, v, tau, method)
+        twist_dot = self._twist_dot(ws, rot, twist, res.a)
+        return ForwardDynamicsResult(twist_dot, res.a[self.indices.carriage_v].copy(), res.a,
+                                     self._closure_forces(ws, res.multipliers), res.multipliers,
+                                     res.method, res.status, res.iterations)
+
+    @staticmethod
+    def _twist_dot(ws, rot, twist, acc) -> np.ndarray:
+        a_ff = acc[ws.ff_v]
+        return np.concatenate([rot @ a_ff[:3] + _cross3(twist[3:], twist[:3]), rot @ a_ff[3:]])
+
+    # -- reduced (null-space) dynamics ------------------------------------------------------
+    def reduced_dynamics(self, pose, twist) -> ReducedDynamics:
+        """Dynamics in platform coordinates (null-space / independent-coordinate method).
+
+        With ``T`` (nv, 6) the map ``v = T twist`` that keeps the closures
+        (``J_c T = 0``) and ``a = T twist_dot + a_0``, projecting the tree equation of
+        motion on ``T^T`` removes the closure forces::
+
+            J^T tau + wrench = M_x twist_dot + h_x,
+            M_x = T^T M T,   h_x = T^T (M a_0 + h) = T^T rnea(q, v, a_0)
+
+        since ``S T = J`` and ``T^T`` maps the free-flyer generalised force of the
+        wrench back to ``(f, m)``.
+
+        Args:
+            pose: (6,) (m, rad).
+            twist: ``(v, w)`` world axes (6,).
+
+        Returns:
+            :class:`ReducedDynamics` (unpacks as ``M_x, h_x``).
+        """
+        pose, twist = self._check6(pose, "pose"), self._check6(twist, "twist")
+        ws = self._workspace()
+        dyn = ws.dyn
+        q, v, a0, jac, rot, inv = self._tree_state(pose, twist, np.zeros(6))
+        vmap = self._velocity_map(ws, jac, rot, inv)
+        mass = dyn.mass_matrix(q)
+        m_x = vmap.T @ mass @ vmap
+        h_x = vmap.T @ pin.rnea(dyn.model, dyn.data, q, v, a0)
+        return ReducedDynamics(0.5 * (m_x + m_x.T), h_x, vmap[self.indices.carriage_v].copy(),
+                               vmap)
+
+    @staticmethod
+    def _velocity_map(ws, jac, rot, inv) -> np.ndarray:
+        vmap = np.zeros((ws.dyn.nv, 6))
+        blk = np.zeros((6, 6))
+        blk[:3, :3] = rot.T
+        blk[3:, 3:] = rot.T
+        vmap[ws.ff_v] = blk
+        vmap[ws.free_v] = inv @ (-jac[:, ws.ff_v] @ blk)
+        return vmap
+
+    # -- energies ----------------------------------------------------------------------------
+    def energies(self, pose, twist) -> Energies:
+        """Kinetic and potential energy of the whole mechanism (J).
+
+        Potential: ``sum m_b g z_b`` over every body's centre of mass (zero at z = 0).
+
+        Args:
+            pose: (6,) (m, rad).
+            twist: ``(v, w)`` world axes (6,).
+        """
+        pose, twist = self._check6(pose, "pose"), self._check6(twist, "twist")
+        q, v, _, _, _, _ = self._tree_state(pose, twist)
+        return self.tree_energies(q, v)
+
+    def tree_energies(self, q, v) -> Energies:
+        """:meth:`energies` from a tree state ``q`` (nq,), ``v`` (nv,) (Pinocchio conventions)."""
+        dyn = self._workspace().dyn
+        q, v = dyn.clm.check_q(q), dyn.clm.check_v(v)
+        kin = float(pin.computeKineticEnergy(dyn.model, dyn.data, q, v))
+        pot = float(pin.computePotentialEnergy(dyn.model, dyn.data, q))
+        return Energies(kin, pot, kin + pot)
+
+    # -- batch ----------------------------------------------------------------------------
+    def inverse_dynamics_batch(self, poses, twists, twist_dots, wrenches=None,
+                               bounded: bool = True) -> BatchInverseDynamics:
+        """Inverse dynamics of N states at once (the "kkt" route, one stacked solve).
+
+        Args:
+            poses, twists, twist_dots: (N, 6) each, conventions as in
+                :meth:`inverse_dynamics`.
+            wrenches: (N, 6) or None.
+            bounded: raise :class:`BatchActuatorSaturationError` (an
+                :class:`ActuatorSaturationError`) for the first state beyond the bounds.
+
+        Returns:
+            :class:`BatchInverseDynamics`.
+        """
+        poses = as_array(poses, (6,), "poses", batch=True)
+        n = poses.shape[0]
+        twists = as_array(twists, (6,), "twists", batch=True)
+        twist_dots = as_array(twist_dots, (6,), "twist_dots", batch=True)
+        wrenches = None if wrenches is None else as_array(wrenches, (6,), "wrenches", batch=True)
+        for name, arr in (("twists", twists), ("twist_dots", twist_dots), ("wrenches", wrenches)):
+            if arr is not None and arr.shape[0] != n:
+                raise InputError(name, arr, f"expected {n} rows like poses, got {arr.shape[0]}")
+        ws = self._workspace()
+        dyn = ws.dyn
+        n_act = dyn.n_act
+        mats = np.empty((n, dyn.nv, n_act + dyn.n_rows))
+        mats[:, :, :n_act] = dyn._selection
+        rhs = np.empty((n, dyn.nv))
+        for k in range(n):
+            q, v, acc, jac, rot, _ = self._tree_state(poses[k], twists[k], twist_dots[k])
+            mats[k, :, n_act:] = jac.T
+            rhs[k] = pin.rnea(dyn.model, dyn.data, q, v, acc)
+            if wrenches is not None:
+                rhs[k] -= self._tau_ext(ws, rot, wrenches[k])
+        sol = np.linalg.solve(mats, rhs[..., None])[..., 0]
+        residual = np.max(np.abs(np.einsum("nij,nj->ni", mats, sol) - rhs), axis=1)
+        forces = sol[:, :n_act]
+        if bounded and ws.bounds is not None:
+            over = np.flatnonzero(np.any(np.abs(forces) > ws.bounds * (1 + _RESIDUAL_RTOL), axis=1))
+            if over.size:
+                raise BatchActuatorSaturationError(over[0], forces[over[0]], ws.bounds)
+        closure = np.empty((n, 6, 3))
+        closure[:, ws.leg_of_closure] = -sol[:, n_act:].reshape(n, -1, 3)
+        return BatchInverseDynamics(forces, closure, residual)
+
+    # -- derivatives ------------------------------------------------------------------------
+    def inverse_dynamics_derivatives(self, pose, twist, twist_dot, wrench=None,
+                                     pose_step: float = 1e-4) -> InverseDynamicsDerivatives:
+        """Derivatives of the inverse-dynamics actuator forces (no bounds applied).
+
+        Routes:
+
+        * ``d_twist_dot`` and ``d_wrench``: analytic. ``tau`` is affine in both:
+          ``a = T twist_dot + a_0`` and the tree system ``[S^T J_c^T] x = M a + h -
+          tau_ext`` is linear, so ``d tau / d twist_dot = [B^-1 M T]_tau`` and
+          ``d tau / d wrench = -[B^-1 E]_tau`` with ``E`` the wrench-to-free-flyer map.
+        * ``d_twist``: exact polarisation. ``tau`` is a quadratic polynomial of the
+          twist at fixed pose and twist_dot (``v = T twist``; the drift, the velocity
+          product terms of the free-flyer acceleration and ``h`` are quadratic in
+          ``v``), so the central difference ``(tau(t + s e) - tau(t - s e)) / 2 s`` is
+          exact for any ``s`` (here ``s = 1``); only round-off remains.
+        * ``d_pose``: fourth-order central differences in the pose coordinates
+          (Richardson, steps ``pose_step`` and ``2 pose_step``), truncation error
+          ``O(pose_step^4)``, round-off about ``1e-16 / pose_step`` relative (default
+          1e-4 m/rad), with twist and twist_dot held in world axes. Close to a
+          singularity (a leg nearly perpendicular to its rail) the steps must stay
+          inside the workspace.
+
+        Args:
+            pose, twist, twist_dot, wrench: as in :meth:`inverse_dynamics`.
+            pose_step: step of the pose differences (m, rad).
+
+        Returns:
+            :class:`InverseDynamicsDerivatives`.
+        """
+        pose, twist = self._check6(pose, "pose"), self._check6(twist, "twist")
+        twist_dot = self._check6(twist_dot, "twist_dot")
+        wrench = None if wrench is None else self._check6(wrench, "wrench")
+        if not (np.isfinite(pose_step) and pose_step > 0):
+            raise InputError("pose_step", pose_step, "must be a positive number")
+        ws = self._workspace()
+        dyn = ws.dyn
+
+        def forces(p, t, td):
+            q, v, acc, jac, rot, _ = self._tree_state(p, t, td)
+            rhs = pin.rnea(dyn.model, dyn.data, q, v, acc) - self._tau_ext(ws, rot, wrench)
+            mat = np.hstack([dyn._selection, jac.T])
+            return np.linalg.solve(mat, rhs)[:dyn.n_act]
+
+        q, v, acc, jac, rot, inv = self._tree_state(pose, twist, twist_dot)
+        mat = np.hstack([dyn._selection, jac.T])
+        rhs = pin.rnea(dyn.model, dyn.data, q, v, acc) - self._tau_ext(ws, rot, wrench)
+        tau0 = np.linalg.solve(mat, rhs)[:dyn.n_act]
+        vmap = self._velocity_map(ws, jac, rot, inv)
+        mass = dyn.mass_matrix(q)
+        d_twist_dot = np.linalg.solve(mat, mass @ vmap)[:dyn.n_act]
+        emap = np.zeros((dyn.nv, 6))
+        emap[ws.ff_v] = vmap[ws.ff_v]          # (R^T, R^T) block
+        d_wrench = -np.linalg.solve(mat, emap)[:dyn.n_act]
+        eye = np.eye(6)
+        d_twist = np.column_stack([(forces(pose, twist + e, twist_dot)
+                                    - forces(pose, twist - e, twist_dot)) / 2.0 for e in eye])
+        h = pose_step
+        d_pose = np.column_stack([
+            (8.0 * (forces(pose + h * e, twist, twist_dot) - forces(pose - h * e, twist, twist_dot))
+             - (forces(pose + 2 * h * e, twist, twist_dot)
+                - forces(pose - 2 * h * e, twist, twist_dot))) / (12.0 * h)
+            for e in eye])
+        return InverseDynamicsDerivatives(tau0, d_pose, d_twist, d_twist_dot, d_wrench)
+
+    # -- helpers ----------------------------------------------------------------------------
+    @staticmethod
+    def _check6(value, name: str) -> np.ndarray:
+        return as_array(value, (6,), name)

@@ -1,0 +1,316 @@
+"""Scaling of the closed-loop dynamics: time against batch size and against closures.
+
+Prints (Markdown tables):
+
+1. hexapod, microseconds per state against the batch size N = 1 ... 10^6 for inverse and
+   forward dynamics and one simulation step (ours, raw Pinocchio, MuJoCo, numpy);
+2. microseconds per call against the number of closures, on the tree level (generic
+   ``ClosedLoopModel``): the planar 3-PRR (3 point closures, 9 rows of rank 6), the
+   hexapod (6 closures, 18 rows) and ladders of n spatial four-bars (n closures, 3 n rows,
+   ``3 n + 1`` dofs; see ladder.py), each route checked against the others.
+
+Usage (from the repository root)::
+
+    python benchmarks/bench_scaling.py            # full run
+    python benchmarks/bench_scaling.py --smoke    # seconds; exit 1 when routes disagree
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import hexapod_pin as hp
+import hexapod_pin.dynamics as hpd
+import ladder as lad_mod
+import pinocchio_raw as pr
+from bench_common import MIN_SAMPLE, NO_ROUTE, Timing, fmt_us, measure, print_machine_info, table
+from bench_peers import RIGID_TOL, HexapodPeers, Route, time_route
+
+try:
+    import mujoco
+
+    import mjcf
+except ImportError:
+    mujoco = None
+
+#: MuJoCo's soft closures as they are: sanity bound only (see README)
+SOFT_FD_TOL = 1.0
+
+
+# -- 1. batch size -------------------------------------------------------------------------
+BATCH_ROUTES = {
+    "inverse dynamics": ["ours inverse_dynamics kkt, no joint wrenches",
+                         "ours inverse_dynamics_batch",
+                         "raw Pinocchio rnea + solve (tree state given)",
+                         "MuJoCo mj_inverse + reduction (tree state given)",
+                         "numpy Newton-Euler"],
+    "forward dynamics": ["ours forward_dynamics pinocchio", "ours forward_dynamics_batch",
+                         "raw Pinocchio constraintDynamics (tree state given)",
+                         "MuJoCo mj_forward (soft closures)", "numpy Newton-Euler"],
+    "simulation step": ["ours simulate.step", "ours simulate step",
+                        "raw Pinocchio constraintDynamics + integrate",
+                        "MuJoCo mj_step (Euler, soft closures)", "numpy semi-implicit Euler"],
+}
+
+
+def batch_scaling(sizes, repeats, budget, mem_limit) -> str:
+    peers = HexapodPeers(hp.HexapodGeometry(), max(sizes), n_tree=64)
+    out = []
+    history: dict = {}
+    for op in peers.operations():
+        key = op.name.split(" (")[0]
+        if key not in BATCH_ROUTES:
+            continue
+        rows = []
+        for route in op.routes:
+            if route.name not in BATCH_ROUTES[key]:
+                continue
+            cells = [time_route(route, peers, n, repeats if n < 10 ** 5 else max(3, repeats // 2),
+                                budget, mem_limit, history) for n in sizes]
+            kind = "batch" if route.batch is not None else "loop"
+            rows.append([f"{route.name} ({kind})"] + [fmt_us(c) for c in cells])
+        out.append(table(["route"] + [f"N = {_n(n)}" for n in sizes], rows,
+                         title=f"### {op.name}: us per state against N"))
+    return "\n".join(out)
+
+
+def _n(n: int) -> str:
+    return f"10^{int(np.log10(n))}" if n >= 1000 else str(n)
+
+
+# -- 2. closures ---------------------------------------------------------------------------
+@dataclass
+class Mechanism:
+    """A closed-loop model, a pool of consistent tree states, and its MuJoCo twin."""
+
+    name: str
+    clm: hp.ClosedLoopModel
+    states: list                      # (q, v, a) Pinocchio tree states
+    mj_model: object = None
+    mj_states: list = field(default_factory=list)   # (qpos, qvel, qacc)
+    mj_dofs: np.ndarray | None = None  # MuJoCo dof of each 1-DoF Pinocchio joint's v index
+    pin_dofs: np.ndarray | None = None
+
+    def __post_init__(self):
+        self.raw = pr.RawPinocchio(self.clm)
+        rank = self.clm.rank(self.states[0][0]).rank
+        self.rank = rank
+        self.raw.set_redundant(rank < self.clm.n_rows)
+        self.forces = [self.raw.inverse(*s) for s in self.states]
+        if self.mj_model is not None:
+            m = self.mj_model
+            self.mj_data = mujoco.MjData(m)
+            self.mj_selection = np.zeros((m.nv, self.clm.n_actuated))
+            for k, joint in enumerate(self.clm.actuated_joints):
+                self.mj_selection[m.joint(joint).dofadr[0], k] = 1.0
+
+    @property
+    def label(self) -> str:
+        return (f"{self.name} ({len(self.clm.closures)} closures, {self.clm.n_rows} rows"
+                f"{'' if self.rank == self.clm.n_rows else f' rank {self.rank}'}, "
+                f"nv {self.clm.nv})")
+
+    def routes(self) -> dict[str, tuple[str, callable]]:
+        """name -> (kind "id" / "fd", fn(i)) ; fd returns the tree acceleration (Pinocchio
+        v order, 1-DoF joints only for MuJoCo)."""
+        clm, raw, st, f = self.clm, self.raw, self.states, self.forces
+        sel = raw.selection
+
+        out = {
+            "ours FD pinocchio": ("fd", lambda i: hpd.forward_dynamics_tree(
+                clm, st[i][0], st[i][1], sel @ f[i], method="pinocchio").a),
+            "ours FD kkt": ("fd", lambda i: hpd.forward_dynamics_tree(
+                clm, st[i][0], st[i][1], sel @ f[i], method="kkt").a),
+            "ours FD qp": ("fd", lambda i: hpd.forward_dynamics_tree(
+                clm, st[i][0], st[i][1], sel @ f[i], method="qp").a),
+            "raw constraintDynamics": ("fd", lambda i: raw.forward(st[i][0], st[i][1], f[i])),
+            "raw crba+KKT": ("fd", lambda i: raw.forward_kkt(st[i][0], st[i][1], f[i])),
+            "ours ID kkt": ("id", lambda i: hpd.inverse_dynamics_tree(
+                clm, *st[i], method="kkt").actuator_forces),
+            "ours ID qp": ("id", lambda i: hpd.inverse_dynamics_tree(
+                clm, *st[i], method="qp").actuator_forces),
+            "raw rnea+solve": ("id", lambda i: raw.inverse(*st[i])),
+        }
+        if self.mj_model is not None:
+            m, d = self.mj_model, self.mj_data
+
+            def mj_fd(i, refine=False):
+                d.qpos[:], d.qvel[:] = self.mj_states[i][0], self.mj_states[i][1]
+                d.ctrl[:] = f[i]
+                mujoco.mj_forward(m, d)
+                if refine:
+                    mjcf.refine_forward(m, d)
+                acc = np.full(clm.nv, np.nan)
+                acc[self.pin_dofs] = d.qacc[self.mj_dofs]
+                return acc
+
+            def mj_id(i):
+                d.qpos[:], d.qvel[:], d.qacc[:] = self.mj_states[i]
+                mujoco.mj_inverse(m, d)
+                return mjcf.reduce_to_actuators(self.mj_selection, d.qfrc_inverse,
+                                                d.efc_J.reshape(d.nefc, m.nv))
+            out["MuJoCo mj_forward"] = ("fd", mj_fd)
+            out["MuJoCo refined"] = ("fd", lambda i: mj_fd(i, True))
+            out["MuJoCo mj_inverse+reduce"] = ("id", mj_id)
+        return out
+
+
+def _one_dof_maps(clm, mj_model):
+    pin_dofs, mj_dofs = [], []
+    model = clm.model
+    for j in range(1, model.njoints):
+        joint = model.joints[j]
+        if joint.nv == 1:
+            pin_dofs.append(joint.idx_v)
+            mj_dofs.append(mj_model.joint(model.names[j]).dofadr[0])
+    return np.array(pin_dofs), np.array(mj_dofs)
+
+
+def ladder_mechanism(n_loops: int, n_states: int, seed: int = 0) -> Mechanism:
+    lad = lad_mod.Ladder(n_loops)
+    clm = lad_mod.ladder_model(lad)
+    rng = np.random.default_rng(seed)
+    states = []
+    mj_model = mujoco.MjModel.from_xml_string(lad_mod.ladder_mjcf(lad)) if mujoco else None
+    mj_states = []
+    for _ in range(n_states):
+        theta = rng.uniform(0.2, 0.6)
+        q = lad_mod.configuration(clm, lad, theta)
+        v = clm.complete_velocity(q, clm.actuated_v, rng.uniform(-1, 1, 1))
+        a = clm.complete_acceleration(q, v, clm.actuated_v, rng.uniform(-2, 2, 1))
+        states.append((q, v, a))
+        if mj_model is not None:
+            qpos = np.zeros(mj_model.nq)
+            qvel, qacc = np.zeros(mj_model.nv), np.zeros(mj_model.nv)
+            for name, value in lad_mod.joint_values(lad, theta).items():
+                jid = clm.model.getJointId(name)
+                iv = clm.model.joints[jid].idx_v
+                qpos[mj_model.joint(name).qposadr[0]] = value
+                qvel[mj_model.joint(name).dofadr[0]] = v[iv]
+                qacc[mj_model.joint(name).dofadr[0]] = a[iv]
+            mj_states.append((qpos, qvel, qacc))
+    mech = Mechanism(f"ladder n={n_loops}", clm, states, mj_model, mj_states)
+    if mj_model is not None:
+        mech.pin_dofs, mech.mj_dofs = _one_dof_maps(clm, mj_model)
+    return mech
+
+
+def hexapod_mechanism(n_states: int) -> Mechanism:
+    peers = HexapodPeers(hp.HexapodGeometry(), n_states, n_tree=n_states)
+    zero = np.zeros(6)
+    states = [peers.raw.tree_state(peers.poses[i], peers.twists[i], peers.twist_dots[i])
+              for i in range(n_states)]
+    mj_states = []
+    mj_model = None
+    if peers.mj is not None:
+        mj_model = peers.mj.model
+        mj_states = [peers.mj.set_task_state(peers.poses[i], peers.twists[i],
+                                             peers.twist_dots[i]) for i in range(n_states)]
+    del zero
+    mech = Mechanism("hexapod", peers.robot.model, states, mj_model, mj_states)
+    if mj_model is not None:
+        mech.pin_dofs, mech.mj_dofs = _one_dof_maps(peers.robot.model, mj_model)
+    return mech
+
+
+def planar_mechanism(n_states: int, seed: int = 0) -> Mechanism | None:
+    try:
+        from hexapod_pin.planar import Planar3PRR
+    except ImportError:
+        return None
+    robot = Planar3PRR.default()
+    rng = np.random.default_rng(seed)
+    states = []
+    while len(states) < n_states:
+        pose = robot.home_pose + rng.uniform(-1, 1, 3) * np.array([0.02, 0.02, 0.1])
+        twist = rng.uniform(-1, 1, 3) * np.array([0.1, 0.1, 0.5])
+        twist_dot = rng.uniform(-1, 1, 3) * np.array([1.0, 1.0, 3.0])
+        try:
+            q = robot.configuration(pose)
+            states.append((q, robot.velocity(pose, twist), robot.acceleration(pose, twist,
+                                                                              twist_dot)))
+        except hp.HexapodPinError:
+            continue
+    return Mechanism("planar 3-PRR", robot.model, states)
+
+
+def closure_scaling(ladders, n_states, repeats, check: bool):
+    """Accuracy and timing tables against closures; returns (text, failures)."""
+    mechs = []
+    planar = planar_mechanism(n_states)
+    if planar is not None:
+        mechs.append(planar)
+    mechs.append(hexapod_mechanism(n_states))
+    mechs += [ladder_mechanism(n, n_states) for n in ladders]
+    names = list(dict.fromkeys(k for m in mechs for k in m.routes()))
+    acc_rows, time_rows, failures = [], [], []
+    for mech in mechs:
+        routes = mech.routes()
+        acc_row, time_row = [mech.label], [mech.label]
+        for name in names:
+            if name not in routes:
+                acc_row.append(NO_ROUTE)
+                time_row.append(NO_ROUTE)
+                continue
+            kind, fn = routes[name]
+            worst = 0.0
+            for i in range(len(mech.states)):
+                if kind == "id":
+                    diff = np.abs(fn(i) - mech.forces[i])
+                else:
+                    acc = fn(i)
+                    diff = np.abs(acc - mech.states[i][2])[np.isfinite(acc)]
+                worst = max(worst, float(np.max(diff)))
+            tol = SOFT_FD_TOL if name == "MuJoCo mj_forward" else RIGID_TOL
+            flag = "" if worst <= tol else " FAIL"
+            if flag:
+                failures.append(f"{mech.name} {name}: {worst:.2e} > {tol:g}")
+            acc_row.append(f"{worst:.1e}{flag}")
+            counter = iter(range(10 ** 12))
+            pool = len(mech.states)
+            time_row.append(fmt_us(measure(lambda: fn(next(counter) % pool), repeats=repeats)))
+        acc_rows.append(acc_row)
+        time_rows.append(time_row)
+    text = table(["mechanism"] + names, acc_rows,
+                 title="### accuracy against the reference (ID: raw rnea+solve forces, N or "
+                       "N m; FD: the sampled tree acceleration), max abs over the states")
+    text += "\n" + table(["mechanism"] + names, time_rows,
+                         title="### us per call (one state), median [inter-quartile range]")
+    return text, failures
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--smoke", action="store_true")
+    parser.add_argument("--sizes", default="1,10,100,1000,10000,100000,1000000")
+    parser.add_argument("--ladders", default="1,2,4,8,16,32,64")
+    parser.add_argument("--states", type=int, default=16, help="states per mechanism")
+    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--budget", type=float, default=30.0)
+    parser.add_argument("--mem-limit", type=float, default=4.0, help="GiB")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        args.sizes, args.ladders, args.states, args.repeats, args.budget = \
+            "1,10", "1,3", 3, 2, 2.0
+        MIN_SAMPLE["seconds"] = 1e-3
+    print_machine_info()
+    sizes = [int(float(x)) for x in args.sizes.split(",")]
+    ladders = [int(x) for x in args.ladders.split(",")]
+    print("\n## Time against batch size (hexapod)")
+    print(batch_scaling(sizes, args.repeats, args.budget, args.mem_limit * 2 ** 30))
+    print("\n## Time against the number of closures (tree level, generic ClosedLoopModel)")
+    text, failures = closure_scaling(ladders, args.states, args.repeats, check=args.smoke)
+    print(text)
+    if failures:
+        print("\nDISAGREEMENT:\n" + "\n".join(failures))
+        return 1
+    print("\nall routes agree within their tolerances")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

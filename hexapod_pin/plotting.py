@@ -1,0 +1,452 @@
+"""Matplotlib figures: trajectories, closure residual, conditioning, workspace slices.
+
+matplotlib is optional (the ``plot`` extra: ``pip install "hexapod-pin[plot]"``) and
+imported only when a figure is made. Figures are built with the object-oriented
+API (``matplotlib.figure.Figure``), so no pyplot state or GUI backend is touched;
+each function returns the figure and, given ``path``, saves it (PNG, SVG, PDF:
+from the suffix).
+
+Units: time s, carriage positions m, forces N, residual m (point closures) /
+m, rad (welds). Carriage order and sign conventions as everywhere in hexapod_pin:
+``q_i`` along ``+u_k`` from the rail midpoint, ``tau_i`` the force on carriage i
+along ``+u_k``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .errors import HexapodPinError, InputError, UnreachablePoseError
+from .pose import as_array
+
+#: colours of carriages 0..5 (rail k has a dark and a light shade)
+CARRIAGE_COLORS = ("#d95f02", "#fdae61", "#1b9e77", "#66c2a5", "#7570b3", "#b3b0d9")
+IMAGE_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+class MissingDependencyError(HexapodPinError, ImportError):
+    """An optional dependency is not installed.
+
+    Attributes:
+        package: the missing package.
+        extra: the hexapod-pin extra that installs it.
+    """
+
+    def __init__(self, package: str, extra: str):
+        self.package = package
+        self.extra = extra
+        super().__init__(f"{package} is needed for this: pip install \"hexapod-pin[{extra}]\"")
+
+
+def _figure_class():
+    try:
+        from matplotlib.figure import Figure  # noqa: PLC0415
+    except ImportError:
+        raise MissingDependencyError("matplotlib", "plot") from None
+    return Figure
+
+
+def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> Path:
+    """Save a figure; the format follows the suffix (.png, .svg, .pdf).
+
+    Raises:
+        InputError: another suffix, or a folder that does not exist.
+    """
+    path = Path(path)
+    if path.suffix.lower() not in IMAGE_SUFFIXES:
+        raise InputError("path", str(path), f"suffix must be one of {IMAGE_SUFFIXES}")
+    if not path.parent.is_dir():
+        raise InputError("path", str(path), "its folder does not exist")
+    fig.savefig(path, dpi=dpi, metadata=_metadata(path))
+    return path
+
+
+def _metadata(path: Path) -> dict:
+    # reproducible SVG/PDF files: no creation date
+    return {"Date": None} if path.suffix.lower() in (".svg", ".pdf") else {}
+
+
+def _finish(fig, path) -> object:
+    fig.tight_layout()
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+def _series(value, name: str, n: int | None = None, width: int | None = None) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(name, value, "not numeric") from None
+    if arr.ndim == 1 and width is not None:
+        arr = arr[:, None]
+    ok = arr.ndim == (1 if width is None else 2)
+    ok = ok and (n is None or arr.shape[0] == n) and (width is None or width == -1
+                                                       or arr.shape[1] == width)
+    if not ok or arr.shape[0] == 0:
+        cols = "" if width is None else ", " + ("n" if width == -1 else str(width))
+        raise InputError(name, value, f"expected shape ({n or 'N'}{cols}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(name, value, "contains NaN or inf")
+    return arr
+
+
+# -- along a trajectory ----------------------------------------------------------------------
+def plot_trajectory(times, q=None, actuator_forces=None, *, path=None, title: str = ""):
+    """Carriage positions and actuator forces against time.
+
+    Args:
+        times: (N,) s.
+        q: carriage positions (N, n) (m), or ``None``.
+        actuator_forces: actuator forces (N, n) (N), or ``None``.
+        path: where to save the figure (optional).
+        title: figure title.
+
+    Returns:
+        the ``matplotlib.figure.Figure`` (one axes per given quantity).
+
+    Raises:
+        InputError: mismatched shapes, NaN / inf, nothing to plot.
+        MissingDependencyError: matplotlib is not installed.
+    """
+    t = _series(times, "times")
+    panels = [(name, _series(v, name, len(t), -1), label)
+              for name, v, label in (("q", q, "carriage position q (m)"),
+                                     ("actuator_forces", actuator_forces,
+                                      "actuator force tau (N)"))
+              if v is not None]
+    if not panels:
+        raise InputError("q", None, "give q and/or actuator_forces")
+    fig = _figure_class()(figsize=(7.5, 2.6 * len(panels) + 0.6))
+    axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (_, data, label) in zip(axes, panels):
+        for i in range(data.shape[1]):
+            ax.plot(t, data[:, i], color=CARRIAGE_COLORS[i % 6], label=f"carriage {i}")
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(ncol=3, fontsize="small")
+    axes[-1].set_xlabel("time (s)")
+    if title:
+        fig.suptitle(title)
+    return _finish(fig, path)
+
+
+def plot_closure_residual(times, residual, *, path=None, title: str = ""):
+    """Max-abs closure residual against time, on a log scale.
+
+    Args:
+        times: (N,) s.
+        residual: (N,) max-abs residuals, or (N, n_rows) residual vectors (their
+            max-abs per sample is plotted), m (and rad for welds).
+
+    Raises:
+        InputError: mismatched shapes, NaN / inf.
+    """
+    t = _series(times, "times")
+    res = np.asarray(residual, dtype=float)
+    res = _series(res if res.ndim == 1 else np.max(np.abs(res), axis=1)
+                  if res.ndim == 2 else res, "residual", len(t))
+    fig = _figure_class()(figsize=(7.5, 3.2))
+    ax = fig.subplots()
+    floor = np.finfo(float).tiny
+    ax.semilogy(t, np.maximum(np.abs(res), floor), color="#1b9e77")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("max |closure residual| (m)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.set_title(title or "closure residual")
+    return _finish(fig, path)
+
+
+def plot_simulation(trajectory, *, path=None, title: str = ""):
+    """Carriage positions, actuator forces and closure residual of a simulation result.
+
+    Reads ``times``, ``q``, ``actuator_forces`` and ``closure_residual`` from
+    ``trajectory`` (``hexapod_pin.simulate.Trajectory`` or any object with them;
+    missing ones are left out).
+
+    Raises:
+        InputError: none of them present, or wrong shapes.
+    """
+    t = getattr(trajectory, "times", None)
+    if t is None:
+        raise InputError("trajectory", trajectory, "has no attribute times")
+    t = _series(t, "times")
+    q = getattr(trajectory, "q", None)
+    tau = getattr(trajectory, "actuator_forces", None)
+    res = getattr(trajectory, "closure_residual", None)
+    panels = []
+    if q is not None:
+        panels.append(("carriage position q (m)", _series(q, "q", len(t), -1), False))
+    if tau is not None:
+        panels.append(("actuator force tau (N)", _series(tau, "actuator_forces", len(t), -1),
+                       False))
+    if res is not None:
+        res = np.asarray(res, dtype=float)
+        res = np.max(np.abs(res), axis=1) if res.ndim == 2 else np.abs(res)
+        panels.append(("max |closure residual| (m)",
+                       _series(res, "closure_residual", len(t))[:, None], True))
+    if not panels:
+        raise InputError("trajectory", trajectory, "has none of q, actuator_forces, "
+                                                   "closure_residual")
+    fig = _figure_class()(figsize=(7.5, 2.4 * len(panels) + 0.6))
+    axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (label, data, log) in zip(axes, panels):
+        if log:
+            ax.semilogy(t, np.maximum(data[:, 0], np.finfo(float).tiny), color="#1b9e77")
+        else:
+            for i in range(data.shape[1]):
+                ax.plot(t, data[:, i], color=CARRIAGE_COLORS[i % 6], label=f"carriage {i}")
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+    if not panels[0][2]:
+        axes[0].legend(ncol=3, fontsize="small")
+    axes[-1].set_xlabel("time (s)")
+    if title:
+        fig.suptitle(title)
+    return _finish(fig, path)
+
+
+# -- conditioning along a path -----------------------------------------------------------------
+@dataclass(frozen=True)
+class Conditioning:
+    """Conditioning of the workspace Jacobian along a path of poses.
+
+    The angular columns of ``J`` are divided by ``characteristic_length`` (the
+    twist taken as ``(v, characteristic_length * w)``), so that all columns are
+    dimensionless and the condition number does not depend on the choice of m
+    vs mm (it still depends on the length chosen).
+
+    Attributes:
+        s: path parameter (N,) (as given, or the sample index).
+        condition_number: ``sigma_max / sigma_min`` of the scaled J (N,), ``inf``
+            where J is singular or a pose is out of reach.
+        inverse_condition: ``sigma_min / sigma_max`` (N,) in [0, 1]: a distance-like
+            measure, 0 at a (type II) singularity and where out of reach.
+        sigma: singular values (N, 6) of the scaled J, descending (NaN out of reach).
+        reachable: (N,) whether each pose is reachable (inverse kinematics
+            without stroke checks).
+        characteristic_length: the length used (m).
+    """
+
+    s: np.ndarray
+    condition_number: np.ndarray
+    inverse_condition: np.ndarray
+    sigma: np.ndarray
+    reachable: np.ndarray
+    characteristic_length: float
+
+
+def conditioning(robot, poses, s=None, characteristic_length: float | None = None
+                 ) -> Conditioning:
+    """Condition number of the hexapod's workspace Jacobian along poses (N, 6).
+
+    Args:
+        robot: a :class:`hexapod_pin.Hexapod` (uses ``robot.jacobian``).
+        poses: (N, 6) poses (m, rad).
+        s: path parameter (N,); default ``0..N-1``.
+        characteristic_length: scales the angular columns (m); default the
+            platform radius.
+
+    Raises:
+        InputError: bad shapes or a non-positive length.
+    """
+    poses = as_array(poses, (6,), "poses", batch=True)
+    s = np.arange(len(poses), dtype=float) if s is None else _series(s, "s", len(poses))
+    length = robot.geometry.platform_radius if characteristic_length is None \
+        else float(characteristic_length)
+    if not (np.isfinite(length) and length > 0):
+        raise InputError("characteristic_length", characteristic_length, "must be > 0 (m)")
+    scale = np.concatenate([np.ones(3), np.full(3, 1.0 / length)])
+    sigma = np.full((len(poses), 6), np.nan)
+    reachable = np.zeros(len(poses), dtype=bool)
+    for n, pose in enumerate(poses):
+        try:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                jac = robot.jacobian(pose)
+        except UnreachablePoseError:
+            continue
+        if not np.all(np.isfinite(jac)):   # a leg exactly perpendicular to its rail
+            reachable[n] = True
+            sigma[n] = np.r_[np.inf, np.zeros(5)]
+            continue
+        reachable[n] = True
+        sigma[n] = np.linalg.svd(jac * scale, compute_uv=False)
+    smax, smin = sigma[:, 0], sigma[:, -1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inverse = np.where(reachable & (smax > 0) & np.isfinite(smax), smin / smax, 0.0)
+    cond = np.where(inverse > 0, 1.0 / np.where(inverse > 0, inverse, 1.0), np.inf)
+    return Conditioning(s, cond, inverse, sigma, reachable, float(length))
+
+
+def plot_conditioning(robot, poses, s=None, *, path=None, s_label: str = "path parameter",
+                      title: str = "", characteristic_length: float | None = None):
+    """Condition number and inverse condition number of J along a path of poses.
+
+    See :func:`conditioning` for the definitions; unreachable samples are shaded.
+    """
+    cond = conditioning(robot, poses, s, characteristic_length)
+    fig = _figure_class()(figsize=(7.5, 5.0))
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    finite = np.isfinite(cond.condition_number)
+    top.semilogy(cond.s[finite], cond.condition_number[finite], color="#7570b3")
+    top.set_ylabel("condition number of J")
+    bottom.plot(cond.s, cond.inverse_condition, color="#d95f02")
+    bottom.set_ylabel("sigma_min / sigma_max")
+    bottom.set_ylim(bottom=0)
+    bottom.set_xlabel(s_label)
+    for ax in (top, bottom):
+        ax.grid(True, which="both", alpha=0.3)
+        for lo, hi in _runs(~cond.reachable, cond.s):
+            ax.axvspan(lo, hi, color="0.85")
+    top.set_title(title or "workspace Jacobian, angular columns / "
+                           f"{cond.characteristic_length:g} m (grey: out of reach)")
+    return _finish(fig, path)
+
+
+def _runs(mask: np.ndarray, s: np.ndarray):
+    """(start, end) of the runs of True in mask, in units of s."""
+    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
+    return [(s[a], s[min(b, len(s)) - 1]) for a, b in zip(edges[::2], edges[1::2])]
+
+
+# -- workspace slice -----------------------------------------------------------------------------
+#: status codes of :class:`WorkspaceSlice`
+REACHABLE, OUT_OF_REACH, STROKE_LIMIT = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class WorkspaceSlice:
+    """Reachability of a horizontal slice of platform positions at a fixed orientation.
+
+    Attributes:
+        x, y: grid coordinates (nx,), (ny,) of the platform origin (m).
+        z: the slice height (m).
+        orientation: (roll, pitch, yaw) (rad).
+        status: (ny, nx) ints: ``REACHABLE`` (0), ``OUT_OF_REACH`` (1: a leg cannot
+            reach its platform point), ``STROKE_LIMIT`` (2: reachable, but a
+            carriage leaves its stroke or two carriages of a rail come closer than
+            ``carriage_min_gap``).
+        condition_number: (ny, nx) condition number of the scaled workspace
+            Jacobian (see :func:`conditioning`) where status is 0, NaN elsewhere.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    z: float
+    orientation: np.ndarray
+    status: np.ndarray
+    condition_number: np.ndarray
+
+    @property
+    def reachable_fraction(self) -> float:
+        """Share of the grid that is reachable within the strokes."""
+        return float(np.mean(self.status == REACHABLE))
+
+
+def workspace_slice(robot, z: float | None = None, orientation: Sequence[float] = (0, 0, 0),
+                    half_width: float | None = None, resolution: int = 61) -> WorkspaceSlice:
+    """Sample the reachable platform positions on a horizontal plane.
+
+    Args:
+        robot: a :class:`hexapod_pin.Hexapod`.
+        z: height of the platform origin (m); default the home height.
+        orientation: (roll, pitch, yaw) of the platform (rad).
+        half_width: the square ``[-w, w]^2`` sampled (m); default: framing the
+            reachable region found by a coarse 25 x 25 pass over the rail radius.
+        resolution: samples per side (>= 2).
+
+    Raises:
+        InputError: bad numbers.
+    """
+    g = robot.geometry
+    z = g.home_height if z is None else float(z)
+    rpy = as_array(orientation, (3,), "orientation")
+    if not np.isfinite(z):
+        raise InputError("z", z, "must be finite")
+    if int(resolution) != resolution or resolution < 2:
+        raise InputError("resolution", resolution, "must be an integer >= 2")
+    if half_width is None:
+        width = _auto_half_width(robot, z, rpy)
+    else:
+        width = float(half_width)
+        if not (np.isfinite(width) and width > 0):
+            raise InputError("half_width", half_width, "must be finite and > 0 (m)")
+    xs = np.linspace(-width, width, int(resolution))
+    status, cond = _sample(robot, xs, xs, z, rpy)
+    return WorkspaceSlice(xs, xs.copy(), z, rpy, status, cond)
+
+
+def _auto_half_width(robot, z: float, rpy: np.ndarray) -> float:
+    """Half width framing the reachable region: a coarse pass over the rail radius."""
+    g = robot.geometry
+    coarse = np.linspace(-g.rail_radius, g.rail_radius, 25)
+    status, _ = _sample(robot, coarse, coarse, z, rpy, with_condition=False)
+    iy, ix = np.nonzero(status == REACHABLE)
+    if len(ix) == 0:
+        return g.rail_radius
+    step = coarse[1] - coarse[0]
+    reach = max(np.abs(coarse[ix]).max(), np.abs(coarse[iy]).max()) + step
+    return float(min(1.25 * reach, g.rail_radius))
+
+
+def _sample(robot, xs, ys, z, rpy, with_condition: bool = True):
+    status = np.full((len(ys), len(xs)), OUT_OF_REACH, dtype=int)
+    cond = np.full(status.shape, np.nan)
+    scale = np.concatenate([np.ones(3), np.full(3, 1.0 / robot.geometry.platform_radius)])
+    for iy, y in enumerate(ys):
+        for ix, x in enumerate(xs):
+            pose = np.array([x, y, z, *rpy])
+            try:
+                q = robot.inverse_kinematics(pose, check_limits=False)
+            except UnreachablePoseError:
+                continue
+            if robot.stroke_violations(q):
+                status[iy, ix] = STROKE_LIMIT
+                continue
+            status[iy, ix] = REACHABLE
+            if not with_condition:
+                continue
+            with np.errstate(divide="ignore", invalid="ignore"):
+                jac = robot.jacobian(pose)
+            if np.all(np.isfinite(jac)):
+                sv = np.linalg.svd(jac * scale, compute_uv=False)
+                cond[iy, ix] = sv[0] / sv[-1] if sv[-1] > 0 else np.inf
+            else:
+                cond[iy, ix] = np.inf
+    return status, cond
+
+
+def plot_workspace_slice(robot_or_slice, *, path=None, title: str = "", **slice_options):
+    """Map of a workspace slice: condition number where reachable, grey where a stroke
+    limit is hit, white where a leg cannot reach.
+
+    Args:
+        robot_or_slice: a :class:`WorkspaceSlice`, or a hexapod (then
+            ``slice_options`` go to :func:`workspace_slice`).
+    """
+    ws = robot_or_slice if isinstance(robot_or_slice, WorkspaceSlice) \
+        else workspace_slice(robot_or_slice, **slice_options)
+    fig = _figure_class()(figsize=(6.4, 5.4))
+    ax = fig.subplots()
+    extent = (ws.x[0], ws.x[-1], ws.y[0], ws.y[-1])
+    limits = np.where(ws.status == STROKE_LIMIT, 1.0, np.nan)
+    ax.imshow(limits, origin="lower", extent=extent, cmap="Greys", vmin=0, vmax=3,
+              interpolation="nearest")
+    shown = np.log10(np.where(np.isfinite(ws.condition_number), ws.condition_number, np.nan))
+    image = ax.imshow(shown, origin="lower", extent=extent, cmap="viridis",
+                      interpolation="nearest")
+    bar = fig.colorbar(image, ax=ax)
+    bar.set_label("log10 condition number of J")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal")
+    r, p, yw = np.degrees(ws.orientation)
+    ax.set_title(title or f"workspace slice z = {ws.z:.3f} m, rpy = ({r:.0f}, {p:.0f}, "
+                          f"{yw:.0f}) deg\nreachable {100 * ws.reachable_fraction:.0f} %"
+                          " (grey: stroke limit, white: out of reach)", fontsize="medium")
+    return _finish(fig, path)

@@ -1,0 +1,158 @@
+"""Simulation: energy conservation, equilibrium, tracking, limits, saturation, API."""
+
+import dataclasses
+import itertools
+
+import numpy as np
+import pytest
+
+from hexapod_pin.errors import ActuatorSaturationError, InputError, StrokeLimitError
+from hexapod_pin.simulate import (
+    CircleTrajectory,
+    ClosedLoopIntegrator,
+    ComputedTorqueController,
+    PIDController,
+    SimState,
+    Trajectory,
+    simulate,
+)
+
+
+def test_energy_is_conserved_unactuated(robot):
+    """2 s, gravity only, no actuation, no load: the mechanism collapses through the rail
+    plane and swings (check_limits off: the model has no end stops); total energy from
+    Pinocchio's energies (never used by the integrator) must stay within 1e-6 relative."""
+    traj = simulate(robot, 2.0, 1e-3, check_limits=False)
+    assert traj.status == "completed" and traj.times[-1] == pytest.approx(2.0)
+    energy = np.array([robot.tree_energies(q, v).total
+                       for q, v in zip(traj.configurations, traj.velocities)])
+    kinetic = np.array([robot.tree_energies(q, v).kinetic
+                        for q, v in zip(traj.configurations[::50], traj.velocities[::50])])
+    assert kinetic.max() > 5.0                                  # a real motion
+    assert np.max(np.abs(energy - energy[0])) <= 1e-6 * abs(energy[0])
+    assert traj.closure_residual.max() <= 1e-9
+    # closures re-checked independently of the integrator's own bookkeeping
+    worst = max(np.max(np.abs(robot.model.residual(q))) for q in traj.configurations[::100])
+    assert worst <= 1e-9
+
+
+def test_static_forces_hold_the_platform(robot):
+    pose = robot.home_pose + np.array([0.01, -0.01, 0.0, 0.03, 0.02, -0.05])
+    tau = robot.static_forces(pose)
+    traj = simulate(robot, 0.2, 1e-3, pose0=pose, actuator_forces=tau)
+    assert traj.status == "completed"
+    np.testing.assert_allclose(traj.poses, np.tile(pose, (len(traj.times), 1)), atol=1e-9)
+    assert np.max(np.abs(traj.twists)) < 1e-8
+
+
+def test_initial_acceleration_matches_forward_dynamics(robot):
+    """A short step from rest: q(dt) - q(0) ~ qddot dt^2 / 2 from forward_dynamics."""
+    tau = np.array([3.0, -1.0, 2.0, 0.5, -2.0, 1.0])
+    dt = 1e-4
+    traj = simulate(robot, 2 * dt, dt, actuator_forces=tau)
+    qddot = robot.forward_dynamics(robot.home_pose, np.zeros(6), tau).qddot
+    np.testing.assert_allclose((traj.q[1] - traj.q[0]) * 2 / dt**2, qddot, rtol=1e-3)
+
+
+def test_pid_follows_a_circle(robot):
+    """Quanser gains; the discrete D term needs a control rate above ~2.5 kHz here."""
+    ref = CircleTrajectory(robot.home_pose, radius=0.02, period=1.0)
+    pid = PIDController(robot, ref)
+    traj = simulate(robot, 0.5, 2.5e-4, controller=pid, reference=ref)
+    assert traj.status == "completed" and not traj.saturated.any()
+    err = np.linalg.norm(traj.poses[:, :3] - traj.reference_poses[:, :3], axis=1)
+    assert err.max() < 2e-4
+    q_ref = np.array([robot.inverse_kinematics(ref(t).pose) for t in traj.times[::100]])
+    assert np.max(np.abs(traj.q[::100] - q_ref)) < 2e-4
+
+
+def test_computed_torque_follows_a_circle(robot):
+    ref = CircleTrajectory(robot.home_pose, radius=0.02, period=1.0)
+    ctl = ComputedTorqueController(robot, ref)
+    traj = simulate(robot, 0.5, 1e-3, controller=ctl, reference=ref)
+    assert traj.status == "completed" and not traj.saturated.any()
+    err = np.linalg.norm(traj.poses[:, :3] - traj.reference_poses[:, :3], axis=1)
+    assert err.max() < 5e-5
+    # the commands are the inverse dynamics of the motion (up to the small tracking error)
+    tau_id = robot.inverse_dynamics(ref(0.25).pose, ref(0.25).twist, ref(0.25).twist_dot)
+    k = round(0.25 / 1e-3)
+    np.testing.assert_allclose(traj.actuator_forces[k], tau_id.actuator_forces, atol=0.2)
+
+
+def test_stroke_limit_stops_or_raises(robot):
+    traj = simulate(robot, 1.0, 1e-3)              # unactuated: carriages slide outwards
+    assert traj.status == "stroke_limit"
+    assert "rail_half_length" in traj.message
+    assert np.max(np.abs(traj.q[-1])) > robot.geometry.rail_half_length
+    assert traj.times[-1] < 1.0
+    with pytest.raises(StrokeLimitError):
+        simulate(robot, 1.0, 1e-3, on_limit="raise")
+
+
+def test_carriage_gap_stops(robot):
+    squeeze = robot.static_forces(robot.home_pose) + 15.0 * np.array([1, -1, 1, -1, 1, -1])
+    traj = simulate(robot, 1.0, 1e-3, actuator_forces=squeeze)
+    assert traj.status == "carriage_gap", traj.message
+    gaps = traj.q[-1, 1::2] - traj.q[-1, 0::2]
+    assert gaps.min() < robot.geometry.carriage_min_gap
+
+
+def test_saturation_policies(robot):
+    big = np.full(6, 500.0)
+    traj = simulate(robot, 0.002, 1e-3, actuator_forces=big, check_limits=False)
+    assert traj.saturated.all()
+    assert np.max(np.abs(traj.actuator_forces)) == robot.geometry.max_actuator_force
+    with pytest.raises(ActuatorSaturationError):
+        simulate(robot, 0.002, 1e-3, actuator_forces=big, saturation="raise")
+
+
+def test_progress_wrench_and_trajectory_object(robot):
+    calls = []
+    wrench = np.array([0.0, 0.0, -5.0, 0.0, 0.0, 0.0])
+    tau = robot.static_forces(robot.home_pose, wrench)
+    traj = simulate(robot, 0.05, 1e-3, actuator_forces=tau, wrench=wrench,
+                    progress=lambda done, total: calls.append((done, total)), record_every=5)
+    assert calls[-1] == (50, 50) and all(a < b for (a, _), (b, _) in itertools.pairwise(calls))
+    assert isinstance(traj, Trajectory) and len(traj.times) == 11
+    assert traj.poses.shape == (11, 6) and traj.configurations.shape == (11, robot.model.nq)
+    np.testing.assert_allclose(traj.poses[-1], robot.home_pose, atol=1e-9)   # wrench balanced
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        traj.status = "x"
+    assert traj.real_time_factor > 0
+
+
+def test_controller_receives_the_state(robot):
+    seen = []
+
+    def controller(state: SimState, dt):
+        seen.append(state)
+        return np.zeros(6)
+
+    simulate(robot, 0.003, 1e-3, controller=controller, check_limits=False)
+    assert len(seen) == 4 and seen[0].t == 0.0
+    np.testing.assert_allclose(seen[0].pose, robot.home_pose, atol=1e-12)
+    np.testing.assert_allclose(seen[0].q, robot.home_q, atol=1e-12)
+
+
+def test_semi_implicit_euler_converges_at_first_order_to_rk4(robot):
+    tau = robot.static_forces(robot.home_pose) + 2.0
+    rk4 = simulate(robot, 0.04, 1e-3, actuator_forces=tau)
+    errors = []
+    for dt in (1e-3, 5e-4):
+        sie = simulate(robot, 0.04, dt, actuator_forces=tau, integrator="semi_implicit_euler")
+        assert sie.closure_residual.max() <= 1e-10
+        errors.append(np.max(np.abs(sie.q[-1] - rk4.q[-1])))
+    assert 1.6 < errors[0] / errors[1] < 2.4
+
+
+def test_integrator_rejects_unsupported_joints_and_bad_inputs(robot):
+    with pytest.raises(InputError):
+        ClosedLoopIntegrator(robot.model, method="euler")
+    with pytest.raises(InputError):
+        simulate(robot, -1.0)
+    with pytest.raises(InputError):
+        simulate(robot, 0.01, actuator_forces=np.zeros(6), controller=lambda s, dt: np.zeros(6))
+    with pytest.raises(InputError):
+        simulate(robot, 0.01, on_limit="ignore")
+    with pytest.raises(InputError):
+        CircleTrajectory(robot.home_pose, radius=-0.01, period=1.0)
