@@ -21,20 +21,26 @@ looser tolerances of :data:`SOFT_TOL` (see benchmarks/README.md for why).
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
-import sys
-from dataclasses import dataclass, field
-from typing import Callable
+import os
 
-import numpy as np
-import pinocchio as pin
+# tiny dense matrices: BLAS threads only add contention (set before numpy loads)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import hexapod_pin as hp
-import hexapod_pin.dynamics as hpd
-import numpy_hexapod as nh
-import pinocchio_raw as pr
-from bench_common import (MIN_SAMPLE, NO_ROUTE, NOT_IMPLEMENTED, States, Timing, fmt_us,
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import sys  # noqa: E402
+from dataclasses import dataclass, field  # noqa: E402
+from typing import Callable  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
+
+import hexapod_pin as hp  # noqa: E402
+import hexapod_pin.dynamics as hpd  # noqa: E402
+import numpy_hexapod as nh  # noqa: E402
+import pinocchio_raw as pr  # noqa: E402
+from bench_common import (MIN_SAMPLE, NO_ROUTE, NOT_IMPLEMENTED, States, Timing, fmt_us,  # noqa: E402
                           measure, peak_memory, print_machine_info, random_states, table)
 
 try:
@@ -726,12 +732,18 @@ def main(argv=None) -> int:
     print(f"\n## Accuracy: max abs difference over {args.states} random states "
           "(N, m/s^2, rad/s^2, m, rad)")
     for op in ops:
+        if peers.mj is not None:
+            peers.mj.refinements.clear()
         headers, rows, fails = accuracy(op, args.states)
         note = ""
         if op.scheme_tol is not None:
             note = (f" (different integration schemes: tolerance "
                     f"{op.scheme_tol(args.states):.1e}, see scheme_tol)")
         print(table(headers, rows, title=f"### {op.name}{note}"))
+        if peers.mj is not None and peers.mj.refinements:
+            counts = np.array(peers.mj.refinements)
+            print(f"\nMuJoCo proximal refinement passes: median {np.median(counts):.0f}, "
+                  f"max {counts.max()} (stop at 1e-12 relative change)")
         failures += fails
     if not args.no_timing:
         print("\n## Speed: microseconds per state, median [inter-quartile range] over "

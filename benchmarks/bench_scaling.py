@@ -17,18 +17,24 @@ Usage (from the repository root)::
 
 from __future__ import annotations
 
-import argparse
-import sys
-from dataclasses import dataclass, field
+import os
 
-import numpy as np
+# tiny dense matrices: BLAS threads only add contention (set before numpy loads)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import hexapod_pin as hp
-import hexapod_pin.dynamics as hpd
-import ladder as lad_mod
-import pinocchio_raw as pr
-from bench_common import MIN_SAMPLE, NO_ROUTE, Timing, fmt_us, measure, print_machine_info, table
-from bench_peers import RIGID_TOL, HexapodPeers, Route, time_route
+import argparse  # noqa: E402
+import sys  # noqa: E402
+from dataclasses import dataclass, field  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+import hexapod_pin as hp  # noqa: E402
+import hexapod_pin.dynamics as hpd  # noqa: E402
+import ladder as lad_mod  # noqa: E402
+import pinocchio_raw as pr  # noqa: E402
+from bench_common import MIN_SAMPLE, NO_ROUTE, fmt_us, measure, print_machine_info, table  # noqa: E402
+from bench_peers import RIGID_TOL, HexapodPeers, time_route  # noqa: E402
 
 try:
     import mujoco

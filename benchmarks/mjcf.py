@@ -203,6 +203,7 @@ class MujocoHexapod:
         self._jacp = np.zeros((3, m.nv))
         self._jacp2 = np.zeros((3, m.nv))
         self._wrench_qfrc = np.zeros(m.nv)
+        self.refinements: list[int] = []      # passes of each forward_refined call
 
     # -- state ------------------------------------------------------------------------
     def qpos_from_pose(self, pose: np.ndarray) -> np.ndarray:
@@ -330,5 +331,5 @@ class MujocoHexapod:
         self.forward(qpos, qvel, tau, wrench)
         if not AREF_HAS_DRIFT:
             d.efc_aref[:] -= self.closure_drift()
-        self.refinements = refine_forward(m, d, max_refinements)
+        self.refinements.append(refine_forward(m, d, max_refinements))
         return self.twist_dot_from_qacc(d.qacc), d.qacc[self.carriage_v].copy(), d.qacc.copy()

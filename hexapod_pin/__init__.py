@@ -14,6 +14,7 @@ from .errors import (ActuatorSaturationError, AssemblyError, DescriptionError, G
                      StrokeLimitError, UnreachablePoseError)
 from .geometry import HexapodGeometry
 from .hexapod import Hexapod
+from .parallel_robots import load_parallel_robot
 from .planar import (AssemblyPolynomial, Planar3PRR, PlanarForwardDynamics, PlanarGeometry,
                      PlanarInverseDynamics)
 
@@ -25,5 +26,7 @@ __all__ = [
     "HexapodPinError", "InputError", "LoopsSpec", "RankInfo", "SingularityError",
     "SolverError", "StrokeLimitError", "UnreachablePoseError", "expand_xacro", "load_loops",
     "parse_loops", "urdf_dir", "AssemblyPolynomial", "Planar3PRR", "PlanarForwardDynamics",
-    "PlanarGeometry", "PlanarInverseDynamics",
+    "PlanarGeometry", "PlanarInverseDynamics", "load_parallel_robot", "robots", "sdf",
+    "workspace",
 ]
+from . import robots, sdf, workspace  # noqa: E402  (submodules as attributes)

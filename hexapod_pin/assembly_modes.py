@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -49,8 +50,6 @@ POSE_TOL = 1e-12
 DEGENERATE_RADIUS = 1e-9
 #: number of theta_0 samples of the resultant (>= 17; the surplus checks aliasing)
 N_SAMPLES = 32
-#: how far from the unit circle a root of the resultant may lie and still be tried
-ROOT_RING = 1e-3
 #: a back-substituted candidate is polished when its side errors are below this
 #: fraction of the longest platform side (roots of multiplicity m are only
 #: accurate to about eps^(1/m), so candidates are first only roughly right)
@@ -91,6 +90,7 @@ class CircleGeometry:
     points_t: tuple = field(init=False, repr=False, compare=False)
     frame_t: tuple = field(init=False, repr=False, compare=False)
     centroid_t: tuple = field(init=False, repr=False, compare=False)
+    half_inverse_sides_t: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         # plain-float copies for the scalar hot paths
@@ -101,6 +101,7 @@ class CircleGeometry:
         for name, value in (("mids_t", tup(self.mids)), ("dirs_t", tup(self.dirs)),
                             ("axis1_t", tup(self.axis1)), ("axis2_t", tup(self.axis2)),
                             ("sides_t", tuple(float(v) for v in self.sides)), ("gram_t", gram),
+                            ("half_inverse_sides_t", tuple(0.5 / float(v) for v in self.sides)),
                             ("points_t", tup(self.platform_points)),
                             ("frame_t", tup(self.platform_frame)),
                             ("centroid_t", tuple(float(v) for v in self.platform_centroid))):
@@ -120,9 +121,11 @@ class CircleGeometry:
                    sides, pts, triangle_frame(pts), pts.mean(axis=0))
 
 
-@dataclass(frozen=True)
-class CircleSystem:
+class CircleSystem(NamedTuple):
     """The three circles and triangle equations for one set of carriage positions.
+
+    (An immutable named tuple rather than a dataclass: it is built on every
+    forward-kinematics call.)
 
     Attributes:
         centres_t: ``M_k`` as three 3-tuples (m).
@@ -261,18 +264,30 @@ def _residual_and_jacobian(coeffs, t0: float, t1: float, t2: float):
     column of its first rail j and ``B_p`` in that of its second rail k
     (pairs (0,1), (1,2), (2,0): a cyclic pattern).
     """
-    c = (math.cos(t0), math.cos(t1), math.cos(t2))
-    s = (math.sin(t0), math.sin(t1), math.sin(t2))
-    res = []
-    jac = []
-    for (j, k), (K, a0, a1, b0, b1, q00, q01, q10, q11) in zip(PAIRS, coeffs):
-        cj, sj, ck, sk = c[j], s[j], c[k], s[k]
-        gj0 = a0 + q00 * ck + q01 * sk          # dE/dx_j
-        gj1 = a1 + q10 * ck + q11 * sk
-        res.append(K + gj0 * cj + gj1 * sj + b0 * ck + b1 * sk)
-        jac.append(gj1 * cj - gj0 * sj)
-        jac.append((b1 + q01 * cj + q11 * sj) * ck - (b0 + q00 * cj + q10 * sj) * sk)
-    return res, jac
+    c0, c1, c2 = math.cos(t0), math.cos(t1), math.cos(t2)
+    s0, s1, s2 = math.sin(t0), math.sin(t1), math.sin(t2)
+    (K0, a00, a01, b00, b01, q000, q001, q010, q011), \
+        (K1, a10, a11, b10, b11, q100, q101, q110, q111), \
+        (K2, a20, a21, b20, b21, q200, q201, q210, q211) = coeffs
+    # pair (0, 1): x_j = x0, x_k = x1
+    g0 = a00 + q000 * c1 + q001 * s1
+    g1 = a01 + q010 * c1 + q011 * s1
+    e01 = K0 + g0 * c0 + g1 * s0 + b00 * c1 + b01 * s1
+    A0 = g1 * c0 - g0 * s0
+    B0 = (b01 + q001 * c0 + q011 * s0) * c1 - (b00 + q000 * c0 + q010 * s0) * s1
+    # pair (1, 2)
+    g0 = a10 + q100 * c2 + q101 * s2
+    g1 = a11 + q110 * c2 + q111 * s2
+    e12 = K1 + g0 * c1 + g1 * s1 + b10 * c2 + b11 * s2
+    A1 = g1 * c1 - g0 * s1
+    B1 = (b11 + q101 * c1 + q111 * s1) * c2 - (b10 + q100 * c1 + q110 * s1) * s2
+    # pair (2, 0)
+    g0 = a20 + q200 * c0 + q201 * s0
+    g1 = a21 + q210 * c0 + q211 * s0
+    e20 = K2 + g0 * c2 + g1 * s2 + b20 * c0 + b21 * s0
+    A2 = g1 * c2 - g0 * s2
+    B2 = (b21 + q201 * c2 + q211 * s2) * c0 - (b20 + q200 * c2 + q210 * s2) * s0
+    return (e01, e12, e20), (A0, B0, A1, B1, A2, B2)
 
 
 def _newton_step(res, jac):
@@ -317,8 +332,8 @@ def newton_circles(system: CircleSystem, theta0, max_iter: int = 50,
             never returned as a solution.
     """
     coeffs = system.coeffs
-    w0, w1, w2 = (0.5 / s for s in system.circle_geometry.sides_t)
-    t0, t1, t2 = (float(t) for t in theta0)
+    w0, w1, w2 = system.circle_geometry.half_inverse_sides_t
+    t0, t1, t2 = theta0
     res, jac = _residual_and_jacobian(coeffs, t0, t1, t2)
     err = max(abs(res[0]) * w0, abs(res[1]) * w1, abs(res[2]) * w2)
     for iteration in range(max_iter + 1):
@@ -329,9 +344,10 @@ def newton_circles(system: CircleSystem, theta0, max_iter: int = 50,
         step = _newton_step(res, jac)
         if step is None:
             raise AssemblyError("singular closure Jacobian (type-II singularity)", err, iteration)
+        d0, d1, d2 = step
         alpha = 1.0
         for _ in range(12):
-            n0, n1, n2 = t0 - alpha * step[0], t1 - alpha * step[1], t2 - alpha * step[2]
+            n0, n1, n2 = t0 - alpha * d0, t1 - alpha * d1, t2 - alpha * d2
             t_res, t_jac = _residual_and_jacobian(coeffs, n0, n1, n2)
             t_err = max(abs(t_res[0]) * w0, abs(t_res[1]) * w1, abs(t_res[2]) * w2)
             if t_err < err or t_err <= tol:
@@ -512,7 +528,7 @@ def _eliminant_scale(system: CircleSystem) -> float:
     return float(size[0] ** 4 * size[1] ** 4 * size[2] ** 4)
 
 
-def _solve_trig(alpha: float, beta: float, gamma: float, slack: float = 1e-6) -> list[float]:
+def _solve_trig(alpha: float, beta: float, gamma: float, slack: float = 1e-3) -> list[float]:
     """Real ``t`` with ``alpha + beta cos t + gamma sin t = 0`` (0, 1 or 2 of them).
 
     A tangency missed by rounding (``|alpha|`` up to ``1 + slack`` times
@@ -576,11 +592,13 @@ def enumerate_assemblies(system: CircleSystem) -> list[np.ndarray]:
        at 32 equispaced angles and a discrete Fourier transform (unitary, so
        well conditioned; the unused frequencies 9..16 must vanish and are checked
        in the tests). All 16 roots come from the companion-matrix eigenvalues
-       (``numpy.roots``, backward stable); every root within ``ROOT_RING`` of
-       the unit circle is a candidate ``theta_0``.
+       (``numpy.roots``, backward stable). The argument of *every* root is a
+       candidate ``theta_0`` (no test of ``|z| = 1``, which rounding can break
+       for multiple roots: the next steps sort real from complex).
     3. Back substitution is exhaustive: for each candidate ``theta_0`` every
        ``theta_1`` with ``E_01 = 0`` and ``theta_2`` with ``E_20 = 0`` (each a
-       circle-sphere intersection, at most two closed-form roots), and the
+       circle-sphere intersection, at most two closed-form roots; a tangency
+       missed by up to 1e-3 relative counts as a double root), and the
        completions through ``E_12`` along the two other orders, are tried. So two
        solutions sharing ``theta_0`` are both found.
     4. Candidates whose side errors exceed ``CANDIDATE_TOL`` times the platform
@@ -591,16 +609,16 @@ def enumerate_assemblies(system: CircleSystem) -> list[np.ndarray]:
        three equations (:func:`newton_circles`, quadratic convergence to
        1e-14 m); failures are dropped, survivors are deduplicated.
 
-    Hence every real solution whose ``theta_0`` is a simple or well-separated
-    root of ``D`` is found. What is not covered, and what happens:
+    Hence every real solution is found whose ``theta_0`` the eigenvalue solver
+    returns within the Newton basin of that solution (always, unless two
+    solutions nearly coincide). What is not covered, and what happens:
 
     * ``D`` identically zero (a continuum of assemblies): :class:`AssemblyError`.
     * Two real solutions closer than about ``sqrt(eps)`` (at a type-II
       singularity, where two assembly modes merge): they may be returned as one.
     """
     _, roots, _ = eliminant_roots(system)
-    near = roots[np.abs(np.abs(roots) - 1.0) <= ROOT_RING]
-    cands = np.array([c for t0 in np.angle(near) for c in _candidates(system, float(t0))])
+    cands = np.array([c for t0 in np.angle(roots) for c in _candidates(system, float(t0))])
     if cands.size == 0:
         return []
     err = np.max(np.abs(_residuals(system, cands)) * (0.5 / system.sides), axis=1)

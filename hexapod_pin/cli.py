@@ -46,16 +46,22 @@ import json
 import math
 import sys
 import tempfile
-import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Callable, Iterator, Optional
+from typing import Annotated
 
 import numpy as np
 import typer
 from rich.console import Console
-from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn,
-                           TextColumn, TimeElapsedColumn)
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    SpinnerColumn,
+    TextColumn,
+    TimeElapsedColumn,
+)
 from rich.table import Table
 
 from .errors import DescriptionError, GeometryError, HexapodPinError, InputError
@@ -63,7 +69,8 @@ from .geometry import HexapodGeometry
 from .hexapod import Hexapod
 
 app = typer.Typer(help="Kinematics and dynamics of the rail-driven hexapod.", no_args_is_help=True,
-                  pretty_exceptions_enable=False, add_completion=False)
+                  pretty_exceptions_enable=False, add_completion=False,
+                  rich_markup_mode="markdown")
 console = Console()
 NUMBERS = {"ignore_unknown_options": True}  # lets "-0.1" through as a value
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -91,15 +98,15 @@ class FeatureUnavailableError(CommandError):
 
 
 # -- options shared by the commands --------------------------------------------------------
-GeometryFile = Annotated[Optional[Path], typer.Option(
+GeometryFile = Annotated[Path | None, typer.Option(
     "--geometry", help="TOML / YAML / JSON file of geometry fields", show_default=False)]
-SetFields = Annotated[Optional[list[str]], typer.Option(
+SetFields = Annotated[list[str] | None, typer.Option(
     "--set", metavar="FIELD=VALUE", help="override a geometry field (repeatable)",
     show_default=False)]
 AsJson = Annotated[bool, typer.Option("--json", help="machine-readable output on stdout")]
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bars or notes")]
 Degrees = Annotated[bool, typer.Option("--degrees", help="pose angles in degrees (in and out)")]
-Values = Annotated[Optional[list[str]], typer.Argument(show_default=False)]
+Values = Annotated[list[str] | None, typer.Argument(show_default=False, metavar="NUMBERS")]
 
 
 @app.callback()
@@ -211,20 +218,18 @@ def _read_geometry_file(path: Path) -> dict:
         raise DescriptionError(str(path), "geometry file not found")
     text = path.read_text(encoding="utf-8")
     suffix = path.suffix.lower()
-    try:
-        if suffix == ".toml":
-            data = _toml().loads(text)
-        elif suffix in (".yaml", ".yml"):
-            import yaml  # noqa: PLC0415
+    import yaml
 
-            data = yaml.safe_load(text)
-        elif suffix == ".json":
-            data = json.loads(text)
-        else:
-            raise DescriptionError(str(path), "geometry file must be .toml, .yaml, .yml or .json")
-    except DescriptionError:
-        raise
-    except Exception as exc:  # tomllib / yaml / json syntax errors
+    readers = {".toml": (lambda: _toml().loads(text), ValueError),  # TOMLDecodeError
+               ".yaml": (lambda: yaml.safe_load(text), yaml.YAMLError),
+               ".yml": (lambda: yaml.safe_load(text), yaml.YAMLError),
+               ".json": (lambda: json.loads(text), ValueError)}    # JSONDecodeError
+    if suffix not in readers:
+        raise DescriptionError(str(path), "geometry file must be .toml, .yaml, .yml or .json")
+    read, syntax_error = readers[suffix]
+    try:
+        data = read()
+    except syntax_error as exc:
         raise DescriptionError(str(path), f"malformed {suffix[1:]}: {exc}") from None
     if isinstance(data, dict) and isinstance(data.get("geometry"), dict):
         data = data["geometry"]
@@ -235,10 +240,10 @@ def _read_geometry_file(path: Path) -> dict:
 
 def _toml():
     try:
-        import tomllib  # noqa: PLC0415 (Python >= 3.11)
+        import tomllib
     except ModuleNotFoundError:  # pragma: no cover - Python 3.10
         try:
-            import tomli as tomllib  # noqa: PLC0415
+            import tomli as tomllib
         except ModuleNotFoundError:
             raise FeatureUnavailableError("TOML reader (Python < 3.11 needs tomli)") from None
     return tomllib
@@ -470,20 +475,19 @@ def write_motion(path: Path, motion: Motion) -> Path:
         text = buffer.getvalue()
     else:
         raise InputError("out", str(path), "motion files are .csv or .json")
-    from .visualize import write_text_atomic  # noqa: PLC0415
+    from .visualize import write_text_atomic
 
     return write_text_atomic(path, text)
 
 
 def motion_rates(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     """Twists and their derivatives (N, 6): from the file, or by finite differences."""
-    from .pose import euler_rates_matrix  # noqa: PLC0415
+    from .pose import euler_rates_matrix
 
     twists, twist_dots = motion.twists, motion.twist_dots
-    if twists is None or twist_dots is None:
-        if len(motion.t) < 3:
-            raise DescriptionError("motion", "at least 3 samples are needed to differentiate "
-                                             "the poses (or give the twist columns)")
+    if (twists is None or twist_dots is None) and len(motion.t) < 3:
+        raise DescriptionError("motion", "at least 3 samples are needed to differentiate "
+                                         "the poses (or give the twist columns)")
     if twists is None:
         angles = np.unwrap(motion.poses[:, 3:], axis=0)
         vel = np.gradient(motion.poses[:, :3], motion.t, axis=0, edge_order=2)
@@ -507,7 +511,7 @@ def circle_motion(robot: Hexapod, radius: float, period: float, duration: float 
     if not (radius >= 0 and period > 0 and duration > 0 and rate > 0):
         raise InputError("circle", (radius, period, duration),
                          "need radius >= 0, period > 0, duration > 0")
-    t = np.linspace(0.0, duration, max(int(round(duration * rate)) + 1, 3))
+    t = np.linspace(0.0, duration, max(round(duration * rate) + 1, 3))
     w = 2 * np.pi / period
     c, s = np.cos(w * t), np.sin(w * t)
     poses = np.tile(robot.home_pose, (len(t), 1))
@@ -549,8 +553,8 @@ def inverse_dynamics_along(robot: Hexapod, motion: Motion, method: str = "qp",
 @app.command()
 @_guard
 def demo(as_json: AsJson = False,
-         leg_length: Annotated[Optional[float], typer.Option(help="override leg_length (m)")] = None,
-         html: Annotated[Optional[Path], typer.Option(
+         leg_length: Annotated[float | None, typer.Option(help="override leg_length (m)")] = None,
+         html: Annotated[Path | None, typer.Option(
              help="HTML file of the home pose (default: in the temp folder)")] = None,
          no_html: Annotated[bool, typer.Option("--no-html", help="write no HTML")] = False,
          quiet: Quiet = False) -> None:
@@ -576,7 +580,7 @@ def demo(as_json: AsJson = False,
         result["simulation"] = _demo_simulation(robot, result["unavailable"])
     result["html"] = None
     if not no_html:
-        from . import visualize  # noqa: PLC0415
+        from . import visualize
 
         path = html or Path(tempfile.gettempdir()) / "hexapod_pin_demo.html"
         forces = None if result["statics"] is None else result["statics"]["actuator_forces"]
@@ -665,7 +669,7 @@ def _demo_table(result: dict) -> Table:
 @app.command(context_settings=NUMBERS)
 @_guard
 def ik(pose: Values = None,
-       branch: Annotated[Optional[str], typer.Option(
+       branch: Annotated[str | None, typer.Option(
            help="six signs choosing each carriage's root, e.g. -+-+-+ (default: home)")] = None,
        no_limits: Annotated[bool, typer.Option("--no-limits",
                                                help="do not check strokes / gaps")] = False,
@@ -698,7 +702,7 @@ def _branch(text: str | None):
 @app.command(context_settings=NUMBERS)
 @_guard
 def fk(q: Values = None,
-       guess: Annotated[Optional[str], typer.Option(
+       guess: Annotated[str | None, typer.Option(
            help="starting pose 'x,y,z,roll,pitch,yaw' (default home)")] = None,
        degrees: Degrees = False, as_json: AsJson = False,
        geometry: GeometryFile = None, set_: SetFields = None) -> None:
@@ -716,7 +720,7 @@ def fk(q: Values = None,
 @app.command(context_settings=NUMBERS)
 @_guard
 def modes(q: Values = None,
-          html: Annotated[Optional[Path], typer.Option(help="also write an HTML view")] = None,
+          html: Annotated[Path | None, typer.Option(help="also write an HTML view")] = None,
           layout: Annotated[str, typer.Option(help="grid, row or sequence (HTML)")] = "grid",
           degrees: Degrees = False, as_json: AsJson = False, quiet: Quiet = False,
           geometry: GeometryFile = None, set_: SetFields = None) -> None:
@@ -728,7 +732,7 @@ def modes(q: Values = None,
         poses = [np.asarray(p, dtype=float)
                  for p in _need(robot, "assembly_modes")(carriages)]
     if html is not None and poses:
-        from . import visualize  # noqa: PLC0415
+        from . import visualize
 
         with _progress(quiet, "writing HTML"):
             qs = visualize.hexapod_configurations(robot, poses, [carriages] * len(poses))
@@ -795,7 +799,7 @@ def _plain(obj):
 @app.command(context_settings=NUMBERS)
 @_guard
 def statics(pose: Values = None,
-            wrench: Annotated[Optional[str], typer.Option(
+            wrench: Annotated[str | None, typer.Option(
                 help="wrench on the platform 'fx,fy,fz,mx,my,mz' (N, N m, world axes)")] = None,
             degrees: Degrees = False, as_json: AsJson = False,
             geometry: GeometryFile = None, set_: SetFields = None) -> None:
@@ -814,13 +818,21 @@ def statics(pose: Values = None,
 @app.command("id")
 @_guard
 def inverse_dynamics(motion_file: Annotated[Path, typer.Argument(
-                         help="motion file (.csv / .json, see hexapod-pin --help)")],
-                     out: Annotated[Optional[Path], typer.Option(
+                         help="motion file (.csv / .json; format: see above)")],
+                     out: Annotated[Path | None, typer.Option(
                          help="write the motion with the forces (.csv / .json)")] = None,
                      method: Annotated[str, typer.Option(help="qp or kkt")] = "qp",
                      as_json: AsJson = False, quiet: Quiet = False,
                      geometry: GeometryFile = None, set_: SetFields = None) -> None:
-    """Inverse dynamics along a motion file: actuator forces (N) at every sample."""
+    """Inverse dynamics along a motion file: actuator forces (N) at every sample.
+
+    Motion file, CSV: a header row, then one row per sample; columns `t` (s), `x, y, z`
+    (m), `roll, pitch, yaw` (rad), optional `vx, vy, vz, wx, wy, wz` (twist, world axes),
+    `ax, ay, az, alphax, alphay, alphaz` (its derivative), `fx, fy, fz, mx, my, mz`
+    (wrench on the platform, N, N m), `q0..q5`, `tau0..tau5`, `residual`. JSON: keys
+    `t`, `pose` (N x 6), optional `twist`, `twist_dot`, `wrench`, `q`, `actuator_forces`,
+    `closure_residual`. A missing twist is computed from the poses by finite differences.
+    """
     quiet = quiet or as_json
     robot = _robot(geometry, set_)
     motion = read_motion(motion_file)
@@ -873,7 +885,7 @@ def run_simulation(robot: Hexapod, duration: float, dt: float | None, controller
     if not (np.isfinite(radius) and radius >= 0 and np.isfinite(period) and period > 0):
         raise InputError("radius", radius, "need radius >= 0 (m) and period > 0 (s)")
     try:
-        from . import simulate as sim  # noqa: PLC0415
+        from . import simulate as sim
         entry = sim.simulate
     except (ImportError, AttributeError):
         raise FeatureUnavailableError("hexapod_pin.simulate.simulate") from None
@@ -884,7 +896,7 @@ def run_simulation(robot: Hexapod, duration: float, dt: float | None, controller
         reference = sim.CircleTrajectory(robot.home_pose, radius, period)
     else:
         rest = sim.PlatformReference(robot.home_pose, np.zeros(6), np.zeros(6))
-        reference = lambda t: rest  # noqa: E731
+        reference = lambda t: rest
     make = sim.PIDController if controller == "pid" else sim.ComputedTorqueController
     return entry(robot, duration, dt, controller=make(robot, reference), reference=reference,
                  progress=progress)
@@ -902,7 +914,7 @@ def _tracking_error(traj) -> float | None:
 @app.command()
 @_guard
 def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")] = 2.0,
-             dt: Annotated[Optional[float], typer.Option(
+             dt: Annotated[float | None, typer.Option(
                  help="time step (s); default 0.25 ms for pid, 1 ms otherwise",
                  show_default=False)] = None,
              controller: Annotated[str, typer.Option(
@@ -911,11 +923,11 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
              radius: Annotated[float, typer.Option(
                  help="radius of the reference circle of the platform about home (m)")] = 0.02,
              period: Annotated[float, typer.Option(help="period of the circle (s)")] = 2.0,
-             out: Annotated[Optional[Path], typer.Option(
+             out: Annotated[Path | None, typer.Option(
                  help="write the trajectory (.csv / .json motion file)")] = None,
-             html: Annotated[Optional[Path], typer.Option(
+             html: Annotated[Path | None, typer.Option(
                  help="write an animated HTML view")] = None,
-             plot: Annotated[Optional[Path], typer.Option(
+             plot: Annotated[Path | None, typer.Option(
                  help="write a figure (.png / .svg) of q, forces, residual")] = None,
              as_json: AsJson = False, quiet: Quiet = False,
              geometry: GeometryFile = None, set_: SetFields = None) -> None:
@@ -926,7 +938,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
                              (plot, plotting_suffixes())):
         if target is not None and target.suffix.lower() not in suffixes:
             raise InputError("output", str(target), f"expected one of {', '.join(suffixes)}")
-    steps = int(round(duration / (dt or DEFAULT_DT.get(controller, 1e-3))))
+    steps = round(duration / (dt or DEFAULT_DT.get(controller, 1e-3)))
     with _progress(quiet, f"simulating {duration:g} s", total=max(steps, 1)) as advance:
         done = [0]
 
@@ -940,7 +952,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
         write_motion(out, motion)
         _note(quiet, f"wrote {out}")
     if html is not None:
-        from . import visualize  # noqa: PLC0415
+        from . import visualize
 
         with _progress(quiet, "writing HTML"):
             visualize.write_simulation_html(
@@ -949,7 +961,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
                         f"{motion.t[-1]:g} s ({traj.status})")
         _note(quiet, f"wrote {html}")
     if plot is not None:
-        from . import plotting  # noqa: PLC0415
+        from . import plotting
 
         plotting.plot_simulation(traj, path=plot, title=f"simulation, {controller} control")
         _note(quiet, f"wrote {plot}")
@@ -1006,9 +1018,9 @@ def view(values: Values = None,
              "--modes", help="every assembly mode of the carriage positions given "
                              "(default home)")] = False,
          layout: Annotated[str, typer.Option(help="modes: grid, row or sequence")] = "grid",
-         trajectory: Annotated[Optional[Path], typer.Option(
+         trajectory: Annotated[Path | None, typer.Option(
              help="animate a motion file (.csv / .json)")] = None,
-         circle: Annotated[Optional[float], typer.Option(
+         circle: Annotated[float | None, typer.Option(
              help="animate a circle of this radius (m) about home")] = None,
          period: Annotated[float, typer.Option(help="period of --circle (s)")] = 2.0,
          forces: Annotated[bool, typer.Option(
@@ -1019,7 +1031,7 @@ def view(values: Values = None,
          geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Write a self-contained HTML view (meshcat): a pose (default home), the pose of
     carriage positions, all assembly modes, or an animated motion."""
-    from . import visualize  # noqa: PLC0415
+    from . import visualize
 
     quiet = quiet or as_json
     robot = _robot(geometry, set_)
@@ -1094,14 +1106,14 @@ def _pose_caption(pose, with_forces: bool) -> str:
 @_guard
 def plot(kind: Annotated[str, typer.Argument(
              help="trajectory | residual | conditioning | workspace")],
-         motion_file: Annotated[Optional[Path], typer.Argument(
+         motion_file: Annotated[Path | None, typer.Argument(
              help="motion file (trajectory, residual; conditioning: its poses)")] = None,
          out: Annotated[Path, typer.Option("--out", "-o", help=".png / .svg / .pdf")] = Path(
              "hexapod.png"),
-         z: Annotated[Optional[float], typer.Option(help="workspace: slice height (m)")] = None,
-         rpy: Annotated[Optional[str], typer.Option(
+         z: Annotated[float | None, typer.Option(help="workspace: slice height (m)")] = None,
+         rpy: Annotated[str | None, typer.Option(
              help="workspace: orientation 'roll,pitch,yaw'")] = None,
-         half_width: Annotated[Optional[float], typer.Option(
+         half_width: Annotated[float | None, typer.Option(
              help="workspace: half width of the square (m)")] = None,
          resolution: Annotated[int, typer.Option(help="workspace: samples per side")] = 61,
          forces: Annotated[bool, typer.Option(
@@ -1111,7 +1123,7 @@ def plot(kind: Annotated[str, typer.Argument(
          geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Write a figure: carriage positions / forces along a motion, closure residual,
     conditioning of J along a motion (default: a vertical sweep), a workspace slice."""
-    from . import plotting  # noqa: PLC0415
+    from . import plotting
 
     quiet = quiet or as_json
     robot = _robot(geometry, set_)
@@ -1151,9 +1163,10 @@ def plot(kind: Annotated[str, typer.Argument(
             [rpy], 3, "rpy", "roll pitch yaw")
         if degrees:
             orientation = np.radians(orientation)
-        with _progress(quiet, "sampling the workspace slice"):
+        with _progress(quiet, "sampling the workspace slice", total=resolution) as advance:
             ws = plotting.workspace_slice(robot, z=z, orientation=orientation,
-                                          half_width=half_width, resolution=resolution)
+                                          half_width=half_width, resolution=resolution,
+                                          progress=lambda done, total: advance())
         plotting.plot_workspace_slice(ws, path=out)
     _note(quiet, f"wrote {out}")
     if as_json:

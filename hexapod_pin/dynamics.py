@@ -449,6 +449,10 @@ class ClosedLoopDynamics:
     def _check_bounds(self, bounds) -> np.ndarray | None:
         if bounds is None:
             return None
+        if isinstance(bounds, (int, float)) and not isinstance(bounds, bool):
+            if not bounds > 0.0:
+                raise InputError("bounds", bounds, "must be positive")
+            return None if bounds == float("inf") else np.full(self.n_act, float(bounds))
         arr = np.broadcast_to(np.asarray(bounds, dtype=float), (self.n_act,)).copy() \
             if np.ndim(bounds) == 0 else np.asarray(bounds, dtype=float)
         if arr.shape != (self.n_act,) or np.any(np.isnan(arr)) or np.any(arr <= 0.0):
@@ -461,7 +465,7 @@ class ClosedLoopDynamics:
         mat[:, :self.n_act] = self._selection
         mat[:, self.n_act:] = jac.T
         if method == "kkt":
-            sol, status = self._inverse_kkt(mat, rhs, rank)
+            sol, status = self._inverse_kkt(mat, rhs, rank, jac)
             iters = 0
         else:
             sol, status, iters = self._inverse_qp(mat, rhs, bounds)
@@ -471,10 +475,15 @@ class ClosedLoopDynamics:
         return TreeInverseDynamics(u.copy(), sol[self.n_act:].copy(), _maxabs(mat @ sol - rhs),
                                    method, status, iters)
 
-    def _inverse_kkt(self, mat, rhs, rank):
+    def _inverse_kkt(self, mat, rhs, rank, jac=None):
         if mat.shape[0] == mat.shape[1] and rank == self.n_rows:
+            # square system: the passive rows give the multipliers, the actuated rows u
+            act, passive = self.clm.actuated_v, self.clm.passive_v
+            if jac is None:
+                jac = mat[:, self.n_act:].T
             try:
-                sol = np.linalg.solve(mat, rhs)
+                lam = np.linalg.solve(jac[:, passive].T, rhs[passive])
+                sol = np.concatenate([rhs[act] - jac[:, act].T @ lam, lam])
                 if _small(mat @ sol - rhs, rhs):
                     return sol, "solved"
             except np.linalg.LinAlgError:
@@ -1144,17 +1153,22 @@ class HexapodDynamics:
         ws = self._workspace()
         dyn = ws.dyn
         n_act = dyn.n_act
-        mats = np.empty((n, dyn.nv, n_act + dyn.n_rows))
-        mats[:, :, :n_act] = dyn._selection
+        act, passive = dyn.clm.actuated_v, dyn.clm.passive_v
+        jacs = np.empty((n, dyn.n_rows, dyn.nv))
         rhs = np.empty((n, dyn.nv))
         for k in range(n):
             q, v, acc, jac, rot, _ = self._tree_state(poses[k], twists[k], twist_dots[k])
-            mats[k, :, n_act:] = jac.T
+            jacs[k] = jac
             rhs[k] = pin.rnea(dyn.model, dyn.data, q, v, acc)
             if wrenches is not None:
                 rhs[k] -= self._tau_ext(ws, rot, wrenches[k])
-        sol = np.linalg.solve(mats, rhs[..., None])[..., 0]
-        residual = np.max(np.abs(np.einsum("nij,nj->ni", mats, sol) - rhs), axis=1)
+        # square tree system per state: passive rows -> multipliers, actuated rows -> forces
+        lam = np.linalg.solve(np.swapaxes(jacs[:, :, passive], 1, 2), rhs[:, passive, None])[..., 0]
+        sol = np.concatenate([rhs[:, act] - np.einsum("nra,nr->na", jacs[:, :, act], lam), lam],
+                             axis=1)
+        full = np.einsum("nrv,nr->nv", jacs, lam)
+        full[:, act] += sol[:, :n_act]
+        residual = np.max(np.abs(full - rhs), axis=1)
         forces = sol[:, :n_act]
         if bounded and ws.bounds is not None:
             over = np.flatnonzero(np.any(np.abs(forces) > ws.bounds * (1 + _RESIDUAL_RTOL), axis=1))

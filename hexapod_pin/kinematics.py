@@ -53,12 +53,35 @@ GIMBAL_TOL = 1e-10
 #: relative smallest singular value of J below which ``twist_from_qdot`` refuses
 TYPE_II_RTOL = 1e-12
 #: poses per chunk of the batch kernels (keeps the temporaries in cache)
-BATCH_CHUNK = 2048
+BATCH_CHUNK = 8192
 #: position of a leg's centre of mass along the leg, as a fraction of its length
 #: from the universal joint (a uniform rod, as in the URDF)
 LEG_COM_FRACTION = 0.5
 
 _HOME_SIGNS = tuple(HOME_BRANCH.tolist())
+
+
+def _cross3(a, b) -> tuple:
+    """Cross product of two 3-sequences of floats."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _dot3(a, b) -> float:
+    """Dot product of two 3-sequences of floats."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _floats6(value, name: str) -> list:
+    """A validated 6-vector as a list of floats (fast path for float64 arrays of shape (6,)).
+
+    Raises:
+        InputError: not numeric, wrong shape, or NaN / inf (via :func:`as_array`).
+    """
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (6,):
+        vals = value.tolist()
+        if all(map(math.isfinite, vals)):
+            return vals
+    return as_array(value, (6,), name).tolist()
 
 
 def check_branch(branch) -> np.ndarray:
@@ -190,12 +213,13 @@ class SingularityMeasures:
 
 @dataclass(frozen=True)
 class _LegState:
-    """Legs of one pose: q (6,), n (6, 3), r = R p_k per carriage (6, 3), n.u (6,)."""
+    """Legs of one pose in plain floats, per carriage: q, n_i (3-tuples), r_k = R p_k
+    (3-tuples), n_i . u_k."""
 
-    q: np.ndarray
-    legs: np.ndarray
-    arms: np.ndarray
-    along: np.ndarray
+    q: list
+    legs: list
+    arms: list
+    along: list
 
 
 class HexapodKinematics:
@@ -205,8 +229,21 @@ class HexapodKinematics:
 
     # -- shared geometry in carriage order -------------------------------------------
     def _carriage_frames(self):
+        """Rail midpoints, rail directions and platform points in carriage order, (6, 3) each
+        (read-only arrays, computed once per robot)."""
+        return self._frames6
+
+    @cached_property
+    def _frames6(self):
         g = self.geometry
-        return g.rail_midpoints[RAIL_OF], g.rail_directions[RAIL_OF], g.platform_points[RAIL_OF]
+        out = (g.rail_midpoints[RAIL_OF], g.rail_directions[RAIL_OF], g.platform_points[RAIL_OF])
+        for arr in out:
+            arr.setflags(write=False)
+        return out
+
+    @cached_property
+    def _home_list(self) -> list:
+        return self.geometry.home_pose.tolist()
 
     @cached_property
     def _circles(self) -> am.CircleGeometry:
@@ -231,13 +268,13 @@ class HexapodKinematics:
         return q, disc, tips, r
 
     # -- scalar core (single pose, plain floats: small-array numpy is slower) --------
-    def _solve_legs(self, pose: np.ndarray, signs):
-        """IK of one pose in plain floats.
+    def _solve_legs(self, pose: list, signs):
+        """IK of one pose (6 floats) in plain floats.
 
         Returns lists: q (6), disc (6), legs n_i (6 tuples), arms r_k (3 tuples).
         """
         cg = self._circles
-        x, y, z, roll, pitch, yaw = pose.tolist()
+        x, y, z, roll, pitch, yaw = pose
         rot = am.rotation_from_rpy_t(roll, pitch, yaw)
         arms = [(rot[0][0] * px + rot[0][1] * py + rot[0][2] * pz,
                  rot[1][0] * px + rot[1][1] * py + rot[1][2] * pz,
@@ -287,7 +324,7 @@ class HexapodKinematics:
             StrokeLimitError: with ``check_limits``, a stroke or gap violation
                 (including carriages of a rail that cross).
         """
-        pose = as_array(pose, (6,), "pose")
+        pose = _floats6(pose, "pose")
         q, disc, _, _ = self._solve_legs(pose, self._signs(branch))
         if min(disc) < 0.0:
             self._raise_unreachable(disc)
@@ -335,7 +372,6 @@ class HexapodKinematics:
         """
         pose = as_array(pose, (6,), "pose")
         q = as_array(q, (6,), "q")
-        _, disc, legs, _ = self._solve_legs(pose, _HOME_SIGNS)
         mids, dirs, _ = self._carriage_frames()
         tips = self.platform_points_world(pose)[RAIL_OF]
         rel = tips - mids - q[:, None] * dirs
@@ -397,59 +433,77 @@ class HexapodKinematics:
     def _batch_kernel(self, poses: np.ndarray, signs: np.ndarray, jacobian: bool):
         """Chunked structure-of-arrays kernel of the batch API.
 
-        Relies on the hexapod's conventions that rails and platform points lie in
-        the planes z = 0 of their frames (``m_k``, ``u_k``, ``p_k`` have no z
+        Works per rail: both carriages of rail k share ``d_k = P_k - m_k``, its
+        component along the rail ``a_k = u_k . d_k`` and the root
+        ``rho_k = sqrt(disc_k)``; ``q_i = a_k + s_i rho_k``. With the perpendicular
+        part ``p_k = d_k - a_k u_k``, the leg is ``n_i = p_k - s_i rho_k u_k`` and
+        ``n_i . u_k = -s_i rho_k``, so the Jacobian row is
+
+            ``J[i] = [u_k, r_k x u_k] - s_i [p_k, r_k x p_k] / rho_k``
+
+        (the same row as :meth:`jacobian`, algebraically simplified). Relies on
+        the hexapod's conventions that rails and platform points lie in the
+        planes z = 0 of their frames (``m_k``, ``u_k``, ``p_k`` have no z
         component), which :class:`HexapodGeometry` guarantees.
         """
         g = self.geometry
-        mids, dirs, pts = self._carriage_frames()
-        mx, my, ux, uy, px, py = mids[:, 0], mids[:, 1], dirs[:, 0], dirs[:, 1], pts[:, 0], pts[:, 1]
+        mids, dirs, pts = g.rail_midpoints, g.rail_directions, g.platform_points
+        # rail-major columns (3, 1): every array below is (3, n) with the long axis last,
+        # where numpy's inner loops are fast (a (n, 3) layout is several times slower)
+        mx, my = mids[:, 0:1], mids[:, 1:2]
+        ux, uy = dirs[:, 0:1], dirs[:, 1:2]
+        px, py = pts[:, 0:1], pts[:, 1:2]
         length2 = g.leg_length ** 2
         tol = TYPE_I_TOL * g.leg_length
         n = poses.shape[0]
         q = np.empty((n, 6))
         reachable = np.empty(n, dtype=bool)
         regular = np.empty(n, dtype=bool)
-        jac = np.zeros((n, 6, 6)) if jacobian else None
+        jac = np.empty((n, 6, 6)) if jacobian else None
         per_row = signs.ndim == 2
+        if not per_row:
+            parity_signs = (signs[0::2, None], signs[1::2, None])              # (3, 1) each
         for start in range(0, n, BATCH_CHUNK):
             stop = min(start + BATCH_CHUNK, n)
-            chunk = poses[start:stop]
-            sign = signs[start:stop] if per_row else signs
-            cr, sr = np.cos(chunk[:, 3]), np.sin(chunk[:, 3])
-            cp, sp = np.cos(chunk[:, 4]), np.sin(chunk[:, 4])
-            cy, sy = np.cos(chunk[:, 5]), np.sin(chunk[:, 5])
-            spsr, spcr = sp * sr, sp * cr
-            r00, r10, r20 = (cy * cp)[:, None], (sy * cp)[:, None], (-sp)[:, None]
-            r01 = (cy * spsr - sy * cr)[:, None]
-            r11 = (sy * spsr + cy * cr)[:, None]
-            r21 = (cp * sr)[:, None]
-            rx = r00 * px + r01 * py                                   # (n, 6): R p_k
-            ry = r10 * px + r11 * py
-            rz = r20 * px + r21 * py
-            dx = rx + (chunk[:, 0:1] - mx)
-            dy = ry + (chunk[:, 1:2] - my)
-            dz = rz + chunk[:, 2:3]
+            x, y, z, roll, pitch, yaw = np.ascontiguousarray(poses[start:stop].T)
+            if per_row:
+                rows = signs[start:stop].T
+                parity_signs = (rows[0::2], rows[1::2])                          # (3, n) each
+            cr, sr = np.cos(roll), np.sin(roll)
+            cp, sp = np.cos(pitch), np.sin(pitch)
+            cy, sy = np.cos(yaw), np.sin(yaw)
+            spsr = sp * sr
+            r00, r10, r20 = cy * cp, sy * cp, -sp
+            r01, r11, r21 = cy * spsr - sy * cr, sy * spsr + cy * cr, cp * sr
+            rx = px * r00 + py * r01                                   # (3, n): r_k = R p_k
+            ry = px * r10 + py * r11
+            rz = px * r20 + py * r21
+            dx = rx + x - mx                                           # d_k = P_k - m_k
+            dy = ry + y - my
+            dz = rz + z
             along = dx * ux + dy * uy
             disc = length2 - (dx * dx + dy * dy + dz * dz) + along * along
             root = np.sqrt(np.maximum(disc, 0.0))
-            qc = along + sign * root
-            q[start:stop] = qc
-            reachable[start:stop] = np.all(disc >= 0.0, axis=1)
-            regular[start:stop] = np.all(root >= tol, axis=1)
-            if jacobian:
-                nx, ny, nz = dx - qc * ux, dy - qc * uy, dz
-                denom = nx * ux + ny * uy
-                ok = np.abs(denom) >= tol
-                inv = np.divide(1.0, denom, out=np.zeros_like(denom), where=ok)
-                block = jac[start:stop]
-                block[:, :, 0] = nx * inv
-                block[:, :, 1] = ny * inv
-                block[:, :, 2] = nz * inv
-                block[:, :, 3] = (ry * nz - rz * ny) * inv
-                block[:, :, 4] = (rz * nx - rx * nz) * inv
-                block[:, :, 5] = (rx * ny - ry * nx) * inv
-                regular[start:stop] &= np.all(ok, axis=1)
+            block_q = q[start:stop]
+            for parity, sgn in enumerate(parity_signs):
+                block_q[:, parity::2] = (along + sgn * root).T
+            reachable[start:stop] = np.all(disc >= 0.0, axis=0)
+            good = root >= tol
+            regular[start:stop] = np.all(good, axis=0)
+            if not jacobian:
+                continue
+            inv = np.divide(1.0, root, out=np.zeros_like(root), where=good)
+            perp_x, perp_y = dx - along * ux, dy - along * uy           # p_k (z part: dz)
+            scaled = (perp_x * inv, perp_y * inv, dz * inv,
+                      (ry * dz - rz * perp_y) * inv, (rz * perp_x - rx * dz) * inv,
+                      (rx * perp_y - ry * perp_x) * inv)               # [p, r x p] / rho
+            base = (ux, uy, 0.0, -rz * uy, rz * ux, rx * uy - ry * ux)  # [u, r x u]
+            # rows i = 2k + parity of J, column-major over the chunk, then one transposed copy
+            cols = np.empty((6, 6, stop - start))
+            for parity, sgn in enumerate(parity_signs):
+                for col in range(6):
+                    np.subtract(base[col], sgn * scaled[col], out=cols[parity::2, col])
+            jac[start:stop] = cols.transpose(2, 0, 1)
         within = (np.all(np.abs(q) <= g.rail_half_length, axis=1)
                   & np.all(q[:, 1::2] - q[:, 0::2] >= g.carriage_min_gap, axis=1))
         if jacobian:
@@ -471,7 +525,7 @@ class HexapodKinematics:
             SingularityError: type-I singularity, a leg perpendicular to its rail
                 (``|cos| < TYPE_I_TOL``): J is unbounded there.
         """
-        pose = as_array(pose, (6,), "pose")
+        pose = _floats6(pose, "pose")
         q, disc, legs, arms = self._solve_legs(pose, self._signs(branch))
         if min(disc) < 0.0:
             self._raise_unreachable(disc)
@@ -524,27 +578,32 @@ class HexapodKinematics:
         return np.linalg.solve(jac, qdot)
 
     def _leg_state(self, pose: np.ndarray, branch) -> _LegState:
-        """Legs of a (validated) pose as arrays; raises on unreachable or type-I poses."""
+        """Legs of a (validated) pose in plain floats; raises on unreachable or type-I poses."""
         q, disc, legs, arms = self._solve_legs(pose, self._signs(branch))
         if min(disc) < 0.0:
             self._raise_unreachable(disc)
-        legs = np.array(legs)
-        dirs = self.geometry.rail_directions[RAIL_OF]
-        along = np.einsum("ij,ij->i", legs, dirs)
-        worst = int(np.argmin(np.abs(along)))
+        dirs = self._circles.dirs_t
+        along = [_dot3(legs[i], dirs[i >> 1]) for i in range(6)]
+        worst = min(range(6), key=lambda i: abs(along[i]))
         if not abs(along[worst]) >= TYPE_I_TOL * self.geometry.leg_length:
             raise SingularityError(f"workspace Jacobian: type-I singularity, the leg of carriage "
                                    f"{worst} is perpendicular to its rail (|cos|)",
                                    abs(along[worst]) / self.geometry.leg_length)
-        return _LegState(np.array(q), legs, np.array(arms)[RAIL_OF], along)
+        return _LegState(q, legs, [arms[i >> 1] for i in range(6)], along)
 
-    def _rates(self, state: _LegState, twist: np.ndarray):
-        """``qdot`` (6,) and ``dn_i/dt`` (6, 3) for a twist."""
+    def _rates(self, state: _LegState, twist: list):
+        """``qdot`` (6 floats) and ``dn_i/dt`` (6 3-tuples) for a twist (6 floats)."""
         v, w = twist[:3], twist[3:]
-        tip_vel = v + np.cross(w, state.arms)                      # dP_k/dt (6, 3)
-        qdot = np.einsum("ij,ij->i", state.legs, tip_vel) / state.along   # J @ twist
-        dirs = self.geometry.rail_directions[RAIL_OF]
-        return qdot, tip_vel - qdot[:, None] * dirs
+        dirs = self._circles.dirs_t
+        qdot, dlegs = [], []
+        for i in range(6):
+            wr = _cross3(w, state.arms[i])
+            tip_vel = (v[0] + wr[0], v[1] + wr[1], v[2] + wr[2])     # dP_k/dt
+            qd = _dot3(state.legs[i], tip_vel) / state.along[i]       # (J @ twist)_i
+            u = dirs[i >> 1]
+            qdot.append(qd)
+            dlegs.append((tip_vel[0] - qd * u[0], tip_vel[1] - qd * u[1], tip_vel[2] - qd * u[2]))
+        return qdot, dlegs
 
     def jacobian_derivative(self, pose, twist, branch: Sequence[float] | None = None) -> np.ndarray:
         """Time derivative ``dJ/dt`` (6, 6) of the workspace Jacobian along a twist.
@@ -565,26 +624,35 @@ class HexapodKinematics:
         Raises:
             InputError, UnreachablePoseError, SingularityError: as :meth:`jacobian`.
         """
-        pose = as_array(pose, (6,), "pose")
-        twist = as_array(twist, (6,), "twist")
+        pose = _floats6(pose, "pose")
+        twist = _floats6(twist, "twist")
         state = self._leg_state(pose, branch)
         _, dlegs = self._rates(state, twist)
-        return self._jacobian_derivative_from(state, twist, dlegs)
-
-    def _jacobian_derivative_from(self, state: _LegState, twist: np.ndarray,
-                                  dlegs: np.ndarray) -> np.ndarray:
-        dirs = self.geometry.rail_directions[RAIL_OF]
+        dirs = self._circles.dirs_t
         w = twist[3:]
-        inv = 1.0 / state.along[:, None]
-        jac = np.concatenate([state.legs, np.cross(state.arms, state.legs)], axis=1) * inv
-        dalong = np.einsum("ij,ij->i", dlegs, dirs)[:, None]
-        darm = np.cross(w, state.arms)
-        djac = np.concatenate([dlegs, np.cross(darm, state.legs)
-                               + np.cross(state.arms, dlegs)], axis=1) * inv
-        return djac - jac * dalong * inv
+        rows = []
+        for i in range(6):
+            n, r, dn = state.legs[i], state.arms[i], dlegs[i]
+            inv = 1.0 / state.along[i]
+            rn = _cross3(r, n)
+            a = _cross3(_cross3(w, r), n)
+            b = _cross3(r, dn)
+            rate = _dot3(dn, dirs[i >> 1]) * inv                   # d(n.u)/dt / (n.u)
+            rows.append([(dn[0] - n[0] * rate) * inv, (dn[1] - n[1] * rate) * inv,
+                         (dn[2] - n[2] * rate) * inv, (a[0] + b[0] - rn[0] * rate) * inv,
+                         (a[1] + b[1] - rn[1] * rate) * inv, (a[2] + b[2] - rn[2] * rate) * inv])
+        return np.array(rows)
 
     def qddot(self, pose, twist, twist_dot, branch: Sequence[float] | None = None) -> np.ndarray:
         """Carriage accelerations (6,) (m/s^2): ``qddot = J twist_dot + dJ/dt twist``.
+
+        Evaluated in the equivalent form obtained by differentiating
+        ``n_i . dn_i/dt = 0`` once more::
+
+            qddot_i = (|dn_i/dt|^2 + n_i . d2P_k/dt2) / (n_i . u_k),
+            d2P_k/dt2 = vdot + wdot x r_k + w x (w x r_k)
+
+        (:meth:`jacobian_derivative` gives the other form; the tests check both).
 
         Args:
             pose: (6,) (m, rad).
@@ -595,14 +663,26 @@ class HexapodKinematics:
         Raises:
             InputError, UnreachablePoseError, SingularityError: as :meth:`jacobian`.
         """
-        pose = as_array(pose, (6,), "pose")
-        twist = as_array(twist, (6,), "twist")
-        twist_dot = as_array(twist_dot, (6,), "twist_dot")
+        pose = _floats6(pose, "pose")
+        twist = _floats6(twist, "twist")
+        twist_dot = _floats6(twist_dot, "twist_dot")
         state = self._leg_state(pose, branch)
         _, dlegs = self._rates(state, twist)
-        jac = np.concatenate([state.legs, np.cross(state.arms, state.legs)], axis=1)
-        jac /= state.along[:, None]
-        return jac @ twist_dot + self._jacobian_derivative_from(state, twist, dlegs) @ twist
+        return np.array(self._qddot_from(state, twist, twist_dot, dlegs)[0])
+
+    @staticmethod
+    def _qddot_from(state: _LegState, twist: list, twist_dot: list, dlegs: list):
+        """qddot (6 floats) and the platform-point accelerations (6 3-tuples)."""
+        w, dw, dv = twist[3:], twist_dot[3:], twist_dot[:3]
+        qddot, tip_acc = [], []
+        for i in range(6):
+            r = state.arms[i]
+            a1, a2 = _cross3(dw, r), _cross3(w, _cross3(w, r))
+            acc = (dv[0] + a1[0] + a2[0], dv[1] + a1[1] + a2[1], dv[2] + a1[2] + a2[2])
+            tip_acc.append(acc)
+            qddot.append((_dot3(dlegs[i], dlegs[i]) + _dot3(state.legs[i], acc))
+                         / state.along[i])
+        return qddot, tip_acc
 
     def leg_motion(self, pose, twist, twist_dot=None,
                    branch: Sequence[float] | None = None) -> LegMotion:
@@ -612,7 +692,9 @@ class HexapodKinematics:
         true one of the rigid leg behind its universal joint). With
         ``e = n / L``: ``de/dt = dn/dt / L``, ``d2e/dt2 = d2n/dt2 / L``,
         ``d2n/dt2 = vdot + wdot x r_k + w x (w x r_k) - qddot_i u_k``; centre of mass
-        ``c_i + L/2 e``, velocity ``qdot_i u_k + dn/dt / 2``.
+        ``c_i + L/2 e``, velocity ``qdot_i u_k + dn/dt / 2``; the angular
+        acceleration differentiates ``w = e x de/dt + lambda e``:
+        ``e x d2e/dt2 + dlambda/dt e + lambda de/dt``.
 
         Args:
             pose: (6,) (m, rad).
@@ -625,46 +707,57 @@ class HexapodKinematics:
                 also SingularityError where a leg lies along its rail (the
                 universal joint's gimbal lock: the leg's spin is undefined).
         """
-        pose = as_array(pose, (6,), "pose")
-        twist = as_array(twist, (6,), "twist")
+        pose = _floats6(pose, "pose")
+        twist = _floats6(twist, "twist")
         if twist_dot is not None:
-            twist_dot = as_array(twist_dot, (6,), "twist_dot")
+            twist_dot = _floats6(twist_dot, "twist_dot")
         state = self._leg_state(pose, branch)
-        length = self.geometry.leg_length
-        dirs = self.geometry.rail_directions[RAIL_OF]
+        cg = self._circles
+        inv_len = 1.0 / cg.leg_length
+        frac = LEG_COM_FRACTION
         qdot, dlegs = self._rates(state, twist)
-        e, de = state.legs / length, dlegs / length
-        cosine = state.along / length                                 # u . e
-        gimbal = 1.0 - cosine ** 2
-        worst = int(np.argmin(gimbal))
-        if not gimbal[worst] >= GIMBAL_TOL:
-            raise SingularityError(f"leg of carriage {worst} lies along its rail (universal "
-                                   "joint in gimbal lock; 1 - cos^2)", gimbal[worst])
-        perp = np.cross(e, de)                                        # e x de
-        sigma = np.einsum("ij,ij->i", perp, dirs)
-        spin = cosine * sigma / gimbal
-        omega = perp + spin[:, None] * e
-        carriages = self.geometry.rail_midpoints[RAIL_OF] + state.q[:, None] * dirs
-        com = carriages + LEG_COM_FRACTION * state.legs
-        com_vel = qdot[:, None] * dirs + LEG_COM_FRACTION * dlegs
+        if twist_dot is not None:
+            qddot, tip_acc = self._qddot_from(state, twist, twist_dot, dlegs)
+        out = {"e": [], "com": [], "omega": [], "vcom": [], "alpha": [], "acom": []}
+        for i in range(6):
+            u, m = cg.dirs_t[i >> 1], cg.mids_t[i >> 1]
+            n, dn, qi = state.legs[i], dlegs[i], state.q[i]
+            e = (n[0] * inv_len, n[1] * inv_len, n[2] * inv_len)
+            de = (dn[0] * inv_len, dn[1] * inv_len, dn[2] * inv_len)
+            cosine = state.along[i] * inv_len                           # u . e
+            gimbal = 1.0 - cosine * cosine
+            if not gimbal >= GIMBAL_TOL:
+                raise SingularityError(f"leg of carriage {i} lies along its rail (universal "
+                                       "joint in gimbal lock; 1 - cos^2)", gimbal)
+            perp = _cross3(e, de)                                       # e x de
+            sigma = _dot3(perp, u)
+            spin = cosine * sigma / gimbal
+            out["e"].append(e)
+            out["com"].append((m[0] + qi * u[0] + frac * n[0], m[1] + qi * u[1] + frac * n[1],
+                               m[2] + qi * u[2] + frac * n[2]))
+            out["omega"].append((perp[0] + spin * e[0], perp[1] + spin * e[1],
+                                 perp[2] + spin * e[2]))
+            qd = qdot[i]
+            out["vcom"].append((qd * u[0] + frac * dn[0], qd * u[1] + frac * dn[1],
+                                qd * u[2] + frac * dn[2]))
+            if twist_dot is None:
+                continue
+            acc, qdd = tip_acc[i], qddot[i]
+            ddn = (acc[0] - qdd * u[0], acc[1] - qdd * u[1], acc[2] - qdd * u[2])
+            dperp = _cross3(e, (ddn[0] * inv_len, ddn[1] * inv_len, ddn[2] * inv_len))
+            dcos = _dot3(de, u)
+            dspin = ((dcos * sigma + cosine * _dot3(dperp, u)) / gimbal
+                     + 2.0 * cosine * cosine * dcos * sigma / (gimbal * gimbal))
+            out["alpha"].append((dperp[0] + dspin * e[0] + spin * de[0],
+                                 dperp[1] + dspin * e[1] + spin * de[1],
+                                 dperp[2] + dspin * e[2] + spin * de[2]))
+            out["acom"].append((qdd * u[0] + frac * ddn[0], qdd * u[1] + frac * ddn[1],
+                                qdd * u[2] + frac * ddn[2]))
+        arrays = [np.array(out[k]) for k in ("e", "com", "omega", "vcom")]
         if twist_dot is None:
-            return LegMotion(e, com, omega, com_vel, qdot)
-        w = twist[3:]
-        jac = np.concatenate([state.legs, np.cross(state.arms, state.legs)], axis=1)
-        jac /= state.along[:, None]
-        qddot = jac @ twist_dot + self._jacobian_derivative_from(state, twist, dlegs) @ twist
-        tip_acc = (twist_dot[:3] + np.cross(twist_dot[3:], state.arms)
-                   + np.cross(w, np.cross(w, state.arms)))
-        ddlegs = tip_acc - qddot[:, None] * dirs
-        dde = ddlegs / length
-        dcos = np.einsum("ij,ij->i", de, dirs)
-        dperp = np.cross(e, dde)
-        dsigma = np.einsum("ij,ij->i", dperp, dirs)
-        dspin = (dcos * sigma + cosine * dsigma) / gimbal + 2.0 * cosine ** 2 * dcos * sigma \
-            / gimbal ** 2
-        alpha = dperp + dspin[:, None] * e + spin[:, None] * de
-        com_acc = qddot[:, None] * dirs + LEG_COM_FRACTION * ddlegs
-        return LegMotion(e, com, omega, com_vel, qdot, alpha, com_acc, qddot)
+            return LegMotion(*arrays, np.array(qdot))
+        return LegMotion(*arrays, np.array(qdot), np.array(out["alpha"]), np.array(out["acom"]),
+                         np.array(qddot))
 
     # -- singularities ----------------------------------------------------------------------
     def singularity(self, pose, branch: Sequence[float] | None = None) -> SingularityMeasures:
@@ -675,23 +768,29 @@ class HexapodKinematics:
             InputError: bad shapes or values.
             UnreachablePoseError: the pose cannot be reached.
         """
-        pose = as_array(pose, (6,), "pose")
+        pose = _floats6(pose, "pose")
         q, disc, legs, arms = self._solve_legs(pose, self._signs(branch))
         if min(disc) < 0.0:
             self._raise_unreachable(disc)
         g = self.geometry
-        legs = np.array(legs)
-        arms = np.array(arms)[RAIL_OF]
-        e = legs / g.leg_length
-        cosine = np.abs(np.einsum("ij,ij->i", e, g.rail_directions[RAIL_OF]))
-        worst = int(np.argmin(cosine))
-        a_hat = np.concatenate([e, np.cross(arms, e) / g.platform_radius], axis=1)
-        sv_a = np.linalg.svd(a_hat, compute_uv=False)
+        dirs = self._circles.dirs_t
+        inv_len, inv_rad = 1.0 / g.leg_length, 1.0 / g.platform_radius
+        cosine, a_hat, a_mat = [], [], []
+        for i in range(6):
+            n, r = legs[i], arms[i >> 1]
+            rn = _cross3(r, n)
+            cosine.append(abs(_dot3(n, dirs[i >> 1])) * inv_len)
+            a_hat.append([n[0] * inv_len, n[1] * inv_len, n[2] * inv_len,
+                          rn[0] * inv_len * inv_rad, rn[1] * inv_len * inv_rad,
+                          rn[2] * inv_len * inv_rad])
+            a_mat.append([n[0], n[1], n[2], rn[0], rn[1], rn[2]])
+        worst = min(range(6), key=cosine.__getitem__)
+        sv_a = np.linalg.svd(np.array(a_hat), compute_uv=False)
         if cosine[worst] < TYPE_I_TOL:
             sv_j, cond = None, math.inf
         else:
-            a_mat = np.concatenate([legs, np.cross(arms, legs)], axis=1)
-            sv_j = np.linalg.svd(a_mat / (cosine * g.leg_length)[:, None], compute_uv=False)
+            jac = np.array(a_mat) / (np.array(cosine) * g.leg_length)[:, None]
+            sv_j = np.linalg.svd(jac, compute_uv=False)
             cond = float(sv_j[0] / sv_j[-1]) if sv_j[-1] > 0.0 else math.inf
         return SingularityMeasures(sv_j, cond, float(cosine[worst]), worst, float(sv_a[-1]), sv_a)
 
@@ -730,19 +829,19 @@ class HexapodKinematics:
                 exactly ``2 leg_length`` apart), a singular Jacobian (type II), no
                 convergence, or a final leg-length error above 1e-12 m.
         """
-        q = as_array(q, (6,), "q")
-        guess = self.geometry.home_pose if guess is None else as_array(guess, (6,), "guess")
+        q = _floats6(q, "q")
+        guess = self._home_list if guess is None else _floats6(guess, "guess")
         cg = self._circles
         system = am.circle_system(cg, q)
         if system is None:
-            excess = float(np.max(np.abs(q[1::2] - q[0::2]))) - 2 * cg.leg_length
+            excess = max(abs(q[1] - q[0]), abs(q[3] - q[2]), abs(q[5] - q[4])) - 2 * cg.leg_length
             raise AssemblyError("no assembly: two carriages of a rail are more than "
                                 "2 leg_length apart", excess, 0)
-        theta = system.angles_of_t(am.platform_points_t(cg, guess.tolist()))
+        theta = system.angles_of_t(am.platform_points_t(cg, guess))
         scale = max(1.0, cg.leg_length)
         result = am.newton_circles(system, theta, max_iter=max_iter, tol=am.INNER_TOL * scale)
         pose = am.pose_from_points_t(cg, system.points_t(*result.theta))
-        err = am.leg_length_error(cg, pose, q.tolist())
+        err = am.leg_length_error(cg, pose, q)
         if not err <= am.POSE_TOL * scale:
             raise AssemblyError("the converged pose misses the leg lengths", err,
                                 result.iterations)

@@ -15,9 +15,9 @@ along ``+u_k``.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -45,7 +45,7 @@ class MissingDependencyError(HexapodPinError, ImportError):
 
 def _figure_class():
     try:
-        from matplotlib.figure import Figure  # noqa: PLC0415
+        from matplotlib.figure import Figure
     except ImportError:
         raise MissingDependencyError("matplotlib", "plot") from None
     return Figure
@@ -349,7 +349,8 @@ class WorkspaceSlice:
 
 
 def workspace_slice(robot, z: float | None = None, orientation: Sequence[float] = (0, 0, 0),
-                    half_width: float | None = None, resolution: int = 61) -> WorkspaceSlice:
+                    half_width: float | None = None, resolution: int = 61,
+                    progress: Callable[[int, int], None] | None = None) -> WorkspaceSlice:
     """Sample the reachable platform positions on a horizontal plane.
 
     Args:
@@ -359,6 +360,7 @@ def workspace_slice(robot, z: float | None = None, orientation: Sequence[float] 
         half_width: the square ``[-w, w]^2`` sampled (m); default: framing the
             reachable region found by a coarse 25 x 25 pass over the rail radius.
         resolution: samples per side (>= 2).
+        progress: called as ``progress(rows_done, rows_total)`` after each grid row.
 
     Raises:
         InputError: bad numbers.
@@ -377,7 +379,7 @@ def workspace_slice(robot, z: float | None = None, orientation: Sequence[float] 
         if not (np.isfinite(width) and width > 0):
             raise InputError("half_width", half_width, "must be finite and > 0 (m)")
     xs = np.linspace(-width, width, int(resolution))
-    status, cond = _sample(robot, xs, xs, z, rpy)
+    status, cond = _sample(robot, xs, xs, z, rpy, progress=progress)
     return WorkspaceSlice(xs, xs.copy(), z, rpy, status, cond)
 
 
@@ -394,7 +396,7 @@ def _auto_half_width(robot, z: float, rpy: np.ndarray) -> float:
     return float(min(1.25 * reach, g.rail_radius))
 
 
-def _sample(robot, xs, ys, z, rpy, with_condition: bool = True):
+def _sample(robot, xs, ys, z, rpy, with_condition: bool = True, progress=None):
     status = np.full((len(ys), len(xs)), OUT_OF_REACH, dtype=int)
     cond = np.full(status.shape, np.nan)
     scale = np.concatenate([np.ones(3), np.full(3, 1.0 / robot.geometry.platform_radius)])
@@ -418,6 +420,8 @@ def _sample(robot, xs, ys, z, rpy, with_condition: bool = True):
                 cond[iy, ix] = sv[0] / sv[-1] if sv[-1] > 0 else np.inf
             else:
                 cond[iy, ix] = np.inf
+        if progress is not None:
+            progress(iy + 1, len(ys))
     return status, cond
 
 

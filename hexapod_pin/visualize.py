@@ -38,9 +38,9 @@ import math
 import os
 import tempfile
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -112,7 +112,7 @@ def robot_visual(robot, urdf: str | os.PathLike | None = None,
     try:
         visual = pin.buildGeomFromUrdfString(model, xml, pin.GeometryType.VISUAL,
                                              package_dirs=dirs)
-    except Exception as exc:  # Pinocchio raises plain RuntimeError / ValueError
+    except (RuntimeError, ValueError) as exc:  # what Pinocchio's parser raises
         raise DescriptionError("URDF visuals", f"Pinocchio could not build them: {exc}") \
             from None
     name = closed_loop.name if closed_loop is not None else (model.name or "robot")
@@ -167,15 +167,15 @@ def _meshcat():
     """Import meshcat's geometry module and msgpack lazily (meshcat imports IPython)."""
     with warnings.catch_warnings():  # meshcat's server module imports a deprecated zmq API
         warnings.simplefilter("ignore", DeprecationWarning)
-        import meshcat.geometry as mg  # noqa: PLC0415
-    import umsgpack  # noqa: PLC0415
+        import meshcat.geometry as mg
+    import umsgpack
 
     return mg, umsgpack
 
 
 def _assets_js() -> str:
     _meshcat()
-    import meshcat  # noqa: PLC0415
+    import meshcat
 
     path = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
     if not path.is_file():
@@ -188,6 +188,16 @@ class Scene:
 
     Paths are meshcat paths (``"/meshcat/robot/leg_0_0"``). Matrices are 4x4
     homogeneous transforms in world axes (z up) relative to the parent node.
+
+    Attributes:
+        camera_target, camera_position: where the camera looks and stands,
+            world axes (m) (set by the scene functions to frame the robot).
+        caption: text in the page's lower-left corner.
+        title: the page title.
+        hide_controls: start with meshcat's control panel closed (animations
+            open it, to show the play controls).
+        seek_time: pause the animation at this time (s) when the page opens;
+            ``None`` plays it (a ``#t=<s>`` URL fragment overrides it).
     """
 
     def __init__(self) -> None:
@@ -357,7 +367,7 @@ try {{
 # -- primitives -------------------------------------------------------------------------
 def _color_int(rgba) -> int:
     r, g, b = (min(max(float(c), 0.0), 1.0) for c in rgba[:3])
-    return (int(round(r * 255)) << 16) | (int(round(g * 255)) << 8) | int(round(b * 255))
+    return (round(r * 255) << 16) | (round(g * 255) << 8) | round(b * 255)
 
 
 def _mesh(geometry, color: int, opacity: float = 1.0,
@@ -380,7 +390,7 @@ def _shape_objects(gobj) -> tuple[list[tuple[str, dict]], np.ndarray]:
 
     The sub-path is ``""`` for a single object; capsules give three parts.
     """
-    import coal  # noqa: PLC0415 (comes with pin)
+    import coal
 
     mg, _ = _meshcat()
     geom = gobj.geometry
@@ -438,7 +448,7 @@ def _aabb(geom) -> tuple[np.ndarray, np.ndarray]:
         geom.computeLocalAABB()
         box = geom.aabb_local
         return np.asarray(box.min_, dtype=float), np.asarray(box.max_, dtype=float)
-    except Exception:  # geometry without an AABB: a small cube, so it is still seen
+    except (AttributeError, RuntimeError):  # no AABB: a small cube, so it is still seen
         return -0.01 * np.ones(3), 0.01 * np.ones(3)
 
 
@@ -510,7 +520,10 @@ def _placements(visual: RobotVisual, q: np.ndarray) -> tuple[pin.Data, list[pin.
 
 
 def _check_configuration(visual: RobotVisual, q, name: str = "q") -> np.ndarray:
-    arr = np.ascontiguousarray(q, dtype=float) if not isinstance(q, str) else None
+    try:
+        arr = np.ascontiguousarray(q, dtype=float)
+    except (TypeError, ValueError):
+        arr = None
     if arr is None or arr.shape != (visual.model.nq,) or not np.all(np.isfinite(arr)):
         raise InputError(name, q, f"expected a finite Pinocchio configuration of size "
                                   f"{visual.model.nq}")
@@ -1002,7 +1015,7 @@ def hexapod_configurations(robot, poses, carriages=None) -> np.ndarray:
         InputError: wrong shapes.
         AssemblyError: the closed form misses the closures.
     """
-    from .pose import as_array  # noqa: PLC0415
+    from .pose import as_array
 
     poses = np.atleast_2d(as_array(poses, (6,), "poses", batch=np.ndim(poses) == 2))
     if carriages is None:
@@ -1041,7 +1054,7 @@ def hexapod_trajectory_scene(robot, times, poses, *, carriages=None, actuator_fo
     Raises:
         InputError, UnreachablePoseError: bad input.
     """
-    from .pose import as_array  # noqa: PLC0415
+    from .pose import as_array
 
     poses = as_array(poses, (6,), "poses", batch=True)
     t = _times(times, len(poses))

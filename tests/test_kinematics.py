@@ -475,13 +475,15 @@ def test_batch_matches_single_pose_results(any_robot, rng):
 
 
 def test_batch_per_row_branches_and_chunks(robot, rng):
-    poses = np.tile(robot.home_pose, (5000, 1)) + rng.normal(scale=0.01, size=(5000, 6))
-    branches = np.where(rng.uniform(size=(5000, 6)) < 0.5, -1.0, 1.0)
+    chunk = hp.kinematics.BATCH_CHUNK
+    n = chunk + 100
+    poses = np.tile(robot.home_pose, (n, 1)) + rng.normal(scale=0.01, size=(n, 6))
+    branches = np.where(rng.uniform(size=(n, 6)) < 0.5, -1.0, 1.0)
     out = robot.jacobian_batch(poses, branch=branches)
-    for n in (0, 2047, 2048, 4999):
-        np.testing.assert_allclose(out.q[n], robot.inverse_kinematics(
-            poses[n], branch=branches[n], check_limits=False), atol=1e-15)
-        np.testing.assert_allclose(out.jacobian[n], robot.jacobian(poses[n], branches[n]),
+    for k in (0, chunk - 1, chunk, n - 1):
+        np.testing.assert_allclose(out.q[k], robot.inverse_kinematics(
+            poses[k], branch=branches[k], check_limits=False), atol=1e-15)
+        np.testing.assert_allclose(out.jacobian[k], robot.jacobian(poses[k], branches[k]),
                                    rtol=1e-11, atol=1e-13)
     empty = robot.jacobian_batch(np.zeros((0, 6)))
     assert empty.jacobian.shape == (0, 6, 6) and empty.ok.shape == (0,)
