@@ -67,6 +67,9 @@ class Hexapod(HexapodKinematics, HexapodDynamics):
         tree = build_model(hexapod_urdf(self.geometry), source="hexapod.urdf.xacro")
         self.model = ClosedLoopModel(tree, load_loops(urdf_dir() / "hexapod.loops.yaml"),
                                      name="hexapod")
+        # the URDF carries no gravity: gravity along -z with the geometry's magnitude
+        self.model.model.gravity = pin.Motion(np.array([0.0, 0.0, -self.geometry.gravity,
+                                                        0.0, 0.0, 0.0]))
         self.indices = self._indices()
 
     @classmethod

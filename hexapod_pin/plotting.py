@@ -454,3 +454,99 @@ def plot_workspace_slice(robot_or_slice, *, path=None, title: str = "", **slice_
                           f"{yw:.0f}) deg\nreachable {100 * ws.reachable_fraction:.0f} %"
                           " (grey: stroke limit, white: out of reach)", fontsize="medium")
     return _finish(fig, path)
+
+
+# -- workspace analysis maps (hexapod_pin.workspace, hexapod_pin.sweeps) ----------------------
+def plot_force_capability_slice(robot, direction=None, *, z: float | None = None,
+                                orientation: Sequence[float] = (0, 0, 0),
+                                half_width: float = 0.12, resolution: int = 81, path=None,
+                                title: str = "", label: str = "payload (kg)"):
+    """Map of the largest payload the actuators hold, over a horizontal slice of positions.
+
+    Args:
+        robot: a :class:`hexapod_pin.Hexapod`.
+        direction: payload wrench per unit (6,), world axes about the platform
+            origin; default a 1 kg mass at the origin, ``(0, 0, -g, 0, 0, 0)``.
+        z: slice height (m), default the home height.
+        orientation: (roll, pitch, yaw) (rad).
+        half_width: the square ``[-w, w]^2`` around the z axis (m).
+        resolution: samples per side (>= 2).
+        label: colour-bar label (the unit of the scale along ``direction``).
+
+    Returns:
+        the figure (saved to ``path`` when given). White where the pose is outside
+        the workspace or gravity alone saturates an actuator.
+    """
+    from . import workspace
+
+    g = robot.geometry
+    z = g.home_height if z is None else float(z)
+    if int(resolution) != resolution or resolution < 2:
+        raise InputError("resolution", resolution, "must be an integer >= 2")
+    direction = [0.0, 0.0, -g.gravity, 0.0, 0.0, 0.0] if direction is None else direction
+    poses = workspace.constant_orientation_grid([0.0, 0.0, z], [half_width, half_width, 1.0],
+                                                (int(resolution), int(resolution), 1),
+                                                orientation)
+    cap = workspace.force_capability(robot, poses, direction)
+    usable = cap.ok & cap.feasible_without_payload
+    image = np.where(usable, cap.scale, np.nan).reshape(int(resolution), int(resolution)).T
+    fig = _figure_class()(figsize=(6.4, 5.4))
+    ax = fig.subplots()
+    shown = ax.imshow(image, origin="lower", extent=(-half_width, half_width, -half_width,
+                                                     half_width),
+                      cmap="magma", interpolation="nearest")
+    fig.colorbar(shown, ax=ax).set_label(label)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal")
+    r, p, yw = np.degrees(as_array(orientation, (3,), "orientation"))
+    ax.set_title(title or f"force capability at z = {z:.3f} m, rpy = ({r:.0f}, {p:.0f}, {yw:.0f}) deg")
+    return _finish(fig, path)
+
+
+def plot_design_sweep(table, x: str, y: str, value: str = "reachable_volume", *, path=None,
+                      title: str = ""):
+    """Heat map of one summary column of a design sweep over two swept parameters.
+
+    Args:
+        table: the DataFrame of :func:`hexapod_pin.sweeps.design_sweep`.
+        x, y: two swept parameter columns (their values form the grid).
+        value: the summary column coloured (invalid designs are left white).
+
+    Raises:
+        InputError: a column that is not in the table, or duplicate (x, y) cells
+            (sweep more parameters than two: filter the table first).
+    """
+    for column in (x, y, value):
+        if column not in table.columns:
+            raise InputError("column", column, f"not in the table ({list(table.columns)})")
+    xs = np.unique(table[x].to_numpy(dtype=float))
+    ys = np.unique(table[y].to_numpy(dtype=float))
+    if len(table) != len(xs) * len(ys) or table.duplicated([x, y]).any():
+        raise InputError("table", f"{len(table)} rows",
+                         f"expected one row per ({x}, {y}) cell: filter the other parameters")
+    grid = np.full((len(ys), len(xs)), np.nan)
+    col = table[value].astype("Float64").to_numpy(dtype=float, na_value=np.nan)
+    ix = np.searchsorted(xs, table[x].to_numpy(dtype=float))
+    iy = np.searchsorted(ys, table[y].to_numpy(dtype=float))
+    grid[iy, ix] = col
+    fig = _figure_class()(figsize=(6.4, 5.0))
+    ax = fig.subplots()
+    shown = ax.pcolormesh(_edges(xs), _edges(ys), grid, cmap="viridis", shading="flat")
+    fig.colorbar(shown, ax=ax).set_label(value)
+    for (j, i), cell in np.ndenumerate(grid):
+        if np.isfinite(cell):
+            ax.text(xs[i], ys[j], f"{cell:.3g}", ha="center", va="center", fontsize=7,
+                    color="white")
+    ax.set_xlabel(x)
+    ax.set_ylabel(y)
+    ax.set_title(title or f"design sweep: {value}")
+    return _finish(fig, path)
+
+
+def _edges(centres: np.ndarray) -> np.ndarray:
+    """Cell edges around sorted centres (one cell of width 1 around a single centre)."""
+    if len(centres) == 1:
+        return np.array([centres[0] - 0.5, centres[0] + 0.5])
+    mid = (centres[1:] + centres[:-1]) / 2
+    return np.concatenate([[2 * centres[0] - mid[0]], mid, [2 * centres[-1] - mid[-1]]])

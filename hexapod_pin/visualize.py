@@ -1124,3 +1124,87 @@ def write_hexapod_trajectory_html(path, robot, times, poses, **options) -> Path:
 def write_simulation_html(path, robot, trajectory, **options) -> Path:
     """Write :func:`simulation_scene` (same arguments) to HTML; returns its path."""
     return simulation_scene(robot, trajectory, **options).write(path)
+
+
+# -- workspace point clouds -----------------------------------------------------------------
+#: a short perceptually ordered colour map (viridis samples), low -> high
+_COLORMAP = np.array([[0.267, 0.005, 0.329], [0.283, 0.141, 0.458], [0.254, 0.265, 0.530],
+                      [0.207, 0.372, 0.553], [0.164, 0.471, 0.558], [0.128, 0.567, 0.551],
+                      [0.135, 0.659, 0.518], [0.267, 0.749, 0.441], [0.478, 0.821, 0.318],
+                      [0.741, 0.873, 0.150], [0.993, 0.906, 0.144]])
+
+
+def colormap(values, low: float | None = None, high: float | None = None) -> np.ndarray:
+    """RGB colours (N, 3) in [0, 1] for ``values`` (N,), linear between ``low`` and ``high``
+    (default their finite min / max); non-finite values get the top colour."""
+    values = np.asarray(values, dtype=float)
+    finite = np.isfinite(values)
+    lo = float(values[finite].min()) if low is None and finite.any() else float(low or 0.0)
+    hi = float(values[finite].max()) if high is None and finite.any() else float(high or 1.0)
+    span = hi - lo if hi > lo else 1.0
+    t = np.clip(np.where(finite, (values - lo) / span, 1.0), 0.0, 1.0)
+    grid = np.linspace(0.0, 1.0, len(_COLORMAP))
+    return np.stack([np.interp(t, grid, _COLORMAP[:, c]) for c in range(3)], axis=1)
+
+
+def workspace_scene(robot, positions, values=None, *, q=None, point_size: float = 0.008,
+                    low: float | None = None, high: float | None = None,
+                    robot_opacity: float = 0.3, caption: str = "", urdf=None) -> Scene:
+    """The robot with a cloud of workspace points, coloured by a value per point.
+
+    Args:
+        robot: see :func:`robot_visual` (a Hexapod, a ClosedLoopModel, ...).
+        positions: (N, 3) points in world axes (m), e.g. the reachable platform
+            positions ``poses[m.ok, :3]`` of :func:`hexapod_pin.workspace.evaluate`.
+        values: (N,) values coloured low (purple) to high (yellow), e.g. the
+            condition number (log scale is the caller's choice); default one colour.
+        q: configuration the robot is drawn at; default ``robot.home_configuration``
+            when the robot has one, else Pinocchio's neutral configuration.
+        point_size: point size (m).
+        low, high: colour-map limits; default the finite min / max of ``values``.
+        robot_opacity: opacity of the robot (0..1], so the cloud inside it shows.
+        caption, urdf: as in :func:`pose_scene`.
+
+    Raises:
+        InputError: wrong shapes, NaN positions, or a non-positive point size.
+    """
+    visual = robot_visual(robot, urdf)
+    pts = _matrix_of(positions, (int(np.shape(positions)[0]) if np.ndim(positions) == 2
+                                 else -1, 3), "positions")
+    if values is None:
+        colors = np.tile([0.13, 0.57, 0.55], (pts.shape[0], 1))
+    else:
+        vals = np.asarray(values, dtype=float)
+        if vals.shape != (pts.shape[0],):
+            raise InputError("values", values, f"expected shape ({pts.shape[0]},)")
+        colors = colormap(vals, low, high)
+    if not (math.isfinite(point_size) and point_size > 0):
+        raise InputError("point_size", point_size, "must be finite and > 0 (m)")
+    if not (0.0 < robot_opacity <= 1.0):
+        raise InputError("robot_opacity", robot_opacity, "must be in (0, 1]")
+    if q is None:
+        q = getattr(robot, "home_configuration", None)
+        q = pin.neutral(visual.model) if q is None else q
+    q = _check_configuration(visual, q)
+    scene = Scene()
+    scene.caption = caption
+    root = f"{ROOT}/{visual.name}"
+    drawn = _draw_robot(scene, visual, q, root, np.zeros(3))
+    if robot_opacity < 1.0:
+        for command in scene._commands:
+            if command["type"] == "set_object" and command["path"].startswith(root):
+                for material in command["object"].get("materials", []):
+                    material["opacity"] = float(robot_opacity) * material.get("opacity", 1.0)
+                    material["transparent"] = True
+    mg, _ = _meshcat()
+    cloud = mg.Points(mg.PointsGeometry(pts.T.astype(np.float32), color=colors.T.astype(np.float32)),
+                      mg.PointsMaterial(size=float(point_size)))
+    scene.set_object(f"{ROOT}/workspace", cloud.lower())
+    _frame_camera(scene, list(drawn.points) + ([pts.min(axis=0), pts.max(axis=0)]
+                                               if pts.shape[0] else []))
+    return scene
+
+
+def write_workspace_html(path, robot, positions, values=None, **options) -> Path:
+    """Write :func:`workspace_scene` (same arguments) to HTML; returns its path."""
+    return workspace_scene(robot, positions, values, **options).write(path)
