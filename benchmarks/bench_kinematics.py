@@ -26,16 +26,16 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import platform  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
+import argparse
+import platform
+import sys
+import time
 
-import numpy as np  # noqa: E402
-import pinocchio as pin  # noqa: E402
-import proxsuite  # noqa: E402
+import numpy as np
+import pinocchio as pin
+import proxsuite
 
-import hexapod_pin as hp  # noqa: E402
+import hexapod_pin as hp
 
 
 def cpu_model() -> str:

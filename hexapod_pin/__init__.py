@@ -14,6 +14,7 @@ from .errors import (ActuatorSaturationError, AssemblyError, DescriptionError, G
                      StrokeLimitError, UnreachablePoseError)
 from .geometry import HexapodGeometry
 from .hexapod import Hexapod
+from .kinematics import InverseKinematicsBatch, JacobianBatch, LegMotion, SingularityMeasures
 from .parallel_robots import load_parallel_robot
 from .planar import (AssemblyPolynomial, Planar3PRR, PlanarForwardDynamics, PlanarGeometry,
                      PlanarInverseDynamics)
@@ -27,6 +28,6 @@ __all__ = [
     "SolverError", "StrokeLimitError", "UnreachablePoseError", "expand_xacro", "load_loops",
     "parse_loops", "urdf_dir", "AssemblyPolynomial", "Planar3PRR", "PlanarForwardDynamics",
     "PlanarGeometry", "PlanarInverseDynamics", "load_parallel_robot", "robots", "sdf",
-    "workspace",
+    "workspace", "InverseKinematicsBatch", "JacobianBatch", "LegMotion", "SingularityMeasures",
 ]
 from . import robots, sdf, workspace  # noqa: E402  (submodules as attributes)

@@ -50,6 +50,9 @@ POSE_TOL = 1e-12
 DEGENERATE_RADIUS = 1e-9
 #: number of theta_0 samples of the resultant (>= 17; the surplus checks aliasing)
 N_SAMPLES = 32
+#: eliminant coefficients below this fraction of the Hadamard bound of its Sylvester
+#: matrices count as an identically vanishing eliminant (random configurations: >= 2e-5)
+DEGENERATE_ELIMINANT = 1e-12
 #: a back-substituted candidate is polished when its side errors are below this
 #: fraction of the longest platform side (roots of multiplicity m are only
 #: accurate to about eps^(1/m), so candidates are first only roughly right)
@@ -94,7 +97,7 @@ class CircleGeometry:
 
     def __post_init__(self) -> None:
         # plain-float copies for the scalar hot paths
-        tup = lambda arr: tuple(tuple(float(v) for v in row) for row in arr)  # noqa: E731
+        tup = lambda arr: tuple(tuple(float(v) for v in row) for row in arr)
         gram = tuple((float(self.axis1[j] @ self.axis1[k]), float(self.axis1[j] @ self.axis2[k]),
                       float(self.axis2[j] @ self.axis1[k]), float(self.axis2[j] @ self.axis2[k]))
                      for j, k in PAIRS)
@@ -108,7 +111,7 @@ class CircleGeometry:
             object.__setattr__(self, name, value)
 
     @classmethod
-    def from_geometry(cls, geometry: HexapodGeometry) -> "CircleGeometry":
+    def from_geometry(cls, geometry: HexapodGeometry) -> CircleGeometry:
         """Build the constants of a :class:`HexapodGeometry`."""
         dirs = geometry.rail_directions
         up = np.array([0.0, 0.0, 1.0])
@@ -224,22 +227,29 @@ def circle_system(cg: CircleGeometry, q) -> CircleSystem | None:
             angle is undefined).
     """
     L = cg.leg_length
-    q = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
-    centres, radii = [], []
-    for k, ((mx, my, mz), (ux, uy, uz)) in enumerate(zip(cg.mids_t, cg.dirs_t)):
-        mean, half = 0.5 * (q[2 * k] + q[2 * k + 1]), 0.5 * (q[2 * k + 1] - q[2 * k])
-        rho2 = L * L - half * half
+    q0, q1, q2, q3, q4, q5 = q.tolist() if isinstance(q, np.ndarray) else map(float, q)
+    halves = (0.5 * (q1 - q0), 0.5 * (q3 - q2), 0.5 * (q5 - q4))
+    means = (0.5 * (q0 + q1), 0.5 * (q2 + q3), 0.5 * (q4 + q5))
+    small = DEGENERATE_RADIUS * L
+    radii = []
+    for k in range(3):
+        rho2 = L * L - halves[k] * halves[k]
         if rho2 < 0.0:
             return None
-        if abs(half) <= DEGENERATE_RADIUS * L:
+        if not abs(halves[k]) > small:
             raise AssemblyError(f"degenerate: carriages {2 * k} and {2 * k + 1} coincide "
-                                f"(q = {q[2 * k]:.6g}); platform point {k} may move on a sphere",
+                                f"(q = {means[k]:.6g}); platform point {k} may move on a sphere",
                                 0.0, 0)
-        if rho2 <= (DEGENERATE_RADIUS * L) ** 2:
+        if not rho2 > small * small:
             raise AssemblyError(f"degenerate: the legs of rail {k} are stretched along the rail "
                                 f"(|q_{2 * k + 1} - q_{2 * k}| = 2 leg_length)", 0.0, 0)
-        centres.append((mx + mean * ux, my + mean * uy, mz + mean * uz))
         radii.append(math.sqrt(rho2))
+    (m0x, m0y, m0z), (m1x, m1y, m1z), (m2x, m2y, m2z) = cg.mids_t
+    (u0x, u0y, u0z), (u1x, u1y, u1z), (u2x, u2y, u2z) = cg.dirs_t
+    a, b, c = means
+    centres = ((m0x + a * u0x, m0y + a * u0y, m0z + a * u0z),
+               (m1x + b * u1x, m1y + b * u1y, m1z + b * u1z),
+               (m2x + c * u2x, m2y + c * u2y, m2z + c * u2z))
     a1, a2 = cg.axis1_t, cg.axis2_t
     coeffs = []
     for (j, k), side, (g00, g01, g10, g11) in zip(PAIRS, cg.sides_t, cg.gram_t):
@@ -247,13 +257,15 @@ def circle_system(cg: CircleGeometry, q) -> CircleSystem | None:
         dx, dy, dz = xj - xk, yj - yk, zj - zk
         rj, rk = radii[j], radii[k]
         w = -2.0 * rj * rk
+        (p0, p1, p2), (p3, p4, p5) = a1[j], a2[j]
+        (p6, p7, p8), (p9, p10, p11) = a1[k], a2[k]
         coeffs.append((dx * dx + dy * dy + dz * dz + rj * rj + rk * rk - side * side,
-                       2.0 * rj * (dx * a1[j][0] + dy * a1[j][1] + dz * a1[j][2]),
-                       2.0 * rj * (dx * a2[j][0] + dy * a2[j][1] + dz * a2[j][2]),
-                       -2.0 * rk * (dx * a1[k][0] + dy * a1[k][1] + dz * a1[k][2]),
-                       -2.0 * rk * (dx * a2[k][0] + dy * a2[k][1] + dz * a2[k][2]),
+                       2.0 * rj * (dx * p0 + dy * p1 + dz * p2),
+                       2.0 * rj * (dx * p3 + dy * p4 + dz * p5),
+                       -2.0 * rk * (dx * p6 + dy * p7 + dz * p8),
+                       -2.0 * rk * (dx * p9 + dy * p10 + dz * p11),
                        w * g00, w * g01, w * g10, w * g11))
-    return CircleSystem(tuple(centres), tuple(radii), cg, tuple(coeffs))
+    return CircleSystem(centres, tuple(radii), cg, tuple(coeffs))
 
 
 def _residual_and_jacobian(coeffs, t0: float, t1: float, t2: float):
@@ -456,6 +468,14 @@ def _polymul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def resultant_samples(system: CircleSystem, theta0: np.ndarray) -> np.ndarray:
     """The eliminant ``D(theta_0)`` at the given angles (N,) -> complex (N,).
 
+    ``D`` is the determinant of the Sylvester matrices of :func:`sylvester_matrices`.
+    """
+    return np.linalg.det(sylvester_matrices(system, theta0))
+
+
+def sylvester_matrices(system: CircleSystem, theta0: np.ndarray) -> np.ndarray:
+    """The 6x6 Sylvester matrices (N, 6, 6) whose determinants are ``D(theta_0)``.
+
     With ``z_k = exp(i theta_k)``, ``z_j z_k E_jk`` is a polynomial of degree 2 in
     each of ``z_j``, ``z_k``. For each ``theta_0``:
 
@@ -492,7 +512,7 @@ def resultant_samples(system: CircleSystem, theta0: np.ndarray) -> np.ndarray:
         syl[:, row, row:row + 5] = res_z2[:, ::-1]
     for row in range(4):
         syl[:, 2 + row, row:row + 3] = h[:, ::-1]
-    return np.linalg.det(syl)
+    return syl
 
 
 def eliminant_roots(system: CircleSystem):
@@ -508,24 +528,20 @@ def eliminant_roots(system: CircleSystem):
             with a continuum of assemblies).
     """
     n = N_SAMPLES
-    samples = resultant_samples(system, 2 * np.pi * np.arange(n) / n)
+    syl = sylvester_matrices(system, 2 * np.pi * np.arange(n) / n)
+    samples = np.linalg.det(syl)
     spectrum = np.fft.fft(samples) / n            # D(t) = sum_m c_m exp(i m t)
     coeffs = np.concatenate([spectrum[-8:], spectrum[:9]])       # c_-8 .. c_8
     top = float(np.max(np.abs(coeffs)))
     aliasing = float(np.max(np.abs(spectrum[9:n - 8]))) / top if top > 0 else math.inf
-    scale = _eliminant_scale(system)
-    if top <= 1e-13 * scale:
+    # Hadamard's bound on |det| (product of the row norms): an identically vanishing D
+    # leaves only rounding, ~1e-16 of it; genuine configurations sit above ~1e-5
+    bound = float(np.max(np.prod(np.linalg.norm(syl, axis=-1), axis=-1)))
+    if not top > DEGENERATE_ELIMINANT * bound:
         raise AssemblyError("degenerate: the eliminant vanishes identically (a continuum of "
                             "assemblies or coincident circles)", 0.0, 0)
     roots = np.roots(coeffs[::-1])
     return coeffs, roots, aliasing
-
-
-def _eliminant_scale(system: CircleSystem) -> float:
-    """A size of ``D`` for the degeneracy test: the product bound with |E| coefficients."""
-    K, a, b, Q = system.coefficient_arrays()
-    size = np.abs(K) + np.abs(a).sum(1) + np.abs(b).sum(1) + np.abs(Q).sum((1, 2))
-    return float(size[0] ** 4 * size[1] ** 4 * size[2] ** 4)
 
 
 def _solve_trig(alpha: float, beta: float, gamma: float, slack: float = 1e-3) -> list[float]:

@@ -34,6 +34,8 @@ from .description import (WORLD, ClosureSpec, LoopsSpec, build_model, expand_xac
 from .errors import AssemblyError, DescriptionError, InputError, SolverError
 
 _EPS = np.finfo(float).eps
+#: default relative singular-value threshold of :meth:`ClosedLoopModel.rank`
+RANK_RTOL = 1e-10
 
 
 @dataclass(frozen=True)
@@ -81,6 +83,7 @@ class ClosedLoopModel:
             copied; anchor frames ``<closure>/anchor1`` and ``/anchor2`` are added.
         loops: the parsed loops description.
         name: a label for messages.
+        urdf_xml: the URDF text of the tree, kept for drawing (optional).
 
     Raises:
         DescriptionError: a frame or actuated joint that is not in the tree, an
@@ -88,8 +91,11 @@ class ClosedLoopModel:
             or a model failing Pinocchio's consistency check.
     """
 
-    def __init__(self, model: pin.Model, loops: LoopsSpec, name: str = "closed-loop model"):
+    def __init__(self, model: pin.Model, loops: LoopsSpec, name: str = "closed-loop model",
+                 urdf_xml: str | None = None):
         self.name = name
+        #: the URDF text the tree was built from, when known (drawing uses its visuals)
+        self.urdf_xml = urdf_xml
         self.model = pin.Model(model)
         if not self.model.check(self.model.createData()):
             raise DescriptionError(name, "model fails Pinocchio's consistency check "
@@ -135,7 +141,7 @@ class ClosedLoopModel:
         """Load a tree (URDF or xacro, expanded in Python) and its loops file."""
         xml = expand_xacro(urdf_path, xacro_args)
         model = build_model(xml, source=str(urdf_path))
-        return cls(model, load_loops(loops_path), name=Path(urdf_path).name)
+        return cls(model, load_loops(loops_path), name=Path(urdf_path).name, urdf_xml=xml)
 
     def _frame_id(self, frame: str, closure: str) -> int:
         for ftype in (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT,
@@ -286,7 +292,9 @@ class ClosedLoopModel:
 
         Args:
             q: configuration (nq,).
-            tol: singular-value threshold; default ``max(n_rows, nv) * eps * sigma_max``.
+            tol: singular-value threshold; default ``RANK_RTOL * sigma_max`` (a
+                relative 1e-10: rows dependent up to rounding, e.g. an SDF's pi/2 written
+                to five digits, count as redundant).
         """
         jac = self.constraint_jacobian(q)
         if self.n_rows == 0:
@@ -294,7 +302,7 @@ class ClosedLoopModel:
             return RankInfo(0, 0, empty, empty, np.zeros(0), 0.0)
         sv = np.linalg.svd(jac, compute_uv=False)
         if tol is None:
-            tol = max(jac.shape) * _EPS * max(sv[0], 1.0)
+            tol = max(RANK_RTOL * sv[0], max(jac.shape) * _EPS)
         rank = int(np.sum(sv > tol))
         _, _, piv = scipy.linalg.qr(jac.T, pivoting=True, mode="economic")
         independent = np.sort(piv[:rank])

@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -526,7 +526,7 @@ class HexapodKinematics:
                 (``|cos| < TYPE_I_TOL``): J is unbounded there.
         """
         pose = _floats6(pose, "pose")
-        q, disc, legs, arms = self._solve_legs(pose, self._signs(branch))
+        _, disc, legs, arms = self._solve_legs(pose, self._signs(branch))
         if min(disc) < 0.0:
             self._raise_unreachable(disc)
         cg = self._circles
@@ -769,7 +769,7 @@ class HexapodKinematics:
             UnreachablePoseError: the pose cannot be reached.
         """
         pose = _floats6(pose, "pose")
-        q, disc, legs, arms = self._solve_legs(pose, self._signs(branch))
+        _, disc, legs, arms = self._solve_legs(pose, self._signs(branch))
         if min(disc) < 0.0:
             self._raise_unreachable(disc)
         g = self.geometry

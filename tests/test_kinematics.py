@@ -45,18 +45,18 @@ def regular_pose(robot, rng):
 
 def derivative(f, h):
     """First derivative at 0 of f(t): central differences with one Richardson step (O(h^4))."""
-    d = lambda s: (f(s) - f(-s)) / (2 * s)  # noqa: E731
+    d = lambda s: (f(s) - f(-s)) / (2 * s)
     return (4 * d(h / 2) - d(h)) / 3
 
 
 def second_derivative(f, h):
     """Second derivative at 0 of f(t): second differences with one Richardson step (O(h^4))."""
     f0 = f(0.0)
-    d = lambda s: (f(s) - 2 * f0 + f(-s)) / (s * s)  # noqa: E731
+    d = lambda s: (f(s) - 2 * f0 + f(-s)) / (s * s)
     return (4 * d(h / 2) - d(h)) / 3
 
 
-# -- reference states and conventions ----------------------------------------------------------
+# -- reference states and conventions -------------------------------------------------------------
 def test_reference_states_velocity_and_acceleration():
     for entry in load_reference()["hexapod"]:
         robot = hp.Hexapod(geometry_from_reference(entry))
@@ -73,7 +73,7 @@ def test_reference_states_velocity_and_acceleration():
         np.testing.assert_allclose(robot.forward_kinematics(entry["q"]), pose, atol=1e-12)
 
 
-# -- inverse / forward kinematics ------------------------------------------------------------
+# -- inverse / forward kinematics -----------------------------------------------------------------
 def test_forward_of_inverse_is_identity(any_robot, rng):
     for _ in range(25):
         pose = random_pose(any_robot, rng)
@@ -174,7 +174,7 @@ def test_inverse_kinematics_branches(robot, rng):
     np.testing.assert_array_equal(robot.branch_of(pose, q), flipped)
 
 
-# -- errors -------------------------------------------------------------------------------------------
+# -- errors ---------------------------------------------------------------------------------------
 def test_unreachable_pose_names_the_carriages(robot):
     pose = robot.home_pose + np.r_[0.0, 0.0, 0.2, 0.0, 0.0, 0.0]
     with pytest.raises(hp.UnreachablePoseError) as info:
@@ -266,7 +266,7 @@ def test_twist_from_qdot_type_two(robot):
         robot.twist_from_qdot(TYPE_II_POSE, np.ones(6))
 
 
-# -- velocity and acceleration level: finite differences -------------------------------------
+# -- velocity and acceleration level: finite differences ------------------------------------------
 def test_jacobian_matches_finite_differences_of_ik(any_robot, rng):
     """Column j: central difference of IK along twist e_j, rotations left-multiplied by
     exp(t [w]) (world-axes increments), built with Pinocchio's exp3 / rpy."""
@@ -304,7 +304,7 @@ def test_qddot_matches_second_differences(any_robot, rng):
         twist = rng.normal(scale=0.2, size=6)
         accel, beta = rng.normal(size=3), rng.normal()
         twist_dot = np.concatenate([accel, beta * twist[3:]])
-        q_of = lambda t: any_robot.inverse_kinematics(  # noqa: E731
+        q_of = lambda t: any_robot.inverse_kinematics(
             moved(pose, twist, t, accel, beta), check_limits=False)
         np.testing.assert_allclose(any_robot.qddot(pose, twist, twist_dot),
                                    second_derivative(q_of, 2e-3), rtol=1e-6, atol=1e-7)
@@ -320,7 +320,7 @@ def test_twist_from_qdot_inverts_jacobian(any_robot, rng):
                                atol=1e-12)
 
 
-# -- leg motion ------------------------------------------------------------------------------------------
+# -- leg motion -----------------------------------------------------------------------------------
 def _leg_bodies(robot, pose):
     """World rotation of each leg body and the U-joint centre, from the Pinocchio tree."""
     tree_q = robot.configuration(pose)
@@ -389,7 +389,7 @@ def test_leg_angular_velocity_lies_in_the_universal_joint_axes(robot, rng):
                                atol=1e-12)
 
 
-# -- singularity measures ---------------------------------------------------------------------------
+# -- singularity measures -------------------------------------------------------------------------
 def test_singularity_measures(robot, rng):
     pose = random_pose(robot, rng)
     s = robot.singularity(pose)
@@ -424,7 +424,7 @@ def test_type_two_measure_vanishes_where_the_platform_moves_with_locked_carriage
     assert robot.singularity(robot.home_pose).type_two > 0.3
 
 
-# -- batch ---------------------------------------------------------------------------------------------------
+# -- batch ----------------------------------------------------------------------------------------
 def _mixed_poses(robot, rng, n=300):
     """Poses around home: reachable, out of stroke, unreachable, singular."""
     spread = np.where(np.arange(n)[:, None] < n // 2, 0.25, 1.0)
@@ -449,7 +449,7 @@ def test_batch_matches_single_pose_results(any_robot, rng):
         kinds = set()
         for n, pose in enumerate(poses):
             try:
-                q = any_robot.inverse_kinematics(pose, branch=br)
+                any_robot.inverse_kinematics(pose, branch=br)
                 outcome = "ok"
             except hp.UnreachablePoseError:
                 outcome = "unreachable"
@@ -500,3 +500,16 @@ def test_batch_input_errors(robot):
         robot.jacobian_batch(poses)
     with pytest.raises(hp.InputError):
         robot.inverse_kinematics_batch(poses[:1], branch=np.ones((2, 6)))
+
+
+def test_leg_along_its_rail_is_a_universal_joint_gimbal_lock(robot):
+    """Platform point 0 on the line of rail 0: both legs of rail 0 lie along the rail. J is
+    regular there (|cos| = 1), but the legs' spin about themselves is undefined."""
+    g = robot.geometry
+    pose = np.array([0.0, g.rail_radius - g.platform_radius, 0.0, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(np.abs(robot.jacobian(pose)[:2, 0]), 1.0, atol=1e-12)
+    assert robot.singularity(pose).type_one < 1.0
+    with pytest.raises(hp.SingularityError, match="along its rail"):
+        robot.leg_motion(pose, np.ones(6))
+    pose[1] -= 1e-3
+    assert np.all(np.isfinite(robot.leg_motion(pose, np.ones(6), np.ones(6)).angular_velocity))

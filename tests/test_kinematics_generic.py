@@ -91,23 +91,26 @@ def test_generic_route_input_errors(robot):
 
 # -- a robot that is not the hexapod: a planar four-bar ------------------------------------------
 CRANK, COUPLER, ROCKER, GROUND = 0.1, 0.3, 0.25, 0.3
+INERTIAL = ('<inertial><mass value="1"/>'
+            '<inertia ixx="1e-3" ixy="0" ixz="0" iyy="1e-3" iyz="0" izz="1e-3"/></inertial>')
+LIMIT = '<limit lower="-10" upper="10" effort="1" velocity="1"/>'
 
 FOUR_BAR = f"""<?xml version="1.0"?>
 <robot name="four_bar">
   <link name="world"/>
   <joint name="crank" type="revolute">
     <parent link="world"/><child link="crank_link"/>
-    <origin xyz="0 0 0"/><axis xyz="0 0 1"/><limit lower="-10" upper="10" effort="1" velocity="1"/>
+    <origin xyz="0 0 0"/><axis xyz="0 0 1"/>{LIMIT}
   </joint>
   <link name="crank_link">
-    <inertial><mass value="1"/><inertia ixx="1e-3" ixy="0" ixz="0" iyy="1e-3" iyz="0" izz="1e-3"/></inertial>
+    {INERTIAL}
   </link>
   <joint name="coupler" type="revolute">
     <parent link="crank_link"/><child link="coupler_link"/>
-    <origin xyz="{CRANK} 0 0"/><axis xyz="0 0 1"/><limit lower="-10" upper="10" effort="1" velocity="1"/>
+    <origin xyz="{CRANK} 0 0"/><axis xyz="0 0 1"/>{LIMIT}
   </joint>
   <link name="coupler_link">
-    <inertial><mass value="1"/><inertia ixx="1e-3" ixy="0" ixz="0" iyy="1e-3" iyz="0" izz="1e-3"/></inertial>
+    {INERTIAL}
   </link>
   <joint name="coupler_tip_mount" type="fixed">
     <parent link="coupler_link"/><child link="coupler_tip"/><origin xyz="{COUPLER} 0 0"/>
@@ -115,10 +118,10 @@ FOUR_BAR = f"""<?xml version="1.0"?>
   <link name="coupler_tip"/>
   <joint name="rocker" type="revolute">
     <parent link="world"/><child link="rocker_link"/>
-    <origin xyz="{GROUND} 0 0"/><axis xyz="0 0 1"/><limit lower="-10" upper="10" effort="1" velocity="1"/>
+    <origin xyz="{GROUND} 0 0"/><axis xyz="0 0 1"/>{LIMIT}
   </joint>
   <link name="rocker_link">
-    <inertial><mass value="1"/><inertia ixx="1e-3" ixy="0" ixz="0" iyy="1e-3" iyz="0" izz="1e-3"/></inertial>
+    {INERTIAL}
   </link>
   <joint name="rocker_tip_mount" type="fixed">
     <parent link="rocker_link"/><child link="rocker_tip"/><origin xyz="{ROCKER} 0 0"/>

@@ -10,7 +10,8 @@ from hexapod_pin.kinematics import RAIL_OF
 
 from conftest import SECOND_GEOMETRY
 
-ROBOTS = {"default": hp.Hexapod.default(), "second": hp.Hexapod(hp.HexapodGeometry(**SECOND_GEOMETRY))}
+ROBOTS = {"default": hp.Hexapod.default(),
+          "second": hp.Hexapod(hp.HexapodGeometry(**SECOND_GEOMETRY))}
 PROFILE = settings(max_examples=40, deadline=None, database=None,
                    suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow])
 
@@ -78,8 +79,8 @@ def test_velocity_level_consistency(name, offset, numbers):
     g = robot.geometry
     arms = robot.platform_points_world(pose)[RAIL_OF] - pose[:3]
     tip_vel = twist[:3] + np.cross(twist[3:], arms)
-    np.testing.assert_allclose(motion.com_velocity + np.cross(motion.angular_velocity,
-                                                              0.5 * g.leg_length * motion.direction),
+    half_leg = 0.5 * g.leg_length * motion.direction
+    np.testing.assert_allclose(motion.com_velocity + np.cross(motion.angular_velocity, half_leg),
                                tip_vel, atol=1e-10)
 
 
