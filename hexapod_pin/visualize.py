@@ -136,7 +136,10 @@ def _urdf_text(robot, closed_loop, urdf) -> str:
         text = str(urdf)
         if text.lstrip().startswith("<"):
             return text
-        return expand_xacro(Path(text))
+        path = Path(text)
+        if path.suffix.lower() == ".urdf" and path.is_file():  # plain URDF: no xacro pass
+            return path.read_text(encoding="utf-8")
+        return expand_xacro(path)
     for owner in (robot, closed_loop):
         xml = getattr(owner, "urdf_xml", None)
         xml = xml() if callable(xml) else xml
