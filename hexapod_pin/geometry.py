@@ -31,6 +31,36 @@ def rail_angles() -> np.ndarray:
     return np.pi / 2 + 2 * np.pi / 3 * np.arange(N_RAILS)
 
 
+def validate_scalars(obj, positive: tuple[str, ...], non_negative: tuple[str, ...] = (),
+                     skip: tuple[str, ...] = (), may_be_inf: tuple[str, ...] = (
+                         "max_actuator_force",)) -> None:
+    """Coerce a frozen dataclass's scalar fields to float and check their signs.
+
+    Every field but ``skip`` must be a real number (not bool), finite unless in
+    ``may_be_inf`` (only ``+inf`` then); ``positive`` ones ``> 0``, ``non_negative``
+    ones ``>= 0``.
+
+    Raises:
+        GeometryError: naming the first offending field and its value.
+    """
+    for f in dataclasses.fields(obj):
+        if f.name in skip:
+            continue
+        value = getattr(obj, f.name)
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+            raise GeometryError(f.name, value, "must be a real number")
+        value = float(value)
+        if math.isnan(value) or (math.isinf(value) and f.name not in may_be_inf):
+            raise GeometryError(f.name, value, "must be finite")
+        object.__setattr__(obj, f.name, value)
+    for name in positive:
+        if getattr(obj, name) <= 0.0:
+            raise GeometryError(name, getattr(obj, name), "must be > 0")
+    for name in non_negative:
+        if getattr(obj, name) < 0.0:
+            raise GeometryError(name, getattr(obj, name), "must be >= 0")
+
+
 @dataclass(frozen=True)
 class HexapodGeometry:
     """Geometry, inertia and limits of the hexapod (SI units).
@@ -71,23 +101,11 @@ class HexapodGeometry:
     max_actuator_force: float = 100.0
 
     def __post_init__(self) -> None:
-        scalars = [f.name for f in dataclasses.fields(self) if f.name != "platform_inertia"]
-        for name in scalars:
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-                raise GeometryError(name, value, "must be a real number")
-            value = float(value)
-            if math.isnan(value) or (math.isinf(value) and name != "max_actuator_force"):
-                raise GeometryError(name, value, "must be finite")
-            object.__setattr__(self, name, value)
-        for name in ("rail_radius", "platform_radius", "leg_length", "carriage_home",
-                     "rail_half_length", "carriage_mass", "leg_mass", "platform_mass",
-                     "max_actuator_force"):
-            if getattr(self, name) <= 0.0:
-                raise GeometryError(name, getattr(self, name), "must be > 0")
-        for name in ("carriage_min_gap", "gravity"):
-            if getattr(self, name) < 0.0:
-                raise GeometryError(name, getattr(self, name), "must be >= 0")
+        validate_scalars(self, skip=("platform_inertia",),
+                         positive=("rail_radius", "platform_radius", "leg_length",
+                                   "carriage_home", "rail_half_length", "carriage_mass",
+                                   "leg_mass", "platform_mass", "max_actuator_force"),
+                         non_negative=("carriage_min_gap", "gravity"))
         self._validate_inertia()
         self._validate_home()
 

@@ -38,7 +38,7 @@ import numpy as np
 from . import assembly_modes as am
 from .errors import (AssemblyError, InputError, SingularityError, StrokeLimitError,
                      UnreachablePoseError)
-from .pose import as_array, rotation_from_rpy
+from .pose import as_array, check_signs, rotation_from_rpy
 
 HOME_BRANCH = np.array([-1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
 RAIL_OF = np.array([0, 0, 1, 1, 2, 2])
@@ -86,15 +86,7 @@ def _floats6(value, name: str) -> list:
 
 def check_branch(branch) -> np.ndarray:
     """Validate a branch (six values, each +1 or -1); ``None`` -> the home branch."""
-    if branch is None:
-        return HOME_BRANCH.copy()
-    try:
-        arr = np.asarray(branch, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError("branch", branch, "expected six values, each +1 or -1") from None
-    if arr.shape != (6,) or not np.all((arr == 1.0) | (arr == -1.0)):
-        raise InputError("branch", branch, "expected six values, each +1 or -1")
-    return arr
+    return check_signs(branch, HOME_BRANCH)
 
 
 # -- result types ----------------------------------------------------------------------

@@ -59,9 +59,10 @@ from .closed_loop import ClosedLoopModel
 from .description import build_model, expand_xacro, load_loops, urdf_dir
 from .dynamics import (TreeForwardDynamics, TreeInverseDynamics, forward_dynamics_tree,
                        inverse_dynamics_tree)
-from .errors import (AssemblyError, GeometryError, InputError, SingularityError,
+from .errors import (AssemblyError, GeometryError, SingularityError,
                      StrokeLimitError, UnreachablePoseError)
-from .pose import as_array
+from .geometry import validate_scalars
+from .pose import as_array, check_signs
 
 N_SLIDERS = 3
 #: the home branch: every slider on the larger root of its quadratic
@@ -128,22 +129,11 @@ class PlanarGeometry:
     max_actuator_force: float = math.inf
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(
-                    value, (int, float, np.floating, np.integer)):
-                raise GeometryError(f.name, value, "must be a real number")
-            value = float(value)
-            if math.isnan(value) or (math.isinf(value) and f.name != "max_actuator_force"):
-                raise GeometryError(f.name, value, "must be finite")
-            object.__setattr__(self, f.name, value)
-        for name in ("rail_radius", "platform_radius", "link_length", "slider_mass",
-                     "link_mass", "platform_mass", "platform_inertia", "rail_half_length",
-                     "max_actuator_force"):
-            if getattr(self, name) <= 0.0:
-                raise GeometryError(name, getattr(self, name), "must be > 0")
-        if self.gravity < 0.0:
-            raise GeometryError("gravity", self.gravity, "must be >= 0")
+        validate_scalars(self, positive=("rail_radius", "platform_radius", "link_length",
+                                         "slider_mass", "link_mass", "platform_mass",
+                                         "platform_inertia", "rail_half_length",
+                                         "max_actuator_force"),
+                         non_negative=("gravity",))
         if self.platform_radius >= self.rail_radius:
             raise GeometryError("platform_radius", self.platform_radius,
                                 f"must be < rail_radius={self.rail_radius}")
@@ -219,15 +209,7 @@ def planar_urdf(geometry: PlanarGeometry) -> str:
 
 def check_branch(branch) -> np.ndarray:
     """Validate a branch (three values, each +1 or -1); ``None`` -> the home branch."""
-    if branch is None:
-        return HOME_BRANCH.copy()
-    try:
-        arr = np.asarray(branch, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError("branch", branch, "expected three values, each +1 or -1") from None
-    if arr.shape != (N_SLIDERS,) or not np.all(np.isin(arr, (-1.0, 1.0))):
-        raise InputError("branch", branch, "expected three values, each +1 or -1")
-    return arr
+    return check_signs(branch, HOME_BRANCH)
 
 
 # ---------------------------------------------------------------------------------------

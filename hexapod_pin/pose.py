@@ -98,3 +98,21 @@ def skew(vec: np.ndarray) -> np.ndarray:
     out[..., 1, 0], out[..., 1, 2] = vec[..., 2], -vec[..., 0]
     out[..., 2, 0], out[..., 2, 1] = -vec[..., 1], vec[..., 0]
     return out
+
+
+def check_signs(branch, home: np.ndarray, name: str = "branch") -> np.ndarray:
+    """Validate a branch: ``len(home)`` values, each +1 or -1; ``None`` -> a copy of ``home``.
+
+    Raises:
+        InputError: wrong length, or a value other than +1 / -1.
+    """
+    if branch is None:
+        return np.array(home, dtype=float)
+    expected = f"expected {len(home)} values, each +1 or -1"
+    try:
+        arr = np.asarray(branch, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(name, branch, expected) from None
+    if arr.shape != (len(home),) or not np.all((arr == 1.0) | (arr == -1.0)):
+        raise InputError(name, branch, expected)
+    return arr
