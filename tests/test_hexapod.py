@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 import hexapod_pin as hp
 from hexapod_pin.cli import app
 
-from conftest import SECOND_GEOMETRY, geometry_from_reference, load_reference, random_pose
+from conftest import geometry_from_reference, load_reference, random_pose
 
 
 def test_default_constructors(robot):
