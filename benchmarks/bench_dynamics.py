@@ -5,12 +5,24 @@ Usage::
     python benchmarks/bench_dynamics.py            # full table
     python benchmarks/bench_dynamics.py --smoke    # tiny counts; checks that routes agree
 
-Each row: median and interquartile range of the per-call time over ``--repeat`` blocks
-of ``--number`` calls. Pose-level calls cycle through distinct random poses so that no
-per-pose cache hides the cost of building the tree configuration. The simulation rows
-time whole steps of 1 ms (RK4: four constrained forward dynamics, projection when the
-closure residual exceeds 1e-10 m) and give the real-time factor at 1 kHz. BLAS threads
-are limited to one (``OPENBLAS_NUM_THREADS=1`` unless set): the matrices are tiny.
+Each row: median and inter-quartile range of the per-call time over ``--repeat`` blocks
+of ``--number`` calls (batches: per state, over N states). Pose-level calls cycle through
+distinct random states so that no cache hides the cost of building the tree state.
+
+Columns "before":
+
+* "legacy, same run": the previous pose-level route rebuilt here from the public generic
+  pieces and timed in the same run: tree state by solving the closure Jacobian system
+  (``J_c v = 0``, ``J_c a = -gamma`` with Pinocchio's ``J_c`` and drift), then the tree
+  solvers (:func:`inverse_dynamics_tree` / :func:`forward_dynamics_tree`); the legacy
+  batch is a Python loop of it. It uses today's (fast) ``configuration``, so it
+  understates the old cost.
+* "recorded": the pose-level calls of the library before this work (commit c6e271a),
+  measured on this 2-core VM at the start of the work (load average 2-3; fastest block).
+
+The simulation rows time whole RK4 steps of 1 ms (four constrained forward dynamics,
+closure check, projection when the closure residual exceeds 1e-10 m) and give the
+real-time factor at 1 kHz. BLAS threads are limited to one (the matrices are tiny).
 """
 
 from __future__ import annotations
@@ -33,12 +45,25 @@ import proxsuite
 
 import hexapod_pin as hp
 from hexapod_pin.dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.pose import rotation_from_rpy
 from hexapod_pin.simulate import (
     CircleTrajectory,
     ClosedLoopIntegrator,
     ComputedTorqueController,
     simulate,
 )
+
+#: µs per call of the pose-level API before this work (commit c6e271a, this VM, fastest
+#: block of 5 x 300 calls, load average 2-3)
+RECORDED_BEFORE = {
+    "configuration": 578.0,
+    "inverse_dynamics qp": 1991.0,
+    "inverse_dynamics kkt": 876.0,
+    "forward_dynamics pinocchio": 925.0,
+    "static_forces": 1304.0,
+    "reduced_dynamics": 1380.0,
+    "rk4 step": 457.0,
+}
 
 
 def _poses(robot, rng, n):
@@ -68,11 +93,115 @@ def _time(fn, number, repeat):
     return times
 
 
-def _row(name, times, note=""):
+def _fmt(value):
+    return "-" if value is None else f"{value:.1f}"
+
+
+def _row(name, times, legacy=None, recorded=None, note=""):
     med = statistics.median(times)
     q = np.percentile(times, [25, 75])
-    print(f"| {name:<46} | {med:9.1f} | {q[0]:7.1f} - {q[1]:<7.1f} | {note} |")
+    print(f"| {name:<44} | {med:9.2f} | {q[0]:8.2f} - {q[1]:<8.2f} | {_fmt(legacy):>9} | "
+          f"{_fmt(recorded):>9} | {note} |")
     return med
+
+
+# -- the legacy route (tree state through the closure Jacobian) ----------------------------
+class Legacy:
+    """The previous pose-level route, rebuilt from public generic pieces."""
+
+    def __init__(self, robot):
+        self.robot = robot
+        self.clm = robot.model
+        self.dyn = dynamics_of(robot.model)
+        idx = robot.indices
+        self.ff = np.arange(idx.platform_v.start, idx.platform_v.stop)
+        self.free = np.setdiff1d(np.arange(self.clm.nv), self.ff)
+
+    def state(self, pose, twist, twist_dot=None):
+        q = self.robot.configuration(pose)
+        rot = rotation_from_rpy(pose[3:])
+        jac = self.dyn.constraint_jacobian(q)
+        inv = np.linalg.inv(jac[:, self.free])
+        v = np.empty(self.clm.nv)
+        v_ff = np.concatenate([rot.T @ twist[:3], rot.T @ twist[3:]])
+        v[self.ff] = v_ff
+        v[self.free] = inv @ (-jac[:, self.ff] @ v_ff)
+        a = None
+        if twist_dot is not None:
+            gamma = self.dyn.constraint_drift(q, v)
+            a_ff = np.concatenate([rot.T @ (twist_dot[:3] - np.cross(twist[3:], twist[:3])),
+                                   rot.T @ twist_dot[3:]])
+            a = np.empty(self.clm.nv)
+            a[self.ff] = a_ff
+            a[self.free] = inv @ (-gamma - jac[:, self.ff] @ a_ff)
+        return q, v, a, rot
+
+    def tau_ext(self, rot, wrench):
+        tau = np.zeros(self.clm.nv)
+        tau[self.ff] = np.concatenate([rot.T @ wrench[:3], rot.T @ wrench[3:]])
+        return tau
+
+    def inverse(self, pose, twist, twist_dot, wrench, method="kkt"):
+        q, v, a, rot = self.state(pose, twist, twist_dot)
+        return inverse_dynamics_tree(self.clm, q, v, a, self.tau_ext(rot, wrench),
+                                     bounds=100.0, method=method).actuator_forces
+
+    def forward(self, pose, twist, forces, wrench):
+        q, v, _, rot = self.state(pose, twist)
+        tau = self.tau_ext(rot, wrench)
+        tau[self.clm.actuated_v] += forces
+        a = forward_dynamics_tree(self.clm, q, v, tau, "pinocchio").a
+        a_ff = a[self.ff]
+        return np.concatenate([rot @ a_ff[:3] + np.cross(twist[3:], twist[:3]), rot @ a_ff[3:]])
+
+    def static(self, pose, wrench):
+        q, v, a, rot = self.state(pose, np.zeros(6), np.zeros(6))
+        return inverse_dynamics_tree(self.clm, q, v, a, self.tau_ext(rot, wrench),
+                                     method="kkt").actuator_forces
+
+
+def _batch_rows(robot, legacy, n, states, number, repeat):
+    """Per-state times of the batch APIs for N = n states (and of a loop of the legacy
+    single-state route for small n)."""
+    idx = np.arange(n) % len(states[0])
+    P, T, D, W, F = (x[idx] for x in states)
+    reps = max(3, repeat // 3)
+    calls = max(1, min(number, 2000 // n))
+
+    def per(fn):
+        return [t / n for t in _time(fn, calls, reps)]
+
+    loop_legacy = None
+    if n <= 100:
+        loop_legacy = statistics.median(per(lambda k: [legacy.inverse(P[j], T[j], D[j], W[j])
+                                                       for j in range(n)]))
+    _row(f"inverse_dynamics_batch, per state (N={n})",
+         per(lambda k: robot.inverse_dynamics_batch(P, T, D, W, bounded=False)),
+         legacy=loop_legacy, note="closed form, vectorised (legacy: Python loop)")
+    _row(f"forward_dynamics_batch, per state (N={n})",
+         per(lambda k: robot.forward_dynamics_batch(P, T, F, W)), note="closed form, vectorised")
+    _row(f"static_forces_batch, per state (N={n})",
+         per(lambda k: robot.static_forces_batch(P, W)), note="closed form, vectorised")
+
+
+def _mujoco_rows(robot, poses, twists, twist_dots, number, repeat):
+    """Raw ``mj_inverse`` / ``mj_forward`` in a Python loop (the peer's floor), if present."""
+    try:
+        import mujoco
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        from mjcf import MujocoHexapod
+        mj = MujocoHexapod(robot.geometry)
+        mj.set_task_state(poses[0], twists[0], twist_dots[0])
+    except Exception as exc:   # optional peer: any failure only drops its rows
+        print(f"| MuJoCo rows skipped | - | - | - | - | {type(exc).__name__}: {exc} |")
+        return
+    m, d = mj.model, mj.data
+    _row("MuJoCo mj_inverse, Python loop (state set)",
+         _time(lambda k: mujoco.mj_inverse(m, d), number, repeat),
+         note=f"mujoco {mujoco.__version__}: tree forces only (no reduction)")
+    _row("MuJoCo mj_forward, Python loop (state set)",
+         _time(lambda k: mujoco.mj_forward(m, d), number, repeat),
+         note="soft closures")
 
 
 def main(argv=None) -> int:
@@ -86,6 +215,7 @@ def main(argv=None) -> int:
     robot = hp.Hexapod.default()
     clm = robot.model
     dyn = dynamics_of(clm)
+    legacy = Legacy(robot)
     rng = np.random.default_rng(0)
     n_states = 8 if args.smoke else 64
     poses = _poses(robot, rng, n_states)
@@ -96,11 +226,11 @@ def main(argv=None) -> int:
     wrenches = np.concatenate([2.0 * rng.normal(size=(n_states, 3)),
                                0.2 * rng.normal(size=(n_states, 3))], axis=1)
     # keep states well inside the actuator bounds (far from singular poses)
-    keep = [k for k in range(len(poses))
-            if np.abs(robot.inverse_dynamics_batch(poses[k:k + 1], twists[k:k + 1],
-                                                   twist_dots[k:k + 1], wrenches[k:k + 1],
-                                                   bounded=False).actuator_forces).max() < 50.0]
-    poses, twists, twist_dots, wrenches = (x[keep] for x in (poses, twists, twist_dots, wrenches))
+    forces = robot.inverse_dynamics_batch(poses, twists, twist_dots, wrenches,
+                                          bounded=False).actuator_forces
+    keep = np.flatnonzero(np.abs(forces).max(axis=1) < 50.0)
+    poses, twists, twist_dots, wrenches, forces = (x[keep] for x in (poses, twists, twist_dots,
+                                                                     wrenches, forces))
     n_states = len(keep)
     # tree states for the generic functions (no wrench: tau is the actuation alone)
     tree = []
@@ -113,119 +243,170 @@ def main(argv=None) -> int:
 
     # -- agreement of the routes (the smoke test's purpose) -----------------------------------
     worst = {}
+
+    def note(name, value):
+        worst[name] = max(worst.get(name, 0.0), float(value))
+
     for k in range(min(n_states, 4)):
         q, v, a, tau = tree[k]
         fds = {m: forward_dynamics_tree(clm, q, v, tau, m) for m in ("pinocchio", "qp", "kkt")}
-        worst["FD routes, a"] = max(worst.get("FD routes, a", 0.0),
-                                    max(np.abs(fds[m].a - fds["kkt"].a).max() for m in fds))
-        worst["FD(ID(x)) - x, a"] = max(worst.get("FD(ID(x)) - x, a", 0.0),
-                                        np.abs(fds["pinocchio"].a - a).max())
+        note("FD routes, a", max(np.abs(fds[m].a - fds["kkt"].a).max() for m in fds))
+        note("FD(ID(x)) - x, a", np.abs(fds["pinocchio"].a - a).max())
         ids = {m: inverse_dynamics_tree(clm, q, v, a, method=m) for m in ("qp", "kkt")}
-        worst["ID routes, tau"] = max(worst.get("ID routes, tau", 0.0),
-                                      np.abs(ids["qp"].actuator_forces
-                                             - ids["kkt"].actuator_forces).max())
-    batch = robot.inverse_dynamics_batch(poses, twists, twist_dots, wrenches, bounded=False)
+        note("ID routes, tau", np.abs(ids["qp"].actuator_forces
+                                      - ids["kkt"].actuator_forces).max())
     single = np.array([robot.inverse_dynamics(poses[k], twists[k], twist_dots[k], wrenches[k],
-                                              method="kkt", bounded=False,
-                                              joint_wrenches=False).actuator_forces
+                                              method="kkt", bounded=False).actuator_forces
                        for k in range(n_states)])
-    worst["batch - single, tau"] = np.abs(batch.actuator_forces - single).max()
+    single_qp = np.array([robot.inverse_dynamics(poses[k], twists[k], twist_dots[k],
+                                                 wrenches[k]).actuator_forces
+                          for k in range(n_states)])
+    note("pose-level ID qp - kkt, tau", np.abs(single_qp - single).max())
+    note("pose-level ID - legacy route, tau", max(
+        np.abs(single[k] - legacy.inverse(poses[k], twists[k], twist_dots[k], wrenches[k])).max()
+        for k in range(n_states)))
+    batch = robot.inverse_dynamics_batch(poses, twists, twist_dots, wrenches, bounded=False)
+    note("batch (closed form) - single (tree) ID, tau", np.abs(batch.actuator_forces - single).max())
+    fwd_batch = robot.forward_dynamics_batch(poses, twists, single, wrenches)
+    note("batch FD - sampled twist_dot", np.abs(fwd_batch.twist_dot - twist_dots).max())
+    fwd_single = np.array([robot.forward_dynamics(poses[k], twists[k], single[k],
+                                                  wrenches[k]).twist_dot
+                           for k in range(n_states)])
+    note("single FD (constraintDynamics) - sampled twist_dot",
+         np.abs(fwd_single - twist_dots).max())
+    note("single FD - legacy route, twist_dot", max(
+        np.abs(fwd_single[k] - legacy.forward(poses[k], twists[k], single[k], wrenches[k])).max()
+        for k in range(n_states)))
+    static_batch = robot.static_forces_batch(poses, wrenches)
+    note("batch - single statics, tau", max(
+        np.abs(static_batch[k] - robot.static_forces(poses[k], wrenches[k])).max()
+        for k in range(n_states)))
+    note("statics - legacy route, tau", max(
+        np.abs(static_batch[k] - legacy.static(poses[k], wrenches[k])).max()
+        for k in range(n_states)))
     ok = all(value < 1e-9 for value in worst.values())
 
+    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
     print(f"# hexapod_pin dynamics benchmark ({'smoke' if args.smoke else 'full'})")
     print(f"python {platform.python_version()}, pinocchio {pin.__version__}, proxsuite "
           f"{proxsuite.__version__}, numpy {np.__version__}, {platform.machine()} "
-          f"{platform.processor() or platform.platform()}")
+          f"{platform.processor() or platform.platform()}, {os.cpu_count()} CPUs, "
+          f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
     print()
     print("| agreement check | max abs difference |")
     print("|---|---|")
     for name, value in worst.items():
         print(f"| {name} | {value:.2e} |")
     print()
-    print("| call | median µs | IQR µs | note |")
-    print("|---|---|---|---|")
+    print("| call | median µs | IQR µs | legacy, same run µs | recorded before µs | note |")
+    print("|---|---|---|---|---|---|")
 
     def cyc(k):
         return k % n_states
 
+    rec = RECORDED_BEFORE
     small = np.ones(24)
     _row("calibration: numpy a + a, a of size 24", _time(lambda k: small + small, number, repeat),
-         "machine speed reference")
+         note="machine speed reference")
     prox = pin.ProximalSettings(1e-13, 0.0, 1)
     data = clm.model.createData()
-    cms = dyn._cms
-    cds = dyn._cds
+    cms, cds = dyn._cms, dyn._cds
     pin.initConstraintDynamics(clm.model, data, cms, cds)
-    _row("pin.rnea (floor)", _time(lambda k: pin.rnea(clm.model, data, *tree[cyc(k)][:3]),
-                                   number, repeat))
+    t_rnea = _row("pin.rnea (floor)", _time(lambda k: pin.rnea(clm.model, data, *tree[cyc(k)][:3]),
+                                            number, repeat))
+    mat6, vec6 = np.eye(6) + 0.1, np.ones(6)
+    t_solve = _row("np.linalg.solve 6x6 (floor)",
+                   _time(lambda k: np.linalg.solve(mat6, vec6), number, repeat))
     _row("pin.constraintDynamics (floor)",
          _time(lambda k: pin.constraintDynamics(clm.model, data, tree[cyc(k)][0],
                                                 tree[cyc(k)][1], tree[cyc(k)][3], cms, cds,
                                                 prox), number, repeat))
-    for method in ("pinocchio", "qp", "kkt"):
-        _row(f"forward_dynamics_tree {method}",
-             _time(lambda k, m=method: forward_dynamics_tree(clm, tree[cyc(k)][0],
-                                                             tree[cyc(k)][1], tree[cyc(k)][3], m),
-                   number, repeat),
-             "q, v given")
-    for method in ("qp", "kkt"):
-        _row(f"inverse_dynamics_tree {method}",
-             _time(lambda k, m=method: inverse_dynamics_tree(clm, *tree[cyc(k)][:3], method=m,
-                                                             bounds=100.0), number, repeat),
-             "q, v, a given; bounds 100 N")
-    _row("Hexapod.configuration(pose) (kinematics)",
+    t_generic = None
+    try:
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        import pinocchio_raw as pr
+        raw = pr.RawHexapod(robot)
+        t_generic = _row("Pinocchio calls of a generic closed-loop ID (floor)",
+                         _time(lambda k: pr.pinocchio_calls_of_inverse(raw, *tree[cyc(k)][:3]),
+                               number, repeat),
+                         note="J_c, drift, rnea: benchmarks/pinocchio_raw.py")
+    except Exception as exc:   # helper of the peers benchmark: optional here
+        print(f"| generic Pinocchio floor skipped | - | - | - | - | {type(exc).__name__}: {exc} |")
+    _mujoco_rows(robot, poses, twists, twist_dots, number, repeat)
+    _row("Hexapod.configuration(pose)",
          _time(lambda k: robot.configuration(poses[cyc(k)]), number, repeat),
-         "part of every pose-level call")
-    for method in ("qp", "kkt"):
-        _row(f"inverse_dynamics {method}, no joint wrenches",
-             _time(lambda k, m=method: robot.inverse_dynamics(
-                 poses[cyc(k)], twists[cyc(k)], twist_dots[cyc(k)], wrenches[cyc(k)], method=m,
-                 joint_wrenches=False),
-                   number, repeat), "new pose each call")
-    _row("inverse_dynamics qp, with joint wrenches",
+         recorded=rec["configuration"], note="IK + closed-form angles + exact closure check")
+    kkt = _row("inverse_dynamics kkt",
+               _time(lambda k: robot.inverse_dynamics(poses[cyc(k)], twists[cyc(k)],
+                                                      twist_dots[cyc(k)], wrenches[cyc(k)],
+                                                      method="kkt"), number, repeat),
+               legacy=statistics.median(_time(lambda k: legacy.inverse(
+                   poses[cyc(k)], twists[cyc(k)], twist_dots[cyc(k)], wrenches[cyc(k)]),
+                   number, repeat)),
+               recorded=rec["inverse_dynamics kkt"],
+               note="new pose each call; closure forces / joint wrenches on access")
+    _row("inverse_dynamics qp (default)",
          _time(lambda k: robot.inverse_dynamics(poses[cyc(k)], twists[cyc(k)], twist_dots[cyc(k)],
                                                 wrenches[cyc(k)]), number, repeat),
-         "new pose each call")
-    _row("inverse_dynamics kkt, same pose",
-         _time(lambda k: robot.inverse_dynamics(poses[0], twists[cyc(k)], twist_dots[cyc(k)],
-                                                method="kkt", joint_wrenches=False),
-               number, repeat), "configuration cached")
-    for method in ("pinocchio", "qp", "kkt"):
+         legacy=statistics.median(_time(lambda k: legacy.inverse(
+             poses[cyc(k)], twists[cyc(k)], twist_dots[cyc(k)], wrenches[cyc(k)], "qp"),
+             number, repeat)),
+         recorded=rec["inverse_dynamics qp"], note="ProxSuite box QP, 6 variables")
+    _row("inverse_dynamics kkt + closure_forces",
+         _time(lambda k: robot.inverse_dynamics(poses[cyc(k)], twists[cyc(k)], twist_dots[cyc(k)],
+                                                wrenches[cyc(k)], method="kkt").closure_forces,
+               number, repeat), note="closure forces accessed")
+    for method in ("pinocchio", "kkt", "qp"):
         _row(f"forward_dynamics {method}",
              _time(lambda k, m=method: robot.forward_dynamics(
-                 poses[cyc(k)], twists[cyc(k)], tree[cyc(k)][3][clm.actuated_v],
-                 wrenches[cyc(k)], method=m),
-                   number, repeat), "new pose each call")
+                 poses[cyc(k)], twists[cyc(k)], forces[cyc(k)], wrenches[cyc(k)], method=m),
+                   number, repeat),
+             legacy=statistics.median(_time(lambda k: legacy.forward(
+                 poses[cyc(k)], twists[cyc(k)], forces[cyc(k)], wrenches[cyc(k)]),
+                 number, repeat)) if method == "pinocchio" else None,
+             recorded=rec["forward_dynamics pinocchio"] if method == "pinocchio" else None,
+             note="new pose each call")
     _row("static_forces", _time(lambda k: robot.static_forces(poses[cyc(k)]), number, repeat),
-         "new pose each call")
+         legacy=statistics.median(_time(lambda k: legacy.static(poses[cyc(k)], np.zeros(6)),
+                                        number, repeat)),
+         recorded=rec["static_forces"], note="new pose each call")
     _row("reduced_dynamics",
          _time(lambda k: robot.reduced_dynamics(poses[cyc(k)], twists[cyc(k)]), number, repeat),
-         "new pose each call")
-    n_batch = 16 if args.smoke else 256
-    big = np.arange(n_batch) % n_states
-    per_state = [t / n_batch for t in _time(
-        lambda k: robot.inverse_dynamics_batch(poses[big], twists[big], twist_dots[big],
-                                               wrenches[big], bounded=False),
-        1, max(3, repeat // 3))]
-    _row(f"inverse_dynamics_batch, per state (N={n_batch})", per_state, "kkt, stacked solve")
-    integ = ClosedLoopIntegrator(clm)
+         recorded=rec["reduced_dynamics"], note="M_x, h_x, J, T")
+
+    sizes = (1, 10) if args.smoke else (1, 100, 10000)
+    for n in sizes:
+        _batch_rows(robot, legacy, n, (poses, twists, twist_dots, wrenches, forces), number,
+                    repeat)
+
+    pmap = robot._platform_map
+    integ = ClosedLoopIntegrator(clm, residual=lambda q: pmap.closure_residual(q.tolist()))
+    generic = ClosedLoopIntegrator(clm)
     q0, v0 = robot.home_configuration.copy(), np.zeros(clm.nv)
     state = {"q": q0, "v": v0}
 
-    def one_step(_):
+    def one_step(_, integ=integ):
         state["q"], state["v"], _res = integ.step(state["q"], state["v"], np.zeros(clm.nv), 1e-3)
 
-    step = _row("simulation step, RK4 + projection (1 ms)", _time(one_step, number, repeat),
-                "unactuated fall")
+    step = _row("simulation step, RK4 (1 ms), closed-form closure check", _time(one_step, number, repeat),
+                recorded=rec["rk4 step"], note="unactuated fall")
+    state.update(q=q0, v=v0)
+    _row("simulation step, RK4 (1 ms), generic closure check",
+         _time(lambda k: one_step(k, generic), number, repeat), note="Pinocchio frames")
     duration = 0.05 if args.smoke else 1.0
     traj = simulate(robot, duration, 1e-3, check_limits=False)
     _row("simulate(), per 1 ms step (unactuated)", [traj.wall_time / (len(traj.times) - 1) * 1e6],
-         f"real-time factor {traj.real_time_factor:.2f} at 1 kHz")
+         note=f"real-time factor {traj.real_time_factor:.2f} at 1 kHz")
     ref = CircleTrajectory(robot.home_pose, 0.02, 1.0)
     traj = simulate(robot, duration, 1e-3, controller=ComputedTorqueController(robot, ref))
     _row("simulate(), computed torque, per step", [traj.wall_time / (len(traj.times) - 1) * 1e6],
-         f"real-time factor {traj.real_time_factor:.2f} at 1 kHz")
+         note=f"real-time factor {traj.real_time_factor:.2f} at 1 kHz")
     print()
+    print(f"inverse_dynamics kkt: {kkt:.0f} µs = {kkt / (t_rnea + t_solve):.1f}x the raw "
+          f"Pinocchio calls it needs (rnea + a 6x6 solve, {t_rnea + t_solve:.0f} µs).")
+    if t_generic is not None:
+        print(f"inverse_dynamics kkt: {kkt / t_generic:.1f}x the Pinocchio calls of a generic "
+              f"closed-loop ID from a platform state ({t_generic:.0f} µs).")
     print(f"RK4 step: {step:.0f} µs, i.e. {1e3 / step:.1f}x real time at 1 kHz "
           f"(target in issue 5: 1000x).")
     if not ok:

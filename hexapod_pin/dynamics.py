@@ -35,29 +35,45 @@ call and assumed to be structural afterwards (re-evaluated whenever a route meet
 singular system).
 
 Hexapod part: :class:`HexapodDynamics`, the mixin that gives
-:class:`hexapod_pin.Hexapod` its pose / twist-level dynamics API.
+:class:`hexapod_pin.Hexapod` its pose / twist-level dynamics API. Single states build the
+tree state in closed form (:mod:`hexapod_pin.platform_map`) and need one Pinocchio call
+(``rnea``, ``computeGeneralizedGravity`` or ``constraintDynamics``) and a 6x6 solve;
+the ``*_batch`` methods use the independent vectorised closed form of
+:mod:`hexapod_pin.batch_dynamics`.
 """
 
 from __future__ import annotations
 
+import math
 import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from types import MappingProxyType
 
 import numpy as np
 import pinocchio as pin
 import proxsuite
 
+from .batch_dynamics import (  # noqa: F401  (re-exported: part of this module's API)
+    BatchActuatorSaturationError,
+    BatchDynamics,
+    BatchForwardDynamics,
+    BatchInverseDynamics,
+    BatchReducedDynamics,
+    BatchSingularityError,
+    BatchUnreachablePoseError,
+    check_batch,
+)
 from .closed_loop import ClosedLoopModel
 from .errors import (
     ActuatorSaturationError,
     HexapodPinError,
     InputError,
-    SingularityError,
     SolverError,
 )
-from .pose import as_array
+from .kinematics import HOME_BRANCH, _floats6
+from .platform_map import PlatformMap
 
 FORWARD_METHODS = ("pinocchio", "qp", "kkt")
 INVERSE_METHODS = ("qp", "kkt")
@@ -66,6 +82,9 @@ INVERSE_METHODS = ("qp", "kkt")
 _RESIDUAL_RTOL = 1e-9
 #: ProxSuite accuracy (absolute, on primal and dual residuals)
 _QP_EPS = 1e-13
+#: ProxSuite accuracy of the hexapod's reduced inverse-dynamics QP, relative to the
+#: largest right-hand side entry (N, N m)
+_QP_EPS_REDUCED = 2e-14
 #: Pinocchio proximal settings used when the closures are redundant (the acceleration
 #: converges in a few iterations; the multipliers are then polished to minimum norm)
 _PIN_PROX_MU = 1e-6
@@ -305,13 +324,17 @@ class ClosedLoopDynamics:
         self._pin_ready = True
 
     def _pin_call(self, q, v, tau, redundant: bool):
-        """One ``pin.constraintDynamics`` call; returns (a or None if it failed, prox)."""
+        """One ``pin.constraintDynamics`` call; returns (a or None if it failed, prox).
+
+        ``a`` is Pinocchio's own buffer (copy it before the next call). A failed solve
+        shows as non-finite accelerations (the multipliers come from the same solve).
+        """
         if not self._pin_ready:
             self._init_pinocchio()
         prox = self._prox_redundant if redundant else self._prox_exact
         acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self._cms, self._cds,
                                      prox)
-        if not np.isfinite(acc.sum() + self.data.lambda_c.sum()):
+        if not math.isfinite(acc.sum()):
             return None, prox
         return acc, prox
 
@@ -646,31 +669,48 @@ def _small(residual: np.ndarray, rhs: np.ndarray, rtol: float = _RESIDUAL_RTOL) 
     return bool(np.all(np.isfinite(residual)) and _maxabs(residual) <= rtol * scale)
 
 
-def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product of two 3-vectors (cheaper than ``np.cross`` for one pair)."""
-    a0, a1, a2 = a.tolist()
-    b0, b1, b2 = b.tolist()
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
-
-
 def _min_norm_multipliers(jac: np.ndarray, lam: np.ndarray) -> np.ndarray:
     """The minimum-norm multipliers giving the same generalised force ``J_c^T lam``."""
     sol, *_ = np.linalg.lstsq(jac.T, jac.T @ lam, rcond=None)
     return sol
 
-
 # --------------------------------------------------------------------------------------
 # hexapod: pose / twist-level API
 # --------------------------------------------------------------------------------------
-@dataclass(frozen=True)
+class _InverseDetails:
+    """The parts of an inverse-dynamics result computed on first access."""
+
+    __slots__ = ("a", "force", "legs", "q", "tau", "v", "wrench", "wrenches_wanted", "ws")
+
+    def __init__(self, ws, legs, force, tau, wrench, q, v, a, wrenches_wanted):
+        self.ws, self.legs, self.force, self.tau, self.wrench = ws, legs, force, tau, wrench
+        self.q, self.v, self.a, self.wrenches_wanted = q, v, a, wrenches_wanted
+
+    def tip_forces(self) -> np.ndarray:
+        """(6, 3) force of the platform on each leg tip (carriage order), world axes."""
+        return np.array(self.ws.pmap.leg_forces(self.legs, self.force, self.tau))
+
+    def tau_ext(self) -> np.ndarray:
+        tau = np.zeros(self.ws.dyn.nv)
+        if self.wrench is not None:
+            rot = np.array(self.legs.rot).reshape(3, 3)
+            tau[self.ws.ff_v] = np.concatenate([rot.T @ self.wrench[:3], rot.T @ self.wrench[3:]])
+        return tau
+
+
+@dataclass(frozen=True, eq=False)
 class InverseDynamicsResult:
     """Result of :meth:`HexapodDynamics.inverse_dynamics`.
+
+    The closure forces, multipliers, joint wrenches and residual are computed on first
+    access (they cost more than the actuator forces and are often not needed).
 
     Attributes:
         actuator_forces: ``tau`` (6,), force on carriage i along ``+u_k`` (N).
         closure_forces: (6, 3), row i: the force that leg i's tip exerts on the
             platform at its spherical joint, world axes (N). The platform exerts the
-            opposite force on the leg.
+            opposite force on the leg. From leg i's three tree equations (carriage and
+            universal-joint rows of ``S^T tau + J_c^T lambda = rnea(q, v, a)``).
         joint_wrenches: joint name -> (6,) spatial force ``(f, m)`` that the parent
             body exerts on the child body through that joint, in the joint's LOCAL
             frame at the joint origin (N, N m), from ``pin.rnea`` with the closure
@@ -681,24 +721,69 @@ class InverseDynamicsResult:
         multipliers: closure multipliers (18,), see :func:`inverse_dynamics_tree`.
         configuration, velocity, acceleration: the tree state ``q``, ``v``, ``a``
             (Pinocchio conventions) the motion maps to.
-        method, status, iterations, residual: solver information (residual: max-abs
-            of the tree equation of motion, N / N m).
+        method, status, iterations: solver information.
+        residual: max-abs of the tree equation of motion ``M a + h - tau_ext - S^T tau
+            - J_c^T lambda`` with ``J_c`` from Pinocchio (N, N m): round-off only.
     """
 
     actuator_forces: np.ndarray
-    closure_forces: np.ndarray
-    joint_wrenches: Mapping[str, np.ndarray]
-    multipliers: np.ndarray
     configuration: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray
     method: str
     status: str
     iterations: int
-    residual: float
+    _details: _InverseDetails = field(repr=False)
+
+    @cached_property
+    def multipliers(self) -> np.ndarray:
+        ws = self._details.ws
+        return self._details.tip_forces()[ws.leg_of_closure].reshape(-1)
+
+    @cached_property
+    def closure_forces(self) -> np.ndarray:
+        return -self._details.tip_forces()
+
+    @cached_property
+    def joint_wrenches(self) -> Mapping[str, np.ndarray]:
+        det = self._details
+        if not det.wrenches_wanted:
+            return MappingProxyType({})
+        fext = None
+        if det.wrench is not None:
+            fext = {det.ws.platform_joint: pin.Force(det.tau_ext()[det.ws.ff_v])}
+        table, _ = det.ws.dyn.joint_wrenches(det.q, det.v, det.a, self.multipliers, fext)
+        return MappingProxyType(table)
+
+    @cached_property
+    def residual(self) -> float:
+        det = self._details
+        dyn = det.ws.dyn
+        full = np.array(det.force) - det.tau_ext()
+        full[dyn.clm.actuated_v] -= self.actuator_forces
+        full -= dyn.constraint_jacobian(det.q).T @ self.multipliers
+        return _maxabs(full)
 
 
-@dataclass(frozen=True)
+class _ForwardDetails:
+    """Closure multipliers of a forward-dynamics result, converted on first access."""
+
+    __slots__ = ("dyn", "local", "q", "rows")
+
+    def __init__(self, dyn, q, local=None, rows=None):
+        self.dyn, self.q, self.local, self.rows = dyn, q, local, rows
+
+    def multipliers(self) -> np.ndarray:
+        if self.rows is None:
+            # Pinocchio's LOCAL contact forces, rotated into world axes: lambda = R_c1 lambda_pin
+            dyn = self.dyn
+            pin.framesForwardKinematics(dyn.model, dyn.data, self.q)
+            rots = np.array([dyn.data.oMf[c[2]].rotation for c in dyn._closures])
+            self.rows = np.einsum("kij,kj->ki", rots, self.local.reshape(-1, 3)).reshape(-1)
+        return self.rows
+
+
+@dataclass(frozen=True, eq=False)
 class ForwardDynamicsResult:
     """Result of :meth:`HexapodDynamics.forward_dynamics`.
 
@@ -706,19 +791,30 @@ class ForwardDynamicsResult:
         twist_dot: time derivative of the world-axes twist ``(v, w)`` (6,) (m/s^2, rad/s^2).
         qddot: carriage accelerations (6,) (m/s^2).
         tree_acceleration: full tree acceleration ``a`` (nv,), Pinocchio convention.
-        closure_forces: (6, 3) force each leg tip exerts on the platform, world axes (N).
-        multipliers: closure multipliers (18,).
+        closure_forces: (6, 3) force each leg tip exerts on the platform, world axes (N)
+            (computed on first access).
+        multipliers: closure multipliers (18,) (computed on first access).
         method, status, iterations: solver information.
     """
 
     twist_dot: np.ndarray
     qddot: np.ndarray
     tree_acceleration: np.ndarray
-    closure_forces: np.ndarray
-    multipliers: np.ndarray
     method: str
     status: str
     iterations: int
+    _details: _ForwardDetails = field(repr=False)
+    _leg_of_closure: np.ndarray = field(repr=False)
+
+    @cached_property
+    def multipliers(self) -> np.ndarray:
+        return self._details.multipliers()
+
+    @cached_property
+    def closure_forces(self) -> np.ndarray:
+        out = np.empty((6, 3))
+        out[self._leg_of_closure] = -self.multipliers.reshape(-1, 3)
+        return out
 
 
 @dataclass(frozen=True)
@@ -761,21 +857,6 @@ class Energies:
 
 
 @dataclass(frozen=True)
-class BatchInverseDynamics:
-    """Result of :meth:`HexapodDynamics.inverse_dynamics_batch` for N states.
-
-    Attributes:
-        actuator_forces: (N, 6) (N).
-        closure_forces: (N, 6, 3) force each leg tip exerts on the platform, world (N).
-        residual: (N,) max-abs residual of each tree equation of motion (N, N m).
-    """
-
-    actuator_forces: np.ndarray
-    closure_forces: np.ndarray
-    residual: np.ndarray
-
-
-@dataclass(frozen=True)
 class InverseDynamicsDerivatives:
     """Derivatives of the inverse-dynamics actuator forces (each (6, 6), row = carriage).
 
@@ -795,20 +876,6 @@ class InverseDynamicsDerivatives:
     d_wrench: np.ndarray
 
 
-class BatchActuatorSaturationError(ActuatorSaturationError):
-    """A state of a batch needs more actuator force than the bounds allow.
-
-    Attributes:
-        index: index of the first offending state.
-        needed, limit: as in :class:`ActuatorSaturationError`, for that state.
-    """
-
-    def __init__(self, index: int, needed, limit):
-        self.index = int(index)
-        super().__init__(needed, limit)
-        self.args = (f"state {self.index}: {self.args[0]}",)
-
-
 @dataclass
 class _HexapodWorkspace:
     dyn: ClosedLoopDynamics
@@ -816,25 +883,33 @@ class _HexapodWorkspace:
     free_v: np.ndarray
     leg_of_closure: np.ndarray
     bounds: np.ndarray | None
-    last_pose: bytes = b""
-    last_q: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    pmap: PlatformMap
+    batch: BatchDynamics
+    signs: list
+    platform_joint: int
+    qps: dict = field(default_factory=dict)
 
 
 class HexapodDynamics:
     """Dynamics methods of :class:`hexapod_pin.Hexapod` (a mixin).
 
-    Needs ``model`` (:class:`ClosedLoopModel`), ``geometry``, ``indices`` and
-    ``configuration`` from the host class. Conventions (see the README): pose
-    ``(x, y, z, roll, pitch, yaw)``, twist ``(v, w)`` of the platform origin in world
-    axes, ``twist_dot`` its plain time derivative, actuator force ``tau_i`` on carriage
-    i along ``+u_k`` (N), wrench ``(f, m)`` applied on the platform by the environment,
-    world axes, moment about the platform origin (N, N m).
+    Needs ``model`` (:class:`ClosedLoopModel`), ``geometry`` and ``indices`` from the
+    host class. Conventions (see the README): pose ``(x, y, z, roll, pitch, yaw)``, twist
+    ``(v, w)`` of the platform origin in world axes, ``twist_dot`` its plain time
+    derivative, actuator force ``tau_i`` on carriage i along ``+u_k`` (N), wrench
+    ``(f, m)`` applied on the platform by the environment, world axes, moment about the
+    platform origin (N, N m).
 
-    Mapping to the tree: ``q = configuration(pose)``; free-flyer body velocity
-    ``(R^T v, R^T w)``, the other coordinates from ``J_c v = 0``; free-flyer
-    acceleration ``(R^T (vdot - w x v), R^T wdot)``, the others from
-    ``J_c a = -gamma``; the wrench enters as the free-flyer generalised force
-    ``(R^T f, R^T m)``.
+    Single states go through the Pinocchio tree. The tree state comes in closed form
+    (:class:`~hexapod_pin.platform_map.PlatformMap`): ``q`` from the inverse kinematics
+    (home branch) and the leg directions, ``v = G twist`` and ``a`` from the leg
+    kinematics (they keep the closures by construction), the free-flyer part
+    ``(R^T v, R^T w)`` and ``(R^T (vdot - w x v), R^T wdot)``; the wrench enters as the
+    free-flyer generalised force ``(R^T f, R^T m)``. By virtual power the tree equation
+    ``M a + h - tau_ext = S^T tau + J_c^T lambda`` projected with ``G^T`` (``J_c G = 0``,
+    ``S G = J``) is ``J^T tau = G^T rnea(q, v, a) - wrench``: one ``pin.rnea`` and a 6x6
+    solve. Batches (``*_batch``) use the independent closed form of
+    :mod:`hexapod_pin.batch_dynamics`; the tests check that both agree to 1e-10.
     """
 
     # -- workspace ---------------------------------------------------------------------
@@ -866,67 +941,20 @@ class HexapodDynamics:
                                   "leg_<i>_tip -> platform_anchor_<k>")
         limit = self.geometry.max_actuator_force
         bounds = None if not np.isfinite(limit) else np.full(6, limit)
-        ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds)
+        ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds,
+                               self._platform_map,
+                               BatchDynamics(self.geometry), HOME_BRANCH.tolist(),
+                               clm.model.getJointId("platform_joint"))
+        dyn._ensure_rank(self.configuration(self.home_pose))
         self.__dict__["_dyn_workspace"] = ws
         return ws
 
-    def _q_of(self, ws: _HexapodWorkspace, pose: np.ndarray) -> np.ndarray:
-        key = pose.tobytes()
-        if key != ws.last_pose:
-            ws.last_q = self.configuration(pose)
-            ws.last_pose = key
-        return ws.last_q
-
-    def _tree_state(self, pose, twist, twist_dot=None, q=None):
-        """(q, v, a or None, J_c, R, inverse of J_c[:, free]) for a platform state.
-
-        ``q`` (an assembled tree configuration) replaces ``configuration(pose)`` when given.
-        """
+    def _tree_state_of(self, pose, twist) -> tuple[np.ndarray, np.ndarray]:
+        """Tree ``(q, v)`` of a platform state (checked 6-vectors)."""
         ws = self._workspace()
-        dyn = ws.dyn
-        if q is None:
-            q = self._q_of(ws, pose)
-        rot = pin.Quaternion(q[self.indices.platform_q][3:]).toRotationMatrix()
-        jac = dyn.constraint_jacobian(q)
-        jac_free = jac[:, ws.free_v]
-        jac_ff = jac[:, ws.ff_v]
-        try:
-            inv = np.linalg.inv(jac_free)
-        except np.linalg.LinAlgError:
-            inv = None
-        if inv is None or not np.isfinite(inv.sum()) or (
-                np.abs(inv).max() * np.abs(jac_free).max() > 1e12):
-            sv = np.linalg.svd(jac_free, compute_uv=False)
-            raise SingularityError("closure Jacobian w.r.t. the carriage and universal "
-                                   "joint coordinates (a leg perpendicular to its rail)",
-                                   sv[-1])
-        v = np.empty(dyn.nv)
-        v_ff = np.concatenate([rot.T @ twist[:3], rot.T @ twist[3:]])
-        v[ws.ff_v] = v_ff
-        v[ws.free_v] = inv @ (-jac_ff @ v_ff)
-        acc = None
-        if twist_dot is not None:
-            gamma = dyn.constraint_drift(q, v)
-            a_ff = np.concatenate([rot.T @ (twist_dot[:3] - _cross3(twist[3:], twist[:3])),
-                                   rot.T @ twist_dot[3:]])
-            acc = np.empty(dyn.nv)
-            acc[ws.ff_v] = a_ff
-            acc[ws.free_v] = inv @ (-gamma - jac_ff @ a_ff)
-        return q, v, acc, jac, rot, inv
-
-    def _tau_ext(self, ws, rot, wrench) -> np.ndarray:
-        tau = np.zeros(ws.dyn.nv)
-        if wrench is not None:
-            tau[ws.ff_v] = np.concatenate([rot.T @ wrench[:3], rot.T @ wrench[3:]])
-        return tau
-
-    def _closure_forces(self, ws, multipliers) -> np.ndarray:
-        out = np.empty((6, 3))
-        out[ws.leg_of_closure] = -multipliers.reshape(-1, 3)
-        return out
-
-    def _bounds(self, ws, bounded: bool):
-        return ws.bounds if bounded else None
+        legs = ws.pmap.legs(_floats6(pose, "pose"), ws.signs, angles=True)
+        vel, _ = ws.pmap.velocity(legs, _floats6(twist, "twist"))
+        return np.array(ws.pmap.configuration(legs)), np.array(vel)
 
     # -- inverse dynamics --------------------------------------------------------------
     def inverse_dynamics(self, pose, twist, twist_dot, wrench=None, method: str = "qp",
@@ -934,8 +962,10 @@ class HexapodDynamics:
                          joint_wrenches: bool = True) -> InverseDynamicsResult:
         """Actuator forces that produce a platform motion (closed-loop inverse dynamics).
 
-        Includes the inertia and weight of the platform, legs and carriages. Solved on
-        the tree with the closure multipliers (see :func:`inverse_dynamics_tree`).
+        Includes the inertia and weight of the platform, legs and carriages. The tree
+        state ``(q, v, a)`` comes in closed form and one ``pin.rnea`` gives the tree's
+        generalised forces; their projection on the platform's motions (virtual power)
+        is ``J^T tau + wrench`` (see the class docstring).
 
         Args:
             pose: ``(x, y, z, roll, pitch, yaw)`` (m, rad), shape (6,).
@@ -943,11 +973,14 @@ class HexapodDynamics:
             twist_dot: time derivative of the twist (m/s^2, rad/s^2), (6,).
             wrench: ``(f, m)`` applied on the platform by the environment, world axes,
                 moment about the platform origin (N, N m), (6,); default zero.
-            method: "qp" (ProxSuite, actuator bounds as box constraints) or "kkt"
-                (square linear solve); they agree to 1e-10 when no bound is active.
+            method: "qp" (ProxSuite: minimise ``1/2 |tau|^2`` subject to ``J^T tau =
+                G^T rnea - wrench`` and the box bounds, i.e. the tree QP of
+                :func:`inverse_dynamics_tree` with the closure multipliers eliminated by
+                ``G^T``) or "kkt" (the 6x6 linear solve); they agree to 1e-10 when no
+                bound is active.
             bounded: enforce ``abs(tau) <= geometry.max_actuator_force``.
-            joint_wrenches: also compute the reaction wrench of every tree joint (one
-                more ``pin.rnea``).
+            joint_wrenches: make the reaction wrench of every tree joint available
+                (computed on first access of ``joint_wrenches``: one more ``pin.rnea``).
 
         Returns:
             :class:`InverseDynamicsResult`.
@@ -956,49 +989,98 @@ class HexapodDynamics:
             ActuatorSaturationError: the motion needs more than the bound (carries the
                 needed forces; no clipped answer).
             UnreachablePoseError: the pose cannot be reached.
-            SingularityError: a leg is perpendicular to its rail (the platform motion
-                does not determine the carriage motion).
+            SingularityError: a leg perpendicular to its rail (type I), a leg along its
+                rail (universal joint in gimbal lock) or a type-II singularity.
             InputError: bad shapes, NaN / inf, unknown method.
+            SolverError: the QP failed for another reason.
         """
-        pose, twist, twist_dot = self._check6(pose, "pose"), self._check6(twist, "twist"), \
-            self._check6(twist_dot, "twist_dot")
-        wrench = None if wrench is None else self._check6(wrench, "wrench")
+        pose, twist = _floats6(pose, "pose"), _floats6(twist, "twist")
+        twist_dot = _floats6(twist_dot, "twist_dot")
+        wrench = None if wrench is None else _floats6(wrench, "wrench")
         if method not in INVERSE_METHODS:
             raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
         ws = self._workspace()
-        dyn = ws.dyn
-        q, v, acc, jac, rot, _ = self._tree_state(pose, twist, twist_dot)
-        tau_ext = self._tau_ext(ws, rot, wrench)
-        rhs = pin.rnea(dyn.model, dyn.data, q, v, acc) - tau_ext
-        res = dyn._inverse_solve(jac, rhs, self._bounds(ws, bounded), method,
-                                 dyn._ensure_rank(q))
-        wrenches: Mapping[str, np.ndarray] = MappingProxyType({})
-        if joint_wrenches:
-            fext = None
-            if wrench is not None:
-                joint = self.model.model.getJointId("platform_joint")
-                fext = {joint: pin.Force(tau_ext[ws.ff_v])}
-            table, _ = dyn.joint_wrenches(q, v, acc, res.multipliers, fext)
-            wrenches = MappingProxyType(table)
-        return InverseDynamicsResult(res.actuator_forces, self._closure_forces(ws, res.multipliers),
-                                     wrenches, res.multipliers, q.copy(), v, acc, res.method,
-                                     res.status, res.iterations, res.residual)
+        legs = ws.pmap.legs(pose, ws.signs, angles=True)
+        return self._inverse_at(ws, legs, twist, twist_dot, wrench, method,
+                                ws.bounds if bounded else None, joint_wrenches)
+
+    def _inverse_at(self, ws, legs, twist, twist_dot, wrench, method, bounds,
+                    joint_wrenches) -> InverseDynamicsResult:
+        pm, dyn = ws.pmap, ws.dyn
+        vel, dlegs = pm.velocity(legs, twist)
+        acc = pm.acceleration(legs, twist, twist_dot, vel, dlegs)
+        q, v, a = np.array(pm.configuration(legs)), np.array(vel), np.array(acc)
+        force = pin.rnea(dyn.model, dyn.data, q, v, a).tolist()
+        rhs = pm.project(legs, force)
+        if wrench is not None:
+            rhs = [b - w for b, w in zip(rhs, wrench)]
+        if method == "kkt":
+            tau = pm.solve_forces(legs, rhs)
+            status, iters = "solved", 0
+            if bounds is not None and max(map(abs, tau)) > bounds[0] * (1.0 + _RESIDUAL_RTOL):
+                raise ActuatorSaturationError(tau, bounds)
+        else:
+            tau, status, iters = self._reduced_qp(ws, legs, rhs, bounds)
+        details = _InverseDetails(ws, legs, force, tau, wrench, q, v, a, joint_wrenches)
+        return InverseDynamicsResult(np.array(tau), q, v, a, method, status, iters, details)
+
+    def _reduced_qp(self, ws, legs, rhs, bounds):
+        """``min 1/2 |tau|^2`` s.t. ``J^T tau = rhs``, ``|tau| <= bounds`` by ProxSuite."""
+        pm = ws.pmap
+        jac_t = pm.force_matrix(legs) / np.array(legs.along)        # J^T = A^T diag(1/n.u)
+        b = np.array(rhs)
+        key = "id_box" if bounds is not None else "id"
+        qp = ws.qps.get(key)
+        if qp is None:
+            qp = proxsuite.proxqp.dense.QP(6, 6, 0, bounds is not None)
+            qp.settings.eps_rel = 0.0
+            qp.settings.max_iter = 200
+            qp.settings.verbose = False
+            qp.settings.initial_guess = \
+                proxsuite.proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
+            if bounds is None:
+                qp.init(np.eye(6), np.zeros(6), jac_t, b, None, None, None)
+            else:
+                qp.init(np.eye(6), np.zeros(6), jac_t, b, None, None, None, -bounds, bounds)
+            ws.qps[key] = qp
+        else:
+            qp.update(A=jac_t, b=b, update_preconditioner=True)
+        qp.settings.eps_abs = _QP_EPS_REDUCED * max(1.0, max(map(abs, rhs)))
+        qp.solve()
+        info = qp.results.info
+        status = _QP_STATUS.get(info.status, str(info.status))
+        sol = qp.results.x
+        tau = sol.tolist()
+        err = float(np.abs(jac_t @ sol - b).max())
+        ok = status == "solved" and err <= 1e-8 * max(1.0, max(map(abs, rhs)))
+        if ok and bounds is not None and max(map(abs, tau)) > bounds[0] * (1.0 + _RESIDUAL_RTOL):
+            ok = False
+        if not ok:
+            needed = pm.solve_forces(legs, rhs)        # raises at a type-II singularity
+            if bounds is not None and max(map(abs, needed)) > bounds[0]:
+                raise ActuatorSaturationError(needed, bounds)
+            raise SolverError("ProxSuite (inverse dynamics QP)", status,
+                              f"primal residual {info.pri_res:.3e}")
+        return tau, status, int(info.iter)
 
     def _actuator_forces_at(self, q, twist, twist_dot, wrench=None,
                             method: str = "kkt") -> np.ndarray:
-        """Unbounded ID actuator forces at an assembled tree configuration ``q`` (no checks)."""
+        """Unbounded ID actuator forces at an assembled tree configuration ``q`` (no checks
+        beyond the singularities): the legs are read from the universal-joint angles."""
         ws = self._workspace()
-        dyn = ws.dyn
-        q, v, acc, jac, rot, _ = self._tree_state(None, twist, twist_dot, q=q)
-        rhs = pin.rnea(dyn.model, dyn.data, q, v, acc) - self._tau_ext(ws, rot, wrench)
-        return dyn._inverse_solve(jac, rhs, None, method, dyn._ensure_rank(q)).actuator_forces
+        legs = ws.pmap.legs_at(np.asarray(q, dtype=float).tolist(), angles=True)
+        twist = np.asarray(twist, dtype=float).tolist()
+        twist_dot = np.asarray(twist_dot, dtype=float).tolist()
+        wrench = None if wrench is None else np.asarray(wrench, dtype=float).tolist()
+        return self._inverse_at(ws, legs, twist, twist_dot, wrench, method, None,
+                                False).actuator_forces
 
     def static_forces(self, pose, wrench=None, bounded: bool = True) -> np.ndarray:
         """Actuator forces holding the platform at rest at ``pose`` under gravity and a wrench.
 
-        Inverse dynamics with zero twist and twist_dot (linear solve on the tree with
-        the generalised gravity). For the default geometry at home and no load:
-        about ``+1.651`` N on even carriages and ``-1.651`` N on odd ones.
+        ``J^T tau = G^T g(q) - wrench`` with ``g(q)`` the tree's generalised gravity
+        (``pin.computeGeneralizedGravity``). For the default geometry at home and no
+        load: about ``+1.651`` N on even carriages and ``-1.651`` N on odd ones.
 
         Args:
             pose: (6,) (m, rad).
@@ -1012,21 +1094,29 @@ class HexapodDynamics:
         Raises:
             ActuatorSaturationError, UnreachablePoseError, SingularityError, InputError.
         """
-        pose = self._check6(pose, "pose")
-        wrench = None if wrench is None else self._check6(wrench, "wrench")
+        pose = _floats6(pose, "pose")
+        wrench = None if wrench is None else _floats6(wrench, "wrench")
         ws = self._workspace()
-        dyn = ws.dyn
-        q = self._q_of(ws, pose)
-        rot = pin.Quaternion(q[self.indices.platform_q][3:]).toRotationMatrix()
-        jac = dyn.constraint_jacobian(q)
-        rhs = pin.computeGeneralizedGravity(dyn.model, dyn.data, q) - self._tau_ext(ws, rot, wrench)
-        res = dyn._inverse_solve(jac, rhs, self._bounds(ws, bounded), "kkt", dyn._ensure_rank(q))
-        return res.actuator_forces
+        pm, dyn = ws.pmap, ws.dyn
+        legs = pm.legs(pose, ws.signs, angles=True)
+        gravity = pin.computeGeneralizedGravity(dyn.model, dyn.data,
+                                                np.array(pm.configuration(legs)))
+        rhs = pm.project(legs, gravity.tolist())
+        if wrench is not None:
+            rhs = [b - w for b, w in zip(rhs, wrench)]
+        tau = pm.solve_forces(legs, rhs)
+        if bounded and ws.bounds is not None and \
+                max(map(abs, tau)) > ws.bounds[0] * (1.0 + _RESIDUAL_RTOL):
+            raise ActuatorSaturationError(tau, ws.bounds)
+        return np.array(tau)
 
     # -- forward dynamics ----------------------------------------------------------------
     def forward_dynamics(self, pose, twist, actuator_forces, wrench=None,
                          method: str = "pinocchio") -> ForwardDynamicsResult:
         """Platform acceleration produced by actuator forces (constrained forward dynamics).
+
+        The tree state ``(q, v)`` comes in closed form; the constrained dynamics of the
+        tree gives ``a``, and ``twist_dot = (R a_lin + w x v, R a_ang)``.
 
         Args:
             pose: (6,) (m, rad).
@@ -1042,34 +1132,54 @@ class HexapodDynamics:
         Raises:
             UnreachablePoseError, SingularityError, InputError, SolverError.
         """
-        pose, twist = self._check6(pose, "pose"), self._check6(twist, "twist")
-        tau_act = self._check6(actuator_forces, "actuator_forces")
-        wrench = None if wrench is None else self._check6(wrench, "wrench")
+        pose, twist = _floats6(pose, "pose"), _floats6(twist, "twist")
+        tau_act = _floats6(actuator_forces, "actuator_forces")
+        wrench = None if wrench is None else _floats6(wrench, "wrench")
         if method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
         ws = self._workspace()
-        dyn = ws.dyn
-        q, v, _, _, rot, _ = self._tree_state(pose, twist)
-        tau = self._tau_ext(ws, rot, wrench)
-        tau[dyn.clm.actuated_v] += tau_act
-        res = dyn.forward(q, v, tau, method)
-        twist_dot = self._twist_dot(ws, rot, twist, res.a)
-        return ForwardDynamicsResult(twist_dot, res.a[self.indices.carriage_v].copy(), res.a,
-                                     self._closure_forces(ws, res.multipliers), res.multipliers,
-                                     res.method, res.status, res.iterations)
-
-    @staticmethod
-    def _twist_dot(ws, rot, twist, acc) -> np.ndarray:
-        a_ff = acc[ws.ff_v]
-        return np.concatenate([rot @ a_ff[:3] + _cross3(twist[3:], twist[:3]), rot @ a_ff[3:]])
+        pm, dyn = ws.pmap, ws.dyn
+        legs = pm.legs(pose, ws.signs, angles=True)
+        vel, _ = pm.velocity(legs, twist)
+        q, v = np.array(pm.configuration(legs)), np.array(vel)
+        tau = np.zeros(dyn.nv)
+        tau[dyn.clm.actuated_v] = tau_act
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = legs.rot
+        if wrench is not None:
+            fx, fy, fz, mx, my, mz = wrench
+            tau[ws.ff_v] += (r00 * fx + r10 * fy + r20 * fz, r01 * fx + r11 * fy + r21 * fz,
+                             r02 * fx + r12 * fy + r22 * fz, r00 * mx + r10 * my + r20 * mz,
+                             r01 * mx + r11 * my + r21 * mz, r02 * mx + r12 * my + r22 * mz)
+        acc = None
+        if method == "pinocchio" and dyn._rank == dyn.n_rows:
+            acc, prox = dyn._pin_call(q, v, tau, False)
+        if acc is not None:
+            acc = acc.copy()
+            details = _ForwardDetails(dyn, q, local=dyn.data.lambda_c.copy())
+            status, iters = "solved", int(prox.iter)
+        else:
+            res = dyn.forward(q, v, tau, method)
+            acc, status, iters = res.a, res.status, res.iterations
+            details = _ForwardDetails(dyn, q, rows=res.multipliers)
+        ax, ay, az, bx, by, bz = acc[ws.ff_v].tolist()
+        vx, vy, vz, wx, wy, wz = twist
+        twist_dot = np.array([
+            r00 * ax + r01 * ay + r02 * az + wy * vz - wz * vy,
+            r10 * ax + r11 * ay + r12 * az + wz * vx - wx * vz,
+            r20 * ax + r21 * ay + r22 * az + wx * vy - wy * vx,
+            r00 * bx + r01 * by + r02 * bz, r10 * bx + r11 * by + r12 * bz,
+            r20 * bx + r21 * by + r22 * bz])
+        return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
+                                     status, iters, details, ws.leg_of_closure)
 
     # -- reduced (null-space) dynamics ------------------------------------------------------
     def reduced_dynamics(self, pose, twist) -> ReducedDynamics:
         """Dynamics in platform coordinates (null-space / independent-coordinate method).
 
         With ``T`` (nv, 6) the map ``v = T twist`` that keeps the closures
-        (``J_c T = 0``) and ``a = T twist_dot + a_0``, projecting the tree equation of
-        motion on ``T^T`` removes the closure forces::
+        (``J_c T = 0``, closed form: :meth:`PlatformMap.velocity_map`) and ``a = T
+        twist_dot + a_0``, projecting the tree equation of motion on ``T^T`` removes the
+        closure forces::
 
             J^T tau + wrench = M_x twist_dot + h_x,
             M_x = T^T M T,   h_x = T^T (M a_0 + h) = T^T rnea(q, v, a_0)
@@ -1084,26 +1194,20 @@ class HexapodDynamics:
         Returns:
             :class:`ReducedDynamics` (unpacks as ``M_x, h_x``).
         """
-        pose, twist = self._check6(pose, "pose"), self._check6(twist, "twist")
+        pose, twist = _floats6(pose, "pose"), _floats6(twist, "twist")
         ws = self._workspace()
-        dyn = ws.dyn
-        q, v, a0, jac, rot, inv = self._tree_state(pose, twist, np.zeros(6))
-        vmap = self._velocity_map(ws, jac, rot, inv)
+        pm, dyn = ws.pmap, ws.dyn
+        legs = pm.legs(pose, ws.signs, angles=True)
+        vel, dlegs = pm.velocity(legs, twist)
+        acc0 = pm.acceleration(legs, twist, (0.0,) * 6, vel, dlegs)
+        q = np.array(pm.configuration(legs))
+        vmap = pm.velocity_map(legs)
         mass = dyn.mass_matrix(q)
         m_x = vmap.T @ mass @ vmap
-        h_x = vmap.T @ pin.rnea(dyn.model, dyn.data, q, v, a0)
-        return ReducedDynamics(0.5 * (m_x + m_x.T), h_x, vmap[self.indices.carriage_v].copy(),
-                               vmap)
-
-    @staticmethod
-    def _velocity_map(ws, jac, rot, inv) -> np.ndarray:
-        vmap = np.zeros((ws.dyn.nv, 6))
-        blk = np.zeros((6, 6))
-        blk[:3, :3] = rot.T
-        blk[3:, 3:] = rot.T
-        vmap[ws.ff_v] = blk
-        vmap[ws.free_v] = inv @ (-jac[:, ws.ff_v] @ blk)
-        return vmap
+        h_x = pm.project(legs, pin.rnea(dyn.model, dyn.data, q, np.array(vel),
+                                        np.array(acc0)).tolist())
+        return ReducedDynamics(0.5 * (m_x + m_x.T), np.array(h_x),
+                               vmap[self.indices.carriage_v].copy(), vmap)
 
     # -- energies ----------------------------------------------------------------------------
     def energies(self, pose, twist) -> Energies:
@@ -1115,8 +1219,7 @@ class HexapodDynamics:
             pose: (6,) (m, rad).
             twist: ``(v, w)`` world axes (6,).
         """
-        pose, twist = self._check6(pose, "pose"), self._check6(twist, "twist")
-        q, v, _, _, _, _ = self._tree_state(pose, twist)
+        q, v = self._tree_state_of(pose, twist)
         return self.tree_energies(q, v)
 
     def tree_energies(self, q, v) -> Energies:
@@ -1130,7 +1233,10 @@ class HexapodDynamics:
     # -- batch ----------------------------------------------------------------------------
     def inverse_dynamics_batch(self, poses, twists, twist_dots, wrenches=None,
                                bounded: bool = True) -> BatchInverseDynamics:
-        """Inverse dynamics of N states at once (the "kkt" route, one stacked solve).
+        """Inverse dynamics of N states at once (closed form, vectorised numpy).
+
+        The route of :mod:`hexapod_pin.batch_dynamics` (independent of the Pinocchio
+        tree route of :meth:`inverse_dynamics`; they agree to round-off).
 
         Args:
             poses, twists, twist_dots: (N, 6) each, conventions as in
@@ -1140,43 +1246,59 @@ class HexapodDynamics:
                 :class:`ActuatorSaturationError`) for the first state beyond the bounds.
 
         Returns:
-            :class:`BatchInverseDynamics`.
+            :class:`~hexapod_pin.batch_dynamics.BatchInverseDynamics`.
+
+        Raises:
+            InputError: bad shapes or NaN / inf, rows of different lengths.
+            BatchUnreachablePoseError, BatchSingularityError: for the first such state
+                (subclasses of :class:`UnreachablePoseError`, :class:`SingularityError`,
+                with its ``index``).
         """
-        poses = as_array(poses, (6,), "poses", batch=True)
-        n = poses.shape[0]
-        twists = as_array(twists, (6,), "twists", batch=True)
-        twist_dots = as_array(twist_dots, (6,), "twist_dots", batch=True)
-        wrenches = None if wrenches is None else as_array(wrenches, (6,), "wrenches", batch=True)
-        for name, arr in (("twists", twists), ("twist_dots", twist_dots), ("wrenches", wrenches)):
-            if arr is not None and arr.shape[0] != n:
-                raise InputError(name, arr, f"expected {n} rows like poses, got {arr.shape[0]}")
-        ws = self._workspace()
-        dyn = ws.dyn
-        n_act = dyn.n_act
-        act, passive = dyn.clm.actuated_v, dyn.clm.passive_v
-        jacs = np.empty((n, dyn.n_rows, dyn.nv))
-        rhs = np.empty((n, dyn.nv))
-        for k in range(n):
-            q, v, acc, jac, rot, _ = self._tree_state(poses[k], twists[k], twist_dots[k])
-            jacs[k] = jac
-            rhs[k] = pin.rnea(dyn.model, dyn.data, q, v, acc)
-            if wrenches is not None:
-                rhs[k] -= self._tau_ext(ws, rot, wrenches[k])
-        # square tree system per state: passive rows -> multipliers, actuated rows -> forces
-        lam = np.linalg.solve(np.swapaxes(jacs[:, :, passive], 1, 2), rhs[:, passive, None])[..., 0]
-        sol = np.concatenate([rhs[:, act] - np.einsum("nra,nr->na", jacs[:, :, act], lam), lam],
-                             axis=1)
-        full = np.einsum("nrv,nr->nv", jacs, lam)
-        full[:, act] += sol[:, :n_act]
-        residual = np.max(np.abs(full - rhs), axis=1)
-        forces = sol[:, :n_act]
-        if bounded and ws.bounds is not None:
-            over = np.flatnonzero(np.any(np.abs(forces) > ws.bounds * (1 + _RESIDUAL_RTOL), axis=1))
-            if over.size:
-                raise BatchActuatorSaturationError(over[0], forces[over[0]], ws.bounds)
-        closure = np.empty((n, 6, 3))
-        closure[:, ws.leg_of_closure] = -sol[:, n_act:].reshape(n, -1, 3)
-        return BatchInverseDynamics(forces, closure, residual)
+        poses, twists, twist_dots, wrenches, _ = check_batch(poses, twists, twist_dots,
+                                                             wrenches)
+        return self._workspace().batch.inverse(poses, twists, twist_dots, wrenches, bounded)
+
+    def forward_dynamics_batch(self, poses, twists, actuator_forces,
+                               wrenches=None) -> BatchForwardDynamics:
+        """Forward dynamics of N states at once (closed form, vectorised numpy).
+
+        Solves the reduced equation ``M_x twist_dot = J^T tau + wrench - h_x`` per state
+        (:mod:`hexapod_pin.batch_dynamics`).
+
+        Args:
+            poses, twists: (N, 6) each (m, rad; m/s, rad/s, world axes).
+            actuator_forces: (N, 6) (N).
+            wrenches: (N, 6) or None.
+
+        Returns:
+            :class:`~hexapod_pin.batch_dynamics.BatchForwardDynamics`.
+
+        Raises:
+            InputError, BatchUnreachablePoseError, BatchSingularityError.
+        """
+        poses, twists, _, wrenches, forces = check_batch(poses, twists, None, wrenches,
+                                                         actuator_forces)
+        return self._workspace().batch.forward(poses, twists, forces, wrenches)
+
+    def static_forces_batch(self, poses, wrenches=None, bounded: bool = True) -> np.ndarray:
+        """:meth:`static_forces` of N poses at once (closed form): (N, 6) forces (N).
+
+        Raises:
+            InputError, BatchUnreachablePoseError, BatchSingularityError,
+            BatchActuatorSaturationError (with ``bounded``).
+        """
+        poses, _, _, wrenches, _ = check_batch(poses, None, None, wrenches)
+        return self._workspace().batch.static(poses, wrenches, bounded)
+
+    def reduced_dynamics_batch(self, poses, twists) -> BatchReducedDynamics:
+        """:meth:`reduced_dynamics` of N states at once (closed form): ``M_x`` (N, 6, 6),
+        ``h_x`` (N, 6), ``J`` (N, 6, 6).
+
+        Raises:
+            InputError, BatchUnreachablePoseError, BatchSingularityError.
+        """
+        poses, twists, _, _, _ = check_batch(poses, twists)
+        return self._workspace().batch.reduced(poses, twists)
 
     # -- derivatives ------------------------------------------------------------------------
     def inverse_dynamics_derivatives(self, pose, twist, twist_dot, wrench=None,
@@ -1186,9 +1308,8 @@ class HexapodDynamics:
         Routes:
 
         * ``d_twist_dot`` and ``d_wrench``: analytic. ``tau`` is affine in both:
-          ``a = T twist_dot + a_0`` and the tree system ``[S^T J_c^T] x = M a + h -
-          tau_ext`` is linear, so ``d tau / d twist_dot = [B^-1 M T]_tau`` and
-          ``d tau / d wrench = -[B^-1 E]_tau`` with ``E`` the wrench-to-free-flyer map.
+          ``J^T tau + wrench = M_x twist_dot + h_x`` gives ``d tau / d twist_dot =
+          J^-T M_x`` and ``d tau / d wrench = -J^-T`` (:meth:`reduced_dynamics`).
         * ``d_twist``: exact polarisation. ``tau`` is a quadratic polynomial of the
           twist at fixed pose and twist_dot (``v = T twist``; the drift, the velocity
           product terms of the free-flyer acceleration and ``h`` are quadratic in
@@ -1208,30 +1329,24 @@ class HexapodDynamics:
         Returns:
             :class:`InverseDynamicsDerivatives`.
         """
-        pose, twist = self._check6(pose, "pose"), self._check6(twist, "twist")
-        twist_dot = self._check6(twist_dot, "twist_dot")
-        wrench = None if wrench is None else self._check6(wrench, "wrench")
+        pose, twist = _floats6(pose, "pose"), _floats6(twist, "twist")
+        twist_dot = _floats6(twist_dot, "twist_dot")
+        wrench = None if wrench is None else _floats6(wrench, "wrench")
         if not (np.isfinite(pose_step) and pose_step > 0):
             raise InputError("pose_step", pose_step, "must be a positive number")
         ws = self._workspace()
-        dyn = ws.dyn
 
         def forces(p, t, td):
-            q, v, acc, jac, rot, _ = self._tree_state(p, t, td)
-            rhs = pin.rnea(dyn.model, dyn.data, q, v, acc) - self._tau_ext(ws, rot, wrench)
-            mat = np.hstack([dyn._selection, jac.T])
-            return np.linalg.solve(mat, rhs)[:dyn.n_act]
+            legs = ws.pmap.legs(list(p), ws.signs, angles=True)
+            return self._inverse_at(ws, legs, list(t), list(td), wrench, "kkt", None,
+                                    False).actuator_forces
 
-        q, v, acc, jac, rot, inv = self._tree_state(pose, twist, twist_dot)
-        mat = np.hstack([dyn._selection, jac.T])
-        rhs = pin.rnea(dyn.model, dyn.data, q, v, acc) - self._tau_ext(ws, rot, wrench)
-        tau0 = np.linalg.solve(mat, rhs)[:dyn.n_act]
-        vmap = self._velocity_map(ws, jac, rot, inv)
-        mass = dyn.mass_matrix(q)
-        d_twist_dot = np.linalg.solve(mat, mass @ vmap)[:dyn.n_act]
-        emap = np.zeros((dyn.nv, 6))
-        emap[ws.ff_v] = vmap[ws.ff_v]          # (R^T, R^T) block
-        d_wrench = -np.linalg.solve(mat, emap)[:dyn.n_act]
+        tau0 = forces(pose, twist, twist_dot)
+        red = self.reduced_dynamics(pose, twist)
+        jac_t = red.jacobian.T
+        d_twist_dot = np.linalg.solve(jac_t, red.mass_matrix)
+        d_wrench = -np.linalg.inv(jac_t)
+        pose, twist, twist_dot = np.array(pose), np.array(twist), np.array(twist_dot)
         eye = np.eye(6)
         d_twist = np.column_stack([(forces(pose, twist + e, twist_dot)
                                     - forces(pose, twist - e, twist_dot)) / 2.0 for e in eye])
@@ -1242,8 +1357,3 @@ class HexapodDynamics:
                 - forces(pose - 2 * h * e, twist, twist_dot))) / (12.0 * h)
             for e in eye])
         return InverseDynamicsDerivatives(tau0, d_pose, d_twist, d_twist_dot, d_wrench)
-
-    # -- helpers ----------------------------------------------------------------------------
-    @staticmethod
-    def _check6(value, name: str) -> np.ndarray:
-        return as_array(value, (6,), name)

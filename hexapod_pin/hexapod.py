@@ -20,11 +20,13 @@ from .description import build_model, hexapod_urdf, load_loops, urdf_dir
 from .dynamics import HexapodDynamics
 from .errors import AssemblyError
 from .geometry import HexapodGeometry
-from .kinematics import RAIL_OF, HexapodKinematics
-from .pose import as_array, rotation_from_rpy, rpy_from_rotation
+from .kinematics import HOME_BRANCH, HexapodKinematics, _floats6, check_branch
+from .platform_map import PlatformMap
+from .pose import rpy_from_rotation
 
 #: closure residual accepted for a closed-form configuration (m)
 CLOSED_FORM_TOL = 1e-12
+_HOME_SIGNS = HOME_BRANCH.tolist()
 
 
 @dataclass(frozen=True)
@@ -85,8 +87,8 @@ class Hexapod(HexapodKinematics, HexapodDynamics):
         names = [f"carriage_{i}" for i in range(6)]
         ua = [f"u_{i}_a" for i in range(6)]
         ub = [f"u_{i}_b" for i in range(6)]
-        qi = lambda js: np.array([m.joint_q_index(j) for j in js])  # noqa: E731
-        vi = lambda js: np.array([m.joint_v_index(j) for j in js])  # noqa: E731
+        qi = lambda js: np.array([m.joint_q_index(j) for j in js])
+        vi = lambda js: np.array([m.joint_v_index(j) for j in js])
         pq, pv = m.joint_q_index("platform_joint"), m.joint_v_index("platform_joint")
         return HexapodIndices(qi(names), vi(names), qi(ua), vi(ua), qi(ub), vi(ub),
                               slice(pq, pq + 7), slice(pv, pv + 6))
@@ -108,45 +110,39 @@ class Hexapod(HexapodKinematics, HexapodDynamics):
         return self.configuration(self.home_pose)
 
     # -- pose <-> tree configuration -----------------------------------------------------
+    @cached_property
+    def _platform_map(self) -> PlatformMap:
+        """Closed-form platform -> tree map (shared by the configuration and dynamics)."""
+        return PlatformMap(self.geometry, self.indices, self.model.nq, self.model.nv)
+
     def configuration(self, pose, branch=None) -> np.ndarray:
         """Pinocchio configuration of the tree for a platform pose (closed form).
 
-        Carriages from :meth:`inverse_kinematics` (stroke limits not checked),
-        universal-joint angles from the leg directions, the free-flyer from the
-        pose. The second universal angle lies in (-pi/2, pi/2).
+        Carriages from the inverse kinematics (stroke limits not checked),
+        universal-joint angles from the leg directions (see
+        :mod:`hexapod_pin.platform_map`), the free-flyer from the pose. The second
+        universal angle lies in [-pi/2, pi/2].
 
         Args:
             pose: ``(x, y, z, roll, pitch, yaw)`` (m, rad), shape (6,).
             branch: root choice per carriage, see :meth:`inverse_kinematics`.
 
         Returns:
-            q (nq,) satisfying all 18 closure equations to 1e-12 m.
+            q (nq,) satisfying all 18 closure equations to 1e-12 m: checked by rebuilding
+            each leg tip from the universal-joint angles, as the tree places it.
 
         Raises:
+            InputError: bad shape, NaN / inf, malformed branch.
             UnreachablePoseError: a leg cannot reach.
             AssemblyError: the closed form misses the closures by more than
                 1e-12 m (a leg along its first universal axis).
         """
-        pose = as_array(pose, (6,), "pose")
-        carriages = self.inverse_kinematics(pose, branch=branch, check_limits=False)
-        mids, dirs, _ = self._carriage_frames()
-        tips = self.platform_points_world(pose)[RAIL_OF]
-        legs = tips - (mids + carriages[:, None] * dirs)
-        unit = legs / self.geometry.leg_length
-        # carriage frame axes: x = u_k, y = z x u_k, z = world z
-        lateral = np.cross(np.array([0.0, 0.0, 1.0]), dirs)
-        dx = np.einsum("ij,ij->i", unit, dirs)
-        dy = np.einsum("ij,ij->i", unit, lateral)
-        dz = unit[:, 2]
-        idx = self.indices
-        q = self.model.neutral()
-        q[idx.carriage_q] = carriages
-        q[idx.u_b_q] = np.arcsin(np.clip(dx, -1.0, 1.0))
-        q[idx.u_a_q] = np.arctan2(-dy, dz)
-        q[idx.platform_q] = np.concatenate(
-            [pose[:3], pin.Quaternion(rotation_from_rpy(pose[3:])).coeffs()])
-        err = float(np.max(np.abs(self.model.residual(q))))
-        if err > CLOSED_FORM_TOL:
+        signs = _HOME_SIGNS if branch is None else check_branch(branch).tolist()
+        pmap = self._platform_map
+        legs = pmap.legs(_floats6(pose, "pose"), signs, angles=True, checks=False)
+        q = np.array(pmap.configuration(legs))
+        err = pmap.closure_error(legs)
+        if not err <= CLOSED_FORM_TOL:
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
         return q
 

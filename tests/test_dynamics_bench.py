@@ -11,4 +11,7 @@ def test_bench_dynamics_smoke():
     out = subprocess.run([sys.executable, str(SCRIPT), "--smoke"], capture_output=True,
                          text=True, timeout=300, check=False)
     assert out.returncode == 0, out.stdout + out.stderr
-    assert "| FD routes, a |" in out.stdout and "simulation step" in out.stdout
+    for row in ("| FD routes, a |", "| batch (closed form) - single (tree) ID, tau |",
+                "| pose-level ID - legacy route, tau |", "simulation step",
+                "inverse_dynamics_batch, per state (N=10)"):
+        assert row in out.stdout, row

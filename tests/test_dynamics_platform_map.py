@@ -1,0 +1,183 @@
+"""The closed-form platform -> tree map against Pinocchio's own constraint terms, and the
+fast single-state routes built on it against the generic tree solvers.
+
+Independent references: ``ClosedLoopModel.residual / constraint_jacobian /
+constraint_drift`` (Pinocchio frames and Jacobians), the generic
+``inverse_dynamics_tree`` / ``forward_dynamics_tree`` (square KKT systems on the tree),
+the kinematics' Jacobian.
+"""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import random_pose
+
+import hexapod_pin as hp
+from hexapod_pin.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.errors import SingularityError
+from hexapod_pin.kinematics import HOME_BRANCH
+from hexapod_pin.platform_map import Legs
+from hexapod_pin.pose import rotation_from_rpy
+from hexapod_pin.simulate import ClosedLoopIntegrator
+
+
+def _motion(rng):
+    return (np.concatenate([0.1 * rng.normal(size=3), 0.5 * rng.normal(size=3)]),
+            np.concatenate([rng.normal(size=3), 3.0 * rng.normal(size=3)]),
+            np.concatenate([3.0 * rng.normal(size=3), 0.3 * rng.normal(size=3)]))
+
+
+def _tree(robot, pose, twist, twist_dot):
+    pm = robot._platform_map
+    legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
+    v, dlegs = pm.velocity(legs, twist.tolist())
+    a = pm.acceleration(legs, twist.tolist(), twist_dot.tolist(), v, dlegs)
+    return legs, np.array(pm.configuration(legs)), np.array(v), np.array(a)
+
+
+def test_tree_state_keeps_the_closures(any_robot, rng):
+    """J_c v = 0 and J_c a = -gamma with Pinocchio's own J_c and drift; the free-flyer
+    part follows the convention (R^T v, R^T w), (R^T (vdot - w x v), R^T wdot)."""
+    robot = any_robot
+    clm = robot.model
+    for _ in range(4):
+        pose = random_pose(robot, rng)
+        twist, twist_dot, _ = _motion(rng)
+        _, q, v, a = _tree(robot, pose, twist, twist_dot)
+        assert np.max(np.abs(clm.residual(q))) <= 1e-12
+        jac = clm.constraint_jacobian(q)
+        scale = max(1.0, np.abs(v).max())
+        assert np.max(np.abs(jac @ v)) <= 1e-12 * scale
+        gamma = clm.constraint_drift(q, v)
+        assert np.max(np.abs(jac @ a + gamma)) <= 1e-11 * max(1.0, np.abs(a).max())
+        rot = rotation_from_rpy(pose[3:])
+        ff = robot.indices.platform_v
+        np.testing.assert_allclose(v[ff], np.concatenate([rot.T @ twist[:3], rot.T @ twist[3:]]),
+                                   atol=1e-14)
+        np.testing.assert_allclose(
+            a[ff], np.concatenate([rot.T @ (twist_dot[:3] - np.cross(twist[3:], twist[:3])),
+                                   rot.T @ twist_dot[3:]]), atol=1e-13)
+        np.testing.assert_allclose(v[robot.indices.carriage_v], robot.jacobian(pose) @ twist,
+                                   atol=1e-12)
+        np.testing.assert_allclose(a[robot.indices.carriage_v],
+                                   robot.qddot(pose, twist, twist_dot), atol=1e-11)
+
+
+def test_velocity_map_and_projection(any_robot, rng):
+    robot = any_robot
+    pm = robot._platform_map
+    pose = random_pose(robot, rng)
+    legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
+    gmap = pm.velocity_map(legs)
+    q = np.array(pm.configuration(legs))
+    assert np.max(np.abs(robot.model.constraint_jacobian(q) @ gmap)) <= 1e-12
+    np.testing.assert_allclose(gmap[robot.indices.carriage_v], robot.jacobian(pose), atol=1e-12)
+    twist, _, _ = _motion(rng)
+    v, _ = pm.velocity(legs, twist.tolist())
+    np.testing.assert_allclose(gmap @ twist, v, atol=1e-13)
+    force = rng.normal(size=robot.model.nv)
+    np.testing.assert_allclose(pm.project(legs, force.tolist()), gmap.T @ force, atol=1e-12)
+    # virtual power: twist . G^T f == (G twist) . f
+    assert twist @ gmap.T @ force == pytest.approx(v @ force, rel=1e-12, abs=1e-14)
+
+
+def test_legs_from_the_tree_and_closed_form_residual(any_robot, rng):
+    robot = any_robot
+    pm = robot._platform_map
+    pose = random_pose(robot, rng)
+    legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
+    again = pm.legs_at(pm.configuration(legs))
+    np.testing.assert_allclose(np.array(again.legs), np.array(legs.legs), atol=1e-14)
+    np.testing.assert_allclose(again.q, legs.q, atol=0)
+    for _ in range(3):
+        q = pin.integrate(robot.model.model, robot.configuration(pose),
+                          0.02 * rng.normal(size=robot.model.nv))
+        assert pm.closure_residual(q.tolist()) == pytest.approx(
+            np.max(np.abs(robot.model.residual(q))), rel=1e-12, abs=1e-16)
+
+
+def test_configuration_at_a_singular_pose_is_still_returned(robot):
+    """configuration() keeps its behaviour at a type-I singularity (only the dynamics
+    refuses it)."""
+    g = robot.geometry
+    pose = robot.home_pose.copy()
+    pose[2] = np.sqrt(g.leg_length ** 2 - (g.rail_radius - g.platform_radius) ** 2
+                      - (3e-8 * g.leg_length) ** 2)
+    q = robot.configuration(pose)
+    assert np.max(np.abs(robot.model.residual(q))) <= 1e-12
+    with pytest.raises(SingularityError):
+        robot.static_forces(pose)
+
+
+def test_single_routes_match_the_generic_tree_solvers(any_robot, rng):
+    """ID / FD / statics of the fast route == the generic tree KKT on the same tree state,
+    closure multipliers included; the lazy residual is the tree's with Pinocchio's J_c."""
+    robot = any_robot
+    clm = robot.model
+    for _ in range(3):
+        pose = random_pose(robot, rng)
+        twist, twist_dot, wrench = _motion(rng)
+        _, q, v, a = _tree(robot, pose, twist, twist_dot)
+        rot = rotation_from_rpy(pose[3:])
+        tau_ext = np.zeros(clm.nv)
+        tau_ext[robot.indices.platform_v] = np.concatenate([rot.T @ wrench[:3],
+                                                            rot.T @ wrench[3:]])
+        tree = inverse_dynamics_tree(clm, q, v, a, tau_ext, method="kkt")
+        for method in ("kkt", "qp"):
+            res = robot.inverse_dynamics(pose, twist, twist_dot, wrench, method=method,
+                                         bounded=False)
+            np.testing.assert_allclose(res.actuator_forces, tree.actuator_forces, atol=1e-10)
+            np.testing.assert_allclose(res.multipliers, tree.multipliers, atol=1e-9)
+            assert res.residual <= 1e-9
+            np.testing.assert_allclose(res.configuration, q, atol=0)
+        assert res.iterations >= 1 and res.method == "qp"       # ProxSuite did run
+        tau = tau_ext.copy()
+        tau[clm.actuated_v] += tree.actuator_forces
+        fwd_tree = forward_dynamics_tree(clm, q, v, tau, method="kkt")
+        for method in ("pinocchio", "kkt", "qp"):
+            fwd = robot.forward_dynamics(pose, twist, tree.actuator_forces, wrench, method=method)
+            np.testing.assert_allclose(fwd.tree_acceleration, fwd_tree.a, atol=1e-10)
+            np.testing.assert_allclose(fwd.multipliers, fwd_tree.multipliers, atol=1e-9)
+            np.testing.assert_allclose(fwd.twist_dot, twist_dot, atol=1e-10)
+        at_q = robot._actuator_forces_at(q, twist, twist_dot, wrench)
+        np.testing.assert_allclose(at_q, tree.actuator_forces, atol=1e-10)
+
+
+def test_type_two_singular_leg_matrix_raises(robot):
+    pm = robot._platform_map
+    legs = pm.legs(robot.home_pose.tolist(), HOME_BRANCH.tolist())
+    flat = Legs()
+    for name in Legs.__slots__:
+        setattr(flat, name, getattr(legs, name, None))
+    flat.legs = [legs.legs[0]] * 6                       # every leg parallel: rank 2
+    with pytest.raises(SingularityError):
+        pm.solve_forces(flat, [0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+
+
+def test_integrator_with_closed_form_residual_matches_generic(robot):
+    pm = robot._platform_map
+    fast = ClosedLoopIntegrator(robot.model, residual=lambda q: pm.closure_residual(q.tolist()))
+    slow = ClosedLoopIntegrator(robot.model)
+    q0 = robot.configuration(robot.home_pose + np.array([0.01, 0.0, -0.01, 0.05, 0.0, 0.02]))
+    v0 = np.zeros(robot.model.nv)
+    tau = np.zeros(robot.model.nv)
+    tau[robot.model.actuated_v] = 2.0
+    qa, va, qb, vb = q0, v0, q0, v0
+    for _ in range(20):
+        qa, va, ra = fast.step(qa, va, tau, 1e-3)
+        qb, vb, rb = slow.step(qb, vb, tau, 1e-3)
+        assert ra == pytest.approx(rb, rel=1e-9, abs=1e-15)
+    np.testing.assert_allclose(qa, qb, atol=1e-15)
+    np.testing.assert_allclose(va, vb, atol=1e-13)
+
+
+def test_results_are_frozen_and_lazy_fields_cached(robot, rng):
+    pose = random_pose(robot, rng)
+    twist, twist_dot, wrench = _motion(rng)
+    res = robot.inverse_dynamics(pose, twist, twist_dot, wrench, bounded=False)
+    first = res.closure_forces
+    assert res.closure_forces is first
+    with pytest.raises(AttributeError):
+        res.actuator_forces = np.zeros(6)
+    assert isinstance(hp.Hexapod.default().inverse_dynamics(robot.home_pose, np.zeros(6),
+                                                            np.zeros(6)).status, str)
