@@ -1,0 +1,221 @@
+"""Timings of the optional compiled fast path (:mod:`hexapod_pin.fast`, numba).
+
+Usage::
+
+    python benchmarks/bench_fast.py            # full table
+    python benchmarks/bench_fast.py --smoke    # tiny counts; checks that routes agree
+
+Rows "µs per call": median and inter-quartile range over ``--repeat`` blocks of
+``--number`` calls from Python, cycling through distinct random states; the reference
+routes are the library's single-state methods (Pinocchio tree + closed-form tree state),
+the fast ones :class:`hexapod_pin.fast.FastDynamics` (input validation included).
+
+Simulation rows: RK4 at 1 kHz, real-time factor = simulated time / wall time of the loop.
+"constant static forces" starts at rest at home under the static forces of home (an
+unstable equilibrium: it drifts off and stops at a limit after a few seconds); the PID
+rows use the joint PID (set-points computed in the loop by IK and ``J twist`` of a
+reference sampled per step; the Python sampling of the circle reference is reported
+separately). Fastest of three runs.
+
+First call: a fresh process with an empty numba cache (compile) and then a second one
+with that cache (load), each timing ``import`` + first ID + FD + statics + a 10-step
+simulation. Agreement rows: max-abs difference between the fast and reference routes.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+import hexapod_pin as hp
+from hexapod_pin import fast
+from hexapod_pin.simulate import CircleTrajectory, PIDController, simulate
+
+FIRST_CALL = """
+import time
+t0 = time.perf_counter()
+import numpy as np, hexapod_pin as hp
+from hexapod_pin import fast
+r = hp.Hexapod.default()
+t1 = time.perf_counter()
+fd = fast.fast_dynamics(r)
+p, z = r.home_pose, np.zeros(6)
+fd.inverse_dynamics(p, z, z); fd.forward_dynamics(p, z, z); fd.static_forces(p)
+fast.simulate_fast(r, 0.01, 1e-3)
+t2 = time.perf_counter()
+print(f"{t1 - t0:.3f} {t2 - t1:.3f}")
+"""
+
+
+def states(robot, rng, n):
+    """n random regular states (pose, twist, twist_dot, wrench) near home."""
+    out = []
+    while len(out) < n:
+        pose = robot.home_pose + rng.uniform(-1, 1, 6) * np.r_[0.03, 0.03, 0.02, 0.1, 0.1, 0.2]
+        try:
+            robot.static_forces(pose, bounded=False)
+        except hp.HexapodPinError:
+            continue
+        out.append((pose, rng.normal(size=6) * 0.3, rng.normal(size=6), rng.normal(size=6)))
+    return out
+
+
+def timing(fn, args, number, repeat):
+    """Median and IQR of µs per call of ``fn(*args[k % len(args)])``."""
+    fn(*args[0])
+    blocks = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        for k in range(number):
+            fn(*args[k % len(args)])
+        blocks.append((time.perf_counter() - start) / number * 1e6)
+    q = statistics.quantiles(blocks, n=4) if len(blocks) > 1 else blocks * 3
+    return statistics.median(blocks), q[2] - q[0]
+
+
+def first_call_rows():
+    """(compile, cache load) seconds from two fresh processes sharing a new cache dir."""
+    rows = []
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        for label in ("empty cache (compile)", "warm cache (load)"):
+            out = subprocess.run([sys.executable, "-c", FIRST_CALL], capture_output=True,
+                                 text=True, env=env, check=True)
+            imp, first = out.stdout.split()
+            rows.append((label, float(imp), float(first)))
+    return rows
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--smoke", action="store_true", help="tiny counts, agreement only")
+    parser.add_argument("--number", type=int, default=2000)
+    parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--seconds", type=float, default=10.0, help="simulated time (s)")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        args.number, args.repeat, args.seconds = 20, 3, 0.02
+    robot = hp.Hexapod.default()
+    fd = fast.fast_dynamics(robot)
+    rng = np.random.default_rng(7)
+    sample = states(robot, rng, 5 if args.smoke else 50)
+
+    # -- agreement ---------------------------------------------------------------------
+    err_id = err_fd = err_st = 0.0
+    for pose, tw, td, wr in sample:
+        ref = robot.inverse_dynamics(pose, tw, td, wr, method="kkt", bounded=False,
+                                     joint_wrenches=False).actuator_forces
+        err_id = max(err_id, np.abs(fd.inverse_dynamics(pose, tw, td, wr, bounded=False)
+                                    - ref).max() / max(1.0, np.abs(ref).max()))
+        acc = robot.forward_dynamics(pose, tw, ref, wr).twist_dot
+        err_fd = max(err_fd, np.abs(fd.forward_dynamics(pose, tw, ref, wr) - acc).max()
+                     / max(1.0, np.abs(acc).max()))
+        st = robot.static_forces(pose, wr, bounded=False)
+        err_st = max(err_st, np.abs(fd.static_forces(pose, wr, bounded=False) - st).max()
+                     / max(1.0, np.abs(st).max()))
+    reference = CircleTrajectory(robot.home_pose, 0.01, 1.0)
+    gains = {"kp": 2000.0, "ki": 500.0, "kd": 50.0}
+    span = 0.02 if args.smoke else 0.2
+    start0 = reference(0.0)
+    tree = simulate(robot, span, 1e-3, controller=PIDController(robot, reference, **gains),
+                    pose0=start0.pose, twist0=start0.twist)
+    quick = fast.simulate_fast(robot, span, 1e-3, reference=reference, **gains)
+    err_sim = float(np.abs(tree.poses - quick.poses).max())
+
+    print(f"# hexapod_pin.fast benchmark ({'smoke' if args.smoke else 'full'})")
+    print(f"python {platform.python_version()}, numpy {np.__version__}, numba "
+          f"{fast._numba.__version__ if fast.available() else 'absent (plain Python)'}, "
+          f"{platform.machine()}, {os.cpu_count()} CPUs, load average "
+          f"{os.getloadavg()[0]:.2f}")
+    print()
+    print("| agreement (max abs; ID / FD / statics relative to max(1, max abs)) | value |")
+    print("| --- | --- |")
+    print(f"| fast - reference ID, tau | {err_id:.2e} |")
+    print(f"| fast - reference FD, twist_dot | {err_fd:.2e} |")
+    print(f"| fast - reference statics, tau | {err_st:.2e} |")
+    print(f"| fast - tree simulate, pose over {span:g} s (PID) | {err_sim:.2e} |")
+    print()
+
+    # -- per-call timings ----------------------------------------------------------------
+    id_args = [s for s in sample]
+    fd_args = [(p, t, np.zeros(6), w) for p, t, _, w in sample]
+    st_args = [(p, w) for p, _, _, w in sample]
+    rows = [
+        ("inverse_dynamics, reference (kkt)", lambda p, t, d, w: robot.inverse_dynamics(
+            p, t, d, w, method="kkt", bounded=False, joint_wrenches=False), id_args),
+        ("inverse_dynamics, fast", lambda p, t, d, w: fd.inverse_dynamics(p, t, d, w,
+                                                                          bounded=False),
+         id_args),
+        ("forward_dynamics, reference (pinocchio)", robot.forward_dynamics, fd_args),
+        ("forward_dynamics, fast", fd.forward_dynamics, fd_args),
+        ("static_forces, reference", lambda p, w: robot.static_forces(p, w, bounded=False),
+         st_args),
+        ("static_forces, fast", lambda p, w: fd.static_forces(p, w, bounded=False), st_args),
+    ]
+    print("| call | µs per call (median) | IQR |")
+    print("| --- | --- | --- |")
+    for name, fn, fargs in rows:
+        med, iqr = timing(fn, fargs, args.number, args.repeat)
+        print(f"| {name} | {med:.2f} | {iqr:.2f} |")
+    print()
+
+    # -- simulation ------------------------------------------------------------------------
+    hold = robot.static_forces(robot.home_pose)
+    seconds = args.seconds
+    print("| simulation (RK4, dt = 1 ms) | simulated s | loop wall s | real-time factor |")
+    print("| --- | --- | --- | --- |")
+    ref_span = min(seconds, 0.02 if args.smoke else 0.5)
+    tr = simulate(robot, ref_span, 1e-3, actuator_forces=hold)
+    print(f"| tree simulate(), constant forces | {ref_span:g} | {tr.wall_time:.4f} | "
+          f"{tr.real_time_factor:.1f} |")
+    runs = (("constant static forces from home", {"actuator_forces": hold}),
+            ("PID holding home from an offset", dict(
+                reference=(robot.home_pose[None], np.zeros((1, 6))),
+                pose0=robot.home_pose + np.r_[0.005, 0, 0, 0, 0.02, 0], **gains)))
+    for label, kwargs in runs:
+        best = None
+        for _ in range(1 if args.smoke else 3):       # the fastest of three runs
+            tr = fast.simulate_fast(robot, seconds, 1e-3, **kwargs)
+            best = tr if best is None or tr.wall_time < best.wall_time else best
+        print(f"| fast, {label} ({best.status}) | {best.times[-1]:g} | "
+              f"{best.wall_time:.4f} | {best.real_time_factor:.0f} |")
+    n_steps = round(seconds / 1e-3)
+    start = time.perf_counter()
+    sampled = [reference(k * 1e-3) for k in range(n_steps + 1)]
+    poses = np.array([s.pose for s in sampled])
+    twists = np.array([s.twist for s in sampled])
+    sampling = time.perf_counter() - start
+    tr = fast.simulate_fast(robot, seconds, 1e-3, reference=(poses, twists), **gains)
+    print(f"| fast, PID on a circle ({tr.status}) | {tr.times[-1]:g} | {tr.wall_time:.4f} | "
+          f"{tr.real_time_factor:.0f} |")
+    print(f"| (Python sampling of that reference) | {seconds:g} | {sampling:.4f} | "
+          f"{seconds / sampling:.0f} |")
+    print()
+
+    if not args.smoke and fast.available():
+        print("| first call in a fresh process | import + robot (s) | first ID + FD + "
+              "statics + 10-step simulation (s) |")
+        print("| --- | --- | --- |")
+        for label, imp, first in first_call_rows():
+            print(f"| {label} | {imp:.2f} | {first:.2f} |")
+    # FD of near-singular states amplifies round-off (cond(J) ~ 500 among these states)
+    ok = max(err_id, err_st) < 1e-10 and err_fd < 1e-9 and err_sim < 1e-8
+    if not ok:
+        print("ROUTES DISAGREE", file=sys.stderr)
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

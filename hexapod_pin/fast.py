@@ -1,0 +1,985 @@
+"""Optional compiled fast path (numba) for the hexapod's single-state dynamics and simulation.
+
+The kernels below are a scalar, one-state port of the closed form of
+:mod:`hexapod_pin.batch_dynamics` (see its docstring for the model and the equations):
+inverse dynamics, forward dynamics (reduced equation ``M_x twist_dot = J^T tau + wrench -
+h_x``, Cholesky) and statics, plus a fourth-order Runge-Kutta simulation loop in
+independent coordinates. They never call Pinocchio; the tests check them against the
+Pinocchio routes of :class:`~hexapod_pin.dynamics.HexapodDynamics` to 1e-10.
+
+Optional dependency: with numba (``pip install hexapod_pin[fast]``) the kernels are
+compiled on first use (``@njit(cache=True)``: the machine code is cached next to this
+module, in ``__pycache__``, so later processes only load it: about 16 s to compile on a
+small 2-core machine, 0.4 s to load). Without numba :func:`available` is False and the same
+functions run as plain Python: correct, but slower than the reference routes (ID about
+350 µs, simulation about 0.4x real time at 1 kHz), so check :func:`available` before
+choosing this module. Nothing else in the library imports it. The kernels are compiled
+with the fast-math flags ``contract, reassoc, nsz`` only (no ``nnan`` / ``ninf``: the
+finiteness checks stay exact); results differ from the reference routes by round-off.
+
+Conventions (those of the library): pose ``(x, y, z, roll, pitch, yaw)`` (m, rad) with
+``R = Rz(yaw) Ry(pitch) Rx(roll)``; twist ``(v, w)`` of the platform origin, world axes;
+``twist_dot`` its plain time derivative; ``tau_i`` the force on carriage i along ``+u_k``
+(N), carriage order; wrench ``(f, m)`` applied on the platform by the environment, world
+axes, moment about the platform origin (N, N m); home IK branch.
+
+Errors: the kernels return a status code, never NaN. The public functions validate their
+inputs once; on any non-zero code they re-run the reference (Pinocchio) route of the same
+state, which raises the library's usual exception with its values
+(:class:`~hexapod_pin.errors.UnreachablePoseError`,
+:class:`~hexapod_pin.errors.SingularityError`, :class:`~hexapod_pin.errors.InputError`);
+at the exact border of a tolerance, where that route succeeds, its answer is returned.
+
+Simulation (:func:`simulate_fast`): state ``(p, Q, v, w)`` with ``Q`` the unit quaternion
+of ``R`` (no gimbal lock), ``dp/dt = v``, ``dQ/dt = 1/2 (0, w) (x) Q`` (world angular
+velocity), ``d(v, w)/dt`` from the forward dynamics; classical RK4, the quaternion
+renormalised after each step; forces held over a step (zero-order hold), either constant
+or a joint PID on carriage set-points computed in the loop (IK and ``J twist`` of a
+sampled platform reference, the law of :class:`~hexapod_pin.simulate.PIDController`).
+Independent coordinates keep the closures exactly (the tree is rebuilt from the pose), so
+there is no drift to project. Its result, :class:`FastTrajectory`, is a smaller
+:class:`~hexapod_pin.simulate.Trajectory` (no tree configurations; rebuild one with
+``robot.configuration(pose)``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
+from .kinematics import GIMBAL_TOL, HOME_BRANCH, RAIL_OF, TYPE_I_TOL
+from .platform_map import TYPE_II_PIVOT_RTOL
+from .pose import as_array, rpy_from_rotation
+
+try:  # optional dependency
+    import numba as _numba
+except ImportError:  # pragma: no cover - exercised in a subprocess by the tests
+    _numba = None
+
+__all__ = ["FastDynamics", "FastTrajectory", "available", "fast_dynamics", "simulate_fast"]
+
+
+def available() -> bool:
+    """Whether numba is importable (the kernels are then compiled, else plain Python:
+    correct but slower than the reference routes)."""
+    return _numba is not None
+
+
+def _jit(func):
+    return _numba.njit(cache=True, error_model="numpy", fastmath={"contract", "reassoc", "nsz"})(func) if _numba is not None else func
+
+
+# status codes of the kernels
+OK, UNREACHABLE, TYPE_I, GIMBAL, TYPE_II, NOT_PD, NONFINITE, STROKE, GAP, SATURATED = range(10)
+_STATUS_OF_CODE = {STROKE: "stroke_limit", GAP: "carriage_gap"}
+
+# layout of the packed geometry vector (per-carriage blocks of 6, then scalars)
+_MX, _MY, _UX, _UY, _PX, _PY, _SG = (6 * j for j in range(7))
+_L, _MC, _ML, _MP, _IA, _IB, _IC, _G, _T1, _GIM, _T2, _BND, _HALF, _GAP = range(42, 56)
+# rows of the per-carriage work array (n_rows, 6)
+_RX, _RY, _RZ, _NX, _NY, _NZ, _NU, _Q, _QD, _DN2, _A0X, _A0Y, _A0Z, _QDD0 = range(14)
+_WORK_ROWS = 14
+
+
+def pack_geometry(geometry) -> np.ndarray:
+    """The geometry as the flat float64 vector the kernels read (56,).
+
+    Raises:
+        HexapodPinError: rails or platform points off the planes ``z = 0`` (the closed
+            form relies on it, as :mod:`hexapod_pin.batch_dynamics`).
+    """
+    g = geometry
+    mids, dirs, pts = g.rail_midpoints[RAIL_OF], g.rail_directions[RAIL_OF], \
+        g.platform_points[RAIL_OF]
+    if np.any(mids[:, 2] != 0.0) or np.any(dirs[:, 2] != 0.0) or np.any(pts[:, 2] != 0.0):
+        raise HexapodPinError("the compiled dynamics needs rails and platform points in the "
+                              "planes z = 0 of their frames")
+    out = np.zeros(56)
+    for start, values in ((_MX, mids[:, 0]), (_MY, mids[:, 1]), (_UX, dirs[:, 0]),
+                          (_UY, dirs[:, 1]), (_PX, pts[:, 0]), (_PY, pts[:, 1]),
+                          (_SG, HOME_BRANCH)):
+        out[start:start + 6] = values
+    ia, ib, ic = g.platform_inertia
+    out[_L:_GAP + 1] = (g.leg_length, g.carriage_mass, g.leg_mass, g.platform_mass, ia, ib, ic,
+                        g.gravity, TYPE_I_TOL * g.leg_length, GIMBAL_TOL, TYPE_II_PIVOT_RTOL,
+                        g.max_actuator_force, g.rail_half_length, g.carriage_min_gap)
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# kernels (scalar code; compiled when numba is present)
+# --------------------------------------------------------------------------------------
+@_jit
+def _rotation_rpy(roll, pitch, yaw, rot):
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    rot[0], rot[1], rot[2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
+    rot[3], rot[4], rot[5] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+    rot[6], rot[7], rot[8] = -sp, cp * sr, cp * cr
+
+
+@_jit
+def _rotation_quat(quat, rot):
+    """``R`` (row-major 9) of a quaternion ``(w, x, y, z)`` (any non-zero norm)."""
+    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
+    s = 2.0 / (w * w + x * x + y * y + z * z)
+    rot[0], rot[1], rot[2] = 1.0 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)
+    rot[3], rot[4], rot[5] = s * (x * y + z * w), 1.0 - s * (x * x + z * z), s * (y * z - x * w)
+    rot[6], rot[7], rot[8] = s * (x * z - y * w), s * (y * z + x * w), 1.0 - s * (x * x + y * y)
+
+
+@_jit
+def _legs(geo, x, y, z, rot, wk):
+    """Carriage positions and leg vectors of a pose (home branch); returns a code."""
+    length = geo[_L]
+    worst = OK
+    for i in range(6):
+        px, py = geo[_PX + i], geo[_PY + i]
+        ux, uy = geo[_UX + i], geo[_UY + i]
+        rx = rot[0] * px + rot[1] * py
+        ry = rot[3] * px + rot[4] * py
+        rz = rot[6] * px + rot[7] * py
+        dx, dy, dz = x + rx - geo[_MX + i], y + ry - geo[_MY + i], z + rz
+        along = dx * ux + dy * uy
+        disc = length * length - (dx * dx + dy * dy + dz * dz) + along * along
+        if not disc >= 0.0:
+            return UNREACHABLE
+        root = math.sqrt(disc)
+        q = along + geo[_SG + i] * root
+        nx, ny = dx - q * ux, dy - q * uy
+        nu = nx * ux + ny * uy
+        if not abs(nu) >= geo[_T1]:
+            worst = TYPE_I
+        else:
+            nl = -nx * uy + ny * ux                       # n . l, l = z x u
+            if not (dz * dz + nl * nl) / (length * length) >= geo[_GIM]:
+                worst = GIMBAL
+        wk[_RX, i], wk[_RY, i], wk[_RZ, i] = rx, ry, rz
+        wk[_NX, i], wk[_NY, i], wk[_NZ, i] = nx, ny, dz
+        wk[_NU, i], wk[_Q, i] = nu, q
+    return worst
+
+
+@_jit
+def _rates(geo, twist, wk):
+    """Carriage rates, ``|dn/dt|^2``, ``w x (w x r)`` and the drift ``qddot_0``."""
+    vx, vy, vz, wx, wy, wz = twist[0], twist[1], twist[2], twist[3], twist[4], twist[5]
+    for i in range(6):
+        rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
+        nx, ny, nz, nu = wk[_NX, i], wk[_NY, i], wk[_NZ, i], wk[_NU, i]
+        ux, uy = geo[_UX + i], geo[_UY + i]
+        cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx
+        tx, ty, tz = vx + cx, vy + cy, vz + cz
+        inv = 1.0 / nu
+        qd = (nx * tx + ny * ty + nz * tz) * inv
+        ex, ey = tx - qd * ux, ty - qd * uy
+        dn2 = ex * ex + ey * ey + tz * tz
+        ax, ay, az = wy * cz - wz * cy, wz * cx - wx * cz, wx * cy - wy * cx
+        wk[_QD, i], wk[_DN2, i] = qd, dn2
+        wk[_A0X, i], wk[_A0Y, i], wk[_A0Z, i] = ax, ay, az
+        wk[_QDD0, i] = (dn2 + nx * ax + ny * ay + nz * az) * inv
+
+
+@_jit
+def _inertia_world(geo, rot, vx, vy, vz, out, offset):
+    """``out[offset:offset+3] += R I R^T v``."""
+    b0 = geo[_IA] * (rot[0] * vx + rot[3] * vy + rot[6] * vz)
+    b1 = geo[_IB] * (rot[1] * vx + rot[4] * vy + rot[7] * vz)
+    b2 = geo[_IC] * (rot[2] * vx + rot[5] * vy + rot[8] * vz)
+    out[offset] += rot[0] * b0 + rot[1] * b1 + rot[2] * b2
+    out[offset + 1] += rot[3] * b0 + rot[4] * b1 + rot[5] * b2
+    out[offset + 2] += rot[6] * b0 + rot[7] * b1 + rot[8] * b2
+
+
+@_jit
+def _gyroscopic(geo, rot, twist, out, sign):
+    """``out[3:6] += sign * w x (I_w w)``."""
+    wx, wy, wz = twist[3], twist[4], twist[5]
+    b0 = geo[_IA] * (rot[0] * wx + rot[3] * wy + rot[6] * wz)
+    b1 = geo[_IB] * (rot[1] * wx + rot[4] * wy + rot[7] * wz)
+    b2 = geo[_IC] * (rot[2] * wx + rot[5] * wy + rot[8] * wz)
+    hx = rot[0] * b0 + rot[1] * b1 + rot[2] * b2
+    hy = rot[3] * b0 + rot[4] * b1 + rot[5] * b2
+    hz = rot[6] * b0 + rot[7] * b1 + rot[8] * b2
+    out[3] += sign * (wy * hz - wz * hy)
+    out[4] += sign * (wz * hx - wx * hz)
+    out[5] += sign * (wx * hy - wy * hx)
+
+
+@_jit
+def _add_tip_loads(wk, i, fx, fy, fz, out):
+    """``out += [F, r x F]`` for the tip load of carriage i."""
+    rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
+    out[0] += fx
+    out[1] += fy
+    out[2] += fz
+    out[3] += ry * fz - rz * fy
+    out[4] += rz * fx - rx * fz
+    out[5] += rx * fy - ry * fx
+
+
+@_jit
+def _solve_legs(wk, rhs, rtol, mat):
+    """Solve ``A^T t = rhs`` in place (``A^T`` columns ``[n_i, r_k x n_i]``) by LU with
+    partial pivoting; returns TYPE_II when the smallest pivot is below ``rtol`` times the
+    largest (as :meth:`PlatformMap.solve_forces`)."""
+    for i in range(6):
+        rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
+        nx, ny, nz = wk[_NX, i], wk[_NY, i], wk[_NZ, i]
+        mat[0, i], mat[1, i], mat[2, i] = nx, ny, nz
+        mat[3, i], mat[4, i], mat[5, i] = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx
+    return _lu_solve(mat, rhs, rtol)
+
+
+@_jit
+def _lu_solve(mat, rhs, rtol):
+    small, big = np.inf, 0.0
+    for col in range(6):
+        piv, best = col, abs(mat[col, col])
+        for row in range(col + 1, 6):
+            if abs(mat[row, col]) > best:
+                piv, best = row, abs(mat[row, col])
+        if piv != col:
+            for j in range(6):
+                mat[col, j], mat[piv, j] = mat[piv, j], mat[col, j]
+            rhs[col], rhs[piv] = rhs[piv], rhs[col]
+        small, big = min(small, best), max(big, best)
+        if best == 0.0:
+            return TYPE_II
+        for row in range(col + 1, 6):
+            f = mat[row, col] / mat[col, col]
+            if f != 0.0:
+                for j in range(col + 1, 6):
+                    mat[row, j] -= f * mat[col, j]
+                rhs[row] -= f * rhs[col]
+    if not small > rtol * big:
+        return TYPE_II
+    for row in range(5, -1, -1):
+        acc = rhs[row]
+        for j in range(row + 1, 6):
+            acc -= mat[row, j] * rhs[j]
+        rhs[row] = acc / mat[row, row]
+    return OK
+
+
+@_jit
+def _finite(vec):
+    for k in range(vec.shape[0]):
+        if not math.isfinite(vec[k]):
+            return False
+    return True
+
+
+@_jit
+def _check_bound(geo, tau, bounded):
+    if bounded and math.isfinite(geo[_BND]):
+        for i in range(6):
+            if abs(tau[i]) > geo[_BND] * (1.0 + 1e-9):
+                return SATURATED
+    return OK
+
+
+@_jit
+def inverse_kernel(geo, pose, twist, twist_dot, wrench, bounded, tau):
+    """Inverse dynamics: fills ``tau`` (6,) and returns a status code."""
+    if not (_finite(pose) and _finite(twist) and _finite(twist_dot) and _finite(wrench)):
+        return NONFINITE
+    rot = np.empty(9)
+    wk = np.empty((_WORK_ROWS, 6))
+    _rotation_rpy(pose[3], pose[4], pose[5], rot)
+    code = _legs(geo, pose[0], pose[1], pose[2], rot, wk)
+    if code != OK:
+        return code
+    _rates(geo, twist, wk)
+    m_c, m_l, m_p, g = geo[_MC], geo[_ML], geo[_MP], geo[_G]
+    ax, ay, az, bx, by, bz = (twist_dot[0], twist_dot[1], twist_dot[2], twist_dot[3],
+                              twist_dot[4], twist_dot[5])
+    rhs = np.zeros(6)
+    for i in range(6):
+        rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
+        cx = wk[_A0X, i] + ax + (by * rz - bz * ry)
+        cy = wk[_A0Y, i] + ay + (bz * rx - bx * rz)
+        cz = wk[_A0Z, i] + az + (bx * ry - by * rx)
+        qdd = (wk[_DN2, i] + wk[_NX, i] * cx + wk[_NY, i] * cy + wk[_NZ, i] * cz) / wk[_NU, i]
+        ux, uy = geo[_UX + i], geo[_UY + i]
+        tau[i] = (m_c + m_l / 3.0) * qdd + (m_l / 6.0) * (ux * cx + uy * cy)
+        side = (m_l / 6.0) * qdd
+        _add_tip_loads(wk, i, side * ux + (m_l / 3.0) * cx, side * uy + (m_l / 3.0) * cy,
+                       (m_l / 3.0) * cz + 0.5 * m_l * g, rhs)
+    rhs[0] += m_p * ax
+    rhs[1] += m_p * ay
+    rhs[2] += m_p * (az + g)
+    _gyroscopic(geo, rot, twist, rhs, 1.0)
+    _inertia_world(geo, rot, bx, by, bz, rhs, 3)
+    for j in range(6):
+        rhs[j] -= wrench[j]
+    mat = np.empty((6, 6))
+    code = _solve_legs(wk, rhs, geo[_T2], mat)
+    if code != OK:
+        return code
+    for i in range(6):
+        tau[i] += wk[_NU, i] * rhs[i]
+    return _check_bound(geo, tau, bounded)
+
+
+@_jit
+def static_kernel(geo, pose, wrench, bounded, tau):
+    """Statics: fills ``tau`` (6,) holding ``pose`` at rest; returns a status code."""
+    if not (_finite(pose) and _finite(wrench)):
+        return NONFINITE
+    rot = np.empty(9)
+    wk = np.empty((_WORK_ROWS, 6))
+    _rotation_rpy(pose[3], pose[4], pose[5], rot)
+    code = _legs(geo, pose[0], pose[1], pose[2], rot, wk)
+    if code != OK:
+        return code
+    rhs = np.zeros(6)
+    half_leg = 0.5 * geo[_ML] * geo[_G]
+    for i in range(6):
+        _add_tip_loads(wk, i, 0.0, 0.0, half_leg, rhs)
+    rhs[2] += geo[_MP] * geo[_G]
+    for j in range(6):
+        rhs[j] -= wrench[j]
+    mat = np.empty((6, 6))
+    code = _solve_legs(wk, rhs, geo[_T2], mat)
+    if code != OK:
+        return code
+    for i in range(6):
+        tau[i] = wk[_NU, i] * rhs[i]
+    return _check_bound(geo, tau, bounded)
+
+
+@_jit
+def _forward_core(geo, rot, twist, forces, wrench, wk, jac, mass, side, out):
+    """Reduced forward dynamics at legs ``wk`` (rates done): ``out`` = twist_dot (6,);
+    ``jac`` gets ``J^T`` (6, 6). Returns OK or NOT_PD. ``mass``, ``side``: scratch (6, 6)."""
+    m_c, m_l, m_p, g = geo[_MC], geo[_ML], geo[_MP], geo[_G]
+    mu = m_l / 3.0
+    m_leg, m_side = m_c + m_l / 3.0, m_l / 6.0
+    o0, o1, o2 = wrench[0], wrench[1], wrench[2] - m_p * g
+    o3, o4, o5 = wrench[3], wrench[4], wrench[5]
+    sx = sy = sz = 0.0
+    pxx = pyy = pzz = pxy = pxz = pyz = 0.0
+    for i in range(6):
+        rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
+        nx, ny, nz, nu = wk[_NX, i], wk[_NY, i], wk[_NZ, i], wk[_NU, i]
+        ux, uy = geo[_UX + i], geo[_UY + i]
+        inv = 1.0 / nu
+        j0, j1, j2 = nx * inv, ny * inv, nz * inv
+        j3, j4, j5 = (ry * nz - rz * ny) * inv, (rz * nx - rx * nz) * inv, \
+            (rx * ny - ry * nx) * inv
+        jac[0, i], jac[1, i], jac[2, i], jac[3, i], jac[4, i], jac[5, i] = j0, j1, j2, j3, j4, j5
+        # U_i = [u, r x u] = (ux, uy, 0, -rz uy, rz ux, rx uy - ry ux)
+        side[0, i], side[1, i], side[2, i] = ux, uy, 0.0
+        side[3, i], side[4, i], side[5, i] = -rz * uy, rz * ux, rx * uy - ry * ux
+        sx += rx
+        sy += ry
+        sz += rz
+        pxx += rx * rx
+        pyy += ry * ry
+        pzz += rz * rz
+        pxy += rx * ry
+        pxz += rx * rz
+        pyz += ry * rz
+        # bias: end loads at the drift accelerations (twist_dot = 0), J^T c0 and tip loads
+        qdd0 = wk[_QDD0, i]
+        a0x, a0y, a0z = wk[_A0X, i], wk[_A0Y, i], wk[_A0Z, i]
+        c0 = m_leg * qdd0 + m_side * (ux * a0x + uy * a0y)
+        f0 = m_side * qdd0
+        fx, fy, fz = f0 * ux + mu * a0x, f0 * uy + mu * a0y, mu * a0z + 0.5 * m_l * g
+        load = forces[i] - c0
+        o0 += j0 * load - fx
+        o1 += j1 * load - fy
+        o2 += j2 * load - fz
+        o3 += j3 * load - (ry * fz - rz * fy)
+        o4 += j4 * load - (rz * fx - rx * fz)
+        o5 += j5 * load - (rx * fy - ry * fx)
+    out[0], out[1], out[2], out[3], out[4], out[5] = o0, o1, o2, o3, o4, o5
+    # upper triangle of sum_i m_leg J_i J_i^T + m_side (J_i U_i^T + U_i J_i^T)
+    for a in range(6):
+        for b in range(a, 6):
+            acc = 0.0
+            for i in range(6):
+                acc += (m_leg * jac[a, i] + m_side * side[a, i]) * jac[b, i] \
+                    + m_side * jac[a, i] * side[b, i]
+            mass[a, b] = acc
+    # platform plus point masses mu at the six tips, as one rigid body (upper triangle)
+    sx, sy, sz = mu * sx, mu * sy, mu * sz
+    total = m_p + 6.0 * mu
+    for j in range(3):
+        mass[j, j] += total
+    mass[0, 4] += sz
+    mass[0, 5] -= sy
+    mass[1, 3] -= sz
+    mass[1, 5] += sx
+    mass[2, 3] += sy
+    mass[2, 4] -= sx
+    trace = pxx + pyy + pzz
+    mass[3, 3] += mu * (trace - pxx)
+    mass[4, 4] += mu * (trace - pyy)
+    mass[5, 5] += mu * (trace - pzz)
+    mass[3, 4] -= mu * pxy
+    mass[3, 5] -= mu * pxz
+    mass[4, 5] -= mu * pyz
+    ia, ib, ic = geo[_IA], geo[_IB], geo[_IC]
+    for a in range(3):
+        for b in range(a, 3):
+            mass[3 + a, 3 + b] += (rot[3 * a] * rot[3 * b] * ia + rot[3 * a + 1] * rot[3 * b + 1]
+                                   * ib + rot[3 * a + 2] * rot[3 * b + 2] * ic)
+    _gyroscopic(geo, rot, twist, out, -1.0)
+    # Cholesky M = R^T R (R upper, in place on the upper triangle; 1 / R_jj kept in
+    # side[0]), then the two triangular solves
+    for j in range(6):
+        d = mass[j, j]
+        for k in range(j):
+            d -= mass[k, j] * mass[k, j]
+        if not d > 0.0:
+            return NOT_PD
+        inv_d = 1.0 / math.sqrt(d)
+        side[0, j] = inv_d
+        for c in range(j + 1, 6):
+            t = mass[j, c]
+            for k in range(j):
+                t -= mass[k, j] * mass[k, c]
+            mass[j, c] = t * inv_d
+    for r in range(6):
+        t = out[r]
+        for k in range(r):
+            t -= mass[k, r] * out[k]
+        out[r] = t * side[0, r]
+    for r in range(5, -1, -1):
+        t = out[r]
+        for k in range(r + 1, 6):
+            t -= mass[r, k] * out[k]
+        out[r] = t * side[0, r]
+    return OK
+
+
+@_jit
+def forward_kernel(geo, pose, twist, forces, wrench, twist_dot, qddot):
+    """Forward dynamics: fills ``twist_dot`` (6,), ``qddot`` (6,); returns a code."""
+    if not (_finite(pose) and _finite(twist) and _finite(forces) and _finite(wrench)):
+        return NONFINITE
+    rot = np.empty(9)
+    wk = np.empty((_WORK_ROWS, 6))
+    _rotation_rpy(pose[3], pose[4], pose[5], rot)
+    code = _legs(geo, pose[0], pose[1], pose[2], rot, wk)
+    if code != OK:
+        return code
+    _rates(geo, twist, wk)
+    jac = np.empty((6, 6))
+    mass = np.empty((6, 6))
+    code = _forward_core(geo, rot, twist, forces, wrench, wk, jac, mass, np.empty((6, 6)),
+                         twist_dot)
+    if code != OK:
+        return code
+    for i in range(6):
+        s = wk[_QDD0, i]
+        for a in range(6):
+            s += jac[a, i] * twist_dot[a]
+        qddot[i] = s
+    return OK
+
+
+# -- simulation -------------------------------------------------------------------------
+@_jit
+def _derivative(geo, state, forces, wrench, deriv, rot, wk, jac, mass, side, twist, acc):
+    """``d state / dt`` of ``state = (p, Q (w, x, y, z), v, w)`` (13,); returns a code."""
+    code = _carriages(geo, state, rot, wk, twist)
+    if code != OK:
+        return code
+    return _derivative_at(geo, state, forces, wrench, deriv, rot, wk, jac, mass, side, twist, acc)
+
+
+@_jit
+def _derivative_at(geo, state, forces, wrench, deriv, rot, wk, jac, mass, side, twist, acc):
+    """:func:`_derivative` with ``rot``, ``wk`` and ``twist`` already those of ``state``."""
+    code = _forward_core(geo, rot, twist, forces, wrench, wk, jac, mass, side, acc)
+    if code != OK:
+        return code
+    qw, qx, qy, qz = state[3], state[4], state[5], state[6]
+    wx, wy, wz = twist[3], twist[4], twist[5]
+    deriv[0], deriv[1], deriv[2] = twist[0], twist[1], twist[2]
+    deriv[3] = -0.5 * (wx * qx + wy * qy + wz * qz)
+    deriv[4] = 0.5 * (qw * wx + wy * qz - wz * qy)
+    deriv[5] = 0.5 * (qw * wy + wz * qx - wx * qz)
+    deriv[6] = 0.5 * (qw * wz + wx * qy - wy * qx)
+    for j in range(6):
+        deriv[7 + j] = acc[j]
+    return OK
+
+
+@_jit
+def _carriages(geo, state, rot, wk, twist):
+    """Legs (and rates) of a state; returns a code (stroke not checked)."""
+    _rotation_quat(state[3:7], rot)
+    code = _legs(geo, state[0], state[1], state[2], rot, wk)
+    if code != OK:
+        return code
+    for j in range(6):
+        twist[j] = state[7 + j]
+    _rates(geo, twist, wk)
+    return OK
+
+
+@_jit
+def _limits(geo, wk):
+    for i in range(6):
+        if abs(wk[_Q, i]) > geo[_HALF]:
+            return STROKE
+    for k in range(3):
+        if wk[_Q, 2 * k + 1] - wk[_Q, 2 * k] < geo[_GAP]:
+            return GAP
+    return OK
+
+
+@_jit
+def _command(geo, wk, k, mode, forces_in, ref_poses, ref_twists, gains, integral, dt,
+             saturation, forces, ref_wk, rot):
+    """Actuator forces of step ``k`` into ``forces``; returns (code, saturated)."""
+    if mode == 0:
+        for i in range(6):
+            forces[i] = forces_in[i]
+    else:
+        kp, ki, kd, feedforward = gains[0], gains[1], gains[2], gains[3]
+        row = min(k, ref_poses.shape[0] - 1)
+        _rotation_rpy(ref_poses[row, 3], ref_poses[row, 4], ref_poses[row, 5], rot)
+        code = _legs(geo, ref_poses[row, 0], ref_poses[row, 1], ref_poses[row, 2], rot, ref_wk)
+        if code != OK:
+            return code, False
+        _rates(geo, ref_twists[row], ref_wk)
+        for i in range(6):
+            err = ref_wk[_Q, i] - wk[_Q, i]
+            forces[i] = kp * err + ki * integral[i] + kd * (ref_wk[_QD, i] - wk[_QD, i])
+            integral[i] += err * dt
+        if feedforward != 0.0:
+            ff = np.empty(6)
+            code = static_kernel(geo, ref_poses[row], np.zeros(6), False, ff)
+            if code != OK:
+                return code, False
+            for i in range(6):
+                forces[i] += ff[i]
+    sat = False
+    bound = geo[_BND]
+    if saturation != 2 and math.isfinite(bound):
+        for i in range(6):
+            if saturation == 1 and abs(forces[i]) > bound:
+                return SATURATED, False
+        for i in range(6):
+            if abs(forces[i]) > bound:
+                forces[i] = max(-bound, min(bound, forces[i]))
+                sat = True
+    return OK, sat
+
+
+@_jit
+def simulate_kernel(geo, state0, n_steps, dt, record_every, mode, forces_in, wrench,
+                    ref_poses, ref_twists, gains, saturation, check_limits,
+                    rec_state, rec_q, rec_qd, rec_f, rec_sat, last_forces):
+    """RK4 loop; returns ``(code, step, n_recorded)``. ``mode`` 0: constant forces, 1: PID.
+    ``saturation`` 0: clip, 1: raise (code SATURATED), 2: ignore. ``last_forces`` gets the
+    last command computed (before clipping when it raised)."""
+    state = state0.copy()
+    k1, k2, k3, k4 = np.empty(13), np.empty(13), np.empty(13), np.empty(13)
+    stage = np.empty(13)
+    rot, ref_rot = np.empty(9), np.empty(9)
+    wk = np.empty((_WORK_ROWS, 6))
+    ref_wk = np.empty((_WORK_ROWS, 6))
+    jac, mass, side = np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6))
+    twist, acc = np.empty(6), np.empty(6)
+    forces = last_forces
+    integral = np.zeros(6)
+    code = _carriages(geo, state, rot, wk, twist)
+    if code != OK:
+        return code, 0, 0
+    n_rec = 0
+    for j in range(13):
+        rec_state[0, j] = state[j]
+    for i in range(6):
+        rec_q[0, i], rec_qd[0, i], rec_f[0, i] = wk[_Q, i], wk[_QD, i], 0.0
+    rec_sat[0] = False
+    code, sat = _command(geo, wk, 0, mode, forces_in, ref_poses, ref_twists, gains, integral,
+                         dt, saturation, forces, ref_wk, ref_rot)
+    if code != OK:
+        return code, 0, 1
+    for i in range(6):
+        rec_f[0, i] = forces[i]
+    rec_sat[0] = sat
+    half = 0.5 * dt
+    for step in range(1, n_steps + 1):
+        # rot, wk and twist hold the current state (set up before the loop / last step)
+        code = _derivative_at(geo, state, forces, wrench, k1, rot, wk, jac, mass, side, twist,
+                              acc)
+        if code == OK:
+            for j in range(13):
+                stage[j] = state[j] + half * k1[j]
+            code = _derivative(geo, stage, forces, wrench, k2, rot, wk, jac, mass, side, twist, acc)
+        if code == OK:
+            for j in range(13):
+                stage[j] = state[j] + half * k2[j]
+            code = _derivative(geo, stage, forces, wrench, k3, rot, wk, jac, mass, side, twist, acc)
+        if code == OK:
+            for j in range(13):
+                stage[j] = state[j] + dt * k3[j]
+            code = _derivative(geo, stage, forces, wrench, k4, rot, wk, jac, mass, side, twist, acc)
+        if code != OK:
+            return code, step, n_rec + 1
+        for j in range(13):
+            state[j] += dt / 6.0 * (k1[j] + k4[j] + 2.0 * (k2[j] + k3[j]))
+        norm = 1.0 / math.sqrt(state[3] ** 2 + state[4] ** 2 + state[5] ** 2 + state[6] ** 2)
+        for j in range(3, 7):
+            state[j] *= norm
+        if not _finite(state):
+            return NONFINITE, step, n_rec + 1
+        code = _carriages(geo, state, rot, wk, twist)
+        if code != OK:
+            return code, step, n_rec + 1
+        stop = _limits(geo, wk) if check_limits else OK
+        if stop == OK:
+            code, sat = _command(geo, wk, step, mode, forces_in, ref_poses, ref_twists, gains,
+                                 integral, dt, saturation, forces, ref_wk, ref_rot)
+            if code != OK:
+                return code, step, n_rec + 1
+        if step % record_every == 0 or stop != OK:
+            n_rec += 1
+            for j in range(13):
+                rec_state[n_rec, j] = state[j]
+            for i in range(6):
+                rec_q[n_rec, i], rec_qd[n_rec, i] = wk[_Q, i], wk[_QD, i]
+                rec_f[n_rec, i] = forces[i] if stop == OK else rec_f[n_rec - 1, i]
+            rec_sat[n_rec] = sat if stop == OK else False
+        if stop != OK:
+            return stop, step, n_rec + 1
+    return OK, n_steps, n_rec + 1
+
+
+# --------------------------------------------------------------------------------------
+# Python boundary
+# --------------------------------------------------------------------------------------
+_ZERO6 = np.zeros(6)
+
+
+def _vec6(value, name: str) -> np.ndarray:
+    """A float64 (6,) array (finiteness is checked inside the kernels)."""
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (6,):
+        return value
+    return as_array(value, (6,), name)
+
+
+class FastDynamics:
+    """Compiled single-state dynamics of one hexapod (get it with :func:`fast_dynamics`).
+
+    Same conventions and results as the reference routes of
+    :class:`~hexapod_pin.dynamics.HexapodDynamics` (to round-off), leaner answers:
+    plain (6,) arrays, no tree state.
+
+    Args:
+        robot: the :class:`~hexapod_pin.Hexapod`.
+    """
+
+    def __init__(self, robot):
+        self.robot = robot
+        self.geo = pack_geometry(robot.geometry)
+        bound = float(robot.geometry.max_actuator_force)
+        self._bounds = np.full(6, bound) if math.isfinite(bound) else None
+
+    def _fail(self, code: int, reference: Callable[[], np.ndarray], tau=None):
+        if code == SATURATED:
+            raise ActuatorSaturationError(tau, self._bounds)
+        # the reference route raises the precise exception (InputError, unreachable,
+        # singular); at a tolerance border where it succeeds, its answer stands
+        return reference()
+
+    def inverse_dynamics(self, pose, twist, twist_dot, wrench=None,
+                         bounded: bool = True) -> np.ndarray:
+        """Actuator forces producing a platform motion (closed-loop inverse dynamics).
+
+        As :meth:`Hexapod.inverse_dynamics` with ``method="kkt"`` (the 6x6 solve).
+
+        Args:
+            pose: (6,) (m, rad). twist: ``(v, w)`` world axes (m/s, rad/s), (6,).
+            twist_dot: its time derivative (m/s^2, rad/s^2), (6,).
+            wrench: ``(f, m)`` on the platform, world axes, about its origin (N, N m);
+                default zero.
+            bounded: raise when ``abs(tau) > geometry.max_actuator_force``.
+
+        Returns:
+            tau (6,) (N), force on carriage i along ``+u_k``.
+
+        Raises:
+            ActuatorSaturationError, UnreachablePoseError, SingularityError, InputError.
+        """
+        pose, twist, twist_dot = _vec6(pose, "pose"), _vec6(twist, "twist"), \
+            _vec6(twist_dot, "twist_dot")
+        wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")
+        tau = np.empty(6)
+        code = inverse_kernel(self.geo, pose, twist, twist_dot, wrench, bounded, tau)
+        if code:
+            return self._fail(code, lambda: self.robot.inverse_dynamics(
+                pose, twist, twist_dot, None if wrench is _ZERO6 else wrench, method="kkt",
+                bounded=bounded, joint_wrenches=False).actuator_forces, tau)
+        return tau
+
+    def forward_dynamics(self, pose, twist, actuator_forces, wrench=None) -> np.ndarray:
+        """Platform acceleration produced by actuator forces (constrained forward dynamics).
+
+        As :meth:`Hexapod.forward_dynamics` (``twist_dot`` only; for the carriage
+        accelerations too, see :meth:`forward_dynamics_full`).
+
+        Args:
+            pose: (6,) (m, rad). twist: ``(v, w)`` world axes, (6,).
+            actuator_forces: tau (6,) (N). wrench: (6,) or None.
+
+        Returns:
+            twist_dot (6,) (m/s^2, rad/s^2), world axes.
+
+        Raises:
+            UnreachablePoseError, SingularityError, InputError.
+        """
+        return self.forward_dynamics_full(pose, twist, actuator_forces, wrench)[0]
+
+    def forward_dynamics_full(self, pose, twist, actuator_forces, wrench=None):
+        """:meth:`forward_dynamics` returning ``(twist_dot, qddot)``, each (6,)."""
+        pose, twist = _vec6(pose, "pose"), _vec6(twist, "twist")
+        forces = _vec6(actuator_forces, "actuator_forces")
+        wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")
+        twist_dot, qddot = np.empty(6), np.empty(6)
+        code = forward_kernel(self.geo, pose, twist, forces, wrench, twist_dot, qddot)
+        if code:
+            def reference():
+                res = self.robot.forward_dynamics(pose, twist, forces,
+                                                  None if wrench is _ZERO6 else wrench)
+                return res.twist_dot, res.qddot
+            return self._fail(code, reference)
+        return twist_dot, qddot
+
+    def static_forces(self, pose, wrench=None, bounded: bool = True) -> np.ndarray:
+        """Actuator forces (6,) (N) holding the platform at rest at ``pose``.
+
+        As :meth:`Hexapod.static_forces`. Raises the same exceptions.
+        """
+        pose = _vec6(pose, "pose")
+        wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")
+        tau = np.empty(6)
+        code = static_kernel(self.geo, pose, wrench, bounded, tau)
+        if code:
+            return self._fail(code, lambda: self.robot.static_forces(
+                pose, None if wrench is _ZERO6 else wrench, bounded=bounded), tau)
+        return tau
+
+
+def fast_dynamics(robot) -> FastDynamics:
+    """The :class:`FastDynamics` of a hexapod (built once, cached on the robot)."""
+    fd = robot.__dict__.get("_fast_dynamics")
+    if fd is None:
+        fd = robot.__dict__["_fast_dynamics"] = FastDynamics(robot)
+    return fd
+
+
+@dataclass(frozen=True)
+class FastTrajectory:
+    """Result of :func:`simulate_fast` (a smaller :class:`~hexapod_pin.simulate.Trajectory`).
+
+    Attributes:
+        times: (n,) (s).
+        poses: (n, 6) platform poses (m, rad).
+        quaternions: (n, 4) platform orientation ``(x, y, z, w)``, Pinocchio's order.
+        twists: (n, 6) platform twists ``(v, w)``, world axes (m/s, rad/s).
+        q: (n, 6) carriage positions (m). qdot: (n, 6) carriage velocities (m/s).
+        actuator_forces: (n, 6) forces applied from each sample to the next (N) (last
+            row: the command at the final state, or the previous one after a stop).
+        saturated: (n,) True where the command was clipped to the bound.
+        status: "completed", "stroke_limit", "carriage_gap" or "failed".
+        message: details of a stop.
+        dt: the step (s).
+        wall_time: seconds spent in the compiled loop (the first call of a process also
+            compiles it or loads it from the cache: about a second, see the benchmark).
+    """
+
+    times: np.ndarray
+    poses: np.ndarray
+    quaternions: np.ndarray
+    twists: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    actuator_forces: np.ndarray
+    saturated: np.ndarray
+    status: str
+    message: str
+    dt: float
+    wall_time: float
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated time divided by wall time."""
+        span = float(self.times[-1] - self.times[0]) if self.times.size else 0.0
+        return span / self.wall_time if self.wall_time > 0 else float("inf")
+
+
+def _sample_reference(reference, n_steps: int, dt: float):
+    """Reference poses and twists (n_steps + 1, 6) from a callable or a pair of arrays."""
+    if callable(reference):
+        refs = [reference(k * dt) for k in range(n_steps + 1)]
+        poses = np.array([as_array(r.pose, (6,), "reference pose") for r in refs])
+        twists = np.array([as_array(r.twist, (6,), "reference twist") for r in refs])
+        return poses, twists
+    try:
+        poses, twists = reference
+    except (TypeError, ValueError):
+        raise InputError("reference", reference, "expected a callable t -> "
+                         "PlatformReference or a pair (poses, twists)") from None
+    poses = as_array(poses, (6,), "reference poses", batch=True)
+    twists = as_array(twists, (6,), "reference twists", batch=True)
+    if poses.shape != twists.shape or poses.shape[0] < 1:
+        raise InputError("reference", (poses.shape, twists.shape),
+                         "poses and twists must have the same number (>= 1) of rows")
+    return np.ascontiguousarray(poses), np.ascontiguousarray(twists)
+
+
+def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist0=None,
+                  actuator_forces=None, wrench=None, reference=None, kp: float = 30000.0,
+                  ki: float = 40000.0, kd: float = 3000.0, feedforward: bool = False,
+                  check_limits: bool = True, on_limit: str = "stop",
+                  saturation: str = "clip", record_every: int = 1) -> FastTrajectory:
+    """Integrate the hexapod's dynamics in compiled code (RK4 in platform coordinates).
+
+    Args:
+        robot: the :class:`~hexapod_pin.Hexapod`.
+        duration: simulated time (s). dt: step and control period (s).
+        pose0, twist0: initial platform state (default: home at rest; with a
+            ``reference``, its first sample).
+        actuator_forces: constant (6,) forces (N) without a reference; default zero.
+        wrench: constant ``(f, m)`` on the platform (world axes, about its origin), held
+            in world axes (:func:`~hexapod_pin.simulate.simulate` holds it in platform
+            axes over a step: the two differ by O(dt)).
+        reference: enables the joint PID of :class:`~hexapod_pin.simulate.PIDController`
+            (``tau = kp e + ki sum(e dt) + kd (qdot_ref - qdot)``, ``e = q_ref - q``,
+            ``q_ref`` = IK of the reference pose, ``qdot_ref = J`` reference twist, both
+            computed in the loop): a callable ``t -> PlatformReference`` (sampled at
+            ``k dt`` before the loop, in Python) or a pair of arrays ``(poses, twists)``
+            (m, n 6) sampled at ``k dt`` (the last row is held when m < steps + 1).
+        kp: N/m. ki: N/(m s). kd: N s/m. feedforward: add the static forces of the
+            reference pose.
+        check_limits: stop at the stroke limits / carriage gap (checked after each step).
+        on_limit: "stop" (status "stroke_limit" / "carriage_gap") or "raise".
+        saturation: "clip", "raise" or "ignore" (commands beyond the bound).
+        record_every: record one sample every this many steps.
+
+    Returns:
+        :class:`FastTrajectory`. A singular or unreachable state stops the run with
+        status "failed" and the reference route's message.
+
+    Raises:
+        InputError, StrokeLimitError (``on_limit="raise"``), ActuatorSaturationError
+        (``saturation="raise"``).
+    """
+    if not (np.isfinite(duration) and duration > 0):
+        raise InputError("duration", duration, "must be a positive number")
+    if not (np.isfinite(dt) and dt > 0):
+        raise InputError("dt", dt, "must be a positive number")
+    if on_limit not in ("stop", "raise"):
+        raise InputError("on_limit", on_limit, "expected 'stop' or 'raise'")
+    modes = {"clip": 0, "raise": 1, "ignore": 2}
+    if saturation not in modes:
+        raise InputError("saturation", saturation, "expected 'clip', 'raise' or 'ignore'")
+    if int(record_every) < 1:
+        raise InputError("record_every", record_every, "must be >= 1")
+    if reference is not None and actuator_forces is not None:
+        raise InputError("actuator_forces", actuator_forces, "give forces or a reference")
+    record_every = int(record_every)
+    n_steps = max(1, round(duration / dt))
+    if reference is not None:
+        ref_poses, ref_twists = _sample_reference(reference, n_steps, dt)
+        mode, forces_in = 1, _ZERO6
+    else:
+        ref_poses = ref_twists = np.zeros((1, 6))
+        mode = 0
+        forces_in = _ZERO6 if actuator_forces is None else as_array(actuator_forces, (6,),
+                                                                    "actuator_forces")
+    if pose0 is None:
+        pose0 = ref_poses[0] if reference is not None else robot.home_pose
+    if twist0 is None:
+        twist0 = ref_twists[0] if reference is not None else np.zeros(6)
+    pose0, twist0 = as_array(pose0, (6,), "pose0"), as_array(twist0, (6,), "twist0")
+    wrench = _ZERO6 if wrench is None else as_array(wrench, (6,), "wrench")
+    gains = np.array([kp, ki, kd, 1.0 if feedforward else 0.0], dtype=float)
+    if not np.all(np.isfinite(gains)):
+        raise InputError("gains", gains[:3], "must be finite")
+    geo = fast_dynamics(robot).geo
+    robot.forward_dynamics(pose0, twist0, np.zeros(6))      # raises for a bad initial state
+    state0 = np.empty(13)
+    state0[:3] = pose0[:3]
+    state0[3:7] = _quaternion_wxyz(pose0[3:])
+    state0[7:] = twist0
+    n_rec = n_steps // record_every + 2
+    rec_state = np.empty((n_rec, 13))
+    rec_q, rec_qd, rec_f = np.empty((n_rec, 6)), np.empty((n_rec, 6)), np.empty((n_rec, 6))
+    rec_sat = np.zeros(n_rec, dtype=np.bool_)
+    last_forces = np.zeros(6)
+    start = time.perf_counter()
+    code, step, n = simulate_kernel(geo, state0, n_steps, float(dt), record_every, mode,
+                                    forces_in, wrench, ref_poses, ref_twists, gains,
+                                    modes[saturation], bool(check_limits), rec_state, rec_q,
+                                    rec_qd, rec_f, rec_sat, last_forces)
+    wall = time.perf_counter() - start
+    if code == SATURATED:
+        raise ActuatorSaturationError(last_forces, np.full(6, robot.geometry.max_actuator_force))
+    if n == 0:              # the initial state itself failed (checked above: not expected)
+        raise HexapodPinError(f"simulate_fast: initial state rejected (status {code})")
+    steps = np.arange(n) * record_every
+    if code in (STROKE, GAP):                       # the stop state is recorded
+        steps[-1] = step
+    times = steps * float(dt)
+    rec_state = rec_state[:n]
+    quat = rec_state[:, [4, 5, 6, 3]]
+    rots = _rotations_of(rec_state[:, 3:7])
+    poses = np.concatenate([rec_state[:, :3], rpy_from_rotation(rots)], axis=1)
+    status, message = "completed", ""
+    t_stop = float(step * dt)
+    if code in (STROKE, GAP):
+        violations = robot.stroke_violations(rec_q[n - 1])
+        if on_limit == "raise":
+            raise StrokeLimitError(rec_q[n - 1], violations)
+        status, message = _STATUS_OF_CODE[code], f"at t = {t_stop:.6g} s: " + "; ".join(
+            violations)
+    elif code != OK:
+        status, message = "failed", f"at t = {t_stop:.6g} s: {_describe(robot, code, poses[-1])}"
+    return FastTrajectory(times, poses, quat.copy(), rec_state[:, 7:].copy(), rec_q[:n].copy(),
+                          rec_qd[:n].copy(), rec_f[:n].copy(), rec_sat[:n].copy(), status,
+                          message, float(dt), wall)
+
+
+def _describe(robot, code: int, pose) -> str:
+    """The reference route's message for the last state (its exception, if it raises),
+    else the kernel's reason (the failure was at a Runge-Kutta stage of the next step)."""
+    names = {UNREACHABLE: "pose unreachable", TYPE_I: "type-I singularity",
+             GIMBAL: "universal joint in gimbal lock", TYPE_II: "type-II singularity",
+             NOT_PD: "reduced mass matrix not positive definite", NONFINITE: "non-finite state"}
+    try:
+        robot.static_forces(pose, bounded=False)
+    except HexapodPinError as exc:
+        return str(exc)
+    return f"{names.get(code, f'status {code}')} within the step from the last recorded state"
+
+
+def _quaternion_wxyz(rpy) -> np.ndarray:
+    roll, pitch, yaw = (0.5 * float(a) for a in rpy)
+    c1, s1, c2, s2 = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    c3, s3 = math.cos(yaw), math.sin(yaw)
+    return np.array([c1 * c2 * c3 + s1 * s2 * s3, s1 * c2 * c3 - c1 * s2 * s3,
+                     c1 * s2 * c3 + s1 * c2 * s3, c1 * c2 * s3 - s1 * s2 * c3])
+
+
+def _rotations_of(quats_wxyz: np.ndarray) -> np.ndarray:
+    w, x, y, z = quats_wxyz.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)],
+        axis=-2)
