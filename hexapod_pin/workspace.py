@@ -25,8 +25,8 @@ Measures per pose (definitions shared with :meth:`Hexapod.singularity`):
 Force capability (:func:`force_capability`) is an exact closed form of the
 one-dimensional linear program ``max s`` s.t. ``|tau0 + s tau1| <= tau_max``.
 
-Rows outside the workspace carry zeros (forces, capability), ``inf`` (condition
-number where the Jacobian does not exist) and ``False`` masks: never NaN.
+Rows outside the workspace (not ``ok``) carry zeros (forces, capability, sigma_min),
+``inf`` (condition number) and ``False`` masks: never NaN.
 """
 
 from __future__ import annotations
@@ -53,9 +53,9 @@ class WorkspaceMeasures:
         q: carriage positions (N, 6) (m) on the requested branch (finite even where
             a leg cannot reach: the nearest rail point).
         reachable, within_stroke, regular, ok: boolean masks (see module doc).
-        condition_number: 2-norm condition number of ``J`` wherever ``J`` exists
-            (``reachable & regular``, strokes not required); inf elsewhere.
-        sigma_min: smallest singular value of ``J`` (0 where ``J`` does not exist).
+        condition_number: 2-norm condition number of ``J`` where ``ok``; inf elsewhere
+            (poses the robot cannot take are not analysed further).
+        sigma_min: smallest singular value of ``J`` where ``ok``, 0 elsewhere.
         type_one: smallest leg-rail ``|cos|`` (0 where a leg cannot reach).
         type_two: type-II distance (0 where a leg cannot reach).
         static_forces: (N, 6) actuator forces at rest (N), zeros where not ok.
@@ -201,10 +201,10 @@ def _chunk(robot, poses, signs, payload, singularity: bool, statics: bool):
     n = poses.shape[0]
     batch = robot.jacobian_batch(poses, branch=signs)
     jac = batch.jacobian
-    good = batch.ok
+    good = batch.ok & batch.within_stroke
     smin = np.zeros(n)
     cond = np.full(n, np.inf)
-    if np.any(good):  # singular values only where J exists (the rest stays 0 / inf)
+    if np.any(good):  # singular values only where the pose is ok (the rest stays 0 / inf)
         sv = np.linalg.svd(jac[good], compute_uv=False)
         smin[good] = sv[:, -1]
         with np.errstate(divide="ignore"):
@@ -216,7 +216,7 @@ def _chunk(robot, poses, signs, payload, singularity: bool, statics: bool):
     forces = np.zeros((n, 6))
     if not (singularity or statics):
         return (batch.q, cond, smin, type_one, type_two, forces,
-                batch.reachable, batch.within_stroke, good)
+                batch.reachable, batch.within_stroke, batch.regular)
     mids, dirs, pts = robot._carriage_frames()
     arms = np.einsum("nij,kj->nki", rotation_from_rpy(poses[:, 3:]), pts)   # R p_k (n, 6, 3)
     if singularity:
@@ -231,7 +231,7 @@ def _chunk(robot, poses, signs, payload, singularity: bool, statics: bool):
         forces[nonzero] = -np.linalg.solve(np.swapaxes(jac[nonzero], 1, 2),
                                            wrench[nonzero][..., None])[..., 0]
     return (batch.q, cond, smin, type_one, type_two, forces,
-            batch.reachable, batch.within_stroke, good)
+            batch.reachable, batch.within_stroke, batch.regular)
 
 
 def _gravity_wrench(geometry, arms) -> np.ndarray:
