@@ -185,6 +185,9 @@ def test_redundant_rows_give_the_answer_of_the_hand_reduced_system(cassie, assem
     # the "pinocchio" route returns the same acceleration (directly or by its fallback)
     pin_route = forward_dynamics_tree(cassie, q, v, tau, method="pinocchio")
     np.testing.assert_allclose(pin_route.a, a_ref, atol=1e-8 * max(1.0, np.abs(a_ref).max()))
+    # and the ProxSuite Gauss-principle QP (tolerance scaled with the problem's magnitude)
+    qp_route = forward_dynamics_tree(cassie, q, v, tau, method="qp")
+    np.testing.assert_allclose(qp_route.a, a_ref, atol=1e-8 * max(1.0, np.abs(a_ref).max()))
     # inverse dynamics on both: the actuator torques of the reduced system
     for method in ("qp", "kkt"):
         inv = inverse_dynamics_tree(cassie, q, v, a_ref, tau_ext=cassie_springs, method=method)
@@ -207,6 +210,10 @@ def test_forward_inverse_round_trip(cassie, assembled):
             < 1e-8
         inv = inverse_dynamics_tree(cassie, q, v, a, tau_ext=springs, method="kkt")
         np.testing.assert_allclose(inv.actuator_forces, u0, atol=1e-9)
+        a_qp = forward_dynamics_tree(cassie, q, v, tau, method="qp").a
+        np.testing.assert_allclose(a_qp, a, atol=1e-8 * max(1.0, np.abs(a).max()))
+        inv_qp = inverse_dynamics_tree(cassie, q, v, a, tau_ext=springs, method="qp")
+        np.testing.assert_allclose(inv_qp.actuator_forces, u0, atol=1e-7)
         tau2 = springs.copy()
         tau2[cassie.actuated_v] += inv.actuator_forces
         a2 = forward_dynamics_tree(cassie, q, v, tau2, method="kkt").a
