@@ -15,8 +15,9 @@ Usage (from the repository root)::
     python benchmarks/bench_peers.py --smoke      # seconds; exit 1 when routes disagree
 
 ``--smoke`` checks agreement only (never timings): every pair of routes that computes
-the same rigid physics must agree to 1e-8; MuJoCo's own soft-constraint answers have the
-looser tolerances of :data:`SOFT_TOL` (see benchmarks/README.md for why).
+the same rigid physics must agree to 1e-8 (:data:`RIGID_TOL`); MuJoCo's own soft-constraint
+answers get a sanity bound (:data:`SOFT_FD_TOL`) and one step of different integration
+schemes a data-driven bound (:meth:`HexapodPeers.scheme_tol`); see benchmarks/README.md.
 """
 
 from __future__ import annotations
@@ -100,6 +101,16 @@ class Operation:
 def _ours(robot, name):
     """A method of the robot if the library has it (the API grows while we benchmark)."""
     return getattr(robot, name, None)
+
+
+def _fast(robot):
+    """``(FastDynamics, simulate_fast, label)`` of hexapod_pin.fast, or None without it."""
+    try:
+        import hexapod_pin.fast as fast
+    except ImportError:
+        return None
+    label = "numba" if fast.available() else "plain Python, numba absent"
+    return fast.fast_dynamics(robot), getattr(fast, "simulate_fast", None), label
 
 
 class HexapodPeers:
@@ -203,6 +214,11 @@ class HexapodPeers:
                 joint_wrenches=False).actuator_forces))
         else:
             routes.append(Route("ours inverse_dynamics"))
+        fast = _fast(r)
+        if fast is not None:
+            routes.append(Route(f"ours fast.inverse_dynamics ({fast[2]})", lambda i: fast[0]
+                                .inverse_dynamics(s.poses[i], s.twists[i], s.twist_dots[i],
+                                                  s.wrenches[i])))
         batch = _ours(r, "inverse_dynamics_batch")
         routes.append(Route("ours inverse_dynamics_batch", batch=None if batch is None else (
             lambda n: batch(s.poses[:n], s.twists[:n], s.twist_dots[:n],
@@ -241,6 +257,11 @@ class HexapodPeers:
                 f"ours forward_dynamics {method}",
                 lambda i, m=method: _fd_out(fwd(s.poses[i], s.twists[i], s.forces[i],
                                                 s.wrenches[i], method=m))))
+        fast = _fast(r)
+        if fast is not None:
+            routes.append(Route(f"ours fast.forward_dynamics_full ({fast[2]})",
+                                lambda i: np.concatenate(fast[0].forward_dynamics_full(
+                                    s.poses[i], s.twists[i], s.forces[i], s.wrenches[i]))))
         batch = _ours(r, "forward_dynamics_batch")
         routes.append(Route("ours forward_dynamics_batch", batch=None if batch is None else (
             lambda n: _fd_out(batch(s.poses[:n], s.twists[:n], s.forces[:n], s.wrenches[:n])))))
@@ -271,8 +292,9 @@ class HexapodPeers:
                 fn = mj.forward_refined if refined else mj.forward
                 tdd, qdd, _ = fn(qpos, qvel, s.forces[i], s.wrenches[i])
                 return np.concatenate([tdd, qdd])
-            routes.append(Route("MuJoCo mj_forward (soft closures)", mj_fd, soft=True))
-            routes.append(Route("MuJoCo + proximal refinement (rigid)",
+            routes.append(Route("MuJoCo mj_forward (soft closures, tree state given)", mj_fd,
+                                soft=True))
+            routes.append(Route("MuJoCo + proximal refinement (rigid, tree state given)",
                                 lambda i: mj_fd(i, refined=True)))
         else:
             routes.append(Route("MuJoCo", missing="mujoco not installed"))
@@ -289,17 +311,26 @@ class HexapodPeers:
         st = _ours(r, "static_forces")
         routes = [Route("ours static_forces", None if st is None else (
             lambda i: st(s.poses[i], s.wrenches[i])))]
+        fast = _fast(r)
+        if fast is not None:
+            routes.append(Route(f"ours fast.static_forces ({fast[2]})",
+                                lambda i: fast[0].static_forces(s.poses[i], s.wrenches[i])))
         batch = _ours(r, "static_forces_batch")
         if batch is not None:
             routes.append(Route("ours static_forces_batch",
                                 batch=lambda n: _forces_of(batch(s.poses[:n], s.wrenches[:n]))))
         routes.append(Route("raw Pinocchio gravity + solve (tree state given)",
                             lambda i: raw.static(s.pin_state[i][0], s.wrenches[i])))
+        routes.append(Route("raw Pinocchio incl. closed-form q",
+                            lambda i: raw.static(raw.configuration(s.poses[i]), s.wrenches[i])))
         if mj is not None:
             zero = np.zeros(mj.model.nv)
             routes.append(Route("MuJoCo mj_inverse at rest + reduction (tree state given)",
                                 lambda i: mj.inverse_tree_state(s.mj_state[i][0], zero, zero,
                                                                 s.wrenches[i])))
+            routes.append(Route("MuJoCo incl. closed-form qpos",
+                                lambda i: mj.inverse_tree_state(mj.qpos_from_pose(s.poses[i]),
+                                                                zero, zero, s.wrenches[i])))
         else:
             routes.append(Route("MuJoCo", missing="mujoco not installed"))
         routes.append(Route("numpy Newton-Euler", batch=lambda n: nh.static_forces(
@@ -318,7 +349,7 @@ class HexapodPeers:
         routes.append(Route("raw Pinocchio constraintDynamics + integrate", raw_step,
                             scheme="semi-implicit Euler on the tree"))
         if mj is not None:
-            routes.append(Route("MuJoCo mj_step (Euler, soft closures)",
+            routes.append(Route("MuJoCo mj_step (Euler, soft closures, tree state given)",
                                 lambda i: _mj_step(mj, s.mj_state[i], s.forces[i],
                                                    s.wrenches[i]), soft=True,
                                 batch=_mj_rollout(mj, s),
@@ -376,6 +407,15 @@ class HexapodPeers:
                 return np.concatenate([traj.poses[-1], traj.twists[-1]])
             routes.append(Route("ours simulate(duration=dt), rk4", ours_sim,
                                 scheme="ours rk4 + projection"))
+        fast = _fast(r)
+        if fast is not None and fast[1] is not None:
+            def ours_fast(i):
+                traj = fast[1](r, DT, DT, pose0=s.poses[i], twist0=s.twists[i],
+                               actuator_forces=s.forces[i], wrench=s.wrenches[i],
+                               check_limits=False, saturation="ignore")
+                return np.concatenate([traj.poses[-1], traj.twists[-1]])
+            routes.append(Route(f"ours simulate_fast(duration=dt), rk4 on the platform "
+                                f"({fast[2]})", ours_fast, scheme="ours fast rk4 platform"))
         return routes or [Route("ours simulate step")]
 
 
@@ -566,6 +606,61 @@ def wrapper_cost(peers: HexapodPeers, repeats: int) -> str:
                        "needs")
 
 
+# -- simulation throughput ------------------------------------------------------------------
+def simulation_throughput(peers: HexapodPeers, repeats: int, steps: int = 200) -> str:
+    """Microseconds per step of a run of ``steps`` steps at dt = 1 ms from one state."""
+    r, raw, mj, p = peers.robot, peers.raw, peers.mj, peers.p
+    pose = peers.poses[0]
+    wrench = peers.wrenches[0]
+    forces = nh.static_forces(p, pose[None], wrench[None])[0] + 1.0   # a slow drift
+    zero = np.zeros(6)
+    items = []
+    try:
+        import hexapod_pin.simulate as sim
+    except ImportError:
+        sim = None
+    if sim is not None and hasattr(sim, "simulate"):
+        for kind in ("rk4", "semi_implicit_euler"):
+            items.append((f"ours simulate, {kind}", lambda kind=kind: sim.simulate(
+                r, steps * DT, DT, pose0=pose, twist0=zero, actuator_forces=forces,
+                wrench=wrench, integrator=kind, check_limits=False, saturation="ignore")))
+    fast = _fast(r)
+    if fast is not None and fast[1] is not None:
+        items.append((f"ours simulate_fast, rk4 on the platform ({fast[2]})", lambda: fast[1](
+            r, steps * DT, DT, pose0=pose, twist0=zero, actuator_forces=forces, wrench=wrench,
+            check_limits=False, saturation="ignore")))
+    q0, v0, _ = raw.tree_state(pose, zero, zero)
+
+    def raw_run():
+        q, v = q0, v0
+        for _ in range(steps):
+            q, v = raw.step(q, v, forces, DT, wrench)
+    items.append(("raw Pinocchio constraintDynamics + integrate (loop)", raw_run))
+    if mj is not None:
+        qpos, qvel, _ = mj.set_task_state(pose, zero)
+
+        def mj_run():
+            m, d = mj.model, mj.data
+            d.qpos[:], d.qvel[:], d.ctrl[:] = qpos, qvel, forces
+            d.xfrc_applied[mj.platform_body] = wrench
+            d.qacc_warmstart[:] = 0.0
+            for _ in range(steps):
+                mujoco.mj_step(m, d)
+        items.append(("MuJoCo mj_step, Euler (loop)", mj_run))
+
+    def numpy_run():
+        ps, tw = pose[None], zero[None]
+        for _ in range(steps):
+            ps, tw = nh.step(p, ps, tw, forces[None], DT, wrench[None])
+    items.append(("numpy semi-implicit Euler (loop)", numpy_run))
+    rows = []
+    for name, fn in items:
+        t = measure(fn, repeats=max(3, repeats // 2)).per_state(steps)
+        rows.append([name, fmt_us(t), f"{DT / t.median:.1f}"])
+    return table(["route", "us per step", "real-time factor at 1 kHz"], rows,
+                 title=f"## Simulation throughput: {steps} steps of dt = {DT:g} s from one state")
+
+
 # -- accuracy -----------------------------------------------------------------------------
 def tolerance(a: Route, b: Route, op: Operation, scheme_tol: float) -> float:
     """Agreement required between two routes (see the module constants)."""
@@ -673,15 +768,15 @@ def timing_tables(peers: HexapodPeers, ops: list[Operation], sizes: list[int], r
             label = route.name + (" (loop)" if route.batch is None and route.single else "")
             rows.append([label] + [fmt_us(c) for c in cells])
         ours = [n for n in results if n.startswith("ours")]
-        mj = [n for n in results if n.startswith("MuJoCo")]
-        if ours and mj:
-            best = []
-            for k in range(len(sizes)):
-                times = [results[n][k] for n in ours if isinstance(results[n][k], Timing)]
-                best.append(min(times, key=lambda t: t.median) if times else NO_ROUTE)
-            for name in mj:
-                rows.append([f"ratio best ours / {name}"] +
-                            [ratio(best[k], results[name][k]) for k in range(len(sizes))])
+        mj = [r.name for r in op.routes if r.name.startswith("MuJoCo") and r.available
+              and r.timed]
+        best = []
+        for k in range(len(sizes)):
+            times = [results[n][k] for n in ours if isinstance(results[n][k], Timing)]
+            best.append(min(times, key=lambda t: t.median) if times else NO_ROUTE)
+        for name in mj:
+            rows.append([f"ratio fastest ours / {name}"] +
+                        [ratio(best[k], results[name][k]) for k in range(len(sizes))])
         out.append(table(["route"] + [f"N = {_n(n)} (us/state)" for n in sizes], rows,
                          title=f"### {op.name}"))
     return "\n".join(out)
@@ -746,9 +841,10 @@ def main(argv=None) -> int:
                   f"max {counts.max()} (stop at 1e-12 relative change)")
         failures += fails
     if not args.no_timing:
+        print(wrapper_cost(peers, args.repeats))
+        print(simulation_throughput(peers, args.repeats, steps=20 if args.smoke else 200))
         print("\n## Speed: microseconds per state, median [inter-quartile range] over "
               f"{args.repeats} repeats ((loop): a Python loop of single calls)")
-        print(wrapper_cost(peers, args.repeats))
         print(timing_tables(peers, ops, sizes, args.repeats, args.budget,
                             args.mem_limit * 2 ** 30))
     if failures:

@@ -43,23 +43,29 @@ try:
 except ImportError:
     mujoco = None
 
-#: MuJoCo's soft closures as they are: sanity bound only (see README)
-SOFT_FD_TOL = 1.0
+#: MuJoCo's refined (rigid) forward dynamics: its floor grows with the conditioning of
+#: MuJoCo's soft problem (1e-10 for one loop, 2.6e-8 for 64 loops)
+MUJOCO_REFINED_TOL = 1e-7
 
 
 # -- 1. batch size -------------------------------------------------------------------------
 BATCH_ROUTES = {
     "inverse dynamics": ["ours inverse_dynamics kkt, no joint wrenches",
+                         "ours fast.inverse_dynamics (numba)",
                          "ours inverse_dynamics_batch",
                          "raw Pinocchio rnea + solve (tree state given)",
                          "MuJoCo mj_inverse + reduction (tree state given)",
                          "numpy Newton-Euler"],
     "forward dynamics": ["ours forward_dynamics pinocchio", "ours forward_dynamics_batch",
+                         "ours fast.forward_dynamics_full (numba)",
                          "raw Pinocchio constraintDynamics (tree state given)",
-                         "MuJoCo mj_forward (soft closures)", "numpy Newton-Euler"],
-    "simulation step": ["ours simulate.step", "ours simulate step",
+                         "MuJoCo mj_forward (soft closures, tree state given)",
+                         "numpy Newton-Euler"],
+    "simulation step": ["ours ClosedLoopIntegrator.step rk4 (tree state given)",
+                        "ours ClosedLoopIntegrator.step semi_implicit_euler (tree state given)",
                         "raw Pinocchio constraintDynamics + integrate",
-                        "MuJoCo mj_step (Euler, soft closures)", "numpy semi-implicit Euler"],
+                        "MuJoCo mj_step (Euler, soft closures, tree state given)",
+                        "numpy semi-implicit Euler"],
 }
 
 
@@ -271,7 +277,10 @@ def closure_scaling(ladders, n_states, repeats, check: bool):
                     acc = fn(i)
                     diff = np.abs(acc - mech.states[i][2])[np.isfinite(acc)]
                 worst = max(worst, float(np.max(diff)))
-            tol = SOFT_FD_TOL if name == "MuJoCo mj_forward" else RIGID_TOL
+            # MuJoCo's soft answer is reported, not asserted (its error grows with the
+            # number of loops: 8 rad/s^2 for 64); the refined one has a conditioning floor
+            tol = {"MuJoCo mj_forward": np.inf, "MuJoCo refined": MUJOCO_REFINED_TOL}.get(
+                name, RIGID_TOL)
             flag = "" if worst <= tol else " FAIL"
             if flag:
                 failures.append(f"{mech.name} {name}: {worst:.2e} > {tol:g}")

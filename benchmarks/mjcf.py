@@ -208,12 +208,11 @@ class MujocoHexapod:
     # -- state ------------------------------------------------------------------------
     def qpos_from_pose(self, pose: np.ndarray) -> np.ndarray:
         """MuJoCo qpos (nq,) for a pose (6,), every closure satisfied (closed form)."""
-        q, u_a, u_b = nh.tree_coordinates(self.params, pose[None])
-        qpos = np.zeros(self.model.nq)
-        qpos[self.carriage_q], qpos[self.u_a_q], qpos[self.u_b_q] = q[0], u_a[0], u_b[0]
-        quat = np.zeros(4)
-        mujoco.mju_mat2Quat(quat, nh.rotation(pose[None, 3:])[0].ravel())
-        qpos[self.free_q:self.free_q + 7] = np.concatenate([pose[:3], quat])
+        q, u_a, u_b, rot = nh.tree_coordinates_one(self.params, pose)
+        qpos = np.empty(self.model.nq)
+        qpos[self.carriage_q], qpos[self.u_a_q], qpos[self.u_b_q] = q, u_a, u_b
+        qpos[self.free_q:self.free_q + 3] = pose[:3]
+        mujoco.mju_mat2Quat(qpos[self.free_q + 3:self.free_q + 7], rot.ravel())
         return qpos
 
     def closure_jacobian(self) -> np.ndarray:
@@ -253,7 +252,7 @@ class MujocoHexapod:
         m, d = self.model, self.data
         pose, twist = np.asarray(pose, float), np.asarray(twist, float)
         d.qpos[:] = self.qpos_from_pose(pose)
-        rot = nh.rotation(pose[None, 3:])[0]
+        rot = nh.rotation_one(pose[3:])
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         jac = self.closure_jacobian()

@@ -25,6 +25,7 @@ Newton-Euler equations (a 6 x 6 solve), then ``tau_i = m_c q_ddot_i + u_k . F_c`
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -115,6 +116,31 @@ def tree_coordinates(p: Params, poses: np.ndarray):
     u_b = np.arcsin(np.clip(_dot(unit, p.dirs), -1.0, 1.0))
     u_a = np.arctan2(-_dot(unit, lateral), unit[..., 2])
     return q, u_a, u_b
+
+
+def rotation_one(rpy) -> np.ndarray:
+    """``Rz(yaw) Ry(pitch) Rx(roll)`` of one ``rpy`` (3,) -> (3, 3) (scalar math)."""
+    cr, sr = math.cos(rpy[0]), math.sin(rpy[0])
+    cp, sp = math.cos(rpy[1]), math.sin(rpy[1])
+    cy, sy = math.cos(rpy[2]), math.sin(rpy[2])
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def tree_coordinates_one(p: Params, pose: np.ndarray):
+    """:func:`tree_coordinates` of one pose (6,): ``(q, u_a, u_b, R)``, lean for N = 1."""
+    rot = rotation_one(pose[3:])
+    tips = pose[:3] + p.points @ rot.T
+    d = tips - p.mids
+    along = (d * p.dirs).sum(1)
+    q = along + HOME_BRANCH * np.sqrt(p.leg_length ** 2 - ((d * d).sum(1) - along ** 2))
+    unit = (d - q[:, None] * p.dirs) / p.leg_length
+    # lateral axis z x u = (-u_y, u_x, 0)
+    dy = -unit[:, 0] * p.dirs[:, 1] + unit[:, 1] * p.dirs[:, 0]
+    u_b = np.arcsin(np.clip((unit * p.dirs).sum(1), -1.0, 1.0))
+    u_a = np.arctan2(-dy, unit[:, 2])
+    return q, u_a, u_b, rot
 
 
 def euler_rates(rpy: np.ndarray) -> np.ndarray:

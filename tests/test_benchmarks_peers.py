@@ -92,4 +92,4 @@ def test_mujoco_peer_is_compared(peers_output):
     out = peers_output
     assert "MJCF vs our Pinocchio model" in out
     assert "MuJoCo mj_inverse + reduction" in out
-    assert "MuJoCo + proximal refinement (rigid)" in out
+    assert "MuJoCo + proximal refinement (rigid, tree state given)" in out
