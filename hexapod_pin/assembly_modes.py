@@ -39,6 +39,7 @@ import numpy as np
 
 from .errors import AssemblyError
 from .geometry import HexapodGeometry
+from .pose import rotation_tuple
 
 #: the three triangle equations, as (j, k) pairs of rails
 PAIRS = ((0, 1), (1, 2), (2, 0))
@@ -417,20 +418,10 @@ def rpy_from_rotation_t(rot) -> list[float]:
     return [math.atan2(rot[2][1], rot[2][2]), pitch, math.atan2(rot[1][0], rot[0][0])]
 
 
-def rotation_from_rpy_t(roll: float, pitch: float, yaw: float):
-    """``Rz(yaw) Ry(pitch) Rx(roll)`` as nested tuples (plain floats)."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
-            (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
-            (-sp, cp * sr, cp * cr))
-
-
 def platform_points_t(cg: CircleGeometry, pose):
     """World platform points ``t + R p_k`` (three 3-tuples) of a pose (6 floats)."""
     x, y, z, roll, pitch, yaw = pose
-    rot = rotation_from_rpy_t(roll, pitch, yaw)
+    rot = rotation_tuple(roll, pitch, yaw)
     return [(x + rot[0][0] * px + rot[0][1] * py + rot[0][2] * pz,
              y + rot[1][0] * px + rot[1][1] * py + rot[1][2] * pz,
              z + rot[2][0] * px + rot[2][1] * py + rot[2][2] * pz) for px, py, pz in cg.points_t]

@@ -38,7 +38,7 @@ import numpy as np
 from . import assembly_modes as am
 from .errors import (AssemblyError, InputError, SingularityError, StrokeLimitError,
                      UnreachablePoseError)
-from .pose import as_array, check_signs, rotation_from_rpy
+from .pose import as_array, check_signs, rotation_from_rpy, rotation_tuple
 
 HOME_BRANCH = np.array([-1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
 RAIL_OF = np.array([0, 0, 1, 1, 2, 2])
@@ -267,7 +267,7 @@ class HexapodKinematics:
         """
         cg = self._circles
         x, y, z, roll, pitch, yaw = pose
-        rot = am.rotation_from_rpy_t(roll, pitch, yaw)
+        rot = rotation_tuple(roll, pitch, yaw)
         arms = [(rot[0][0] * px + rot[0][1] * py + rot[0][2] * pz,
                  rot[1][0] * px + rot[1][1] * py + rot[1][2] * pz,
                  rot[2][0] * px + rot[2][1] * py + rot[2][2] * pz) for px, py, pz in cg.points_t]

@@ -46,6 +46,7 @@ from scipy.linalg.lapack import dgesv
 
 from .errors import HexapodPinError, SingularityError, UnreachablePoseError
 from .kinematics import GIMBAL_TOL, TYPE_I_TOL
+from .pose import rotation_tuple
 
 #: LU pivot ratio (smallest / largest) of ``A^T`` below which the platform wrench cannot
 #: be distributed on the legs (type-II singularity: the platform moves with the
@@ -246,7 +247,7 @@ class PlatformMap:
         x, y, z, roll, pitch, yaw = pose
         length = self.leg_length
         bad, shortfall = [], []
-        rot = np.array(self._rotation(roll, pitch, yaw))
+        rot = np.array(rotation_tuple(roll, pitch, yaw))
         for i, (k, mx, my, mz, ux, uy, uz, _, _) in enumerate(self._carriages):
             d = np.array([x, y, z]) + rot @ np.array(self._points[k]) - np.array([mx, my, mz])
             a = d @ np.array([ux, uy, uz])
@@ -255,15 +256,6 @@ class PlatformMap:
                 bad.append(i)
                 shortfall.append(math.sqrt(length * length - disc) - length)
         raise UnreachablePoseError(bad, shortfall)
-
-    @staticmethod
-    def _rotation(roll, pitch, yaw):
-        cr, sr = math.cos(roll), math.sin(roll)
-        cp, sp = math.cos(pitch), math.sin(pitch)
-        cy, sy = math.cos(yaw), math.sin(yaw)
-        return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
-                (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
-                (-sp, cp * sr, cp * cr))
 
     # -- tree configuration -------------------------------------------------------------
     def configuration(self, legs: Legs) -> list:

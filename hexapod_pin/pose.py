@@ -8,6 +8,8 @@ platform origin and the angular velocity, both in world axes (m/s, rad/s).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import InputError
@@ -57,6 +59,17 @@ def rotation_from_rpy(rpy: np.ndarray) -> np.ndarray:
     out[..., 2, 1] = cp * sr
     out[..., 2, 2] = cp * cr
     return out
+
+
+def rotation_tuple(roll: float, pitch: float, yaw: float):
+    """``Rz(yaw) Ry(pitch) Rx(roll)`` as nested tuples of plain floats (rows), for hot
+    scalar code where small numpy arrays cost more than they save."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+            (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+            (-sp, cp * sr, cp * cr))
 
 
 def rpy_from_rotation(rot: np.ndarray) -> np.ndarray:
