@@ -4,6 +4,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 import hexapod_pin as hp
@@ -53,3 +54,15 @@ def load_reference():
 def geometry_from_reference(entry):
     fields = {k: tuple(v) if isinstance(v, list) else v for k, v in entry["geometry"].items()}
     return hp.HexapodGeometry(**fields)
+
+
+def fd_constraint_jacobian(model, q, h=1e-6):
+    """Central finite differences of ``model.residual`` along ``pin.integrate``, one
+    column per velocity coordinate: the independent route for ``constraint_jacobian``."""
+    cols = []
+    for j in range(model.nv):
+        dv = np.zeros(model.nv)
+        dv[j] = h
+        cols.append((model.residual(pin.integrate(model.model, q, dv))
+                     - model.residual(pin.integrate(model.model, q, -dv))) / (2 * h))
+    return np.array(cols).T

@@ -9,7 +9,7 @@ from hexapod_pin.closed_loop import ClosedLoopModel
 from hexapod_pin.description import build_model, hexapod_urdf, parse_loops
 from hexapod_pin.errors import AssemblyError, DescriptionError, InputError
 
-from conftest import random_pose
+from conftest import fd_constraint_jacobian, random_pose
 
 
 def _random_q(model, rng):
@@ -17,15 +17,6 @@ def _random_q(model, rng):
     q = pin.randomConfiguration(model.model, -np.ones(model.nq), np.ones(model.nq))
     return q
 
-
-def _fd_jacobian(model, q, h=1e-6):
-    cols = []
-    for j in range(model.nv):
-        dv = np.zeros(model.nv)
-        dv[j] = h
-        cols.append((model.residual(pin.integrate(model.model, q, dv))
-                     - model.residual(pin.integrate(model.model, q, -dv))) / (2 * h))
-    return np.array(cols).T
 
 
 def test_home_closures_hold(any_robot):
@@ -64,7 +55,7 @@ def test_residual_is_leg_tip_minus_platform_point(robot):
 def test_constraint_jacobian_matches_finite_differences(robot, rng):
     for _ in range(3):
         q = _random_q(robot.model, rng)
-        np.testing.assert_allclose(robot.model.constraint_jacobian(q), _fd_jacobian(robot.model, q),
+        np.testing.assert_allclose(robot.model.constraint_jacobian(q), fd_constraint_jacobian(robot.model, q),
                                    atol=1e-8)
 
 
@@ -91,9 +82,9 @@ def test_weld_jacobian_and_drift_match_finite_differences(robot, rng):
     q_ref = robot.configuration(random_pose(robot, rng))
     weld = _weld_model(robot, q_ref)
     assert np.max(np.abs(weld.residual(q_ref))) < 1e-12
-    np.testing.assert_allclose(weld.constraint_jacobian(q_ref), _fd_jacobian(weld, q_ref), atol=1e-8)
+    np.testing.assert_allclose(weld.constraint_jacobian(q_ref), fd_constraint_jacobian(weld, q_ref), atol=1e-8)
     q = _random_q(weld, rng)
-    np.testing.assert_allclose(weld.constraint_jacobian(q), _fd_jacobian(weld, q), atol=1e-7)
+    np.testing.assert_allclose(weld.constraint_jacobian(q), fd_constraint_jacobian(weld, q), atol=1e-7)
     # drift = d^2/dt^2 residual(q (+) t v) at t = 0 (zero acceleration path), at the closure
     v = rng.normal(size=weld.nv)
     h = 1e-4

@@ -19,6 +19,8 @@ from hexapod_pin.errors import (AssemblyError, GeometryError, InputError, Singul
 from hexapod_pin.planar import (ALL_BRANCHES, Planar3PRR, PlanarGeometry, _same_pose,
                                 planar_urdf)
 
+from conftest import fd_constraint_jacobian
+
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = Path(__file__).resolve().parent / "data" / "reference_states.json"
 #: a geometry with six real assembly modes at SIX_MODE_S (found by a random search)
@@ -154,11 +156,8 @@ def test_generic_assembly_and_velocity_with_redundant_rows(planar):
 def test_constraint_jacobian_matches_finite_differences(planar):
     model = planar.model
     q = planar.configuration([0.01, -0.02, 0.1])
-    h = 1e-6
-    fd = np.array([(model.residual(pin.integrate(model.model, q, h * e))
-                    - model.residual(pin.integrate(model.model, q, -h * e))) / (2 * h)
-                   for e in np.eye(9)]).T
-    np.testing.assert_allclose(model.constraint_jacobian(q), fd, atol=1e-9)
+    np.testing.assert_allclose(model.constraint_jacobian(q), fd_constraint_jacobian(model, q),
+                               atol=1e-9)
 
 
 # -- reference states ----------------------------------------------------------------------

@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import scipy.linalg
-from conftest import REFERENCE
+from conftest import REFERENCE, fd_constraint_jacobian
 
 from hexapod_pin.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.errors import DescriptionError
@@ -102,15 +102,6 @@ def delta_configuration(clm, centre):
             q[clm.joint_q_index(name)] = value
     return q
 
-
-def _fd_jacobian(clm, q, h=1e-6):
-    cols = []
-    for j in range(clm.nv):
-        dv = np.zeros(clm.nv)
-        dv[j] = h
-        cols.append((clm.residual(pin.integrate(clm.model, q, dv))
-                     - clm.residual(pin.integrate(clm.model, q, -dv))) / (2 * h))
-    return np.array(cols).T
 
 
 def _random_motion(clm, q, rng):
@@ -214,7 +205,7 @@ def test_constraint_jacobian_matches_finite_differences(name):
     clm = load_parallel_robot(DATA / name)
     rng = np.random.default_rng(2)
     q = rng.uniform(-1.0, 1.0, clm.nq)
-    np.testing.assert_allclose(clm.constraint_jacobian(q), _fd_jacobian(clm, q), atol=1e-8)
+    np.testing.assert_allclose(clm.constraint_jacobian(q), fd_constraint_jacobian(clm, q), atol=1e-8)
 
 
 # ------------------------------------------------------------------------------ dynamics

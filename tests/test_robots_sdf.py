@@ -17,6 +17,8 @@ from hexapod_pin.description import parse_loops
 from hexapod_pin.errors import DescriptionError
 from hexapod_pin.sdf import build_tree, closed_loop_from_sdf, loops_yaml, parse_sdf, sdf_to_urdf
 
+from conftest import fd_constraint_jacobian
+
 
 def rpy_matrix(r, p, y):
     """R = Rz(y) Ry(p) Rx(r), written out here (not Pinocchio's)."""
@@ -253,15 +255,6 @@ FOUR_BAR = """
 """
 
 
-def _fd_jacobian(clm, q, h=1e-6):
-    cols = []
-    for j in range(clm.nv):
-        dv = np.zeros(clm.nv)
-        dv[j] = h
-        cols.append((clm.residual(pin.integrate(clm.model, q, dv))
-                     - clm.residual(pin.integrate(clm.model, q, -dv))) / (2 * h))
-    return np.array(cols).T
-
 
 def test_ball_joint_closing_a_loop_becomes_a_point_closure():
     sdf = parse_sdf(FOUR_BAR)
@@ -278,7 +271,7 @@ def test_ball_joint_closing_a_loop_becomes_a_point_closure():
     q = pin.neutral(clm.model)
     assert np.max(np.abs(clm.residual(q))) <= 1e-15
     q = np.array([0.3, -0.2, 0.5])
-    np.testing.assert_allclose(clm.constraint_jacobian(q), _fd_jacobian(clm, q), atol=1e-8)
+    np.testing.assert_allclose(clm.constraint_jacobian(q), fd_constraint_jacobian(clm, q), atol=1e-8)
 
 
 def test_four_bar_assembly_matches_circle_intersection():
@@ -307,7 +300,7 @@ def test_four_bar_assembly_matches_circle_intersection():
         assert np.linalg.norm(p[[0, 2]] - pivot) == pytest.approx(0.25, abs=1e-10)
         assert d < 0.55
         q0 = q.copy()
-    np.testing.assert_allclose(clm.constraint_jacobian(q), _fd_jacobian(clm, q), atol=1e-8)
+    np.testing.assert_allclose(clm.constraint_jacobian(q), fd_constraint_jacobian(clm, q), atol=1e-8)
 
 
 def test_sdf_to_urdf_builds_the_same_mechanism_through_pinocchios_urdf_parser():
