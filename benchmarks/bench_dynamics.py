@@ -53,6 +53,8 @@ from hexapod_pin.simulate import (
     simulate,
 )
 
+from bench_kinematics import poses_near_home  # benchmarks/ is the script's folder
+
 #: µs per call of the pose-level API before this work (commit c6e271a, this VM, fastest
 #: block of 5 x 300 calls, load average 2-3)
 RECORDED_BEFORE = {
@@ -65,18 +67,6 @@ RECORDED_BEFORE = {
     "rk4 step": 457.0,
 }
 
-
-def _poses(robot, rng, n):
-    out = []
-    while len(out) < n:
-        pose = robot.home_pose + np.concatenate([rng.uniform(-0.02, 0.02, 3),
-                                                 rng.uniform(-0.08, 0.08, 3)])
-        try:
-            robot.inverse_kinematics(pose)
-        except hp.HexapodPinError:
-            continue
-        out.append(pose)
-    return np.array(out)
 
 
 def _time(fn, number, repeat):
@@ -218,7 +208,7 @@ def main(argv=None) -> int:
     legacy = Legacy(robot)
     rng = np.random.default_rng(0)
     n_states = 8 if args.smoke else 64
-    poses = _poses(robot, rng, n_states)
+    poses = poses_near_home(robot, rng, n_states)
     twists = np.concatenate([0.05 * rng.normal(size=(n_states, 3)),
                              0.3 * rng.normal(size=(n_states, 3))], axis=1)
     twist_dots = np.concatenate([0.5 * rng.normal(size=(n_states, 3)),
