@@ -32,6 +32,7 @@ import scipy.linalg
 from .description import (WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro,
                           load_loops)
 from .errors import AssemblyError, DescriptionError, InputError, SolverError
+from .pose import as_array
 
 _EPS = np.finfo(float).eps
 #: default relative singular-value threshold of :meth:`ClosedLoopModel.rank`
@@ -205,11 +206,11 @@ class ClosedLoopModel:
     # -- input checks -------------------------------------------------------------
     def check_q(self, q, name: str = "q") -> np.ndarray:
         """``q`` as a contiguous float64 array of size ``nq``; raises InputError."""
-        return _vector(q, self.model.nq, name)
+        return as_array(q, (self.model.nq,), name)
 
     def check_v(self, v, name: str = "v") -> np.ndarray:
         """``v`` as a contiguous float64 array of size ``nv``; raises InputError."""
-        return _vector(v, self.model.nv, name)
+        return as_array(v, (self.model.nv,), name)
 
     # -- closures -----------------------------------------------------------------
     def _update_placements(self, q: np.ndarray) -> None:
@@ -437,7 +438,7 @@ class ClosedLoopModel:
         Same problem as :meth:`actuated_velocity_map` with the right-hand side
         ``qdot_act`` (n_actuated,) (m/s or rad/s per actuated joint), solved once.
         """
-        qdot_act = _vector(qdot_act, self.n_actuated, "qdot_act")
+        qdot_act = as_array(qdot_act, (self.n_actuated,), "qdot_act")
         jac = self.constraint_jacobian(q)
         rhs = -jac[:, self.actuated_v] @ qdot_act
         out = np.zeros(self.model.nv)
@@ -452,7 +453,7 @@ class ClosedLoopModel:
         ``a[actuated] = qddot_act`` as the ProxSuite least-squares problem of
         :meth:`actuated_velocity_map`. ``v`` must itself keep the closures.
         """
-        qddot_act = _vector(qddot_act, self.n_actuated, "qddot_act")
+        qddot_act = as_array(qddot_act, (self.n_actuated,), "qddot_act")
         gamma = self.constraint_drift(q, v)
         jac = self.constraint_jacobian(q)
         rhs = -gamma - jac[:, self.actuated_v] @ qddot_act
@@ -543,14 +544,3 @@ def _complete(jac: np.ndarray, rhs: np.ndarray, known, values, nv: int) -> np.nd
     out[free] = sol
     return out
 
-
-def _vector(value, size: int, name: str) -> np.ndarray:
-    try:
-        arr = np.ascontiguousarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(name, value, "not numeric") from None
-    if arr.shape != (size,):
-        raise InputError(name, value, f"expected shape ({size},), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise InputError(name, value, "contains NaN or inf")
-    return arr

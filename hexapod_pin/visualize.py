@@ -48,6 +48,7 @@ import pinocchio as pin
 from .closed_loop import ClosedLoopModel
 from .description import expand_xacro
 from .errors import DescriptionError, InputError
+from .pose import as_array
 
 #: colours (0xRRGGBB) of the overlays
 ACTUATOR_FORCE_COLOR = 0xC2185B
@@ -601,7 +602,7 @@ def actuator_arrows(visual: RobotVisual, q: np.ndarray,
     if loop is None:
         raise InputError("actuator_forces", actuator_forces,
                          "a bare tree has no actuated joints: pass a ClosedLoopModel robot")
-    efforts = _vector_of(actuator_forces, loop.n_actuated, "actuator_forces")
+    efforts = as_array(actuator_forces, (loop.n_actuated,), "actuator_forces")
     data = visual.model.createData()
     pin.computeJointJacobians(visual.model, data, q)
     out = []
@@ -634,7 +635,7 @@ def closure_arrows(visual: RobotVisual, q: np.ndarray,
     loop = visual.closed_loop
     if loop is None:
         raise InputError("closure_forces", closure_forces, "a bare tree has no closures")
-    forces = _matrix_of(closure_forces, (len(loop.closures), 3), "closure_forces")
+    forces = as_array(closure_forces, (len(loop.closures), 3), "closure_forces")
     data = visual.model.createData()
     pin.framesForwardKinematics(visual.model, data, q)
     out = []
@@ -642,27 +643,6 @@ def closure_arrows(visual: RobotVisual, q: np.ndarray,
         fid = visual.model.getFrameId(f"{closure.name}/anchor2")
         out.append((data.oMf[fid].translation.copy(), force))
     return out
-
-
-def _vector_of(value, size: int, name: str) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(name, value, "not numeric") from None
-    if arr.shape != (size,) or not np.all(np.isfinite(arr)):
-        raise InputError(name, value, f"expected {size} finite values, got shape {arr.shape}")
-    return arr
-
-
-def _matrix_of(value, shape: tuple[int, ...], name: str) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(name, value, "not numeric") from None
-    if arr.shape != shape or not np.all(np.isfinite(arr)):
-        raise InputError(name, value, f"expected finite values of shape {shape}, "
-                                      f"got {arr.shape}")
-    return arr
 
 
 def _frame_camera(scene: Scene, points: list[np.ndarray], aspect: float = 4 / 3,
@@ -882,14 +862,14 @@ def trajectory_scene(robot, times, configurations, *, actuator_forces=None,
     t = _times(times, len(qs))
     keep = _keyframes(t, fps)
     t, qs = t[keep] - t[0], qs[keep]
-    act = None if actuator_forces is None else _matrix_of(
+    act = None if actuator_forces is None else as_array(
         actuator_forces, (len(configurations), _n_act(visual, actuator_forces)),
         "actuator_forces")[keep]
     clo = None
     if closure_forces is not None:
         n_closures = 0 if visual.closed_loop is None else len(visual.closed_loop.closures)
-        clo = _matrix_of(closure_forces, (len(configurations), n_closures, 3),
-                         "closure_forces")[keep]
+        clo = as_array(closure_forces, (len(configurations), n_closures, 3),
+                       "closure_forces")[keep]
     scene = Scene()
     scene.caption = caption
     scene.hide_controls = False
@@ -1070,10 +1050,10 @@ def hexapod_trajectory_scene(robot, times, poses, *, carriages=None, actuator_fo
         carriages_kept = carriages_kept[keep]
     qs = hexapod_configurations(robot, poses[keep], carriages_kept)
     if actuator_forces is not None:
-        actuator_forces = _matrix_of(actuator_forces, (len(poses), 6), "actuator_forces")[keep]
+        actuator_forces = as_array(actuator_forces, (len(poses), 6), "actuator_forces")[keep]
     closure_forces = options.pop("closure_forces", None)
     if closure_forces is not None:
-        closure_forces = _matrix_of(closure_forces, (len(poses), 6, 3),
+        closure_forces = as_array(closure_forces, (len(poses), 6, 3),
                                     "closure_forces")[keep]
     return trajectory_scene(robot, t[keep], qs, actuator_forces=actuator_forces,
                             closure_forces=closure_forces, fps=None, **options)
@@ -1172,7 +1152,7 @@ def workspace_scene(robot, positions, values=None, *, q=None, point_size: float 
         InputError: wrong shapes, NaN positions, or a non-positive point size.
     """
     visual = robot_visual(robot, urdf)
-    pts = _matrix_of(positions, (int(np.shape(positions)[0]) if np.ndim(positions) == 2
+    pts = as_array(positions, (int(np.shape(positions)[0]) if np.ndim(positions) == 2
                                  else -1, 3), "positions")
     if values is None:
         colors = np.tile([0.13, 0.57, 0.55], (pts.shape[0], 1))
