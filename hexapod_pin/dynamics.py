@@ -36,9 +36,10 @@ singular system).
 
 Hexapod part: :class:`HexapodDynamics`, the mixin that gives
 :class:`hexapod_pin.Hexapod` its pose / twist-level dynamics API. Single states build the
-tree state in closed form (:mod:`hexapod_pin.platform_map`) and need one Pinocchio call
-(``rnea``, ``computeGeneralizedGravity`` or ``constraintDynamics``) and a 6x6 solve;
-the ``*_batch`` methods use the independent vectorised closed form of
+tree state in closed form (:mod:`hexapod_pin.platform_map`, compiled in
+:mod:`hexapod_pin.platform_kernels`) and need one or two Pinocchio calls (``rnea``,
+``computeGeneralizedGravity``, ``crba`` or ``constraintDynamics``) and a 6x6 solve; the
+``*_batch`` methods use the independent vectorised closed form of
 :mod:`hexapod_pin.batch_dynamics`.
 """
 
@@ -72,10 +73,14 @@ from .errors import (
     InputError,
     SolverError,
 )
+from . import platform_kernels as kernels
 from .kinematics import HOME_BRANCH, _floats6
-from .platform_map import PlatformMap
+from .platform_map import TYPE_II_PIVOT_RTOL, PlatformMap
+from .pose import vec6 as _vec6
 
 FORWARD_METHODS = ("pinocchio", "qp", "kkt")
+#: the hexapod's forward-dynamics routes: the tree routes and the null-space one
+HEXAPOD_FORWARD_METHODS = ("pinocchio", "nullspace", "qp", "kkt")
 INVERSE_METHODS = ("qp", "kkt")
 
 #: relative tolerance on equation residuals before a route is declared failed
@@ -86,8 +91,8 @@ _QP_EPS = 1e-13
 _QP_MAX_ITER = 1000
 #: a stalled tree QP is accepted when its residuals are below this, relative to its data
 _QP_ACCEPT = 1e-10
-#: ProxSuite accuracy of the hexapod's reduced inverse-dynamics QP, relative to the
-#: largest right-hand side entry (N, N m)
+#: ProxSuite accuracy of the hexapod's reduced inverse-dynamics QP (its eps_abs and
+#: eps_rel: residuals relative to the data, N and N m)
 _QP_EPS_REDUCED = 2e-14
 #: Pinocchio proximal settings used when the closures are redundant (the acceleration
 #: converges in a few iterations; the multipliers are then polished to minimum norm)
@@ -96,6 +101,7 @@ _PIN_PROX_ITERS = 5
 #: weight of the multipliers in the inverse-dynamics QP objective (relative to forces)
 _LAMBDA_WEIGHT = 1e-2
 
+_SOLVED = proxsuite.proxqp.PROXQP_SOLVED
 _QP_STATUS = {
     proxsuite.proxqp.PROXQP_SOLVED: "solved",
     proxsuite.proxqp.PROXQP_MAX_ITER_REACHED: "max_iter_reached",
@@ -698,21 +704,31 @@ def _min_norm_multipliers(jac: np.ndarray, lam: np.ndarray) -> np.ndarray:
 class _InverseDetails:
     """The parts of an inverse-dynamics result computed on first access."""
 
-    __slots__ = ("a", "force", "legs", "q", "tau", "v", "wrench", "wrenches_wanted", "ws")
+    __slots__ = ("_legs", "a", "force", "pose", "q", "tau", "v", "wrench", "wrenches_wanted",
+                 "ws")
 
-    def __init__(self, ws, legs, force, tau, wrench, q, v, a, wrenches_wanted):
-        self.ws, self.legs, self.force, self.tau, self.wrench = ws, legs, force, tau, wrench
+    def __init__(self, ws, legs, force, tau, wrench, q, v, a, wrenches_wanted, pose=None):
+        self.ws, self._legs, self.force, self.tau, self.wrench = ws, legs, force, tau, wrench
         self.q, self.v, self.a, self.wrenches_wanted = q, v, a, wrenches_wanted
+        self.pose = pose
+
+    @property
+    def legs(self):
+        """The Python leg geometry (rebuilt from the pose when the compiled route ran)."""
+        if self._legs is None:
+            self._legs = self.ws.pmap.legs(list(self.pose), self.ws.signs, angles=True)
+        return self._legs
 
     def tip_forces(self) -> np.ndarray:
         """(6, 3) force of the platform on each leg tip (carriage order), world axes."""
-        return np.array(self.ws.pmap.leg_forces(self.legs, self.force, self.tau))
+        return np.array(self.ws.pmap.leg_forces(self.legs, self.force, list(self.tau)))
 
     def tau_ext(self) -> np.ndarray:
         tau = np.zeros(self.ws.dyn.nv)
         if self.wrench is not None:
             rot = np.array(self.legs.rot).reshape(3, 3)
-            tau[self.ws.ff_v] = np.concatenate([rot.T @ self.wrench[:3], rot.T @ self.wrench[3:]])
+            wrench = np.asarray(self.wrench, dtype=float)
+            tau[self.ws.ff_v] = np.concatenate([rot.T @ wrench[:3], rot.T @ wrench[3:]])
         return tau
 
 
@@ -792,6 +808,8 @@ class _ForwardDetails:
         self.dyn, self.q, self.local, self.rows = dyn, q, local, rows
 
     def multipliers(self) -> np.ndarray:
+        if isinstance(self.rows, _LazyTreeMultipliers):
+            self.rows = self.rows()
         if self.rows is None:
             # Pinocchio's LOCAL contact forces, rotated into world axes: lambda = R_c1 lambda_pin
             dyn = self.dyn
@@ -799,6 +817,26 @@ class _ForwardDetails:
             rots = np.array([dyn.data.oMf[c[2]].rotation for c in dyn._closures])
             self.rows = np.einsum("kij,kj->ki", rots, self.local.reshape(-1, 3)).reshape(-1)
         return self.rows
+
+
+class _LazyTreeMultipliers:
+    """Closure multipliers of a null-space forward-dynamics result, from the legs' tree
+    rows at the computed motion (as the inverse dynamics does)."""
+
+    __slots__ = ("acc", "forces", "pose", "q", "v", "ws")
+
+    def __init__(self, ws, pose, q, v, acc, forces):
+        self.ws, self.pose, self.q, self.v, self.acc = ws, pose, q, v, acc
+        self.forces = forces
+
+    def __call__(self) -> np.ndarray:
+        ws = self.ws
+        # each leg's three tree rows (carriage, u_a, u_b) of rnea = S^T tau + J_c^T lambda
+        # (the wrench acts on the platform rows only)
+        force = pin.rnea(ws.dyn.model, ws.dyn.data, self.q, self.v, self.acc)
+        legs = ws.pmap.legs(list(self.pose), ws.signs, angles=True)
+        tips = np.array(ws.pmap.leg_forces(legs, force, list(self.forces)))
+        return tips[ws.leg_of_closure].reshape(-1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -905,6 +943,7 @@ class _HexapodWorkspace:
     batch: BatchDynamics
     signs: list
     platform_joint: int
+    compiled: kernels.CompiledMap
     qps: dict = field(default_factory=dict)
 
 
@@ -919,7 +958,8 @@ class HexapodDynamics:
     platform origin (N, N m).
 
     Single states go through the Pinocchio tree. The tree state comes in closed form
-    (:class:`~hexapod_pin.platform_map.PlatformMap`): ``q`` from the inverse kinematics
+    (:class:`~hexapod_pin.platform_map.PlatformMap`, compiled with numba in
+    :mod:`~hexapod_pin.platform_kernels` for the hot paths): ``q`` from the inverse kinematics
     (home branch) and the leg directions, ``v = G twist`` and ``a`` from the leg
     kinematics (they keep the closures by construction), the free-flyer part
     ``(R^T v, R^T w)`` and ``(R^T (vdot - w x v), R^T wdot)``; the wrench enters as the
@@ -962,7 +1002,8 @@ class HexapodDynamics:
         ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds,
                                self._platform_map,
                                BatchDynamics(self.geometry), HOME_BRANCH.tolist(),
-                               clm.model.getJointId("platform_joint"))
+                               clm.model.getJointId("platform_joint"),
+                               kernels.CompiledMap(self._platform_map, HOME_BRANCH))
         dyn._ensure_rank(self.configuration(self.home_pose))
         self.__dict__["_dyn_workspace"] = ws
         return ws
@@ -994,8 +1035,13 @@ class HexapodDynamics:
             method: "qp" (ProxSuite: minimise ``1/2 |tau|^2`` subject to ``J^T tau =
                 G^T rnea - wrench`` and the box bounds, i.e. the tree QP of
                 :func:`inverse_dynamics_tree` with the closure multipliers eliminated by
-                ``G^T``) or "kkt" (the 6x6 linear solve); they agree to 1e-10 when no
-                bound is active.
+                ``G^T``) or "kkt" (the 6x6 LU solve); they agree to 1e-10 when no bound
+                is active. The QP is warm-started at the equality-constrained solution
+                and its multipliers (from the LU): ProxSuite then certifies it (primal
+                and dual residuals below 2e-14 relative) in 0 iterations, or, when a
+                bound is violated, iterates and reports infeasibility (``J^T`` is square
+                and invertible, so the feasible set is that one point), which raises
+                :class:`ActuatorSaturationError`.
             bounded: enforce ``abs(tau) <= geometry.max_actuator_force``.
             joint_wrenches: make the reaction wrench of every tree joint available
                 (computed on first access of ``joint_wrenches``: one more ``pin.rnea``).
@@ -1012,18 +1058,40 @@ class HexapodDynamics:
             InputError: bad shapes, NaN / inf, unknown method.
             SolverError: the QP failed for another reason.
         """
-        pose, twist = _floats6(pose, "pose"), _floats6(twist, "twist")
-        twist_dot = _floats6(twist_dot, "twist_dot")
-        wrench = None if wrench is None else _floats6(wrench, "wrench")
         if method not in INVERSE_METHODS:
             raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
         ws = self._workspace()
-        legs = ws.pmap.legs(pose, ws.signs, angles=True)
-        return self._inverse_at(ws, legs, twist, twist_dot, wrench, method,
-                                ws.bounds if bounded else None, joint_wrenches)
+        ck, dyn = ws.compiled, ws.dyn
+        pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
+        tdot_a = _vec6(twist_dot, "twist_dot")
+        wrench_a = None if wrench is None else _vec6(wrench, "wrench")
+        bounds = ws.bounds if bounded else None
+        q, v, a = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
+        code = kernels.tree_state(ck.geo, pose_a, twist_a, tdot_a, ck.signs, 2, q, v, a, ck.buf)
+        if code != kernels.OK or (wrench_a is not None and not kernels._finite(wrench_a)):
+            # the Python route raises the specific error (or agrees at a tolerance border)
+            legs = ws.pmap.legs(_floats6(pose, "pose"), ws.signs, angles=True)
+            return self._inverse_at(ws, legs, _floats6(twist, "twist"),
+                                    _floats6(twist_dot, "twist_dot"),
+                                    None if wrench is None else _floats6(wrench, "wrench"),
+                                    method, bounds, joint_wrenches)
+        force = pin.rnea(dyn.model, dyn.data, q, v, a)
+        rhs = np.empty(6)
+        kernels.project(ck.geo, ck.buf, force, ck.zero6 if wrench_a is None else wrench_a,
+                        wrench_a is not None, rhs)
+        tau, mult = np.empty(6), np.empty(6)
+        if kernels.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, mult, ck.lu,
+                                ck.jt) != kernels.OK:
+            ws.pmap.solve_forces(ws.pmap.legs(pose_a.tolist(), ws.signs, angles=True),
+                                 rhs.tolist())                     # raises SingularityError
+        tau, status, iters = self._bounded_forces(ws, ck.jt, rhs, tau, mult, method, bounds)
+        details = _InverseDetails(ws, None, force, tau, wrench_a, q, v, a, joint_wrenches,
+                                  pose=pose_a.copy())
+        return InverseDynamicsResult(tau, q, v, a, method, status, iters, details)
 
     def _inverse_at(self, ws, legs, twist, twist_dot, wrench, method, bounds,
                     joint_wrenches) -> InverseDynamicsResult:
+        """:meth:`inverse_dynamics` through the Python map (legs of :class:`PlatformMap`)."""
         pm, dyn = ws.pmap, ws.dyn
         vel, dlegs = pm.velocity(legs, twist)
         acc = pm.acceleration(legs, twist, twist_dot, vel, dlegs)
@@ -1032,54 +1100,61 @@ class HexapodDynamics:
         rhs = pm.project(legs, force)
         if wrench is not None:
             rhs = [b - w for b, w in zip(rhs, wrench)]
-        if method == "kkt":
-            tau = pm.solve_forces(legs, rhs)
-            status, iters = "solved", 0
-            if bounds is not None and max(map(abs, tau)) > bounds[0] * (1.0 + _RESIDUAL_RTOL):
-                raise ActuatorSaturationError(tau, bounds)
-        else:
-            tau, status, iters = self._reduced_qp(ws, legs, rhs, bounds)
-        details = _InverseDetails(ws, legs, force, tau, wrench, q, v, a, joint_wrenches)
-        return InverseDynamicsResult(np.array(tau), q, v, a, method, status, iters, details)
-
-    def _reduced_qp(self, ws, legs, rhs, bounds):
-        """``min 1/2 |tau|^2`` s.t. ``J^T tau = rhs``, ``|tau| <= bounds`` by ProxSuite."""
-        pm = ws.pmap
+        tau = np.array(pm.solve_forces(legs, rhs))
         jac_t = pm.force_matrix(legs) / np.array(legs.along)        # J^T = A^T diag(1/n.u)
-        b = np.array(rhs)
+        mult = np.linalg.solve(jac_t.T, -tau)
+        tau, status, iters = self._bounded_forces(ws, jac_t, np.array(rhs), tau, mult, method,
+                                                  bounds)
+        details = _InverseDetails(ws, legs, force, tau, wrench, q, v, a, joint_wrenches)
+        return InverseDynamicsResult(tau, q, v, a, method, status, iters, details)
+
+    def _bounded_forces(self, ws, jac_t, rhs, tau, mult, method, bounds):
+        """The actuator forces of ``J^T tau = rhs`` under the bounds, by ``method``.
+
+        ``tau`` and ``mult`` are the equality-constrained solution and its multipliers
+        (``J mult = -tau``), ``jac_t`` is ``J^T`` (6, 6). "kkt" checks the bounds;
+        "qp" has ProxSuite solve ``min 1/2 |tau|^2`` s.t. ``J^T tau = rhs`` and the box,
+        warm-started at ``(tau, mult)``: when no bound is active ProxSuite certifies that
+        point (primal and dual residuals below its tolerance) without iterating; otherwise
+        it iterates and finds the problem infeasible (the feasible set of the square,
+        invertible ``J^T`` is that single point).
+        """
+        limit = None if bounds is None else bounds[0] * (1.0 + _RESIDUAL_RTOL)
+        if method == "kkt":
+            if limit is not None and max(map(abs, tau.tolist())) > limit:
+                raise ActuatorSaturationError(tau, bounds)
+            return tau, "solved", 0
         key = "id_box" if bounds is not None else "id"
         qp = ws.qps.get(key)
         if qp is None:
             qp = proxsuite.proxqp.dense.QP(6, 6, 0, bounds is not None)
-            qp.settings.eps_rel = 0.0
+            # residuals relative to the data (ProxSuite: eps_abs + eps_rel * scale)
+            qp.settings.eps_abs = qp.settings.eps_rel = _QP_EPS_REDUCED
             qp.settings.max_iter = 200
             qp.settings.verbose = False
-            qp.settings.initial_guess = \
-                proxsuite.proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
+            qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START
             if bounds is None:
-                qp.init(np.eye(6), np.zeros(6), jac_t, b, None, None, None)
+                qp.init(np.eye(6), np.zeros(6), jac_t, rhs, None, None, None)
             else:
-                qp.init(np.eye(6), np.zeros(6), jac_t, b, None, None, None, -bounds, bounds)
+                qp.init(np.eye(6), np.zeros(6), jac_t, rhs, None, None, None, -bounds, bounds)
             ws.qps[key] = qp
         else:
-            qp.update(A=jac_t, b=b, update_preconditioner=True)
-        qp.settings.eps_abs = _QP_EPS_REDUCED * max(1.0, max(map(abs, rhs)))
-        qp.solve()
-        info = qp.results.info
-        status = _QP_STATUS.get(info.status, str(info.status))
-        sol = qp.results.x
-        tau = sol.tolist()
-        err = float(np.abs(jac_t @ sol - b).max())
-        ok = status == "solved" and err <= 1e-8 * max(1.0, max(map(abs, rhs)))
-        if ok and bounds is not None and max(map(abs, tau)) > bounds[0] * (1.0 + _RESIDUAL_RTOL):
-            ok = False
+            qp.update(A=jac_t, b=rhs, update_preconditioner=False)
+        qp.solve(tau, mult, None)
+        results = qp.results
+        info = results.info
+        sol = results.x.copy()
+        res, biggest, scale = kernels.check_solution(jac_t, sol, rhs)
+        ok = info.status == _SOLVED and res <= 1e-8 * max(1.0, scale) and \
+            (limit is None or biggest <= limit)
         if not ok:
-            needed = pm.solve_forces(legs, rhs)        # raises at a type-II singularity
-            if bounds is not None and max(map(abs, needed)) > bounds[0]:
-                raise ActuatorSaturationError(needed, bounds)
-            raise SolverError("ProxSuite (inverse dynamics QP)", status,
+            if limit is not None and max(map(abs, tau.tolist())) > bounds[0]:
+                raise ActuatorSaturationError(tau, bounds)
+            raise SolverError("ProxSuite (inverse dynamics QP)",
+                              _QP_STATUS.get(info.status, str(info.status)),
                               f"primal residual {info.pri_res:.3e}")
-        return tau, status, int(info.iter)
+        status = "solved"
+        return sol, status, int(info.iter)
 
     def _actuator_forces_at(self, q, twist, twist_dot, wrench=None,
                             method: str = "kkt") -> np.ndarray:
@@ -1112,37 +1187,62 @@ class HexapodDynamics:
         Raises:
             ActuatorSaturationError, UnreachablePoseError, SingularityError, InputError.
         """
-        pose = _floats6(pose, "pose")
-        wrench = None if wrench is None else _floats6(wrench, "wrench")
         ws = self._workspace()
-        pm, dyn = ws.pmap, ws.dyn
-        legs = pm.legs(pose, ws.signs, angles=True)
-        gravity = pin.computeGeneralizedGravity(dyn.model, dyn.data,
-                                                np.array(pm.configuration(legs)))
-        rhs = pm.project(legs, gravity.tolist())
-        if wrench is not None:
-            rhs = [b - w for b, w in zip(rhs, wrench)]
-        tau = pm.solve_forces(legs, rhs)
+        ck, dyn = ws.compiled, ws.dyn
+        pose_a = _vec6(pose, "pose")
+        wrench_a = None if wrench is None else _vec6(wrench, "wrench")
+        q = np.empty(dyn.clm.nq)
+        code = kernels.tree_state(ck.geo, pose_a, ck.zero6, ck.zero6, ck.signs, 0, q, ck.v,
+                                  ck.a, ck.buf)
+        if code != kernels.OK or (wrench_a is not None and not kernels._finite(wrench_a)):
+            self._raise_for(pose, wrench=wrench)
+        gravity = pin.computeGeneralizedGravity(dyn.model, dyn.data, q)
+        rhs = np.empty(6)
+        kernels.project(ck.geo, ck.buf, gravity, ck.zero6 if wrench_a is None else wrench_a,
+                        wrench_a is not None, rhs)
+        tau = np.empty(6)
+        if kernels.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, ck.multipliers, ck.lu,
+                                ck.jt) != kernels.OK:
+            self._raise_for(pose, rhs=rhs)
         if bounded and ws.bounds is not None and \
-                max(map(abs, tau)) > ws.bounds[0] * (1.0 + _RESIDUAL_RTOL):
+                max(map(abs, tau.tolist())) > ws.bounds[0] * (1.0 + _RESIDUAL_RTOL):
             raise ActuatorSaturationError(tau, ws.bounds)
-        return np.array(tau)
+        return tau
+
+    def _raise_for(self, pose, rhs=None, **vectors) -> None:
+        """Raise the error of a state the compiled map refused: the Python map's
+        :class:`InputError`, :class:`UnreachablePoseError` or :class:`SingularityError`
+        with its values (with ``rhs``: the type-II check of the force solve)."""
+        ws = self._workspace()
+        for name, value in vectors.items():
+            if value is not None:
+                _floats6(value, name)
+        legs = ws.pmap.legs(_floats6(pose, "pose"), ws.signs, angles=True)
+        if rhs is not None:
+            ws.pmap.solve_forces(legs, list(rhs))
+        raise HexapodPinError("internal: the compiled platform map refused a state that "
+                              f"the Python map accepts (pose {list(pose)})")
 
     # -- forward dynamics ----------------------------------------------------------------
     def forward_dynamics(self, pose, twist, actuator_forces, wrench=None,
-                         method: str = "pinocchio") -> ForwardDynamicsResult:
+                         method: str = "nullspace") -> ForwardDynamicsResult:
         """Platform acceleration produced by actuator forces (constrained forward dynamics).
 
-        The tree state ``(q, v)`` comes in closed form; the constrained dynamics of the
-        tree gives ``a``, and ``twist_dot = (R a_lin + w x v, R a_ang)``.
+        The tree state ``(q, v)`` comes in closed form (compiled,
+        :mod:`~hexapod_pin.platform_kernels`). "nullspace" (default) is the
+        independent-coordinate method: ``M_x twist_dot = J^T tau + wrench - h_x`` with
+        ``M_x = G^T M G`` (``pin.crba``) and ``h_x = G^T rnea(q, v, a_0)``, one 6x6
+        Cholesky solve, then ``a = G twist_dot + a_0`` (closure multipliers from the
+        legs' tree rows, on first access). The other routes solve the constrained tree
+        for ``a`` and return ``twist_dot = (R a_lin + w x v, R a_ang)``.
 
         Args:
             pose: (6,) (m, rad).
             twist: ``(v, w)`` world axes (m/s, rad/s), (6,).
             actuator_forces: ``tau`` (6,), force on carriage i along ``+u_k`` (N).
             wrench: ``(f, m)`` on the platform, world axes, about its origin; default 0.
-            method: "pinocchio" (``pin.constraintDynamics``), "qp" (Gauss principle,
-                ProxSuite) or "kkt" (numpy); they agree to 1e-10.
+            method: "nullspace" (see above), "pinocchio" (``pin.constraintDynamics``),
+                "qp" (Gauss principle, ProxSuite) or "kkt" (numpy); they agree to 1e-10.
 
         Returns:
             :class:`ForwardDynamicsResult`.
@@ -1150,24 +1250,45 @@ class HexapodDynamics:
         Raises:
             UnreachablePoseError, SingularityError, InputError, SolverError.
         """
-        pose, twist = _floats6(pose, "pose"), _floats6(twist, "twist")
-        tau_act = _floats6(actuator_forces, "actuator_forces")
-        wrench = None if wrench is None else _floats6(wrench, "wrench")
-        if method not in FORWARD_METHODS:
-            raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
+        if method not in HEXAPOD_FORWARD_METHODS:
+            raise InputError("method", method, f"expected one of {HEXAPOD_FORWARD_METHODS}")
         ws = self._workspace()
-        pm, dyn = ws.pmap, ws.dyn
-        legs = pm.legs(pose, ws.signs, angles=True)
-        vel, _ = pm.velocity(legs, twist)
-        q, v = np.array(pm.configuration(legs)), np.array(vel)
+        ck, dyn = ws.compiled, ws.dyn
+        pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
+        tau_a = _vec6(actuator_forces, "actuator_forces")
+        wrench_a = None if wrench is None else _vec6(wrench, "wrench")
+        q, v, acc0 = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
+        # the drift a_0 (tree acceleration at twist_dot = 0) only for the null-space route
+        level = 2 if method == "nullspace" else 1
+        code = kernels.tree_state(ck.geo, pose_a, twist_a, ck.zero6, ck.signs, level, q, v,
+                                  acc0, ck.buf)
+        if code != kernels.OK:
+            self._raise_for(pose, twist=twist, actuator_forces=actuator_forces, wrench=wrench)
+        twist_dot = np.empty(6)
+        if method == "nullspace":
+            mass = pin.crba(dyn.model, dyn.data, q)
+            bias = pin.rnea(dyn.model, dyn.data, q, v, acc0)
+            acc = np.empty(dyn.nv)
+            code = kernels.nullspace_forward(
+                ck.geo, ck.buf, mass, bias, tau_a, ck.zero6 if wrench_a is None else wrench_a,
+                wrench_a is not None, acc0,
+                (twist_dot, acc, ck.g_map, ck.m_x, ck.h_x, ck.scratch, ck.rest))
+            if code == -1:
+                self._raise_for(pose, twist=twist, actuator_forces=actuator_forces,
+                                wrench=wrench)
+            if code != kernels.OK:
+                raise SolverError("null-space forward dynamics", "mass matrix not positive "
+                                  "definite", f"M_x = {ck.m_x.tolist()}")
+            details = _ForwardDetails(dyn, q, rows=_LazyTreeMultipliers(
+                ws, pose_a.copy(), q, v, acc, tau_a.copy()))
+            return ForwardDynamicsResult(twist_dot, acc[0:18:3].copy(), acc, method,
+                                         "solved", 0, details, ws.leg_of_closure)
+        if not kernels._finite(tau_a) or (wrench_a is not None and not kernels._finite(wrench_a)):
+            self._raise_for(pose, twist=twist, actuator_forces=actuator_forces, wrench=wrench)
         tau = np.zeros(dyn.nv)
-        tau[dyn.clm.actuated_v] = tau_act
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = legs.rot
-        if wrench is not None:
-            fx, fy, fz, mx, my, mz = wrench
-            tau[ws.ff_v] += (r00 * fx + r10 * fy + r20 * fz, r01 * fx + r11 * fy + r21 * fz,
-                             r02 * fx + r12 * fy + r22 * fz, r00 * mx + r10 * my + r20 * mz,
-                             r01 * mx + r11 * my + r21 * mz, r02 * mx + r12 * my + r22 * mz)
+        tau[dyn.clm.actuated_v] = tau_a
+        if wrench_a is not None:
+            kernels.wrench_to_tree(ck.buf, wrench_a, tau)
         acc = None
         if method == "pinocchio" and dyn._rank == dyn.n_rows:
             acc, prox = dyn._pin_call(q, v, tau, False)
@@ -1179,14 +1300,7 @@ class HexapodDynamics:
             res = dyn.forward(q, v, tau, method)
             acc, status, iters = res.a, res.status, res.iterations
             details = _ForwardDetails(dyn, q, rows=res.multipliers)
-        ax, ay, az, bx, by, bz = acc[ws.ff_v].tolist()
-        vx, vy, vz, wx, wy, wz = twist
-        twist_dot = np.array([
-            r00 * ax + r01 * ay + r02 * az + wy * vz - wz * vy,
-            r10 * ax + r11 * ay + r12 * az + wz * vx - wx * vz,
-            r20 * ax + r21 * ay + r22 * az + wx * vy - wy * vx,
-            r00 * bx + r01 * by + r02 * bz, r10 * bx + r11 * by + r12 * bz,
-            r20 * bx + r21 * by + r22 * bz])
+        kernels.twist_dot_of(ck.buf, twist_a, acc[ws.ff_v], twist_dot)
         return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                      status, iters, details, ws.leg_of_closure)
 

@@ -42,6 +42,19 @@ def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False)
     return arr
 
 
+def vec6(value, name: str) -> np.ndarray:
+    """A C-contiguous float64 (6,) array, for the compiled kernels' fast path.
+
+    A float64 array of shape (6,) is passed through (copied only when not contiguous);
+    anything else goes through :func:`as_array`. Finiteness of a passed-through array is
+    NOT checked here: the kernels check it and the caller then re-validates with
+    :func:`as_array`, which raises the :class:`InputError`.
+    """
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (6,):
+        return value if value.flags.c_contiguous else np.ascontiguousarray(value)
+    return as_array(value, (6,), name)
+
+
 def rotation_from_rpy(rpy: np.ndarray) -> np.ndarray:
     """``Rz(yaw) Ry(pitch) Rx(roll)`` for ``rpy`` of shape (..., 3) -> (..., 3, 3)."""
     rpy = np.asarray(rpy, dtype=float)

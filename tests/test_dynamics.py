@@ -18,7 +18,7 @@ from hexapod_pin.dynamics import BatchActuatorSaturationError
 from hexapod_pin.errors import ActuatorSaturationError, InputError
 from hexapod_pin.pose import euler_rates_matrix, rotation_from_rpy
 
-FD_METHODS = ("pinocchio", "qp", "kkt")
+FD_METHODS = ("pinocchio", "nullspace", "qp", "kkt")
 ID_METHODS = ("qp", "kkt")
 RAIL = np.array([0, 0, 1, 1, 2, 2])
 

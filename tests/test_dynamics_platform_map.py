@@ -123,6 +123,10 @@ def test_single_routes_match_the_generic_tree_solvers(any_robot, rng):
         tau_ext[robot.indices.platform_v] = np.concatenate([rot.T @ wrench[:3],
                                                             rot.T @ wrench[3:]])
         tree = inverse_dynamics_tree(clm, q, v, a, tau_ext, method="kkt")
+        # ProxSuite from a cold start on the whole tree (24 forces + 18 multipliers)
+        tree_qp = inverse_dynamics_tree(clm, q, v, a, tau_ext, method="qp")
+        assert tree_qp.iterations >= 1
+        np.testing.assert_allclose(tree_qp.actuator_forces, tree.actuator_forces, atol=1e-10)
         for method in ("kkt", "qp"):
             res = robot.inverse_dynamics(pose, twist, twist_dot, wrench, method=method,
                                          bounded=False)
@@ -130,11 +134,13 @@ def test_single_routes_match_the_generic_tree_solvers(any_robot, rng):
             np.testing.assert_allclose(res.multipliers, tree.multipliers, atol=1e-9)
             assert res.residual <= 1e-9
             np.testing.assert_allclose(res.configuration, q, atol=0)
-        assert res.iterations >= 1 and res.method == "qp"       # ProxSuite did run
+        # the reduced QP is warm-started at the equality-constrained point: ProxSuite
+        # certifies it without iterating
+        assert res.method == "qp" and res.status == "solved" and res.iterations == 0
         tau = tau_ext.copy()
         tau[clm.actuated_v] += tree.actuator_forces
         fwd_tree = forward_dynamics_tree(clm, q, v, tau, method="kkt")
-        for method in ("pinocchio", "kkt", "qp"):
+        for method in ("pinocchio", "nullspace", "kkt", "qp"):
             fwd = robot.forward_dynamics(pose, twist, tree.actuator_forces, wrench, method=method)
             np.testing.assert_allclose(fwd.tree_acceleration, fwd_tree.a, atol=1e-10)
             np.testing.assert_allclose(fwd.multipliers, fwd_tree.multipliers, atol=1e-9)

@@ -1,0 +1,153 @@
+"""The compiled platform -> tree map (hexapod_pin.platform_kernels).
+
+Checked against Pinocchio (closure residual, ``J_c v = 0``, ``J_c a = -gamma`` with
+Pinocchio's own Jacobian and drift), virtual power (``G^T f . twist = f . v``), numpy
+linear algebra, and bit for bit against the Python map it compiles.
+"""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import random_pose
+
+import hexapod_pin as hp
+from hexapod_pin import platform_kernels as K
+from hexapod_pin.kinematics import HOME_BRANCH
+from hexapod_pin.platform_map import TYPE_II_PIVOT_RTOL
+
+
+def _motion(rng):
+    return (np.concatenate([0.1 * rng.normal(size=3), 0.5 * rng.normal(size=3)]),
+            np.concatenate([rng.normal(size=3), 3.0 * rng.normal(size=3)]))
+
+
+def _state(robot, pose, twist, twist_dot, level=2):
+    ck = K.CompiledMap(robot._platform_map, HOME_BRANCH)
+    q, v, a = np.empty(25), np.empty(24), np.empty(24)
+    code = K.tree_state(ck.geo, pose, twist, twist_dot, ck.signs, level, q, v, a, ck.buf)
+    return code, ck, q, v, a
+
+
+def test_tree_state_keeps_the_closures(any_robot, rng):
+    robot = any_robot
+    clm = robot.model
+    for _ in range(4):
+        pose = random_pose(robot, rng)
+        twist, twist_dot = _motion(rng)
+        code, _, q, v, a = _state(robot, pose, twist, twist_dot)
+        assert code == K.OK
+        assert np.abs(clm.residual(q)).max() <= 1e-12
+        jac = clm.constraint_jacobian(q)
+        assert np.abs(jac @ v).max() <= 1e-11
+        drift = clm.constraint_drift(q, v)
+        np.testing.assert_allclose(jac @ a, -drift, atol=1e-10)
+        rot = hp.pose.rotation_from_rpy(pose[3:])
+        np.testing.assert_allclose(v[18:], np.concatenate([rot.T @ twist[:3],
+                                                           rot.T @ twist[3:]]), atol=1e-14)
+        acc_lin = twist_dot[:3] - np.cross(twist[3:], twist[:3])
+        np.testing.assert_allclose(a[18:], np.concatenate([rot.T @ acc_lin,
+                                                           rot.T @ twist_dot[3:]]), atol=1e-13)
+
+
+def test_kernels_equal_the_python_map(any_robot, rng):
+    """Same arithmetic as PlatformMap, so the same bits (the Python map stays the
+    reference of the lazy parts of the results)."""
+    robot = any_robot
+    pm = robot._platform_map
+    pose = random_pose(robot, rng)
+    twist, twist_dot = _motion(rng)
+    code, ck, q, v, a = _state(robot, pose, twist, twist_dot)
+    legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
+    vel, dlegs = pm.velocity(legs, twist.tolist())
+    acc = pm.acceleration(legs, twist.tolist(), twist_dot.tolist(), vel, dlegs)
+    np.testing.assert_array_equal(q, pm.configuration(legs))
+    np.testing.assert_array_equal(v, vel)
+    np.testing.assert_array_equal(a, acc)
+    g_map = np.empty((24, 6))
+    K.velocity_map(ck.geo, ck.buf, g_map)
+    np.testing.assert_array_equal(g_map, pm.velocity_map(legs))
+
+
+def test_projection_is_virtual_power_and_solve_is_exact(any_robot, rng):
+    robot = any_robot
+    pose = random_pose(robot, rng)
+    twist, twist_dot = _motion(rng)
+    _, ck, q, v, _ = _state(robot, pose, twist, twist_dot)
+    force, wrench = rng.normal(size=24), rng.normal(size=6)
+    rhs = np.empty(6)
+    K.project(ck.geo, ck.buf, force, wrench, True, rhs)
+    # (G^T f - w) . twist == f . v_tree - w . twist  (virtual power)
+    assert rhs @ twist == pytest.approx(force @ v - wrench @ twist, rel=1e-12, abs=1e-12)
+    tau, mult, jac_t = np.empty(6), np.empty(6), np.empty((6, 6))
+    assert K.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, mult, ck.lu, jac_t) == K.OK
+    # J^T from Pinocchio's tree: J = S G, with G from the Python map
+    g_map = robot._platform_map.velocity_map(
+        robot._platform_map.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True))
+    np.testing.assert_allclose(jac_t, g_map[robot.model.actuated_v].T, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.solve(jac_t, rhs), tau, rtol=1e-10, atol=1e-10)
+    # the QP multipliers: stationarity tau + J mult = 0
+    np.testing.assert_allclose(jac_t.T @ mult, -tau, atol=1e-10 * max(1.0, abs(tau).max()))
+
+
+def test_nullspace_forward_matches_constraint_dynamics(any_robot, rng):
+    """``M_x twist_dot = G^T (S^T tau - bias)`` against pin.constraintDynamics."""
+    robot = any_robot
+    clm = robot.model
+    model, data = clm.model, clm.model.createData()
+    pose = random_pose(robot, rng)
+    twist, _ = _motion(rng)
+    forces = rng.normal(size=6) * 5
+    _, ck, q, v, acc0 = _state(robot, pose, twist, np.zeros(6))
+    mass = pin.crba(model, data, q)
+    bias = pin.rnea(model, data, q, v, acc0)
+    twist_dot, acc = np.empty(6), np.empty(24)
+    out = (twist_dot, acc, ck.g_map, ck.m_x, ck.h_x, ck.scratch, ck.rest)
+    assert K.nullspace_forward(ck.geo, ck.buf, mass, bias, forces, ck.zero6, False, acc0,
+                               out) == K.OK
+    tau = np.zeros(model.nv)
+    tau[clm.actuated_v] = forces
+    cms = pin.StdVec_RigidConstraintModel()
+    for cm in clm.constraint_models:
+        cms.append(cm)
+    cds = pin.StdVec_RigidConstraintData()
+    for cm in cms:
+        cds.append(cm.createData())
+    pin.initConstraintDynamics(model, data, cms, cds)
+    ref = pin.constraintDynamics(model, data, q, v, tau, cms, cds,
+                                 pin.ProximalSettings(1e-12, 0.0, 1))
+    np.testing.assert_allclose(acc, ref, atol=1e-9)
+
+
+def test_error_codes(robot):
+    pose = robot.home_pose.copy()
+    pose[2] += 10.0
+    assert _state(robot, pose, np.zeros(6), np.zeros(6))[0] == K.UNREACHABLE
+    bad = robot.home_pose.copy()
+    bad[0] = np.nan
+    assert _state(robot, bad, np.zeros(6), np.zeros(6))[0] == -1
+    twist = np.zeros(6)
+    twist[4] = np.inf
+    assert _state(robot, robot.home_pose, twist, np.zeros(6), level=0)[0] == K.OK
+    assert _state(robot, robot.home_pose, twist, np.zeros(6), level=1)[0] == -1
+
+
+def test_public_routes_take_any_array_like(robot, rng):
+    """Lists, tuples and non-contiguous views give the same answer as float64 arrays."""
+    pose = random_pose(robot, rng)
+    twist, twist_dot = _motion(rng)
+    ref = robot.inverse_dynamics(pose, twist, twist_dot, method="kkt",
+                                 bounded=False).actuator_forces
+    strided = np.empty(12)
+    strided[::2] = pose
+    for p in (pose.tolist(), strided[::2], tuple(pose)):
+        got = robot.inverse_dynamics(p, twist, twist_dot, method="kkt",
+                                     bounded=False).actuator_forces
+        np.testing.assert_array_equal(got, ref)
+    with pytest.raises(hp.InputError, match="twist_dot"):
+        robot.inverse_dynamics(pose, twist, np.full(6, np.nan))
+    with pytest.raises(hp.InputError, match="wrench"):
+        robot.inverse_dynamics(pose, twist, twist_dot, wrench=[0, 0, np.inf, 0, 0, 0])
+    with pytest.raises(hp.InputError, match="actuator_forces"):
+        robot.forward_dynamics(pose, twist, [1.0, 2.0, np.nan, 0.0, 0.0, 0.0])
+    with pytest.raises(hp.InputError, match="pose"):
+        robot.static_forces(pose[:5])
