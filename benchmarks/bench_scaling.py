@@ -7,12 +7,17 @@ Prints (Markdown tables):
 2. microseconds per call against the number of closures, on the tree level (generic
    ``ClosedLoopModel``): the planar 3-PRR (3 point closures, 9 rows of rank 6), the
    hexapod (6 closures, 18 rows) and ladders of n spatial four-bars (n closures, 3 n rows,
-   ``3 n + 1`` dofs; see ladder.py), each route checked against the others.
+   ``3 n + 1`` dofs; see ladder.py), each route checked against the others;
+3. the planar 3-PRR against its MuJoCo twin (mjcf_planar.py) at the task level, with a
+   platform wrench: the MJCF checked against our Pinocchio model (kinematics, inertia),
+   then inverse / forward dynamics and one step, MuJoCo vs ``Planar3PRR``'s own routes,
+   raw Pinocchio and our integrator.
 
 Usage (from the repository root)::
 
     python benchmarks/bench_scaling.py            # full run
     python benchmarks/bench_scaling.py --smoke    # seconds; exit 1 when routes disagree
+    python benchmarks/bench_scaling.py --only-planar   # the planar rows and section only
 """
 
 from __future__ import annotations
@@ -34,18 +39,22 @@ import hexapod_pin.dynamics as hpd  # noqa: E402
 import ladder as lad_mod  # noqa: E402
 import pinocchio_raw as pr  # noqa: E402
 from bench_common import MIN_SAMPLE, NO_ROUTE, fmt_us, measure, print_machine_info, table  # noqa: E402
-from bench_peers import RIGID_TOL, HexapodPeers, time_route  # noqa: E402
+from bench_peers import DT, RIGID_TOL, HexapodPeers, time_route  # noqa: E402
 
 try:
     import mujoco
 
     import mjcf
+    import mjcf_planar
 except ImportError:
     mujoco = None
 
 #: MuJoCo's refined (rigid) forward dynamics: its floor grows with the conditioning of
 #: MuJoCo's soft problem (1e-10 for one loop, 2.6e-8 for 64 loops)
 MUJOCO_REFINED_TOL = 1e-7
+#: sanity bound on MuJoCo's soft forward dynamics of the planar 3-PRR (m/s^2, rad/s^2):
+#: measured up to 1.1e-2 over 1000 states (the regulariser R ~ 1e-4 A_ii, see mjcf.py)
+PLANAR_SOFT_BOUND = 0.1
 
 
 # -- 1. batch size -------------------------------------------------------------------------
@@ -229,34 +238,51 @@ def hexapod_mechanism(n_states: int) -> Mechanism:
     return mech
 
 
+def planar_states(robot, n_states: int, seed: int = 0):
+    """n random planar states ``(pose, twist, twist_dot, wrench)``, each (3,), near home
+    (+-2 cm, +-0.1 rad; twist +-0.1 m/s, +-0.5 rad/s; twist_dot +-1 m/s^2, +-3 rad/s^2;
+    wrench +-5 N, +-0.3 N m), reachable (rejection sampling)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < n_states:
+        pose = robot.home_pose + rng.uniform(-1, 1, 3) * np.array([0.02, 0.02, 0.1])
+        twist = rng.uniform(-1, 1, 3) * np.array([0.1, 0.1, 0.5])
+        twist_dot = rng.uniform(-1, 1, 3) * np.array([1.0, 1.0, 3.0])
+        wrench = rng.uniform(-1, 1, 3) * np.array([5.0, 5.0, 0.3])
+        try:
+            robot.jacobian(pose)
+        except hp.HexapodPinError:
+            continue
+        out.append((pose, twist, twist_dot, wrench))
+    return out
+
+
 def planar_mechanism(n_states: int, seed: int = 0) -> Mechanism | None:
     try:
         from hexapod_pin.planar import Planar3PRR
     except ImportError:
         return None
     robot = Planar3PRR.default()
-    rng = np.random.default_rng(seed)
-    states = []
-    while len(states) < n_states:
-        pose = robot.home_pose + rng.uniform(-1, 1, 3) * np.array([0.02, 0.02, 0.1])
-        twist = rng.uniform(-1, 1, 3) * np.array([0.1, 0.1, 0.5])
-        twist_dot = rng.uniform(-1, 1, 3) * np.array([1.0, 1.0, 3.0])
-        try:
-            q = robot.configuration(pose)
-            states.append((q, robot.velocity(pose, twist), robot.acceleration(pose, twist,
-                                                                              twist_dot)))
-        except hp.HexapodPinError:
-            continue
-    return Mechanism("planar 3-PRR", robot.model, states)
+    samples = planar_states(robot, n_states, seed)
+    states = [(robot.configuration(p), robot.velocity(p, t), robot.acceleration(p, t, td))
+              for p, t, td, _ in samples]
+    mj = mjcf_planar.MujocoPlanar(robot.geometry, timestep=DT) if mujoco else None
+    mech = Mechanism("planar 3-PRR", robot.model, states,
+                     None if mj is None else mj.model,
+                     [] if mj is None else [mj.set_task_state(*s[:3]) for s in samples])
+    if mj is not None:
+        mech.pin_dofs, mech.mj_dofs = _one_dof_maps(robot.model, mj.model)
+    return mech
 
 
-def closure_scaling(ladders, n_states, repeats, check: bool):
+def closure_scaling(ladders, n_states, repeats, check: bool, hexapod: bool = True):
     """Accuracy and timing tables against closures; returns (text, failures)."""
     mechs = []
     planar = planar_mechanism(n_states)
     if planar is not None:
         mechs.append(planar)
-    mechs.append(hexapod_mechanism(n_states))
+    if hexapod:
+        mechs.append(hexapod_mechanism(n_states))
     mechs += [ladder_mechanism(n, n_states) for n in ladders]
     names = list(dict.fromkeys(k for m in mechs for k in m.routes()))
     acc_rows, time_rows, failures = [], [], []
@@ -285,9 +311,10 @@ def closure_scaling(ladders, n_states, repeats, check: bool):
             if flag:
                 failures.append(f"{mech.name} {name}: {worst:.2e} > {tol:g}")
             acc_row.append(f"{worst:.1e}{flag}")
-            counter = iter(range(10 ** 12))
-            pool = len(mech.states)
-            time_row.append(fmt_us(measure(lambda: fn(next(counter) % pool), repeats=repeats)))
+            counter, pool = iter(range(10 ** 12)), len(mech.states)
+            time_row.append(fmt_us(measure(
+                lambda fn=fn, counter=counter, pool=pool: fn(next(counter) % pool),
+                repeats=repeats)))
         acc_rows.append(acc_row)
         time_rows.append(time_row)
     text = table(["mechanism"] + names, acc_rows,
@@ -296,6 +323,180 @@ def closure_scaling(ladders, n_states, repeats, check: bool):
     text += "\n" + table(["mechanism"] + names, time_rows,
                          title="### us per call (one state), median [inter-quartile range]")
     return text, failures
+
+
+# -- 3. the planar 3-PRR against MuJoCo, task level ----------------------------------------
+class RawPlanar(pr.RawPinocchio):
+    """:class:`pinocchio_raw.RawPinocchio` on the planar tree, with its platform wrench.
+
+    The platform chain's joints are world x, world y and z through the platform origin, so
+    the generalised force of a wrench ``(fx, fy, mz)`` (world axes, moment about the
+    origin) is the wrench itself on those three dofs.
+    """
+
+    def __init__(self, robot):
+        super().__init__(robot.model)
+        self.set_redundant(True)
+        self.platform_v = robot.indices.platform
+
+    def wrench_generalised(self, wrench) -> np.ndarray:
+        out = np.zeros(self.nv)
+        if wrench is not None:
+            out[self.platform_v] = wrench
+        return out
+
+
+@dataclass
+class PlanarRoute:
+    """One route of the planar task-level comparison."""
+
+    name: str
+    output: str                 # "forces", "acceleration" or "step"
+    fn: callable                # i -> array, Pinocchio order (forces: slider order)
+    tol: float
+    note: str = "rigid"
+
+
+def planar_routes(n_states: int, seed: int = 0):
+    """The planar routes, their reference outputs, and the MJCF check (dict or None)."""
+    from hexapod_pin.planar import Planar3PRR
+    from hexapod_pin.simulate import ClosedLoopIntegrator
+
+    robot = Planar3PRR.default()
+    raw = RawPlanar(robot)
+    samples = planar_states(robot, n_states, seed)
+    tree = [(robot.configuration(p), robot.velocity(p, t), robot.acceleration(p, t, td))
+            for p, t, td, _ in samples]
+    wrenches = [s[3] for s in samples]
+    forces = [raw.inverse(*tree[i], wrenches[i]) for i in range(n_states)]
+    # semi-implicit Euler of the sampled motion (1-DoF joints: q+ = q + dt v+)
+    steps = [np.concatenate([q + DT * (v + DT * a), v + DT * a]) for q, v, a in tree]
+    ref = {"forces": forces, "acceleration": [t[2] for t in tree], "step": steps}
+    integ = ClosedLoopIntegrator(robot.model, "pinocchio", "semi_implicit_euler")
+    idx = robot.indices
+
+    def tree_tau(i):
+        tau = np.zeros(robot.model.nv)
+        tau[idx.slider], tau[idx.platform] = forces[i], wrenches[i]
+        return tau
+
+    def ours_step(i):
+        q1, v1, _ = integ.step(tree[i][0], tree[i][1], tree_tau(i), DT)
+        return np.concatenate([q1, v1])
+
+    # the projection onto the closures moves (q, v) by O(dt^2) (closure residual of
+    # q + dt v+, and J(q+) v+): measured 5.8e-6 over 1000 states with max |a| = 8
+    scheme_tol = 10 * DT ** 2 * max(np.max(np.abs(a)) for _, _, a in tree) + RIGID_TOL
+    routes = []
+    for method in ("kkt", "qp"):
+        routes.append(PlanarRoute(
+            f"ours Planar3PRR.inverse_dynamics {method}", "forces",
+            lambda i, m=method: robot.inverse_dynamics(*samples[i], method=m).forces,
+            RIGID_TOL))
+    routes.append(PlanarRoute("raw Pinocchio rnea + lstsq (tree state given) [reference]",
+                              "forces", lambda i: raw.inverse(*tree[i], wrenches[i]),
+                              RIGID_TOL))
+    for method in ("kkt", "qp", "pinocchio"):
+        routes.append(PlanarRoute(
+            f"ours Planar3PRR.forward_dynamics {method}", "acceleration",
+            lambda i, m=method: robot.forward_dynamics(
+                *samples[i][:2], forces[i], samples[i][3], method=m).tree.a, RIGID_TOL))
+    routes.append(PlanarRoute("raw Pinocchio constraintDynamics mu=1e-2 (tree state given)",
+                              "acceleration",
+                              lambda i: raw.forward(*tree[i][:2], forces[i], wrenches[i]),
+                              RIGID_TOL))
+    routes.append(PlanarRoute("raw Pinocchio constraintDynamics + integrate", "step",
+                              lambda i: np.concatenate(raw.step(*tree[i][:2], forces[i], DT,
+                                                                wrenches[i])), RIGID_TOL))
+    routes.append(PlanarRoute("ours ClosedLoopIntegrator.step semi_implicit_euler "
+                              "(tree state given)", "step", ours_step, scheme_tol,
+                              "projection onto the closures, O(dt^2)"))
+    check = None
+    if mujoco is not None:
+        mj = mjcf_planar.MujocoPlanar(robot.geometry, timestep=DT)
+        perm = mjcf_planar.dof_permutation(mj, robot.model.model)
+        check = mjcf_planar.model_check(robot, mj, *zip(*(s[:3] for s in samples[:20])))
+        mj_state = [mj.set_task_state(*s[:3]) for s in samples]
+
+        def mj_step(i, refine):
+            qpos, qvel = mj.step(*mj_state[i][:2], forces[i], wrenches[i], refine=refine)
+            return np.concatenate([qpos[perm], qvel[perm]])
+
+        routes += [
+            PlanarRoute("MuJoCo mj_inverse + reduction, in-plane rows, solve (tree state "
+                        "given)", "forces",
+                        lambda i: mj.inverse_tree_state(*mj_state[i], wrenches[i]),
+                        RIGID_TOL),
+            PlanarRoute("MuJoCo mj_inverse + reduction, all 9 rows, lstsq (tree state given)",
+                        "forces", lambda i: mj.inverse_tree_state(*mj_state[i], wrenches[i],
+                                                                  rows="all"), RIGID_TOL),
+            PlanarRoute("MuJoCo incl. closed-form qpos + completion", "forces",
+                        lambda i: mj.inverse_task(*samples[i]), RIGID_TOL),
+            PlanarRoute("MuJoCo mj_forward (soft closures, tree state given)",
+                        "acceleration", lambda i: mj.forward(
+                            *mj_state[i][:2], forces[i], wrenches[i])[perm],
+                        PLANAR_SOFT_BOUND, "soft: sanity bound only"),
+            PlanarRoute("MuJoCo + proximal refinement (rigid, tree state given)",
+                        "acceleration", lambda i: mj.forward(
+                            *mj_state[i][:2], forces[i], wrenches[i], refine=True)[perm],
+                        MUJOCO_REFINED_TOL, "rigid, conditioning floor"),
+            PlanarRoute("MuJoCo mj_step (Euler, soft closures, tree state given)", "step",
+                        lambda i: mj_step(i, False), DT * PLANAR_SOFT_BOUND,
+                        "soft: sanity bound only"),
+            PlanarRoute("MuJoCo refined + mj_Euler (rigid, tree state given)", "step",
+                        lambda i: mj_step(i, True), MUJOCO_REFINED_TOL,
+                        "rigid, conditioning floor"),
+        ]
+    order = {"forces": 0, "acceleration": 1, "step": 2}
+    routes.sort(key=lambda r: order[r.output])
+    return routes, ref, check
+
+
+PLANAR_OUTPUTS = {
+    "forces": "inverse dynamics: actuator forces (N); reference raw Pinocchio rnea + lstsq",
+    "acceleration": "forward dynamics of the reference forces: tree acceleration (m/s^2, "
+                    "rad/s^2); reference the sampled one",
+    "step": f"one step dt = {DT:g} s: tree (q, v) (m, rad, m/s, rad/s); reference semi-"
+            "implicit Euler of the sampled acceleration",
+}
+
+
+def planar_vs_mujoco(n_states: int, repeats: int, timing: bool = True):
+    """Planar task-level tables (MJCF check, accuracy and us per call); (text, failures)."""
+    try:
+        routes, ref, check = planar_routes(n_states)
+    except ImportError:
+        return "planar model not available", []
+    failures, text = [], []
+    if check is None:
+        text.append("mujoco is not installed: MuJoCo rows are skipped")
+    else:
+        rows = [[mjcf_planar.CHECKS[k][0], f"{v:.1e}", mjcf_planar.CHECKS[k][1]]
+                for k, v in check.items()]
+        text.append(table(["MJCF check (max over states)", "max abs", "unit"], rows,
+                          title="### planar MJCF vs our Pinocchio model"))
+        failures += [f"planar MJCF check {k}: {v:.2e}" for k, v in check.items()
+                     if v > RIGID_TOL]
+    rows = []
+    for route in routes:
+        worst = max(float(np.max(np.abs(route.fn(i) - ref[route.output][i])))
+                    for i in range(n_states))
+        flag = "" if worst <= route.tol else " FAIL"
+        if flag:
+            failures.append(f"planar {route.name}: {worst:.2e} > {route.tol:g}")
+        cell = NO_ROUTE
+        if timing:
+            counter = iter(range(10 ** 12))
+            cell = fmt_us(measure(lambda fn=route.fn, counter=counter: fn(next(counter) % n_states),
+                                  repeats=repeats))
+        rows.append([route.name, route.output, route.note, f"{route.tol:.0e}",
+                     f"{worst:.1e}{flag}", cell])
+    text.append(table(["route", "output", "kind", "tolerance", "max abs diff",
+                       "us per call"], rows,
+                      title=f"### accuracy over {n_states} states (max abs difference "
+                            "against the reference of each output) and us per call"))
+    text.append("\n" + "\n".join(f"- {k}: {v}" for k, v in PLANAR_OUTPUTS.items()))
+    return "\n".join(text), failures
 
 
 def main(argv=None) -> int:
@@ -307,19 +508,30 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--budget", type=float, default=30.0)
     parser.add_argument("--mem-limit", type=float, default=4.0, help="GiB")
+    parser.add_argument("--planar-states", type=int, default=1000,
+                        help="states of the planar task-level accuracy table")
+    parser.add_argument("--only-planar", action="store_true",
+                        help="only the planar rows of the closure table and its section")
     args = parser.parse_args(argv)
     if args.smoke:
         args.sizes, args.ladders, args.states, args.repeats, args.budget = \
             "1,10", "1,3", 3, 2, 2.0
+        args.planar_states = 8
         MIN_SAMPLE["seconds"] = 1e-3
     print_machine_info()
     sizes = [int(float(x)) for x in args.sizes.split(",")]
-    ladders = [int(x) for x in args.ladders.split(",")]
-    print("\n## Time against batch size (hexapod)")
-    print(batch_scaling(sizes, args.repeats, args.budget, args.mem_limit * 2 ** 30))
+    ladders = [] if args.only_planar else [int(x) for x in args.ladders.split(",")]
+    if not args.only_planar:
+        print("\n## Time against batch size (hexapod)")
+        print(batch_scaling(sizes, args.repeats, args.budget, args.mem_limit * 2 ** 30))
     print("\n## Time against the number of closures (tree level, generic ClosedLoopModel)")
-    text, failures = closure_scaling(ladders, args.states, args.repeats, check=args.smoke)
+    text, failures = closure_scaling(ladders, args.states, args.repeats, check=args.smoke,
+                                     hexapod=not args.only_planar)
     print(text)
+    print("\n## The planar 3-PRR against MuJoCo (task level, with a platform wrench)")
+    text, planar_failures = planar_vs_mujoco(args.planar_states, args.repeats)
+    print(text)
+    failures += planar_failures
     if failures:
         print("\nDISAGREEMENT:\n" + "\n".join(failures))
         return 1
