@@ -341,13 +341,14 @@ def main(argv=None) -> int:
          legacy=statistics.median(_time(lambda k: legacy.inverse(
              poses[cyc(k)], twists[cyc(k)], twist_dots[cyc(k)], wrenches[cyc(k)], "qp"),
              number, repeat)),
-         recorded=rec["inverse_dynamics qp"], note="ProxSuite box QP, 6 variables")
+         recorded=rec["inverse_dynamics qp"],
+         note="ProxSuite box QP, 6 variables, warm-started at the LU solution")
     _row("inverse_dynamics kkt + closure_forces",
          _time(lambda k: robot.inverse_dynamics(poses[cyc(k)], twists[cyc(k)], twist_dots[cyc(k)],
                                                 wrenches[cyc(k)], method="kkt").closure_forces,
                number, repeat), note="closure forces accessed")
-    for method in ("pinocchio", "kkt", "qp"):
-        _row(f"forward_dynamics {method}",
+    for method in ("nullspace", "pinocchio", "kkt", "qp"):
+        _row(f"forward_dynamics {method}" + (" (default)" if method == "nullspace" else ""),
              _time(lambda k, m=method: robot.forward_dynamics(
                  poses[cyc(k)], twists[cyc(k)], forces[cyc(k)], wrenches[cyc(k)], method=m),
                    number, repeat),

@@ -249,7 +249,7 @@ class HexapodPeers:
         r, p, raw, mj, s = self.robot, self.p, self.raw, self.mj, self
         routes = []
         fwd = _ours(r, "forward_dynamics")
-        for method in ("pinocchio", "kkt", "qp"):
+        for method in ("nullspace", "pinocchio", "kkt", "qp"):
             if fwd is None:
                 routes.append(Route(f"ours forward_dynamics {method}"))
                 continue
@@ -585,6 +585,8 @@ def wrapper_cost(peers: HexapodPeers, repeats: int) -> str:
             ("ours inverse_dynamics (defaults: qp, bounded, joint wrenches)",
              lambda i: inv(s.poses[i], s.twists[i], s.twist_dots[i], s.wrenches[i])),
         ]
+    items.append(("  part: ours Pinocchio call (one rnea on the tree state)",
+                  lambda i: pin.rnea(raw.model, raw.data, *s.pin_state[i])))
     items.append(("  part: ours Hexapod.configuration (closed-form tree q)",
                   lambda i: r.configuration(s.poses[i])))
     if dyn is not None:

@@ -56,6 +56,7 @@ import numpy as np
 import pinocchio as pin
 import proxsuite
 
+from . import platform_kernels as kernels
 from .batch_dynamics import (  # noqa: F401  (re-exported: part of this module's API)
     BatchActuatorSaturationError,
     BatchDynamics,
@@ -73,9 +74,9 @@ from .errors import (
     InputError,
     SolverError,
 )
-from . import platform_kernels as kernels
 from .kinematics import HOME_BRANCH, _floats6
 from .platform_map import TYPE_II_PIVOT_RTOL, PlatformMap
+from .pose import rotation_from_rpy
 from .pose import vec6 as _vec6
 
 FORWARD_METHODS = ("pinocchio", "qp", "kkt")
@@ -721,12 +722,15 @@ class _InverseDetails:
 
     def tip_forces(self) -> np.ndarray:
         """(6, 3) force of the platform on each leg tip (carriage order), world axes."""
+        if self._legs is None:
+            return self.ws.compiled.tip_forces(self.pose, self.force, self.tau)
         return np.array(self.ws.pmap.leg_forces(self.legs, self.force, list(self.tau)))
 
     def tau_ext(self) -> np.ndarray:
         tau = np.zeros(self.ws.dyn.nv)
         if self.wrench is not None:
-            rot = np.array(self.legs.rot).reshape(3, 3)
+            rot = rotation_from_rpy(self.pose[3:]) if self._legs is None else \
+                np.array(self._legs.rot).reshape(3, 3)
             wrench = np.asarray(self.wrench, dtype=float)
             tau[self.ws.ff_v] = np.concatenate([rot.T @ wrench[:3], rot.T @ wrench[3:]])
         return tau
@@ -834,8 +838,7 @@ class _LazyTreeMultipliers:
         # each leg's three tree rows (carriage, u_a, u_b) of rnea = S^T tau + J_c^T lambda
         # (the wrench acts on the platform rows only)
         force = pin.rnea(ws.dyn.model, ws.dyn.data, self.q, self.v, self.acc)
-        legs = ws.pmap.legs(list(self.pose), ws.signs, angles=True)
-        tips = np.array(ws.pmap.leg_forces(legs, force, list(self.forces)))
+        tips = ws.compiled.tip_forces(self.pose, force, self.forces)
         return tips[ws.leg_of_closure].reshape(-1)
 
 
@@ -1085,8 +1088,9 @@ class HexapodDynamics:
             ws.pmap.solve_forces(ws.pmap.legs(pose_a.tolist(), ws.signs, angles=True),
                                  rhs.tolist())                     # raises SingularityError
         tau, status, iters = self._bounded_forces(ws, ck.jt, rhs, tau, mult, method, bounds)
-        details = _InverseDetails(ws, None, force, tau, wrench_a, q, v, a, joint_wrenches,
-                                  pose=pose_a.copy())
+        details = _InverseDetails(ws, None, force, tau,
+                                  None if wrench_a is None else wrench_a.copy(), q, v, a,
+                                  joint_wrenches, pose=pose_a.copy())
         return InverseDynamicsResult(tau, q, v, a, method, status, iters, details)
 
     def _inverse_at(self, ws, legs, twist, twist_dot, wrench, method, bounds,
@@ -1326,20 +1330,18 @@ class HexapodDynamics:
         Returns:
             :class:`ReducedDynamics` (unpacks as ``M_x, h_x``).
         """
-        pose, twist = _floats6(pose, "pose"), _floats6(twist, "twist")
         ws = self._workspace()
-        pm, dyn = ws.pmap, ws.dyn
-        legs = pm.legs(pose, ws.signs, angles=True)
-        vel, dlegs = pm.velocity(legs, twist)
-        acc0 = pm.acceleration(legs, twist, (0.0,) * 6, vel, dlegs)
-        q = np.array(pm.configuration(legs))
-        vmap = pm.velocity_map(legs)
-        mass = dyn.mass_matrix(q)
-        m_x = vmap.T @ mass @ vmap
-        h_x = pm.project(legs, pin.rnea(dyn.model, dyn.data, q, np.array(vel),
-                                        np.array(acc0)).tolist())
-        return ReducedDynamics(0.5 * (m_x + m_x.T), np.array(h_x),
-                               vmap[self.indices.carriage_v].copy(), vmap)
+        ck, dyn = ws.compiled, ws.dyn
+        pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
+        q, v, acc0 = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
+        if kernels.tree_state(ck.geo, pose_a, twist_a, ck.zero6, ck.signs, 2, q, v, acc0,
+                              ck.buf) != kernels.OK:
+            self._raise_for(pose, twist=twist)
+        mass = pin.crba(dyn.model, dyn.data, q)
+        bias = pin.rnea(dyn.model, dyn.data, q, v, acc0)
+        vmap, m_x, h_x = np.empty((dyn.nv, 6)), np.empty((6, 6)), np.empty(6)
+        kernels.reduced(ck.geo, ck.buf, mass, bias, vmap, m_x, h_x)
+        return ReducedDynamics(m_x, h_x, vmap[self.indices.carriage_v].copy(), vmap)
 
     # -- energies ----------------------------------------------------------------------------
     def energies(self, pose, twist) -> Energies:

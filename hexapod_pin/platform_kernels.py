@@ -34,7 +34,8 @@ import math
 import numba
 import numpy as np
 
-from .kinematics import GIMBAL_TOL, TYPE_I_TOL
+from .errors import HexapodPinError
+from .kinematics import GIMBAL_TOL
 
 #: status codes
 OK, UNREACHABLE, TYPE_I, GIMBAL, TYPE_II, NOT_PD = 0, 1, 2, 3, 4, 5
@@ -72,7 +73,7 @@ def _finite(vec) -> bool:
 
 
 @_jit
-def tree_state(geo, pose, twist, twist_dot, signs, level, q, v, a, buf):  # noqa: C901
+def tree_state(geo, pose, twist, twist_dot, signs, level, q, v, a, buf):
     """Tree state of a platform state (home or any IK branch ``signs``).
 
     ``level`` 0: ``q`` only; 1: ``q``, ``v``; 2: ``q``, ``v``, ``a``. Returns OK, or
@@ -282,6 +283,29 @@ def project(geo, buf, force, wrench, has_wrench, out):
     if has_wrench:
         for j in range(6):
             out[j] -= wrench[j]
+
+
+@_jit
+def leg_forces(geo, buf, force, tau, out):
+    """Force (world axes) of the platform on each leg tip, ``out`` (6, 3): leg i's three
+    tree rows ``[u, u x n, b x n]^T lambda_i = (force_c - tau_i, force_a, force_b)``
+    (:meth:`PlatformMap.leg_forces`), by Cramer's rule."""
+    for i in range(6):
+        c = 9 * i
+        ux, uy, uz, lx, ly = geo[c + 4], geo[c + 5], geo[c + 6], geo[c + 7], geo[c + 8]
+        nx, ny, nz = buf[_NX, i], buf[_NY, i], buf[_NZ, i]
+        rho = math.sqrt(buf[_RHO2, i])
+        bx, by, bz = buf[_X, i] * lx / rho, buf[_X, i] * ly / rho, buf[_Y, i] / rho
+        c2x, c2y, c2z = uy * nz - uz * ny, uz * nx - ux * nz, ux * ny - uy * nx
+        c3x, c3y, c3z = by * nz - bz * ny, bz * nx - bx * nz, bx * ny - by * nx
+        y1, y2, y3 = force[3 * i] - tau[i], force[3 * i + 1], force[3 * i + 2]
+        k23x, k23y, k23z = c2y * c3z - c2z * c3y, c2z * c3x - c2x * c3z, c2x * c3y - c2y * c3x
+        k31x, k31y, k31z = c3y * uz - c3z * uy, c3z * ux - c3x * uz, c3x * uy - c3y * ux
+        k12x, k12y, k12z = uy * c2z - uz * c2y, uz * c2x - ux * c2z, ux * c2y - uy * c2x
+        det = ux * k23x + uy * k23y + uz * k23z
+        out[i, 0] = (y1 * k23x + y2 * k31x + y3 * k12x) / det
+        out[i, 1] = (y1 * k23y + y2 * k31y + y3 * k12y) / det
+        out[i, 2] = (y1 * k23z + y2 * k31z + y3 * k12z) / det
 
 
 @_jit
@@ -532,6 +556,17 @@ class CompiledMap:
         self.v = np.empty(24)
         self.rest = np.empty(24)
         self.a = np.empty(24)
+
+    def tip_forces(self, pose, force, tau) -> np.ndarray:
+        """(6, 3) :func:`leg_forces` at ``pose`` (its legs rebuilt in a fresh buffer, so
+        that a result computed earlier can still ask for them)."""
+        buf, q, out = np.empty((BUF_ROWS, 6)), np.empty(25), np.empty((6, 3))
+        if tree_state(self.geo, pose, self.zero6, self.zero6, self.signs, 0, q, self.v,
+                      self.a, buf) != OK:
+            raise HexapodPinError(f"tip_forces: pose {pose.tolist()} refused by the "
+                                  "compiled map (it was accepted before)")
+        leg_forces(self.geo, buf, force, tau, out)
+        return out
 
     def jac_t(self) -> np.ndarray:
         """``J^T`` (6, 6) of the legs in the buffer (a new array)."""

@@ -56,7 +56,7 @@ def test_kernels_equal_the_python_map(any_robot, rng):
     pm = robot._platform_map
     pose = random_pose(robot, rng)
     twist, twist_dot = _motion(rng)
-    code, ck, q, v, a = _state(robot, pose, twist, twist_dot)
+    _, ck, q, v, a = _state(robot, pose, twist, twist_dot)
     legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
     vel, dlegs = pm.velocity(legs, twist.tolist())
     acc = pm.acceleration(legs, twist.tolist(), twist_dot.tolist(), vel, dlegs)
@@ -72,7 +72,7 @@ def test_projection_is_virtual_power_and_solve_is_exact(any_robot, rng):
     robot = any_robot
     pose = random_pose(robot, rng)
     twist, twist_dot = _motion(rng)
-    _, ck, q, v, _ = _state(robot, pose, twist, twist_dot)
+    _, ck, _q, v, _ = _state(robot, pose, twist, twist_dot)
     force, wrench = rng.normal(size=24), rng.normal(size=6)
     rhs = np.empty(6)
     K.project(ck.geo, ck.buf, force, wrench, True, rhs)
