@@ -364,6 +364,11 @@ def main(argv=None) -> int:
     _row("reduced_dynamics",
          _time(lambda k: robot.reduced_dynamics(poses[cyc(k)], twists[cyc(k)]), number, repeat),
          recorded=rec["reduced_dynamics"], note="M_x, h_x, J, T")
+    _row("inverse_dynamics_derivatives",
+         _time(lambda k: robot.inverse_dynamics_derivatives(
+             poses[cyc(k)], twists[cyc(k)], twist_dots[cyc(k)], wrenches[cyc(k)]),
+             number, repeat),
+         note="analytic: pose, twist, twist_dot, wrench (pin.computeConstraintDynamicsDerivatives)")
 
     sizes = (1, 10) if args.smoke else (1, 100, 10000)
     for n in sizes:

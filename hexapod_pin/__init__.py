@@ -27,7 +27,7 @@ __all__ = [
     "HexapodPinError", "InputError", "LoopsSpec", "RankInfo", "SingularityError",
     "SolverError", "StrokeLimitError", "UnreachablePoseError", "expand_xacro", "load_loops",
     "parse_loops", "urdf_dir", "AssemblyPolynomial", "Planar3PRR", "PlanarForwardDynamics",
-    "PlanarGeometry", "PlanarInverseDynamics", "load_parallel_robot", "robots", "sdf",
+    "PlanarGeometry", "PlanarInverseDynamics", "load_parallel_robot", "derivatives", "robots", "sdf",
     "workspace", "InverseKinematicsBatch", "JacobianBatch", "LegMotion", "SingularityMeasures",
 ]
-from . import robots, sdf, workspace  # noqa: E402  (submodules as attributes)
+from . import derivatives, robots, sdf, workspace  # noqa: E402  (submodules as attributes)

@@ -68,6 +68,7 @@ from .batch_dynamics import (  # noqa: F401  (re-exported: part of this module's
     check_batch,
 )
 from .closed_loop import ClosedLoopModel
+from .derivatives import AnalyticDerivatives, analytic_derivatives
 from .errors import (
     ActuatorSaturationError,
     HexapodPinError,
@@ -915,24 +916,9 @@ class Energies:
     total: float
 
 
-@dataclass(frozen=True)
-class InverseDynamicsDerivatives:
-    """Derivatives of the inverse-dynamics actuator forces (each (6, 6), row = carriage).
-
-    Attributes:
-        actuator_forces: the forces ``tau`` (6,) at the point (N).
-        d_pose: ``d tau / d pose``, pose = (x, y, z, roll, pitch, yaw), twist and
-            twist_dot held (N/m, N/rad).
-        d_twist: ``d tau / d twist`` (N s/m, N s/rad).
-        d_twist_dot: ``d tau / d twist_dot`` (kg, kg m).
-        d_wrench: ``d tau / d wrench`` (dimensionless, 1/m).
-    """
-
-    actuator_forces: np.ndarray
-    d_pose: np.ndarray
-    d_twist: np.ndarray
-    d_twist_dot: np.ndarray
-    d_wrench: np.ndarray
+#: result of :meth:`HexapodDynamics.inverse_dynamics_derivatives` (one class with
+#: :class:`hexapod_pin.derivatives.AnalyticDerivatives`)
+InverseDynamicsDerivatives = AnalyticDerivatives
 
 
 @dataclass
@@ -1435,59 +1421,26 @@ class HexapodDynamics:
         return self._workspace().batch.reduced(poses, twists)
 
     # -- derivatives ------------------------------------------------------------------------
-    def inverse_dynamics_derivatives(self, pose, twist, twist_dot, wrench=None,
-                                     pose_step: float = 1e-4) -> InverseDynamicsDerivatives:
-        """Derivatives of the inverse-dynamics actuator forces (no bounds applied).
+    def inverse_dynamics_derivatives(self, pose, twist, twist_dot,
+                                     wrench=None) -> InverseDynamicsDerivatives:
+        """Derivatives of the inverse-dynamics actuator forces (no bounds applied), analytic.
 
-        Routes:
-
-        * ``d_twist_dot`` and ``d_wrench``: analytic. ``tau`` is affine in both:
-          ``J^T tau + wrench = M_x twist_dot + h_x`` gives ``d tau / d twist_dot =
-          J^-T M_x`` and ``d tau / d wrench = -J^-T`` (:meth:`reduced_dynamics`).
-        * ``d_twist``: exact polarisation. ``tau`` is a quadratic polynomial of the
-          twist at fixed pose and twist_dot (``v = T twist``; the drift, the velocity
-          product terms of the free-flyer acceleration and ``h`` are quadratic in
-          ``v``), so the central difference ``(tau(t + s e) - tau(t - s e)) / 2 s`` is
-          exact for any ``s`` (here ``s = 1``); only round-off remains.
-        * ``d_pose``: fourth-order central differences in the pose coordinates
-          (Richardson, steps ``pose_step`` and ``2 pose_step``), truncation error
-          ``O(pose_step^4)``, round-off about ``1e-16 / pose_step`` relative (default
-          1e-4 m/rad), with twist and twist_dot held in world axes. Close to a
-          singularity (a leg nearly perpendicular to its rail) the steps must stay
-          inside the workspace.
+        The implicit-function theorem on Pinocchio's constrained forward-dynamics
+        derivatives (``pin.computeConstraintDynamicsDerivatives`` on the tree with the
+        loop closures) and the closed-form derivatives of the platform -> tree map; see
+        :mod:`hexapod_pin.derivatives`. Exact up to round-off (the tests compare with
+        finite differences). ``d_pose`` is in pose coordinates, with the twist, twist_dot
+        and wrench held in world axes; :func:`hexapod_pin.derivatives.analytic_derivatives`
+        also gives the derivative along a world-frame tangent ``(dp, dtheta)``.
 
         Args:
             pose, twist, twist_dot, wrench: as in :meth:`inverse_dynamics`.
-            pose_step: step of the pose differences (m, rad).
 
         Returns:
-            :class:`InverseDynamicsDerivatives`.
+            :class:`~hexapod_pin.derivatives.AnalyticDerivatives` (``actuator_forces``,
+            ``d_pose``, ``d_world``, ``d_twist``, ``d_twist_dot``, ``d_wrench``).
+
+        Raises:
+            InputError, UnreachablePoseError, SingularityError, SolverError.
         """
-        pose, twist = _floats6(pose, "pose"), _floats6(twist, "twist")
-        twist_dot = _floats6(twist_dot, "twist_dot")
-        wrench = None if wrench is None else _floats6(wrench, "wrench")
-        if not (np.isfinite(pose_step) and pose_step > 0):
-            raise InputError("pose_step", pose_step, "must be a positive number")
-        ws = self._workspace()
-
-        def forces(p, t, td):
-            legs = ws.pmap.legs(list(p), ws.signs, angles=True)
-            return self._inverse_at(ws, legs, list(t), list(td), wrench, "kkt", None,
-                                    False).actuator_forces
-
-        tau0 = forces(pose, twist, twist_dot)
-        red = self.reduced_dynamics(pose, twist)
-        jac_t = red.jacobian.T
-        d_twist_dot = np.linalg.solve(jac_t, red.mass_matrix)
-        d_wrench = -np.linalg.inv(jac_t)
-        pose, twist, twist_dot = np.array(pose), np.array(twist), np.array(twist_dot)
-        eye = np.eye(6)
-        d_twist = np.column_stack([(forces(pose, twist + e, twist_dot)
-                                    - forces(pose, twist - e, twist_dot)) / 2.0 for e in eye])
-        h = pose_step
-        d_pose = np.column_stack([
-            (8.0 * (forces(pose + h * e, twist, twist_dot) - forces(pose - h * e, twist, twist_dot))
-             - (forces(pose + 2 * h * e, twist, twist_dot)
-                - forces(pose - 2 * h * e, twist, twist_dot))) / (12.0 * h)
-            for e in eye])
-        return InverseDynamicsDerivatives(tau0, d_pose, d_twist, d_twist_dot, d_wrench)
+        return analytic_derivatives(self, pose, twist, twist_dot, wrench)

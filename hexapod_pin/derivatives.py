@@ -1,0 +1,390 @@
+"""Analytic derivatives of the hexapod's closed-loop inverse dynamics.
+
+``tau = ID(pose, twist, twist_dot, wrench)`` (the unbounded ``method="kkt"`` route of
+:meth:`~hexapod_pin.dynamics.HexapodDynamics.inverse_dynamics`) is the inverse in ``tau``
+of the constrained forward dynamics ``twist_dot = FD(pose, twist, tau, wrench)``. The
+implicit-function theorem turns the derivatives of ``FD``, which Pinocchio computes on
+the tree with the loop closures (``pin.computeConstraintDynamicsDerivatives``: the
+partials ``ddq_dq``, ``ddq_dv``, ``ddq_dtau`` of the tree acceleration), into those of
+``ID``::
+
+    d tau / d y         = -(d FD / d tau)^-1  d FD / d y     (y: pose, twist, wrench)
+    d tau / d twist_dot =  (d FD / d tau)^-1                  (d FD / d tau = M_x^-1 J^T)
+
+Chain rule through the tree. ``G`` (nv, 6) is the closed-form map ``v_tree = G twist``
+(:meth:`~hexapod_pin.platform_map.PlatformMap.velocity_map`). A change of pose is a
+world tangent ``delta = (dp, dtheta)``: ``dp`` the displacement of the platform origin,
+``dtheta`` the rotation vector in world axes (``R -> exp([dtheta]) R``); in pose
+coordinates ``dtheta = E(rpy) d(rpy)`` (:func:`~hexapod_pin.pose.euler_rates_matrix`).
+With the twist ``(v, w)`` and the wrench ``(f, m)`` held in world axes::
+
+    dq        = G delta                              (tree tangent, as pin.integrate)
+    dv_legs   = d(G twist) along delta               (closed form per leg: _leg_rates)
+    dv_ff     = (R^T [v]x dtheta, R^T [w]x dtheta)   (free flyer: v_ff = (R^T v, R^T w))
+    dtau_ff   = (R^T [f]x dtheta, R^T [m]x dtheta)   (the wrench as free-flyer force)
+    da        = ddq_dq dq + ddq_dv dv + ddq_dtau dtau_tree     (at the ID point)
+    twist_dot = (R a_lin + w x v, R a_ang),  R a_ff = (vdot - w x v, wdot)
+    d twist_dot = blockdiag(R, R) da_ff - ([vdot - w x v]x dtheta, [wdot]x dtheta)
+
+and along the twist ``dv = G dtwist`` plus ``d(w x v)``; along the wrench ``dtau_ff =
+(R^T df, R^T dm)``. One product of the platform rows of Pinocchio's partials (6, 72)
+with that chain (72, 24) and one 6x6 LU solve give every derivative.
+
+Checks made while building this (Pinocchio 4.1.0): ``computeConstraintDynamicsDerivatives``
+is right for these loop closures (constraints between two moving joints): its three
+partials match central differences of ``pin.constraintDynamics`` along ``pin.integrate``
+(the tests repeat that check). ``getFrameVelocityDerivatives`` /
+``getJointVelocityDerivatives`` with ``LOCAL_WORLD_ALIGNED`` do NOT match finite
+differences of ``getFrameVelocity`` / ``getVelocity`` in that frame (LOCAL and WORLD
+do); a first version differentiated the velocity closures ``J_c v = 0`` with the
+LOCAL variant (``d(R_f v_loc) = R_f d v_loc - [R_f v_loc]x R_f J_loc,ang dq``) and agreed
+with the closed form used here, which is faster.
+
+Everything is exact up to round-off: no finite differences inside. The tests check every
+block against central differences of ``robot.inverse_dynamics(..., method="kkt",
+bounded=False)`` on both geometries. The per-robot workspace (Pinocchio data, buffers)
+is shared between calls: not thread-safe, like the rest of the dynamics.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from scipy.linalg.lapack import dgesv
+
+from .errors import HexapodPinError, InputError, SingularityError, SolverError
+from .kinematics import HOME_BRANCH, RAIL_OF, _floats6
+from .platform_map import TYPE_II_PIVOT_RTOL
+
+__all__ = ["AnalyticDerivatives", "analytic_derivatives", "inverse_dynamics_pose_derivative"]
+
+
+@dataclass(frozen=True)
+class AnalyticDerivatives:
+    """Analytic derivatives of the inverse-dynamics actuator forces (no bounds applied).
+
+    Rows: carriage ``i`` (force on carriage ``i`` along ``+u_k``, N). Every derivative
+    holds the other arguments fixed; twist, twist_dot and wrench are held in world axes.
+    The field names match :class:`~hexapod_pin.dynamics.InverseDynamicsDerivatives`.
+
+    Attributes:
+        actuator_forces: ``tau`` (6,) at the point (N).
+        d_pose: ``d tau / d pose`` (6, 6), pose = (x, y, z, roll, pitch, yaw)
+            (N/m, N/rad).
+        d_world: ``d tau / d (dp, dtheta)`` (6, 6): ``dp`` (m) the displacement of the
+            platform origin and ``dtheta`` (rad) the rotation vector, both in world axes
+            (``R -> exp([dtheta]) R``); ``d_pose = d_world @ blockdiag(I, E(rpy))``.
+        d_twist: ``d tau / d twist`` (6, 6), twist = (v, w) world (N s/m, N s/rad).
+        d_twist_dot: ``d tau / d twist_dot`` (6, 6) (kg, kg m): ``J^-T M_x``.
+        d_wrench: ``d tau / d wrench`` (6, 6) (dimensionless, 1/m): ``-J^-T``.
+    """
+
+    actuator_forces: np.ndarray
+    d_pose: np.ndarray
+    d_world: np.ndarray
+    d_twist: np.ndarray
+    d_twist_dot: np.ndarray
+    d_wrench: np.ndarray
+
+
+def _euler_rates(pitch: float, yaw: float) -> np.ndarray:
+    """``E`` (3, 3) with ``w = E d(rpy)/dt`` (as :func:`~hexapod_pin.pose.euler_rates_matrix`)."""
+    cp, sp, cy, sy = math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
+    return np.array(((cy * cp, -sy, 0.0), (sy * cp, cy, 0.0), (-sp, 0.0, 1.0)))
+
+
+class _Workspace:
+    """Pinocchio data, buffers and constants of one robot (cached per robot).
+
+    Relies on the tree layout that :class:`~hexapod_pin.platform_map.PlatformMap`
+    enforces: velocity rows ``(carriage_i, u_i_a, u_i_b)`` at ``3 i .. 3 i + 2`` for
+    ``i = 0..5``, then the platform's free-flyer at 18..23; six point closures.
+    """
+
+    def __init__(self, robot):
+        clm = robot.model
+        model = clm.model
+        self.model = model
+        self.pmap = robot._platform_map          # raises unless the layout above holds
+        self.signs = HOME_BRANCH.tolist()
+        self.nv = model.nv
+        self.act = np.asarray(clm.actuated_v, dtype=int)
+        if (clm.n_rows != 18 or any(c.type != "point" for c in clm.closures)
+                or self.act.tolist() != robot.indices.carriage_v.tolist()):
+            raise HexapodPinError("analytic derivatives need the hexapod's six point "
+                                  f"closures and carriage actuation (got {clm.n_rows} "
+                                  f"closure rows, actuated velocities {self.act.tolist()})")
+        self.cms = pin.StdVec_RigidConstraintModel()
+        for cm in clm.constraint_models:
+            self.cms.append(cm)
+        self.cds = pin.StdVec_RigidConstraintData()
+        for cm in self.cms:
+            self.cds.append(cm.createData())
+        self.data = model.createData()          # constraint dynamics and its derivatives
+        self.kin = model.createData()           # rnea
+        pin.initConstraintDynamics(model, self.data, self.cms, self.cds)
+        self.prox = pin.ProximalSettings(1e-14, 0.0, 1)
+        self.rail_of = RAIL_OF.tolist()
+        geo = robot.geometry
+        self.length = float(geo.leg_length)
+        # per carriage: the rail direction u and l = z x u (the rails are horizontal)
+        self.axes = [(tuple(u), (-u[1], u[0], 0.0))
+                     for u in geo.rail_directions[RAIL_OF].tolist()]
+        # rows (dq | dv | dtau_tree) x columns (world tangent | twist | wrench | tau); the
+        # zeros and the actuation block stay, the rest is overwritten at each call
+        chain = np.zeros((3 * self.nv, 24))
+        eye3 = np.eye(3)
+        chain[18:21, 0:3] = chain[21:24, 3:6] = eye3           # dq_ff (world axes)
+        chain[42:45, 6:9] = chain[45:48, 9:12] = eye3          # dv_ff = d twist
+        chain[66:69, 12:15] = chain[69:72, 15:18] = eye3       # dtau_ff = d wrench
+        chain[2 * self.nv + self.act, 18:24] = np.eye(6)       # dtau_tree = S dtau
+        self.chain = chain
+        # skew entries [x]_(r, c) = s x_k, as (r, c, k, s); set at every call
+        pattern = ((0, 1, 2, -1), (0, 2, 1, 1), (1, 0, 2, 1), (1, 2, 0, -1),
+                   (2, 0, 1, -1), (2, 1, 0, 1))
+        # dv_ff = ([v]x dtheta, [w]x dtheta), dtau_ff = ([f]x dtheta, [m]x dtheta)
+        self.skew_rows = np.array([base + r for base in (42, 45, 66, 69)
+                                   for r, _, _, _ in pattern])
+        self.skew_cols = np.array([3 + c for _ in range(4) for _, c, _, _ in pattern])
+        # twist_dot corrections: -[p]x, -[wdot]x in the dtheta columns (p = vdot - w x v),
+        # +[w]x on dv, -[v]x on dw (rows of d vdot)
+        self.fix_rows = np.array([base + r for base in (0, 3, 0, 0) for r, _, _, _ in pattern])
+        self.fix_cols = np.array([base + c for base in (3, 3, 6, 9) for _, c, _, _ in pattern])
+        self.eye6 = np.eye(6)
+
+    @staticmethod
+    def rot6(rot) -> np.ndarray:
+        """``blockdiag(R, R)`` (6, 6) from the 9 row-major floats of ``R``."""
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
+        return np.array(((r00, r01, r02, 0.0, 0.0, 0.0), (r10, r11, r12, 0.0, 0.0, 0.0),
+                         (r20, r21, r22, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, r00, r01, r02),
+                         (0.0, 0.0, 0.0, r10, r11, r12), (0.0, 0.0, 0.0, r20, r21, r22)))
+
+
+_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _workspace(robot) -> _Workspace:
+    try:
+        ws = _CACHE.get(robot)
+    except TypeError:                          # not weak-referenceable / hashable
+        ws = None
+    if ws is None:
+        from .hexapod import Hexapod  # local import: hexapod.py imports dynamics
+
+        if not isinstance(robot, Hexapod):
+            raise InputError("robot", robot, "expected a hexapod_pin.Hexapod")
+        ws = _Workspace(robot)
+        _CACHE[robot] = ws
+    return ws
+
+
+def analytic_derivatives(robot, pose, twist, twist_dot, wrench=None) -> AnalyticDerivatives:
+    """Analytic derivatives of the hexapod's inverse-dynamics actuator forces.
+
+    The forces are those of ``robot.inverse_dynamics(pose, twist, twist_dot, wrench,
+    method="kkt", bounded=False)`` (no actuator bounds); the derivatives come from the
+    implicit-function theorem applied to Pinocchio's constrained forward dynamics and
+    its derivatives on the tree with the loop closures (see the module docstring).
+    Exact up to round-off.
+
+    Args:
+        robot: a :class:`hexapod_pin.Hexapod` (home IK branch).
+        pose: ``(x, y, z, roll, pitch, yaw)`` (m, rad), shape (6,).
+        twist: ``(v, w)`` of the platform origin, world axes (m/s, rad/s), (6,).
+        twist_dot: time derivative of the twist (m/s^2, rad/s^2), (6,).
+        wrench: ``(f, m)`` applied on the platform by the environment, world axes,
+            moment about the platform origin (N, N m), (6,); default zero.
+
+    Returns:
+        :class:`AnalyticDerivatives` (``actuator_forces``, ``d_pose``, ``d_world``,
+        ``d_twist``, ``d_twist_dot``, ``d_wrench``; each derivative (6, 6), row i =
+        carriage i).
+
+    Raises:
+        InputError: ``robot`` is not a Hexapod; an argument is not a finite 6-vector.
+        UnreachablePoseError: the pose cannot be reached.
+        SingularityError: a leg perpendicular to its rail (type I), a leg along its
+            rail (gimbal lock) or a type-II singularity.
+        SolverError: Pinocchio's constrained dynamics returned non-finite values.
+    """
+    ws = _workspace(robot)
+    pose = _floats6(pose, "pose")
+    twist = _floats6(twist, "twist")
+    twist_dot = _floats6(twist_dot, "twist_dot")
+    wrench = [0.0] * 6 if wrench is None else _floats6(wrench, "wrench")
+    model, pm, data = ws.model, ws.pmap, ws.data
+
+    # -- the inverse-dynamics point (closed-form tree state, one rnea, one 6x6 solve)
+    legs = pm.legs(pose, ws.signs, angles=True)
+    vel, dlegs = pm.velocity(legs, twist)
+    acc = pm.acceleration(legs, twist, twist_dot, vel, dlegs)
+    q, v = np.array(pm.configuration(legs)), np.array(vel)
+    force = pin.rnea(model, ws.kin, q, v, np.array(acc)).tolist()
+    rhs = [b - w for b, w in zip(pm.project(legs, force), wrench)]
+    tau = pm.solve_forces(legs, rhs)           # raises SingularityError at type II
+
+    # -- constrained forward dynamics and its derivatives at (q, v, tau_tree)
+    rot = legs.rot
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
+    fx, fy, fz, mx, my, mz = wrench
+    tau_tree = []
+    for t in tau:
+        tau_tree += (t, 0.0, 0.0)              # the carriages, then the free flyer (R^T f, R^T m)
+    tau_tree += (r00 * fx + r10 * fy + r20 * fz, r01 * fx + r11 * fy + r21 * fz,
+                 r02 * fx + r12 * fy + r22 * fz, r00 * mx + r10 * my + r20 * mz,
+                 r01 * mx + r11 * my + r21 * mz, r02 * mx + r12 * my + r22 * mz)
+    pin.constraintDynamics(model, data, q, v, np.array(tau_tree), ws.cms, ws.cds, ws.prox)
+    pin.computeConstraintDynamicsDerivatives(model, data, ws.cms, ws.cds, ws.prox)
+    # platform rows of (ddq_dq | ddq_dv | ddq_dtau) (6, 72); their free-flyer columns
+    # times blockdiag(R^T, R^T), so that the free-flyer rows of the chain are world-axes
+    # quantities: dq_ff = R^T dp, R^T dtheta; dv_ff = R^T (v x dtheta, w x dtheta) ...
+    partials = np.concatenate((data.ddq_dq[18:24], data.ddq_dv[18:24],
+                               data.ddq_dtau[18:24]), axis=1)
+    blocks = partials.reshape(6, 3, 8, 3)
+    blocks[:, :, 6:8] = blocks[:, :, 6:8] @ np.array(rot).reshape(3, 3).T
+
+    # -- the chain (72, 24): rows (dq | dv | dtau_tree), columns (world tangent | twist |
+    #    wrench | tau); its constant part is set up once (see _Workspace)
+    g_rows, dv_rows = _leg_rates(ws, legs, twist, vel, dlegs)
+    chain = ws.chain
+    chain[0:18, 0:6] = chain[24:42, 6:12] = np.array(g_rows)  # dq = G delta, dv = G dtwist
+    chain[24:42, 0:6] = dv_rows                               # dv along delta, twist held
+    vx, vy, vz, wx, wy, wz = twist
+    chain[ws.skew_rows, ws.skew_cols] = (-vz, vy, vz, -vx, -vy, vx, -wz, wy, wz, -wx, -wy,
+                                         wx, -fz, fy, fz, -fx, -fy, fx, -mz, my, mz, -mx,
+                                         -my, mx)
+    # d(twist_dot) (world) = blockdiag(R, R) d(a_ff) + the rotation of R a_ff along
+    # dtheta (R a_ff = (vdot - w x v, wdot)) + d(w x v) / d twist
+    rows = ws.rot6(rot) @ (partials @ chain)
+    ax, ay, az, bx, by, bz = twist_dot
+    px, py, pz = ax - (wy * vz - wz * vy), ay - (wz * vx - wx * vz), az - (wx * vy - wy * vx)
+    rows[ws.fix_rows, ws.fix_cols] += (pz, -py, -pz, px, py, -px, bz, -by, -bz, bx, by, -bx,
+                                       -wz, wy, wz, -wx, -wy, wx, vz, -vy, -vz, vx, vy, -vx)
+    # implicit-function theorem: d tau = -(d twist_dot / d tau)^-1 d twist_dot / d (.)
+    dxi_dtau = rows[:, 18:24].copy()                          # = M_x^-1 J^T
+    rows[:, 18:24] = ws.eye6
+    lu, _, sol, info = dgesv(dxi_dtau, rows)
+    pivots = np.abs(lu.diagonal())
+    if info != 0 or not pivots.min() > TYPE_II_PIVOT_RTOL * pivots.max():
+        raise SingularityError("d twist_dot / d tau = M_x^-1 J^T (type-II singularity; "
+                               "smallest LU pivot over the largest)",
+                               pivots.min() / pivots.max() if pivots.max() > 0.0 else 0.0)
+    if not math.isfinite(sol.sum()):
+        raise SolverError("pin.constraintDynamics / computeConstraintDynamicsDerivatives",
+                          "non-finite derivatives", "the closures may be redundant")
+    neg = -sol
+    d_pose = neg[:, 0:6].copy()
+    d_pose[:, 3:] = neg[:, 3:6] @ _euler_rates(pose[4], pose[5])
+    return AnalyticDerivatives(np.array(tau), d_pose, neg[:, 0:6], neg[:, 6:12],
+                               sol[:, 18:24], neg[:, 12:18])
+
+
+def inverse_dynamics_pose_derivative(robot, pose, twist, twist_dot, wrench=None) -> np.ndarray:
+    """``d tau / d pose`` (6, 6) of the hexapod's inverse dynamics, analytic.
+
+    Row i: carriage i's force (N, along ``+u_k``); column j: pose coordinate j of
+    ``(x, y, z, roll, pitch, yaw)`` (m, rad), so the units are N/m and N/rad. Twist and
+    twist_dot are held fixed in world axes, the wrench in world axes about the platform
+    origin. Same forces as ``robot.inverse_dynamics(..., method="kkt", bounded=False)``.
+    Method: implicit-function theorem on Pinocchio's constrained forward-dynamics
+    derivatives (:func:`analytic_derivatives`, which also returns the twist,
+    twist_dot, wrench and world-tangent derivatives at no extra cost).
+
+    Args:
+        robot: a :class:`hexapod_pin.Hexapod`.
+        pose, twist, twist_dot, wrench: as in :func:`analytic_derivatives`.
+
+    Raises:
+        InputError, UnreachablePoseError, SingularityError, SolverError: as
+        :func:`analytic_derivatives`.
+    """
+    return analytic_derivatives(robot, pose, twist, twist_dot, wrench).d_pose
+
+
+def _leg_rates(ws: _Workspace, legs, twist, vel, dlegs):
+    """Leg rows of ``G`` and of ``dv = d(G twist)`` along the six world tangents.
+
+    Returns two lists of 18 rows (6 floats each), rows ``3 i, 3 i + 1, 3 i + 2`` for the
+    carriage, ``u_i_a`` and ``u_i_b`` velocities of leg ``i`` (columns ``(dp, dtheta)``).
+
+    Per leg (carriage ``i`` on rail ``k``; closed form of
+    :meth:`~hexapod_pin.platform_map.PlatformMap.velocity`), along ``delta = (dp,
+    dtheta)`` with the twist held, the platform point moves by ``D = dp + dtheta x r``,
+    the arm by ``dr = dtheta x r`` and the tip velocity ``V = v + w x r`` by
+    ``dV = w x dr``. Every differential below is ``a.D + b.dr`` for 3-vectors ``a``,
+    ``b``, i.e. the row ``[a, r x (a + b)]`` against ``delta``::
+
+        dq_i = n.D / (n.u)            (a = g_c = n / (n.u): the rows of G are [g, r x g])
+        c.dn = c.D - (c.u) dq_i       for dn = D - dq_i u
+        d qdot_i = (V.dn + n.dV - qdot_i u.dn) / (n.u),      c.dV = (c x w).dr
+        c.d(dn/dt) = c.dV - (c.u) d qdot_i
+        X = n.z / L, Y = -n.l / L, rho^2 = X^2 + Y^2
+        adot = -(X (dn/dt).l + Y (dn/dt).z) / (L rho^2),   bdot = (dn/dt).u / (L rho)
+
+    differentiated term by term.
+    """
+    length = ws.length
+    inv_len = 1.0 / length
+    wx, wy, wz = twist[3:]
+    g_rows, dv_rows = [], []
+    for i, ((ux, uy, uz), (lx, ly, lz)) in enumerate(ws.axes):
+        nx, ny, nz = legs.legs[i]
+        rx, ry, rz = legs.arms[ws.rail_of[i]]
+        nu, big_x, big_y, rho2 = legs.along[i], legs.xs[i], legs.ys[i], legs.rho2[i]
+        rho = rho2 ** 0.5
+        qdot, adot, bdot = vel[3 * i:3 * i + 3]
+        ex, ey, ez = dlegs[i]                                  # dn/dt
+        tx, ty, tz = ex + qdot * ux, ey + qdot * uy, ez + qdot * uz   # V
+        # G rows
+        gcx, gcy, gcz = nx / nu, ny / nu, nz / nu
+        ca = -inv_len / rho2
+        gax, gay, gaz = ca * (big_x * lx), ca * (big_x * ly), ca * (big_x * lz + big_y)
+        cb = inv_len / rho
+        gbx, gby, gbz = cb * (ux - gcx), cb * (uy - gcy), cb * (uz - gcz)
+        # d qdot: a = (V - (V.u) g_c - qdot (u - g_c)) / nu,  b = (n x w) / nu
+        tu = tx * ux + ty * uy + tz * uz
+        aqx = (tx - tu * gcx - qdot * (ux - gcx)) / nu
+        aqy = (ty - tu * gcy - qdot * (uy - gcy)) / nu
+        aqz = (tz - tu * gcz - qdot * (uz - gcz)) / nu
+        bqx, bqy, bqz = (ny * wz - nz * wy) / nu, (nz * wx - nx * wz) / nu, \
+            (nx * wy - ny * wx) / nu
+        # dX (c = z / L), dY (c = -l / L), d rho^2
+        cu = uz
+        axx, axy, axz = -cu * gcx * inv_len, -cu * gcy * inv_len, (1.0 - cu * gcz) * inv_len
+        cu = lx * ux + ly * uy + lz * uz
+        ayx, ayy, ayz = (cu * gcx - lx) * inv_len, (cu * gcy - ly) * inv_len, \
+            (cu * gcz - lz) * inv_len
+        arx, ary, arz = 2.0 * (big_x * axx + big_y * ayx), 2.0 * (big_x * axy + big_y * ayy), \
+            2.0 * (big_x * axz + big_y * ayz)
+        # d adot: num = -X (dn/dt).l - Y (dn/dt).z, c = -(X l + Y z) on d(dn/dt)
+        ndl, ndz = ex * lx + ey * ly + ez * lz, ez
+        cx, cy, cz = -big_x * lx, -big_x * ly, -(big_x * lz + big_y)
+        cu = cx * ux + cy * uy + cz * uz
+        k_a, k_r = 1.0 / (length * rho2), adot / rho2
+        aax = (-ndl * axx - ndz * ayx - cu * aqx) * k_a - k_r * arx
+        aay = (-ndl * axy - ndz * ayy - cu * aqy) * k_a - k_r * ary
+        aaz = (-ndl * axz - ndz * ayz - cu * aqz) * k_a - k_r * arz
+        bax = (cy * wz - cz * wy - cu * bqx) * k_a
+        bay = (cz * wx - cx * wz - cu * bqy) * k_a
+        baz = (cx * wy - cy * wx - cu * bqz) * k_a
+        # d bdot: c = u on d(dn/dt)
+        k_b, k_r = inv_len / rho, 0.5 * bdot / rho2
+        abx, aby, abz = -aqx * k_b - k_r * arx, -aqy * k_b - k_r * ary, -aqz * k_b - k_r * arz
+        bbx = (uy * wz - uz * wy - bqx) * k_b
+        bby = (uz * wx - ux * wz - bqy) * k_b
+        bbz = (ux * wy - uy * wx - bqz) * k_b
+        for (ax, ay, az), (sx, sy, sz), rows in (
+                ((gcx, gcy, gcz), (0.0, 0.0, 0.0), g_rows),
+                ((gax, gay, gaz), (0.0, 0.0, 0.0), g_rows),
+                ((gbx, gby, gbz), (0.0, 0.0, 0.0), g_rows),
+                ((aqx, aqy, aqz), (bqx, bqy, bqz), dv_rows),
+                ((aax, aay, aaz), (bax, bay, baz), dv_rows),
+                ((abx, aby, abz), (bbx, bby, bbz), dv_rows)):
+            sx, sy, sz = sx + ax, sy + ay, sz + az
+            rows.append((ax, ay, az, ry * sz - rz * sy, rz * sx - rx * sz, rx * sy - ry * sx))
+    return g_rows, dv_rows
