@@ -27,16 +27,19 @@ def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False)
     Raises:
         InputError: not numeric, wrong shape, or NaN / inf entries.
     """
-    try:
-        arr = np.ascontiguousarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(name, value, "not numeric") from None
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.flags.c_contiguous:
+        arr = value                       # what np.ascontiguousarray would return
+    else:
+        try:
+            arr = np.ascontiguousarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(name, value, "not numeric") from None
     expected = ("N",) + shape_tail if batch else shape_tail
     ok = (arr.ndim == len(shape_tail) + 1 and arr.shape[1:] == shape_tail) if batch \
         else arr.shape == shape_tail
     if not ok:
         raise InputError(name, value, f"expected shape {expected}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         bad = np.argwhere(~np.isfinite(arr))
         raise InputError(name, value, f"contains NaN or inf at {bad[:5].tolist()}")
     return arr
