@@ -42,6 +42,17 @@ forward and inverse dynamics; minimum-norm multipliers, zero on the redundant ro
 Inverse kinematics is the quadratic along each rail (8 branches); forward kinematics is
 Newton from a guess, and :meth:`Planar3PRR.assembly_modes` finds every real assembly
 mode from a univariate sextic (see :meth:`Planar3PRR.assembly_polynomial`).
+
+Single-state speed: with three loops, numpy's per-call cost (1-5 us) dominates, so the
+per-state routes (inverse kinematics, Jacobian, tree velocity and acceleration, inverse
+and forward dynamics, statics) validate their inputs once, compute the tree state in
+closed form in a compiled kernel (numba, ``cache=True``), call Pinocchio once or twice
+(``rnea``, ``crba``, the gravity vector) and solve the closure equations with their
+planar structure in a second kernel: per loop a 2x2, plus one 3x3 on the platform rows
+for inverse dynamics (:func:`_inverse_kernel`, :func:`_forward_kernel`). Where that
+structure is (nearly) singular (type II for inverse dynamics) the state goes to the
+generic dense routes of :mod:`hexapod_pin.dynamics`, so the answers are the generic
+ones everywhere, to round-off (the tests compare both).
 """
 
 from __future__ import annotations
@@ -52,6 +63,7 @@ import math
 from dataclasses import dataclass
 from functools import cached_property
 
+import numba
 import numpy as np
 import pinocchio as pin
 
@@ -59,8 +71,8 @@ from .closed_loop import ClosedLoopModel
 from .description import build_model, expand_xacro, load_loops, urdf_dir
 from .dynamics import (TreeForwardDynamics, TreeInverseDynamics, forward_dynamics_tree,
                        inverse_dynamics_tree)
-from .errors import (AssemblyError, GeometryError, SingularityError,
-                     StrokeLimitError, UnreachablePoseError)
+from .errors import (ActuatorSaturationError, AssemblyError, DescriptionError, GeometryError,
+                     InputError, SingularityError, StrokeLimitError, UnreachablePoseError)
 from .geometry import validate_scalars
 from .pose import as_array, check_signs
 
@@ -74,6 +86,16 @@ ALL_BRANCHES = tuple(np.array(b, dtype=float)
 CLOSED_FORM_TOL = 1e-12
 #: a link closer than this to perpendicular to its rail (``|n.u| / L``) is singular
 _PERPENDICULAR_TOL = 1e-9
+#: the closed-form inverse dynamics hands a state to the generic dense route when its 3x3
+#: platform system (columns ``(n_k, r_k x n_k)``, type II) has a Hadamard ratio
+#: ``|det| / prod |column|`` below this (the generic route returns least squares there)
+_TYPE_II_HADAMARD = 1e-6
+#: relative equation residual above which a closed-form solve is handed to the generic route
+_CLOSED_FORM_RTOL = 1e-9
+#: rank of the closure rows: the 2 in-plane rows of each of the 3 point closures
+_IN_PLANE_RANK = 2 * N_SLIDERS
+_STATUS_ID = "solved (closed form; out-of-plane multipliers zero: minimum norm)"
+_STATUS_FD = "solved (closed form, null-space; out-of-plane multipliers zero: minimum norm)"
 
 
 def rail_angles() -> np.ndarray:
@@ -89,6 +111,347 @@ def _rot2(theta) -> np.ndarray:
 def _cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """z component of ``a x b`` for arrays of 2-vectors (..., 2)."""
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def _vec3(value, name: str) -> np.ndarray:
+    """A float64 (3,) array from an input, for the compiled kernels (fast path).
+
+    A contiguous, writeable float64 ndarray of shape (3,) is passed through; anything
+    else is copied to one and its shape checked, or sent to :func:`as_array`, which
+    raises the :class:`InputError`. Finiteness is checked by the kernels; when they
+    report a non-finite value the caller re-validates with :func:`as_array` (which
+    raises with the offending value).
+    """
+    if (type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (3,)
+            and value.flags.c_contiguous and value.flags.writeable):
+        return value            # (one array layout: one compiled specialisation)
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or arr.shape != (3,):
+        return as_array(value, (3,), name)
+    return arr
+
+
+def _check_bounds(bounds) -> np.ndarray | None:
+    """Actuator bounds (N) as a (3,) array, or None for none (None / inf).
+
+    The rules of :func:`hexapod_pin.dynamics.inverse_dynamics_tree`: a positive scalar or
+    three positive values (inf allowed); anything else raises :class:`InputError`.
+    """
+    if bounds is None:
+        return None
+    if isinstance(bounds, (int, float)) and not isinstance(bounds, bool):
+        if not bounds > 0.0:
+            raise InputError("bounds", bounds, "must be positive")
+        return None if bounds == math.inf else np.full(N_SLIDERS, float(bounds))
+    arr = np.asarray(bounds, dtype=float)
+    if arr.ndim == 0:
+        arr = np.full(N_SLIDERS, float(arr))
+    if arr.shape != (N_SLIDERS,) or np.any(np.isnan(arr)) or np.any(arr <= 0.0):
+        raise InputError("bounds", bounds,
+                         f"expected a positive scalar or ({N_SLIDERS},) positive values")
+    return None if np.all(np.isinf(arr)) else arr
+
+
+# ---------------------------------------------------------------------------------------
+# compiled single-state kernels
+# ---------------------------------------------------------------------------------------
+# Three loops are too few for numpy to pay (a numpy call costs 1-5 us here): the
+# single-state routes validate their inputs once, run one kernel for the closed-form tree
+# state, call Pinocchio (rnea, crba or the gravity vector) on its arrays, and run one
+# kernel for the structured solve. Kernels return a status and never raise: the caller
+# raises the library's exception with the values the kernel left in ``info``, or hands
+# the state to the generic dense route (_FALLBACK). Compiled with ``cache=True`` (the
+# machine code is cached next to this file, so only the first call after an install
+# compiles).
+_jit = numba.njit(cache=True, error_model="numpy")
+
+#: kernel status codes
+_OK, _NONFINITE, _UNREACHABLE, _SINGULAR, _FALLBACK = 0, -1, 1, 2, 3
+# geometry vector: per slider k, 7 values from 7 k: m_x, m_y, u_x, u_y, p_x, p_y, a_k;
+# then the link length and the perpendicularity tolerance
+_G_LEN, _G_TOL = 7 * N_SLIDERS, 7 * N_SLIDERS + 1
+# index vector: platform (x, y, theta), sliders, links (tree v indices), first closure row
+# of each loop
+_I_PLAT, _I_SLIDER, _I_LINK, _I_ROW = 0, 3, 6, 9
+# leg buffer columns, one row per slider: s, n (2), r (2), n.u, J row (3), s', phi',
+# s'', phi''
+_S, _NX, _NY, _RX, _RY, _NU, _J0, _J1, _J2, _SD, _PD, _SDD, _PDD = range(13)
+_LEG_COLS = 13
+# info vector: shortfall (3), unreachable flags (3), worst |n.u| / L, max |s|, residual
+_INFO_SIZE = 9
+_X_WORST, _X_SMAX, _X_RES = 6, 7, 8
+
+
+@_jit
+def _all_finite(vec) -> bool:
+    for k in range(vec.shape[0]):
+        if not math.isfinite(vec[k]):
+            return False
+    return True
+
+
+@_jit
+def _state_kernel(geo, idx, pose, twist, twist_dot, signs, level, singular,
+                  q, v, a, legs, info):
+    """Closed-form tree state of a platform state (model order, every closure kept).
+
+    ``level`` 0: ``q`` (and the leg buffer: IK, link vectors, Jacobian rows); 1: also
+    ``v``; 2: also ``a``. ``singular``: check that no link is perpendicular to its rail.
+    Returns _OK, _NONFINITE, _UNREACHABLE (``info[0:3]`` shortfalls, ``info[3:6]``
+    flags) or _SINGULAR (``info[_X_WORST]``).
+    """
+    if not _all_finite(pose):
+        return _NONFINITE
+    if level >= 1 and not _all_finite(twist):
+        return _NONFINITE
+    if level >= 2 and not _all_finite(twist_dot):
+        return _NONFINITE
+    x, y, theta = pose[0], pose[1], pose[2]
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
+    length = geo[_G_LEN]
+    length2 = length * length
+    status = _OK
+    worst, s_max = math.inf, 0.0
+    for k in range(N_SLIDERS):
+        g = 7 * k
+        mx, my, ux, uy = geo[g], geo[g + 1], geo[g + 2], geo[g + 3]
+        px, py = geo[g + 4], geo[g + 5]
+        rx, ry = px * cos_t - py * sin_t, px * sin_t + py * cos_t
+        wx, wy = x + rx, y + ry                         # platform point P_k
+        dx, dy = wx - mx, wy - my
+        along = dx * ux + dy * uy
+        disc = length2 - ((dx * dx + dy * dy) - along * along)
+        info[k], info[3 + k] = 0.0, 0.0
+        if not disc >= 0.0:
+            info[k], info[3 + k] = math.sqrt(length2 - disc) - length, 1.0
+            status = _UNREACHABLE
+            continue
+        s = along + signs[k] * math.sqrt(disc)
+        nx, ny = wx - (mx + s * ux), wy - (my + s * uy)  # link vector n_k = P_k - c_k
+        nu = nx * ux + ny * uy
+        leg = legs[k]
+        leg[_S], leg[_NX], leg[_NY], leg[_RX], leg[_RY], leg[_NU] = s, nx, ny, rx, ry, nu
+        leg[_J0], leg[_J1], leg[_J2] = nx / nu, ny / nu, (rx * ny - ry * nx) / nu
+        worst = min(worst, abs(nu) / length)
+        s_max = max(s_max, abs(s))
+    info[_X_WORST], info[_X_SMAX] = worst, s_max
+    if status != _OK:
+        return status
+    if singular and worst < geo[_G_TOL]:
+        return _SINGULAR
+    for j in range(3):
+        q[idx[_I_PLAT + j]] = pose[j]
+    for k in range(N_SLIDERS):
+        leg = legs[k]
+        q[idx[_I_SLIDER + k]] = leg[_S]
+        angle = math.atan2(leg[_NY], leg[_NX]) - geo[7 * k + 6] - math.pi / 2
+        q[idx[_I_LINK + k]] = math.pi - (math.pi - angle) % (2.0 * math.pi)
+    if level < 1:
+        return _OK
+    vx, vy, omega = twist[0], twist[1], twist[2]
+    for j in range(3):
+        v[idx[_I_PLAT + j]] = twist[j]
+    for k in range(N_SLIDERS):
+        leg = legs[k]
+        nx, ny, rx, ry = leg[_NX], leg[_NY], leg[_RX], leg[_RY]
+        sdot = leg[_J0] * vx + leg[_J1] * vy + leg[_J2] * omega
+        lvx = vx - omega * ry - sdot * geo[7 * k + 2]  # P_k velocity less the slider's
+        lvy = vy + omega * rx - sdot * geo[7 * k + 3]
+        leg[_SD], leg[_PD] = sdot, (nx * lvy - ny * lvx) / length2
+        v[idx[_I_SLIDER + k]], v[idx[_I_LINK + k]] = leg[_SD], leg[_PD]
+    if level < 2:
+        return _OK
+    ax, ay, alpha = twist_dot[0], twist_dot[1], twist_dot[2]
+    omega2 = omega * omega
+    for j in range(3):
+        a[idx[_I_PLAT + j]] = twist_dot[j]
+    for k in range(N_SLIDERS):
+        # loop k: u_k s'' + (z x n_k) phi'' = b_k (Cramer, determinant n_k . u_k)
+        leg = legs[k]
+        nx, ny, rx, ry, nu = leg[_NX], leg[_NY], leg[_RX], leg[_RY], leg[_NU]
+        phid2 = leg[_PD] * leg[_PD]
+        bx = ax - alpha * ry + phid2 * nx - omega2 * rx
+        by = ay + alpha * rx + phid2 * ny - omega2 * ry
+        leg[_SDD] = (bx * nx + by * ny) / nu
+        leg[_PDD] = (geo[7 * k + 2] * by - geo[7 * k + 3] * bx) / nu
+        a[idx[_I_SLIDER + k]], a[idx[_I_LINK + k]] = leg[_SDD], leg[_PDD]
+    return _OK
+
+
+@_jit
+def _solve3(m00, m01, m02, m10, m11, m12, m20, m21, m22, f0, f1, f2, out):
+    """Cramer's rule for a 3x3 system (rows ``m_i.``); returns the Hadamard ratio
+    ``|det| / prod |column|`` (0: singular; ``out`` then untouched)."""
+    c0, c1, c2 = m11 * m22 - m12 * m21, m12 * m20 - m10 * m22, m10 * m21 - m11 * m20
+    det = m00 * c0 + m01 * c1 + m02 * c2
+    scale = (math.sqrt(m00 * m00 + m10 * m10 + m20 * m20)
+             * math.sqrt(m01 * m01 + m11 * m11 + m21 * m21)
+             * math.sqrt(m02 * m02 + m12 * m12 + m22 * m22))
+    if det == 0.0 or not scale > 0.0:
+        return 0.0
+    out[0] = (f0 * c0 + m01 * (m12 * f2 - f1 * m22) + m02 * (f1 * m21 - m11 * f2)) / det
+    out[1] = (m00 * (f1 * m22 - m12 * f2) + f0 * c1 + m02 * (m10 * f2 - f1 * m20)) / det
+    out[2] = (m00 * (m11 * f2 - f1 * m21) + m01 * (f1 * m20 - m10 * f2) + f0 * c2) / det
+    return abs(det) / scale
+
+
+@_jit
+def _inverse_kernel(geo, idx, legs, force, wrench, has_wrench, tau, lam, info):
+    """Actuator forces and closure forces from ``S^T tau + J_c^T lambda = force - ext``.
+
+    ``force`` (nv,): ``M a + h`` (or ``g(q)`` for statics), model order; ``ext`` the
+    wrench on the platform chain. The rows (``lambda_k``, the force of the platform on
+    link k, world x-y; the out-of-plane multipliers are zero, the minimum-norm choice on
+    the identically-zero rows):
+
+    * link k: ``(z x n_k) . lambda_k = f_phi_k``, so ``lambda_k = mu_k n_k + c_k z x n_k``
+      with ``c_k = f_phi_k / |n_k|^2``;
+    * platform: ``-sum lambda_k = f_xy`` and ``-sum r_k x lambda_k = f_theta``: 3x3 in
+      ``mu`` with columns ``(n_k, r_k x n_k)`` (the Jacobian rows times ``n_k . u_k``,
+      singular at type II singularities);
+    * slider k: ``tau_k = f_s_k - u_k . lambda_k``.
+
+    Writes ``tau`` (3,), ``lam`` (n_rows,) and the max-abs residual of every row in
+    ``info[_X_RES]``. Returns _OK, _NONFINITE (the wrench), or _FALLBACK (Hadamard ratio
+    of the 3x3 below _TYPE_II_HADAMARD, or a residual above round-off).
+    """
+    if has_wrench and not _all_finite(wrench):
+        return _NONFINITE
+    ix, iy, ith = idx[_I_PLAT], idx[_I_PLAT + 1], idx[_I_PLAT + 2]
+    fx, fy, fth = force[ix], force[iy], force[ith]
+    if has_wrench:
+        fx, fy, fth = fx - wrench[0], fy - wrench[1], fth - wrench[2]
+    px, py, pth = -fx, -fy, -fth            # right-hand side of the 3x3 in mu
+    coef = np.empty(N_SLIDERS)
+    for k in range(N_SLIDERS):
+        leg = legs[k]
+        nx, ny = leg[_NX], leg[_NY]
+        c = force[idx[_I_LINK + k]] / (nx * nx + ny * ny)
+        coef[k] = c
+        px, py = px + c * ny, py - c * nx
+        pth -= c * (leg[_RX] * nx + leg[_RY] * ny)
+    l0, l1, l2 = legs[0], legs[1], legs[2]
+    mu = np.empty(3)
+    hadamard = _solve3(l0[_NX], l1[_NX], l2[_NX], l0[_NY], l1[_NY], l2[_NY],
+                       l0[_RX] * l0[_NY] - l0[_RY] * l0[_NX],
+                       l1[_RX] * l1[_NY] - l1[_RY] * l1[_NX],
+                       l2[_RX] * l2[_NY] - l2[_RY] * l2[_NX], px, py, pth, mu)
+    if not hadamard >= _TYPE_II_HADAMARD:
+        return _FALLBACK
+    res, sum_x, sum_y, sum_m = 0.0, 0.0, 0.0, 0.0
+    scale = max(1.0, abs(fx), abs(fy), abs(fth))
+    lam[:] = 0.0
+    for k in range(N_SLIDERS):
+        leg = legs[k]
+        nx, ny, c = leg[_NX], leg[_NY], coef[k]
+        lx, ly = mu[k] * nx - c * ny, mu[k] * ny + c * nx
+        ux, uy = geo[7 * k + 2], geo[7 * k + 3]
+        fs, fl = force[idx[_I_SLIDER + k]], force[idx[_I_LINK + k]]
+        tau[k] = fs - (ux * lx + uy * ly)
+        row = idx[_I_ROW + k]
+        lam[row], lam[row + 1] = lx, ly
+        res = max(res, abs(tau[k] + ux * lx + uy * ly - fs), abs(nx * ly - ny * lx - fl))
+        scale = max(scale, abs(fs), abs(fl))
+        sum_x, sum_y = sum_x + lx, sum_y + ly
+        sum_m += leg[_RX] * ly - leg[_RY] * lx
+    res = max(res, abs(sum_x + fx), abs(sum_y + fy), abs(sum_m + fth))
+    info[_X_RES] = res
+    if not res <= _CLOSED_FORM_RTOL * scale:
+        return _FALLBACK
+    return _OK
+
+
+@_jit
+def _forward_kernel(geo, idx, legs, twist, bias, mass, forces, wrench, has_wrench,
+                    acc, lam, twist_dot, info):
+    """Constrained forward dynamics by the null-space method, in closed form.
+
+    ``a = G twist_dot + a_0`` keeps the closures for any ``twist_dot`` (``G`` (nv, 3):
+    platform rows the identity, slider rows the Jacobian rows, link rows
+    ``(-u_y, u_x, u_k . r_k) / (n_k . u_k)``; ``a_0`` in the leg buffer, from
+    :func:`_state_kernel` at zero ``twist_dot``), so ``G^T M G twist_dot = -G^T f`` with
+    ``f = M a_0 + h - S^T tau - ext`` (``bias = M a_0 + h`` from Pinocchio's rnea,
+    ``mass`` the upper triangle from crba). The multipliers then follow per loop from
+    the slider and link rows (a 2x2 with determinant ``n_k . u_k``); the platform rows
+    are the check. Writes ``acc`` (nv,), ``lam`` (n_rows,), ``twist_dot`` (3,) and
+    ``max |J_c a + gamma|`` in ``info[_X_RES]``. Returns _OK, _NONFINITE (forces or
+    wrench) or _FALLBACK (a residual above round-off).
+    """
+    if not _all_finite(forces) or (has_wrench and not _all_finite(wrench)):
+        return _NONFINITE
+    nv = bias.shape[0]
+    f = bias.copy()
+    if has_wrench:
+        for j in range(3):
+            f[idx[_I_PLAT + j]] -= wrench[j]
+    gmap = np.zeros((nv, 3))
+    for j in range(3):
+        gmap[idx[_I_PLAT + j], j] = 1.0
+    for k in range(N_SLIDERS):
+        leg = legs[k]
+        i_s, i_l = idx[_I_SLIDER + k], idx[_I_LINK + k]
+        f[i_s] -= forces[k]
+        ux, uy, nu = geo[7 * k + 2], geo[7 * k + 3], leg[_NU]
+        gmap[i_s, 0], gmap[i_s, 1], gmap[i_s, 2] = leg[_J0], leg[_J1], leg[_J2]
+        gmap[i_l, 0], gmap[i_l, 1] = -uy / nu, ux / nu
+        gmap[i_l, 2] = (ux * leg[_RX] + uy * leg[_RY]) / nu
+    mass_g = np.zeros((nv, 3))           # M G, M symmetric from its upper triangle
+    for i in range(nv):
+        for m in range(nv):
+            mim = mass[i, m] if i <= m else mass[m, i]
+            if mim != 0.0:
+                for j in range(3):
+                    mass_g[i, j] += mim * gmap[m, j]
+    red = np.zeros((3, 3))
+    rhs = np.zeros(3)
+    for i in range(nv):
+        for j in range(3):
+            rhs[j] -= gmap[i, j] * f[i]
+            for m in range(3):
+                red[j, m] += gmap[i, j] * mass_g[i, m]
+    if _solve3(red[0, 0], red[0, 1], red[0, 2], red[1, 0], red[1, 1], red[1, 2],
+               red[2, 0], red[2, 1], red[2, 2], rhs[0], rhs[1], rhs[2], twist_dot) == 0.0:
+        return _FALLBACK
+    # a = a_0 + G twist_dot; the residual force M a + h - S^T tau - ext = J_c^T lambda
+    for i in range(nv):
+        acc[i] = 0.0
+        for j in range(3):
+            f[i] += mass_g[i, j] * twist_dot[j]
+    for j in range(3):
+        acc[idx[_I_PLAT + j]] = twist_dot[j]
+    ax, ay, alpha = twist_dot[0], twist_dot[1], twist_dot[2]
+    omega2 = twist[2] * twist[2]
+    lam[:] = 0.0
+    cres, sum_x, sum_y, sum_m, scale = 0.0, 0.0, 0.0, 0.0, 1.0
+    for k in range(N_SLIDERS):
+        leg = legs[k]
+        i_s, i_l = idx[_I_SLIDER + k], idx[_I_LINK + k]
+        nx, ny, rx, ry, nu = leg[_NX], leg[_NY], leg[_RX], leg[_RY], leg[_NU]
+        ux, uy = geo[7 * k + 2], geo[7 * k + 3]
+        sdd = leg[_SDD] + leg[_J0] * ax + leg[_J1] * ay + leg[_J2] * alpha
+        pdd = leg[_PDD] + (-uy * ax + ux * ay + (ux * rx + uy * ry) * alpha) / nu
+        acc[i_s], acc[i_l] = sdd, pdd
+        fs, fl = f[i_s], f[i_l]
+        lx, ly = (fs * nx - uy * fl) / nu, (ux * fl + ny * fs) / nu
+        row = idx[_I_ROW + k]
+        lam[row], lam[row + 1] = lx, ly
+        sum_x, sum_y, sum_m = sum_x + lx, sum_y + ly, sum_m + rx * ly - ry * lx
+        scale = max(scale, abs(fs), abs(fl), abs(forces[k]))
+        # the loop's in-plane closure rows at acceleration level, J_c a + gamma
+        phid2 = leg[_PD] * leg[_PD]
+        cres = max(cres,
+                   abs(ux * sdd - ny * pdd - (ax - alpha * ry) - phid2 * nx + omega2 * rx),
+                   abs(uy * sdd + nx * pdd - (ay + alpha * rx) - phid2 * ny + omega2 * ry))
+    ix, iy, ith = idx[_I_PLAT], idx[_I_PLAT + 1], idx[_I_PLAT + 2]
+    scale = max(scale, abs(f[ix]), abs(f[iy]), abs(f[ith]))
+    worst = max(abs(sum_x + f[ix]), abs(sum_y + f[iy]), abs(sum_m + f[ith]))
+    info[_X_RES] = cres
+    if not worst <= _CLOSED_FORM_RTOL * scale:
+        return _FALLBACK
+    return _OK
 
 
 # ---------------------------------------------------------------------------------------
@@ -327,6 +690,30 @@ class Planar3PRR:
         self._mids = _frozen(self.geometry.rail_midpoints)
         self._dirs = _frozen(self.geometry.rail_directions)
         self._pts = _frozen(self.geometry.platform_points)
+        # the compiled single-state kernels: geometry and tree indices as flat arrays,
+        # scratch buffers and Pinocchio data of their own
+        geo = np.empty(_G_TOL + 1)
+        for k, (mid, dirn, pt, angle) in enumerate(zip(self._mids, self._dirs, self._pts,
+                                                      rail_angles())):
+            geo[7 * k:7 * k + 7] = (*mid, *dirn, *pt, angle)
+        geo[_G_LEN], geo[_G_TOL] = self.geometry.link_length, _PERPENDICULAR_TOL
+        self._geo = geo
+        # the kernels read closure k's rows as loop k's (link k on platform point k)
+        rows = [r.start for r in self.model.row_slices]
+        expected = [("point", f"link_{k}_tip", f"platform_anchor_{k}") for k in range(N_SLIDERS)]
+        if [(c.type, c.frame1, c.frame2) for c in self.model.closures] != expected:
+            raise DescriptionError("planar_3prr.loops.yaml", "expected the point closures "
+                                   f"{expected}, in that order")
+        self._idx = np.concatenate([self.indices.platform, self.indices.slider,
+                                    self.indices.link, rows]).astype(np.int64)
+        #: multiplier rows of the in-plane closure forces, shape (3, 2)
+        self._link_rows = np.array([[r, r + 1] for r in rows])
+        self._nv = self.model.nv
+        self._home_signs = np.ones(N_SLIDERS)
+        self._zero3 = np.zeros(3)
+        self._legs_buf = np.zeros((N_SLIDERS, _LEG_COLS))
+        self._info = np.zeros(_INFO_SIZE)
+        self._pin_data = self.model.model.createData()
 
     @classmethod
     def default(cls) -> "Planar3PRR":
@@ -367,6 +754,50 @@ class Planar3PRR:
         """Link vectors ``n_k = P_k - c_k`` (m), shape (3, 2); ``|n_k| = L`` when closed."""
         return self.platform_points_world(pose) - self.slider_points(s)
 
+    # -- the single-state closed form (compiled kernels) -------------------------------
+    def _signs(self, branch) -> np.ndarray:
+        """A validated branch (3,) (``None``: the home branch), a float64 copy."""
+        return self._home_signs if branch is None else np.array(check_branch(branch))
+
+    def _kernel_state(self, level: int, singular: bool, branch, inputs, pose,
+                      twist=None, twist_dot=None):
+        """Tree ``q``, ``v``, ``a`` (fresh (nv,) arrays, model order) of a platform state.
+
+        Runs :func:`_state_kernel` on arrays from :func:`_vec3` (``v`` is filled from
+        ``level`` 1, ``a`` from ``level`` 2; the others are left uninitialised); the leg
+        buffer then holds the IK, link vectors, Jacobian rows and leg rates. ``inputs``:
+        the ``(value, name)`` pairs as given, for the error messages.
+
+        Raises:
+            InputError: a NaN / inf input (named, with its value).
+            UnreachablePoseError: a link cannot reach its rail.
+            SingularityError: with ``singular``, a link perpendicular to its rail.
+        """
+        nv = self._nv
+        q, v, a = np.empty(nv), np.empty(nv), np.empty(nv)
+        status = _state_kernel(self._geo, self._idx, pose,
+                               self._zero3 if twist is None else twist,
+                               self._zero3 if twist_dot is None else twist_dot,
+                               self._signs(branch), level, singular, q, v, a,
+                               self._legs_buf, self._info)
+        if status != _OK:
+            self._raise_for(status, inputs)
+        return q, v, a
+
+    def _raise_for(self, status: int, inputs) -> None:
+        """Raise the library's exception for a kernel status (values from ``_info``)."""
+        info = self._info
+        if status == _NONFINITE:
+            for value, name in inputs:
+                if value is not None:
+                    as_array(value, (3,), name)          # raises, naming the value
+            raise InputError(inputs[0][1], inputs[0][0], "contains NaN or inf")
+        if status == _UNREACHABLE:
+            bad = [k for k in range(N_SLIDERS) if info[3 + k] > 0.0]
+            raise UnreachablePoseError(bad, [info[k] for k in bad])
+        raise SingularityError("inverse kinematic Jacobian (a link perpendicular to its "
+                               "rail)", info[_X_WORST])
+
     # -- inverse kinematics ----------------------------------------------------------------
     def inverse_kinematics(self, pose, branch=None, check_limits: bool = True) -> np.ndarray:
         """Slider coordinates for a platform pose (closed form).
@@ -390,18 +821,9 @@ class Planar3PRR:
                 attribute holds the slider indices, ``shortfall`` how much too short).
             StrokeLimitError: with ``check_limits``, a slider outside its stroke.
         """
-        pose = as_array(pose, (3,), "pose")
-        branch = check_branch(branch)
-        g = self.geometry
-        d = self.platform_points_world(pose) - self._mids
-        along = np.einsum("ki,ki->k", d, self._dirs)
-        disc = g.link_length ** 2 - (np.einsum("ki,ki->k", d, d) - along ** 2)
-        if np.any(disc < 0.0):
-            bad = np.flatnonzero(disc < 0.0)
-            dist = np.sqrt(g.link_length ** 2 - disc[bad])
-            raise UnreachablePoseError(bad, dist - g.link_length)
-        s = along + branch * np.sqrt(disc)
-        if check_limits:
+        self._kernel_state(0, False, branch, ((pose, "pose"),), _vec3(pose, "pose"))
+        s = self._legs_buf[:, _S].copy()
+        if check_limits and self._info[_X_SMAX] > self.geometry.rail_half_length:
             self.check_stroke(s)
         return s
 
@@ -453,18 +875,8 @@ class Planar3PRR:
             UnreachablePoseError: the pose cannot be reached.
             SingularityError: a link perpendicular to its rail (type I singularity).
         """
-        pose = as_array(pose, (3,), "pose")
-        s = self.inverse_kinematics(pose, branch=branch, check_limits=False)
-        return self._jacobian(pose, s)
-
-    def _jacobian(self, pose: np.ndarray, s: np.ndarray) -> np.ndarray:
-        links = self.link_vectors(pose, s)
-        dots = self._link_dots(links)
-        r = self.platform_points_world(pose) - pose[:2]
-        out = np.empty((N_SLIDERS, 3))
-        out[:, :2] = links
-        out[:, 2] = _cross2(r, links)
-        return out / dots[:, None]
+        self._kernel_state(0, True, branch, ((pose, "pose"),), _vec3(pose, "pose"))
+        return self._legs_buf[:, _J0:_J2 + 1].copy()
 
     def twist_from_sdot(self, pose, sdot, branch=None) -> np.ndarray:
         """Platform twist (3,) from slider velocities (m/s): solves ``J @ twist = sdot``.
@@ -683,7 +1095,7 @@ class Planar3PRR:
 
         Sliders from :meth:`inverse_kinematics` (stroke not checked), link angles
         ``atan2(n_k) - (a_k + 90 deg)`` wrapped to (-pi, pi], the platform chain from
-        the pose.
+        the pose. The closures are then evaluated on the Pinocchio model.
 
         Args:
             pose: ``(x, y, theta)``, shape (3,).
@@ -696,17 +1108,7 @@ class Planar3PRR:
             UnreachablePoseError: a link cannot reach.
             AssemblyError: the closed form misses the closures by more than 1e-12 m.
         """
-        pose = as_array(pose, (3,), "pose")
-        s = self.inverse_kinematics(pose, branch=branch, check_limits=False)
-        return self._configuration(pose, s)
-
-    def _configuration(self, pose: np.ndarray, s: np.ndarray) -> np.ndarray:
-        links = self.link_vectors(pose, s)
-        idx = self.indices
-        q = np.zeros(self.model.nq)
-        q[idx.slider] = s
-        q[idx.link] = _wrap(np.arctan2(links[:, 1], links[:, 0]) - rail_angles() - np.pi / 2)
-        q[idx.platform] = pose
+        q, _, _ = self._kernel_state(0, False, branch, ((pose, "pose"),), _vec3(pose, "pose"))
         err = float(np.max(np.abs(self.model.residual(q))))
         if err > CLOSED_FORM_TOL:
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
@@ -721,48 +1123,38 @@ class Planar3PRR:
         Raises:
             UnreachablePoseError, SingularityError: see :meth:`jacobian`.
         """
-        pose = as_array(pose, (3,), "pose")
-        twist = as_array(twist, (3,), "twist")
-        s = self.inverse_kinematics(pose, branch=branch, check_limits=False)
-        return self._velocity(pose, s, twist)
-
-    def _velocity(self, pose: np.ndarray, s: np.ndarray, twist: np.ndarray) -> np.ndarray:
-        sdot = self._jacobian(pose, s) @ twist
-        links = self.link_vectors(pose, s)
-        r = self.platform_points_world(pose) - pose[:2]
-        point_vel = twist[:2] + twist[2] * np.stack([-r[:, 1], r[:, 0]], axis=1)
-        link_vel = point_vel - sdot[:, None] * self._dirs
-        idx = self.indices
-        v = np.zeros(self.model.nv)
-        v[idx.slider] = sdot
-        v[idx.link] = _cross2(links, link_vel) / self.geometry.link_length ** 2
-        v[idx.platform] = twist
-        return v
+        return self._state(pose, twist, branch)[1]
 
     def acceleration(self, pose, twist, twist_dot, branch=None) -> np.ndarray:
         """Tree acceleration ``a`` (nv = 9,) of a platform motion, every closure kept.
 
-        The platform chain's acceleration is ``twist_dot``; the others solve
-        ``J_c a = -gamma(q, v)`` (:meth:`ClosedLoopModel.complete_acceleration`, which
-        tolerates the redundant out-of-plane rows).
+        The platform chain's acceleration is ``twist_dot``; the sliders and links solve
+        the in-plane rows of ``J_c a = -gamma(q, v)`` (the out-of-plane ones are
+        identically zero), two per loop, in closed form: with ``b_k = a_xy +
+        omega_dot z x r_k + phi_dot_k^2 n_k - omega^2 r_k`` (the platform point's
+        acceleration less the link's centripetal term), ``u_k s''_k + (z x n_k) phi''_k
+        = b_k``, so ``s''_k = (b_k . n_k) / (n_k . u_k)`` and ``phi''_k = (u_k x b_k) /
+        (n_k . u_k)``.
 
         Raises:
             UnreachablePoseError, SingularityError: see :meth:`jacobian`.
         """
-        pose = as_array(pose, (3,), "pose")
-        twist = as_array(twist, (3,), "twist")
-        twist_dot = as_array(twist_dot, (3,), "twist_dot")
-        s = self.inverse_kinematics(pose, branch=branch, check_limits=False)
-        q = self._configuration(pose, s)
-        v = self._velocity(pose, s, twist)
-        return self.model.complete_acceleration(q, v, self.indices.platform, twist_dot)
+        inputs = ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot"))
+        return self._kernel_state(2, True, branch, inputs, _vec3(pose, "pose"),
+                                  _vec3(twist, "twist"), _vec3(twist_dot, "twist_dot"))[2]
 
     # -- dynamics ------------------------------------------------------------------------
+    # Single-state routes, "kkt" (the default): the tree state in closed form
+    # (_state_kernel), Pinocchio for the generalised forces (rnea; the gravity vector for
+    # statics; rnea and crba for forward dynamics), then the planar structure of the
+    # closure rows (_inverse_kernel, _forward_kernel) instead of a dense least-squares KKT
+    # solve. A state where that structure is (nearly) singular, or whose solve does not
+    # check to round-off, goes to the generic dense route: the answers are the generic
+    # ones everywhere (to round-off). "qp" / "pinocchio" always take the generic route.
     def _state(self, pose, twist, branch):
-        pose = as_array(pose, (3,), "pose")
-        twist = as_array(twist, (3,), "twist")
-        s = self.inverse_kinematics(pose, branch=branch, check_limits=False)
-        return self._configuration(pose, s), self._velocity(pose, s, twist)
+        q, v, _ = self._kernel_state(1, True, branch, ((pose, "pose"), (twist, "twist")),
+                                     _vec3(pose, "pose"), _vec3(twist, "twist"))
+        return q, v
 
     def _external(self, wrench) -> np.ndarray:
         tau = np.zeros(self.model.nv)
@@ -784,9 +1176,8 @@ class Planar3PRR:
 
         The tree state follows in closed form (:meth:`configuration`, :meth:`velocity`,
         :meth:`acceleration`); the forces then solve
-        ``M a + h - tau_ext = S^T tau + J_c^T lambda`` on the tree
-        (:func:`hexapod_pin.dynamics.inverse_dynamics_tree`; the redundant
-        out-of-plane rows are handled there), gravity ``-g`` along y included.
+        ``M a + h - tau_ext = S^T tau + J_c^T lambda`` on the tree, gravity ``-g`` along
+        y included; ``M a + h`` is Pinocchio's ``rnea``.
 
         Args:
             pose: ``(x, y, theta)`` (m, m, rad), shape (3,).
@@ -796,48 +1187,86 @@ class Planar3PRR:
                 moment about the platform origin; default zero.
             branch: IK branch, default all ``+1``.
             bounds: ``abs(tau_k) <= bounds`` (N); default ``geometry.max_actuator_force``.
-            method: "kkt" (linear solve) or "qp" (ProxSuite), see
-                :func:`~hexapod_pin.dynamics.inverse_dynamics_tree`.
+            method: "kkt" (default): that square linear system solved with its planar
+                structure in closed form (:func:`_inverse_kernel`: per loop, the link
+                row fixes the closure force across the link, a 3x3 on the platform rows
+                its component along the link, the slider row the actuator force; the
+                out-of-plane multipliers are zero); near a type II singularity, where
+                the 3x3 is singular, the dense least-squares solve of
+                :func:`~hexapod_pin.dynamics.inverse_dynamics_tree`. "qp": ProxSuite
+                through :func:`~hexapod_pin.dynamics.inverse_dynamics_tree`. Both agree
+                to round-off when no bound is active.
 
         Returns:
             :class:`PlanarInverseDynamics` (forces along ``+u_k``, N).
 
         Raises:
-            InputError: a malformed input.
+            InputError: a malformed input (or bounds).
             UnreachablePoseError: the pose cannot be reached.
             SingularityError: a link perpendicular to its rail.
             ActuatorSaturationError: the motion needs more than ``bounds``.
         """
-        q, v = self._state(pose, twist, branch)
-        twist_dot = as_array(twist_dot, (3,), "twist_dot")
-        a = self.model.complete_acceleration(q, v, self.indices.platform, twist_dot)
+        inputs = ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot"))
+        pose_a, twist_a = _vec3(pose, "pose"), _vec3(twist, "twist")
+        twist_dot_a = _vec3(twist_dot, "twist_dot")
+        wrench_a = None if wrench is None else _vec3(wrench, "wrench")
+        bounds = self._bounds(bounds)
+        limits = _check_bounds(bounds) if method == "kkt" else None
+        q, v, a = self._kernel_state(2, True, branch, inputs, pose_a, twist_a, twist_dot_a)
+        if method == "kkt":
+            force = pin.rnea(self.model.model, self._pin_data, q, v, a)
+            res = self._inverse_closed_form(force, wrench, wrench_a, limits)
+            if res is not None:
+                return res
         res = inverse_dynamics_tree(self.model, q, v, a, self._external(wrench),
-                                    bounds=self._bounds(bounds), method=method)
+                                    bounds=bounds, method=method)
         return PlanarInverseDynamics(res.actuator_forces.copy(),
                                      self._link_forces(res.multipliers), res)
+
+    def _inverse_closed_form(self, force, wrench, wrench_a, limits):
+        """:func:`_inverse_kernel` on a generalised force; None: take the generic route."""
+        tau, lam = np.empty(N_SLIDERS), np.empty(self.model.n_rows)
+        status = _inverse_kernel(self._geo, self._idx, self._legs_buf, force,
+                                 self._zero3 if wrench_a is None else wrench_a,
+                                 wrench_a is not None, tau, lam, self._info)
+        if status == _NONFINITE:
+            self._raise_for(status, ((wrench, "wrench"),))
+        if status != _OK:
+            return None
+        if limits is not None and np.any(np.abs(tau) > limits * (1.0 + _CLOSED_FORM_RTOL)):
+            raise ActuatorSaturationError(tau, limits)
+        tree = TreeInverseDynamics(tau, lam, float(self._info[_X_RES]), "kkt", _STATUS_ID, 0)
+        return PlanarInverseDynamics(tau.copy(), lam[self._link_rows], tree)
 
     def static_forces(self, pose, wrench=None, branch=None) -> np.ndarray:
         """Actuator forces (3,) (N, along ``+u_k``) holding the platform at rest.
 
         Balances gravity (``-g`` along y, every body) and the external ``wrench``
         ``(fx, fy, mz)`` applied ON the platform (N, N m, moment about its origin):
-        :meth:`inverse_dynamics` at zero twist and acceleration, without bounds.
+        :meth:`inverse_dynamics` at zero twist and acceleration, without bounds (the
+        generalised gravity ``g(q)`` from Pinocchio, then the same structured solve).
 
         Raises:
             InputError, UnreachablePoseError, SingularityError: see
             :meth:`inverse_dynamics`.
         """
-        zero = np.zeros(3)
-        return self.inverse_dynamics(pose, zero, zero, wrench, branch,
-                                     bounds=np.inf).forces
+        pose_a = _vec3(pose, "pose")
+        wrench_a = None if wrench is None else _vec3(wrench, "wrench")
+        q, _, _ = self._kernel_state(0, True, branch, ((pose, "pose"),), pose_a)
+        force = pin.computeGeneralizedGravity(self.model.model, self._pin_data, q)
+        res = self._inverse_closed_form(force, wrench, wrench_a, None)
+        if res is not None:
+            return res.forces
+        zero = np.zeros(self.model.nv)
+        return inverse_dynamics_tree(self.model, q, zero, zero, self._external(wrench),
+                                     bounds=np.inf, method="kkt").actuator_forces.copy()
 
     def forward_dynamics(self, pose, twist, forces, wrench=None, branch=None,
                          method: str = "kkt") -> PlanarForwardDynamics:
         """Platform acceleration for given actuator forces (closed-loop forward dynamics).
 
         Solves ``M a + h = S^T tau + tau_ext + J_c^T lambda``, ``J_c a = -gamma`` on the
-        tree (:func:`hexapod_pin.dynamics.forward_dynamics_tree`, redundant rows
-        handled there); the platform chain's acceleration is ``twist_dot``.
+        tree; the platform chain's acceleration is ``twist_dot``.
 
         Args:
             pose: ``(x, y, theta)``, shape (3,).
@@ -845,8 +1274,14 @@ class Planar3PRR:
             forces: actuator forces (3,) (N), on slider k along ``+u_k``.
             wrench: ``(fx, fy, mz)`` on the platform (N, N m); default zero.
             branch: IK branch, default all ``+1``.
-            method: "kkt", "qp" or "pinocchio" (slow here: the redundant rows need
-                Pinocchio's proximal iterations).
+            method: "kkt" (default): that KKT system solved by the null-space method in
+                closed form (:func:`_forward_kernel`: ``a = G twist_dot + a_0`` keeps the
+                closures, ``G^T M G twist_dot = G^T (S^T tau + tau_ext - M a_0 - h)``
+                with Pinocchio's ``crba`` and ``rnea``, the multipliers per loop from
+                its slider and link rows); "qp" or "pinocchio" (slow here: the
+                redundant rows need Pinocchio's proximal iterations) through
+                :func:`~hexapod_pin.dynamics.forward_dynamics_tree` (redundant rows
+                handled there).
 
         Returns:
             :class:`PlanarForwardDynamics`.
@@ -855,13 +1290,41 @@ class Planar3PRR:
             InputError, UnreachablePoseError, SingularityError: see
             :meth:`inverse_dynamics`.
         """
-        q, v = self._state(pose, twist, branch)
+        inputs = ((pose, "pose"), (twist, "twist"))
+        pose_a, twist_a = _vec3(pose, "pose"), _vec3(twist, "twist")
+        forces_a = _vec3(forces, "forces")
+        wrench_a = None if wrench is None else _vec3(wrench, "wrench")
+        # a = a_0: the acceleration at zero twist_dot (the null-space route's offset)
+        q, v, acc0 = self._kernel_state(2, True, branch, inputs, pose_a, twist_a)
+        if method == "kkt":
+            res = self._forward_closed_form(q, v, acc0, twist_a, forces, forces_a, wrench,
+                                            wrench_a)
+            if res is not None:
+                return res
         tau = self._external(wrench)
         tau[self.indices.slider] += as_array(forces, (3,), "forces")
         res = forward_dynamics_tree(self.model, q, v, tau, method=method)
         return PlanarForwardDynamics(res.a[self.indices.platform].copy(),
                                      res.a[self.indices.slider].copy(),
                                      self._link_forces(res.multipliers), res)
+
+    def _forward_closed_form(self, q, v, acc0, twist_a, forces, forces_a, wrench, wrench_a):
+        """:func:`_forward_kernel` at a state; None: take the generic route."""
+        model, data = self.model.model, self._pin_data
+        bias = pin.rnea(model, data, q, v, acc0)          # M a_0 + h (Pinocchio's buffer)
+        mass = pin.crba(model, data, q)                    # upper triangle
+        acc, lam, twist_dot = np.empty(self._nv), np.empty(self.model.n_rows), np.empty(3)
+        status = _forward_kernel(self._geo, self._idx, self._legs_buf, twist_a, bias, mass,
+                                 forces_a, self._zero3 if wrench_a is None else wrench_a,
+                                 wrench_a is not None, acc, lam, twist_dot, self._info)
+        if status == _NONFINITE:
+            self._raise_for(status, ((forces, "forces"), (wrench, "wrench")))
+        if status != _OK:
+            return None
+        tree = TreeForwardDynamics(acc, lam, "kkt", _STATUS_FD, 0, _IN_PLANE_RANK,
+                                   float(self._info[_X_RES]))
+        return PlanarForwardDynamics(twist_dot, acc[self.indices.slider],
+                                     lam[self._link_rows], tree)
 
     def kinetic_energy(self, pose, twist, branch=None) -> float:
         """Kinetic energy of every body (J) for a platform motion (Pinocchio)."""

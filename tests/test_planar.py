@@ -520,3 +520,245 @@ def test_example_script_runs(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "static forces" in proc.stdout
     assert out.is_file() and out.stat().st_size > 1000
+
+
+# -- the single-state closed form ("kkt") against the generic tree routes --------------------
+def _generic_tree_state(robot, pose, twist, twist_dot, branch):
+    """q from the closed form (closures checked on Pinocchio), v and a completed by the
+    generic core (Pinocchio's J_c and drift, least squares): independent of the kernels."""
+    model = robot.model
+    q = robot.configuration(pose, branch=branch)
+    v = model.complete_velocity(q, robot.indices.platform, twist)
+    a = model.complete_acceleration(q, v, robot.indices.platform, twist_dot)
+    return q, v, a
+
+
+def _regular_pose(robot, rng, branch):
+    """A random pose near home, reachable on ``branch`` (strokes not checked: the dynamics
+    do not check them), well away from type I and type II singularities."""
+    for _ in range(2000):
+        pose = np.concatenate([rng.uniform(-0.1, 0.1, 2), rng.uniform(-1.0, 1.0, 1)])
+        try:
+            jac = robot.jacobian(pose, branch=branch)
+        except (UnreachablePoseError, SingularityError):
+            continue
+        sv = np.linalg.svd(jac, compute_uv=False)
+        if sv[-1] > 0.02 * sv[0] and np.abs(jac).max() < 50.0:
+            return pose
+    raise RuntimeError("no regular pose found")
+
+
+@pytest.mark.parametrize("which, branch", [("default", ALL_BRANCHES[0]),
+                                           ("default", ALL_BRANCHES[3]),
+                                           ("default", ALL_BRANCHES[6]),
+                                           ("six_mode", ALL_BRANCHES[0])])
+def test_closed_form_dynamics_match_generic_tree_routes(which, branch, planar, six_mode):
+    from hexapod_pin.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+
+    robot = planar if which == "default" else six_mode
+    model, idx = robot.model, robot.indices
+    rng = np.random.default_rng(21)
+    for _ in range(3):
+        pose = _regular_pose(robot, rng, branch)
+        twist = rng.normal(size=3) * [0.2, 0.2, 1.0]
+        twist_dot = rng.normal(size=3) * [1.0, 1.0, 5.0]
+        wrench = rng.normal(size=3) * [2.0, 2.0, 0.2]
+        q, v, a = _generic_tree_state(robot, pose, twist, twist_dot, branch)
+        np.testing.assert_allclose(robot.velocity(pose, twist, branch), v, rtol=0,
+                                   atol=1e-13 * max(1.0, np.abs(v).max()))
+        np.testing.assert_allclose(robot.acceleration(pose, twist, twist_dot, branch), a,
+                                   rtol=0, atol=1e-13 * max(1.0, np.abs(a).max()))
+        tau_ext = np.zeros(model.nv)
+        tau_ext[idx.platform] = wrench
+
+        res = robot.inverse_dynamics(pose, twist, twist_dot, wrench, branch=branch)
+        ref = inverse_dynamics_tree(model, q, v, a, tau_ext, method="kkt")
+        assert res.tree.method == "kkt" and "closed form" in res.tree.status
+        scale = max(1.0, np.abs(ref.actuator_forces).max())
+        np.testing.assert_allclose(res.forces, ref.actuator_forces, rtol=0, atol=1e-10 * scale)
+        np.testing.assert_allclose(res.tree.multipliers, ref.multipliers, rtol=0,
+                                   atol=1e-10 * scale)
+        np.testing.assert_allclose(res.link_forces.reshape(-1),
+                                   np.delete(ref.multipliers, [2, 5, 8]), atol=1e-10 * scale)
+        assert 0.0 <= res.tree.residual <= 1e-10 * scale
+
+        static = robot.static_forces(pose, wrench, branch=branch)
+        zero = np.zeros(model.nv)
+        np.testing.assert_allclose(
+            static, inverse_dynamics_tree(model, q, zero, zero, tau_ext,
+                                          method="kkt").actuator_forces, atol=1e-10 * scale)
+
+        forces = rng.normal(size=3) * 5.0
+        fd = robot.forward_dynamics(pose, twist, forces, wrench, branch=branch)
+        tau = tau_ext.copy()
+        tau[idx.slider] += forces
+        ref_fd = forward_dynamics_tree(model, q, v, tau, method="kkt")
+        acc_scale = max(1.0, np.abs(ref_fd.a).max())
+        assert fd.tree.method == "kkt" and "closed form" in fd.tree.status
+        assert fd.tree.rank == ref_fd.rank == 6
+        np.testing.assert_allclose(fd.tree.a, ref_fd.a, rtol=0, atol=1e-10 * acc_scale)
+        np.testing.assert_allclose(fd.twist_dot, ref_fd.a[idx.platform], atol=1e-10 * acc_scale)
+        np.testing.assert_allclose(fd.slider_accelerations, ref_fd.a[idx.slider],
+                                   atol=1e-10 * acc_scale)
+        lam_scale = max(1.0, np.abs(ref_fd.multipliers).max())
+        np.testing.assert_allclose(fd.tree.multipliers, ref_fd.multipliers, rtol=0,
+                                   atol=1e-10 * lam_scale)
+        # the closures hold at acceleration level, evaluated on Pinocchio
+        drift = model.constraint_jacobian(q) @ fd.tree.a + model.constraint_drift(q, v)
+        assert np.max(np.abs(drift)) <= 1e-10 * acc_scale
+        assert 0.0 <= fd.tree.constraint_residual <= 1e-10 * acc_scale
+
+
+def _type_two_theta(robot):
+    """theta of a type II singularity at x = y = 0: by symmetry the three links then pass
+    through the platform origin (zero moment arm, r_0 x n_0 = 0)."""
+    g = robot.geometry
+
+    def moment_arm(theta):
+        s = robot.inverse_kinematics([0.0, 0.0, theta], check_limits=False)
+        sliders, points = hand_points(g, np.array([0.0, 0.0, theta]), s)
+        r, n = points[0], points[0] - sliders[0]
+        return r[0] * n[1] - r[1] * n[0]
+
+    return scipy.optimize.brentq(moment_arm, 0.5, 0.7, xtol=1e-15)
+
+
+def test_type_two_singularity_falls_back_to_the_generic_route(planar):
+    from hexapod_pin.dynamics import inverse_dynamics_tree
+
+    theta = _type_two_theta(planar)
+    pose = np.array([0.0, 0.0, theta])
+    sv = np.linalg.svd(planar.jacobian(pose), compute_uv=False)
+    assert sv[-1] < 1e-12 * sv[0]                          # type II indeed
+    twist, twist_dot, wrench = np.array([0.01, 0.0, 0.1]), np.array([0.1, 0.2, 0.3]), \
+        np.array([0.5, -1.0, 0.02])
+    q, v, a = _generic_tree_state(planar, pose, twist, twist_dot, None)
+    tau_ext = np.zeros(9)
+    tau_ext[planar.indices.platform] = wrench
+    res = planar.inverse_dynamics(pose, twist, twist_dot, wrench)
+    ref = inverse_dynamics_tree(planar.model, q, v, a, tau_ext, method="kkt")
+    assert res.tree.status == ref.status and "closed form" not in res.tree.status
+    assert np.all(np.isfinite(res.forces))
+    np.testing.assert_allclose(res.forces, ref.actuator_forces, atol=1e-9)
+    # near (not at) the singularity the closed form is used and still agrees
+    near = pose + [0.0, 0.0, 1e-3]
+    q, v, a = _generic_tree_state(planar, near, twist, twist_dot, None)
+    res = planar.inverse_dynamics(near, twist, twist_dot, wrench)
+    ref = inverse_dynamics_tree(planar.model, q, v, a, tau_ext, method="kkt")
+    assert "closed form" in res.tree.status
+    scale = np.abs(ref.actuator_forces).max()
+    np.testing.assert_allclose(res.forces, ref.actuator_forces, rtol=0, atol=1e-9 * scale)
+    # forward dynamics stays regular there (the closures alone fix the multipliers)
+    fd = planar.forward_dynamics(pose, twist, [1.0, 2.0, 3.0], wrench)
+    assert "closed form" in fd.tree.status and np.all(np.isfinite(fd.tree.a))
+
+
+@pytest.mark.parametrize("call, name", [
+    (lambda r: r.inverse_dynamics([0.0, np.nan, 0.0], [0, 0, 0], [0, 0, 0]), "pose"),
+    (lambda r: r.inverse_dynamics([0, 0, 0], np.array([0.0, np.inf, 0.0]), [0, 0, 0]),
+     "twist"),
+    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0.0, 0.0, -np.inf]), "twist_dot"),
+    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], [np.nan, 0, 0]),
+     "wrench"),
+    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0], [0, 0, 0]), "twist"),
+    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], bounds=0.0), "bounds"),
+    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], bounds=[1.0, 2.0]),
+     "bounds"),
+    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], bounds=np.nan), "bounds"),
+    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], method="lu"), "method"),
+    (lambda r: r.forward_dynamics([0, 0, 0], [0, 0, 0], [0.0, 0.0, np.inf]), "forces"),
+    (lambda r: r.forward_dynamics([0, 0, 0], [0, 0, 0], [1.0, 2.0, 3.0, 4.0]), "forces"),
+    (lambda r: r.forward_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], [0, 0, np.nan]),
+     "wrench"),
+    (lambda r: r.forward_dynamics([0, 0, 0], "abc", [0, 0, 0]), "twist"),
+    (lambda r: r.forward_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], method="x"), "method"),
+    (lambda r: r.static_forces([[0.0, 0.0, 0.0]]), "pose"),
+    (lambda r: r.static_forces([0, 0, 0], np.array([[1.0], [2.0], [3.0]])), "wrench"),
+    (lambda r: r.static_forces([0, 0, 0], [0.0, np.inf, 0.0]), "wrench"),
+    (lambda r: r.acceleration([0, 0, 0], [0, 0, 0], [0, np.nan, 0]), "twist_dot"),
+    (lambda r: r.static_forces([0, 0, 0], branch=[1, 1, 0]), "branch"),
+])
+def test_fast_path_names_the_bad_input(planar, call, name):
+    with pytest.raises(InputError) as info:
+        call(planar)
+    assert info.value.name == name
+
+
+def test_fast_path_errors_carry_values(planar):
+    from hexapod_pin.errors import ActuatorSaturationError
+
+    unreachable = [0.0, -0.2, 0.0]
+    with pytest.raises(UnreachablePoseError) as ik_info:
+        planar.inverse_kinematics(unreachable)
+    for call in (lambda: planar.inverse_dynamics(unreachable, [0, 0, 0], [0, 0, 0]),
+                 lambda: planar.forward_dynamics(unreachable, [0, 0, 0], [0, 0, 0]),
+                 lambda: planar.static_forces(unreachable)):
+        with pytest.raises(UnreachablePoseError) as info:
+            call()
+        assert info.value.carriages == ik_info.value.carriages == [0]
+        assert info.value.shortfall == pytest.approx([0.43 - 0.30])
+    # a link perpendicular to its rail: the IK's double root
+    perpendicular = [0.0, 0.35 - 0.12 - 0.3, 0.0]
+    for call in (lambda: planar.inverse_dynamics(perpendicular, [0, 0, 0], [0, 0, 0]),
+                 lambda: planar.forward_dynamics(perpendicular, [0, 0, 0], [0, 0, 0]),
+                 lambda: planar.static_forces(perpendicular)):
+        with pytest.raises((SingularityError, UnreachablePoseError)):
+            call()
+    # bounds: the needed (unbounded) forces are carried, never a clipped answer
+    pose, twist, twist_dot = [0.01, 0.0, 0.1], [0.1, 0.0, 0.2], [0.0, 20.0, 0.0]
+    needed = planar.inverse_dynamics(pose, twist, twist_dot).forces
+    bound = 0.5 * np.abs(needed).max()
+    for method in ("kkt", "qp"):
+        with pytest.raises(ActuatorSaturationError) as info:
+            planar.inverse_dynamics(pose, twist, twist_dot, bounds=bound, method=method)
+        np.testing.assert_allclose(info.value.needed, needed, rtol=1e-8)
+    loose = planar.inverse_dynamics(pose, twist, twist_dot, bounds=2 * np.abs(needed).max())
+    np.testing.assert_allclose(loose.forces, needed, atol=0)
+
+
+def test_fast_path_accepts_array_likes_and_returns_fresh_arrays(planar):
+    pose, twist, twist_dot = np.array([0.01, -0.02, 0.1]), np.array([0.1, 0.2, 0.3]), \
+        np.array([0.5, -0.4, 2.0])
+    ref = planar.inverse_dynamics(pose, twist, twist_dot)
+    strided = np.zeros((3, 2))
+    strided[:, 0] = pose
+    frozen = pose.copy()
+    frozen.setflags(write=False)
+    for variant in (pose.tolist(), tuple(pose), strided[:, 0], frozen, pd_series_like(pose)):
+        np.testing.assert_array_equal(planar.inverse_dynamics(variant, twist, twist_dot).forces,
+                                      ref.forces)
+    np.testing.assert_allclose(planar.inverse_dynamics(pose.astype(np.float32), twist,
+                                                       twist_dot).forces, ref.forces, rtol=1e-5)
+    np.testing.assert_array_equal(planar.static_forces([0, 0, 0], [1, 2, 0]),
+                                  planar.static_forces(np.zeros(3), np.array([1.0, 2.0, 0.0])))
+    # results own their memory: later calls and edits of one result leave the others alone
+    fd = planar.forward_dynamics(pose, twist, ref.forces)
+    kept = [ref.forces.copy(), ref.link_forces.copy(), ref.tree.multipliers.copy(),
+            fd.twist_dot.copy(), fd.tree.a.copy(), fd.link_forces.copy()]
+    ref.forces[:] = 0.0
+    planar.inverse_dynamics(-pose, -twist, twist_dot)
+    planar.forward_dynamics(-pose, -twist, [9.0, 9.0, 9.0])
+    for before, now in zip(kept[1:], [ref.link_forces, ref.tree.multipliers, fd.twist_dot,
+                                      fd.tree.a, fd.link_forces]):
+        np.testing.assert_array_equal(before, now)
+    np.testing.assert_array_equal(ref.tree.actuator_forces, kept[0])
+    s = planar.inverse_kinematics(pose)
+    jac = planar.jacobian(pose)
+    planar.inverse_kinematics(-pose)
+    np.testing.assert_array_equal(s, planar.inverse_kinematics(pose))
+    np.testing.assert_array_equal(jac, planar.jacobian(pose))
+
+
+def pd_series_like(values):
+    """A sequence type that numpy converts (not a list, tuple or ndarray)."""
+    class Seq:
+        def __init__(self, data):
+            self.data = list(data)
+
+        def __len__(self):
+            return len(self.data)
+
+        def __getitem__(self, i):
+            return self.data[i]
+
+    return Seq(values)
