@@ -29,8 +29,7 @@ import numpy as np
 import pinocchio as pin
 import scipy.linalg
 
-from .description import (WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro,
-                          load_loops)
+from .description import WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro, load_loops
 from .errors import AssemblyError, DescriptionError, InputError, SolverError
 from .pose import as_array
 
@@ -211,6 +210,18 @@ class ClosedLoopModel:
     def check_v(self, v, name: str = "v") -> np.ndarray:
         """``v`` as a contiguous float64 array of size ``nv``; raises InputError."""
         return as_array(v, (self.model.nv,), name)
+
+    def pinocchio_constraints(self):
+        """Fresh Pinocchio vectors ``(StdVec_RigidConstraintModel, StdVec_RigidConstraintData)``
+        of the closures, for ``pin.initConstraintDynamics`` / ``pin.constraintDynamics``
+        (each caller keeps its own: the data vectors hold per-call results)."""
+        models = pin.StdVec_RigidConstraintModel()
+        for cm in self.constraint_models:
+            models.append(cm)
+        datas = pin.StdVec_RigidConstraintData()
+        for cm in models:
+            datas.append(cm.createData())
+        return models, datas
 
     # -- closures -----------------------------------------------------------------
     def _update_placements(self, q: np.ndarray) -> None:

@@ -118,12 +118,7 @@ class _Workspace:
             raise HexapodPinError("analytic derivatives need the hexapod's six point "
                                   f"closures and carriage actuation (got {clm.n_rows} "
                                   f"closure rows, actuated velocities {self.act.tolist()})")
-        self.cms = pin.StdVec_RigidConstraintModel()
-        for cm in clm.constraint_models:
-            self.cms.append(cm)
-        self.cds = pin.StdVec_RigidConstraintData()
-        for cm in self.cms:
-            self.cds.append(cm.createData())
+        self.cms, self.cds = clm.pinocchio_constraints()
         self.data = model.createData()          # constraint dynamics and its derivatives
         self.kin = model.createData()           # rnea
         pin.initConstraintDynamics(model, self.data, self.cms, self.cds)

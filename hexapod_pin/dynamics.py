@@ -192,12 +192,7 @@ class ClosedLoopDynamics:
         self.nv = self.model.nv
         self.n_rows = clm.n_rows
         self.n_act = clm.n_actuated
-        self._cms = pin.StdVec_RigidConstraintModel()
-        for cm in clm.constraint_models:
-            self._cms.append(cm)
-        self._cds = pin.StdVec_RigidConstraintData()
-        for cm in self._cms:
-            self._cds.append(cm.createData())
+        self._cms, self._cds = clm.pinocchio_constraints()
         self._pin_ready = False
         self._closures = []  # (is_point, rows, frame1_id, frame2_id, joint1, joint2)
         for closure, rows, cm in zip(clm.closures, clm.row_slices, clm.constraint_models):

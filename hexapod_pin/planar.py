@@ -69,11 +69,24 @@ import pinocchio as pin
 
 from .closed_loop import ClosedLoopModel
 from .description import build_model, expand_xacro, load_loops, urdf_dir
-from .dynamics import (TreeForwardDynamics, TreeInverseDynamics, forward_dynamics_tree,
-                       inverse_dynamics_tree)
-from .errors import (ActuatorSaturationError, AssemblyError, DescriptionError, GeometryError,
-                     InputError, SingularityError, StrokeLimitError, UnreachablePoseError)
+from .dynamics import (
+    TreeForwardDynamics,
+    TreeInverseDynamics,
+    forward_dynamics_tree,
+    inverse_dynamics_tree,
+)
+from .errors import (
+    ActuatorSaturationError,
+    AssemblyError,
+    DescriptionError,
+    GeometryError,
+    InputError,
+    SingularityError,
+    StrokeLimitError,
+    UnreachablePoseError,
+)
 from .geometry import validate_scalars
+from .platform_kernels import _finite
 from .pose import as_array, check_signs
 
 N_SLIDERS = 3
@@ -186,14 +199,6 @@ _X_WORST, _X_SMAX, _X_RES = 6, 7, 8
 
 
 @_jit
-def _all_finite(vec) -> bool:
-    for k in range(vec.shape[0]):
-        if not math.isfinite(vec[k]):
-            return False
-    return True
-
-
-@_jit
 def _state_kernel(geo, idx, pose, twist, twist_dot, signs, level, singular,
                   q, v, a, legs, info):
     """Closed-form tree state of a platform state (model order, every closure kept).
@@ -203,11 +208,11 @@ def _state_kernel(geo, idx, pose, twist, twist_dot, signs, level, singular,
     Returns _OK, _NONFINITE, _UNREACHABLE (``info[0:3]`` shortfalls, ``info[3:6]``
     flags) or _SINGULAR (``info[_X_WORST]``).
     """
-    if not _all_finite(pose):
+    if not _finite(pose):
         return _NONFINITE
-    if level >= 1 and not _all_finite(twist):
+    if level >= 1 and not _finite(twist):
         return _NONFINITE
-    if level >= 2 and not _all_finite(twist_dot):
+    if level >= 2 and not _finite(twist_dot):
         return _NONFINITE
     x, y, theta = pose[0], pose[1], pose[2]
     cos_t, sin_t = math.cos(theta), math.sin(theta)
@@ -318,7 +323,7 @@ def _inverse_kernel(geo, idx, legs, force, wrench, has_wrench, tau, lam, info):
     ``info[_X_RES]``. Returns _OK, _NONFINITE (the wrench), or _FALLBACK (Hadamard ratio
     of the 3x3 below _TYPE_II_HADAMARD, or a residual above round-off).
     """
-    if has_wrench and not _all_finite(wrench):
+    if has_wrench and not _finite(wrench):
         return _NONFINITE
     ix, iy, ith = idx[_I_PLAT], idx[_I_PLAT + 1], idx[_I_PLAT + 2]
     fx, fy, fth = force[ix], force[iy], force[ith]
@@ -380,7 +385,7 @@ def _forward_kernel(geo, idx, legs, twist, bias, mass, forces, wrench, has_wrenc
     ``max |J_c a + gamma|`` in ``info[_X_RES]``. Returns _OK, _NONFINITE (forces or
     wrench) or _FALLBACK (a residual above round-off).
     """
-    if not _all_finite(forces) or (has_wrench and not _all_finite(wrench)):
+    if not _finite(forces) or (has_wrench and not _finite(wrench)):
         return _NONFINITE
     nv = bias.shape[0]
     f = bias.copy()

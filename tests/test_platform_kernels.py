@@ -106,12 +106,7 @@ def test_nullspace_forward_matches_constraint_dynamics(any_robot, rng):
                                out) == K.OK
     tau = np.zeros(model.nv)
     tau[clm.actuated_v] = forces
-    cms = pin.StdVec_RigidConstraintModel()
-    for cm in clm.constraint_models:
-        cms.append(cm)
-    cds = pin.StdVec_RigidConstraintData()
-    for cm in cms:
-        cds.append(cm.createData())
+    cms, cds = clm.pinocchio_constraints()
     pin.initConstraintDynamics(model, data, cms, cds)
     ref = pin.constraintDynamics(model, data, q, v, tau, cms, cds,
                                  pin.ProximalSettings(1e-12, 0.0, 1))
