@@ -1,4 +1,4 @@
-"""Timings of the optional compiled fast path (:mod:`hexapod_pin.fast`, numba).
+"""Timings of the compiled fast path (:mod:`hexapod_pin.fast`, numba).
 
 Usage::
 
@@ -10,16 +10,26 @@ Rows "µs per call": median and inter-quartile range over ``--repeat`` blocks of
 routes are the library's single-state methods (Pinocchio tree + closed-form tree state),
 the fast ones :class:`hexapod_pin.fast.FastDynamics` (input validation included).
 
-Simulation rows: RK4 at 1 kHz, real-time factor = simulated time / wall time of the loop.
-"constant static forces" starts at rest at home under the static forces of home (an
-unstable equilibrium: it drifts off and stops at a limit after a few seconds); the PID
-rows use the joint PID (set-points computed in the loop by IK and ``J twist`` of a
-reference sampled per step; the Python sampling of the circle reference is reported
-separately). Fastest of three runs.
+Simulation rows, for each integrator of :func:`~hexapod_pin.fast.simulate_fast` at
+dt = 1 ms: µs per step and real-time factor (simulated time / wall time of the compiled
+code, every step recorded), fastest of three runs. "constant static forces" starts at rest
+at home under the static forces of home (an unstable equilibrium: it drifts off and
+stops at the carriage gap after about 6.5 s); "PID holding home" starts from an offset
+(one reference sample: one IK before the loop); "PID on a circle" tracks a reference
+sampled per step (an IK per sample, before the loop, included in the wall time; the
+Python sampling of the circle is reported separately).
+
+Accuracy rows: max abs error of the final pose / twist after 0.1 s of constant forces
+and a wrench from a moving start, against RK4 at dt = 0.1 ms. Energy rows: the total
+energy (Pinocchio's) minus its start, over the largest kinetic energy, for the
+unactuated fall from home (to a stroke limit, ~0.34 s) and for a 2 s swing under a
+spring (P-law kp = 2000 N/m, no ki / kd, plus the static forces; potential of both
+included).
 
 First call: a fresh process with an empty numba cache (compile) and then a second one
 with that cache (load), each timing ``import`` + first ID + FD + statics + a 10-step
-simulation. Agreement rows: max-abs difference between the fast and reference routes.
+simulation per integrator. Agreement rows: max-abs difference between the fast and
+reference routes.
 """
 
 from __future__ import annotations
@@ -53,7 +63,8 @@ t1 = time.perf_counter()
 fd = fast.fast_dynamics(r)
 p, z = r.home_pose, np.zeros(6)
 fd.inverse_dynamics(p, z, z); fd.forward_dynamics(p, z, z); fd.static_forces(p)
-fast.simulate_fast(r, 0.01, 1e-3)
+for name in fast.INTEGRATORS:
+    fast.simulate_fast(r, 0.01, 1e-3, integrator=name)
 t2 = time.perf_counter()
 print(f"{t1 - t0:.3f} {t2 - t1:.3f}")
 """
@@ -83,6 +94,26 @@ def timing(fn, args, number, repeat):
         blocks.append((time.perf_counter() - start) / number * 1e6)
     q = statistics.quantiles(blocks, n=4) if len(blocks) > 1 else blocks * 3
     return statistics.median(blocks), q[2] - q[0]
+
+
+def swing(robot, integrator):
+    """2 s swing about home under a spring (P-law kp = 2000 N/m) plus the static forces."""
+    home = robot.home_pose
+    return fast.simulate_fast(robot, 2.0, 1e-3, integrator=integrator, reference=(
+        home[None], np.zeros((1, 6))), kp=2000.0, ki=0.0, kd=0.0, feedforward=True,
+        pose0=home + np.r_[0.003, 0, 0.002, 0, 0.01, 0], record_every=5)
+
+
+def energy_error(robot, tr, kp=None):
+    """max |E - E(0)| / max kinetic energy along ``tr`` (Pinocchio's energies); with
+    ``kp``, E includes the spring and the static forces' potential of :func:`swing`."""
+    parts = [robot.energies(p, t) for p, t in zip(tr.poses, tr.twists)]
+    total = np.array([e.total for e in parts])
+    if kp is not None:
+        home = robot.home_pose
+        q_ref = robot.configuration(home)[robot.indices.carriage_q]
+        total += 0.5 * kp * ((q_ref - tr.q) ** 2).sum(axis=1) - tr.q @ robot.static_forces(home)
+    return float(np.abs(total - total[0]).max() / max(e.kinetic for e in parts))
 
 
 def first_call_rows():
@@ -174,34 +205,57 @@ def main(argv=None) -> int:
     # -- simulation ------------------------------------------------------------------------
     hold = robot.static_forces(robot.home_pose)
     seconds = args.seconds
-    print("| simulation (RK4, dt = 1 ms) | simulated s | loop wall s | real-time factor |")
-    print("| --- | --- | --- | --- |")
+    print("| simulation, dt = 1 ms | integrator | simulated s | wall s | µs per step | "
+          "real-time factor |")
+    print("| --- | --- | --- | --- | --- | --- |")
     ref_span = min(seconds, 0.02 if args.smoke else 0.5)
     tr = simulate(robot, ref_span, 1e-3, actuator_forces=hold)
-    print(f"| tree simulate(), constant forces | {ref_span:g} | {tr.wall_time:.4f} | "
-          f"{tr.real_time_factor:.1f} |")
-    runs = (("constant static forces from home", {"actuator_forces": hold}),
-            ("PID holding home from an offset", dict(
-                reference=(robot.home_pose[None], np.zeros((1, 6))),
-                pose0=robot.home_pose + np.r_[0.005, 0, 0, 0, 0.02, 0], **gains)))
-    for label, kwargs in runs:
-        best = None
-        for _ in range(1 if args.smoke else 3):       # the fastest of three runs
-            tr = fast.simulate_fast(robot, seconds, 1e-3, **kwargs)
-            best = tr if best is None or tr.wall_time < best.wall_time else best
-        print(f"| fast, {label} ({best.status}) | {best.times[-1]:g} | "
-              f"{best.wall_time:.4f} | {best.real_time_factor:.0f} |")
+    print(f"| tree simulate(), constant forces | rk4 | {ref_span:g} | {tr.wall_time:.4f} | "
+          f"{tr.wall_time / (len(tr.times) - 1) * 1e6:.1f} | {tr.real_time_factor:.1f} |")
     n_steps = round(seconds / 1e-3)
     start = time.perf_counter()
     sampled = [reference(k * 1e-3) for k in range(n_steps + 1)]
-    poses = np.array([s.pose for s in sampled])
-    twists = np.array([s.twist for s in sampled])
+    circle = (np.array([c.pose for c in sampled]), np.array([c.twist for c in sampled]))
     sampling = time.perf_counter() - start
-    tr = fast.simulate_fast(robot, seconds, 1e-3, reference=(poses, twists), **gains)
-    print(f"| fast, PID on a circle ({tr.status}) | {tr.times[-1]:g} | {tr.wall_time:.4f} | "
-          f"{tr.real_time_factor:.0f} |")
-    print(f"| (Python sampling of that reference) | {seconds:g} | {sampling:.4f} | "
-          f"{seconds / sampling:.0f} |")
+    runs = (("constant static forces from home", {"actuator_forces": hold}),
+            ("PID holding home from an offset", dict(
+                reference=(robot.home_pose[None], np.zeros((1, 6))),
+                pose0=robot.home_pose + np.r_[0.005, 0, 0, 0, 0.02, 0], **gains)),
+            ("PID on a circle", dict(reference=circle, **gains)))
+    for label, kwargs in runs:
+        for name in fast.INTEGRATORS:
+            best = None
+            for _ in range(1 if args.smoke else 3):       # the fastest of three runs
+                tr = fast.simulate_fast(robot, seconds, 1e-3, integrator=name, **kwargs)
+                best = tr if best is None or tr.wall_time < best.wall_time else best
+            steps = max(1, len(best.times) - 1)
+            print(f"| fast, {label} ({best.status}) | {name} | {best.times[-1]:g} | "
+                  f"{best.wall_time:.4f} | {best.wall_time / steps * 1e6:.3f} | "
+                  f"{best.real_time_factor:.0f} |")
+    print(f"| (Python sampling of the circle reference) | | {seconds:g} | {sampling:.4f} | "
+          f"{sampling / n_steps * 1e6:.2f} | {seconds / sampling:.0f} |")
+    print()
+
+    # -- accuracy and energy of the integrators --------------------------------------------
+    moving = {"actuator_forces": hold * 1.3, "wrench": np.r_[0.5, -0.3, 0.0, 0.01, 0.0, 0.02],
+              "twist0": np.r_[0.01, -0.02, 0.01, 0.1, -0.2, 0.3]}
+    exact = fast.simulate_fast(robot, 0.1, 1e-4, **moving)
+    print("| integrator (dt = 1 ms) | pose error after 0.1 s (m, rad) | twist error "
+          "| energy error, unactuated fall | energy error, 2 s swing (P-law) |")
+    print("| --- | --- | --- | --- | --- |")
+    pose_error = {}
+    for name in fast.INTEGRATORS:
+        tr = fast.simulate_fast(robot, 0.1, 1e-3, integrator=name, **moving)
+        pose_error[name] = float(np.abs(tr.poses[-1] - exact.poses[-1]).max())
+        row = [f"{pose_error[name]:.1e}",
+               f"{np.abs(tr.twists[-1] - exact.twists[-1]).max():.1e}"]
+        if args.smoke:
+            row += ["(full run only)"] * 2
+        else:
+            fall = fast.simulate_fast(robot, 2.0, 1e-3, integrator=name, record_every=2)
+            row += [f"{energy_error(robot, fall):.1e} (of {fall.times[-1]:.2f} s)",
+                    f"{energy_error(robot, swing(robot, name), 2000.0):.1e}"]
+        print(f"| {name} | " + " | ".join(row) + " |")
     print()
 
     if not args.smoke and fast.available():
@@ -211,7 +265,10 @@ def main(argv=None) -> int:
         for label, imp, first in first_call_rows():
             print(f"| {label} | {imp:.2f} | {first:.2f} |")
     # FD of near-singular states amplifies round-off (cond(J) ~ 500 among these states)
-    ok = max(err_id, err_st) < 1e-10 and err_fd < 1e-9 and err_sim < 1e-8
+    # the integrators at 1 ms: rk4 to round-off, the others at their order (sanity bounds)
+    ok = (max(err_id, err_st) < 1e-10 and err_fd < 1e-9 and err_sim < 1e-8
+          and pose_error["rk4"] < 1e-11 and pose_error["rk2"] < 1e-6
+          and pose_error["semi_implicit_euler"] < 1e-3)
     if not ok:
         print("ROUTES DISAGREE", file=sys.stderr)
     return 0 if ok else 1

@@ -1,21 +1,24 @@
-"""Optional compiled fast path (numba) for the hexapod's single-state dynamics and simulation.
+"""Compiled fast path (numba) for the hexapod's single-state dynamics and simulation.
 
 The kernels below are a scalar, one-state port of the closed form of
 :mod:`hexapod_pin.batch_dynamics` (see its docstring for the model and the equations):
 inverse dynamics, forward dynamics (reduced equation ``M_x twist_dot = J^T tau + wrench -
-h_x``, Cholesky) and statics, plus a fourth-order Runge-Kutta simulation loop in
-independent coordinates. They never call Pinocchio; the tests check them against the
-Pinocchio routes of :class:`~hexapod_pin.dynamics.HexapodDynamics` to 1e-10.
+h_x``, Cholesky) and statics, plus a simulation loop in independent coordinates. They
+never call Pinocchio; the tests check them against the Pinocchio routes of
+:class:`~hexapod_pin.dynamics.HexapodDynamics` to 1e-10.
 
-Optional dependency: with numba (``pip install hexapod_pin[fast]``) the kernels are
-compiled on first use (``@njit(cache=True)``: the machine code is cached next to this
-module, in ``__pycache__``, so later processes only load it: about 16 s to compile on a
-small 2-core machine, 0.4 s to load). Without numba :func:`available` is False and the same
-functions run as plain Python: correct, but slower than the reference routes (ID about
-350 µs, simulation about 0.4x real time at 1 kHz), so check :func:`available` before
-choosing this module. Nothing else in the library imports it. The kernels are compiled
-with the fast-math flags ``contract, reassoc, nsz`` only (no ``nnan`` / ``ninf``: the
-finiteness checks stay exact); results differ from the reference routes by round-off.
+Compilation: numba compiles the kernels on first use (``@njit(cache=True)``: the machine
+code is cached next to this module, in ``__pycache__``, so later processes only load it:
+about 25-30 s to compile on a small 2-core machine, under a second to load). Should numba be
+missing (it is a dependency of the library, but an environment may lack a wheel for it),
+:func:`available` is False and the same functions run as plain Python: correct, but
+slower than the reference routes (ID about 350 µs, simulation about 0.4x real time at
+1 kHz), so check :func:`available` before choosing this module. Nothing else in the
+library imports it. The kernels are compiled with the fast-math flags ``contract,
+reassoc, nsz`` only (no ``nnan`` / ``ninf``: the finiteness checks stay exact); results
+differ from the reference routes by round-off. The small helpers are inlined by LLVM
+(``forceinline``) and compiled, like the simulation loop, without numba's reference
+counting (they never allocate): handing arrays to a helper then costs nothing.
 
 Conventions (those of the library): pose ``(x, y, z, roll, pitch, yaw)`` (m, rad) with
 ``R = Rz(yaw) Ry(pitch) Rx(roll)``; twist ``(v, w)`` of the platform origin, world axes;
@@ -32,12 +35,33 @@ at the exact border of a tolerance, where that route succeeds, its answer is ret
 
 Simulation (:func:`simulate_fast`): state ``(p, Q, v, w)`` with ``Q`` the unit quaternion
 of ``R`` (no gimbal lock), ``dp/dt = v``, ``dQ/dt = 1/2 (0, w) (x) Q`` (world angular
-velocity), ``d(v, w)/dt`` from the forward dynamics; classical RK4, the quaternion
-renormalised after each step; forces held over a step (zero-order hold), either constant
-or a joint PID on carriage set-points computed in the loop (IK and ``J twist`` of a
-sampled platform reference, the law of :class:`~hexapod_pin.simulate.PIDController`).
+velocity), ``d(v, w)/dt = a`` from the forward dynamics. Forces are held over a step
+(zero-order hold), either constant or a joint PID on carriage set-points (IK and
+``J twist`` of a sampled platform reference, computed once per reference sample before
+the loop; the law of :class:`~hexapod_pin.simulate.PIDController`). Integrators:
+
+``"rk4"`` (default)
+    classical Runge-Kutta, four forward dynamics per step, the quaternion renormalised
+    after the step; fourth order (the error falls 16x when ``dt`` halves). Unactuated
+    under gravity, the total energy is kept to about 1e-11 of the kinetic energy at
+    1 kHz. Caveat of the zero-order hold, not of RK4: a command held over the step lags
+    by half a step on average, so an undamped stiff P-law (no ``kd``) gains energy.
+``"rk2"``
+    explicit midpoint, two forward dynamics per step; second order (error 4x smaller
+    when ``dt`` halves); energy error about 1e-6 of the kinetic energy unactuated.
+``"semi_implicit_euler"``
+    one forward dynamics per step: ``(v, w)+ = (v, w) + dt a``, then ``p+ = p + dt v+``
+    and ``Q+ = exp(dt w+) (x) Q`` (the scheme of MuJoCo's default Euler integrator for a
+    free joint). First order (error 2x smaller when ``dt`` halves). Energy: unactuated
+    under gravity it loses about 1.4 % of the kinetic energy reached at 1 kHz (first
+    order in ``dt``); on an oscillation it neither grows nor stays constant but decays
+    slowly (about 1.4 % of the kinetic energy per second at 1 kHz; the scheme is not
+    symplectic here, the mass matrix depending on the pose), including under the
+    undamped P-law where the Runge-Kutta schemes gain energy. The only one of the three
+    above 1000x real time at 1 kHz on a small machine (see ``benchmarks/bench_fast.py``).
+
 Independent coordinates keep the closures exactly (the tree is rebuilt from the pose), so
-there is no drift to project. Its result, :class:`FastTrajectory`, is a smaller
+there is no drift to project. The result, :class:`FastTrajectory`, is a smaller
 :class:`~hexapod_pin.simulate.Trajectory` (no tree configurations; rebuild one with
 ``robot.configuration(pose)``).
 """
@@ -70,8 +94,39 @@ def available() -> bool:
     return _numba is not None
 
 
+_FLAGS = {"cache": True, "error_model": "numpy", "fastmath": {"contract", "reassoc", "nsz"}}
+
+
 def _jit(func):
-    return _numba.njit(cache=True, error_model="numpy", fastmath={"contract", "reassoc", "nsz"})(func) if _numba is not None else func
+    return _numba.njit(**_FLAGS)(func) if _numba is not None else func
+
+
+def _lean_options() -> dict:
+    """Options compiling a kernel without numba's reference-counting runtime, for code
+    that never allocates (numba's private jit option ``_nrt``, present in numba 0.68;
+    plain options when a numba lacks it: same results, slower)."""
+    try:
+        from numba.core.options import DefaultOptions
+    except ImportError:  # pragma: no cover - another numba layout: plain options
+        return {}
+    return {"_nrt": False} if hasattr(DefaultOptions, "_nrt") else {}
+
+
+_LEAN = _lean_options() if _numba is not None else {}
+
+
+def _jit_lean(func):
+    """:func:`_jit` without reference counting (an allocation-free kernel)."""
+    return _numba.njit(**_LEAN, **_FLAGS)(func) if _numba is not None else func
+
+
+def _jit_inline(func):
+    """:func:`_jit_lean`, inlined by LLVM into its compiled callers (``forceinline``): a
+    small helper then costs its arithmetic only, no call and no reference count of its
+    array arguments (together they were about a third of a semi-implicit Euler step)."""
+    if _numba is None:
+        return func
+    return _numba.njit(forceinline=True, **_LEAN, **_FLAGS)(func)
 
 
 # status codes of the kernels
@@ -82,8 +137,8 @@ _STATUS_OF_CODE = {STROKE: "stroke_limit", GAP: "carriage_gap"}
 _MX, _MY, _UX, _UY, _PX, _PY, _SG = (6 * j for j in range(7))
 _L, _MC, _ML, _MP, _IA, _IB, _IC, _G, _T1, _GIM, _T2, _BND, _HALF, _GAP = range(42, 56)
 # rows of the per-carriage work array (n_rows, 6)
-_RX, _RY, _RZ, _NX, _NY, _NZ, _NU, _Q, _QD, _DN2, _A0X, _A0Y, _A0Z, _QDD0 = range(14)
-_WORK_ROWS = 14
+_RX, _RY, _RZ, _NX, _NY, _NZ, _NU, _Q, _QD, _DN2, _A0X, _A0Y, _A0Z, _QDD0, _INV = range(15)
+_WORK_ROWS = 15
 
 
 def pack_geometry(geometry) -> np.ndarray:
@@ -114,7 +169,7 @@ def pack_geometry(geometry) -> np.ndarray:
 # --------------------------------------------------------------------------------------
 # kernels (scalar code; compiled when numba is present)
 # --------------------------------------------------------------------------------------
-@_jit
+@_jit_inline
 def _rotation_rpy(roll, pitch, yaw, rot):
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
@@ -124,17 +179,16 @@ def _rotation_rpy(roll, pitch, yaw, rot):
     rot[6], rot[7], rot[8] = -sp, cp * sr, cp * cr
 
 
-@_jit
-def _rotation_quat(quat, rot):
+@_jit_inline
+def _rotation_quat(w, x, y, z, rot):
     """``R`` (row-major 9) of a quaternion ``(w, x, y, z)`` (any non-zero norm)."""
-    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
     s = 2.0 / (w * w + x * x + y * y + z * z)
     rot[0], rot[1], rot[2] = 1.0 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)
     rot[3], rot[4], rot[5] = s * (x * y + z * w), 1.0 - s * (x * x + z * z), s * (y * z - x * w)
     rot[6], rot[7], rot[8] = s * (x * z - y * w), s * (y * z + x * w), 1.0 - s * (x * x + y * y)
 
 
-@_jit
+@_jit_inline
 def _legs(geo, x, y, z, rot, wk):
     """Carriage positions and leg vectors of a pose (home branch); returns a code."""
     length = geo[_L]
@@ -166,9 +220,9 @@ def _legs(geo, x, y, z, rot, wk):
     return worst
 
 
-@_jit
-def _rates(geo, twist, wk):
-    """Carriage rates, ``|dn/dt|^2``, ``w x (w x r)`` and the drift ``qddot_0``."""
+@_jit_inline
+def _rates(geo, twist, wk, drift=True):
+    """Carriage rates and (``drift``) ``|dn/dt|^2``, ``w x (w x r)``, ``qddot_0``."""
     vx, vy, vz, wx, wy, wz = twist[0], twist[1], twist[2], twist[3], twist[4], twist[5]
     for i in range(6):
         rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
@@ -177,16 +231,19 @@ def _rates(geo, twist, wk):
         cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx
         tx, ty, tz = vx + cx, vy + cy, vz + cz
         inv = 1.0 / nu
+        wk[_INV, i] = inv
         qd = (nx * tx + ny * ty + nz * tz) * inv
-        ex, ey = tx - qd * ux, ty - qd * uy
-        dn2 = ex * ex + ey * ey + tz * tz
-        ax, ay, az = wy * cz - wz * cy, wz * cx - wx * cz, wx * cy - wy * cx
-        wk[_QD, i], wk[_DN2, i] = qd, dn2
-        wk[_A0X, i], wk[_A0Y, i], wk[_A0Z, i] = ax, ay, az
-        wk[_QDD0, i] = (dn2 + nx * ax + ny * ay + nz * az) * inv
+        wk[_QD, i] = qd
+        if drift:
+            ex, ey = tx - qd * ux, ty - qd * uy
+            dn2 = ex * ex + ey * ey + tz * tz
+            ax, ay, az = wy * cz - wz * cy, wz * cx - wx * cz, wx * cy - wy * cx
+            wk[_DN2, i] = dn2
+            wk[_A0X, i], wk[_A0Y, i], wk[_A0Z, i] = ax, ay, az
+            wk[_QDD0, i] = (dn2 + nx * ax + ny * ay + nz * az) * inv
 
 
-@_jit
+@_jit_inline
 def _inertia_world(geo, rot, vx, vy, vz, out, offset):
     """``out[offset:offset+3] += R I R^T v``."""
     b0 = geo[_IA] * (rot[0] * vx + rot[3] * vy + rot[6] * vz)
@@ -197,7 +254,7 @@ def _inertia_world(geo, rot, vx, vy, vz, out, offset):
     out[offset + 2] += rot[6] * b0 + rot[7] * b1 + rot[8] * b2
 
 
-@_jit
+@_jit_inline
 def _gyroscopic(geo, rot, twist, out, sign):
     """``out[3:6] += sign * w x (I_w w)``."""
     wx, wy, wz = twist[3], twist[4], twist[5]
@@ -212,7 +269,7 @@ def _gyroscopic(geo, rot, twist, out, sign):
     out[5] += sign * (wx * hy - wy * hx)
 
 
-@_jit
+@_jit_inline
 def _add_tip_loads(wk, i, fx, fy, fz, out):
     """``out += [F, r x F]`` for the tip load of carriage i."""
     rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
@@ -268,7 +325,7 @@ def _lu_solve(mat, rhs, rtol):
     return OK
 
 
-@_jit
+@_jit_inline
 def _finite(vec):
     for k in range(vec.shape[0]):
         if not math.isfinite(vec[k]):
@@ -276,7 +333,7 @@ def _finite(vec):
     return True
 
 
-@_jit
+@_jit_inline
 def _check_bound(geo, tau, bounded):
     if bounded and math.isfinite(geo[_BND]):
         for i in range(6):
@@ -329,6 +386,23 @@ def inverse_kernel(geo, pose, twist, twist_dot, wrench, bounded, tau):
 
 
 @_jit
+def _static_at(geo, wk, wrench, rhs, mat, tau):
+    """Statics at legs ``wk`` (no rates needed): fills ``tau`` (6,); returns a code."""
+    for j in range(6):
+        rhs[j] = -wrench[j]
+    half_leg = 0.5 * geo[_ML] * geo[_G]
+    for i in range(6):
+        _add_tip_loads(wk, i, 0.0, 0.0, half_leg, rhs)
+    rhs[2] += geo[_MP] * geo[_G]
+    code = _solve_legs(wk, rhs, geo[_T2], mat)
+    if code != OK:
+        return code
+    for i in range(6):
+        tau[i] = wk[_NU, i] * rhs[i]
+    return OK
+
+
+@_jit
 def static_kernel(geo, pose, wrench, bounded, tau):
     """Statics: fills ``tau`` (6,) holding ``pose`` at rest; returns a status code."""
     if not (_finite(pose) and _finite(wrench)):
@@ -339,45 +413,55 @@ def static_kernel(geo, pose, wrench, bounded, tau):
     code = _legs(geo, pose[0], pose[1], pose[2], rot, wk)
     if code != OK:
         return code
-    rhs = np.zeros(6)
-    half_leg = 0.5 * geo[_ML] * geo[_G]
-    for i in range(6):
-        _add_tip_loads(wk, i, 0.0, 0.0, half_leg, rhs)
-    rhs[2] += geo[_MP] * geo[_G]
-    for j in range(6):
-        rhs[j] -= wrench[j]
-    mat = np.empty((6, 6))
-    code = _solve_legs(wk, rhs, geo[_T2], mat)
+    code = _static_at(geo, wk, wrench, np.empty(6), np.empty((6, 6)), tau)
     if code != OK:
         return code
-    for i in range(6):
-        tau[i] = wk[_NU, i] * rhs[i]
     return _check_bound(geo, tau, bounded)
 
 
-@_jit
-def _forward_core(geo, rot, twist, forces, wrench, wk, jac, mass, side, out):
+@_jit_inline
+def _forward_core(geo, rot, twist, forces, wrench, wk, mats, out):
     """Reduced forward dynamics at legs ``wk`` (rates done): ``out`` = twist_dot (6,);
-    ``jac`` gets ``J^T`` (6, 6). Returns OK or NOT_PD. ``mass``, ``side``: scratch (6, 6)."""
+    ``mats[0]`` gets ``J^T`` (6, 6) (column i: ``J_i = [n_i, r_i x n_i] / (n_i . u_i)``),
+    ``mats[1]`` the Cholesky factor of the reduced mass matrix. Returns OK or NOT_PD."""
+    jac, mass = mats[0], mats[1]
     m_c, m_l, m_p, g = geo[_MC], geo[_ML], geo[_MP], geo[_G]
     mu = m_l / 3.0
     m_leg, m_side = m_c + m_l / 3.0, m_l / 6.0
     o0, o1, o2 = wrench[0], wrench[1], wrench[2] - m_p * g
     o3, o4, o5 = wrench[3], wrench[4], wrench[5]
+    # the 21 entries of the legs' share of the mass matrix (upper triangle), in registers
+    m00 = m01 = m02 = m03 = m04 = m05 = m11 = m12 = m13 = m14 = m15 = 0.0
+    m22 = m23 = m24 = m25 = m33 = m34 = m35 = m44 = m45 = m55 = 0.0
     sx = sy = sz = 0.0
     pxx = pyy = pzz = pxy = pxz = pyz = 0.0
     for i in range(6):
         rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
-        nx, ny, nz, nu = wk[_NX, i], wk[_NY, i], wk[_NZ, i], wk[_NU, i]
+        nx, ny, nz, inv = wk[_NX, i], wk[_NY, i], wk[_NZ, i], wk[_INV, i]
         ux, uy = geo[_UX + i], geo[_UY + i]
-        inv = 1.0 / nu
         j0, j1, j2 = nx * inv, ny * inv, nz * inv
         j3, j4, j5 = (ry * nz - rz * ny) * inv, (rz * nx - rx * nz) * inv, \
             (rx * ny - ry * nx) * inv
         jac[0, i], jac[1, i], jac[2, i], jac[3, i], jac[4, i], jac[5, i] = j0, j1, j2, j3, j4, j5
-        # U_i = [u, r x u] = (ux, uy, 0, -rz uy, rz ux, rx uy - ry ux)
-        side[0, i], side[1, i], side[2, i] = ux, uy, 0.0
-        side[3, i], side[4, i], side[5, i] = -rz * uy, rz * ux, rx * uy - ry * ux
+        # U_i = [u, r x u] = (ux, uy, 0, -rz uy, rz ux, rx uy - ry ux); the leg's share of
+        # the mass matrix is m_leg J J^T + m_side (J U^T + U J^T) = J W^T + V J^T with
+        # W = m_leg J + m_side U, V = m_side U (V_2 = 0)
+        v0, v1 = m_side * ux, m_side * uy
+        v3, v4, v5 = -rz * v1, rz * v0, rx * v1 - ry * v0
+        w0, w1, w2 = m_leg * j0 + v0, m_leg * j1 + v1, m_leg * j2
+        w3, w4, w5 = m_leg * j3 + v3, m_leg * j4 + v4, m_leg * j5 + v5
+        m00, m01 = m00 + j0 * w0 + v0 * j0, m01 + j0 * w1 + v0 * j1
+        m02, m03 = m02 + j0 * w2 + v0 * j2, m03 + j0 * w3 + v0 * j3
+        m04, m05 = m04 + j0 * w4 + v0 * j4, m05 + j0 * w5 + v0 * j5
+        m11, m12 = m11 + j1 * w1 + v1 * j1, m12 + j1 * w2 + v1 * j2
+        m13, m14 = m13 + j1 * w3 + v1 * j3, m14 + j1 * w4 + v1 * j4
+        m15 = m15 + j1 * w5 + v1 * j5
+        m22, m23 = m22 + j2 * w2, m23 + j2 * w3
+        m24, m25 = m24 + j2 * w4, m25 + j2 * w5
+        m33, m34 = m33 + j3 * w3 + v3 * j3, m34 + j3 * w4 + v3 * j4
+        m35 = m35 + j3 * w5 + v3 * j5
+        m44, m45 = m44 + j4 * w4 + v4 * j4, m45 + j4 * w5 + v4 * j5
+        m55 = m55 + j5 * w5 + v5 * j5
         sx += rx
         sy += ry
         sz += rz
@@ -400,15 +484,13 @@ def _forward_core(geo, rot, twist, forces, wrench, wk, jac, mass, side, out):
         o3 += j3 * load - (ry * fz - rz * fy)
         o4 += j4 * load - (rz * fx - rx * fz)
         o5 += j5 * load - (rx * fy - ry * fx)
-    out[0], out[1], out[2], out[3], out[4], out[5] = o0, o1, o2, o3, o4, o5
-    # upper triangle of sum_i m_leg J_i J_i^T + m_side (J_i U_i^T + U_i J_i^T)
-    for a in range(6):
-        for b in range(a, 6):
-            acc = 0.0
-            for i in range(6):
-                acc += (m_leg * jac[a, i] + m_side * side[a, i]) * jac[b, i] \
-                    + m_side * jac[a, i] * side[b, i]
-            mass[a, b] = acc
+    mass[0, 0], mass[0, 1], mass[0, 2] = m00, m01, m02
+    mass[0, 3], mass[0, 4], mass[0, 5] = m03, m04, m05
+    mass[1, 1], mass[1, 2], mass[1, 3], mass[1, 4], mass[1, 5] = m11, m12, m13, m14, m15
+    mass[2, 2], mass[2, 3], mass[2, 4], mass[2, 5] = m22, m23, m24, m25
+    mass[3, 3], mass[3, 4], mass[3, 5] = m33, m34, m35
+    mass[4, 4], mass[4, 5] = m44, m45
+    mass[5, 5] = m55
     # platform plus point masses mu at the six tips, as one rigid body (upper triangle)
     sx, sy, sz = mu * sx, mu * sy, mu * sz
     total = m_p + 6.0 * mu
@@ -421,20 +503,31 @@ def _forward_core(geo, rot, twist, forces, wrench, wk, jac, mass, side, out):
     mass[2, 3] += sy
     mass[2, 4] -= sx
     trace = pxx + pyy + pzz
-    mass[3, 3] += mu * (trace - pxx)
-    mass[4, 4] += mu * (trace - pyy)
-    mass[5, 5] += mu * (trace - pzz)
-    mass[3, 4] -= mu * pxy
-    mass[3, 5] -= mu * pxz
-    mass[4, 5] -= mu * pyz
+    # world inertia of the platform R diag(I) R^T (upper triangle), its part of the mass
+    # matrix, and the gyroscopic moment w x (I_w w)
     ia, ib, ic = geo[_IA], geo[_IB], geo[_IC]
-    for a in range(3):
-        for b in range(a, 3):
-            mass[3 + a, 3 + b] += (rot[3 * a] * rot[3 * b] * ia + rot[3 * a + 1] * rot[3 * b + 1]
-                                   * ib + rot[3 * a + 2] * rot[3 * b + 2] * ic)
-    _gyroscopic(geo, rot, twist, out, -1.0)
-    # Cholesky M = R^T R (R upper, in place on the upper triangle; 1 / R_jj kept in
-    # side[0]), then the two triangular solves
+    i00 = rot[0] * rot[0] * ia + rot[1] * rot[1] * ib + rot[2] * rot[2] * ic
+    i11 = rot[3] * rot[3] * ia + rot[4] * rot[4] * ib + rot[5] * rot[5] * ic
+    i22 = rot[6] * rot[6] * ia + rot[7] * rot[7] * ib + rot[8] * rot[8] * ic
+    i01 = rot[0] * rot[3] * ia + rot[1] * rot[4] * ib + rot[2] * rot[5] * ic
+    i02 = rot[0] * rot[6] * ia + rot[1] * rot[7] * ib + rot[2] * rot[8] * ic
+    i12 = rot[3] * rot[6] * ia + rot[4] * rot[7] * ib + rot[5] * rot[8] * ic
+    mass[3, 3] += mu * (trace - pxx) + i00
+    mass[4, 4] += mu * (trace - pyy) + i11
+    mass[5, 5] += mu * (trace - pzz) + i22
+    mass[3, 4] += i01 - mu * pxy
+    mass[3, 5] += i02 - mu * pxz
+    mass[4, 5] += i12 - mu * pyz
+    wx, wy, wz = twist[3], twist[4], twist[5]
+    hx = i00 * wx + i01 * wy + i02 * wz
+    hy = i01 * wx + i11 * wy + i12 * wz
+    hz = i02 * wx + i12 * wy + i22 * wz
+    out[0], out[1], out[2] = o0, o1, o2
+    out[3] = o3 - (wy * hz - wz * hy)
+    out[4] = o4 - (wz * hx - wx * hz)
+    out[5] = o5 - (wx * hy - wy * hx)
+    # Cholesky M = R^T R (R upper, in place on the upper triangle, 1 / R_jj on the
+    # diagonal), then the two triangular solves
     for j in range(6):
         d = mass[j, j]
         for k in range(j):
@@ -442,7 +535,7 @@ def _forward_core(geo, rot, twist, forces, wrench, wk, jac, mass, side, out):
         if not d > 0.0:
             return NOT_PD
         inv_d = 1.0 / math.sqrt(d)
-        side[0, j] = inv_d
+        mass[j, j] = inv_d
         for c in range(j + 1, 6):
             t = mass[j, c]
             for k in range(j):
@@ -452,12 +545,12 @@ def _forward_core(geo, rot, twist, forces, wrench, wk, jac, mass, side, out):
         t = out[r]
         for k in range(r):
             t -= mass[k, r] * out[k]
-        out[r] = t * side[0, r]
+        out[r] = t * mass[r, r]
     for r in range(5, -1, -1):
         t = out[r]
         for k in range(r + 1, 6):
             t -= mass[r, k] * out[k]
-        out[r] = t * side[0, r]
+        out[r] = t * mass[r, r]
     return OK
 
 
@@ -473,12 +566,11 @@ def forward_kernel(geo, pose, twist, forces, wrench, twist_dot, qddot):
     if code != OK:
         return code
     _rates(geo, twist, wk)
-    jac = np.empty((6, 6))
-    mass = np.empty((6, 6))
-    code = _forward_core(geo, rot, twist, forces, wrench, wk, jac, mass, np.empty((6, 6)),
-                         twist_dot)
+    mats = np.empty((2, 6, 6))
+    code = _forward_core(geo, rot, twist, forces, wrench, wk, mats, twist_dot)
     if code != OK:
         return code
+    jac = mats[0]
     for i in range(6):
         s = wk[_QDD0, i]
         for a in range(6):
@@ -488,37 +580,21 @@ def forward_kernel(geo, pose, twist, forces, wrench, twist_dot, qddot):
 
 
 # -- simulation -------------------------------------------------------------------------
-@_jit
-def _derivative(geo, state, forces, wrench, deriv, rot, wk, jac, mass, side, twist, acc):
-    """``d state / dt`` of ``state = (p, Q (w, x, y, z), v, w)`` (13,); returns a code."""
-    code = _carriages(geo, state, rot, wk, twist)
-    if code != OK:
-        return code
-    return _derivative_at(geo, state, forces, wrench, deriv, rot, wk, jac, mass, side, twist, acc)
+# integrators (codes of the kernel) and their explicit Runge-Kutta tableaux (diagonal:
+# stage s is evaluated at state + _RK_A[s] dt k_{s-1}; the step is sum_s _RK_B[s] dt k_s)
+RK4, SEMI_IMPLICIT_EULER, RK2 = range(3)
+INTEGRATORS = {"rk4": RK4, "rk2": RK2, "semi_implicit_euler": SEMI_IMPLICIT_EULER}
+_RK_A = np.array([[0.0, 0.5, 0.5, 1.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.5, 0.0, 0.0]])
+_RK_B = np.array([[1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0], [1.0, 0.0, 0.0, 0.0],
+                  [0.0, 1.0, 0.0, 0.0]])
+_RK_STAGES = np.array([4, 1, 2])
 
 
-@_jit
-def _derivative_at(geo, state, forces, wrench, deriv, rot, wk, jac, mass, side, twist, acc):
-    """:func:`_derivative` with ``rot``, ``wk`` and ``twist`` already those of ``state``."""
-    code = _forward_core(geo, rot, twist, forces, wrench, wk, jac, mass, side, acc)
-    if code != OK:
-        return code
-    qw, qx, qy, qz = state[3], state[4], state[5], state[6]
-    wx, wy, wz = twist[3], twist[4], twist[5]
-    deriv[0], deriv[1], deriv[2] = twist[0], twist[1], twist[2]
-    deriv[3] = -0.5 * (wx * qx + wy * qy + wz * qz)
-    deriv[4] = 0.5 * (qw * wx + wy * qz - wz * qy)
-    deriv[5] = 0.5 * (qw * wy + wz * qx - wx * qz)
-    deriv[6] = 0.5 * (qw * wz + wx * qy - wy * qx)
-    for j in range(6):
-        deriv[7 + j] = acc[j]
-    return OK
-
-
-@_jit
+@_jit_inline
 def _carriages(geo, state, rot, wk, twist):
-    """Legs (and rates) of a state; returns a code (stroke not checked)."""
-    _rotation_quat(state[3:7], rot)
+    """Legs (and rates) of a state ``(p, Q (w, x, y, z), v, w)``; returns a code (stroke
+    not checked)."""
+    _rotation_quat(state[3], state[4], state[5], state[6], rot)
     code = _legs(geo, state[0], state[1], state[2], rot, wk)
     if code != OK:
         return code
@@ -528,7 +604,7 @@ def _carriages(geo, state, rot, wk, twist):
     return OK
 
 
-@_jit
+@_jit_inline
 def _limits(geo, wk):
     for i in range(6):
         if abs(wk[_Q, i]) > geo[_HALF]:
@@ -540,31 +616,48 @@ def _limits(geo, wk):
 
 
 @_jit
-def _command(geo, wk, k, mode, forces_in, ref_poses, ref_twists, gains, integral, dt,
-             saturation, forces, ref_wk, rot):
+def _set_points(geo, ref_poses, ref_twists, feedforward, setpoints):
+    """Carriage set-points of the reference rows into ``setpoints`` (3, m, 6): ``q``
+    (IK), ``qdot`` (``J twist``) and, with ``feedforward``, the static forces of the pose
+    (zero wrench), else zero. Returns ``(first_bad_row, code)``; ``first_bad_row = m``
+    when all succeed."""
+    rot = np.empty(9)
+    wk = np.empty((_WORK_ROWS, 6))
+    rhs, mat = np.empty(6), np.empty((6, 6))
+    n_rows = setpoints.shape[1]
+    for row in range(n_rows):
+        _rotation_rpy(ref_poses[row, 3], ref_poses[row, 4], ref_poses[row, 5], rot)
+        code = _legs(geo, ref_poses[row, 0], ref_poses[row, 1], ref_poses[row, 2], rot, wk)
+        if code != OK:
+            return row, code
+        _rates(geo, ref_twists[row], wk, False)
+        for i in range(6):
+            setpoints[0, row, i], setpoints[1, row, i] = wk[_Q, i], wk[_QD, i]
+            setpoints[2, row, i] = 0.0
+        if feedforward:
+            code = _static_at(geo, wk, _ZERO6, rhs, mat, setpoints[2, row])
+            if code != OK:
+                return row, code
+    return n_rows, OK
+
+
+@_jit_inline
+def _command(geo, wk, k, mode, forces_in, ref_q, ref_qd, ref_ff, bad_row, bad_code, gains,
+             integral, dt, saturation, forces):
     """Actuator forces of step ``k`` into ``forces``; returns (code, saturated)."""
     if mode == 0:
         for i in range(6):
             forces[i] = forces_in[i]
     else:
-        kp, ki, kd, feedforward = gains[0], gains[1], gains[2], gains[3]
-        row = min(k, ref_poses.shape[0] - 1)
-        _rotation_rpy(ref_poses[row, 3], ref_poses[row, 4], ref_poses[row, 5], rot)
-        code = _legs(geo, ref_poses[row, 0], ref_poses[row, 1], ref_poses[row, 2], rot, ref_wk)
-        if code != OK:
-            return code, False
-        _rates(geo, ref_twists[row], ref_wk)
+        row = min(k, ref_q.shape[0] - 1)
+        if row >= bad_row:
+            return bad_code, False
+        kp, ki, kd = gains[0], gains[1], gains[2]
         for i in range(6):
-            err = ref_wk[_Q, i] - wk[_Q, i]
-            forces[i] = kp * err + ki * integral[i] + kd * (ref_wk[_QD, i] - wk[_QD, i])
+            err = ref_q[row, i] - wk[_Q, i]
+            forces[i] = kp * err + ki * integral[i] + kd * (ref_qd[row, i] - wk[_QD, i])
             integral[i] += err * dt
-        if feedforward != 0.0:
-            ff = np.empty(6)
-            code = static_kernel(geo, ref_poses[row], np.zeros(6), False, ff)
-            if code != OK:
-                return code, False
-            for i in range(6):
-                forces[i] += ff[i]
+            forces[i] += ref_ff[row, i]
     sat = False
     bound = geo[_BND]
     if saturation != 2 and math.isfinite(bound):
@@ -578,85 +671,138 @@ def _command(geo, wk, k, mode, forces_in, ref_poses, ref_twists, gains, integral
     return OK, sat
 
 
-@_jit
-def simulate_kernel(geo, state0, n_steps, dt, record_every, mode, forces_in, wrench,
-                    ref_poses, ref_twists, gains, saturation, check_limits,
-                    rec_state, rec_q, rec_qd, rec_f, rec_sat, last_forces):
-    """RK4 loop; returns ``(code, step, n_recorded)``. ``mode`` 0: constant forces, 1: PID.
-    ``saturation`` 0: clip, 1: raise (code SATURATED), 2: ignore. ``last_forces`` gets the
-    last command computed (before clipping when it raised)."""
-    state = state0.copy()
-    k1, k2, k3, k4 = np.empty(13), np.empty(13), np.empty(13), np.empty(13)
-    stage = np.empty(13)
-    rot, ref_rot = np.empty(9), np.empty(9)
-    wk = np.empty((_WORK_ROWS, 6))
-    ref_wk = np.empty((_WORK_ROWS, 6))
-    jac, mass, side = np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6))
-    twist, acc = np.empty(6), np.empty(6)
-    forces = last_forces
-    integral = np.zeros(6)
-    code = _carriages(geo, state, rot, wk, twist)
-    if code != OK:
-        return code, 0, 0
-    n_rec = 0
+@_jit_inline
+def _record(rec_state, rec_q, rec_qd, rec_f, rec_sat, n, state, wk, forces, sat):
     for j in range(13):
-        rec_state[0, j] = state[j]
+        rec_state[n, j] = state[j]
     for i in range(6):
-        rec_q[0, i], rec_qd[0, i], rec_f[0, i] = wk[_Q, i], wk[_QD, i], 0.0
-    rec_sat[0] = False
-    code, sat = _command(geo, wk, 0, mode, forces_in, ref_poses, ref_twists, gains, integral,
-                         dt, saturation, forces, ref_wk, ref_rot)
-    if code != OK:
-        return code, 0, 1
+        rec_q[n, i], rec_qd[n, i], rec_f[n, i] = wk[_Q, i], wk[_QD, i], forces[i]
+    rec_sat[n] = sat
+
+
+@_jit_inline
+def _euler_update(state, acc, dt):
+    """Semi-implicit Euler on ``state`` in place: ``(v, w) += dt acc``, then ``p += dt v``
+    and ``Q <- exp(dt w) (x) Q`` with the new ``(v, w)``; ``Q`` renormalised."""
+    for j in range(6):
+        state[7 + j] += dt * acc[j]
+    for j in range(3):
+        state[j] += dt * state[7 + j]
+    wx, wy, wz = state[10], state[11], state[12]
+    norm = math.sqrt(wx * wx + wy * wy + wz * wz)
+    half = 0.5 * dt * norm
+    if half < 1e-4:          # Taylor series: relative errors below half^4 / 120 < 1e-18
+        h2 = half * half
+        ew, s = 1.0 - h2 * (0.5 - h2 / 24.0), 0.5 * dt * (1.0 - h2 / 6.0)
+    else:
+        ew, s = math.cos(half), math.sin(half) / norm
+    ex, ey, ez = s * wx, s * wy, s * wz
+    qw, qx, qy, qz = state[3], state[4], state[5], state[6]
+    qw, qx, qy, qz = (ew * qw - ex * qx - ey * qy - ez * qz, ew * qx + ex * qw + ey * qz - ez * qy,
+                      ew * qy - ex * qz + ey * qw + ez * qx, ew * qz + ex * qy - ey * qx + ez * qw)
+    inv = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    state[3], state[4], state[5], state[6] = qw * inv, qx * inv, qy * inv, qz * inv
+
+
+@_jit_lean
+def simulate_kernel(geo, n_steps, dt, record_every, integrator, mode, forces_in, wrench,
+                    setpoints, bad_row, bad_code, gains, saturation, check_limits, work,
+                    record, last_forces):
+    """Integration loop; returns ``(code, step, n_recorded)``.
+
+    ``integrator``: RK4, SEMI_IMPLICIT_EULER or RK2. ``mode`` 0: constant forces, 1: PID
+    on ``setpoints`` (3, m, 6) (carriage ``q``, ``qdot`` and feedforward forces of each
+    reference row, from :func:`_set_points`; rows ``>= bad_row`` failed with
+    ``bad_code``). ``saturation`` 0: clip, 1: raise (code SATURATED), 2: ignore.
+    ``work``: scratch ``(vecs (4, 13), rot (9,), wk, mats (2, 6, 6), small (3, 6))``,
+    ``vecs[0]`` the initial state. ``record``: ``(state, q, qdot, forces, saturated)``
+    arrays of the samples. ``last_forces`` gets the last command computed (before
+    clipping when it raised). One loop, one evaluation of the dynamics per pass (a step
+    boundary or a Runge-Kutta stage), so that each helper is inlined once; no
+    allocation (compiled without the reference-counting runtime).
+    """
+    vecs, rot, wk, mats, small = work
+    state, point, incr, deriv = vecs[0], vecs[1], vecs[2], vecs[3]
+    twist, acc, integral = small[0], small[1], small[2]
+    rec_state, rec_q, rec_qd, rec_f, rec_sat = record
+    ref_q, ref_qd, ref_ff = setpoints[0], setpoints[1], setpoints[2]
+    forces = last_forces
+    for j in range(13):
+        point[j] = state[j]
     for i in range(6):
-        rec_f[0, i] = forces[i]
-    rec_sat[0] = sat
-    half = 0.5 * dt
-    for step in range(1, n_steps + 1):
-        # rot, wk and twist hold the current state (set up before the loop / last step)
-        code = _derivative_at(geo, state, forces, wrench, k1, rot, wk, jac, mass, side, twist,
-                              acc)
-        if code == OK:
-            for j in range(13):
-                stage[j] = state[j] + half * k1[j]
-            code = _derivative(geo, stage, forces, wrench, k2, rot, wk, jac, mass, side, twist, acc)
-        if code == OK:
-            for j in range(13):
-                stage[j] = state[j] + half * k2[j]
-            code = _derivative(geo, stage, forces, wrench, k3, rot, wk, jac, mass, side, twist, acc)
-        if code == OK:
-            for j in range(13):
-                stage[j] = state[j] + dt * k3[j]
-            code = _derivative(geo, stage, forces, wrench, k4, rot, wk, jac, mass, side, twist, acc)
+        integral[i] = 0.0
+    n_stages = _RK_STAGES[integrator]
+    step, stage, n_rec = 0, 0, 0
+    while True:
+        code = _carriages(geo, point, rot, wk, twist)
         if code != OK:
-            return code, step, n_rec + 1
-        for j in range(13):
-            state[j] += dt / 6.0 * (k1[j] + k4[j] + 2.0 * (k2[j] + k3[j]))
-        norm = 1.0 / math.sqrt(state[3] ** 2 + state[4] ** 2 + state[5] ** 2 + state[6] ** 2)
-        for j in range(3, 7):
-            state[j] *= norm
-        if not _finite(state):
-            return NONFINITE, step, n_rec + 1
-        code = _carriages(geo, state, rot, wk, twist)
+            if stage == 0:
+                return code, step, (n_rec + 1 if step > 0 else 0)
+            return code, step + 1, n_rec + 1
+        if stage == 0:
+            # a step boundary: limits, command, recording
+            stop = _limits(geo, wk) if (check_limits and step > 0) else OK
+            sat = False
+            if stop == OK:
+                code, sat = _command(geo, wk, step, mode, forces_in, ref_q, ref_qd, ref_ff,
+                                     bad_row, bad_code, gains, integral, dt, saturation,
+                                     forces)
+                if code != OK:
+                    if step == 0:
+                        _record(rec_state, rec_q, rec_qd, rec_f, rec_sat, 0, state, wk,
+                                _ZERO6, False)
+                    return code, step, n_rec + 1
+            if step == 0:
+                _record(rec_state, rec_q, rec_qd, rec_f, rec_sat, 0, state, wk, forces, sat)
+            elif step % record_every == 0 or stop != OK:
+                n_rec += 1
+                if stop == OK:
+                    _record(rec_state, rec_q, rec_qd, rec_f, rec_sat, n_rec, state, wk,
+                            forces, sat)
+                else:                     # the stop state, with the previous command
+                    _record(rec_state, rec_q, rec_qd, rec_f, rec_sat, n_rec, state, wk,
+                            rec_f[n_rec - 1], False)
+            if stop != OK:
+                return stop, step, n_rec + 1
+            if step == n_steps:
+                return OK, n_steps, n_rec + 1
+        code = _forward_core(geo, rot, twist, forces, wrench, wk, mats, acc)
         if code != OK:
-            return code, step, n_rec + 1
-        stop = _limits(geo, wk) if check_limits else OK
-        if stop == OK:
-            code, sat = _command(geo, wk, step, mode, forces_in, ref_poses, ref_twists, gains,
-                                 integral, dt, saturation, forces, ref_wk, ref_rot)
-            if code != OK:
-                return code, step, n_rec + 1
-        if step % record_every == 0 or stop != OK:
-            n_rec += 1
+            return code, step + 1, n_rec + 1
+        if integrator == SEMI_IMPLICIT_EULER:
+            _euler_update(state, acc, dt)
+            stage = n_stages
+        else:
+            b = _RK_B[integrator, stage]
+            qw, qx, qy, qz = point[3], point[4], point[5], point[6]
+            wx, wy, wz = twist[3], twist[4], twist[5]
+            deriv[0], deriv[1], deriv[2] = twist[0], twist[1], twist[2]
+            deriv[3] = -0.5 * (wx * qx + wy * qy + wz * qz)
+            deriv[4] = 0.5 * (qw * wx + wy * qz - wz * qy)
+            deriv[5] = 0.5 * (qw * wy + wz * qx - wx * qz)
+            deriv[6] = 0.5 * (qw * wz + wx * qy - wy * qx)
+            for j in range(6):
+                deriv[7 + j] = acc[j]
+            stage += 1
+            if stage < n_stages:
+                a = _RK_A[integrator, stage] * dt
+                for j in range(13):
+                    incr[j] = (incr[j] if stage > 1 else 0.0) + b * deriv[j]
+                    point[j] = state[j] + a * deriv[j]
+            else:
+                for j in range(13):
+                    state[j] += dt * ((incr[j] if stage > 1 else 0.0) + b * deriv[j])
+                inv = 1.0 / math.sqrt(state[3] ** 2 + state[4] ** 2 + state[5] ** 2
+                                      + state[6] ** 2)
+                for j in range(3, 7):
+                    state[j] *= inv
+        if stage == n_stages:
+            if not _finite(state):
+                return NONFINITE, step + 1, n_rec + 1
             for j in range(13):
-                rec_state[n_rec, j] = state[j]
-            for i in range(6):
-                rec_q[n_rec, i], rec_qd[n_rec, i] = wk[_Q, i], wk[_QD, i]
-                rec_f[n_rec, i] = forces[i] if stop == OK else rec_f[n_rec - 1, i]
-            rec_sat[n_rec] = sat if stop == OK else False
-        if stop != OK:
-            return stop, step, n_rec + 1
-    return OK, n_steps, n_rec + 1
+                point[j] = state[j]
+            step += 1
+            stage = 0
 
 
 # --------------------------------------------------------------------------------------
@@ -798,8 +944,10 @@ class FastTrajectory:
         status: "completed", "stroke_limit", "carriage_gap" or "failed".
         message: details of a stop.
         dt: the step (s).
-        wall_time: seconds spent in the compiled loop (the first call of a process also
-            compiles it or loads it from the cache: about a second, see the benchmark).
+        wall_time: seconds spent in the compiled code (set-points of the reference, then
+            the loop; the first call of a process also compiles it or loads it from the
+            cache, see the benchmark).
+        integrator: "rk4", "rk2" or "semi_implicit_euler".
     """
 
     times: np.ndarray
@@ -814,12 +962,14 @@ class FastTrajectory:
     message: str
     dt: float
     wall_time: float
+    integrator: str = "rk4"
 
     @property
     def real_time_factor(self) -> float:
-        """Simulated time divided by wall time."""
-        span = float(self.times[-1] - self.times[0]) if self.times.size else 0.0
-        return span / self.wall_time if self.wall_time > 0 else float("inf")
+        """Simulated time divided by wall time (that of
+        :attr:`hexapod_pin.simulate.Trajectory.real_time_factor`, shared)."""
+        from .simulate import Trajectory  # lazily: simulate may come to import us
+        return Trajectory.real_time_factor.fget(self)
 
 
 def _sample_reference(reference, n_steps: int, dt: float):
@@ -846,8 +996,9 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
                   actuator_forces=None, wrench=None, reference=None, kp: float = 30000.0,
                   ki: float = 40000.0, kd: float = 3000.0, feedforward: bool = False,
                   check_limits: bool = True, on_limit: str = "stop",
-                  saturation: str = "clip", record_every: int = 1) -> FastTrajectory:
-    """Integrate the hexapod's dynamics in compiled code (RK4 in platform coordinates).
+                  saturation: str = "clip", record_every: int = 1,
+                  integrator: str = "rk4") -> FastTrajectory:
+    """Integrate the hexapod's dynamics in compiled code (in platform coordinates).
 
     Args:
         robot: the :class:`~hexapod_pin.Hexapod`.
@@ -861,15 +1012,20 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
         reference: enables the joint PID of :class:`~hexapod_pin.simulate.PIDController`
             (``tau = kp e + ki sum(e dt) + kd (qdot_ref - qdot)``, ``e = q_ref - q``,
             ``q_ref`` = IK of the reference pose, ``qdot_ref = J`` reference twist, both
-            computed in the loop): a callable ``t -> PlatformReference`` (sampled at
-            ``k dt`` before the loop, in Python) or a pair of arrays ``(poses, twists)``
-            (m, n 6) sampled at ``k dt`` (the last row is held when m < steps + 1).
+            computed in compiled code for each sample before the loop): a callable
+            ``t -> PlatformReference`` (sampled at ``k dt`` before the loop, in Python)
+            or a pair of arrays ``(poses, twists)``, each (m, 6), sampled at ``k dt``
+            (the last row is held when m < steps + 1).
         kp: N/m. ki: N/(m s). kd: N s/m. feedforward: add the static forces of the
             reference pose.
         check_limits: stop at the stroke limits / carriage gap (checked after each step).
         on_limit: "stop" (status "stroke_limit" / "carriage_gap") or "raise".
         saturation: "clip", "raise" or "ignore" (commands beyond the bound).
         record_every: record one sample every this many steps.
+        integrator: "rk4" (default; 4 forward dynamics per step, fourth order), "rk2"
+            (explicit midpoint; 2, second order) or "semi_implicit_euler" (1, first
+            order; velocities first, then ``p += dt v``, ``Q = exp(dt w) Q``, as MuJoCo's
+            Euler). Accuracy and energy behaviour: see the module docstring.
 
     Returns:
         :class:`FastTrajectory`. A singular or unreachable state stops the run with
@@ -888,6 +1044,8 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
     modes = {"clip": 0, "raise": 1, "ignore": 2}
     if saturation not in modes:
         raise InputError("saturation", saturation, "expected 'clip', 'raise' or 'ignore'")
+    if not isinstance(integrator, str) or integrator not in INTEGRATORS:
+        raise InputError("integrator", integrator, f"expected one of {tuple(INTEGRATORS)}")
     if int(record_every) < 1:
         raise InputError("record_every", record_every, "must be >= 1")
     if reference is not None and actuator_forces is not None:
@@ -908,26 +1066,32 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
         twist0 = ref_twists[0] if reference is not None else np.zeros(6)
     pose0, twist0 = as_array(pose0, (6,), "pose0"), as_array(twist0, (6,), "twist0")
     wrench = _ZERO6 if wrench is None else as_array(wrench, (6,), "wrench")
-    gains = np.array([kp, ki, kd, 1.0 if feedforward else 0.0], dtype=float)
+    gains = np.array([kp, ki, kd], dtype=float)
     if not np.all(np.isfinite(gains)):
-        raise InputError("gains", gains[:3], "must be finite")
+        raise InputError("gains", gains, "must be finite")
+    feedforward = bool(feedforward)
     geo = fast_dynamics(robot).geo
     robot.forward_dynamics(pose0, twist0, np.zeros(6))      # raises for a bad initial state
-    state0 = np.empty(13)
-    state0[:3] = pose0[:3]
-    state0[3:7] = _quaternion_wxyz(pose0[3:])
-    state0[7:] = twist0
+    vecs = np.zeros((4, 13))
+    vecs[0, :3] = pose0[:3]
+    vecs[0, 3:7] = _quaternion_wxyz(pose0[3:])
+    vecs[0, 7:] = twist0
+    work = (vecs, np.empty(9), np.empty((_WORK_ROWS, 6)), np.empty((2, 6, 6)),
+            np.zeros((3, 6)))
     n_rec = n_steps // record_every + 2
-    rec_state = np.empty((n_rec, 13))
-    rec_q, rec_qd, rec_f = np.empty((n_rec, 6)), np.empty((n_rec, 6)), np.empty((n_rec, 6))
-    rec_sat = np.zeros(n_rec, dtype=np.bool_)
+    record = (np.empty((n_rec, 13)), np.empty((n_rec, 6)), np.empty((n_rec, 6)),
+              np.empty((n_rec, 6)), np.zeros(n_rec, dtype=np.bool_))
     last_forces = np.zeros(6)
+    setpoints = np.zeros((3, min(len(ref_poses), n_steps + 1) if mode else 1, 6))
     start = time.perf_counter()
-    code, step, n = simulate_kernel(geo, state0, n_steps, float(dt), record_every, mode,
-                                    forces_in, wrench, ref_poses, ref_twists, gains,
-                                    modes[saturation], bool(check_limits), rec_state, rec_q,
-                                    rec_qd, rec_f, rec_sat, last_forces)
+    bad_row, bad_code = _set_points(geo, ref_poses, ref_twists, feedforward, setpoints) \
+        if mode else (setpoints.shape[1], OK)
+    code, step, n = simulate_kernel(geo, n_steps, float(dt), record_every,
+                                    INTEGRATORS[integrator], mode, forces_in, wrench,
+                                    setpoints, bad_row, bad_code, gains, modes[saturation],
+                                    bool(check_limits), work, record, last_forces)
     wall = time.perf_counter() - start
+    rec_state, rec_q, rec_qd, rec_f, rec_sat = record
     if code == SATURATED:
         raise ActuatorSaturationError(last_forces, np.full(6, robot.geometry.max_actuator_force))
     if n == 0:              # the initial state itself failed (checked above: not expected)
@@ -952,7 +1116,7 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
         status, message = "failed", f"at t = {t_stop:.6g} s: {_describe(robot, code, poses[-1])}"
     return FastTrajectory(times, poses, quat.copy(), rec_state[:, 7:].copy(), rec_q[:n].copy(),
                           rec_qd[:n].copy(), rec_f[:n].copy(), rec_sat[:n].copy(), status,
-                          message, float(dt), wall)
+                          message, float(dt), wall, integrator)
 
 
 def _describe(robot, code: int, pose) -> str:
