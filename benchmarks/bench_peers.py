@@ -409,13 +409,17 @@ class HexapodPeers:
                                 scheme="ours rk4 + projection"))
         fast = _fast(r)
         if fast is not None and fast[1] is not None:
-            def ours_fast(i):
+            def ours_fast(i, kind="rk4"):
                 traj = fast[1](r, DT, DT, pose0=s.poses[i], twist0=s.twists[i],
                                actuator_forces=s.forces[i], wrench=s.wrenches[i],
-                               check_limits=False, saturation="ignore")
+                               check_limits=False, saturation="ignore", integrator=kind)
                 return np.concatenate([traj.poses[-1], traj.twists[-1]])
             routes.append(Route(f"ours simulate_fast(duration=dt), rk4 on the platform "
                                 f"({fast[2]})", ours_fast, scheme="ours fast rk4 platform"))
+            routes.append(Route(f"ours simulate_fast(duration=dt), semi-implicit Euler on the "
+                                f"platform ({fast[2]})",
+                                lambda i: ours_fast(i, "semi_implicit_euler"),
+                                scheme="semi-implicit Euler on the platform"))
         return routes or [Route("ours simulate step")]
 
 
@@ -628,9 +632,12 @@ def simulation_throughput(peers: HexapodPeers, repeats: int, steps: int = 200) -
                 wrench=wrench, integrator=kind, check_limits=False, saturation="ignore")))
     fast = _fast(r)
     if fast is not None and fast[1] is not None:
-        items.append((f"ours simulate_fast, rk4 on the platform ({fast[2]})", lambda: fast[1](
-            r, steps * DT, DT, pose0=pose, twist0=zero, actuator_forces=forces, wrench=wrench,
-            check_limits=False, saturation="ignore")))
+        for kind in ("rk4", "semi_implicit_euler"):
+            items.append((f"ours simulate_fast, {kind} on the platform ({fast[2]})",
+                          lambda kind=kind: fast[1](
+                              r, steps * DT, DT, pose0=pose, twist0=zero, actuator_forces=forces,
+                              wrench=wrench, check_limits=False, saturation="ignore",
+                              integrator=kind)))
     q0, v0, _ = raw.tree_state(pose, zero, zero)
 
     def raw_run():
