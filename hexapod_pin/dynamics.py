@@ -988,7 +988,9 @@ class HexapodDynamics:
                                BatchDynamics(self.geometry), HOME_BRANCH.tolist(),
                                clm.model.getJointId("platform_joint"),
                                kernels.CompiledMap(self._platform_map, HOME_BRANCH))
-        dyn._ensure_rank(self.configuration(self.home_pose))
+        home_q = self.configuration(self.home_pose)
+        dyn._ensure_rank(home_q)
+        ws.compiled.check_mass_structure(pin.crba(dyn.model, dyn.data, home_q))
         self.__dict__["_dyn_workspace"] = ws
         return ws
 

@@ -409,26 +409,32 @@ def solve_forces(buf, rhs, pivot_rtol, tau, multipliers, lu, jac_t):
 @_jit
 def reduced(geo, buf, mass, bias, g_map, m_x, h_x):
     """``M_x = G^T M G`` (6, 6) and ``h_x = G^T bias`` (6,) from the tree's ``M`` (24, 24;
-    upper triangle read, as ``pin.crba`` fills it) and a tree generalised force ``bias``."""
+    upper triangle read, as ``pin.crba`` fills it) and a tree generalised force ``bias``.
+
+    ``M`` is block diagonal (every leg chain and the free-flyer hang from the fixed
+    world: blocks ``3 i .. 3 i + 2`` and ``18 .. 23``, checked once by
+    :meth:`CompiledMap.check_mass_structure`), so only the blocks are read.
+    """
     velocity_map(geo, buf, g_map)
-    n = mass.shape[0]
-    tmp = np.empty((n, 6))
-    for r in range(n):
+    tmp = np.empty((24, 6))
+    for r in range(24):
+        start = 18 if r >= 18 else 3 * (r // 3)
+        stop = 24 if r >= 18 else start + 3
         for j in range(6):
             acc = 0.0
-            for c in range(n):
+            for c in range(start, stop):
                 mrc = mass[r, c] if r <= c else mass[c, r]
                 acc += mrc * g_map[c, j]
             tmp[r, j] = acc
     for i in range(6):
         for j in range(i, 6):
             acc = 0.0
-            for r in range(n):
+            for r in range(24):
                 acc += g_map[r, i] * tmp[r, j]
             m_x[i, j] = acc
             m_x[j, i] = acc
         acc = 0.0
-        for r in range(n):
+        for r in range(24):
             acc += g_map[r, i] * bias[r]
         h_x[i] = acc
 
@@ -556,6 +562,19 @@ class CompiledMap:
         self.v = np.empty(24)
         self.rest = np.empty(24)
         self.a = np.empty(24)
+
+    @staticmethod
+    def check_mass_structure(mass) -> None:
+        """Raise unless the tree's mass matrix (24, 24) is block diagonal as
+        :func:`reduced` assumes (legs ``3 i .. 3 i + 2``, free-flyer ``18 .. 23``)."""
+        full = np.triu(mass) + np.triu(mass, 1).T
+        mask = np.ones((24, 24), dtype=bool)
+        for start, stop in [(3 * i, 3 * i + 3) for i in range(6)] + [(18, 24)]:
+            mask[start:stop, start:stop] = False
+        if np.any(full[mask] != 0.0):
+            raise HexapodPinError("the compiled reduced dynamics needs a block-diagonal tree "
+                                  "mass matrix (each leg chain and the platform attached to "
+                                  "the world)")
 
     def tip_forces(self, pose, force, tau) -> np.ndarray:
         """(6, 3) :func:`leg_forces` at ``pose`` (its legs rebuilt in a fresh buffer, so

@@ -146,3 +146,15 @@ def test_public_routes_take_any_array_like(robot, rng):
         robot.forward_dynamics(pose, twist, [1.0, 2.0, np.nan, 0.0, 0.0, 0.0])
     with pytest.raises(hp.InputError, match="pose"):
         robot.static_forces(pose[:5])
+
+
+def test_mass_structure_check(robot):
+    """The block-diagonal mass matrix that ``reduced`` relies on holds for the tree, and a
+    coupling between two leg chains would be refused."""
+    clm = robot.model
+    mass = pin.crba(clm.model, clm.model.createData(), robot.home_configuration)
+    K.CompiledMap.check_mass_structure(mass)
+    coupled = mass.copy()
+    coupled[0, 5] = 1e-3
+    with pytest.raises(hp.HexapodPinError, match="block-diagonal"):
+        K.CompiledMap.check_mass_structure(coupled)
