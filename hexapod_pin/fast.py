@@ -78,7 +78,7 @@ import numpy as np
 from .errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
 from .kinematics import GIMBAL_TOL, HOME_BRANCH, RAIL_OF, TYPE_I_TOL
 from .platform_map import TYPE_II_PIVOT_RTOL
-from .pose import as_array, rpy_from_rotation
+from .pose import as_array
 
 try:  # optional dependency
     import numba as _numba
@@ -1071,7 +1071,7 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
         raise InputError("gains", gains, "must be finite")
     feedforward = bool(feedforward)
     geo = fast_dynamics(robot).geo
-    robot.forward_dynamics(pose0, twist0, np.zeros(6))      # raises for a bad initial state
+    robot.static_forces(pose0, bounded=False)    # raises for an unreachable / singular pose0
     vecs = np.zeros((4, 13))
     vecs[0, :3] = pose0[:3]
     vecs[0, 3:7] = _quaternion_wxyz(pose0[3:])
@@ -1102,8 +1102,8 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
     times = steps * float(dt)
     rec_state = rec_state[:n]
     quat = rec_state[:, [4, 5, 6, 3]]
-    rots = _rotations_of(rec_state[:, 3:7])
-    poses = np.concatenate([rec_state[:, :3], rpy_from_rotation(rots)], axis=1)
+    poses = np.empty((n, 6))
+    _poses_of(rec_state, poses)
     status, message = "completed", ""
     t_stop = float(step * dt)
     if code in (STROKE, GAP):
@@ -1140,10 +1140,18 @@ def _quaternion_wxyz(rpy) -> np.ndarray:
                      c1 * s2 * c3 + s1 * c2 * s3, c1 * c2 * s3 - s1 * s2 * c3])
 
 
-def _rotations_of(quats_wxyz: np.ndarray) -> np.ndarray:
-    w, x, y, z = quats_wxyz.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)],
-        axis=-2)
+@_jit
+def _poses_of(states, out):
+    """Poses ``(x, y, z, roll, pitch, yaw)`` (n, 6) of recorded states ``(p, Q (w, x, y, z),
+    ...)``: :func:`hexapod_pin.pose.rpy_from_rotation` of ``R(Q)`` (pitch in [-pi/2,
+    pi/2]; at gimbal lock roll = 0 and yaw takes the rest)."""
+    rot = np.empty(9)
+    for k in range(out.shape[0]):
+        _rotation_quat(states[k, 3], states[k, 4], states[k, 5], states[k, 6], rot)
+        out[k, 0], out[k, 1], out[k, 2] = states[k, 0], states[k, 1], states[k, 2]
+        horizontal = math.hypot(rot[0], rot[3])
+        out[k, 4] = math.atan2(-rot[6], horizontal)
+        if horizontal < 1e-12:
+            out[k, 3], out[k, 5] = 0.0, math.atan2(-rot[1], rot[4])
+        else:
+            out[k, 3], out[k, 5] = math.atan2(rot[7], rot[8]), math.atan2(rot[3], rot[0])
