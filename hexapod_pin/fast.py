@@ -77,6 +77,7 @@ import numpy as np
 
 from .errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
 from .kinematics import GIMBAL_TOL, HOME_BRANCH, RAIL_OF, TYPE_I_TOL
+from .platform_kernels import GIMBAL, NOT_PD, OK, TYPE_I, TYPE_II, UNREACHABLE, lu_solve6
 from .platform_map import TYPE_II_PIVOT_RTOL
 from .pose import as_array
 
@@ -113,6 +114,8 @@ def _lean_options() -> dict:
 
 
 _LEAN = _lean_options() if _numba is not None else {}
+#: the shared 6x6 LU of platform_kernels (its plain-Python body in the fallback)
+_lu_solve6 = lu_solve6 if _numba is not None else lu_solve6.py_func
 
 
 def _jit_lean(func):
@@ -130,7 +133,7 @@ def _jit_inline(func):
 
 
 # status codes of the kernels
-OK, UNREACHABLE, TYPE_I, GIMBAL, TYPE_II, NOT_PD, NONFINITE, STROKE, GAP, SATURATED = range(10)
+NONFINITE, STROKE, GAP, SATURATED = range(6, 10)   # OK .. NOT_PD (0-5): platform_kernels'
 _STATUS_OF_CODE = {STROKE: "stroke_limit", GAP: "carriage_gap"}
 
 # layout of the packed geometry vector (per-carriage blocks of 6, then scalars)
@@ -291,38 +294,7 @@ def _solve_legs(wk, rhs, rtol, mat):
         nx, ny, nz = wk[_NX, i], wk[_NY, i], wk[_NZ, i]
         mat[0, i], mat[1, i], mat[2, i] = nx, ny, nz
         mat[3, i], mat[4, i], mat[5, i] = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx
-    return _lu_solve(mat, rhs, rtol)
-
-
-@_jit
-def _lu_solve(mat, rhs, rtol):
-    small, big = np.inf, 0.0
-    for col in range(6):
-        piv, best = col, abs(mat[col, col])
-        for row in range(col + 1, 6):
-            if abs(mat[row, col]) > best:
-                piv, best = row, abs(mat[row, col])
-        if piv != col:
-            for j in range(6):
-                mat[col, j], mat[piv, j] = mat[piv, j], mat[col, j]
-            rhs[col], rhs[piv] = rhs[piv], rhs[col]
-        small, big = min(small, best), max(big, best)
-        if best == 0.0:
-            return TYPE_II
-        for row in range(col + 1, 6):
-            f = mat[row, col] / mat[col, col]
-            if f != 0.0:
-                for j in range(col + 1, 6):
-                    mat[row, j] -= f * mat[col, j]
-                rhs[row] -= f * rhs[col]
-    if not small > rtol * big:
-        return TYPE_II
-    for row in range(5, -1, -1):
-        acc = rhs[row]
-        for j in range(row + 1, 6):
-            acc -= mat[row, j] * rhs[j]
-        rhs[row] = acc / mat[row, row]
-    return OK
+    return _lu_solve6(mat, rhs, rtol, np.arange(6))
 
 
 @_jit_inline

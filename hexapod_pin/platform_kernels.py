@@ -343,6 +343,45 @@ def check_solution(mat, x, rhs):
 
 
 @_jit
+def lu_solve6(mat, rhs, pivot_rtol, perm):
+    """Solve ``mat x = rhs`` (6 x 6) in place by LU with partial pivoting.
+
+    ``rhs`` becomes ``x``; ``mat`` holds the factors (``P mat = L U``, unit ``L`` below the
+    diagonal) and ``perm`` the row order (``(P y)[j] = y[perm[j]]``; pass
+    ``np.arange(6)``). Returns OK, or TYPE_II when the smallest pivot is below
+    ``pivot_rtol`` times the largest (or zero).
+    """
+    small, big = np.inf, 0.0
+    for col in range(6):
+        piv, best = col, abs(mat[col, col])
+        for row in range(col + 1, 6):
+            if abs(mat[row, col]) > best:
+                piv, best = row, abs(mat[row, col])
+        if piv != col:
+            for j in range(6):
+                mat[col, j], mat[piv, j] = mat[piv, j], mat[col, j]
+            rhs[col], rhs[piv] = rhs[piv], rhs[col]
+            perm[col], perm[piv] = perm[piv], perm[col]
+        small, big = min(small, best), max(big, best)
+        if best == 0.0:
+            return TYPE_II
+        for row in range(col + 1, 6):
+            f = mat[row, col] / mat[col, col]
+            mat[row, col] = f
+            for j in range(col + 1, 6):
+                mat[row, j] -= f * mat[col, j]
+            rhs[row] -= f * rhs[col]
+    if not small > pivot_rtol * big:
+        return TYPE_II
+    for row in range(5, -1, -1):
+        acc = rhs[row]
+        for j in range(row + 1, 6):
+            acc -= mat[row, j] * rhs[j]
+        rhs[row] = acc / mat[row, row]
+    return OK
+
+
+@_jit
 def solve_forces(buf, rhs, pivot_rtol, tau, multipliers, lu, jac_t):
     """``J^T tau = rhs`` (6 equations) by LU with partial pivoting of ``A^T``.
 
@@ -355,36 +394,12 @@ def solve_forces(buf, rhs, pivot_rtol, tau, multipliers, lu, jac_t):
     """
     jacobian_transpose(buf, jac_t)
     force_matrix(buf, lu)
-    perm = np.arange(6)
     for j in range(6):
         tau[j] = rhs[j]
-    small, big = np.inf, 0.0
-    for col in range(6):
-        piv, best = col, abs(lu[col, col])
-        for row in range(col + 1, 6):
-            if abs(lu[row, col]) > best:
-                piv, best = row, abs(lu[row, col])
-        if piv != col:
-            for j in range(6):
-                lu[col, j], lu[piv, j] = lu[piv, j], lu[col, j]
-            tau[col], tau[piv] = tau[piv], tau[col]
-            perm[col], perm[piv] = perm[piv], perm[col]
-        small, big = min(small, best), max(big, best)
-        if best == 0.0:
-            return TYPE_II
-        for row in range(col + 1, 6):
-            f = lu[row, col] / lu[col, col]
-            lu[row, col] = f
-            for j in range(col + 1, 6):
-                lu[row, j] -= f * lu[col, j]
-            tau[row] -= f * tau[col]
-    if not small > pivot_rtol * big:
-        return TYPE_II
-    for row in range(5, -1, -1):
-        acc = tau[row]
-        for j in range(row + 1, 6):
-            acc -= lu[row, j] * tau[j]
-        tau[row] = acc / lu[row, row]
+    perm = np.arange(6)
+    code = lu_solve6(lu, tau, pivot_rtol, perm)
+    if code != OK:
+        return code
     # tau = diag(n.u) s with A^T s = rhs
     for i in range(6):
         tau[i] *= buf[_NU, i]

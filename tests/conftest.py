@@ -47,6 +47,19 @@ def random_pose(robot, rng, scale=1.0):
     raise RuntimeError("no reachable random pose found")
 
 
+def import_benchmarks(*names):
+    """Modules of benchmarks/ (not a package), imported with it briefly on sys.path."""
+    import importlib
+    import sys
+
+    bench = str(Path(__file__).resolve().parent.parent / "benchmarks")
+    sys.path.insert(0, bench)
+    try:
+        return tuple(importlib.import_module(name) for name in names)
+    finally:
+        sys.path.remove(bench)
+
+
 def load_reference():
     return json.loads(REFERENCE.read_text())
 

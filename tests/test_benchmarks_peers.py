@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import geometry_from_reference, load_reference
+from conftest import geometry_from_reference, import_benchmarks, load_reference
 
 ROOT = Path(__file__).resolve().parent.parent
 BENCH = ROOT / "benchmarks"
@@ -35,12 +35,7 @@ def peers_output():
 
 @pytest.fixture(scope="module")
 def numpy_peer():
-    sys.path.insert(0, str(BENCH))
-    try:
-        import numpy_hexapod
-    finally:
-        sys.path.remove(str(BENCH))
-    return numpy_hexapod
+    return import_benchmarks("numpy_hexapod")[0]
 
 
 @pytest.mark.parametrize("entry", load_reference()["hexapod"], ids=lambda e: e["name"])

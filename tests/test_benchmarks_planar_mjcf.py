@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import load_reference
+from conftest import import_benchmarks, load_reference
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -25,13 +25,7 @@ BENCH = ROOT / "benchmarks"
 @pytest.fixture(scope="module")
 def bench():
     """The benchmark modules (benchmarks/ is not a package)."""
-    sys.path.insert(0, str(BENCH))
-    try:
-        import bench_scaling
-        import mjcf_planar
-    finally:
-        sys.path.remove(str(BENCH))
-    return mjcf_planar, bench_scaling
+    return import_benchmarks("mjcf_planar", "bench_scaling")
 
 
 @pytest.fixture(scope="module")
