@@ -1068,8 +1068,9 @@ class HexapodDynamics:
         tau, mult = np.empty(6), np.empty(6)
         if kernels.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, mult, ck.lu,
                                 ck.jt) != kernels.OK:
-            ws.pmap.solve_forces(ws.pmap.legs(pose_a.tolist(), ws.signs, angles=True),
-                                 rhs.tolist())                     # raises SingularityError
+            # LAPACK's LU decides (raises SingularityError, or solves at the border)
+            tau = self._python_forces(pose_a, rhs)
+            mult = np.linalg.solve(ck.jt.T, -tau)
         tau, status, iters = self._bounded_forces(ws, ck.jt, rhs, tau, mult, method, bounds)
         details = _InverseDetails(ws, None, force, tau,
                                   None if wrench_a is None else wrench_a.copy(), q, v, a,
@@ -1190,23 +1191,29 @@ class HexapodDynamics:
         tau = np.empty(6)
         if kernels.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, ck.multipliers, ck.lu,
                                 ck.jt) != kernels.OK:
-            self._raise_for(pose, rhs=rhs)
+            tau = self._python_forces(pose_a, rhs)
         if bounded and ws.bounds is not None and \
                 max(map(abs, tau.tolist())) > ws.bounds[0] * (1.0 + _RESIDUAL_RTOL):
             raise ActuatorSaturationError(tau, ws.bounds)
         return tau
 
-    def _raise_for(self, pose, rhs=None, **vectors) -> None:
+    def _python_forces(self, pose, rhs) -> np.ndarray:
+        """``J^T tau = rhs`` by :meth:`PlatformMap.solve_forces` (LAPACK), for a state whose
+        compiled LU met the type-II pivot test: raises :class:`SingularityError` with its
+        value, or (at the border of the test) returns the forces."""
+        ws = self._workspace()
+        legs = ws.pmap.legs(list(pose), ws.signs, angles=True)
+        return np.array(ws.pmap.solve_forces(legs, rhs.tolist()))
+
+    def _raise_for(self, pose, **vectors) -> None:
         """Raise the error of a state the compiled map refused: the Python map's
         :class:`InputError`, :class:`UnreachablePoseError` or :class:`SingularityError`
-        with its values (with ``rhs``: the type-II check of the force solve)."""
+        with its values."""
         ws = self._workspace()
         for name, value in vectors.items():
             if value is not None:
                 _floats6(value, name)
-        legs = ws.pmap.legs(_floats6(pose, "pose"), ws.signs, angles=True)
-        if rhs is not None:
-            ws.pmap.solve_forces(legs, list(rhs))
+        ws.pmap.legs(_floats6(pose, "pose"), ws.signs, angles=True)
         raise HexapodPinError("internal: the compiled platform map refused a state that "
                               f"the Python map accepts (pose {list(pose)})")
 

@@ -601,9 +601,3 @@ class CompiledMap:
                                   "compiled map (it was accepted before)")
         leg_forces(self.geo, buf, force, tau, out)
         return out
-
-    def jac_t(self) -> np.ndarray:
-        """``J^T`` (6, 6) of the legs in the buffer (a new array)."""
-        out = np.empty((6, 6))
-        jacobian_transpose(self.buf, out)
-        return out

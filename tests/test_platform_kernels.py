@@ -158,3 +158,15 @@ def test_mass_structure_check(robot):
     coupled[0, 5] = 1e-3
     with pytest.raises(hp.HexapodPinError, match="block-diagonal"):
         K.CompiledMap.check_mass_structure(coupled)
+
+
+def test_type_two_pivot_test(robot):
+    """Six parallel legs (A^T of rank 2): the compiled LU reports TYPE_II, like LAPACK's
+    route in PlatformMap.solve_forces; a regular state solves."""
+    _, ck, _, _, _ = _state(robot, robot.home_pose, np.zeros(6), np.zeros(6), level=0)
+    tau, mult, lu, jac_t = np.empty(6), np.empty(6), np.empty((6, 6)), np.empty((6, 6))
+    rhs = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+    assert K.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, mult, lu, jac_t) == K.OK
+    for row in (K._NX, K._NY, K._NZ):
+        ck.buf[row, :] = ck.buf[row, 0]
+    assert K.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, mult, lu, jac_t) == K.TYPE_II
