@@ -681,6 +681,12 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=No
 # --------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------
+def _own(checked: np.ndarray, given) -> np.ndarray:
+    """``checked`` (an input after :func:`~hexapod_pin.pose.vec6`), copied when it is the
+    caller's own array, so that results computed on first access cannot change with it."""
+    return checked.copy() if checked is given else checked
+
+
 def _maxabs(x: np.ndarray) -> float:
     return float(np.max(np.abs(x), initial=0.0))
 
@@ -1073,8 +1079,8 @@ class HexapodDynamics:
             mult = np.linalg.solve(ck.jt.T, -tau)
         tau, status, iters = self._bounded_forces(ws, ck.jt, rhs, tau, mult, method, bounds)
         details = _InverseDetails(ws, None, force, tau,
-                                  None if wrench_a is None else wrench_a.copy(), q, v, a,
-                                  joint_wrenches, pose=pose_a.copy())
+                                  None if wrench_a is None else _own(wrench_a, wrench), q, v,
+                                  a, joint_wrenches, pose=_own(pose_a, pose))
         return InverseDynamicsResult(tau, q, v, a, method, status, iters, details)
 
     def _inverse_at(self, ws, legs, twist, twist_dot, wrench, method, bounds,
@@ -1265,16 +1271,15 @@ class HexapodDynamics:
             acc = np.empty(dyn.nv)
             code = kernels.nullspace_forward(
                 ck.geo, ck.buf, mass, bias, tau_a, ck.zero6 if wrench_a is None else wrench_a,
-                wrench_a is not None, acc0,
-                (twist_dot, acc, ck.g_map, ck.m_x, ck.h_x, ck.scratch, ck.rest))
+                wrench_a is not None, acc0, ck.work, twist_dot, acc)
             if code == -1:
                 self._raise_for(pose, twist=twist, actuator_forces=actuator_forces,
                                 wrench=wrench)
             if code != kernels.OK:
                 raise SolverError("null-space forward dynamics", "mass matrix not positive "
-                                  "definite", f"M_x = {ck.m_x.tolist()}")
+                                  "definite", f"M_x = {ck.work[24:30].tolist()}")
             details = _ForwardDetails(dyn, q, rows=_LazyTreeMultipliers(
-                ws, pose_a.copy(), q, v, acc, tau_a.copy()))
+                ws, _own(pose_a, pose), q, v, acc, _own(tau_a, actuator_forces)))
             return ForwardDynamicsResult(twist_dot, acc[0:18:3].copy(), acc, method,
                                          "solved", 0, details, ws.leg_of_closure)
         if not kernels._finite(tau_a) or (wrench_a is not None and not kernels._finite(wrench_a)):

@@ -47,6 +47,8 @@ GEO_SIZE = 66
 
 # leg buffer rows (each row: 6 legs, carriage order)
 _RX, _RY, _RZ, _NX, _NY, _NZ, _NU, _X, _Y, _RHO2, _EX, _DX, _DY, _DZ = range(14)
+#: rows of the scratch of :func:`nullspace_forward`
+FORWARD_WORK_ROWS = 41
 #: rows of the leg buffer; ``buf[14, 0:9]`` holds ``R`` row-major
 BUF_ROWS = 16
 _ROT = 14
@@ -488,7 +490,8 @@ def cholesky_solve(mat, rhs, out, scratch):
 
 
 @_jit
-def nullspace_forward(geo, buf, mass, bias, forces, wrench, has_wrench, acc0, out):
+def nullspace_forward(geo, buf, mass, bias, forces, wrench, has_wrench, acc0, work,
+                      twist_dot, acc):
     """Null-space forward dynamics: ``M_x twist_dot = G^T (S^T tau + tau_ext - bias)``.
 
     Args:
@@ -497,12 +500,13 @@ def nullspace_forward(geo, buf, mass, bias, forces, wrench, has_wrench, acc0, ou
         forces: actuator forces (6,) on the carriage rows ``3 i``; wrench (6,) on the
             platform, world axes (used when ``has_wrench``).
         acc0: the tree acceleration ``a_0`` at ``twist_dot = 0`` (24,).
-        out: ``(twist_dot (6,), acc (24,), G (24, 6), M_x (6, 6), G^T rest (6,),
-            scratch (6, 6), rest (24,))``, filled (``acc``: the tree acceleration).
+        work: scratch (FORWARD_WORK_ROWS, 6): rows 0-23 get ``G``, 24-29 ``M_x``.
+        twist_dot (6,), acc (24,): outputs (``acc = G twist_dot + a_0``).
 
     Returns OK, -1 (non-finite forces or wrench) or NOT_PD.
     """
-    twist_dot, acc, g_map, m_x, h_x, scratch, rest = out
+    g_map, m_x, scratch = work[0:24], work[24:30], work[30:36]
+    h_x, rest = work[36], work[37:41].reshape(24)
     if not _finite(forces) or (has_wrench and not _finite(wrench)):
         return -1
     for r in range(24):
@@ -569,13 +573,9 @@ class CompiledMap:
         self.multipliers = np.empty(6)
         self.lu = np.empty((6, 6))
         self.jt = np.empty((6, 6))
-        self.g_map = np.empty((24, 6))
-        self.m_x = np.empty((6, 6))
-        self.h_x = np.empty(6)
-        self.scratch = np.empty((6, 6))
+        self.work = np.empty((FORWARD_WORK_ROWS, 6))
         self.zero6 = np.zeros(6)
         self.v = np.empty(24)
-        self.rest = np.empty(24)
         self.a = np.empty(24)
 
     @staticmethod
