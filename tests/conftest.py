@@ -47,6 +47,15 @@ def random_pose(robot, rng, scale=1.0):
     raise RuntimeError("no reachable random pose found")
 
 
+def random_configuration(model, rng, around=None, scale=1.0):
+    """A random configuration of a ``pin.Model`` drawn from ``rng``: ``around`` (default:
+    neutral) moved by a uniform tangent vector in ``[-scale, scale]^nv``. (Not
+    ``pin.randomConfiguration``: Pinocchio's own generator has a state that depends on the
+    tests run before, so its draws change with the test order.)"""
+    start = pin.neutral(model) if around is None else around
+    return pin.integrate(model, start, rng.uniform(-scale, scale, model.nv))
+
+
 def import_benchmarks(*names):
     """Modules of benchmarks/ (not a package), imported with it briefly on sys.path."""
     import importlib

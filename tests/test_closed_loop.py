@@ -9,16 +9,12 @@ from hexapod_pin.closed_loop import ClosedLoopModel
 from hexapod_pin.description import build_model, hexapod_urdf, parse_loops
 from hexapod_pin.errors import AssemblyError, DescriptionError, InputError
 
-from conftest import fd_constraint_jacobian, random_pose
+from conftest import fd_constraint_jacobian, random_configuration, random_pose
 
 
 def _random_q(model, rng, around=None, scale=1.0):
-    """A random tree configuration (closures NOT satisfied), drawn from ``rng``
-    (``pin.randomConfiguration`` draws from Pinocchio's own generator, whose state depends
-    on the tests run before): ``around`` (default: the neutral configuration) moved by a
-    uniform tangent vector in ``[-scale, scale]^nv``."""
-    start = pin.neutral(model.model) if around is None else around
-    return pin.integrate(model.model, start, rng.uniform(-scale, scale, model.nv))
+    """A random tree configuration (closures NOT satisfied)."""
+    return random_configuration(model.model, rng, around, scale)
 
 
 
