@@ -9,12 +9,12 @@ never call Pinocchio; the tests check them against the Pinocchio routes of
 
 Compilation: numba compiles the kernels on first use (``@njit(cache=True)``: the machine
 code is cached next to this module, in ``__pycache__``, so later processes only load it:
-about 25-30 s to compile on a small 2-core machine, under a second to load). Should numba be
-missing (it is a dependency of the library, but an environment may lack a wheel for it),
-:func:`available` is False and the same functions run as plain Python: correct, but
-slower than the reference routes (ID about 350 µs, simulation about 0.4x real time at
-1 kHz), so check :func:`available` before choosing this module. Nothing else in the
-library imports it. The kernels are compiled with the fast-math flags ``contract,
+about 25-30 s to compile on a small 2-core machine, under a second to load). numba is a
+dependency of the library (:mod:`hexapod_pin.platform_kernels` needs it too); should this
+module fail to import it (the tests simulate that), :func:`available` is False and the same
+functions run as plain Python: correct, but slower than the reference routes (ID about
+350 µs, simulation about 0.4x real time at 1 kHz). No other module of the library imports
+this one. The kernels are compiled with the fast-math flags ``contract,
 reassoc, nsz`` only (no ``nnan`` / ``ninf``: the finiteness checks stay exact); results
 differ from the reference routes by round-off. The small helpers are inlined by LLVM
 (``forceinline``) and compiled, like the simulation loop, without numba's reference
@@ -81,7 +81,7 @@ from .platform_kernels import GIMBAL, NOT_PD, OK, TYPE_I, TYPE_II, UNREACHABLE, 
 from .platform_map import TYPE_II_PIVOT_RTOL
 from .pose import as_array
 
-try:  # optional dependency
+try:  # a dependency; the plain-Python fallback below is for its absence
     import numba as _numba
 except ImportError:  # pragma: no cover - exercised in a subprocess by the tests
     _numba = None
