@@ -1,8 +1,8 @@
 """Compiled (numba) kernels of the closed-form platform -> tree map, for single-state calls.
 
 :class:`~hexapod_pin.platform_map.PlatformMap` writes the map in plain Python floats; it
-stays the reference (and the route for the less frequent calls: closure forces, tree
-states read back from a configuration). The hot single-state routes of
+stays the reference (and the route for the less frequent calls: tree states read back
+from a configuration, the analytic derivatives, the simulator on the tree). The hot single-state routes of
 :class:`~hexapod_pin.dynamics.HexapodDynamics` (inverse and forward dynamics, statics)
 spend most of their time in that Python glue around a few cheap Pinocchio calls, so the
 same equations are compiled here:
@@ -14,8 +14,11 @@ same equations are compiled here:
   a tree generalised force);
 * :func:`solve_forces`: ``J^T tau = rhs`` by LU with partial pivoting, and the
   multipliers of the equality-constrained minimum-effort QP (ProxSuite's warm start);
-* :func:`reduced`: ``M_x = G^T M G`` and ``G^T b`` from the tree mass matrix and bias
-  (the null-space forward dynamics), solved by Cholesky.
+* :func:`reduced`, :func:`nullspace_forward`: ``M_x = G^T M G`` and ``G^T b`` from the
+  tree mass matrix (block diagonal) and bias, the null-space forward dynamics solved by
+  Cholesky;
+* :func:`leg_forces`: the closure forces from the legs' tree rows;
+* :func:`lu_solve6`: the 6x6 LU shared with :mod:`hexapod_pin.fast`.
 
 Kernels return an integer status, never raise: the caller re-runs the Python route,
 which raises the library's exception with its values. The tests check every kernel
