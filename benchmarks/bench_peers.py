@@ -420,6 +420,17 @@ class HexapodPeers:
                                 f"platform ({fast[2]})",
                                 lambda i: ours_fast(i, "semi_implicit_euler"),
                                 scheme="semi-implicit Euler on the platform"))
+            stepper_cls = getattr(sys.modules.get("hexapod_pin.fast"), "FastStepper", None)
+            if stepper_cls is not None:
+                stepper = stepper_cls(r, DT, check_limits=False)
+
+                def ours_step(i):
+                    stepper.reset(s.poses[i], s.twists[i])
+                    stepper.step(s.forces[i], s.wrenches[i])
+                    return np.concatenate([stepper.pose, stepper.twist])
+                routes.append(Route(f"ours FastStepper reset + step, semi-implicit Euler on the "
+                                    f"platform ({fast[2]})", ours_step,
+                                    scheme="semi-implicit Euler on the platform"))
         return routes or [Route("ours simulate step")]
 
 
@@ -638,6 +649,16 @@ def simulation_throughput(peers: HexapodPeers, repeats: int, steps: int = 200) -
                               r, steps * DT, DT, pose0=pose, twist0=zero, actuator_forces=forces,
                               wrench=wrench, check_limits=False, saturation="ignore",
                               integrator=kind)))
+        stepper_cls = getattr(sys.modules.get("hexapod_pin.fast"), "FastStepper", None)
+        if stepper_cls is not None:
+            stepper = stepper_cls(r, DT, check_limits=False)
+
+            def step_run():
+                stepper.reset(pose, zero)
+                for _ in range(steps):
+                    stepper.step(forces, wrench)
+            items.append((f"ours FastStepper.step, semi_implicit_euler, a Python loop ({fast[2]})",
+                          step_run))
     q0, v0, _ = raw.tree_state(pose, zero, zero)
 
     def raw_run():

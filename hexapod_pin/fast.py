@@ -1091,6 +1091,102 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
                           message, float(dt), wall, integrator)
 
 
+class FastStepper:
+    """Step the hexapod's dynamics one ``dt`` at a time from Python (a controller in the
+    loop): the compiled loop of :func:`simulate_fast` run for one step per call, from a
+    state it keeps, without the per-call set-up of :func:`simulate_fast`.
+
+    Args:
+        robot: the :class:`~hexapod_pin.Hexapod`.
+        dt: the step (s).
+        pose0, twist0: initial platform state (default: home at rest).
+        integrator: "semi_implicit_euler" (default, one evaluation per step), "rk2" or
+            "rk4" (see :func:`simulate_fast`).
+        check_limits: stop at the stroke limits / carriage gap (checked after each step).
+
+    Raises:
+        InputError: bad ``dt``, ``integrator`` or initial state; UnreachablePoseError,
+            SingularityError: the initial pose (as the reference routes raise them).
+
+    Not thread-safe (the state and scratch arrays are reused).
+    """
+
+    def __init__(self, robot, dt: float = 1e-3, *, pose0=None, twist0=None,
+                 integrator: str = "semi_implicit_euler", check_limits: bool = True):
+        if not (np.isfinite(dt) and dt > 0):
+            raise InputError("dt", dt, "must be a positive number")
+        if integrator not in INTEGRATORS:
+            raise InputError("integrator", integrator, f"expected one of {tuple(INTEGRATORS)}")
+        self.robot, self.dt, self.integrator = robot, float(dt), integrator
+        self.check_limits = bool(check_limits)
+        self._geo = fast_dynamics(robot).geo
+        self._work = (np.zeros((4, 13)), np.empty(9), np.empty((_WORK_ROWS, 6)),
+                      np.empty((2, 6, 6)), np.zeros((3, 6)))
+        self._record = (np.empty((3, 13)), np.empty((3, 6)), np.empty((3, 6)),
+                        np.empty((3, 6)), np.zeros(3, dtype=np.bool_))
+        self._setpoints = np.zeros((3, 1, 6))
+        self._gains = np.zeros(3)
+        self._last = np.zeros(6)
+        self.time = 0.0
+        self.reset(robot.home_pose if pose0 is None else pose0,
+                   np.zeros(6) if twist0 is None else twist0)
+
+    def reset(self, pose, twist) -> None:
+        """Set the platform state (pose (6,), m and rad; twist (6,), world axes) and the
+        time to 0. Raises as the constructor."""
+        pose, twist = as_array(pose, (6,), "pose"), as_array(twist, (6,), "twist")
+        self.robot.static_forces(pose, bounded=False)   # raises for an unreachable / singular pose
+        state = self._work[0][0]
+        state[:3] = pose[:3]
+        state[3:7] = _quaternion_wxyz(pose[3:])
+        state[7:] = twist
+        self.time = 0.0
+
+    def step(self, actuator_forces, wrench=None) -> None:
+        """Advance one ``dt`` with the forces (6,) (N) and the wrench (6,) on the platform
+        (world axes, about its origin; default zero) held over the step.
+
+        Raises:
+            InputError: non-finite or badly shaped forces / wrench.
+            StrokeLimitError: the step ends beyond a stroke limit or the carriage gap
+                (with ``check_limits``); the state is that end state.
+            SingularityError, UnreachablePoseError, HexapodPinError: the step failed (the
+                state is left at the start of the step).
+        """
+        forces = _vec6(actuator_forces, "actuator_forces")
+        wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")
+        if not (_finite(forces) and _finite(wrench)):
+            as_array(forces, (6,), "actuator_forces")
+            as_array(wrench, (6,), "wrench")
+        state = self._work[0][0]
+        start = state.copy()
+        code, _, n = simulate_kernel(self._geo, 1, self.dt, 1, INTEGRATORS[self.integrator],
+                                     0, forces, wrench, self._setpoints, 1, OK, self._gains, 2,
+                                     self.check_limits, self._work, self._record, self._last)
+        if code == OK:
+            self.time += self.dt
+            return
+        if code in (STROKE, GAP):
+            self.time += self.dt
+            q = self._record[1][n - 1]
+            raise StrokeLimitError(q.copy(), self.robot.stroke_violations(q))
+        state[:] = start
+        raise HexapodPinError(f"FastStepper.step at t = {self.time:.6g} s: "
+                              + _describe(self.robot, code, self.pose))
+
+    @property
+    def pose(self) -> np.ndarray:
+        """Platform pose (6,) (m, rad)."""
+        out = np.empty((1, 6))
+        _poses_of(self._work[0][:1], out)
+        return out[0]
+
+    @property
+    def twist(self) -> np.ndarray:
+        """Platform twist ``(v, w)`` (6,), world axes (m/s, rad/s)."""
+        return self._work[0][0, 7:].copy()
+
+
 def _describe(robot, code: int, pose) -> str:
     """The reference route's message for the last state (its exception, if it raises),
     else the kernel's reason (the failure was at a Runge-Kutta stage of the next step)."""

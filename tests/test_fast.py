@@ -22,7 +22,7 @@ from conftest import geometry_from_reference, load_reference, random_pose
 
 import hexapod_pin as hp
 from hexapod_pin import fast
-from hexapod_pin.errors import InputError, SingularityError, StrokeLimitError
+from hexapod_pin.errors import InputError, SingularityError, StrokeLimitError, UnreachablePoseError
 from hexapod_pin.simulate import CircleTrajectory, PIDController, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -363,3 +363,44 @@ def test_bench_fast_smoke():
                 "| fast, constant static forces from home (completed) | rk4 |",
                 "| rk2 |"):
         assert row in out.stdout, row
+
+
+def test_stepper_continues_the_compiled_loop(numba, robot):
+    """FastStepper.step, called N times, lands where one simulate_fast run of N steps does
+    (same kernel, bit for bit), for each integrator; reset() restarts the clock."""
+    pose = robot.home_pose + np.r_[0.003, -0.002, 0.001, 0.01, -0.02, 0.03]
+    twist = np.r_[0.01, 0.0, 0.02, 0.1, -0.1, 0.05]
+    forces = robot.static_forces(pose) * 1.05
+    wrench = np.r_[0.5, -0.2, 0.1, 0.01, 0.02, -0.01]
+    for integrator in fast.INTEGRATORS:
+        stepper = fast.FastStepper(robot, 1e-3, pose0=pose, twist0=twist, integrator=integrator)
+        for _ in range(40):
+            stepper.step(forces, wrench)
+        run = fast.simulate_fast(robot, 0.04, 1e-3, pose0=pose, twist0=twist,
+                                 actuator_forces=forces, wrench=wrench, integrator=integrator,
+                                 saturation="ignore")
+        np.testing.assert_array_equal(stepper.pose, run.poses[-1])
+        np.testing.assert_array_equal(stepper.twist, run.twists[-1])
+        assert stepper.time == pytest.approx(0.04)
+        assert np.abs(stepper.twist - twist).max() > 1e-3           # a real motion
+    stepper.reset(pose, twist)
+    assert stepper.time == 0.0
+    np.testing.assert_allclose(stepper.pose, pose, atol=1e-15)
+
+
+def test_stepper_limits_and_errors(numba, robot):
+    stepper = fast.FastStepper(robot, 1e-3)
+    push = robot.static_forces(robot.home_pose) + np.r_[30.0, -30.0, 0, 0, 0, 0]
+    with pytest.raises(StrokeLimitError):
+        for _ in range(2000):
+            stepper.step(push)
+    with pytest.raises(InputError, match="actuator_forces"):
+        stepper.step([0.0, np.nan, 0.0, 0.0, 0.0, 0.0])
+    with pytest.raises(InputError, match="integrator"):
+        fast.FastStepper(robot, integrator="euler")
+    with pytest.raises(InputError, match="dt"):
+        fast.FastStepper(robot, dt=0.0)
+    far = robot.home_pose.copy()
+    far[2] += 1.0
+    with pytest.raises(UnreachablePoseError):
+        fast.FastStepper(robot, pose0=far)
