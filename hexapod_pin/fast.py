@@ -315,17 +315,27 @@ def _check_bound(geo, tau, bounded):
 
 
 @_jit
-def inverse_kernel(geo, pose, twist, twist_dot, wrench, bounded, tau):
-    """Inverse dynamics: fills ``tau`` (6,) and returns a status code."""
-    if not (_finite(pose) and _finite(twist) and _finite(twist_dot) and _finite(wrench)):
+def _state_of(geo, pose, twist, other, wrench, rot, wk):
+    """The common start of the single-state kernels: the four input vectors finite, then
+    ``R``, the legs and their rates of ``(pose, twist)``; returns a code."""
+    if not (_finite(pose) and _finite(twist) and _finite(other) and _finite(wrench)):
         return NONFINITE
-    rot = np.empty(9)
-    wk = np.empty((_WORK_ROWS, 6))
     _rotation_rpy(pose[3], pose[4], pose[5], rot)
     code = _legs(geo, pose[0], pose[1], pose[2], rot, wk)
     if code != OK:
         return code
     _rates(geo, twist, wk)
+    return OK
+
+
+@_jit
+def inverse_kernel(geo, pose, twist, twist_dot, wrench, bounded, tau):
+    """Inverse dynamics: fills ``tau`` (6,) and returns a status code."""
+    rot = np.empty(9)
+    wk = np.empty((_WORK_ROWS, 6))
+    code = _state_of(geo, pose, twist, twist_dot, wrench, rot, wk)
+    if code != OK:
+        return code
     m_c, m_l, m_p, g = geo[_MC], geo[_ML], geo[_MP], geo[_G]
     ax, ay, az, bx, by, bz = (twist_dot[0], twist_dot[1], twist_dot[2], twist_dot[3],
                               twist_dot[4], twist_dot[5])
@@ -529,15 +539,11 @@ def _forward_core(geo, rot, twist, forces, wrench, wk, mats, out):
 @_jit
 def forward_kernel(geo, pose, twist, forces, wrench, twist_dot, qddot):
     """Forward dynamics: fills ``twist_dot`` (6,), ``qddot`` (6,); returns a code."""
-    if not (_finite(pose) and _finite(twist) and _finite(forces) and _finite(wrench)):
-        return NONFINITE
     rot = np.empty(9)
     wk = np.empty((_WORK_ROWS, 6))
-    _rotation_rpy(pose[3], pose[4], pose[5], rot)
-    code = _legs(geo, pose[0], pose[1], pose[2], rot, wk)
+    code = _state_of(geo, pose, twist, forces, wrench, rot, wk)
     if code != OK:
         return code
-    _rates(geo, twist, wk)
     mats = np.empty((2, 6, 6))
     code = _forward_core(geo, rot, twist, forces, wrench, wk, mats, twist_dot)
     if code != OK:
