@@ -80,6 +80,7 @@ from .kinematics import GIMBAL_TOL, HOME_BRANCH, RAIL_OF, TYPE_I_TOL
 from .platform_kernels import GIMBAL, NOT_PD, OK, TYPE_I, TYPE_II, UNREACHABLE, lu_solve6
 from .platform_map import TYPE_II_PIVOT_RTOL
 from .pose import as_array
+from .simulate import check_run_arguments
 
 try:  # a dependency; the plain-Python fallback below is for its absence
     import numba as _numba
@@ -1013,22 +1014,12 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
         InputError, StrokeLimitError (``on_limit="raise"``), ActuatorSaturationError
         (``saturation="raise"``).
     """
-    if not (np.isfinite(duration) and duration > 0):
-        raise InputError("duration", duration, "must be a positive number")
-    if not (np.isfinite(dt) and dt > 0):
-        raise InputError("dt", dt, "must be a positive number")
-    if on_limit not in ("stop", "raise"):
-        raise InputError("on_limit", on_limit, "expected 'stop' or 'raise'")
+    record_every = check_run_arguments(duration, dt, on_limit, saturation, record_every)
     modes = {"clip": 0, "raise": 1, "ignore": 2}
-    if saturation not in modes:
-        raise InputError("saturation", saturation, "expected 'clip', 'raise' or 'ignore'")
     if not isinstance(integrator, str) or integrator not in INTEGRATORS:
         raise InputError("integrator", integrator, f"expected one of {tuple(INTEGRATORS)}")
-    if int(record_every) < 1:
-        raise InputError("record_every", record_every, "must be >= 1")
     if reference is not None and actuator_forces is not None:
         raise InputError("actuator_forces", actuator_forces, "give forces or a reference")
-    record_every = int(record_every)
     n_steps = max(1, round(duration / dt))
     if reference is not None:
         ref_poses, ref_twists = _sample_reference(reference, n_steps, dt)

@@ -499,6 +499,28 @@ class Trajectory:
         return span / self.wall_time if self.wall_time > 0 else float("inf")
 
 
+def check_run_arguments(duration, dt, on_limit, saturation, record_every) -> int:
+    """Validate the run arguments shared by :func:`simulate` and
+    :func:`hexapod_pin.fast.simulate_fast`; returns ``record_every`` as an int.
+
+    Raises:
+        InputError: a non-positive or non-finite ``duration`` / ``dt``, an unknown
+            ``on_limit`` ("stop" or "raise") or ``saturation`` ("clip", "raise" or
+            "ignore"), ``record_every < 1``.
+    """
+    if not (np.isfinite(duration) and duration > 0):
+        raise InputError("duration", duration, "must be a positive number")
+    if not (np.isfinite(dt) and dt > 0):
+        raise InputError("dt", dt, "must be a positive number")
+    if on_limit not in ("stop", "raise"):
+        raise InputError("on_limit", on_limit, "expected 'stop' or 'raise'")
+    if saturation not in ("clip", "raise", "ignore"):
+        raise InputError("saturation", saturation, "expected 'clip', 'raise' or 'ignore'")
+    if int(record_every) < 1:
+        raise InputError("record_every", record_every, "must be >= 1")
+    return int(record_every)
+
+
 def simulate(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist0=None,
              actuator_forces=None, controller: Controller | None = None, wrench=None,
              reference: ReferenceTrajectory | None = None, method: str = "pinocchio",
@@ -544,17 +566,7 @@ def simulate(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist0=Non
     """
     import time as _time
 
-    if not (np.isfinite(duration) and duration > 0):
-        raise InputError("duration", duration, "must be a positive number")
-    if not (np.isfinite(dt) and dt > 0):
-        raise InputError("dt", dt, "must be a positive number")
-    if on_limit not in ("stop", "raise"):
-        raise InputError("on_limit", on_limit, "expected 'stop' or 'raise'")
-    if saturation not in ("clip", "raise", "ignore"):
-        raise InputError("saturation", saturation, "expected 'clip', 'raise' or 'ignore'")
-    if int(record_every) < 1:
-        raise InputError("record_every", record_every, "must be >= 1")
-    record_every = int(record_every)
+    record_every = check_run_arguments(duration, dt, on_limit, saturation, record_every)
     if controller is not None and actuator_forces is not None:
         raise InputError("actuator_forces", actuator_forces, "give forces or a controller")
     if pose0 is None:
