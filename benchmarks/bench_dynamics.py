@@ -44,9 +44,10 @@ import pinocchio as pin
 import proxsuite
 
 import hexapod_pin as hp
-from hexapod_pin.dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
-from hexapod_pin.pose import rotation_from_rpy
-from hexapod_pin.simulate import (
+from hexapod_pin.hexapod.dynamics import dynamics_of
+from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.core.pose import rotation_from_rpy
+from hexapod_pin.hexapod.simulation import (
     CircleTrajectory,
     ClosedLoopIntegrator,
     ComputedTorqueController,

@@ -1,4 +1,4 @@
-"""Timings of the compiled fast path (:mod:`hexapod_pin.fast`, numba).
+"""Timings of the compiled fast path (:mod:`hexapod_pin.hexapod.fast`, numba).
 
 Usage::
 
@@ -8,9 +8,9 @@ Usage::
 Rows "µs per call": median and inter-quartile range over ``--repeat`` blocks of
 ``--number`` calls from Python, cycling through distinct random states; the reference
 routes are the library's single-state methods (Pinocchio tree + closed-form tree state),
-the fast ones :class:`hexapod_pin.fast.FastDynamics` (input validation included).
+the fast ones :class:`hexapod_pin.hexapod.fast.FastDynamics` (input validation included).
 
-Simulation rows, for each integrator of :func:`~hexapod_pin.fast.simulate_fast` at
+Simulation rows, for each integrator of :func:`~hexapod_pin.hexapod.fast.simulate_fast` at
 dt = 1 ms: µs per step and real-time factor (simulated time / wall time of the compiled
 code, every step recorded), fastest of three runs. "constant static forces" starts at rest
 at home under the static forces of home (an unstable equilibrium: it drifts off and
@@ -50,14 +50,14 @@ import time
 import numpy as np
 
 import hexapod_pin as hp
-from hexapod_pin import fast
-from hexapod_pin.simulate import CircleTrajectory, PIDController, simulate
+from hexapod_pin.hexapod import fast
+from hexapod_pin.hexapod.simulation import CircleTrajectory, PIDController, simulate
 
 FIRST_CALL = """
 import time
 t0 = time.perf_counter()
 import numpy as np, hexapod_pin as hp
-from hexapod_pin import fast
+from hexapod_pin.hexapod import fast
 r = hp.Hexapod.default()
 t1 = time.perf_counter()
 fd = fast.fast_dynamics(r)
@@ -165,7 +165,7 @@ def main(argv=None) -> int:
     quick = fast.simulate_fast(robot, span, 1e-3, reference=reference, **gains)
     err_sim = float(np.abs(tree.poses - quick.poses).max())
 
-    print(f"# hexapod_pin.fast benchmark ({'smoke' if args.smoke else 'full'})")
+    print(f"# hexapod_pin.hexapod.fast benchmark ({'smoke' if args.smoke else 'full'})")
     print(f"python {platform.python_version()}, numpy {np.__version__}, numba "
           f"{fast._numba.__version__ if fast.available() else 'absent (plain Python)'}, "
           f"{platform.machine()}, {os.cpu_count()} CPUs, load average "

@@ -38,7 +38,7 @@ import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 
 import hexapod_pin as hp  # noqa: E402
-import hexapod_pin.dynamics as hpd  # noqa: E402
+import hexapod_pin.core.dynamics as hpd  # noqa: E402
 import numpy_hexapod as nh  # noqa: E402
 import pinocchio_raw as pr  # noqa: E402
 from bench_common import (MIN_SAMPLE, NO_ROUTE, NOT_IMPLEMENTED, States, Timing, fmt_us,  # noqa: E402
@@ -104,9 +104,9 @@ def _ours(robot, name):
 
 
 def _fast(robot):
-    """``(FastDynamics, simulate_fast, label)`` of hexapod_pin.fast, or None without it."""
+    """``(FastDynamics, simulate_fast, label)`` of hexapod_pin.hexapod.fast, or None without it."""
     try:
-        import hexapod_pin.fast as fast
+        import hexapod_pin.hexapod.fast as fast
     except ImportError:
         return None
     label = "numba" if fast.available() else "plain Python, numba absent"
@@ -380,7 +380,7 @@ class HexapodPeers:
 
     def _ours_step(self) -> list[Route]:
         try:
-            import hexapod_pin.simulate as sim
+            import hexapod_pin.hexapod.simulation as sim
         except ImportError:
             return [Route("ours simulate step")]
         integ_cls = getattr(sim, "ClosedLoopIntegrator", None)
@@ -420,7 +420,7 @@ class HexapodPeers:
                                 f"platform ({fast[2]})",
                                 lambda i: ours_fast(i, "semi_implicit_euler"),
                                 scheme="semi-implicit Euler on the platform"))
-            stepper_cls = getattr(sys.modules.get("hexapod_pin.fast"), "FastStepper", None)
+            stepper_cls = getattr(sys.modules.get("hexapod_pin.hexapod.fast"), "FastStepper", None)
             if stepper_cls is not None:
                 stepper = stepper_cls(r, DT, check_limits=False)
 
@@ -633,7 +633,7 @@ def simulation_throughput(peers: HexapodPeers, repeats: int, steps: int = 200) -
     zero = np.zeros(6)
     items = []
     try:
-        import hexapod_pin.simulate as sim
+        import hexapod_pin.hexapod.simulation as sim
     except ImportError:
         sim = None
     if sim is not None and hasattr(sim, "simulate"):
@@ -649,7 +649,7 @@ def simulation_throughput(peers: HexapodPeers, repeats: int, steps: int = 200) -
                               r, steps * DT, DT, pose0=pose, twist0=zero, actuator_forces=forces,
                               wrench=wrench, check_limits=False, saturation="ignore",
                               integrator=kind)))
-        stepper_cls = getattr(sys.modules.get("hexapod_pin.fast"), "FastStepper", None)
+        stepper_cls = getattr(sys.modules.get("hexapod_pin.hexapod.fast"), "FastStepper", None)
         if stepper_cls is not None:
             stepper = stepper_cls(r, DT, check_limits=False)
 

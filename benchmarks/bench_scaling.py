@@ -35,7 +35,7 @@ from dataclasses import dataclass, field  # noqa: E402
 import numpy as np  # noqa: E402
 
 import hexapod_pin as hp  # noqa: E402
-import hexapod_pin.dynamics as hpd  # noqa: E402
+import hexapod_pin.core.dynamics as hpd  # noqa: E402
 import ladder as lad_mod  # noqa: E402
 import pinocchio_raw as pr  # noqa: E402
 from bench_common import MIN_SAMPLE, NO_ROUTE, fmt_us, measure, print_machine_info, table  # noqa: E402
@@ -259,7 +259,7 @@ def planar_states(robot, n_states: int, seed: int = 0):
 
 def planar_mechanism(n_states: int, seed: int = 0) -> Mechanism | None:
     try:
-        from hexapod_pin.planar import Planar3PRR
+        from hexapod_pin.planar.robot import Planar3PRR
     except ImportError:
         return None
     robot = Planar3PRR.default()
@@ -359,8 +359,8 @@ class PlanarRoute:
 
 def planar_routes(n_states: int, seed: int = 0):
     """The planar routes, their reference outputs, and the MJCF check (dict or None)."""
-    from hexapod_pin.planar import Planar3PRR
-    from hexapod_pin.simulate import ClosedLoopIntegrator
+    from hexapod_pin.planar.robot import Planar3PRR
+    from hexapod_pin.hexapod.simulation import ClosedLoopIntegrator
 
     robot = Planar3PRR.default()
     raw = RawPlanar(robot)

@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 import hexapod_pin as hp
-from hexapod_pin import workspace as ws
+from hexapod_pin.hexapod import workspace as ws
 
 
 def sample(robot, n: int, seed: int = 0) -> np.ndarray:

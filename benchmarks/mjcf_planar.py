@@ -1,7 +1,7 @@
 """The planar 3-PRR in MuJoCo, generated as MJCF from a ``PlanarGeometry``.
 
 The MJCF is the same tree as ``urdf/planar_3prr.urdf.xacro`` (the tree that
-``hexapod_pin.planar.Planar3PRR`` loads), with the same joint names:
+``hexapod_pin.planar.robot.Planar3PRR`` loads), with the same joint names:
 
 * per rail k a body ``slider_k`` at the rail midpoint ``m_k``, rotated ``a_k + 90 deg``
   about z (x along ``u_k``), with a ``slide`` joint ``slider_k`` on x (actuated, one
@@ -87,7 +87,7 @@ def planar_mjcf(geometry, timestep: float = 1e-3, solref: tuple[float, float] | 
     """MJCF text of the planar 3-PRR of ``geometry`` (SI units), gravity ``-g`` along y.
 
     Args:
-        geometry: a ``hexapod_pin.planar.PlanarGeometry``.
+        geometry: a ``hexapod_pin.planar.robot.PlanarGeometry``.
         timestep: simulation time step (s).
         solref: ``(timeconst, dampratio)`` of the closures; default ``(2 timestep, 1)``.
         solimp: impedance of the closures, default ``mjcf.STIFF_SOLIMP``.

@@ -1,7 +1,7 @@
 """Cassie's closed kinematic loops: read the SDF, close the rods, assemble, dynamics.
 
 example-robot-data ships Cassie as an SDF (``cassie_description/robots/cassie_v2.sdf``),
-and Pinocchio's wheel has no SDF reader; :mod:`hexapod_pin.sdf` reads it. Each leg has
+and Pinocchio's wheel has no SDF reader; :mod:`hexapod_pin.loaders.sdf` reads it. Each leg has
 two loops, each closed in the SDF by a ball joint:
 
 * the achilles rod: hip-pitch -> knee -> shin -> tarsus -> heel spring -> achilles rod,
@@ -30,8 +30,8 @@ import numpy as np
 import pinocchio as pin
 import scipy.linalg
 
-from hexapod_pin import robots
-from hexapod_pin.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.loaders import robots
+from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 
 
 def main() -> None:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hexapod_pin.planar import Planar3PRR
+from hexapod_pin.planar.robot import Planar3PRR
 
 
 def trajectory(t: np.ndarray, radius: float = 0.02, period: float = 1.0,

@@ -31,8 +31,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from hexapod_pin import robots
-from hexapod_pin.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.loaders import robots
+from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 
 
 def main() -> None:

@@ -7,16 +7,16 @@ The rail-driven 6-DoF hexapod is the first and best-supported robot::
     q = robot.configuration(robot.home_pose)      # Pinocchio q, every closure holds
 """
 
-from .closed_loop import AssemblyResult, ClosedLoopModel, RankInfo
-from .description import ClosureSpec, LoopsSpec, expand_xacro, load_loops, parse_loops, urdf_dir
+from .core.closed_loop import AssemblyResult, ClosedLoopModel, RankInfo
+from .core.description import ClosureSpec, LoopsSpec, expand_xacro, load_loops, parse_loops, urdf_dir
 from .errors import (ActuatorSaturationError, AssemblyError, DescriptionError, GeometryError,
                      HexapodPinError, InputError, SingularityError, SolverError,
                      StrokeLimitError, UnreachablePoseError)
-from .geometry import HexapodGeometry
-from .hexapod import Hexapod
-from .kinematics import InverseKinematicsBatch, JacobianBatch, LegMotion, SingularityMeasures
-from .parallel_robots import load_parallel_robot
-from .planar import (AssemblyPolynomial, Planar3PRR, PlanarForwardDynamics, PlanarGeometry,
+from .hexapod.geometry import HexapodGeometry
+from .hexapod.robot import Hexapod
+from .hexapod.kinematics import InverseKinematicsBatch, JacobianBatch, LegMotion, SingularityMeasures
+from .loaders.parallel_robots import load_parallel_robot
+from .planar.robot import (AssemblyPolynomial, Planar3PRR, PlanarForwardDynamics, PlanarGeometry,
                      PlanarInverseDynamics)
 
 __version__ = "0.1.0"
@@ -30,4 +30,7 @@ __all__ = [
     "PlanarGeometry", "PlanarInverseDynamics", "load_parallel_robot", "derivatives", "robots", "sdf",
     "workspace", "InverseKinematicsBatch", "JacobianBatch", "LegMotion", "SingularityMeasures",
 ]
-from . import derivatives, robots, sdf, workspace  # noqa: E402  (submodules as attributes)
+from .hexapod import derivatives
+from .loaders import robots
+from .loaders import sdf
+from .hexapod import workspace  # noqa: E402  (submodules as attributes)

@@ -1,8 +1,8 @@
 """Batch (closed-form, vectorised numpy) dynamics against the Pinocchio tree route.
 
-The batch route (:mod:`hexapod_pin.batch_dynamics`: platform Newton-Euler, legs as
+The batch route (:mod:`hexapod_pin.hexapod.batch_dynamics`: platform Newton-Euler, legs as
 consistent-mass rods, carriages as point masses) shares no code with the single-state
-route (:mod:`hexapod_pin.platform_map` + ``pin.rnea`` / ``pin.constraintDynamics``), and
+route (:mod:`hexapod_pin.hexapod.platform_map` + ``pin.rnea`` / ``pin.constraintDynamics``), and
 its masses come from the geometry rather than from the URDF: agreement to 1e-10 checks
 both, and the URDF against the geometry.
 """
@@ -12,13 +12,13 @@ import pytest
 from conftest import random_pose
 
 import hexapod_pin as hp
-from hexapod_pin.batch_dynamics import (
+from hexapod_pin.hexapod.batch_dynamics import (
     CHUNK,
     BatchDynamics,
     BatchSingularityError,
     BatchUnreachablePoseError,
 )
-from hexapod_pin.dynamics import BatchActuatorSaturationError
+from hexapod_pin.hexapod.dynamics import BatchActuatorSaturationError
 from hexapod_pin.errors import InputError, SingularityError, UnreachablePoseError
 
 

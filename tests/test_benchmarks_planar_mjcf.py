@@ -16,7 +16,7 @@ from conftest import import_benchmarks, load_reference
 
 mujoco = pytest.importorskip("mujoco")
 
-from hexapod_pin.planar import Planar3PRR, PlanarGeometry
+from hexapod_pin.planar.robot import Planar3PRR, PlanarGeometry
 
 ROOT = Path(__file__).resolve().parent.parent
 BENCH = ROOT / "benchmarks"

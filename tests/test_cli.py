@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 import hexapod_pin as hp
-from hexapod_pin import cli
+from hexapod_pin.cli import main as cli
 from hexapod_pin.cli import app
 
 RUN = CliRunner()
@@ -26,7 +26,7 @@ HAS_MODES = hasattr(hp.Hexapod, "assembly_modes")
 HAS_STATICS = hasattr(hp.Hexapod, "static_forces")
 HAS_ID = hasattr(hp.Hexapod, "inverse_dynamics")
 try:
-    from hexapod_pin import simulate as _simulate
+    from hexapod_pin.hexapod import simulation as _simulate
 
     HAS_SIM = hasattr(_simulate, "simulate")
 except ImportError:
@@ -37,7 +37,7 @@ needs_modes = pytest.mark.skipif(not HAS_MODES,
 needs_statics = pytest.mark.skipif(not HAS_STATICS,
                                    reason="Hexapod.static_forces (issue 5) missing")
 needs_id = pytest.mark.skipif(not HAS_ID, reason="Hexapod.inverse_dynamics (issue 5) missing")
-needs_sim = pytest.mark.skipif(not HAS_SIM, reason="hexapod_pin.simulate.simulate (issue 5) "
+needs_sim = pytest.mark.skipif(not HAS_SIM, reason="hexapod_pin.hexapod.simulation.simulate (issue 5) "
                                                    "missing")
 HOME_STATIC_FORCE = 1.651   # N, the issue's number for the defaults at home
 
@@ -375,11 +375,11 @@ def test_demo_degrades_with_a_clear_line_when_a_feature_is_missing(monkeypatch, 
     monkeypatch.setattr(cli, "Hexapod", Older)
     monkeypatch.setattr(cli, "run_simulation",
                         lambda *a, **k: (_ for _ in ()).throw(
-                            cli.FeatureUnavailableError("hexapod_pin.simulate.simulate")))
+                            cli.FeatureUnavailableError("hexapod_pin.hexapod.simulation.simulate")))
     result = invoke("demo", "--no-html")
     assert result.exit_code == 0, result.output
     for missing in ("Hexapod.static_forces", "Hexapod.forward_kinematics",
-                    "hexapod_pin.simulate.simulate"):
+                    "hexapod_pin.hexapod.simulation.simulate"):
         assert f"not available in this installation: {missing}" in result.stdout
     out = ok_json("demo", "--no-html")
     assert out["statics"] is None and out["round_trip"]["fk_pose"] is None

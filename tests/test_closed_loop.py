@@ -5,8 +5,9 @@ import pinocchio as pin
 import pytest
 
 import hexapod_pin as hp
-from hexapod_pin.closed_loop import ClosedLoopModel
-from hexapod_pin.description import build_model, hexapod_urdf, parse_loops
+from hexapod_pin.core.closed_loop import ClosedLoopModel
+from hexapod_pin.hexapod.geometry import hexapod_urdf
+from hexapod_pin.core.description import build_model, parse_loops
 from hexapod_pin.errors import AssemblyError, DescriptionError, InputError
 
 from conftest import fd_constraint_jacobian, random_configuration, random_pose

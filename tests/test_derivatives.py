@@ -1,4 +1,4 @@
-"""Analytic derivatives of the hexapod's inverse dynamics (hexapod_pin.derivatives).
+"""Analytic derivatives of the hexapod's inverse dynamics (hexapod_pin.hexapod.derivatives).
 
 Independent routes, built here:
 
@@ -20,9 +20,9 @@ import pytest
 from conftest import random_pose
 
 import hexapod_pin as hp
-from hexapod_pin.derivatives import analytic_derivatives, inverse_dynamics_pose_derivative
+from hexapod_pin.hexapod.derivatives import analytic_derivatives, inverse_dynamics_pose_derivative
 from hexapod_pin.errors import InputError, SingularityError, UnreachablePoseError
-from hexapod_pin.pose import euler_rates_matrix, rotation_from_rpy, rpy_from_rotation
+from hexapod_pin.core.pose import euler_rates_matrix, rotation_from_rpy, rpy_from_rotation
 
 #: relative tolerance against the Richardson differences (steps 5e-5 and 2.5e-5: their
 #: truncation error is ~1e-9 here, 1.5e-7 at one sampled state with steps 2e-4)

@@ -4,7 +4,8 @@ import pytest
 import yourdfpy
 
 import hexapod_pin as hp
-from hexapod_pin.description import build_model, hexapod_urdf, parse_loops, urdf_dir
+from hexapod_pin.hexapod.geometry import hexapod_urdf
+from hexapod_pin.core.description import build_model, parse_loops, urdf_dir
 from hexapod_pin.errors import DescriptionError
 
 

@@ -14,9 +14,9 @@ import pytest
 from conftest import geometry_from_reference, load_reference, random_pose
 
 import hexapod_pin as hp
-from hexapod_pin.dynamics import BatchActuatorSaturationError
+from hexapod_pin.hexapod.dynamics import BatchActuatorSaturationError
 from hexapod_pin.errors import ActuatorSaturationError, InputError
-from hexapod_pin.pose import euler_rates_matrix, rotation_from_rpy
+from hexapod_pin.core.pose import euler_rates_matrix, rotation_from_rpy
 
 FD_METHODS = ("pinocchio", "nullspace", "qp", "kkt")
 ID_METHODS = ("qp", "kkt")

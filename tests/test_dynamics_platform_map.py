@@ -13,12 +13,12 @@ import pytest
 from conftest import random_pose
 
 import hexapod_pin as hp
-from hexapod_pin.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.errors import SingularityError
-from hexapod_pin.kinematics import HOME_BRANCH
-from hexapod_pin.platform_map import Legs
-from hexapod_pin.pose import rotation_from_rpy
-from hexapod_pin.simulate import ClosedLoopIntegrator
+from hexapod_pin.hexapod.kinematics import HOME_BRANCH
+from hexapod_pin.hexapod.platform_map import Legs
+from hexapod_pin.core.pose import rotation_from_rpy
+from hexapod_pin.hexapod.simulation import ClosedLoopIntegrator
 
 
 def _motion(rng):

@@ -11,14 +11,11 @@ import pinocchio as pin
 import pytest
 from conftest import random_configuration, random_pose
 
-from hexapod_pin.closed_loop import ClosedLoopModel
-from hexapod_pin.description import build_model, hexapod_urdf, parse_loops
-from hexapod_pin.dynamics import (
-    ClosedLoopDynamics,
-    dynamics_of,
-    forward_dynamics_tree,
-    inverse_dynamics_tree,
-)
+from hexapod_pin.core.closed_loop import ClosedLoopModel
+from hexapod_pin.hexapod.geometry import hexapod_urdf
+from hexapod_pin.core.description import build_model, parse_loops
+from hexapod_pin.hexapod.dynamics import ClosedLoopDynamics, dynamics_of
+from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.errors import ActuatorSaturationError, InputError
 
 FD_METHODS = ("pinocchio", "qp", "kkt")

@@ -1,4 +1,4 @@
-"""The compiled fast path (hexapod_pin.fast) against the reference routes.
+"""The compiled fast path (hexapod_pin.hexapod.fast) against the reference routes.
 
 Independent routes: the Pinocchio tree routes of Hexapod (ID / FD / statics), the tree
 integrator of simulate(), the mechanism's energy from Pinocchio (computeKineticEnergy
@@ -21,9 +21,9 @@ import pytest
 from conftest import geometry_from_reference, load_reference, random_pose
 
 import hexapod_pin as hp
-from hexapod_pin import fast
+from hexapod_pin.hexapod import fast
 from hexapod_pin.errors import InputError, SingularityError, StrokeLimitError, UnreachablePoseError
-from hexapod_pin.simulate import CircleTrajectory, PIDController, simulate
+from hexapod_pin.hexapod.simulation import CircleTrajectory, PIDController, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -322,7 +322,7 @@ FALLBACK = textwrap.dedent("""
 
     import numpy as np
     import hexapod_pin as hp
-    from hexapod_pin import fast
+    from hexapod_pin.hexapod import fast
     robot = hp.Hexapod.default()
     pose, zero = robot.home_pose, np.zeros(6)
     tau = robot.inverse_dynamics(pose, zero, zero, method="kkt").actuator_forces
@@ -346,7 +346,7 @@ FALLBACK = textwrap.dedent("""
 
 
 def test_plain_python_fallback():
-    """numba made unimportable for hexapod_pin.fast (reloaded): the same functions run as
+    """numba made unimportable for hexapod_pin.hexapod.fast (reloaded): the same functions run as
     plain Python and agree with the compiled ones (each integrator)."""
     out = subprocess.run([sys.executable, "-c", FALLBACK], capture_output=True, text=True,
                          timeout=300, cwd=ROOT, check=False)

@@ -7,8 +7,8 @@ import pinocchio as pin
 import pytest
 
 import hexapod_pin as hp
-from hexapod_pin import assembly_modes as am
-from hexapod_pin.kinematics import TYPE_I_TOL
+from hexapod_pin.hexapod import assembly_modes as am
+from hexapod_pin.hexapod.kinematics import TYPE_I_TOL
 
 from conftest import geometry_from_reference, load_reference, random_pose
 
@@ -281,7 +281,7 @@ def test_jacobian_matches_finite_differences_of_ik(any_robot, rng):
 
 def test_jacobian_of_other_branch_matches_finite_differences(robot, rng):
     pose = regular_pose(robot, rng)
-    branch = -np.asarray(hp.kinematics.HOME_BRANCH)
+    branch = -np.asarray(hp.hexapod.kinematics.HOME_BRANCH)
     fd = np.empty((6, 6))
     for j in range(6):
         fd[:, j] = derivative(lambda t: robot.inverse_kinematics(
@@ -333,7 +333,7 @@ def _leg_bodies(robot, pose):
 def test_leg_motion_matches_finite_differences(any_robot, rng):
     length = any_robot.geometry.leg_length
     g = any_robot.geometry
-    rail = hp.kinematics.RAIL_OF
+    rail = hp.hexapod.kinematics.RAIL_OF
     for _ in range(3):
         pose = regular_pose(any_robot, rng)
         twist = rng.normal(scale=0.3, size=6)
@@ -383,7 +383,7 @@ def test_leg_angular_velocity_lies_in_the_universal_joint_axes(robot, rng):
     """w is a combination of the rail direction and the second axis (perpendicular to both)."""
     pose = random_pose(robot, rng)
     motion = robot.leg_motion(pose, rng.normal(size=6))
-    dirs = robot.geometry.rail_directions[hp.kinematics.RAIL_OF]
+    dirs = robot.geometry.rail_directions[hp.hexapod.kinematics.RAIL_OF]
     normal = np.cross(dirs, np.cross(dirs, motion.direction))      # perpendicular to both axes
     np.testing.assert_allclose(np.einsum("ij,ij->i", motion.angular_velocity, normal), 0.0,
                                atol=1e-12)
@@ -400,7 +400,7 @@ def test_singularity_measures(robot, rng):
     # type one: the smallest cosine between a leg and its rail, from the leg directions
     motion = robot.leg_motion(pose, np.zeros(6))
     cos = np.abs(np.einsum("ij,ij->i", motion.direction,
-                           robot.geometry.rail_directions[hp.kinematics.RAIL_OF]))
+                           robot.geometry.rail_directions[hp.hexapod.kinematics.RAIL_OF]))
     assert s.type_one == pytest.approx(cos.min(), rel=1e-12)
     assert s.type_one_carriage == int(np.argmin(cos))
     assert 0.0 < s.type_two <= 1.0 + 1e-12
@@ -475,7 +475,7 @@ def test_batch_matches_single_pose_results(any_robot, rng):
 
 
 def test_batch_per_row_branches_and_chunks(robot, rng):
-    chunk = hp.kinematics.BATCH_CHUNK
+    chunk = hp.hexapod.kinematics.BATCH_CHUNK
     n = chunk + 100
     poses = np.tile(robot.home_pose, (n, 1)) + rng.normal(scale=0.01, size=(n, 6))
     branches = np.where(rng.uniform(size=(n, 6)) < 0.5, -1.0, 1.0)

@@ -8,8 +8,8 @@ import pinocchio as pin
 import pytest
 
 import hexapod_pin as hp
-from hexapod_pin.closed_loop import ClosedLoopModel
-from hexapod_pin.description import build_model, parse_loops
+from hexapod_pin.core.closed_loop import ClosedLoopModel
+from hexapod_pin.core.description import build_model, parse_loops
 
 from conftest import random_pose
 

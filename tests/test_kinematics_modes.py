@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 
 import hexapod_pin as hp
-from hexapod_pin import assembly_modes as am
+from hexapod_pin.hexapod import assembly_modes as am
 
 from conftest import random_pose
 

@@ -6,7 +6,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import hexapod_pin as hp
-from hexapod_pin.kinematics import RAIL_OF
+from hexapod_pin.hexapod.kinematics import RAIL_OF
 
 from conftest import SECOND_GEOMETRY
 

@@ -13,10 +13,10 @@ import pytest
 import scipy.optimize
 import yourdfpy
 
-from hexapod_pin.description import build_model
+from hexapod_pin.core.description import build_model
 from hexapod_pin.errors import (AssemblyError, GeometryError, InputError, SingularityError,
                                 StrokeLimitError, UnreachablePoseError)
-from hexapod_pin.planar import (ALL_BRANCHES, Planar3PRR, PlanarGeometry, _same_pose,
+from hexapod_pin.planar.robot import (ALL_BRANCHES, Planar3PRR, PlanarGeometry, _same_pose,
                                 planar_urdf)
 
 from conftest import fd_constraint_jacobian, random_configuration
@@ -553,7 +553,7 @@ def _regular_pose(robot, rng, branch):
                                            ("default", ALL_BRANCHES[6]),
                                            ("six_mode", ALL_BRANCHES[0])])
 def test_closed_form_dynamics_match_generic_tree_routes(which, branch, planar, six_mode):
-    from hexapod_pin.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+    from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 
     robot = planar if which == "default" else six_mode
     model, idx = robot.model, robot.indices
@@ -624,7 +624,7 @@ def _type_two_theta(robot):
 
 
 def test_type_two_singularity_falls_back_to_the_generic_route(planar):
-    from hexapod_pin.dynamics import inverse_dynamics_tree
+    from hexapod_pin.core.dynamics import inverse_dynamics_tree
 
     theta = _type_two_theta(planar)
     pose = np.array([0.0, 0.0, theta])

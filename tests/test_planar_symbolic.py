@@ -6,13 +6,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hexapod_pin.planar import Planar3PRR, PlanarGeometry
-from hexapod_pin.planar_symbolic import (PlanarSymbolicDynamics, derive_equations,
+from hexapod_pin.planar.robot import Planar3PRR, PlanarGeometry
+from hexapod_pin.planar.symbolic import (PlanarSymbolicDynamics, derive_equations,
                                          numeric_functions)
 
 from test_planar import random_pose
 
-# sympy is a test/dev dependency; hexapod_pin.planar_symbolic imports it only when used
+# sympy is a test/dev dependency; hexapod_pin.planar.symbolic imports it only when used
 sympy = pytest.importorskip("sympy")
 
 GEOMETRIES = {

@@ -1,4 +1,4 @@
-"""The compiled platform -> tree map (hexapod_pin.platform_kernels).
+"""The compiled platform -> tree map (hexapod_pin.hexapod.kernels).
 
 Checked against Pinocchio (closure residual, ``J_c v = 0``, ``J_c a = -gamma`` with
 Pinocchio's own Jacobian and drift), virtual power (``G^T f . twist = f . v``), numpy
@@ -11,9 +11,9 @@ import pytest
 from conftest import random_pose
 
 import hexapod_pin as hp
-from hexapod_pin import platform_kernels as K
-from hexapod_pin.kinematics import HOME_BRANCH
-from hexapod_pin.platform_map import TYPE_II_PIVOT_RTOL
+from hexapod_pin.hexapod import kernels as K
+from hexapod_pin.hexapod.kinematics import HOME_BRANCH
+from hexapod_pin.hexapod.platform_map import TYPE_II_PIVOT_RTOL
 
 
 def _motion(rng):
@@ -41,7 +41,7 @@ def test_tree_state_keeps_the_closures(any_robot, rng):
         assert np.abs(jac @ v).max() <= 1e-11
         drift = clm.constraint_drift(q, v)
         np.testing.assert_allclose(jac @ a, -drift, atol=1e-10)
-        rot = hp.pose.rotation_from_rpy(pose[3:])
+        rot = hp.core.pose.rotation_from_rpy(pose[3:])
         np.testing.assert_allclose(v[18:], np.concatenate([rot.T @ twist[:3],
                                                            rot.T @ twist[3:]]), atol=1e-14)
         acc_lin = twist_dot[:3] - np.cross(twist[3:], twist[:3])

@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import hexapod_pin as hp
-from hexapod_pin import plotting as pl
+from hexapod_pin.viz import plotting as pl
 
 pytest.importorskip("matplotlib", reason="matplotlib (the plot extra) is not installed")
 

@@ -1,4 +1,4 @@
-"""Cassie (example-robot-data's cassie_v2.sdf, read by hexapod_pin.sdf), hanging from a fixed pelvis.
+"""Cassie (example-robot-data's cassie_v2.sdf, read by hexapod_pin.loaders.sdf), hanging from a fixed pelvis.
 
 Independent routes: link poses read here from the SDF text with ElementTree and numpy,
 finite differences, a hand-reduced constraint set (the redundant plantar-loop row of each
@@ -13,9 +13,9 @@ import pytest
 import scipy.linalg
 from test_robots_sdf import homogeneous
 
-from hexapod_pin import robots
-from hexapod_pin.dynamics import forward_dynamics_tree, inverse_dynamics_tree
-from hexapod_pin.sdf import load_sdf
+from hexapod_pin.loaders import robots
+from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.loaders.sdf import load_sdf
 
 SPRINGS = ("left-knee-shin-joint", "left-tarsus-spring-joint", "right-knee-shin-joint",
            "right-tarsus-spring-joint")

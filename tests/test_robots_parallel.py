@@ -16,10 +16,10 @@ import pytest
 import scipy.linalg
 from conftest import REFERENCE, fd_constraint_jacobian
 
-from hexapod_pin.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.errors import DescriptionError
-from hexapod_pin.parallel_robots import load_parallel_robot, parse_robot_yaml
-from hexapod_pin.robots import actuation_report
+from hexapod_pin.loaders.parallel_robots import load_parallel_robot, parse_robot_yaml
+from hexapod_pin.loaders.robots import actuation_report
 
 DATA = REFERENCE.parent / "parallel"
 # five-bar (tests/data/parallel/five_bar_*): pivots at x = -/+ D/2, links L1 then L2, plane x-z

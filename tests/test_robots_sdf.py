@@ -1,4 +1,4 @@
-"""The SDF reader (hexapod_pin.sdf): poses, joints, inertias, loops, URDF export, bad input.
+"""The SDF reader (hexapod_pin.loaders.sdf): poses, joints, inertias, loops, URDF export, bad input.
 
 Checked against routes that do not use the reader: poses and axes computed here with
 numpy from the numbers written in the SDF text, Rodrigues rotations, Pinocchio's own
@@ -12,10 +12,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hexapod_pin.closed_loop import ClosedLoopModel
-from hexapod_pin.description import parse_loops
+from hexapod_pin.core.closed_loop import ClosedLoopModel
+from hexapod_pin.core.description import parse_loops
 from hexapod_pin.errors import DescriptionError
-from hexapod_pin.sdf import build_tree, closed_loop_from_sdf, loops_yaml, parse_sdf, sdf_to_urdf
+from hexapod_pin.loaders.sdf import build_tree, closed_loop_from_sdf, loops_yaml, parse_sdf, sdf_to_urdf
 
 from conftest import fd_constraint_jacobian, random_configuration
 

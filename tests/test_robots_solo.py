@@ -11,8 +11,8 @@ import pinocchio as pin
 import pytest
 import scipy.linalg
 
-from hexapod_pin import robots
-from hexapod_pin.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.loaders import robots
+from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.errors import ActuatorSaturationError, AssemblyError
 
 from conftest import fd_constraint_jacobian, random_configuration

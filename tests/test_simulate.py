@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from hexapod_pin.errors import ActuatorSaturationError, InputError, StrokeLimitError
-from hexapod_pin.simulate import (
+from hexapod_pin.hexapod.simulation import (
     CircleTrajectory,
     ClosedLoopIntegrator,
     ComputedTorqueController,

@@ -3,7 +3,7 @@
 import pandas as pd
 import pytest
 
-from hexapod_pin import sweeps
+from hexapod_pin.hexapod import sweeps
 
 
 def test_design_grid_and_errors():

@@ -17,7 +17,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import hexapod_pin as hp
-from hexapod_pin import visualize as viz
+from hexapod_pin.viz import scenes as viz
 
 CHROMIUM = next((p for p in (shutil.which("chromium"), "/usr/bin/chromium",
                              shutil.which("chromium-browser")) if p and os.path.exists(p)),
@@ -315,7 +315,7 @@ def test_generic_robot_from_its_urdf_file(tmp_path):
 
 def test_another_closed_loop_robot_draws_from_its_own_urdf():
     """The planar 3-PRR (another ClosedLoopModel): sliders' forces along their rails."""
-    planar = pytest.importorskip("hexapod_pin.planar", reason="planar robot not present")
+    planar = pytest.importorskip("hexapod_pin.planar.robot", reason="planar robot not present")
     robot = planar.Planar3PRR.default()
     visual = viz.robot_visual(robot)
     q = robot.home_configuration

@@ -8,7 +8,7 @@ import pytest
 import scipy.optimize
 
 import hexapod_pin as hp
-from hexapod_pin import workspace as ws
+from hexapod_pin.hexapod import workspace as ws
 from hexapod_pin.errors import InputError
 
 

@@ -3,7 +3,10 @@
 import numpy as np
 import pytest
 
-from hexapod_pin import plotting, sweeps, visualize as viz, workspace as ws
+from hexapod_pin.viz import plotting
+from hexapod_pin.hexapod import sweeps
+from hexapod_pin.viz import scenes as viz
+from hexapod_pin.hexapod import workspace as ws
 from hexapod_pin.errors import InputError
 
 from test_visualize import needs_chromium, render

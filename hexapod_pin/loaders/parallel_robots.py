@@ -49,9 +49,9 @@ from pathlib import Path
 import pinocchio as pin
 import yaml
 
-from .closed_loop import ClosedLoopModel
-from .description import ClosureSpec, LoopsSpec, build_model
-from .errors import DescriptionError
+from ..core.closed_loop import ClosedLoopModel
+from ..core.description import ClosureSpec, LoopsSpec, build_model
+from ..errors import DescriptionError
 
 KEYS = ("closed_loop", "type", "name_mot", "joint_name", "joint_type")
 _UJOINT_AXES = {"X": pin.JointModelRX, "Y": pin.JointModelRY, "Z": pin.JointModelRZ}

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import base64
 import html as html_lib
-import importlib
 import json
 import math
 import os
@@ -45,10 +44,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .closed_loop import ClosedLoopModel
-from .description import expand_xacro
-from .errors import DescriptionError, InputError
-from .pose import as_array
+from ..core.closed_loop import ClosedLoopModel
+from ..core.description import expand_xacro
+from ..errors import DescriptionError, InputError
+from ..core.checks import as_array
 
 #: colours (0xRRGGBB) of the overlays
 ACTUATOR_FORCE_COLOR = 0xC2185B
@@ -146,19 +145,7 @@ def _urdf_text(robot, closed_loop, urdf) -> str:
         xml = xml() if callable(xml) else xml
         if isinstance(xml, str) and xml.strip():
             return xml
-    geometry = getattr(robot, "geometry", None)
-    maker = _URDF_OF_GEOMETRY.get(type(geometry).__name__)
-    if maker is not None:
-        module, function = maker
-        return getattr(importlib.import_module(module), function)(geometry)
     raise InputError("urdf", None, f"no URDF known for {type(robot).__name__}: pass urdf=")
-
-
-#: geometry class name -> (module, function) giving the expanded URDF of the robot
-_URDF_OF_GEOMETRY = {
-    "HexapodGeometry": ("hexapod_pin.description", "hexapod_urdf"),
-    "PlanarGeometry": ("hexapod_pin.planar", "planar_urdf"),
-}
 
 
 def _safe_name(text: str) -> str:
@@ -998,7 +985,7 @@ def hexapod_configurations(robot, poses, carriages=None) -> np.ndarray:
         InputError: wrong shapes.
         AssemblyError: the closed form misses the closures.
     """
-    from .pose import as_array
+    from ..core.checks import as_array
 
     poses = np.atleast_2d(as_array(poses, (6,), "poses", batch=np.ndim(poses) == 2))
     if carriages is None:
@@ -1037,7 +1024,7 @@ def hexapod_trajectory_scene(robot, times, poses, *, carriages=None, actuator_fo
     Raises:
         InputError, UnreachablePoseError: bad input.
     """
-    from .pose import as_array
+    from ..core.checks import as_array
 
     poses = as_array(poses, (6,), "poses", batch=True)
     t = _times(times, len(poses))

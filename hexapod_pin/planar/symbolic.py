@@ -51,9 +51,9 @@ from typing import Any
 
 import numpy as np
 
-from .errors import SingularityError
-from .planar import PlanarGeometry
-from .pose import as_array
+from ..errors import SingularityError
+from .robot import PlanarGeometry
+from ..core.checks import as_array
 
 N_COORDINATES = 9
 N_CONSTRAINTS = 6

@@ -1,4 +1,4 @@
-"""Platform poses and twists: conversions and input checks (vectorised numpy).
+"""Platform poses and twists: rotations and their conversions (vectorised numpy).
 
 A pose is ``(x, y, z, roll, pitch, yaw)``: the position of the platform origin
 in the world (m) and the rotation ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (rad) from
@@ -12,50 +12,6 @@ import math
 
 import numpy as np
 
-from .errors import InputError
-
-
-def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False) -> np.ndarray:
-    """Check and convert a numeric input.
-
-    Args:
-        value: array-like.
-        shape_tail: the expected shape (single) or trailing shape (batch).
-        name: argument name for the error message.
-        batch: when True, accept ``(N,) + shape_tail``.
-
-    Raises:
-        InputError: not numeric, wrong shape, or NaN / inf entries.
-    """
-    if type(value) is np.ndarray and value.dtype == np.float64 and value.flags.c_contiguous:
-        arr = value                       # what np.ascontiguousarray would return
-    else:
-        try:
-            arr = np.ascontiguousarray(value, dtype=float)
-        except (TypeError, ValueError):
-            raise InputError(name, value, "not numeric") from None
-    expected = ("N",) + shape_tail if batch else shape_tail
-    ok = (arr.ndim == len(shape_tail) + 1 and arr.shape[1:] == shape_tail) if batch \
-        else arr.shape == shape_tail
-    if not ok:
-        raise InputError(name, value, f"expected shape {expected}, got {arr.shape}")
-    if not np.isfinite(arr).all():
-        bad = np.argwhere(~np.isfinite(arr))
-        raise InputError(name, value, f"contains NaN or inf at {bad[:5].tolist()}")
-    return arr
-
-
-def vec6(value, name: str) -> np.ndarray:
-    """A C-contiguous float64 (6,) array, for the compiled kernels' fast path.
-
-    A float64 array of shape (6,) is passed through (copied only when not contiguous);
-    anything else goes through :func:`as_array`. Finiteness of a passed-through array is
-    NOT checked here: the kernels check it and the caller then re-validates with
-    :func:`as_array`, which raises the :class:`InputError`.
-    """
-    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (6,):
-        return value if value.flags.c_contiguous else np.ascontiguousarray(value)
-    return as_array(value, (6,), name)
 
 
 def rotation_from_rpy(rpy: np.ndarray) -> np.ndarray:
@@ -129,19 +85,9 @@ def skew(vec: np.ndarray) -> np.ndarray:
     return out
 
 
-def check_signs(branch, home: np.ndarray, name: str = "branch") -> np.ndarray:
-    """Validate a branch: ``len(home)`` values, each +1 or -1; ``None`` -> a copy of ``home``.
-
-    Raises:
-        InputError: wrong length, or a value other than +1 / -1.
-    """
-    if branch is None:
-        return np.array(home, dtype=float)
-    expected = f"expected {len(home)} values, each +1 or -1"
-    try:
-        arr = np.asarray(branch, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(name, branch, expected) from None
-    if arr.shape != (len(home),) or not np.all((arr == 1.0) | (arr == -1.0)):
-        raise InputError(name, branch, expected)
-    return arr
+def rotation_from_quaternion(x: float, y: float, z: float, w: float) -> np.ndarray:
+    """Rotation matrix (3, 3) of a unit quaternion ``(x, y, z, w)`` (Pinocchio's order)."""
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import HexapodPinError, InputError, UnreachablePoseError
-from .pose import as_array
+from ..errors import HexapodPinError, InputError, UnreachablePoseError
+from ..core.checks import as_array
 
 #: colours of carriages 0..5 (rail k has a dark and a light shade)
 CARRIAGE_COLORS = ("#d95f02", "#fdae61", "#1b9e77", "#66c2a5", "#7570b3", "#b3b0d9")
@@ -477,7 +477,7 @@ def plot_force_capability_slice(robot, direction=None, *, z: float | None = None
         the figure (saved to ``path`` when given). White where the pose is outside
         the workspace or gravity alone saturates an actuator.
     """
-    from . import workspace
+    from ..hexapod import workspace
 
     g = robot.geometry
     z = g.home_height if z is None else float(z)

@@ -64,9 +64,9 @@ from rich.progress import (
 )
 from rich.table import Table
 
-from .errors import DescriptionError, GeometryError, HexapodPinError, InputError
-from .geometry import HexapodGeometry
-from .hexapod import Hexapod
+from ..errors import DescriptionError, GeometryError, HexapodPinError, InputError
+from ..hexapod.geometry import HexapodGeometry
+from ..hexapod.robot import Hexapod
 
 app = typer.Typer(help="Kinematics and dynamics of the rail-driven hexapod.", no_args_is_help=True,
                   pretty_exceptions_enable=False, add_completion=False,
@@ -475,14 +475,14 @@ def write_motion(path: Path, motion: Motion) -> Path:
         text = buffer.getvalue()
     else:
         raise InputError("out", str(path), "motion files are .csv or .json")
-    from .visualize import write_text_atomic
+    from ..viz.scenes import write_text_atomic
 
     return write_text_atomic(path, text)
 
 
 def motion_rates(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     """Twists and their derivatives (N, 6): from the file, or by finite differences."""
-    from .pose import euler_rates_matrix
+    from ..core.pose import euler_rates_matrix
 
     twists, twist_dots = motion.twists, motion.twist_dots
     if (twists is None or twist_dots is None) and len(motion.t) < 3:
@@ -580,7 +580,7 @@ def demo(as_json: AsJson = False,
         result["simulation"] = _demo_simulation(robot, result["unavailable"])
     result["html"] = None
     if not no_html:
-        from . import visualize
+        from ..viz import scenes as visualize
 
         path = html or Path(tempfile.gettempdir()) / "hexapod_pin_demo.html"
         forces = None if result["statics"] is None else result["statics"]["actuator_forces"]
@@ -732,7 +732,7 @@ def modes(q: Values = None,
         poses = [np.asarray(p, dtype=float)
                  for p in _need(robot, "assembly_modes")(carriages)]
     if html is not None and poses:
-        from . import visualize
+        from ..viz import scenes as visualize
 
         with _progress(quiet, "writing HTML"):
             qs = visualize.hexapod_configurations(robot, poses, [carriages] * len(poses))
@@ -885,7 +885,7 @@ def run_simulation(robot: Hexapod, duration: float, dt: float | None, controller
     if not (np.isfinite(radius) and radius >= 0 and np.isfinite(period) and period > 0):
         raise InputError("radius", radius, "need radius >= 0 (m) and period > 0 (s)")
     try:
-        from . import simulate as sim
+        from ..hexapod import simulation as sim
         entry = sim.simulate
     except (ImportError, AttributeError):
         raise FeatureUnavailableError("hexapod_pin.simulate.simulate") from None
@@ -952,7 +952,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
         write_motion(out, motion)
         _note(quiet, f"wrote {out}")
     if html is not None:
-        from . import visualize
+        from ..viz import scenes as visualize
 
         with _progress(quiet, "writing HTML"):
             visualize.write_simulation_html(
@@ -961,7 +961,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
                         f"{motion.t[-1]:g} s ({traj.status})")
         _note(quiet, f"wrote {html}")
     if plot is not None:
-        from . import plotting
+        from ..viz import plotting
 
         plotting.plot_simulation(traj, path=plot, title=f"simulation, {controller} control")
         _note(quiet, f"wrote {plot}")
@@ -1031,7 +1031,7 @@ def view(values: Values = None,
          geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Write a self-contained HTML view (meshcat): a pose (default home), the pose of
     carriage positions, all assembly modes, or an animated motion."""
-    from . import visualize
+    from ..viz import scenes as visualize
 
     quiet = quiet or as_json
     robot = _robot(geometry, set_)
@@ -1123,7 +1123,7 @@ def plot(kind: Annotated[str, typer.Argument(
          geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Write a figure: carriage positions / forces along a motion, closure residual,
     conditioning of J along a motion (default: a vertical sweep), a workspace slice."""
-    from . import plotting
+    from ..viz import plotting
 
     quiet = quiet or as_json
     robot = _robot(geometry, set_)

@@ -17,7 +17,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from .errors import HexapodPinError, InputError
+from ..errors import HexapodPinError, InputError
 from .geometry import HexapodGeometry
 
 #: columns of the summary table, in order (besides the swept parameters)
@@ -88,7 +88,7 @@ def evaluate_design(params: Mapping[str, float], settings: SweepSettings,
     (None) numeric fields instead of raising.
     """
     from . import workspace
-    from .hexapod import Hexapod
+    from .robot import Hexapod
 
     row: dict = dict(params)
     row.update({name: None for name in SUMMARY_COLUMNS})

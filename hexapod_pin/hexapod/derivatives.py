@@ -56,7 +56,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dgesv
 
-from .errors import HexapodPinError, InputError, SingularityError, SolverError
+from ..errors import HexapodPinError, InputError, SingularityError, SolverError
 from .kinematics import HOME_BRANCH, RAIL_OF, _floats6
 from .platform_map import TYPE_II_PIVOT_RTOL
 
@@ -169,7 +169,7 @@ def _workspace(robot) -> _Workspace:
     except TypeError:                          # not weak-referenceable / hashable
         ws = None
     if ws is None:
-        from .hexapod import Hexapod  # local import: hexapod.py imports dynamics
+        from .robot import Hexapod  # local import: hexapod.py imports dynamics
 
         if not isinstance(robot, Hexapod):
             raise InputError("robot", robot, "expected a hexapod_pin.Hexapod")

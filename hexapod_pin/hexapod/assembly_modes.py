@@ -37,9 +37,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .errors import AssemblyError
+from ..errors import AssemblyError
 from .geometry import HexapodGeometry
-from .pose import rotation_tuple
+from ..core.pose import rotation_tuple
 
 #: the three triangle equations, as (j, k) pairs of rails
 PAIRS = ((0, 1), (1, 2), (2, 0))

@@ -31,9 +31,9 @@ import numpy as np
 import pinocchio as pin
 import scipy.linalg
 
-from .closed_loop import AssemblyResult, ClosedLoopModel
-from .description import WORLD, ClosureSpec, LoopsSpec
-from .errors import HexapodPinError, InputError
+from ..core.closed_loop import AssemblyResult, ClosedLoopModel
+from ..core.description import WORLD, ClosureSpec, LoopsSpec
+from ..errors import HexapodPinError, InputError
 
 SOLO12_FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
 SOLO12_JOINTS = tuple(f"{leg}_{j}" for leg in ("FL", "FR", "HL", "HR")

@@ -50,9 +50,9 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .closed_loop import ClosedLoopModel
-from .description import WORLD, ClosureSpec, LoopsSpec
-from .errors import DescriptionError
+from ..core.closed_loop import ClosedLoopModel
+from ..core.description import WORLD, ClosureSpec, LoopsSpec
+from ..errors import DescriptionError
 
 MODEL_FRAME = "__model__"
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "ball", "universal")

@@ -31,7 +31,7 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-from .errors import DescriptionError
+from ..errors import DescriptionError
 
 WORLD = "world"
 CLOSURE_TYPES = {"point": 3, "weld": 6}
@@ -76,7 +76,7 @@ def urdf_dir() -> Path:
     packaged = resources.files("hexapod_pin") / "urdf"
     if packaged.is_dir():
         return Path(str(packaged))
-    source_tree = Path(__file__).resolve().parent.parent / "urdf"
+    source_tree = Path(__file__).resolve().parents[2] / "urdf"
     if source_tree.is_dir():
         return source_tree
     raise DescriptionError("hexapod_pin", "cannot find the urdf/ folder of the package")
@@ -208,9 +208,3 @@ def load_loops(path: str | Path) -> LoopsSpec:
     if not path.is_file():
         raise DescriptionError(str(path), "file not found")
     return parse_loops(path.read_text(), source=str(path))
-
-
-def hexapod_urdf(geometry) -> str:
-    """Expanded URDF text of the hexapod tree for a :class:`HexapodGeometry`."""
-    return expand_xacro(urdf_dir() / "hexapod.urdf.xacro", geometry.xacro_args())
-

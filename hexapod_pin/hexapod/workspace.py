@@ -37,8 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
-from .pose import as_array, rotation_from_rpy
+from ..errors import InputError
+from ..core.pose import rotation_from_rpy
+from ..core.checks import as_array
 
 #: poses processed per chunk (bounds the temporary memory to ~100 MB)
 CHUNK = 65_536

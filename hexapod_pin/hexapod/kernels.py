@@ -37,7 +37,8 @@ import math
 import numba
 import numpy as np
 
-from .errors import HexapodPinError
+from ..core.compiled import all_finite
+from ..errors import HexapodPinError
 from .kinematics import GIMBAL_TOL
 
 #: status codes
@@ -70,14 +71,6 @@ def pack_geometry(pmap) -> np.ndarray:
 
 
 @_jit
-def _finite(vec) -> bool:
-    for k in range(vec.shape[0]):
-        if not math.isfinite(vec[k]):
-            return False
-    return True
-
-
-@_jit
 def tree_state(geo, pose, twist, twist_dot, signs, level, q, v, a, buf):
     """Tree state of a platform state (home or any IK branch ``signs``).
 
@@ -85,11 +78,11 @@ def tree_state(geo, pose, twist, twist_dot, signs, level, q, v, a, buf):
     -1 (a non-finite input), UNREACHABLE, TYPE_I, GIMBAL (the checks of
     :meth:`PlatformMap.legs`).
     """
-    if not _finite(pose):
+    if not all_finite(pose):
         return -1
-    if level >= 1 and not _finite(twist):
+    if level >= 1 and not all_finite(twist):
         return -1
-    if level >= 2 and not _finite(twist_dot):
+    if level >= 2 and not all_finite(twist_dot):
         return -1
     x, y, z, roll, pitch, yaw = pose[0], pose[1], pose[2], pose[3], pose[4], pose[5]
     cr, sr = math.cos(roll), math.sin(roll)
@@ -510,7 +503,7 @@ def nullspace_forward(geo, buf, mass, bias, forces, wrench, has_wrench, acc0, wo
     """
     g_map, m_x, scratch = work[0:24], work[24:30], work[30:36]
     h_x, rest = work[36], work[37:41].reshape(24)
-    if not _finite(forces) or (has_wrench and not _finite(wrench)):
+    if not all_finite(forces) or (has_wrench and not all_finite(wrench)):
         return -1
     for r in range(24):
         rest[r] = -bias[r]

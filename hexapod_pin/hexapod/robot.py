@@ -15,14 +15,14 @@ from functools import cached_property
 import numpy as np
 import pinocchio as pin
 
-from .closed_loop import ClosedLoopModel
-from .description import build_model, hexapod_urdf, load_loops, urdf_dir
+from ..core.closed_loop import ClosedLoopModel
+from ..core.description import build_model, load_loops, urdf_dir
 from .dynamics import HexapodDynamics
-from .errors import AssemblyError
-from .geometry import HexapodGeometry
+from ..errors import AssemblyError
+from .geometry import HexapodGeometry, hexapod_urdf
 from .kinematics import HOME_BRANCH, HexapodKinematics, _floats6, check_branch
 from .platform_map import PlatformMap
-from .pose import rpy_from_rotation
+from ..core.pose import rpy_from_rotation
 
 #: closure residual accepted for a closed-form configuration (m)
 CLOSED_FORM_TOL = 1e-12
@@ -66,9 +66,10 @@ class Hexapod(HexapodKinematics, HexapodDynamics):
         self.geometry = HexapodGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, HexapodGeometry):
             raise TypeError(f"geometry must be a HexapodGeometry, got {type(geometry).__name__}")
-        tree = build_model(hexapod_urdf(self.geometry), source="hexapod.urdf.xacro")
+        xml = hexapod_urdf(self.geometry)
+        tree = build_model(xml, source="hexapod.urdf.xacro")
         self.model = ClosedLoopModel(tree, load_loops(urdf_dir() / "hexapod.loops.yaml"),
-                                     name="hexapod")
+                                     name="hexapod", urdf_xml=xml)
         # the URDF carries no gravity: gravity along -z with the geometry's magnitude
         self.model.model.gravity = pin.Motion(np.array([0.0, 0.0, -self.geometry.gravity,
                                                         0.0, 0.0, 0.0]))

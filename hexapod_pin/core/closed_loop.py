@@ -30,8 +30,8 @@ import pinocchio as pin
 import scipy.linalg
 
 from .description import WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro, load_loops
-from .errors import AssemblyError, DescriptionError, InputError, SolverError
-from .pose import as_array
+from ..errors import AssemblyError, DescriptionError, InputError, SolverError
+from .checks import as_array
 
 _EPS = np.finfo(float).eps
 #: default relative singular-value threshold of :meth:`ClosedLoopModel.rank`

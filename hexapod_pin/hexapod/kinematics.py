@@ -36,9 +36,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from . import assembly_modes as am
-from .errors import (AssemblyError, InputError, SingularityError, StrokeLimitError,
+from ..errors import (AssemblyError, InputError, SingularityError, StrokeLimitError,
                      UnreachablePoseError)
-from .pose import as_array, check_signs, rotation_from_rpy, rotation_tuple
+from ..core.pose import rotation_from_rpy, rotation_tuple
+from ..core.checks import as_array, check_signs
 
 HOME_BRANCH = np.array([-1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
 RAIL_OF = np.array([0, 0, 1, 1, 2, 2])

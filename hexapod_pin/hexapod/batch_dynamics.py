@@ -51,9 +51,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ActuatorSaturationError, SingularityError, UnreachablePoseError
+from ..errors import ActuatorSaturationError, SingularityError, UnreachablePoseError
 from .kinematics import HOME_BRANCH, RAIL_OF, TYPE_I_TOL
-from .pose import as_array
+from ..core.checks import as_array
 
 #: states per chunk (keeps the temporaries in cache)
 CHUNK = 4096
@@ -478,7 +478,7 @@ def check_batch(poses, twists=None, twist_dots=None, wrenches=None, forces=None)
             continue
         arr = as_array(arr, (6,), name, batch=True)
         if arr.shape[0] != n:
-            from .errors import InputError
+            from ..errors import InputError
 
             raise InputError(name, arr, f"expected {n} rows like poses, got {arr.shape[0]}")
         out.append(arr)

@@ -75,12 +75,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
+from ..errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
 from .kinematics import GIMBAL_TOL, HOME_BRANCH, RAIL_OF, TYPE_I_TOL
-from .platform_kernels import GIMBAL, NOT_PD, OK, TYPE_I, TYPE_II, UNREACHABLE, lu_solve6
+from .kernels import GIMBAL, NOT_PD, OK, TYPE_I, TYPE_II, UNREACHABLE, lu_solve6
 from .platform_map import TYPE_II_PIVOT_RTOL
-from .pose import as_array
-from .simulate import check_run_arguments
+from ..core.checks import as_array
+from .simulation import check_run_arguments
 
 try:  # a dependency; the plain-Python fallback below is for its absence
     import numba as _numba
@@ -947,7 +947,7 @@ class FastTrajectory:
     def real_time_factor(self) -> float:
         """Simulated time divided by wall time (that of
         :attr:`hexapod_pin.simulate.Trajectory.real_time_factor`, shared)."""
-        from .simulate import Trajectory  # lazily: simulate may come to import us
+        from .simulation import Trajectory  # lazily: simulate may come to import us
         return Trajectory.real_time_factor.fget(self)
 
 

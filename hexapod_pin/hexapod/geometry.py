@@ -20,7 +20,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import GeometryError
+from ..core.checks import validate_scalars
+from ..core.description import expand_xacro, urdf_dir
+from ..errors import GeometryError
 
 N_RAILS = 3
 N_CARRIAGES = 6
@@ -29,36 +31,6 @@ N_CARRIAGES = 6
 def rail_angles() -> np.ndarray:
     """Angles ``a_k = 90 deg + 120 deg k`` of the three rails (rad), shape (3,)."""
     return np.pi / 2 + 2 * np.pi / 3 * np.arange(N_RAILS)
-
-
-def validate_scalars(obj, positive: tuple[str, ...], non_negative: tuple[str, ...] = (),
-                     skip: tuple[str, ...] = (), may_be_inf: tuple[str, ...] = (
-                         "max_actuator_force",)) -> None:
-    """Coerce a frozen dataclass's scalar fields to float and check their signs.
-
-    Every field but ``skip`` must be a real number (not bool), finite unless in
-    ``may_be_inf`` (only ``+inf`` then); ``positive`` ones ``> 0``, ``non_negative``
-    ones ``>= 0``.
-
-    Raises:
-        GeometryError: naming the first offending field and its value.
-    """
-    for f in dataclasses.fields(obj):
-        if f.name in skip:
-            continue
-        value = getattr(obj, f.name)
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-            raise GeometryError(f.name, value, "must be a real number")
-        value = float(value)
-        if math.isnan(value) or (math.isinf(value) and f.name not in may_be_inf):
-            raise GeometryError(f.name, value, "must be finite")
-        object.__setattr__(obj, f.name, value)
-    for name in positive:
-        if getattr(obj, name) <= 0.0:
-            raise GeometryError(name, getattr(obj, name), "must be > 0")
-    for name in non_negative:
-        if getattr(obj, name) < 0.0:
-            raise GeometryError(name, getattr(obj, name), "must be >= 0")
 
 
 @dataclass(frozen=True)
@@ -204,3 +176,8 @@ class HexapodGeometry:
     def replace(self, **changes) -> "HexapodGeometry":
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+
+def hexapod_urdf(geometry: HexapodGeometry) -> str:
+    """Expanded URDF text of the hexapod tree for a :class:`HexapodGeometry`."""
+    return expand_xacro(urdf_dir() / "hexapod.urdf.xacro", geometry.xacro_args())

@@ -44,9 +44,9 @@ import math
 import numpy as np
 from scipy.linalg.lapack import dgesv
 
-from .errors import HexapodPinError, SingularityError, UnreachablePoseError
+from ..errors import HexapodPinError, SingularityError, UnreachablePoseError
 from .kinematics import GIMBAL_TOL, TYPE_I_TOL
-from .pose import rotation_tuple
+from ..core.pose import rotation_tuple
 
 #: LU pivot ratio (smallest / largest) of ``A^T`` below which the platform wrench cannot
 #: be distributed on the legs (type-II singularity: the platform moves with the

@@ -67,15 +67,15 @@ import numba
 import numpy as np
 import pinocchio as pin
 
-from .closed_loop import ClosedLoopModel
-from .description import build_model, expand_xacro, load_loops, urdf_dir
-from .dynamics import (
+from ..core.closed_loop import ClosedLoopModel
+from ..core.description import build_model, expand_xacro, load_loops, urdf_dir
+from ..core.dynamics import (
     TreeForwardDynamics,
     TreeInverseDynamics,
     forward_dynamics_tree,
     inverse_dynamics_tree,
 )
-from .errors import (
+from ..errors import (
     ActuatorSaturationError,
     AssemblyError,
     DescriptionError,
@@ -85,9 +85,9 @@ from .errors import (
     StrokeLimitError,
     UnreachablePoseError,
 )
-from .geometry import validate_scalars
-from .platform_kernels import _finite
-from .pose import as_array, check_signs
+from ..core.checks import validate_scalars
+from ..core.compiled import all_finite
+from ..core.checks import as_array, check_signs
 
 N_SLIDERS = 3
 #: the home branch: every slider on the larger root of its quadratic
@@ -208,11 +208,11 @@ def _state_kernel(geo, idx, pose, twist, twist_dot, signs, level, singular,
     Returns _OK, _NONFINITE, _UNREACHABLE (``info[0:3]`` shortfalls, ``info[3:6]``
     flags) or _SINGULAR (``info[_X_WORST]``).
     """
-    if not _finite(pose):
+    if not all_finite(pose):
         return _NONFINITE
-    if level >= 1 and not _finite(twist):
+    if level >= 1 and not all_finite(twist):
         return _NONFINITE
-    if level >= 2 and not _finite(twist_dot):
+    if level >= 2 and not all_finite(twist_dot):
         return _NONFINITE
     x, y, theta = pose[0], pose[1], pose[2]
     cos_t, sin_t = math.cos(theta), math.sin(theta)
@@ -323,7 +323,7 @@ def _inverse_kernel(geo, idx, legs, force, wrench, has_wrench, tau, lam, info):
     ``info[_X_RES]``. Returns _OK, _NONFINITE (the wrench), or _FALLBACK (Hadamard ratio
     of the 3x3 below _TYPE_II_HADAMARD, or a residual above round-off).
     """
-    if has_wrench and not _finite(wrench):
+    if has_wrench and not all_finite(wrench):
         return _NONFINITE
     ix, iy, ith = idx[_I_PLAT], idx[_I_PLAT + 1], idx[_I_PLAT + 2]
     fx, fy, fth = force[ix], force[iy], force[ith]
@@ -385,7 +385,7 @@ def _forward_kernel(geo, idx, legs, twist, bias, mass, forces, wrench, has_wrenc
     ``max |J_c a + gamma|`` in ``info[_X_RES]``. Returns _OK, _NONFINITE (forces or
     wrench) or _FALLBACK (a residual above round-off).
     """
-    if not _finite(forces) or (has_wrench and not _finite(wrench)):
+    if not all_finite(forces) or (has_wrench and not all_finite(wrench)):
         return _NONFINITE
     nv = bias.shape[0]
     f = bias.copy()
@@ -679,9 +679,10 @@ class Planar3PRR:
         self.geometry = PlanarGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, PlanarGeometry):
             raise TypeError(f"geometry must be a PlanarGeometry, got {type(geometry).__name__}")
-        tree = build_model(planar_urdf(self.geometry), source="planar_3prr.urdf.xacro")
+        xml = planar_urdf(self.geometry)
+        tree = build_model(xml, source="planar_3prr.urdf.xacro")
         self.model = ClosedLoopModel(tree, load_loops(urdf_dir() / "planar_3prr.loops.yaml"),
-                                     name="planar_3prr")
+                                     name="planar_3prr", urdf_xml=xml)
         self.model.model.gravity = pin.Motion(
             np.array([0.0, -self.geometry.gravity, 0.0, 0.0, 0.0, 0.0]))
         m = self.model

@@ -1,0 +1,114 @@
+"""Input checks shared by every module: arrays, branches, geometry scalars.
+
+Each raises a specific :class:`~hexapod_pin.errors.HexapodPinError` naming the argument
+and the offending values; nothing here returns NaN or prints.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..errors import GeometryError, InputError
+
+
+def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False) -> np.ndarray:
+    """Check and convert a numeric input.
+
+    Args:
+        value: array-like.
+        shape_tail: the expected shape (single) or trailing shape (batch).
+        name: argument name for the error message.
+        batch: when True, accept ``(N,) + shape_tail``.
+
+    Raises:
+        InputError: not numeric, wrong shape, or NaN / inf entries.
+    """
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.flags.c_contiguous:
+        arr = value                       # what np.ascontiguousarray would return
+    else:
+        try:
+            arr = np.ascontiguousarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(name, value, "not numeric") from None
+    expected = ("N",) + shape_tail if batch else shape_tail
+    ok = (arr.ndim == len(shape_tail) + 1 and arr.shape[1:] == shape_tail) if batch \
+        else arr.shape == shape_tail
+    if not ok:
+        raise InputError(name, value, f"expected shape {expected}, got {arr.shape}")
+    if not np.isfinite(arr).all():
+        bad = np.argwhere(~np.isfinite(arr))
+        raise InputError(name, value, f"contains NaN or inf at {bad[:5].tolist()}")
+    return arr
+
+
+def vec6(value, name: str) -> np.ndarray:
+    """A C-contiguous float64 (6,) array, for the compiled kernels' fast path.
+
+    A float64 array of shape (6,) is passed through (copied only when not contiguous);
+    anything else goes through :func:`as_array`. Finiteness of a passed-through array is
+    NOT checked here: the kernels check it and the caller then re-validates with
+    :func:`as_array`, which raises the :class:`InputError`.
+    """
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (6,):
+        return value if value.flags.c_contiguous else np.ascontiguousarray(value)
+    return as_array(value, (6,), name)
+
+
+def check_signs(branch, home: np.ndarray, name: str = "branch") -> np.ndarray:
+    """Validate a branch: ``len(home)`` values, each +1 or -1; ``None`` -> a copy of ``home``.
+
+    Raises:
+        InputError: wrong length, or a value other than +1 / -1.
+    """
+    if branch is None:
+        return np.array(home, dtype=float)
+    expected = f"expected {len(home)} values, each +1 or -1"
+    try:
+        arr = np.asarray(branch, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(name, branch, expected) from None
+    if arr.shape != (len(home),) or not np.all((arr == 1.0) | (arr == -1.0)):
+        raise InputError(name, branch, expected)
+    return arr
+def validate_scalars(obj, positive: tuple[str, ...], non_negative: tuple[str, ...] = (),
+                     skip: tuple[str, ...] = (), may_be_inf: tuple[str, ...] = (
+                         "max_actuator_force",)) -> None:
+    """Coerce a frozen dataclass's scalar fields to float and check their signs.
+
+    Every field but ``skip`` must be a real number (not bool), finite unless in
+    ``may_be_inf`` (only ``+inf`` then); ``positive`` ones ``> 0``, ``non_negative``
+    ones ``>= 0``.
+
+    Raises:
+        GeometryError: naming the first offending field and its value.
+    """
+    for f in dataclasses.fields(obj):
+        if f.name in skip:
+            continue
+        value = getattr(obj, f.name)
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+            raise GeometryError(f.name, value, "must be a real number")
+        value = float(value)
+        if math.isnan(value) or (math.isinf(value) and f.name not in may_be_inf):
+            raise GeometryError(f.name, value, "must be finite")
+        object.__setattr__(obj, f.name, value)
+    for name in positive:
+        if getattr(obj, name) <= 0.0:
+            raise GeometryError(name, getattr(obj, name), "must be > 0")
+    for name in non_negative:
+        if getattr(obj, name) < 0.0:
+            raise GeometryError(name, getattr(obj, name), "must be >= 0")
+
+
+def max_abs(x: np.ndarray) -> float:
+    """Largest absolute entry of ``x`` (0 for an empty array)."""
+    return float(np.max(np.abs(x), initial=0.0))
+
+
+def owned_copy(checked: np.ndarray, given) -> np.ndarray:
+    """``checked`` (an input after :func:`vec6`), copied when it is the caller's own
+    array, so that results computed on first access cannot change with it."""
+    return checked.copy() if checked is given else checked
