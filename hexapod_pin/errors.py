@@ -163,3 +163,35 @@ class SolverError(HexapodPinError, RuntimeError):
 def _short(value: Any, limit: int = 120) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+class BatchActuatorSaturationError(ActuatorSaturationError):
+    """A state of a batch needs more actuator force than the bounds allow.
+
+    Attributes:
+        index: index of the first offending state.
+        needed, limit: as in :class:`ActuatorSaturationError`, for that state.
+    """
+
+    def __init__(self, index: int, needed, limit):
+        self.index = int(index)
+        super().__init__(needed, limit)
+        self.args = (f"state {self.index}: {self.args[0]}",)
+
+
+class BatchUnreachablePoseError(UnreachablePoseError):
+    """A pose of a batch cannot be reached (``index``: the first such state)."""
+
+    def __init__(self, index: int, actuators, shortfall):
+        self.index = int(index)
+        super().__init__(actuators, shortfall)
+        self.args = (f"state {self.index}: {self.args[0]}",)
+
+
+class BatchSingularityError(SingularityError):
+    """A state of a batch is singular (``index``: the first such state)."""
+
+    def __init__(self, index: int, what: str, sigma_min: float):
+        self.index = int(index)
+        super().__init__(what, sigma_min)
+        self.args = (f"state {self.index}: {self.args[0]}",)

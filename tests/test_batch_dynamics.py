@@ -18,7 +18,7 @@ from hexapod_pin.hexapod.batch_dynamics import (
     BatchSingularityError,
     BatchUnreachablePoseError,
 )
-from hexapod_pin.hexapod.dynamics import BatchActuatorSaturationError
+from hexapod_pin.errors import BatchActuatorSaturationError
 from hexapod_pin.errors import InputError, SingularityError, UnreachablePoseError
 
 

@@ -14,7 +14,7 @@ import pytest
 from conftest import geometry_from_reference, load_reference, random_pose
 
 import hexapod_pin as hp
-from hexapod_pin.hexapod.dynamics import BatchActuatorSaturationError
+from hexapod_pin.errors import BatchActuatorSaturationError
 from hexapod_pin.errors import ActuatorSaturationError, InputError
 from hexapod_pin.core.pose import euler_rates_matrix, rotation_from_rpy
 

@@ -51,7 +51,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ActuatorSaturationError, SingularityError, UnreachablePoseError
+from ..errors import (BatchActuatorSaturationError, BatchSingularityError,
+                      BatchUnreachablePoseError)
 from .kinematics import HOME_BRANCH, RAIL_OF, TYPE_I_TOL
 from ..core.checks import as_array
 
@@ -114,38 +115,6 @@ class BatchReducedDynamics:
 
     def __iter__(self):
         return iter((self.mass_matrix, self.bias))
-
-
-class BatchActuatorSaturationError(ActuatorSaturationError):
-    """A state of a batch needs more actuator force than the bounds allow.
-
-    Attributes:
-        index: index of the first offending state.
-        needed, limit: as in :class:`ActuatorSaturationError`, for that state.
-    """
-
-    def __init__(self, index: int, needed, limit):
-        self.index = int(index)
-        super().__init__(needed, limit)
-        self.args = (f"state {self.index}: {self.args[0]}",)
-
-
-class BatchUnreachablePoseError(UnreachablePoseError):
-    """A pose of a batch cannot be reached (``index``: the first such state)."""
-
-    def __init__(self, index: int, carriages, shortfall):
-        self.index = int(index)
-        super().__init__(carriages, shortfall)
-        self.args = (f"state {self.index}: {self.args[0]}",)
-
-
-class BatchSingularityError(SingularityError):
-    """A state of a batch is singular (``index``: the first such state)."""
-
-    def __init__(self, index: int, what: str, sigma_min: float):
-        self.index = int(index)
-        super().__init__(what, sigma_min)
-        self.args = (f"state {self.index}: {self.args[0]}",)
 
 
 # --------------------------------------------------------------------------------------

@@ -1,0 +1,64 @@
+"""The singularity measures of every parallel robot: one definition, used everywhere.
+
+Every route, CLI command and plot that reports a condition number or a distance to a
+singularity calls these functions (see :class:`~hexapod_pin.core.results.SingularityMeasures`
+for the definitions and their units).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .results import SingularityMeasures
+
+
+def condition_number(singular_values: np.ndarray | None) -> float:
+    """``sigma_max / sigma_min`` from singular values in descending order (last axis).
+
+    ``inf`` where ``sigma_min == 0`` or the values are None (a type-I singularity).
+    Works on one set (returns a float) or a stack (returns an array).
+    """
+    if singular_values is None:
+        return math.inf
+    sv = np.asarray(singular_values, dtype=float)
+    top, low = sv[..., 0], sv[..., -1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.where(low > 0.0, top / np.where(low > 0.0, low, 1.0), np.inf)
+    return float(out) if out.ndim == 0 else out
+
+
+def closure_matrix_hat(directions: np.ndarray, moments: np.ndarray,
+                       characteristic_length: float) -> np.ndarray:
+    """The dimensionless closure matrix ``A_hat`` with rows ``[e_i, m_i / length]``.
+
+    Args:
+        directions: unit directions ``e_i`` of each chain's last link, (..., n, d).
+        moments: ``r_i x e_i`` (..., n, 3) in space, (..., n) or (..., n, 1) in the plane.
+        characteristic_length: the length dividing the angular columns (m), > 0.
+    """
+    mom = np.asarray(moments, dtype=float)
+    if mom.ndim == np.ndim(directions) - 1:
+        mom = mom[..., None]
+    return np.concatenate([np.asarray(directions, dtype=float),
+                           mom / characteristic_length], axis=-1)
+
+
+def singularity_measures(jacobian: np.ndarray | None, cosines: np.ndarray,
+                         a_hat: np.ndarray, characteristic_length: float
+                         ) -> SingularityMeasures:
+    """Assemble :class:`SingularityMeasures` of one pose.
+
+    Args:
+        jacobian: ``J`` (n_act, dim), or None at a type-I singularity.
+        cosines: ``|cos|`` between each chain's last link and its actuator direction (n_act,).
+        a_hat: :func:`closure_matrix_hat` of the pose (n, dim).
+        characteristic_length: the length used in ``a_hat`` (m).
+    """
+    cosines = np.abs(np.asarray(cosines, dtype=float))
+    worst = int(np.argmin(cosines))
+    sv_a = np.linalg.svd(a_hat, compute_uv=False)
+    sv_j = None if jacobian is None else np.linalg.svd(jacobian, compute_uv=False)
+    return SingularityMeasures(sv_j, condition_number(sv_j), float(cosines[worst]), worst,
+                               float(sv_a[-1]), sv_a, float(characteristic_length))
