@@ -139,15 +139,14 @@ class Mechanism:
         """name -> (kind "id" / "fd", fn(i)) ; fd returns the tree acceleration (Pinocchio
         v order, 1-DoF joints only for MuJoCo)."""
         clm, raw, st, f = self.clm, self.raw, self.states, self.forces
-        sel = raw.selection
 
         out = {
             "ours FD pinocchio": ("fd", lambda i: hpd.forward_dynamics_tree(
-                clm, st[i][0], st[i][1], sel @ f[i], method="pinocchio").a),
+                clm, st[i][0], st[i][1], f[i], method="pinocchio").a),
             "ours FD kkt": ("fd", lambda i: hpd.forward_dynamics_tree(
-                clm, st[i][0], st[i][1], sel @ f[i], method="kkt").a),
+                clm, st[i][0], st[i][1], f[i], method="kkt").a),
             "ours FD qp": ("fd", lambda i: hpd.forward_dynamics_tree(
-                clm, st[i][0], st[i][1], sel @ f[i], method="qp").a),
+                clm, st[i][0], st[i][1], f[i], method="qp").a),
             "raw constraintDynamics": ("fd", lambda i: raw.forward(st[i][0], st[i][1], f[i])),
             "raw crba+KKT": ("fd", lambda i: raw.forward_kkt(st[i][0], st[i][1], f[i])),
             "ours ID kkt": ("id", lambda i: hpd.inverse_dynamics_tree(

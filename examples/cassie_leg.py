@@ -71,9 +71,7 @@ def main() -> None:
     v = 0.1 * null @ rng.normal(size=null.shape[1])
     springs = robots.cassie_spring_torques(cassie, q)
     u = rng.uniform(-0.5, 0.5, cassie.n_actuated)
-    tau = springs.copy()
-    tau[cassie.actuated_v] += u
-    fd = forward_dynamics_tree(cassie, q, v, tau, method="kkt")
+    fd = forward_dynamics_tree(cassie, q, v, u, tau_ext=springs, method="kkt")
     drift = cassie.constraint_drift(q, v)
     print(f"forward dynamics: max |a| = {np.abs(fd.a).max():.3g}, "
           f"|J_c a + gamma| = {np.abs(cassie.constraint_jacobian(q) @ fd.a + drift).max():.1e}")

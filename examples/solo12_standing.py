@@ -73,10 +73,8 @@ def main() -> None:
           f"(bound {robots.SOLO12_TORQUE_LIMIT} N m)")
 
     # (c) constrained forward dynamics of those torques
-    tau = np.zeros(solo.nv)
-    tau[solo.actuated_v] = moving.actuator_forces
     for method in ("pinocchio", "qp", "kkt"):
-        fd = forward_dynamics_tree(solo, q, v, tau, method=method)
+        fd = forward_dynamics_tree(solo, q, v, moving.actuator_forces, method=method)
         err = np.max(np.abs(fd.a[:6] - a_base))
         print(f"(c) forward dynamics ({method:9s}): base acceleration error {err:.1e}")
     data = solo.model.createData()

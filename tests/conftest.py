@@ -8,6 +8,7 @@ import pinocchio as pin
 import pytest
 
 import hexapod_pin as hp
+from hexapod_pin.core.dynamics import forward_dynamics_tree
 
 SECOND_GEOMETRY = dict(rail_radius=0.40, platform_radius=0.10, leg_length=0.50, carriage_home=0.18)
 # copy of shared/reference/reference_states.json (states computed by an independent implementation)
@@ -88,3 +89,12 @@ def fd_constraint_jacobian(model, q, h=1e-6):
         cols.append((model.residual(pin.integrate(model.model, q, dv))
                      - model.residual(pin.integrate(model.model, q, -dv))) / (2 * h))
     return np.array(cols).T
+
+
+def forward_dynamics_full_tau(clm, q, v, tau, method="pinocchio"):
+    """``forward_dynamics_tree`` for a full generalised force ``tau`` (nv,): its actuated
+    entries as the actuator forces, the rest as the external force."""
+    tau = np.asarray(tau, dtype=float)
+    tau_ext = tau.copy()
+    tau_ext[clm.actuated_v] = 0.0
+    return forward_dynamics_tree(clm, q, v, tau[clm.actuated_v], tau_ext, method=method)

@@ -13,7 +13,9 @@ import pytest
 from conftest import random_pose
 
 import hexapod_pin as hp
-from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+from conftest import forward_dynamics_full_tau
+
+from hexapod_pin.core.dynamics import inverse_dynamics_tree
 from hexapod_pin.errors import SingularityError
 from hexapod_pin.hexapod.kinematics import HOME_BRANCH
 from hexapod_pin.hexapod.platform_map import Legs
@@ -139,7 +141,7 @@ def test_single_routes_match_the_generic_tree_solvers(any_robot, rng):
         assert res.method == "qp" and res.status == "solved" and res.iterations == 0
         tau = tau_ext.copy()
         tau[clm.actuated_v] += tree.actuator_forces
-        fwd_tree = forward_dynamics_tree(clm, q, v, tau, method="kkt")
+        fwd_tree = forward_dynamics_full_tau(clm, q, v, tau, method="kkt")
         for method in ("pinocchio", "nullspace", "kkt", "qp"):
             fwd = robot.forward_dynamics(pose, twist, tree.actuator_forces, wrench, method=method)
             np.testing.assert_allclose(fwd.tree_acceleration, fwd_tree.a, atol=1e-10)

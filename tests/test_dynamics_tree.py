@@ -15,6 +15,8 @@ from hexapod_pin.core.closed_loop import ClosedLoopModel
 from hexapod_pin.hexapod.geometry import hexapod_urdf
 from hexapod_pin.core.description import build_model, parse_loops
 from hexapod_pin.hexapod.dynamics import ClosedLoopDynamics, dynamics_of
+from conftest import forward_dynamics_full_tau
+
 from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.errors import ActuatorSaturationError, InputError
 
@@ -62,7 +64,7 @@ def test_forward_routes_satisfy_the_equations_and_agree(any_robot, rng):
         tau = _tau(clm, rng)
         gamma = clm.constraint_drift(q, v)
         jac = clm.constraint_jacobian(q)
-        results = {m: forward_dynamics_tree(clm, q, v, tau, m) for m in FD_METHODS}
+        results = {m: forward_dynamics_full_tau(clm, q, v, tau, m) for m in FD_METHODS}
         for method, res in results.items():
             assert res.method == method and res.rank == 18
             assert _eom_residual(clm, q, v, res.a, tau, res.multipliers) < 1e-10
@@ -78,7 +80,7 @@ def test_multiplier_of_a_point_closure_is_the_force_on_the_leg_tip(robot, rng):
     at the tip plus the weight must equal the rate of angular momentum of the rod."""
     clm = robot.model
     q, v = _state(robot, clm, rng)
-    res = forward_dynamics_tree(clm, q, v, _tau(clm, rng), "pinocchio")
+    res = forward_dynamics_full_tau(clm, q, v, _tau(clm, rng), "pinocchio")
     lam0 = res.multipliers[:3]  # closure tip_0 on leg_0_tip, world axes
     model, data = clm.model, clm.model.createData()
     pin.forwardKinematics(model, data, q, v, res.a)
@@ -109,7 +111,7 @@ def test_inverse_routes_invert_forward_dynamics(any_robot, rng):
     for _ in range(3):
         q, v = _state(any_robot, clm, rng)
         tau = _tau(clm, rng)
-        fwd = forward_dynamics_tree(clm, q, v, tau, "kkt")
+        fwd = forward_dynamics_full_tau(clm, q, v, tau, "kkt")
         for method in ID_METHODS:
             inv = inverse_dynamics_tree(clm, q, v, fwd.a, method=method, bounds=1e3)
             np.testing.assert_allclose(inv.actuator_forces, tau[clm.actuated_v], atol=1e-10)
@@ -123,7 +125,7 @@ def test_inverse_with_external_generalised_force(robot, rng):
     tau_ext = np.zeros(clm.nv)
     tau_ext[robot.indices.platform_v] = rng.normal(size=6)
     tau = _tau(clm, rng) + tau_ext
-    fwd = forward_dynamics_tree(clm, q, v, tau, "pinocchio")
+    fwd = forward_dynamics_full_tau(clm, q, v, tau, "pinocchio")
     inv = {m: inverse_dynamics_tree(clm, q, v, fwd.a, tau_ext=tau_ext, method=m)
            for m in ID_METHODS}
     for res in inv.values():
@@ -150,10 +152,10 @@ def test_redundant_closures_give_finite_correct_answers(robot, rng):
     for _ in range(2):
         q, v = _state(robot, base, rng)
         tau = _tau(base, rng)
-        ref = forward_dynamics_tree(base, q, v, tau, "kkt")
+        ref = forward_dynamics_full_tau(base, q, v, tau, "kkt")
         ref_force = base.constraint_jacobian(q).T @ ref.multipliers
         jac = red.constraint_jacobian(q)
-        results = {m: forward_dynamics_tree(red, q, v, tau, m) for m in FD_METHODS}
+        results = {m: forward_dynamics_full_tau(red, q, v, tau, m) for m in FD_METHODS}
         for method, res in results.items():
             assert np.all(np.isfinite(res.a)) and np.all(np.isfinite(res.multipliers))
             assert res.rank == 18 and "redundant" in res.status
@@ -175,9 +177,9 @@ def test_redundant_closures_at_home_never_nan(robot):
     red = _redundant_model(robot)
     q = robot.home_configuration
     tau = np.zeros(red.nv)
-    res = forward_dynamics_tree(red, q, np.zeros(red.nv), tau, "pinocchio")
+    res = forward_dynamics_full_tau(red, q, np.zeros(red.nv), tau, "pinocchio")
     assert np.all(np.isfinite(res.a)) and np.all(np.isfinite(res.multipliers))
-    ref = forward_dynamics_tree(robot.model, q, np.zeros(red.nv), tau, "kkt")
+    ref = forward_dynamics_full_tau(robot.model, q, np.zeros(red.nv), tau, "kkt")
     np.testing.assert_allclose(res.a, ref.a, atol=1e-10)
 
 
@@ -198,7 +200,7 @@ actuated: [carriage_0, carriage_3]
     ff = np.arange(robot.indices.platform_v.start, robot.indices.platform_v.stop)
     v = weld.complete_velocity(q, ff, 0.3 * rng.normal(size=6))
     tau = rng.normal(size=weld.nv)
-    results = {m: forward_dynamics_tree(weld, q, v, tau, m) for m in FD_METHODS}
+    results = {m: forward_dynamics_full_tau(weld, q, v, tau, m) for m in FD_METHODS}
     for res in results.values():
         assert _eom_residual(weld, q, v, res.a, tau, res.multipliers) < 1e-10
         np.testing.assert_allclose(res.a, results["kkt"].a, atol=1e-10)
@@ -209,7 +211,7 @@ def test_saturation_raises_with_the_needed_forces(robot, rng):
     clm = robot.model
     q, v = _state(robot, clm, rng)
     tau = _tau(clm, rng, scale=200.0)
-    a = forward_dynamics_tree(clm, q, v, tau).a
+    a = forward_dynamics_full_tau(clm, q, v, tau).a
     for method in ID_METHODS:
         with pytest.raises(ActuatorSaturationError) as info:
             inverse_dynamics_tree(clm, q, v, a, bounds=100.0, method=method)
@@ -225,7 +227,7 @@ def test_joint_wrenches_reproduce_the_actuator_forces(robot, rng):
     dyn = dynamics_of(clm)
     q, v = _state(robot, clm, rng)
     tau = _tau(clm, rng)
-    res = forward_dynamics_tree(clm, q, v, tau, "kkt")
+    res = forward_dynamics_full_tau(clm, q, v, tau, "kkt")
     wrenches, tau_rnea = dyn.joint_wrenches(q, v, res.a, res.multipliers)
     np.testing.assert_allclose(tau_rnea, tau, atol=1e-10)
     for i in range(6):
@@ -238,14 +240,19 @@ def test_bad_inputs_raise(robot):
     clm = robot.model
     q = robot.home_configuration
     zero = np.zeros(clm.nv)
-    with pytest.raises(InputError):
-        forward_dynamics_tree(clm, q, zero, zero, method="magic")
+    act = np.zeros(clm.n_actuated)
+    with pytest.raises(InputError, match="method"):
+        forward_dynamics_tree(clm, q, zero, act, method="magic")
     with pytest.raises(InputError):
         inverse_dynamics_tree(clm, q, zero, zero, method="pinocchio")
     with pytest.raises(InputError):
-        forward_dynamics_tree(clm, q, zero[:3], zero)
-    with pytest.raises(InputError):
-        forward_dynamics_tree(clm, q, zero, np.full(clm.nv, np.nan))
+        forward_dynamics_tree(clm, q, zero[:3], act)
+    with pytest.raises(InputError, match="actuator_forces"):
+        forward_dynamics_tree(clm, q, zero, np.full(clm.n_actuated, np.nan))
+    with pytest.raises(InputError, match="actuator_forces"):
+        forward_dynamics_tree(clm, q, zero, zero)      # (nv,) is not the actuators' shape
+    with pytest.raises(InputError, match="tau_ext"):
+        forward_dynamics_tree(clm, q, zero, act, np.full(clm.nv, np.nan))
     with pytest.raises(InputError):
         inverse_dynamics_tree(clm, q, zero, zero, bounds=-1.0)
     with pytest.raises(InputError):

@@ -14,7 +14,9 @@ import scipy.linalg
 from test_robots_sdf import homogeneous
 
 from hexapod_pin.loaders import robots
-from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+from conftest import forward_dynamics_full_tau
+
+from hexapod_pin.core.dynamics import inverse_dynamics_tree
 from hexapod_pin.loaders.sdf import load_sdf
 
 SPRINGS = ("left-knee-shin-joint", "left-tarsus-spring-joint", "right-knee-shin-joint",
@@ -176,17 +178,17 @@ def test_redundant_rows_give_the_answer_of_the_hand_reduced_system(cassie, assem
     jac_r, gamma_r = _hand_reduced(cassie, q, v)
     assert np.linalg.matrix_rank(jac_r) == 10 == jac_r.shape[0]
     a_ref, lam_r = _kkt_forward(cassie, q, v, tau, jac_r, gamma_r)
-    result = forward_dynamics_tree(cassie, q, v, tau, method="kkt")
+    result = forward_dynamics_full_tau(cassie, q, v, tau, method="kkt")
     assert np.all(np.isfinite(result.a)) and np.all(np.isfinite(result.multipliers))
     np.testing.assert_allclose(result.a, a_ref, atol=1e-8 * max(1.0, np.abs(a_ref).max()))
     # same generalised closure force, J^T lambda, although the multipliers differ
     jac = cassie.constraint_jacobian(q)
     np.testing.assert_allclose(jac.T @ result.multipliers, jac_r.T @ lam_r, atol=1e-7)
     # the "pinocchio" route returns the same acceleration (directly or by its fallback)
-    pin_route = forward_dynamics_tree(cassie, q, v, tau, method="pinocchio")
+    pin_route = forward_dynamics_full_tau(cassie, q, v, tau, method="pinocchio")
     np.testing.assert_allclose(pin_route.a, a_ref, atol=1e-8 * max(1.0, np.abs(a_ref).max()))
     # and the ProxSuite Gauss-principle QP (tolerance scaled with the problem's magnitude)
-    qp_route = forward_dynamics_tree(cassie, q, v, tau, method="qp")
+    qp_route = forward_dynamics_full_tau(cassie, q, v, tau, method="qp")
     np.testing.assert_allclose(qp_route.a, a_ref, atol=1e-8 * max(1.0, np.abs(a_ref).max()))
     # inverse dynamics on both: the actuator torques of the reduced system
     for method in ("qp", "kkt"):
@@ -205,18 +207,18 @@ def test_forward_inverse_round_trip(cassie, assembled):
         u0 = 0.5 * rng.normal(size=cassie.n_actuated)
         tau = springs.copy()
         tau[cassie.actuated_v] += u0
-        a = forward_dynamics_tree(cassie, q, v, tau, method="kkt").a
+        a = forward_dynamics_full_tau(cassie, q, v, tau, method="kkt").a
         assert np.max(np.abs(cassie.constraint_jacobian(q) @ a + cassie.constraint_drift(q, v))) \
             < 1e-8
         inv = inverse_dynamics_tree(cassie, q, v, a, tau_ext=springs, method="kkt")
         np.testing.assert_allclose(inv.actuator_forces, u0, atol=1e-9)
-        a_qp = forward_dynamics_tree(cassie, q, v, tau, method="qp").a
+        a_qp = forward_dynamics_full_tau(cassie, q, v, tau, method="qp").a
         np.testing.assert_allclose(a_qp, a, atol=1e-8 * max(1.0, np.abs(a).max()))
         inv_qp = inverse_dynamics_tree(cassie, q, v, a, tau_ext=springs, method="qp")
         np.testing.assert_allclose(inv_qp.actuator_forces, u0, atol=1e-7)
         tau2 = springs.copy()
         tau2[cassie.actuated_v] += inv.actuator_forces
-        a2 = forward_dynamics_tree(cassie, q, v, tau2, method="kkt").a
+        a2 = forward_dynamics_full_tau(cassie, q, v, tau2, method="kkt").a
         np.testing.assert_allclose(a2, a, atol=1e-8 * max(1.0, np.abs(a).max()))
 
 

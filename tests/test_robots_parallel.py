@@ -223,7 +223,7 @@ def test_forward_of_inverse_is_identity(name):
         np.testing.assert_allclose(results[0].actuator_forces, results[1].actuator_forces,
                                    atol=1e-9)
         for method in ("pinocchio", "qp", "kkt"):
-            fd = forward_dynamics_tree(clm, q, v, _tau(clm, results[0].actuator_forces), method)
+            fd = forward_dynamics_tree(clm, q, v, results[0].actuator_forces, method=method)
             assert np.all(np.isfinite(fd.a)) and np.all(np.isfinite(fd.multipliers))
             np.testing.assert_allclose(fd.a, a, atol=1e-8)
 
@@ -243,8 +243,8 @@ def test_five_bar_3d_and_6d_are_the_same_machine(five_bar_6d, five_bar_3d):
     u3 = inverse_dynamics_tree(five_bar_3d, q3, v3, a3).actuator_forces
     np.testing.assert_allclose(u6, u3, atol=1e-10)
     u = rng.normal(size=2)
-    f6 = forward_dynamics_tree(five_bar_6d, q6, v6, _tau(five_bar_6d, u))
-    f3 = forward_dynamics_tree(five_bar_3d, q3, v3, _tau(five_bar_3d, u))
+    f6 = forward_dynamics_tree(five_bar_6d, q6, v6, u)
+    f3 = forward_dynamics_tree(five_bar_3d, q3, v3, u)
     np.testing.assert_allclose(f6.a[five_bar_6d.actuated_v], f3.a[five_bar_3d.actuated_v],
                                atol=1e-9)
 
@@ -270,7 +270,7 @@ def test_redundant_rows_match_the_hand_reduced_system(five_bar_6d):
     sol = np.linalg.solve(kkt, np.concatenate([_tau(clm, u) - bias, -gamma]))
     a_ref, lam_ref = sol[:clm.nv], sol[clm.nv:]
     for method in ("pinocchio", "qp", "kkt"):
-        fd = forward_dynamics_tree(clm, q, v, _tau(clm, u), method)
+        fd = forward_dynamics_tree(clm, q, v, u, method=method)
         assert np.all(np.isfinite(fd.multipliers))
         np.testing.assert_allclose(fd.a, a_ref, atol=1e-9)
         full = clm.constraint_jacobian(q)

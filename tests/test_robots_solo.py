@@ -85,7 +85,7 @@ def test_static_torques_balance_the_weight(solo, standing):
     assert np.all(np.abs(result.actuator_forces) <= robots.SOLO12_TORQUE_LIMIT)
     # holding still: forward dynamics of those torques gives zero acceleration
     for method in ("pinocchio", "qp", "kkt"):
-        fd = forward_dynamics_tree(solo, standing, v, _tau(solo, result.actuator_forces), method)
+        fd = forward_dynamics_tree(solo, standing, v, result.actuator_forces, method=method)
         np.testing.assert_allclose(fd.a, 0.0, atol=1e-9)
 
 
@@ -99,7 +99,7 @@ def test_commanded_base_motion_is_reproduced_by_forward_dynamics(solo, standing,
     inv = inverse_dynamics_tree(solo, standing, v, a, bounds=robots.SOLO12_TORQUE_LIMIT)
     assert inv.residual < 1e-9
     for method in ("pinocchio", "qp", "kkt"):
-        fd = forward_dynamics_tree(solo, standing, v, _tau(solo, inv.actuator_forces), method)
+        fd = forward_dynamics_tree(solo, standing, v, inv.actuator_forces, method=method)
         np.testing.assert_allclose(fd.a[:6], a_base, atol=1e-8)
         np.testing.assert_allclose(fd.a, a, atol=1e-8)
     # Newton-Euler on the whole body, from Pinocchio's centroidal algorithms
@@ -122,7 +122,7 @@ def test_energy_and_virtual_power(solo, standing):
     v_base = np.concatenate([0.1 * rng.normal(size=3), 0.3 * rng.normal(size=3)])
     v, _ = robots.motion_with_base(solo, standing, v_base, np.zeros(6))
     u = rng.uniform(-1, 1, 12)
-    fd = forward_dynamics_tree(solo, standing, v, _tau(solo, u), "kkt")
+    fd = forward_dynamics_tree(solo, standing, v, u, method="kkt")
     model, data = solo.model, solo.model.createData()
 
     def energy(q, vel):
@@ -149,7 +149,7 @@ def test_torque_bounds_use_the_redundancy(solo, standing):
     bounded = inverse_dynamics_tree(solo, standing, v, a, bounds=0.8 * peak)
     assert np.max(np.abs(bounded.actuator_forces)) <= 0.8 * peak * (1 + 1e-9)
     assert bounded.residual < 1e-9
-    fd = forward_dynamics_tree(solo, standing, v, _tau(solo, bounded.actuator_forces), "kkt")
+    fd = forward_dynamics_tree(solo, standing, v, bounded.actuator_forces, method="kkt")
     np.testing.assert_allclose(fd.a, 0.0, atol=1e-9)
     # different torques, same (zero) motion: they differ by internal forces only
     assert np.max(np.abs(bounded.actuator_forces - free.actuator_forces)) > 1e-3

@@ -48,7 +48,7 @@ import pinocchio as pin
 import proxsuite
 
 from ..errors import ActuatorSaturationError, InputError, SolverError
-from .checks import max_abs
+from .checks import as_array, max_abs
 from .closed_loop import ClosedLoopModel
 
 FORWARD_METHODS = ("pinocchio", "qp", "kkt")
@@ -579,21 +579,23 @@ def dynamics_of(clm: ClosedLoopModel) -> ClosedLoopDynamics:
         raise InputError("clm", clm, "expected a ClosedLoopModel") from None
 
 
-def forward_dynamics_tree(clm: ClosedLoopModel, q, v, tau,
+def forward_dynamics_tree(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=None,
                           method: str = "pinocchio") -> TreeForwardDynamics:
     """Constrained forward dynamics of a closed-loop mechanism on its tree.
 
-    Solves ``M a + h = tau + J_c^T lambda`` with ``J_c a = -gamma`` for the tree
-    acceleration ``a`` and the closure multipliers ``lambda`` (conventions in the
-    module docstring).
+    Solves ``M a + h = S^T u + tau_ext + J_c^T lambda`` with ``J_c a = -gamma`` for the
+    tree acceleration ``a`` and the closure multipliers ``lambda`` (conventions in the
+    module docstring). Takes the actuator forces in the shape
+    :func:`inverse_dynamics_tree` returns them, so that the two routes compose.
 
     Args:
         clm: the closed-loop model.
         q: tree configuration (nq,), the closures satisfied.
         v: tree velocity (nv,) with ``J_c v = 0`` (Pinocchio convention: free-flyer
             velocities in the body frame).
-        tau: full generalised force on the tree (nv,): actuation ``S^T u`` plus any
-            external loads mapped to joint space (N, N m).
+        actuator_forces: ``u`` (n_act,), generalised forces of the actuated joints in
+            ``clm.actuated_joints`` order (N for prismatic, N m for revolute joints).
+        tau_ext: generalised external force on the tree (nv,) (N, N m); default zero.
         method: "pinocchio" (``pin.constraintDynamics``; when the closures are
             redundant: proximal, mu = 1e-6, 5 iterations, and the multipliers polished
             to minimum norm by least squares on Pinocchio's ``M``, ``nle``, ``J``), "qp" (Gauss principle, ``min 1/2 (a - a_free)^T M
@@ -608,7 +610,11 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q, v, tau,
         InputError: bad shapes, NaN / inf, unknown method.
         SolverError: the QP did not converge.
     """
-    return dynamics_of(clm).forward(q, v, tau, method)
+    dyn = dynamics_of(clm)
+    u = as_array(actuator_forces, (clm.n_actuated,), "actuator_forces")
+    tau = np.zeros(clm.nv) if tau_ext is None else clm.check_v(tau_ext, "tau_ext").copy()
+    tau[clm.actuated_v] += u
+    return dyn.forward(q, v, tau, method)
 
 
 def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=None,
