@@ -444,7 +444,7 @@ def _forces_of(result):
 
 
 def _fd_out(result) -> np.ndarray:
-    return np.concatenate([np.asarray(result.twist_dot), np.asarray(result.qddot)], axis=-1)
+    return np.concatenate([np.asarray(result.twist_dot), np.asarray(result.actuator_accelerations)], axis=-1)
 
 
 def _pin_platform_state(raw, q, v) -> np.ndarray:

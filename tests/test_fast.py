@@ -52,7 +52,7 @@ def test_single_state_routes_match_the_tree(numba, any_robot, rng):
         fwd = robot.forward_dynamics(pose, twist, forces, wrench)
         acc, qdd = fd.forward_dynamics_full(pose, twist, forces, wrench)
         np.testing.assert_allclose(acc, fwd.twist_dot, rtol=0, atol=1e-10)
-        np.testing.assert_allclose(qdd, fwd.qddot, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(qdd, fwd.actuator_accelerations, rtol=0, atol=1e-10)
         np.testing.assert_allclose(fd.forward_dynamics(pose, twist, forces), robot.forward_dynamics(
             pose, twist, forces).twist_dot, rtol=0, atol=1e-10)
         np.testing.assert_allclose(fd.static_forces(pose, wrench, bounded=False),

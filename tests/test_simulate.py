@@ -50,7 +50,7 @@ def test_initial_acceleration_matches_forward_dynamics(robot):
     tau = np.array([3.0, -1.0, 2.0, 0.5, -2.0, 1.0])
     dt = 1e-4
     traj = simulate(robot, 2 * dt, dt, actuator_forces=tau)
-    qddot = robot.forward_dynamics(robot.home_pose, np.zeros(6), tau).qddot
+    qddot = robot.forward_dynamics(robot.home_pose, np.zeros(6), tau).actuator_accelerations
     np.testing.assert_allclose((traj.q[1] - traj.q[0]) * 2 / dt**2, qddot, rtol=1e-3)
 
 

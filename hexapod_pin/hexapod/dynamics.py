@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from functools import cached_property
 from types import MappingProxyType
 
 import numpy as np
@@ -31,6 +30,8 @@ from .batch_dynamics import (  # noqa: F401  (re-exported: part of this module's
 )
 from ..core.checks import max_abs, owned_copy
 from ..core.compiled import all_finite
+from ..core.results import (Energies, ForwardDynamicsResult, InverseDynamicsResult,
+                            ReducedDynamics)
 from ..core.dynamics import (INVERSE_METHODS, QP_SOLVED, QP_STATUS, RESIDUAL_RTOL,
                              ClosedLoopDynamics, dynamics_of)
 from .derivatives import AnalyticDerivatives, analytic_derivatives
@@ -55,15 +56,14 @@ _QP_EPS_REDUCED = 2e-14
 # hexapod: pose / twist-level API
 # --------------------------------------------------------------------------------------
 class _InverseDetails:
-    """The parts of an inverse-dynamics result computed on first access."""
-
-    __slots__ = ("_legs", "a", "force", "pose", "q", "tau", "v", "wrench", "wrenches_wanted",
-                 "ws")
+    """The parts of an inverse-dynamics result computed on first access
+    (:class:`~hexapod_pin.core.results.ResultDetails`)."""
 
     def __init__(self, ws, legs, force, tau, wrench, q, v, a, wrenches_wanted, pose=None):
         self.ws, self._legs, self.force, self.tau, self.wrench = ws, legs, force, tau, wrench
         self.q, self.v, self.a, self.wrenches_wanted = q, v, a, wrenches_wanted
         self.pose = pose
+        self._tips = None
 
     @property
     def legs(self):
@@ -74,9 +74,13 @@ class _InverseDetails:
 
     def tip_forces(self) -> np.ndarray:
         """(6, 3) force of the platform on each leg tip (carriage order), world axes."""
-        if self._legs is None:
-            return self.ws.compiled.tip_forces(self.pose, self.force, self.tau)
-        return np.array(self.ws.pmap.leg_forces(self.legs, self.force, list(self.tau)))
+        if self._tips is None:
+            if self._legs is None:
+                self._tips = self.ws.compiled.tip_forces(self.pose, self.force, self.tau)
+            else:
+                self._tips = np.array(self.ws.pmap.leg_forces(self.legs, self.force,
+                                                              list(self.tau)))
+        return self._tips
 
     def tau_ext(self) -> np.ndarray:
         tau = np.zeros(self.ws.dyn.nv)
@@ -87,81 +91,43 @@ class _InverseDetails:
             tau[self.ws.ff_v] = np.concatenate([rot.T @ wrench[:3], rot.T @ wrench[3:]])
         return tau
 
-
-@dataclass(frozen=True, eq=False)
-class InverseDynamicsResult:
-    """Result of :meth:`HexapodDynamics.inverse_dynamics`.
-
-    The closure forces, multipliers, joint wrenches and residual are computed on first
-    access (they cost more than the actuator forces and are often not needed).
-
-    Attributes:
-        actuator_forces: ``tau`` (6,), force on carriage i along ``+u_k`` (N).
-        closure_forces: (6, 3), row i: the force that leg i's tip exerts on the
-            platform at its spherical joint, world axes (N). The platform exerts the
-            opposite force on the leg. From leg i's three tree equations (carriage and
-            universal-joint rows of ``S^T tau + J_c^T lambda = rnea(q, v, a)``).
-        joint_wrenches: joint name -> (6,) spatial force ``(f, m)`` that the parent
-            body exerts on the child body through that joint, in the joint's LOCAL
-            frame at the joint origin (N, N m), from ``pin.rnea`` with the closure
-            forces and the wrench applied as external forces. For ``carriage_i`` the
-            x component is the actuator force; the passive joints transmit nothing
-            about their axes; ``platform_joint`` (floating, passive) transmits zero.
-            Empty when not requested.
-        multipliers: closure multipliers (18,), see :func:`inverse_dynamics_tree`.
-        configuration, velocity, acceleration: the tree state ``q``, ``v``, ``a``
-            (Pinocchio conventions) the motion maps to.
-        method, status, iterations: solver information.
-        residual: max-abs of the tree equation of motion ``M a + h - tau_ext - S^T tau
-            - J_c^T lambda`` with ``J_c`` from Pinocchio (N, N m): round-off only.
-    """
-
-    actuator_forces: np.ndarray
-    configuration: np.ndarray
-    velocity: np.ndarray
-    acceleration: np.ndarray
-    method: str
-    status: str
-    iterations: int
-    _details: _InverseDetails = field(repr=False)
-
-    @cached_property
     def multipliers(self) -> np.ndarray:
-        ws = self._details.ws
-        return self._details.tip_forces()[ws.leg_of_closure].reshape(-1)
+        return self.tip_forces()[self.ws.leg_of_closure].reshape(-1)
 
-    @cached_property
     def closure_forces(self) -> np.ndarray:
-        return -self._details.tip_forces()
+        return -self.tip_forces()
 
-    @cached_property
     def joint_wrenches(self) -> Mapping[str, np.ndarray]:
-        det = self._details
-        if not det.wrenches_wanted:
+        if not self.wrenches_wanted:
             return MappingProxyType({})
         fext = None
-        if det.wrench is not None:
-            fext = {det.ws.platform_joint: pin.Force(det.tau_ext()[det.ws.ff_v])}
-        table, _ = det.ws.dyn.joint_wrenches(det.q, det.v, det.a, self.multipliers, fext)
+        if self.wrench is not None:
+            fext = {self.ws.platform_joint: pin.Force(self.tau_ext()[self.ws.ff_v])}
+        table, _ = self.ws.dyn.joint_wrenches(self.q, self.v, self.a, self.multipliers(), fext)
         return MappingProxyType(table)
 
-    @cached_property
     def residual(self) -> float:
-        det = self._details
-        dyn = det.ws.dyn
-        full = np.array(det.force) - det.tau_ext()
-        full[dyn.clm.actuated_v] -= self.actuator_forces
-        full -= dyn.constraint_jacobian(det.q).T @ self.multipliers
+        dyn = self.ws.dyn
+        full = np.array(self.force) - self.tau_ext()
+        full[dyn.clm.actuated_v] -= self.tau
+        full -= dyn.constraint_jacobian(self.q).T @ self.multipliers()
         return max_abs(full)
 
 
 class _ForwardDetails:
-    """Closure multipliers of a forward-dynamics result, converted on first access."""
+    """Closure multipliers and forces of a forward-dynamics result, converted on first
+    access (:class:`~hexapod_pin.core.results.ResultDetails`)."""
 
-    __slots__ = ("dyn", "local", "q", "rows")
+    __slots__ = ("dyn", "leg_of_closure", "local", "q", "rows")
 
-    def __init__(self, dyn, q, local=None, rows=None):
+    def __init__(self, dyn, q, leg_of_closure, local=None, rows=None):
         self.dyn, self.q, self.local, self.rows = dyn, q, local, rows
+        self.leg_of_closure = leg_of_closure
+
+    def closure_forces(self) -> np.ndarray:
+        out = np.empty((6, 3))
+        out[self.leg_of_closure] = -self.multipliers().reshape(-1, 3)
+        return out
 
     def multipliers(self) -> np.ndarray:
         if isinstance(self.rows, _LazyTreeMultipliers):
@@ -192,79 +158,6 @@ class _LazyTreeMultipliers:
         force = pin.rnea(ws.dyn.model, ws.dyn.data, self.q, self.v, self.acc)
         tips = ws.compiled.tip_forces(self.pose, force, self.forces)
         return tips[ws.leg_of_closure].reshape(-1)
-
-
-@dataclass(frozen=True, eq=False)
-class ForwardDynamicsResult:
-    """Result of :meth:`HexapodDynamics.forward_dynamics`.
-
-    Attributes:
-        twist_dot: time derivative of the world-axes twist ``(v, w)`` (6,) (m/s^2, rad/s^2).
-        qddot: carriage accelerations (6,) (m/s^2).
-        tree_acceleration: full tree acceleration ``a`` (nv,), Pinocchio convention.
-        closure_forces: (6, 3) force each leg tip exerts on the platform, world axes (N)
-            (computed on first access).
-        multipliers: closure multipliers (18,) (computed on first access).
-        method, status, iterations: solver information.
-    """
-
-    twist_dot: np.ndarray
-    qddot: np.ndarray
-    tree_acceleration: np.ndarray
-    method: str
-    status: str
-    iterations: int
-    _details: _ForwardDetails = field(repr=False)
-    _leg_of_closure: np.ndarray = field(repr=False)
-
-    @cached_property
-    def multipliers(self) -> np.ndarray:
-        return self._details.multipliers()
-
-    @cached_property
-    def closure_forces(self) -> np.ndarray:
-        out = np.empty((6, 3))
-        out[self._leg_of_closure] = -self.multipliers.reshape(-1, 3)
-        return out
-
-
-@dataclass(frozen=True)
-class ReducedDynamics:
-    """Dynamics in platform coordinates: ``J^T tau + wrench = M_x twist_dot + h_x``.
-
-    Unpacks as ``M_x, h_x = robot.reduced_dynamics(pose, twist)``.
-
-    Attributes:
-        mass_matrix: ``M_x = T^T M T`` (6, 6), symmetric positive definite (kg, kg m,
-            kg m^2), with ``T`` the map from the twist to the tree velocity.
-        bias: ``h_x = T^T (M a_0 + h)`` (6,) (N, N m): Coriolis, centrifugal and
-            gravity terms, ``a_0`` the tree acceleration at ``twist_dot = 0``.
-        jacobian: the workspace Jacobian ``J = S T`` (6, 6), ``qdot = J twist``.
-        velocity_map: ``T`` (nv, 6), ``v = T twist``.
-    """
-
-    mass_matrix: np.ndarray
-    bias: np.ndarray
-    jacobian: np.ndarray
-    velocity_map: np.ndarray
-
-    def __iter__(self):
-        return iter((self.mass_matrix, self.bias))
-
-
-@dataclass(frozen=True)
-class Energies:
-    """Mechanical energies of the whole mechanism (J).
-
-    Attributes:
-        kinetic: ``1/2 v^T M v``.
-        potential: gravity potential, zero when every centre of mass is at z = 0.
-        total: their sum.
-    """
-
-    kinetic: float
-    potential: float
-    total: float
 
 
 #: result of :meth:`HexapodDynamics.inverse_dynamics_derivatives` (one class with
@@ -628,10 +521,10 @@ class HexapodDynamics:
             if code != kernels.OK:
                 raise SolverError("null-space forward dynamics", "mass matrix not positive "
                                   "definite", f"M_x = {ck.work[24:30].tolist()}")
-            details = _ForwardDetails(dyn, q, rows=_LazyTreeMultipliers(
+            details = _ForwardDetails(dyn, q, ws.leg_of_closure, rows=_LazyTreeMultipliers(
                 ws, owned_copy(pose_a, pose), q, v, acc, owned_copy(tau_a, actuator_forces)))
-            return ForwardDynamicsResult(twist_dot, acc[0:18:3].copy(), acc, method,
-                                         "solved", 0, details, ws.leg_of_closure)
+            return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
+                                         "solved", 0, details)
         if not all_finite(tau_a) or (wrench_a is not None and not all_finite(wrench_a)):
             self._raise_for(pose, twist=twist, actuator_forces=actuator_forces, wrench=wrench)
         tau = np.zeros(dyn.nv)
@@ -643,15 +536,15 @@ class HexapodDynamics:
             acc, prox = dyn._pin_call(q, v, tau, False)
         if acc is not None:
             acc = acc.copy()
-            details = _ForwardDetails(dyn, q, local=dyn.data.lambda_c.copy())
+            details = _ForwardDetails(dyn, q, ws.leg_of_closure, local=dyn.data.lambda_c.copy())
             status, iters = "solved", int(prox.iter)
         else:
             res = dyn.forward(q, v, tau, method)
             acc, status, iters = res.a, res.status, res.iterations
-            details = _ForwardDetails(dyn, q, rows=res.multipliers)
+            details = _ForwardDetails(dyn, q, ws.leg_of_closure, rows=res.multipliers)
         kernels.twist_dot_of(ck.buf, twist_a, acc[ws.ff_v], twist_dot)
         return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
-                                     status, iters, details, ws.leg_of_closure)
+                                     status, iters, details)
 
     # -- reduced (null-space) dynamics ------------------------------------------------------
     def reduced_dynamics(self, pose, twist) -> ReducedDynamics:

@@ -880,7 +880,7 @@ class FastDynamics:
             def reference():
                 res = self.robot.forward_dynamics(pose, twist, forces,
                                                   None if wrench is _ZERO6 else wrench)
-                return res.twist_dot, res.qddot
+                return res.twist_dot, res.actuator_accelerations
             return self._fail(code, reference)
         return twist_dot, qddot
 
