@@ -94,16 +94,20 @@ def test_simulation_figure_from_a_trajectory_object(tmp_path):
 
 
 def test_conditioning_matches_finite_difference_jacobian(robot):
+    """cond(J) of the unscaled J (columns m/s and rad/s), the library's one definition."""
     poses = np.tile(robot.home_pose, (5, 1))
     poses[:, 2] += np.linspace(-0.1, 0.02, 5)
     poses[:, 4] = 0.05
-    cond = pl.conditioning(robot, poses, characteristic_length=0.1)
+    cond = pl.conditioning(robot, poses)
     for n, pose in enumerate(poses):
-        jac = fd_jacobian(robot, pose) * np.r_[np.ones(3), np.full(3, 10.0)]
-        sv = np.linalg.svd(jac, compute_uv=False)
+        sv = np.linalg.svd(fd_jacobian(robot, pose), compute_uv=False)
         assert cond.condition_number[n] == pytest.approx(sv[0] / sv[-1], rel=1e-6)
         assert cond.inverse_condition[n] == pytest.approx(sv[-1] / sv[0], rel=1e-6)
-    assert cond.reachable.all()
+        assert cond.sigma_min[n] == pytest.approx(sv[-1], rel=1e-6)
+        # the same number as Hexapod.singularity reports
+        assert cond.condition_number[n] == pytest.approx(
+            robot.singularity(pose).condition_number, rel=1e-12)
+    assert cond.reachable.all() and cond.ok.all()
 
 
 def test_conditioning_marks_unreachable_poses(robot, tmp_path):
@@ -114,6 +118,7 @@ def test_conditioning_marks_unreachable_poses(robot, tmp_path):
     assert cond.condition_number[1] == np.inf and cond.inverse_condition[1] == 0.0
     fig = pl.plot_conditioning(robot, poses, path=tmp_path / "c.png")
     assert len(fig.axes) == 2 and (tmp_path / "c.png").stat().st_size > 10000
+    assert fig.axes[0].get_ylabel() == pl.CONDITION_LABEL
 
 
 def test_workspace_slice_status_from_independent_geometry(robot, tmp_path):
@@ -139,6 +144,15 @@ def test_workspace_slice_status_from_independent_geometry(robot, tmp_path):
             assert np.isfinite(ws.condition_number[iy, ix]) == ok
     fig = pl.plot_workspace_slice(ws, path=tmp_path / "ws.png")
     assert any("condition" in ax.get_ylabel() for ax in fig.axes)   # the colour bar
+    assert any(pl.CONDITION_LABEL in ax.get_ylabel() for ax in fig.axes)
+    # the colours are the condition numbers of workspace.evaluate, the library's measure
+    shown = fig.axes[0].images[1].get_array()
+    ok = ws.status == pl.REACHABLE
+    np.testing.assert_allclose(np.ma.filled(shown, np.nan)[ok], np.log10(ws.condition_number[ok]))
+    iy, ix = np.argwhere(ok)[len(np.argwhere(ok)) // 2]
+    pose = np.array([ws.x[ix], ws.y[iy], 0.30, 0.0, 0.0, 0.0])
+    assert ws.condition_number[iy, ix] == pytest.approx(
+        robot.singularity(pose).condition_number, rel=1e-12)
     assert png_pixels(tmp_path / "ws.png").std() > 10
 
 

@@ -17,6 +17,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import hexapod_pin as hp
+from hexapod_pin.viz import hexapod_scenes as hviz
 from hexapod_pin.viz import scenes as viz
 
 CHROMIUM = next((p for p in (shutil.which("chromium"), "/usr/bin/chromium",
@@ -210,7 +211,7 @@ def test_default_arrow_scale_draws_largest_force_at_fixed_length(robot):
 def test_modes_side_by_side_offsets_and_mirror(robot):
     up = robot.home_pose
     down = up * np.array([1, 1, -1, 1, 1, 1])   # the mirror image assembles the same q
-    qs = viz.hexapod_configurations(robot, [up, down], carriages=[robot.home_q] * 2)
+    qs = hviz.hexapod_configurations(robot, [up, down], carriages=[robot.home_q] * 2)
     np.testing.assert_allclose(qs[:, robot.indices.carriage_q], [robot.home_q] * 2,
                                atol=1e-12)
     scene = viz.modes_scene(robot, qs, spacing=1.5, labels=["up", "down"])
@@ -224,7 +225,7 @@ def test_modes_side_by_side_offsets_and_mirror(robot):
 
 def test_modes_sequence_is_a_discrete_animation(robot):
     up = robot.home_pose
-    qs = viz.hexapod_configurations(robot, [up, up * [1, 1, -1, 1, 1, 1]],
+    qs = hviz.hexapod_configurations(robot, [up, up * [1, 1, -1, 1, 1, 1]],
                                     carriages=[robot.home_q] * 2)
     scene = viz.modes_scene(robot, qs, layout="sequence")
     (anim,) = [c for c in scene.commands if c["type"] == "set_animation"]
@@ -239,7 +240,7 @@ def test_modes_sequence_is_a_discrete_animation(robot):
 def test_trajectory_animation_keys_follow_the_poses(robot, circle):
     t, poses, forces = circle
     fps = 20.0
-    scene = viz.hexapod_trajectory_scene(robot, t, poses, actuator_forces=forces, fps=fps,
+    scene = hviz.hexapod_trajectory_scene(robot, t, poses, actuator_forces=forces, fps=fps,
                                          force_scale=0.02)
     (anim,) = [c for c in scene.commands if c["type"] == "set_animation"]
     assert anim["options"]["play"] is True
@@ -268,18 +269,18 @@ def test_simulation_scene_reads_a_trajectory_object(robot, circle):
         poses = circle[1][:200]
         q = np.array([robot.inverse_kinematics(p) for p in circle[1][:200]])
 
-    scene = viz.simulation_scene(robot, Trajectory(), fps=50)
+    scene = hviz.simulation_scene(robot, Trajectory(), fps=50)
     (anim,) = [c for c in scene.commands if c["type"] == "set_animation"]
     assert any(a["path"].endswith("overlays/actuator_0") for a in anim["animations"])
     with pytest.raises(hp.InputError):
-        viz.simulation_scene(robot, object())
+        hviz.simulation_scene(robot, object())
 
 
 def test_hexapod_configurations_follow_the_carriages_branch(robot):
     pose = robot.home_pose + np.array([0.0, 0.0, -0.05, 0.0, 0.0, 0.0])
     branch = np.array([1.0, 1.0, -1.0, -1.0, -1.0, 1.0])
     wanted = robot.inverse_kinematics(pose, branch=branch, check_limits=False)
-    (q_tree,) = viz.hexapod_configurations(robot, pose, carriages=wanted)
+    (q_tree,) = hviz.hexapod_configurations(robot, pose, carriages=wanted)
     np.testing.assert_allclose(q_tree[robot.indices.carriage_q], wanted, atol=1e-12)
     assert np.abs(robot.model.residual(q_tree)).max() < 1e-12
 
@@ -381,7 +382,7 @@ def test_errors_name_the_bad_input(robot):
     with pytest.raises(hp.InputError, match="urdf"):
         viz.robot_visual(robot.model.model)
     with pytest.raises(hp.UnreachablePoseError):
-        viz.hexapod_configurations(robot, robot.home_pose + [0, 0, 1.0, 0, 0, 0])
+        hviz.hexapod_configurations(robot, robot.home_pose + [0, 0, 1.0, 0, 0, 0])
     with pytest.raises(hp.InputError, match="folder"):
         viz.write_pose_html("/no/such/dir/x.html", robot, q)
 
@@ -396,7 +397,7 @@ def test_writing_starts_no_process(robot, tmp_path, monkeypatch, circle):
     monkeypatch.setattr(subprocess.Popen, "__init__", refuse)
     t, poses, _ = circle
     viz.write_pose_html(tmp_path / "a.html", robot, robot.home_configuration)
-    viz.write_hexapod_trajectory_html(tmp_path / "b.html", robot, t[:300], poses[:300], fps=10)
+    hviz.write_hexapod_trajectory_html(tmp_path / "b.html", robot, t[:300], poses[:300], fps=10)
     monkeypatch.undo()
     assert child_pids() - before == set()
 
@@ -426,7 +427,7 @@ def test_browser_shows_the_home_pose(robot, tmp_path):
 @needs_chromium
 def test_browser_plays_the_trajectory_animation(robot, tmp_path, circle):
     t, poses, forces = circle
-    path = viz.write_hexapod_trajectory_html(tmp_path / "traj.html", robot, t, poses,
+    path = hviz.write_hexapod_trajectory_html(tmp_path / "traj.html", robot, t, poses,
                                              actuator_forces=forces)
     first, status = render(path, tmp_path, "#t=0")
     assert status["ok"] == "true", status
@@ -441,7 +442,7 @@ def test_browser_plays_the_trajectory_animation(robot, tmp_path, circle):
 @needs_chromium
 def test_browser_shows_every_mode(robot, tmp_path):
     up = robot.home_pose
-    qs = viz.hexapod_configurations(robot, [up, up * [1, 1, -1, 1, 1, 1]],
+    qs = hviz.hexapod_configurations(robot, [up, up * [1, 1, -1, 1, 1, 1]],
                                     carriages=[robot.home_q] * 2)
     path = viz.write_modes_html(tmp_path / "modes.html", robot, qs)
     image, status = render(path, tmp_path)

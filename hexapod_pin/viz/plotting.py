@@ -10,23 +10,35 @@ Units: time s, carriage positions m, forces N, residual m (point closures) /
 m, rad (welds). Carriage order and sign conventions as everywhere in hexapod_pin:
 ``q_i`` along ``+u_k`` from the rail midpoint, ``tau_i`` the force on carriage i
 along ``+u_k``.
+
+Every quantity plotted comes from the library, never from a formula written here:
+reachability, strokes and the condition number from
+:func:`hexapod_pin.hexapod.workspace.evaluate`, force capability from
+:func:`hexapod_pin.hexapod.workspace.force_capability`. The condition number is the
+one the library reports everywhere (labelled :data:`CONDITION_LABEL`):
+``sigma_max / sigma_min`` of the workspace Jacobian ``J`` (``qdot = J @ twist``) with
+its columns in m/s and rad/s as :meth:`hexapod_pin.Hexapod.jacobian` returns it.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import HexapodPinError, InputError, UnreachablePoseError
 from ..core.checks import as_array
+from ..errors import HexapodPinError, InputError
+from ..hexapod import workspace
 
 #: colours of carriages 0..5 (rail k has a dark and a light shade)
 CARRIAGE_COLORS = ("#d95f02", "#fdae61", "#1b9e77", "#66c2a5", "#7570b3", "#b3b0d9")
 IMAGE_SUFFIXES = (".png", ".svg", ".pdf")
+#: what every figure calls the condition number: that of ``hexapod_pin.hexapod.workspace``
+#: and ``Hexapod.singularity`` (J as ``Hexapod.jacobian`` returns it, no length scale)
+CONDITION_LABEL = "condition number cond(J), J unscaled (m and rad columns)"
 
 
 class MissingDependencyError(HexapodPinError, ImportError):
@@ -44,6 +56,8 @@ class MissingDependencyError(HexapodPinError, ImportError):
 
 
 def _figure_class():
+    # imported here, not at the top: matplotlib is the optional ``plot`` extra, and a
+    # heavy import that the rest of the library does not need
     try:
         from matplotlib.figure import Figure
     except ImportError:
@@ -214,97 +228,80 @@ def plot_simulation(trajectory, *, path=None, title: str = ""):
 # -- conditioning along a path -----------------------------------------------------------------
 @dataclass(frozen=True)
 class Conditioning:
-    """Conditioning of the workspace Jacobian along a path of poses.
+    """Conditioning of the workspace Jacobian along a path of poses, as
+    :func:`hexapod_pin.hexapod.workspace.evaluate` reports it.
 
-    The angular columns of ``J`` are divided by ``characteristic_length`` (the
-    twist taken as ``(v, characteristic_length * w)``), so that all columns are
-    dimensionless and the condition number does not depend on the choice of m
-    vs mm (it still depends on the length chosen).
+    ``condition_number`` is :data:`CONDITION_LABEL`: ``sigma_max / sigma_min`` of ``J``
+    (``qdot = J @ twist``) as :meth:`hexapod_pin.Hexapod.jacobian` returns it, columns in
+    m/s and rad/s, no characteristic length; the number
+    :meth:`hexapod_pin.Hexapod.singularity` and ``workspace.evaluate`` report.
 
     Attributes:
         s: path parameter (N,) (as given, or the sample index).
-        condition_number: ``sigma_max / sigma_min`` of the scaled J (N,), ``inf``
-            where J is singular or a pose is out of reach.
-        inverse_condition: ``sigma_min / sigma_max`` (N,) in [0, 1]: a distance-like
-            measure, 0 at a (type II) singularity and where out of reach.
-        sigma: singular values (N, 6) of the scaled J, descending (NaN out of reach).
-        reachable: (N,) whether each pose is reachable (inverse kinematics
-            without stroke checks).
-        characteristic_length: the length used (m).
+        condition_number: (N,) ``cond(J)`` where ``ok``; ``inf`` elsewhere (out of
+            reach, beyond a stroke limit, or a leg perpendicular to its rail).
+        inverse_condition: (N,) ``1 / condition_number`` in [0, 1]: a distance-like
+            measure, 0 at a (type II) singularity and where not ``ok``.
+        sigma_min: (N,) smallest singular value of ``J`` where ``ok`` (0 elsewhere).
+        reachable: (N,) every leg reaches its platform point.
+        within_stroke: (N,) the carriages respect their strokes and gap.
+        ok: (N,) reachable, within the strokes, and no leg perpendicular to its rail.
     """
 
     s: np.ndarray
     condition_number: np.ndarray
     inverse_condition: np.ndarray
-    sigma: np.ndarray
+    sigma_min: np.ndarray
     reachable: np.ndarray
-    characteristic_length: float
+    within_stroke: np.ndarray
+    ok: np.ndarray
 
 
-def conditioning(robot, poses, s=None, characteristic_length: float | None = None
-                 ) -> Conditioning:
+def conditioning(robot, poses, s=None) -> Conditioning:
     """Condition number of the hexapod's workspace Jacobian along poses (N, 6).
 
     Args:
-        robot: a :class:`hexapod_pin.Hexapod` (uses ``robot.jacobian``).
-        poses: (N, 6) poses (m, rad).
+        robot: a :class:`hexapod_pin.Hexapod`.
+        poses: (N, 6) poses (m, rad), home branch.
         s: path parameter (N,); default ``0..N-1``.
-        characteristic_length: scales the angular columns (m); default the
-            platform radius.
 
     Raises:
-        InputError: bad shapes or a non-positive length.
+        InputError: bad shapes.
     """
     poses = as_array(poses, (6,), "poses", batch=True)
     s = np.arange(len(poses), dtype=float) if s is None else _series(s, "s", len(poses))
-    length = robot.geometry.platform_radius if characteristic_length is None \
-        else float(characteristic_length)
-    if not (np.isfinite(length) and length > 0):
-        raise InputError("characteristic_length", characteristic_length, "must be > 0 (m)")
-    scale = np.concatenate([np.ones(3), np.full(3, 1.0 / length)])
-    sigma = np.full((len(poses), 6), np.nan)
-    reachable = np.zeros(len(poses), dtype=bool)
-    for n, pose in enumerate(poses):
-        try:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                jac = robot.jacobian(pose)
-        except UnreachablePoseError:
-            continue
-        if not np.all(np.isfinite(jac)):   # a leg exactly perpendicular to its rail
-            reachable[n] = True
-            sigma[n] = np.r_[np.inf, np.zeros(5)]
-            continue
-        reachable[n] = True
-        sigma[n] = np.linalg.svd(jac * scale, compute_uv=False)
-    smax, smin = sigma[:, 0], sigma[:, -1]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inverse = np.where(reachable & (smax > 0) & np.isfinite(smax), smin / smax, 0.0)
-    cond = np.where(inverse > 0, 1.0 / np.where(inverse > 0, inverse, 1.0), np.inf)
-    return Conditioning(s, cond, inverse, sigma, reachable, float(length))
+    m = workspace.evaluate(robot, poses, singularity=False, statics=False)
+    with np.errstate(divide="ignore"):
+        inverse = np.where(np.isfinite(m.condition_number), 1.0 / m.condition_number, 0.0)
+    return Conditioning(s, m.condition_number, inverse, m.sigma_min, m.reachable,
+                        m.within_stroke, m.ok)
 
 
 def plot_conditioning(robot, poses, s=None, *, path=None, s_label: str = "path parameter",
-                      title: str = "", characteristic_length: float | None = None):
-    """Condition number and inverse condition number of J along a path of poses.
+                      title: str = ""):
+    """``cond(J)`` and its inverse along a path of poses (see :func:`conditioning`).
 
-    See :func:`conditioning` for the definitions; unreachable samples are shaded.
+    Samples out of reach are shaded dark grey, those beyond a stroke limit light grey
+    (no condition number is reported there).
     """
-    cond = conditioning(robot, poses, s, characteristic_length)
+    cond = conditioning(robot, poses, s)
     fig = _figure_class()(figsize=(7.5, 5.0))
     top, bottom = fig.subplots(2, 1, sharex=True)
     finite = np.isfinite(cond.condition_number)
     top.semilogy(cond.s[finite], cond.condition_number[finite], color="#7570b3")
-    top.set_ylabel("condition number of J")
+    top.set_ylabel(CONDITION_LABEL, fontsize="small")
     bottom.plot(cond.s, cond.inverse_condition, color="#d95f02")
-    bottom.set_ylabel("sigma_min / sigma_max")
+    bottom.set_ylabel("1 / cond(J)")
     bottom.set_ylim(bottom=0)
     bottom.set_xlabel(s_label)
+    stroke = cond.reachable & ~cond.within_stroke
     for ax in (top, bottom):
         ax.grid(True, which="both", alpha=0.3)
-        for lo, hi in _runs(~cond.reachable, cond.s):
-            ax.axvspan(lo, hi, color="0.85")
-    top.set_title(title or "workspace Jacobian, angular columns / "
-                           f"{cond.characteristic_length:g} m (grey: out of reach)")
+        for mask, shade in ((~cond.reachable, "0.7"), (stroke, "0.88")):
+            for lo, hi in _runs(mask, cond.s):
+                ax.axvspan(lo, hi, color=shade)
+    top.set_title(title or "workspace Jacobian J (dark grey: out of reach, "
+                           "light grey: beyond a stroke limit)", fontsize="medium")
     return _finish(fig, path)
 
 
@@ -331,8 +328,10 @@ class WorkspaceSlice:
             reach its platform point), ``STROKE_LIMIT`` (2: reachable, but a
             carriage leaves its stroke or two carriages of a rail come closer than
             ``carriage_min_gap``).
-        condition_number: (ny, nx) condition number of the scaled workspace
-            Jacobian (see :func:`conditioning`) where status is 0, NaN elsewhere.
+        condition_number: (ny, nx) ``cond(J)`` of
+            :func:`hexapod_pin.hexapod.workspace.evaluate` (:data:`CONDITION_LABEL`)
+            where status is 0 (``inf`` where a leg is perpendicular to its rail), NaN
+            elsewhere.
     """
 
     x: np.ndarray
@@ -349,9 +348,8 @@ class WorkspaceSlice:
 
 
 def workspace_slice(robot, z: float | None = None, orientation: Sequence[float] = (0, 0, 0),
-                    half_width: float | None = None, resolution: int = 61,
-                    progress: Callable[[int, int], None] | None = None) -> WorkspaceSlice:
-    """Sample the reachable platform positions on a horizontal plane.
+                    half_width: float | None = None, resolution: int = 61) -> WorkspaceSlice:
+    """Sample the reachable platform positions on a horizontal plane (home branch).
 
     Args:
         robot: a :class:`hexapod_pin.Hexapod`.
@@ -360,7 +358,6 @@ def workspace_slice(robot, z: float | None = None, orientation: Sequence[float] 
         half_width: the square ``[-w, w]^2`` sampled (m); default: framing the
             reachable region found by a coarse 25 x 25 pass over the rail radius.
         resolution: samples per side (>= 2).
-        progress: called as ``progress(rows_done, rows_total)`` after each grid row.
 
     Raises:
         InputError: bad numbers.
@@ -379,16 +376,30 @@ def workspace_slice(robot, z: float | None = None, orientation: Sequence[float] 
         if not (np.isfinite(width) and width > 0):
             raise InputError("half_width", half_width, "must be finite and > 0 (m)")
     xs = np.linspace(-width, width, int(resolution))
-    status, cond = _sample(robot, xs, xs, z, rpy, progress=progress)
+    m = workspace.evaluate(robot, _slice_poses(xs, z, rpy), singularity=False, statics=False)
+    status = _status(m.reachable, m.within_stroke).reshape(len(xs), len(xs))
+    cond = np.where(status == REACHABLE, m.condition_number.reshape(status.shape), np.nan)
     return WorkspaceSlice(xs, xs.copy(), z, rpy, status, cond)
+
+
+def _slice_poses(xs: np.ndarray, z: float, rpy: np.ndarray) -> np.ndarray:
+    """Poses (len(xs)^2, 6) on the grid ``xs x xs`` at height z, y varying slowest (so
+    that ``reshape(ny, nx)`` gives rows of constant y)."""
+    gx, gy = np.meshgrid(xs, xs)
+    n = gx.size
+    return np.column_stack([gx.ravel(), gy.ravel(), np.full(n, z), np.tile(rpy, (n, 1))])
+
+
+def _status(reachable: np.ndarray, within_stroke: np.ndarray) -> np.ndarray:
+    return np.where(~reachable, OUT_OF_REACH, np.where(within_stroke, REACHABLE, STROKE_LIMIT))
 
 
 def _auto_half_width(robot, z: float, rpy: np.ndarray) -> float:
     """Half width framing the reachable region: a coarse pass over the rail radius."""
     g = robot.geometry
     coarse = np.linspace(-g.rail_radius, g.rail_radius, 25)
-    status, _ = _sample(robot, coarse, coarse, z, rpy, with_condition=False)
-    iy, ix = np.nonzero(status == REACHABLE)
+    ik = robot.inverse_kinematics_batch(_slice_poses(coarse, z, rpy))
+    iy, ix = np.nonzero(ik.ok.reshape(len(coarse), len(coarse)))
     if len(ix) == 0:
         return g.rail_radius
     step = coarse[1] - coarse[0]
@@ -396,37 +407,8 @@ def _auto_half_width(robot, z: float, rpy: np.ndarray) -> float:
     return float(min(1.25 * reach, g.rail_radius))
 
 
-def _sample(robot, xs, ys, z, rpy, with_condition: bool = True, progress=None):
-    status = np.full((len(ys), len(xs)), OUT_OF_REACH, dtype=int)
-    cond = np.full(status.shape, np.nan)
-    scale = np.concatenate([np.ones(3), np.full(3, 1.0 / robot.geometry.platform_radius)])
-    for iy, y in enumerate(ys):
-        for ix, x in enumerate(xs):
-            pose = np.array([x, y, z, *rpy])
-            try:
-                q = robot.inverse_kinematics(pose, check_limits=False)
-            except UnreachablePoseError:
-                continue
-            if robot.stroke_violations(q):
-                status[iy, ix] = STROKE_LIMIT
-                continue
-            status[iy, ix] = REACHABLE
-            if not with_condition:
-                continue
-            with np.errstate(divide="ignore", invalid="ignore"):
-                jac = robot.jacobian(pose)
-            if np.all(np.isfinite(jac)):
-                sv = np.linalg.svd(jac * scale, compute_uv=False)
-                cond[iy, ix] = sv[0] / sv[-1] if sv[-1] > 0 else np.inf
-            else:
-                cond[iy, ix] = np.inf
-        if progress is not None:
-            progress(iy + 1, len(ys))
-    return status, cond
-
-
 def plot_workspace_slice(robot_or_slice, *, path=None, title: str = "", **slice_options):
-    """Map of a workspace slice: condition number where reachable, grey where a stroke
+    """Map of a workspace slice: ``log10 cond(J)`` where reachable, grey where a stroke
     limit is hit, white where a leg cannot reach.
 
     Args:
@@ -445,7 +427,7 @@ def plot_workspace_slice(robot_or_slice, *, path=None, title: str = "", **slice_
     image = ax.imshow(shown, origin="lower", extent=extent, cmap="viridis",
                       interpolation="nearest")
     bar = fig.colorbar(image, ax=ax)
-    bar.set_label("log10 condition number of J")
+    bar.set_label(f"log10 {CONDITION_LABEL}", fontsize="small")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_aspect("equal")
@@ -477,8 +459,6 @@ def plot_force_capability_slice(robot, direction=None, *, z: float | None = None
         the figure (saved to ``path`` when given). White where the pose is outside
         the workspace or gravity alone saturates an actuator.
     """
-    from ..hexapod import workspace
-
     g = robot.geometry
     z = g.home_height if z is None else float(z)
     if int(resolution) != resolution or resolution < 2:
@@ -500,7 +480,8 @@ def plot_force_capability_slice(robot, direction=None, *, z: float | None = None
     ax.set_ylabel("y (m)")
     ax.set_aspect("equal")
     r, p, yw = np.degrees(as_array(orientation, (3,), "orientation"))
-    ax.set_title(title or f"force capability at z = {z:.3f} m, rpy = ({r:.0f}, {p:.0f}, {yw:.0f}) deg")
+    ax.set_title(title or f"force capability at z = {z:.3f} m, "
+                          f"rpy = ({r:.0f}, {p:.0f}, {yw:.0f}) deg")
     return _finish(fig, path)
 
 

@@ -1,0 +1,158 @@
+"""Text files of the library: geometry files in, any text out atomically.
+
+* Geometry files: a TOML, YAML or JSON table of the fields of a geometry dataclass
+  (:class:`~hexapod_pin.hexapod.geometry.HexapodGeometry` by default, any frozen
+  dataclass of numbers and tuples of numbers otherwise), at the top level or under a
+  ``geometry`` table, e.g. ``leg_length = 0.5``; ``FIELD=VALUE`` overrides (the
+  command line's ``--set``) are applied on top. Units are those of the dataclass
+  (SI: m, kg, N).
+* :func:`write_text_atomic`: a file is replaced in one step (a temporary file in
+  the same folder, then ``os.replace``), so a reader never sees half a file.
+
+Motion files (sampled platform motions) live in :mod:`hexapod_pin.motion`, which
+writes through :func:`write_text_atomic`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import yaml
+
+from .errors import DescriptionError, GeometryError, InputError
+from .hexapod.geometry import HexapodGeometry
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10 (tomli is declared for it in pyproject.toml)
+    import tomli as tomllib
+
+#: suffixes of geometry files
+GEOMETRY_SUFFIXES = (".toml", ".yaml", ".yml", ".json")
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
+    """Write UTF-8 text to ``path`` through a temporary file in the same folder.
+
+    The file gets the permissions a plain ``open(path, "w")`` would give (``0o666``
+    less the umask). Returns the path.
+
+    Raises:
+        InputError: the folder does not exist.
+        OSError: the file cannot be written (the temporary file is removed).
+    """
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise InputError("path", str(path), "its folder does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def load_geometry(path: str | os.PathLike | None = None,
+                  overrides: Sequence[str] | None = None,
+                  geometry_type: type = HexapodGeometry):
+    """A geometry from its defaults, a geometry file and ``FIELD=VALUE`` overrides.
+
+    Args:
+        path: TOML / YAML / JSON file of fields (see the module doc); None: defaults.
+        overrides: ``"FIELD=VALUE"`` strings applied after the file; a tuple field
+            takes comma- or space-separated numbers (``platform_inertia=0.004,0.004,0.008``).
+        geometry_type: the dataclass to build (default :class:`HexapodGeometry`).
+
+    Returns:
+        ``geometry_type(**fields)``.
+
+    Raises:
+        DescriptionError: missing, unreadable or malformed file, or a suffix other
+            than .toml, .yaml, .yml, .json.
+        InputError: an override without ``=``.
+        GeometryError: an unknown field, a value that is not a number, or a value the
+            geometry rejects.
+    """
+    fields: dict = {}
+    if path is not None:
+        fields.update(read_geometry_file(path))
+    tuple_fields = _tuple_fields(geometry_type)
+    for item in overrides or []:
+        if "=" not in item:
+            raise InputError("--set", item, "expected FIELD=VALUE")
+        key, value = (s.strip() for s in item.split("=", 1))
+        fields[key] = _override_value(key, value, tuple_fields.get(key))
+    known = {f.name for f in dataclasses.fields(geometry_type)}
+    unknown = sorted(set(fields) - known)
+    if unknown:
+        raise GeometryError(unknown[0], fields[unknown[0]],
+                            f"unknown field; known: {', '.join(sorted(known))}")
+    for key in tuple_fields:
+        if isinstance(fields.get(key), list):
+            fields[key] = tuple(fields[key])
+    try:
+        return geometry_type(**fields)
+    except TypeError as exc:  # e.g. a field given as a table
+        raise GeometryError("geometry", fields, str(exc)) from None
+
+
+def read_geometry_file(path: str | os.PathLike) -> dict:
+    """The table of geometry fields in a TOML / YAML / JSON file (not yet checked).
+
+    Raises:
+        DescriptionError: missing file, unknown suffix, malformed content, or not a table.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DescriptionError(str(path), "geometry file not found")
+    suffix = path.suffix.lower()
+    if suffix not in GEOMETRY_SUFFIXES:
+        raise DescriptionError(str(path), "geometry file must be .toml, .yaml, .yml or .json")
+    text = path.read_text(encoding="utf-8")
+    try:
+        if suffix == ".toml":
+            data = tomllib.loads(text)
+        elif suffix == ".json":
+            data = json.loads(text)
+        else:
+            data = yaml.safe_load(text)
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:
+        raise DescriptionError(str(path), f"malformed {suffix[1:]}: {exc}") from None
+    if isinstance(data, dict) and isinstance(data.get("geometry"), dict):
+        data = data["geometry"]
+    if not isinstance(data, dict):
+        raise DescriptionError(str(path), "expected a table of geometry fields")
+    return data
+
+
+def _tuple_fields(geometry_type: type) -> dict[str, int]:
+    """Fields of the dataclass whose default is a tuple, with the tuple's length."""
+    return {f.name: len(f.default) for f in dataclasses.fields(geometry_type)
+            if isinstance(f.default, tuple)}
+
+
+def _override_value(key: str, text: str, length: int | None):
+    parts = text.replace(",", " ").split()
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        raise GeometryError(key, text, "not a number") from None
+    if length is None:
+        if len(values) != 1:
+            raise GeometryError(key, text, "expected one number")
+        return values[0]
+    if len(values) != length:
+        raise GeometryError(key, text, f"expected {length} numbers")
+    return values
