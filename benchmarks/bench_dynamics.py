@@ -376,7 +376,7 @@ def main(argv=None) -> int:
         _batch_rows(robot, legacy, n, (poses, twists, twist_dots, wrenches, forces), number,
                     repeat)
 
-    pmap = robot._platform_map
+    pmap = robot.platform_map
     integ = ClosedLoopIntegrator(clm, residual=lambda q: pmap.closure_residual(q.tolist()))
     generic = ClosedLoopIntegrator(clm)
     q0, v0 = robot.home_configuration.copy(), np.zeros(clm.nv)

@@ -20,7 +20,6 @@ import pytest
 from conftest import random_pose
 
 import hexapod_pin as hp
-from hexapod_pin.hexapod.derivatives import analytic_derivatives, inverse_dynamics_pose_derivative
 from hexapod_pin.errors import InputError, SingularityError, UnreachablePoseError
 from hexapod_pin.core.pose import euler_rates_matrix, rotation_from_rpy, rpy_from_rotation
 
@@ -73,7 +72,7 @@ def _states(robot, rng, n=2):
 
 # -- against finite differences ----------------------------------------------------------------
 def _check_state(robot, pose, twist, twist_dot, wrench):
-    d = analytic_derivatives(robot, pose, twist, twist_dot, wrench)
+    d = robot.inverse_dynamics_derivatives(pose, twist, twist_dot, wrench)
     tau = _tau(robot, pose, twist, twist_dot, wrench)
     np.testing.assert_allclose(d.actuator_forces, tau, rtol=0, atol=1e-10 * np.abs(tau).max())
     fd_pose = _richardson(lambda s: _tau(robot, pose + s, twist, twist_dot, wrench), 5e-5)
@@ -88,9 +87,6 @@ def _check_state(robot, pose, twist, twist_dot, wrench):
     }
     for name, expected in exact.items():
         assert _rel_err(getattr(d, name), expected) < EXACT_RTOL, name
-    np.testing.assert_allclose(
-        inverse_dynamics_pose_derivative(robot, pose, twist, twist_dot, wrench), d.d_pose,
-        rtol=0, atol=0)
 
 
 def test_matches_finite_differences(any_robot, rng):
@@ -103,7 +99,7 @@ def test_twist_dot_derivative_is_the_reduced_mass_matrix(any_robot, rng):
     """``d tau / d twist_dot = J^-T M_x`` and ``d tau / d wrench = -J^-T`` (crba route)."""
     robot = any_robot
     pose, twist, twist_dot, wrench = next(_states(robot, rng, 1))
-    d = analytic_derivatives(robot, pose, twist, twist_dot, wrench)
+    d = robot.inverse_dynamics_derivatives(pose, twist, twist_dot, wrench)
     red = robot.reduced_dynamics(pose, twist)
     assert _rel_err(d.d_twist_dot, np.linalg.solve(red.jacobian.T, red.mass_matrix)) < 1e-10
     assert _rel_err(d.d_wrench, -np.linalg.inv(red.jacobian.T)) < 1e-10
@@ -113,7 +109,7 @@ def test_static_pose_and_zero_wrench(robot):
     """At rest, without a wrench: d tau / d pose is the derivative of the static forces."""
     pose = robot.home_pose + np.array([0.01, -0.02, 0.005, 0.05, -0.04, 0.1])
     zero = np.zeros(6)
-    d = analytic_derivatives(robot, pose, zero, zero)
+    d = robot.inverse_dynamics_derivatives(pose, zero, zero)
     fd = _richardson(lambda s: robot.static_forces(pose + s, bounded=False), 5e-5)
     assert _rel_err(d.d_pose, fd) < FD_RTOL
     np.testing.assert_allclose(d.actuator_forces, robot.static_forces(pose), atol=1e-12)
@@ -156,7 +152,7 @@ def test_chain_rule_along_a_motion(any_robot):
     rate = (8 * (tau_at(t + h) - tau_at(t - h)) - (tau_at(t + 2 * h) - tau_at(t - 2 * h))) \
         / (12 * h)
     pose, twist, twist_dot, jerk = _path(robot, t, axis)
-    d = analytic_derivatives(robot, pose, twist, twist_dot, wrench)
+    d = robot.inverse_dynamics_derivatives(pose, twist, twist_dot, wrench)
     rest = d.d_twist @ twist_dot + d.d_twist_dot @ jerk
     assert _rel_err(d.d_world @ twist + rest, rate) < FD_RTOL
     pose_rate = np.concatenate([twist[:3], np.linalg.solve(euler_rates_matrix(pose[3:]),
@@ -171,7 +167,7 @@ def test_wrong_conventions_are_detected(robot):
     rng = np.random.default_rng(5)
     pose = robot.home_pose + np.array([0.01, 0.005, -0.01, 0.15, -0.1, 0.3])
     twist, twist_dot, wrench = _motion(rng)
-    d = analytic_derivatives(robot, pose, twist, twist_dot, wrench)
+    d = robot.inverse_dynamics_derivatives(pose, twist, twist_dot, wrench)
     fd = _richardson(lambda s: _tau(robot, pose + s, twist, twist_dot, wrench), 5e-5)
     assert _rel_err(d.d_pose, fd) < FD_RTOL
     flipped = d.d_pose.copy()
@@ -234,28 +230,25 @@ def test_pinocchio_constraint_dynamics_derivatives_on_loop_closures(any_robot, r
 def test_bad_input_raises(robot):
     zero = np.zeros(6)
     with pytest.raises(InputError):
-        analytic_derivatives(robot, np.zeros(5), zero, zero)
+        robot.inverse_dynamics_derivatives(np.zeros(5), zero, zero)
     with pytest.raises(InputError):
-        analytic_derivatives(robot, robot.home_pose, np.full(6, np.nan), zero)
+        robot.inverse_dynamics_derivatives(robot.home_pose, np.full(6, np.nan), zero)
     with pytest.raises(InputError):
-        analytic_derivatives(robot, robot.home_pose, zero, zero, wrench=[1.0, 2.0])
+        robot.inverse_dynamics_derivatives(robot.home_pose, zero, zero, wrench=[1.0, 2.0])
     with pytest.raises(InputError):
-        inverse_dynamics_pose_derivative(robot, robot.home_pose, zero, np.full(6, np.inf))
-    with pytest.raises(InputError):
-        analytic_derivatives(robot.model, robot.home_pose, zero, zero)
-    with pytest.raises(InputError):
-        analytic_derivatives(None, robot.home_pose, zero, zero)
+        robot.inverse_dynamics_derivatives(robot.home_pose, zero, np.full(6, np.inf))
     with pytest.raises(UnreachablePoseError):
-        analytic_derivatives(robot, robot.home_pose + np.array([0, 0, 1.0, 0, 0, 0]), zero, zero)
+        robot.inverse_dynamics_derivatives(robot.home_pose + np.array([0, 0, 1.0, 0, 0, 0]), zero, zero)
     geo = robot.geometry
     flat = np.sqrt(geo.leg_length ** 2 - (geo.rail_radius - geo.platform_radius) ** 2)
     # every leg perpendicular to its rail (|cos| ~ 8e-8 < TYPE_I_TOL: type-I singularity)
     with pytest.raises(SingularityError):
-        analytic_derivatives(robot, np.array([0, 0, flat - 2e-15, 0, 0, 0]), zero, zero)
+        robot.inverse_dynamics_derivatives(np.array([0, 0, flat - 2e-15, 0, 0, 0]), zero, zero)
 
 
 def test_error_carries_the_value(robot):
+    bad = np.array([0.0, 0.0, np.nan, 0.0, 0.0, 0.0])
     with pytest.raises(InputError) as err:
-        analytic_derivatives("hexapod", robot.home_pose, np.zeros(6), np.zeros(6))
-    assert err.value.name == "robot" and err.value.value == "hexapod"
+        robot.inverse_dynamics_derivatives(robot.home_pose, np.zeros(6), bad)
+    assert err.value.name == "twist_dot" and err.value.value is bad
     assert isinstance(err.value, hp.HexapodPinError)

@@ -30,7 +30,7 @@ def _motion(rng):
 
 
 def _tree(robot, pose, twist, twist_dot):
-    pm = robot._platform_map
+    pm = robot.platform_map
     legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
     v, dlegs = pm.velocity(legs, twist.tolist())
     a = pm.acceleration(legs, twist.tolist(), twist_dot.tolist(), v, dlegs)
@@ -67,7 +67,7 @@ def test_tree_state_keeps_the_closures(any_robot, rng):
 
 def test_velocity_map_and_projection(any_robot, rng):
     robot = any_robot
-    pm = robot._platform_map
+    pm = robot.platform_map
     pose = random_pose(robot, rng)
     legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
     gmap = pm.velocity_map(legs)
@@ -85,7 +85,7 @@ def test_velocity_map_and_projection(any_robot, rng):
 
 def test_legs_from_the_tree_and_closed_form_residual(any_robot, rng):
     robot = any_robot
-    pm = robot._platform_map
+    pm = robot.platform_map
     pose = random_pose(robot, rng)
     legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
     again = pm.legs_at(pm.configuration(legs))
@@ -147,12 +147,12 @@ def test_single_routes_match_the_generic_tree_solvers(any_robot, rng):
             np.testing.assert_allclose(fwd.tree_acceleration, fwd_tree.a, atol=1e-10)
             np.testing.assert_allclose(fwd.multipliers, fwd_tree.multipliers, atol=1e-9)
             np.testing.assert_allclose(fwd.twist_dot, twist_dot, atol=1e-10)
-        at_q = robot._actuator_forces_at(q, twist, twist_dot, wrench)
+        at_q = robot.dynamics_part.actuator_forces_at(q, twist, twist_dot, wrench)
         np.testing.assert_allclose(at_q, tree.actuator_forces, atol=1e-10)
 
 
 def test_type_two_singular_leg_matrix_raises(robot):
-    pm = robot._platform_map
+    pm = robot.platform_map
     legs = pm.legs(robot.home_pose.tolist(), HOME_BRANCH.tolist())
     flat = Legs()
     for name in Legs.__slots__:
@@ -163,7 +163,7 @@ def test_type_two_singular_leg_matrix_raises(robot):
 
 
 def test_integrator_with_closed_form_residual_matches_generic(robot):
-    pm = robot._platform_map
+    pm = robot.platform_map
     fast = ClosedLoopIntegrator(robot.model, residual=lambda q: pm.closure_residual(q.tolist()))
     slow = ClosedLoopIntegrator(robot.model)
     q0 = robot.configuration(robot.home_pose + np.array([0.01, 0.0, -0.01, 0.05, 0.0, 0.02]))

@@ -22,7 +22,7 @@ def _motion(rng):
 
 
 def _state(robot, pose, twist, twist_dot, level=2):
-    ck = K.CompiledMap(robot._platform_map, HOME_BRANCH)
+    ck = K.CompiledMap(robot.platform_map, HOME_BRANCH)
     q, v, a = np.empty(25), np.empty(24), np.empty(24)
     code = K.tree_state(ck.geo, pose, twist, twist_dot, ck.signs, level, q, v, a, ck.buf)
     return code, ck, q, v, a
@@ -53,7 +53,7 @@ def test_kernels_equal_the_python_map(any_robot, rng):
     """Same arithmetic as PlatformMap, so the same bits (the Python map stays the
     reference of the lazy parts of the results)."""
     robot = any_robot
-    pm = robot._platform_map
+    pm = robot.platform_map
     pose = random_pose(robot, rng)
     twist, twist_dot = _motion(rng)
     _, ck, q, v, a = _state(robot, pose, twist, twist_dot)
@@ -81,8 +81,8 @@ def test_projection_is_virtual_power_and_solve_is_exact(any_robot, rng):
     tau, mult, jac_t = np.empty(6), np.empty(6), np.empty((6, 6))
     assert K.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, mult, ck.lu, jac_t) == K.OK
     # J^T from Pinocchio's tree: J = S G, with G from the Python map
-    g_map = robot._platform_map.velocity_map(
-        robot._platform_map.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True))
+    g_map = robot.platform_map.velocity_map(
+        robot.platform_map.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True))
     np.testing.assert_allclose(jac_t, g_map[robot.model.actuated_v].T, atol=1e-12)
     np.testing.assert_allclose(np.linalg.solve(jac_t, rhs), tau, rtol=1e-10, atol=1e-10)
     # the QP multipliers: stationarity tau + J mult = 0

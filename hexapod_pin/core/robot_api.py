@@ -161,3 +161,30 @@ class ParallelRobot(Protocol):
                             bounded: bool = True) -> np.ndarray: ...
 
     def reduced_dynamics_batch(self, poses, twists) -> BatchReducedDynamics: ...
+
+
+class delegate:
+    """A facade method served by one of the facade's components (composition).
+
+    ``inverse_dynamics = delegate("dynamics_part", HexapodDynamics.inverse_dynamics)`` in a
+    class body makes ``robot.inverse_dynamics`` the component's bound method itself (no
+    extra call layer), while ``Robot.inverse_dynamics`` is the component's function (its
+    docstring and signature for ``help`` and ``inspect``).
+
+    Args:
+        attribute: name of the facade's attribute holding the component.
+        function: the component class's function to serve.
+    """
+
+    def __init__(self, attribute: str, function):
+        self.attribute = attribute
+        self.function = function
+        self.__doc__ = function.__doc__
+
+    def __set_name__(self, owner, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj, objtype=None):
+        if obj is None:
+            return self.function
+        return getattr(getattr(obj, self.attribute), self.function.__name__)

@@ -49,18 +49,17 @@ is shared between calls: not thread-safe, like the rest of the dynamics.
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dgesv
 
-from ..errors import HexapodPinError, InputError, SingularityError, SolverError
+from ..errors import HexapodPinError, SingularityError, SolverError
 from .kinematics import HOME_BRANCH, RAIL_OF, _floats6
 from .platform_map import TYPE_II_PIVOT_RTOL
 
-__all__ = ["AnalyticDerivatives", "analytic_derivatives", "inverse_dynamics_pose_derivative"]
+__all__ = ["AnalyticDerivatives", "DerivativesWorkspace", "analytic_derivatives"]
 
 
 @dataclass(frozen=True)
@@ -97,24 +96,30 @@ def _euler_rates(pitch: float, yaw: float) -> np.ndarray:
     return np.array(((cy * cp, -sy, 0.0), (sy * cp, cy, 0.0), (-sp, 0.0, 1.0)))
 
 
-class _Workspace:
-    """Pinocchio data, buffers and constants of one robot (cached per robot).
+class DerivativesWorkspace:
+    """Pinocchio data, buffers and constants of one hexapod (each robot keeps one).
+
+    Args:
+        clm: the hexapod's :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`.
+        platform_map: its closed-form platform -> tree map.
+        indices: its :class:`~hexapod_pin.hexapod.robot.HexapodIndices`.
+        geometry: its :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry`.
+
 
     Relies on the tree layout that :class:`~hexapod_pin.platform_map.PlatformMap`
     enforces: velocity rows ``(carriage_i, u_i_a, u_i_b)`` at ``3 i .. 3 i + 2`` for
     ``i = 0..5``, then the platform's free-flyer at 18..23; six point closures.
     """
 
-    def __init__(self, robot):
-        clm = robot.model
+    def __init__(self, clm, platform_map, indices, geometry):
         model = clm.model
         self.model = model
-        self.pmap = robot._platform_map          # raises unless the layout above holds
+        self.pmap = platform_map
         self.signs = HOME_BRANCH.tolist()
         self.nv = model.nv
         self.act = np.asarray(clm.actuated_v, dtype=int)
         if (clm.n_rows != 18 or any(c.type != "point" for c in clm.closures)
-                or self.act.tolist() != robot.indices.carriage_v.tolist()):
+                or self.act.tolist() != indices.carriage_v.tolist()):
             raise HexapodPinError("analytic derivatives need the hexapod's six point "
                                   f"closures and carriage actuation (got {clm.n_rows} "
                                   f"closure rows, actuated velocities {self.act.tolist()})")
@@ -124,7 +129,7 @@ class _Workspace:
         pin.initConstraintDynamics(model, self.data, self.cms, self.cds)
         self.prox = pin.ProximalSettings(1e-14, 0.0, 1)
         self.rail_of = RAIL_OF.tolist()
-        geo = robot.geometry
+        geo = geometry
         self.length = float(geo.leg_length)
         # per carriage: the rail direction u and l = z x u (the rails are horizontal)
         self.axes = [(tuple(u), (-u[1], u[0], 0.0))
@@ -160,25 +165,8 @@ class _Workspace:
                          (0.0, 0.0, 0.0, r10, r11, r12), (0.0, 0.0, 0.0, r20, r21, r22)))
 
 
-_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def _workspace(robot) -> _Workspace:
-    try:
-        ws = _CACHE.get(robot)
-    except TypeError:                          # not weak-referenceable / hashable
-        ws = None
-    if ws is None:
-        from .robot import Hexapod  # local import: hexapod.py imports dynamics
-
-        if not isinstance(robot, Hexapod):
-            raise InputError("robot", robot, "expected a hexapod_pin.Hexapod")
-        ws = _Workspace(robot)
-        _CACHE[robot] = ws
-    return ws
-
-
-def analytic_derivatives(robot, pose, twist, twist_dot, wrench=None) -> AnalyticDerivatives:
+def analytic_derivatives(ws: DerivativesWorkspace, pose, twist, twist_dot,
+                         wrench=None) -> AnalyticDerivatives:
     """Analytic derivatives of the hexapod's inverse-dynamics actuator forces.
 
     The forces are those of ``robot.inverse_dynamics(pose, twist, twist_dot, wrench,
@@ -188,7 +176,7 @@ def analytic_derivatives(robot, pose, twist, twist_dot, wrench=None) -> Analytic
     Exact up to round-off.
 
     Args:
-        robot: a :class:`hexapod_pin.Hexapod` (home IK branch).
+        ws: the robot's :class:`DerivativesWorkspace` (home IK branch).
         pose: ``(x, y, z, roll, pitch, yaw)`` (m, rad), shape (6,).
         twist: ``(v, w)`` of the platform origin, world axes (m/s, rad/s), (6,).
         twist_dot: time derivative of the twist (m/s^2, rad/s^2), (6,).
@@ -201,13 +189,12 @@ def analytic_derivatives(robot, pose, twist, twist_dot, wrench=None) -> Analytic
         carriage i).
 
     Raises:
-        InputError: ``robot`` is not a Hexapod; an argument is not a finite 6-vector.
+        InputError: an argument is not a finite 6-vector.
         UnreachablePoseError: the pose cannot be reached.
         SingularityError: a leg perpendicular to its rail (type I), a leg along its
             rail (gimbal lock) or a type-II singularity.
         SolverError: Pinocchio's constrained dynamics returned non-finite values.
     """
-    ws = _workspace(robot)
     pose = _floats6(pose, "pose")
     twist = _floats6(twist, "twist")
     twist_dot = _floats6(twist_dot, "twist_dot")
@@ -244,7 +231,7 @@ def analytic_derivatives(robot, pose, twist, twist_dot, wrench=None) -> Analytic
     blocks[:, :, 6:8] = blocks[:, :, 6:8] @ np.array(rot).reshape(3, 3).T
 
     # -- the chain (72, 24): rows (dq | dv | dtau_tree), columns (world tangent | twist |
-    #    wrench | tau); its constant part is set up once (see _Workspace)
+    #    wrench | tau); its constant part is set up once (see DerivativesWorkspace)
     g_rows, dv_rows = _leg_rates(ws, legs, twist, vel, dlegs)
     chain = ws.chain
     chain[0:18, 0:6] = chain[24:42, 6:12] = np.array(g_rows)  # dq = G delta, dv = G dtwist
@@ -279,29 +266,7 @@ def analytic_derivatives(robot, pose, twist, twist_dot, wrench=None) -> Analytic
                                sol[:, 18:24], neg[:, 12:18])
 
 
-def inverse_dynamics_pose_derivative(robot, pose, twist, twist_dot, wrench=None) -> np.ndarray:
-    """``d tau / d pose`` (6, 6) of the hexapod's inverse dynamics, analytic.
-
-    Row i: carriage i's force (N, along ``+u_k``); column j: pose coordinate j of
-    ``(x, y, z, roll, pitch, yaw)`` (m, rad), so the units are N/m and N/rad. Twist and
-    twist_dot are held fixed in world axes, the wrench in world axes about the platform
-    origin. Same forces as ``robot.inverse_dynamics(..., method="kkt", bounded=False)``.
-    Method: implicit-function theorem on Pinocchio's constrained forward-dynamics
-    derivatives (:func:`analytic_derivatives`, which also returns the twist,
-    twist_dot, wrench and world-tangent derivatives at no extra cost).
-
-    Args:
-        robot: a :class:`hexapod_pin.Hexapod`.
-        pose, twist, twist_dot, wrench: as in :func:`analytic_derivatives`.
-
-    Raises:
-        InputError, UnreachablePoseError, SingularityError, SolverError: as
-        :func:`analytic_derivatives`.
-    """
-    return analytic_derivatives(robot, pose, twist, twist_dot, wrench).d_pose
-
-
-def _leg_rates(ws: _Workspace, legs, twist, vel, dlegs):
+def _leg_rates(ws: DerivativesWorkspace, legs, twist, vel, dlegs):
     """Leg rows of ``G`` and of ``dv = d(G twist)`` along the six world tangents.
 
     Returns two lists of 18 rows (6 floats each), rows ``3 i, 3 i + 1, 3 i + 2`` for the

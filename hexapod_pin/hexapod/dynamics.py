@@ -29,12 +29,13 @@ from .batch_dynamics import (  # noqa: F401  (re-exported: part of this module's
     check_batch,
 )
 from ..core.checks import max_abs, owned_copy
+from ..core.closed_loop import ClosedLoopModel
 from ..core.compiled import all_finite
 from ..core.results import (Energies, ForwardDynamicsResult, InverseDynamicsResult,
                             ReducedDynamics)
 from ..core.dynamics import (INVERSE_METHODS, QP_SOLVED, QP_STATUS, RESIDUAL_RTOL,
                              ClosedLoopDynamics, dynamics_of)
-from .derivatives import AnalyticDerivatives, analytic_derivatives
+from .derivatives import AnalyticDerivatives, DerivativesWorkspace, analytic_derivatives
 from ..errors import (
     ActuatorSaturationError,
     HexapodPinError,
@@ -181,10 +182,18 @@ class _HexapodWorkspace:
 
 
 class HexapodDynamics:
-    """Dynamics methods of :class:`hexapod_pin.Hexapod` (a mixin).
+    """The hexapod's dynamics at the platform level: the component that
+    :class:`~hexapod_pin.hexapod.robot.Hexapod` delegates its dynamics methods to.
 
-    Needs ``model`` (:class:`ClosedLoopModel`), ``geometry`` and ``indices`` from the
-    host class. Conventions (see the README): pose ``(x, y, z, roll, pitch, yaw)``, twist
+    Args:
+        geometry: the :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry`.
+        model: the hexapod's :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`.
+        indices: where the hexapod's coordinates sit in the tree (``HexapodIndices``).
+        platform_map: the closed-form platform -> tree map of the same robot.
+
+    It keeps its per-robot workspace (Pinocchio data, compiled-map buffers, ProxSuite
+    problems, the derivatives' workspace) as explicit attributes, built on first use.
+ Conventions (see the README): pose ``(x, y, z, roll, pitch, yaw)``, twist
     ``(v, w)`` of the platform origin in world axes, ``twist_dot`` its plain time
     derivative, actuator force ``tau_i`` on carriage i along ``+u_k`` (N), wrench
     ``(f, m)`` applied on the platform by the environment, world axes, moment about the
@@ -203,16 +212,26 @@ class HexapodDynamics:
     :mod:`hexapod_pin.batch_dynamics`; the tests check that both agree to 1e-10.
     """
 
+    def __init__(self, geometry, model: ClosedLoopModel, indices, platform_map: PlatformMap):
+        self.geometry, self.model, self.indices = geometry, model, indices
+        self.platform_map = platform_map
+        self._ws: _HexapodWorkspace | None = None
+        self._derivatives: DerivativesWorkspace | None = None
+
     # -- workspace ---------------------------------------------------------------------
     @property
-    def dynamics(self) -> ClosedLoopDynamics:
+    def tree_dynamics(self) -> ClosedLoopDynamics:
         """The generic dynamics workspace of the hexapod's tree (cached)."""
         return self._workspace().dyn
 
+    @property
+    def platform_velocity_indices(self) -> np.ndarray:
+        """Indices of the platform's free-flyer velocity in the tree's ``v`` (6,)."""
+        return self._workspace().ff_v
+
     def _workspace(self) -> _HexapodWorkspace:
-        ws = self.__dict__.get("_dyn_workspace")
-        if ws is not None:
-            return ws
+        if self._ws is not None:
+            return self._ws
         clm = self.model
         gravity = np.array([0.0, 0.0, -self.geometry.gravity, 0.0, 0.0, 0.0])
         if not np.allclose(clm.model.gravity.vector, gravity, rtol=0.0, atol=0.0):
@@ -233,18 +252,21 @@ class HexapodDynamics:
         limit = self.geometry.max_actuator_force
         bounds = None if not np.isfinite(limit) else np.full(6, limit)
         ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds,
-                               self._platform_map,
+                               self.platform_map,
                                BatchDynamics(self.geometry), HOME_BRANCH.tolist(),
                                clm.model.getJointId("platform_joint"),
-                               kernels.CompiledMap(self._platform_map, HOME_BRANCH))
-        home_q = self.configuration(self.home_pose)
+                               kernels.CompiledMap(self.platform_map, HOME_BRANCH))
+        home_legs = self.platform_map.legs(self.geometry.home_pose.tolist(), ws.signs,
+                                           angles=True)
+        home_q = np.array(self.platform_map.configuration(home_legs))
         dyn._ensure_rank(home_q)
         ws.compiled.check_mass_structure(pin.crba(dyn.model, dyn.data, home_q))
-        self.__dict__["_dyn_workspace"] = ws
+        self._ws = ws
         return ws
 
-    def _tree_state_of(self, pose, twist) -> tuple[np.ndarray, np.ndarray]:
-        """Tree ``(q, v)`` of a platform state (checked 6-vectors)."""
+    def tree_state(self, pose, twist) -> tuple[np.ndarray, np.ndarray]:
+        """Tree configuration ``q`` (nq,) and velocity ``v`` (nv,) (Pinocchio conventions) of
+        a platform pose and twist (6,) each, home branch, in closed form."""
         ws = self._workspace()
         legs = ws.pmap.legs(_floats6(pose, "pose"), ws.signs, angles=True)
         vel, _ = ws.pmap.velocity(legs, _floats6(twist, "twist"))
@@ -393,10 +415,12 @@ class HexapodDynamics:
         status = "solved"
         return sol, status, int(info.iter)
 
-    def _actuator_forces_at(self, q, twist, twist_dot, wrench=None,
-                            method: str = "kkt") -> np.ndarray:
-        """Unbounded ID actuator forces at an assembled tree configuration ``q`` (no checks
-        beyond the singularities): the legs are read from the universal-joint angles."""
+    def actuator_forces_at(self, q, twist, twist_dot, wrench=None,
+                           method: str = "kkt") -> np.ndarray:
+        """Unbounded inverse-dynamics actuator forces (6,) (N) at an assembled tree
+        configuration ``q`` (nq,), for a platform ``twist`` and ``twist_dot`` (6,) and a
+        ``wrench`` (6,) as in :meth:`inverse_dynamics` (no checks beyond the
+        singularities): the legs are read from the universal-joint angles of ``q``."""
         ws = self._workspace()
         legs = ws.pmap.legs_at(np.asarray(q, dtype=float).tolist(), angles=True)
         twist = np.asarray(twist, dtype=float).tolist()
@@ -591,7 +615,7 @@ class HexapodDynamics:
             pose: (6,) (m, rad).
             twist: ``(v, w)`` world axes (6,).
         """
-        q, v = self._tree_state_of(pose, twist)
+        q, v = self.tree_state(pose, twist)
         return self.tree_energies(q, v)
 
     def tree_energies(self, q, v) -> Energies:
@@ -695,4 +719,7 @@ class HexapodDynamics:
         Raises:
             InputError, UnreachablePoseError, SingularityError, SolverError.
         """
-        return analytic_derivatives(self, pose, twist, twist_dot, wrench)
+        if self._derivatives is None:
+            self._derivatives = DerivativesWorkspace(self.model, self.platform_map,
+                                                     self.indices, self.geometry)
+        return analytic_derivatives(self._derivatives, pose, twist, twist_dot, wrench)

@@ -216,9 +216,15 @@ class _LegState:
 
 
 class HexapodKinematics:
-    """Kinematics methods of :class:`hexapod_pin.Hexapod` (a mixin; needs ``geometry``)."""
+    """The hexapod's kinematics: the component that :class:`~hexapod_pin.hexapod.robot.Hexapod`
+    delegates its kinematics methods to.
 
-    geometry = None  # set by Hexapod
+    Args:
+        geometry: the :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry`.
+    """
+
+    def __init__(self, geometry):
+        self.geometry = geometry
 
     # -- shared geometry in carriage order -------------------------------------------
     def _carriage_frames(self):

@@ -17,6 +17,7 @@ import pinocchio as pin
 
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import build_model, load_loops, urdf_dir
+from ..core.robot_api import delegate
 from .dynamics import HexapodDynamics
 from ..errors import AssemblyError
 from .geometry import HexapodGeometry, hexapod_urdf
@@ -51,16 +52,31 @@ class HexapodIndices:
     platform_v: slice
 
 
-class Hexapod(HexapodKinematics, HexapodDynamics):
-    """The rail-driven 6-DoF hexapod.
+class Hexapod:
+    """The rail-driven 6-DoF hexapod: a facade over its components (composition).
+
+    It implements the shared API of every parallel robot
+    (:class:`~hexapod_pin.core.robot_api.ParallelRobot`). The kinematics methods are those of
+    :class:`~hexapod_pin.hexapod.kinematics.HexapodKinematics` (``robot.kinematics_part``),
+    the dynamics methods those of :class:`~hexapod_pin.hexapod.dynamics.HexapodDynamics`
+    (``robot.dynamics_part``); configurations of the tree are computed here.
 
     Args:
         geometry: design parameters; default :class:`HexapodGeometry` ().
+
+    Attributes:
+        geometry: the :class:`HexapodGeometry`.
+        model: the :class:`ClosedLoopModel` (tree + closures) built from the geometry.
+        indices: where the hexapod's coordinates sit in the tree (:class:`HexapodIndices`).
+        pose_dim, n_actuators: 6 and 6.
 
     Example:
         >>> robot = Hexapod.default()
         >>> q = robot.configuration(robot.home_pose)   # Pinocchio q, closures hold
     """
+
+    pose_dim = 6
+    n_actuators = 6
 
     def __init__(self, geometry: HexapodGeometry | None = None):
         self.geometry = HexapodGeometry() if geometry is None else geometry
@@ -74,6 +90,43 @@ class Hexapod(HexapodKinematics, HexapodDynamics):
         self.model.model.gravity = pin.Motion(np.array([0.0, 0.0, -self.geometry.gravity,
                                                         0.0, 0.0, 0.0]))
         self.indices = self._indices()
+        self.platform_map = PlatformMap(self.geometry, self.indices, self.model.nq,
+                                        self.model.nv)
+        self.kinematics_part = HexapodKinematics(self.geometry)
+        self.dynamics_part = HexapodDynamics(self.geometry, self.model, self.indices,
+                                             self.platform_map)
+
+    # -- kinematics (HexapodKinematics) ----------------------------------------------------
+    platform_points_world = delegate("kinematics_part", HexapodKinematics.platform_points_world)
+    inverse_kinematics = delegate("kinematics_part", HexapodKinematics.inverse_kinematics)
+    stroke_violations = delegate("kinematics_part", HexapodKinematics.stroke_violations)
+    check_stroke = delegate("kinematics_part", HexapodKinematics.check_stroke)
+    branch_of = delegate("kinematics_part", HexapodKinematics.branch_of)
+    inverse_kinematics_batch = delegate("kinematics_part",
+                                        HexapodKinematics.inverse_kinematics_batch)
+    jacobian_batch = delegate("kinematics_part", HexapodKinematics.jacobian_batch)
+    jacobian = delegate("kinematics_part", HexapodKinematics.jacobian)
+    twist_from_qdot = delegate("kinematics_part", HexapodKinematics.twist_from_qdot)
+    jacobian_derivative = delegate("kinematics_part", HexapodKinematics.jacobian_derivative)
+    qddot = delegate("kinematics_part", HexapodKinematics.qddot)
+    leg_motion = delegate("kinematics_part", HexapodKinematics.leg_motion)
+    singularity = delegate("kinematics_part", HexapodKinematics.singularity)
+    forward_kinematics = delegate("kinematics_part", HexapodKinematics.forward_kinematics)
+    assembly_modes = delegate("kinematics_part", HexapodKinematics.assembly_modes)
+
+    # -- dynamics (HexapodDynamics) --------------------------------------------------------
+    inverse_dynamics = delegate("dynamics_part", HexapodDynamics.inverse_dynamics)
+    forward_dynamics = delegate("dynamics_part", HexapodDynamics.forward_dynamics)
+    static_forces = delegate("dynamics_part", HexapodDynamics.static_forces)
+    reduced_dynamics = delegate("dynamics_part", HexapodDynamics.reduced_dynamics)
+    energies = delegate("dynamics_part", HexapodDynamics.energies)
+    tree_energies = delegate("dynamics_part", HexapodDynamics.tree_energies)
+    inverse_dynamics_batch = delegate("dynamics_part", HexapodDynamics.inverse_dynamics_batch)
+    forward_dynamics_batch = delegate("dynamics_part", HexapodDynamics.forward_dynamics_batch)
+    static_forces_batch = delegate("dynamics_part", HexapodDynamics.static_forces_batch)
+    reduced_dynamics_batch = delegate("dynamics_part", HexapodDynamics.reduced_dynamics_batch)
+    inverse_dynamics_derivatives = delegate("dynamics_part",
+                                            HexapodDynamics.inverse_dynamics_derivatives)
 
     @classmethod
     def default(cls) -> "Hexapod":
@@ -97,7 +150,12 @@ class Hexapod(HexapodKinematics, HexapodDynamics):
     # -- home ------------------------------------------------------------------------
     @property
     def home_q(self) -> np.ndarray:
-        """Carriage positions at home (m), shape (6,)."""
+        """Carriage positions at home (m), shape (6,) (the same as :attr:`home_actuators`)."""
+        return self.geometry.home_q
+
+    @property
+    def home_actuators(self) -> np.ndarray:
+        """Actuator (carriage) positions at home (m), shape (6,)."""
         return self.geometry.home_q
 
     @property
@@ -111,11 +169,6 @@ class Hexapod(HexapodKinematics, HexapodDynamics):
         return self.configuration(self.home_pose)
 
     # -- pose <-> tree configuration -----------------------------------------------------
-    @cached_property
-    def _platform_map(self) -> PlatformMap:
-        """Closed-form platform -> tree map (shared by the configuration and dynamics)."""
-        return PlatformMap(self.geometry, self.indices, self.model.nq, self.model.nv)
-
     def configuration(self, pose, branch=None) -> np.ndarray:
         """Pinocchio configuration of the tree for a platform pose (closed form).
 
@@ -139,7 +192,7 @@ class Hexapod(HexapodKinematics, HexapodDynamics):
                 1e-12 m (a leg along its first universal axis).
         """
         signs = _HOME_SIGNS if branch is None else check_branch(branch).tolist()
-        pmap = self._platform_map
+        pmap = self.platform_map
         legs = pmap.legs(_floats6(pose, "pose"), signs, angles=True, checks=False)
         q = np.array(pmap.configuration(legs))
         err = pmap.closure_error(legs)
@@ -157,3 +210,7 @@ class Hexapod(HexapodKinematics, HexapodDynamics):
     def carriage_positions(self, q) -> np.ndarray:
         """Carriage positions (6,) read from a Pinocchio configuration (nq,)."""
         return self.model.check_q(q)[self.indices.carriage_q].copy()
+
+    def actuator_positions(self, q) -> np.ndarray:
+        """Actuator (carriage) positions (6,) (m) read from a Pinocchio configuration (nq,)."""
+        return self.carriage_positions(q)

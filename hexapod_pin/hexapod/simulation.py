@@ -193,7 +193,7 @@ class ComputedTorqueController:
         err = np.concatenate([ref.pose[:3] - state.pose[:3], pin.log3(rot_ref @ rot.T)])
         cmd = ref.twist_dot + self.kd * (ref.twist - state.twist) + self.kp * err
         # inverse dynamics at the simulated tree configuration itself (no IK round trip)
-        return self.robot._actuator_forces_at(state.configuration, state.twist, cmd,
+        return self.robot.dynamics_part.actuator_forces_at(state.configuration, state.twist, cmd,
                                               method=self.method)
 
 
@@ -328,18 +328,17 @@ def simulate(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist0=Non
     if wrench is not None and not callable(wrench):
         const_wrench = as_array(wrench, (6,), "wrench")
 
-    ws = robot._workspace()
     clm = robot.model
     idx = robot.indices
     geom = robot.geometry
-    pmap = robot._platform_map
+    pmap = robot.platform_map
     integ = ClosedLoopIntegrator(clm, method, integrator,
                                  residual=lambda q: pmap.closure_residual(q.tolist()))
-    q_tree, v_tree = robot._tree_state_of(pose0, twist0)
+    q_tree, v_tree = robot.dynamics_part.tree_state(pose0, twist0)
     q_tree = q_tree.copy()
     limit = geom.max_actuator_force
     act_v = clm.actuated_v
-    ff_q, ff_v = idx.platform_q, ws.ff_v
+    ff_q, ff_v = idx.platform_q, robot.dynamics_part.platform_velocity_indices
 
     n_steps = max(1, round(duration / dt))
     n_rec = n_steps // record_every + 1

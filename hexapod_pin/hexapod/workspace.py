@@ -169,7 +169,7 @@ def evaluate(robot, poses, payload=None, branch=None, threads: int = 1,
         raise InputError("payload", payload, f"expected (6,) or ({n}, 6)")
     if int(threads) != threads or threads < 1:
         raise InputError("threads", threads, "must be a positive integer")
-    signs = robot._batch_signs(branch, n)
+    signs = robot.kinematics_part._batch_signs(branch, n)
     out = {name: np.empty(n, dtype=bool) for name in ("reachable", "within", "regular")}
     q = np.empty((n, 6))
     cond, smin, t1, t2 = (np.empty(n) for _ in range(4))
@@ -218,7 +218,7 @@ def _chunk(robot, poses, signs, payload, singularity: bool, statics: bool):
     if not (singularity or statics):
         return (batch.q, cond, smin, type_one, type_two, forces,
                 batch.reachable, batch.within_stroke, batch.regular)
-    mids, dirs, pts = robot._carriage_frames()
+    mids, dirs, pts = robot.kinematics_part._carriage_frames()
     arms = np.einsum("nij,kj->nki", rotation_from_rpy(poses[:, 3:]), pts)   # R p_k (n, 6, 3)
     if singularity:
         e = (poses[:, None, :3] + arms - (mids + batch.q[..., None] * dirs)) / g.leg_length
@@ -326,11 +326,11 @@ def leg_reachable(robot, poses, branch=None) -> np.ndarray:
     """Per-leg reach masks (N, 6): leg i can reach its platform point (strokes ignored)."""
     poses = as_array(poses, (6,), "poses", batch=True)
     out = np.empty((poses.shape[0], 6), dtype=bool)
-    signs = robot._batch_signs(branch, poses.shape[0])
+    signs = robot.kinematics_part._batch_signs(branch, poses.shape[0])
     for start in range(0, poses.shape[0], CHUNK):
         sl = slice(start, start + CHUNK)
         chunk_signs = signs[sl] if signs.ndim == 2 else signs
-        _, disc, _, _ = robot._leg_solution(poses[sl], chunk_signs)
+        _, disc, _, _ = robot.kinematics_part._leg_solution(poses[sl], chunk_signs)
         out[sl] = disc >= 0.0
     return out
 
