@@ -17,28 +17,11 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 import hexapod_pin as hp
-from hexapod_pin.cli import main as cli
-from hexapod_pin.cli import app
+from hexapod_pin import files
+from hexapod_pin import motion as motions
+from hexapod_pin.cli import app, common
 
 RUN = CliRunner()
-HAS_FK = hasattr(hp.Hexapod, "forward_kinematics")
-HAS_MODES = hasattr(hp.Hexapod, "assembly_modes")
-HAS_STATICS = hasattr(hp.Hexapod, "static_forces")
-HAS_ID = hasattr(hp.Hexapod, "inverse_dynamics")
-try:
-    from hexapod_pin.hexapod import simulation as _simulate
-
-    HAS_SIM = hasattr(_simulate, "simulate")
-except ImportError:
-    HAS_SIM = False
-needs_fk = pytest.mark.skipif(not HAS_FK, reason="Hexapod.forward_kinematics (issue 4) missing")
-needs_modes = pytest.mark.skipif(not HAS_MODES,
-                                 reason="Hexapod.assembly_modes (issue 4) missing")
-needs_statics = pytest.mark.skipif(not HAS_STATICS,
-                                   reason="Hexapod.static_forces (issue 5) missing")
-needs_id = pytest.mark.skipif(not HAS_ID, reason="Hexapod.inverse_dynamics (issue 5) missing")
-needs_sim = pytest.mark.skipif(not HAS_SIM, reason="hexapod_pin.hexapod.simulation.simulate (issue 5) "
-                                                   "missing")
 HOME_STATIC_FORCE = 1.651   # N, the issue's number for the defaults at home
 
 
@@ -147,7 +130,7 @@ def test_geometry_from_toml_yaml_and_flags(tmp_path):
                   ["--set", "leg_length=0.5", "--set", "carriage_home=0.12"]):
         out = ok_json("ik", *pose, *extra)
         np.testing.assert_allclose(out["q"], [-0.12, 0.12] * 3, atol=1e-12)
-    assert cli.load_geometry(toml).platform_inertia == (0.005, 0.005, 0.009)
+    assert files.load_geometry(toml).platform_inertia == (0.005, 0.005, 0.009)
 
 
 def test_bad_input_is_one_line_nonzero_and_names_the_cause(tmp_path, robot):
@@ -182,7 +165,6 @@ def test_jacobian_matches_finite_differences(robot):
     assert out["condition_number"] == pytest.approx(sv[0] / sv[-1], rel=1e-12)
 
 
-@needs_fk
 def test_fk_inverts_ik(robot):
     pose = robot.home_pose + np.array([0.01, -0.015, -0.02, 0.04, -0.03, 0.08])
     q = independent_ik(robot.geometry, pose)
@@ -190,7 +172,6 @@ def test_fk_inverts_ik(robot):
     np.testing.assert_allclose(out["pose"], pose, atol=1e-9)
 
 
-@needs_modes
 def test_modes_of_home_q_and_their_html(tmp_path, robot):
     html = tmp_path / "modes.html"
     out = ok_json("modes", "--html", html)
@@ -221,7 +202,6 @@ def independent_ik_any_branch(geometry, pose):
 
 
 # -- dynamics -------------------------------------------------------------------------------
-@needs_statics
 def test_statics_home_value_and_load_by_virtual_work(robot):
     out = ok_json("statics")
     np.testing.assert_allclose(out["actuator_forces"], HOME_STATIC_FORCE * np.tile([1, -1], 3),
@@ -234,7 +214,6 @@ def test_statics_home_value_and_load_by_virtual_work(robot):
     np.testing.assert_allclose(jac.T @ dtau, -wrench, atol=1e-5)
 
 
-@needs_statics
 def test_id_at_rest_from_poses_only_equals_statics(tmp_path, robot):
     t = np.linspace(0.0, 0.1, 11)
     path = write_csv(tmp_path / "rest.csv", t, np.tile(robot.home_pose, (11, 1)))
@@ -242,20 +221,20 @@ def test_id_at_rest_from_poses_only_equals_statics(tmp_path, robot):
     np.testing.assert_allclose(out["actuator_forces"],
                                np.tile(HOME_STATIC_FORCE * np.tile([1, -1], 3), (11, 1)),
                                atol=1e-3)
-    back = cli.read_motion(tmp_path / "with_forces.json")
+    back = motions.read_motion(tmp_path / "with_forces.json")
     np.testing.assert_allclose(back.actuator_forces, out["actuator_forces"])
     np.testing.assert_allclose(back.twists, 0.0, atol=1e-12)
 
 
 def test_motion_rates_from_poses_match_the_exact_circle(robot):
-    exact = cli.circle_motion(robot, radius=0.02, period=1.0, rate=2000.0)
-    estimated = cli.Motion(exact.t, exact.poses)
-    twists, dots = cli.motion_rates(estimated)
+    exact = motions.circle_motion(robot, radius=0.02, period=1.0, rate=2000.0)
+    estimated = motions.Motion(exact.t, exact.poses)
+    twists, dots = motions.motion_rates(estimated)
     np.testing.assert_allclose(twists, exact.twists, atol=1e-5)
     np.testing.assert_allclose(dots[5:-5], exact.twist_dots[5:-5], atol=1e-3)
-    spin = cli.Motion(exact.t, exact.poses * [1, 1, 1, 0, 0, 0]
+    spin = motions.Motion(exact.t, exact.poses * [1, 1, 1, 0, 0, 0]
                       + np.outer(exact.t, [0, 0, 0, 0.1, 0.2, 0.3]))
-    w, _ = cli.motion_rates(spin)
+    w, _ = motions.motion_rates(spin)
     # w = E(rpy) rpy_dot: compare with the rotation's own rate (scipy, central difference)
     n, h = 500, exact.t[1] - exact.t[0]
     rots = [Rotation.from_euler("ZYX", spin.poses[m, 3:][::-1]) for m in (n - 1, n + 1)]
@@ -275,7 +254,6 @@ def test_malformed_motion_files_are_one_line_errors(tmp_path):
     one_line_error(invoke("id", tmp_path / "absent.csv"), "not found")
 
 
-@needs_sim
 def test_simulate_writes_files_and_reports(tmp_path):
     paths = {"out": tmp_path / "sim.json", "html": tmp_path / "sim.html",
              "plot": tmp_path / "sim.png"}
@@ -284,13 +262,12 @@ def test_simulate_writes_files_and_reports(tmp_path):
                   *[a for k, v in paths.items() for a in (f"--{k}", v)])
     assert out["status"] == "completed" and out["samples"] == 101
     assert out["max_closure_residual_m"] < 1e-9 and out["max_tracking_error_m"] < 1e-3
-    motion = cli.read_motion(paths["out"])
+    motion = motions.read_motion(paths["out"])
     assert motion.q.shape == (101, 6) and motion.actuator_forces.shape == (101, 6)
     assert "set_animation" in {c["type"] for c in decode_commands(paths["html"].read_text())}
     assert paths["plot"].stat().st_size > 10000
 
 
-@needs_sim
 def test_simulate_stop_at_a_stroke_limit_is_a_failure_exit():
     result = invoke("simulate", "--controller", "none", "--duration", 0.5, "--json")
     assert result.exit_code == 0       # --json reports, the status says what happened
@@ -319,7 +296,6 @@ def test_view_writes_pose_modes_and_animation_files(tmp_path, robot):
                    "one of")
 
 
-@needs_id
 def test_view_with_forces_draws_arrows(tmp_path):
     path = tmp_path / "f.html"
     ok_json("view", "--forces", "-o", path)
@@ -348,55 +324,21 @@ def test_demo_json_keeps_its_keys_and_writes_html(tmp_path):
     out = ok_json("demo", "--html", html)
     assert out["mobility"] == 6 and out["closure_residual_max_abs_m"] <= 1e-12
     assert out["html"] == str(html) and count(html) >= 25
-    features = {"round_trip": HAS_FK, "statics": HAS_STATICS, "simulation": HAS_SIM}
-    for key, present in features.items():
-        assert (out[key] is not None) or not present, key
-    if HAS_FK:
-        assert out["round_trip"]["error"] < 1e-9
-    if HAS_STATICS:
-        np.testing.assert_allclose(np.abs(out["statics"]["actuator_forces"]),
-                                   HOME_STATIC_FORCE, atol=1e-3)
-    if HAS_SIM:
-        assert out["simulation"]["status"] == "completed"
-    assert len(out["unavailable"]) == sum(not v for v in features.values())
-
-
-def test_demo_degrades_with_a_clear_line_when_a_feature_is_missing(monkeypatch, tmp_path):
-    hidden = {"static_forces", "forward_kinematics"}
-
-    class Older(hp.Hexapod):
-        """A Hexapod from before the kinematics / dynamics issues."""
-
-        def __getattribute__(self, name):
-            if name in hidden:
-                raise AttributeError(name)
-            return super().__getattribute__(name)
-
-    monkeypatch.setattr(cli, "Hexapod", Older)
-    monkeypatch.setattr(cli, "run_simulation",
-                        lambda *a, **k: (_ for _ in ()).throw(
-                            cli.FeatureUnavailableError("hexapod_pin.hexapod.simulation.simulate")))
-    result = invoke("demo", "--no-html")
-    assert result.exit_code == 0, result.output
-    for missing in ("Hexapod.static_forces", "Hexapod.forward_kinematics",
-                    "hexapod_pin.hexapod.simulation.simulate"):
-        assert f"not available in this installation: {missing}" in result.stdout
-    out = ok_json("demo", "--no-html")
-    assert out["statics"] is None and out["round_trip"]["fk_pose"] is None
-    one_line_error(invoke("fk", *[0.1] * 6), "not available", "forward_kinematics")
-    one_line_error(invoke("statics"), "not available", "static_forces")
+    assert out["round_trip"]["error"] < 1e-9
+    np.testing.assert_allclose(np.abs(out["statics"]["actuator_forces"]),
+                               HOME_STATIC_FORCE, atol=1e-3)
+    assert out["simulation"]["status"] == "completed"
 
 
 def test_progress_bars_show_in_a_terminal_and_quiet_silences_them(tmp_path, monkeypatch):
     terminal = functools.partial(Console, force_terminal=True, width=100)
-    monkeypatch.setattr(cli, "Console", terminal)
+    monkeypatch.setattr(common, "Console", terminal)
     t = np.linspace(0.0, 0.05, 6)
     path = write_csv(tmp_path / "rest.csv", t, np.tile(hp.HexapodGeometry().home_pose, (6, 1)))
-    if HAS_ID:
-        noisy = invoke("id", path)
-        assert noisy.exit_code == 0 and "inverse dynamics" in noisy.stderr
-        quiet = invoke("id", path, "--quiet")
-        assert quiet.exit_code == 0 and quiet.stderr == ""
+    noisy = invoke("id", path)
+    assert noisy.exit_code == 0 and "inverse dynamics" in noisy.stderr
+    quiet = invoke("id", path, "--quiet")
+    assert quiet.exit_code == 0 and quiet.stderr == ""
     loud = invoke("view", "-o", tmp_path / "v.html")
     assert "wrote" in loud.stderr
     assert invoke("view", "-o", tmp_path / "v.html", "-q").stderr == ""

@@ -1,0 +1,88 @@
+"""The ``demo`` command: the main job of the library in one command."""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from .. import motion as motions
+from ..hexapod.geometry import HexapodGeometry
+from ..hexapod.robot import Hexapod
+from ..viz import scenes
+from .common import AsJson, Quiet, console, emit_json, fmt, guard, progress_bar, quantity_table
+
+#: the tilted pose of the IK / FK round trip: home plus this offset (m, rad)
+ROUND_TRIP_OFFSET = np.array([0.01, -0.015, -0.02, 0.04, -0.03, 0.08])
+
+
+@guard
+def demo(as_json: AsJson = False,
+         leg_length: Annotated[float | None, typer.Option(help="override leg_length (m)")] = None,
+         html: Annotated[Path | None, typer.Option(
+             help="HTML file of the home pose (default: in the temp folder)")] = None,
+         no_html: Annotated[bool, typer.Option("--no-html", help="write no HTML")] = False,
+         quiet: Quiet = False) -> None:
+    """The main job in one command: home pose, IK/FK round trip, statics, a short
+    simulation, and an HTML view of the home pose."""
+    quiet = quiet or as_json
+    geometry = HexapodGeometry() if leg_length is None else HexapodGeometry(leg_length=leg_length)
+    robot = Hexapod(geometry)
+    q = robot.home_configuration
+    pose = robot.home_pose + ROUND_TRIP_OFFSET
+    q_tilted = robot.inverse_kinematics(pose)
+    back = robot.forward_kinematics(q_tilted)
+    tau = robot.static_forces(robot.home_pose)
+    with progress_bar(quiet, "simulating 0.5 s"):
+        traj = motions.simulate_circle(robot, duration=0.5, dt=1e-3,
+                                       controller="computed-torque", radius=0.01, period=0.5)
+    result = {
+        "home_pose": robot.home_pose,
+        "home_q": robot.home_q,
+        "closure_rows": robot.model.n_rows,
+        "closure_residual_max_abs_m": float(np.max(np.abs(robot.model.residual(q)))),
+        "constraint_rank": robot.model.rank(q).rank,
+        "mobility": robot.model.mobility(q),
+        "round_trip": {"pose": pose, "q": q_tilted, "fk_pose": back,
+                       "error": float(np.max(np.abs(back - pose)))},
+        "statics": {"pose": robot.home_pose, "actuator_forces": tau},
+        "simulation": {"controller": "computed-torque", "duration_s": float(traj.times[-1]),
+                       "samples": len(traj.times), "status": str(traj.status),
+                       "max_closure_residual_m": float(np.max(np.abs(traj.closure_residual))),
+                       "max_tracking_error_m": motions.tracking_error(traj),
+                       "max_abs_actuator_force_n": float(np.max(np.abs(traj.actuator_forces)))},
+        "html": None,
+    }
+    if not no_html:
+        path = html or Path(tempfile.gettempdir()) / "hexapod_pin_demo.html"
+        scenes.write_pose_html(path, robot, q, actuator_forces=tau,
+                               caption="hexapod_pin demo: home pose, static actuator forces")
+        result["html"] = str(path)
+    if as_json:
+        emit_json(result)
+        return
+    console.print(demo_table(result))
+
+
+def demo_table(result: dict):
+    """The demo's results as a table of quantities with their units."""
+    trip, sim = result["round_trip"], result["simulation"]
+    return quantity_table("hexapod_pin demo", {
+        "home pose (x, y, z) (m)": fmt(result["home_pose"][:3], ".6f"),
+        "home pose (roll, pitch, yaw) (rad)": fmt(result["home_pose"][3:], ".3f"),
+        "carriages q (m)": fmt(result["home_q"], "+.3f"),
+        "closure rows / rank": f"{result['closure_rows']} / {result['constraint_rank']}",
+        "mobility of the closed chain": str(result["mobility"]),
+        "max closure residual (m)": f"{result['closure_residual_max_abs_m']:.2e}",
+        "IK of a tilted pose: q (m)": fmt(trip["q"], "+.4f"),
+        "FK(IK(pose)) - pose, max abs (m, rad)": f"{trip['error']:.2e}",
+        "static actuator forces at home (N)": fmt(result["statics"]["actuator_forces"], "+.3f"),
+        "0.5 s simulation (computed torque, 1 cm circle): max tracking error (m)":
+            f"{sim['max_tracking_error_m']:.2e}",
+        "  max closure residual (m) / status":
+            f"{sim['max_closure_residual_m']:.1e} / {sim['status']}",
+        "HTML of the home pose": result["html"] or "not written",
+    })

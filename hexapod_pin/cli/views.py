@@ -1,0 +1,198 @@
+"""Picture commands: ``view`` (a self-contained meshcat HTML page) and ``plot``
+(matplotlib figures)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from .. import motion as motions
+from ..errors import InputError
+from ..viz import hexapod_scenes, plotting, scenes
+from .common import (
+    AsJson,
+    Degrees,
+    GeometryFile,
+    Quiet,
+    SetFields,
+    Values,
+    check_suffix,
+    emit_json,
+    fmt,
+    guard,
+    note,
+    parse_numbers,
+    pose_in,
+    pose_out,
+    progress_bar,
+    robot_of,
+)
+from .kinematics import write_modes
+
+PLOT_KINDS = ("trajectory", "residual", "conditioning", "workspace")
+
+
+@guard
+def view(values: Values = None,
+         out: Annotated[Path, typer.Option("--out", "-o", help="HTML file")] = Path(
+             "hexapod.html"),
+         carriages: Annotated[bool, typer.Option(
+             "--carriages", "-c", help="the values are carriage positions q0..q5 (m)")] = False,
+         all_modes: Annotated[bool, typer.Option(
+             "--modes", help="every assembly mode of the carriage positions given "
+                             "(default home)")] = False,
+         layout: Annotated[str, typer.Option(help="modes: grid, row or sequence")] = "grid",
+         trajectory: Annotated[Path | None, typer.Option(
+             help="animate a motion file (.csv / .json)")] = None,
+         circle: Annotated[float | None, typer.Option(
+             help="animate a circle of this radius (m) about home")] = None,
+         period: Annotated[float, typer.Option(help="period of --circle (s)")] = 2.0,
+         forces: Annotated[bool, typer.Option(
+             "--forces", help="draw actuator forces (statics, or inverse dynamics along "
+                              "a motion) and closure forces")] = False,
+         fps: Annotated[float, typer.Option(help="key frames per second")] = 30.0,
+         degrees: Degrees = False, as_json: AsJson = False, quiet: Quiet = False,
+         geometry: GeometryFile = None, set_: SetFields = None) -> None:
+    """Write a self-contained HTML view (meshcat): a pose (default home), the pose of
+    carriage positions, all assembly modes, or an animated motion."""
+    quiet = quiet or as_json
+    robot = robot_of(geometry, set_)
+    check_suffix("out", out, (".html", ".htm"))
+    carriages = carriages or all_modes
+    if sum([trajectory is not None, circle is not None, bool(values) or carriages]) > 1:
+        raise InputError("view", values, "give one of: values, --trajectory, --circle")
+    if trajectory is not None or circle is not None:
+        motion = (motions.read_motion(trajectory) if trajectory is not None
+                  else motions.circle_motion(robot, circle, period))
+        label = trajectory or f"circle r = {circle:g} m"
+        detail = _view_motion(out, robot, motion, forces, fps, quiet, label)
+        kind = "trajectory"
+    elif all_modes:
+        q = robot.home_q if not values else parse_numbers(values, 6, "q", "q0 .. q5")
+        with progress_bar(quiet, "solving the assembly modes"):
+            poses = list(robot.assembly_modes(q))
+            write_modes(out, robot, q, poses, layout)
+        kind, detail = "modes", {"modes": [pose_out(p, degrees) for p in poses]}
+    else:
+        if carriages:
+            q = parse_numbers(values, 6, "q", "q0 .. q5")
+            pose = robot.forward_kinematics(q)
+        else:
+            pose = pose_in(values, degrees) if values else robot.home_pose
+            q = robot.inverse_kinematics(pose, check_limits=False)
+        _view_pose(out, robot, pose, q, forces)
+        kind, detail = "pose", {"pose": pose_out(pose, degrees), "q": q}
+    note(quiet, f"wrote {out}")
+    if as_json:
+        emit_json({"html": out, "kind": kind, **detail})
+
+
+def _view_motion(out: Path, robot, motion: motions.Motion, forces: bool, fps: float,
+                 quiet: bool, label) -> dict:
+    """The animation of a motion; with ``forces``, the actuator forces of the motion
+    file, or those of inverse dynamics (with the closure forces) when it has none."""
+    tau = closures = None
+    if forces:
+        tau = motion.actuator_forces
+        if tau is None:
+            with progress_bar(quiet, "inverse dynamics", total=len(motion.t)) as progress:
+                tau, closures = motions.inverse_dynamics_along(robot, motion,
+                                                               progress=progress)
+    span = float(motion.t[-1] - motion.t[0])
+    with progress_bar(quiet, "writing HTML"):
+        hexapod_scenes.write_hexapod_trajectory_html(
+            out, robot, motion.t, motion.poses, carriages=motion.q, actuator_forces=tau,
+            closure_forces=closures, fps=fps, caption=f"{label}, {span:g} s")
+    return {"samples": len(motion.t), "duration_s": span}
+
+
+def _view_pose(out: Path, robot, pose: np.ndarray, q: np.ndarray, forces: bool) -> None:
+    """One pose on the branch of carriage positions ``q``; with ``forces``, the actuator
+    and closure forces holding it at rest (inverse dynamics at zero twist)."""
+    tau = closures = None
+    caption = "pose " + fmt(pose, "+.3f")
+    if forces:
+        rest = robot.inverse_dynamics(pose, np.zeros(6), np.zeros(6))
+        tau, closures = rest.actuator_forces, rest.closure_forces
+        caption += " | arrows: actuator forces (magenta), closure forces (teal)"
+    (q_tree,) = hexapod_scenes.hexapod_configurations(robot, pose, q)
+    scenes.write_pose_html(out, robot, q_tree, actuator_forces=tau, closure_forces=closures,
+                           caption=caption)
+
+
+@guard
+def plot(kind: Annotated[str, typer.Argument(
+             help="trajectory | residual | conditioning | workspace")],
+         motion_file: Annotated[Path | None, typer.Argument(
+             help="motion file (trajectory, residual; conditioning: its poses)")] = None,
+         out: Annotated[Path, typer.Option("--out", "-o", help=".png / .svg / .pdf")] = Path(
+             "hexapod.png"),
+         z: Annotated[float | None, typer.Option(help="workspace: slice height (m)")] = None,
+         rpy: Annotated[str | None, typer.Option(
+             help="workspace: orientation 'roll,pitch,yaw'")] = None,
+         half_width: Annotated[float | None, typer.Option(
+             help="workspace: half width of the square (m)")] = None,
+         resolution: Annotated[int, typer.Option(help="workspace: samples per side")] = 61,
+         forces: Annotated[bool, typer.Option(
+             "--forces", help="trajectory: compute actuator forces by inverse dynamics "
+                              "when the file has none")] = False,
+         degrees: Degrees = False, as_json: AsJson = False, quiet: Quiet = False,
+         geometry: GeometryFile = None, set_: SetFields = None) -> None:
+    """Write a figure: carriage positions / forces along a motion, closure residual,
+    cond(J) (J unscaled: m and rad columns) along a motion (default: a vertical sweep),
+    a workspace slice coloured by cond(J)."""
+    quiet = quiet or as_json
+    robot = robot_of(geometry, set_)
+    if kind not in PLOT_KINDS:
+        raise InputError("kind", kind, f"expected one of {', '.join(PLOT_KINDS)}")
+    check_suffix("out", out, plotting.IMAGE_SUFFIXES)
+    if kind in ("trajectory", "residual") and motion_file is None:
+        raise InputError("motion_file", None, f"plot {kind} needs a motion file")
+    if kind == "trajectory":
+        _plot_trajectory(out, robot, motions.read_motion(motion_file), forces, quiet,
+                         str(motion_file))
+    elif kind == "residual":
+        motion = motions.read_motion(motion_file)
+        if motion.closure_residual is None:
+            raise InputError("motion_file", str(motion_file),
+                             "has no closure residual (column 'residual')")
+        plotting.plot_closure_residual(motion.t, motion.closure_residual, path=out)
+    elif kind == "conditioning":
+        if motion_file is not None:
+            motion = motions.read_motion(motion_file)
+            plotting.plot_conditioning(robot, motion.poses, motion.t, path=out,
+                                       s_label="time (s)")
+        else:
+            zs = np.linspace(0.3, 1.2, 200) * robot.home_pose[2]
+            poses = np.tile(robot.home_pose, (len(zs), 1))
+            poses[:, 2] = zs
+            plotting.plot_conditioning(robot, poses, zs, path=out, s_label="height z (m)")
+    else:
+        orientation = (0.0, 0.0, 0.0) if rpy is None else parse_numbers(
+            [rpy], 3, "rpy", "roll pitch yaw")
+        if degrees:
+            orientation = np.radians(orientation)
+        with progress_bar(quiet, "sampling the workspace slice"):
+            ws = plotting.workspace_slice(robot, z=z, orientation=orientation,
+                                          half_width=half_width, resolution=resolution)
+        plotting.plot_workspace_slice(ws, path=out)
+    note(quiet, f"wrote {out}")
+    if as_json:
+        emit_json({"figure": out, "kind": kind})
+
+
+def _plot_trajectory(out: Path, robot, motion: motions.Motion, forces: bool, quiet: bool,
+                     title: str) -> None:
+    """Carriage positions (from the file, else inverse kinematics of the poses) and
+    actuator forces (from the file, else inverse dynamics with ``forces``)."""
+    q = motion.q
+    if q is None:
+        q = np.array([robot.inverse_kinematics(p, check_limits=False) for p in motion.poses])
+    tau = motion.actuator_forces
+    if tau is None and forces:
+        with progress_bar(quiet, "inverse dynamics", total=len(motion.t)) as progress:
+            tau = motions.inverse_dynamics_along(robot, motion, progress=progress).actuator_forces
+    plotting.plot_trajectory(motion.t, q, tau, path=out, title=title)
