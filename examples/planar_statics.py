@@ -2,8 +2,9 @@
 
 Prints the actuator forces that hold the platform at a few poses (gravity -g along y,
 an optional load), then follows a smooth trajectory (a circle of the platform origin with
-a rocking rotation), computes the inverse dynamics along it and plots the three actuator
-forces, dynamic and static, against time.
+a rocking rotation), computes the inverse dynamics and statics along it (the batch
+methods: one compiled kernel over every sample) and plots the three actuator forces,
+dynamic and static, against time.
 
 Usage::
 
@@ -42,7 +43,7 @@ def main(argv: list[str]) -> int:
     g = robot.geometry
     print(f"planar 3-PRR: rail_radius {g.rail_radius} m, platform_radius {g.platform_radius} m, "
           f"link_length {g.link_length} m, gravity {g.gravity} m/s^2 along -y")
-    print(f"home sliders s = {np.array2string(robot.home_s, precision=4)} m")
+    print(f"home sliders s = {np.array2string(robot.home_actuators, precision=4)} m")
     print()
     print(f"{'pose (x, y, theta)':>28} | {'wrench (fx, fy, mz)':>22} | static forces tau (N)")
     cases = [(robot.home_pose, None),
@@ -58,9 +59,8 @@ def main(argv: list[str]) -> int:
 
     times = np.linspace(0.0, 2.0, 121)
     poses, twists, twist_dots = trajectory(times)
-    dynamic = np.array([robot.inverse_dynamics(p, v, a).forces
-                        for p, v, a in zip(poses, twists, twist_dots, strict=True)])
-    static = np.array([robot.static_forces(p) for p in poses])
+    dynamic = robot.inverse_dynamics_batch(poses, twists, twist_dots).actuator_forces
+    static = robot.static_forces_batch(poses)
     print()
     print(f"trajectory: {times.size} samples over {times[-1]:g} s; "
           f"peak |tau| dynamic {np.abs(dynamic).max():.4f} N, static {np.abs(static).max():.4f} N")

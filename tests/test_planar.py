@@ -16,8 +16,9 @@ import yourdfpy
 from hexapod_pin.core.description import build_model
 from hexapod_pin.errors import (AssemblyError, GeometryError, InputError, SingularityError,
                                 StrokeLimitError, UnreachablePoseError)
-from hexapod_pin.planar.robot import (ALL_BRANCHES, Planar3PRR, PlanarGeometry, _same_pose,
-                                planar_urdf)
+from hexapod_pin.planar.assembly_modes import same_pose as _same_pose
+from hexapod_pin.planar.geometry import ALL_BRANCHES, PlanarGeometry, planar_urdf
+from hexapod_pin.planar.robot import Planar3PRR
 
 from conftest import fd_constraint_jacobian, random_configuration
 
@@ -89,6 +90,9 @@ def test_geometry_defaults_and_home():
     (dict(platform_radius=0.4), "platform_radius"),
     (dict(link_length=0.2), "link_length"),          # shorter than R - r: no home
     (dict(rail_half_length=0.1), "rail_half_length"),  # home outside the stroke
+    (dict(max_actuator_force=0.0), "max_actuator_force"),
+    (dict(max_actuator_force=np.nan), "max_actuator_force"),
+    (dict(max_actuator_force=-np.inf), "max_actuator_force"),
 ])
 def test_geometry_rejects_bad_values(changes, field):
     with pytest.raises(GeometryError) as info:
@@ -174,16 +178,17 @@ def test_reference_states():
 
         close(robot.inverse_kinematics(pose), entry["s"])
         close(robot.jacobian(pose), entry["jacobian"])
-        close(robot.inverse_dynamics(pose, entry["twist"], entry["twist_dot"], wrench).forces,
+        close(robot.inverse_dynamics(pose, entry["twist"], entry["twist_dot"],
+                                     wrench).actuator_forces,
               entry["actuator_forces"])
         close(robot.static_forces(pose, wrench), entry["static_forces"])
 
 
 # -- inverse kinematics ----------------------------------------------------------------------
 def test_home_inverse_kinematics(planar):
-    np.testing.assert_allclose(planar.inverse_kinematics(planar.home_pose), planar.home_s,
-                               atol=1e-15)
-    np.testing.assert_allclose(planar.home_s, 0.19261360284258225, rtol=1e-14)
+    np.testing.assert_allclose(planar.inverse_kinematics(planar.home_pose),
+                               planar.home_actuators, atol=1e-15)
+    np.testing.assert_allclose(planar.home_actuators, 0.19261360284258225, rtol=1e-14)
 
 
 def _branch_id(branch):
@@ -209,7 +214,7 @@ def test_ik_fk_round_trip_every_branch(planar, branch):
         assert sum(_same_pose(m, pose, 1e-9) for m in modes) == 1
         q = planar.configuration(pose, branch=branch)
         assert np.max(np.abs(planar.model.residual(q))) <= 1e-12
-        np.testing.assert_allclose(planar.slider_positions(q), s, atol=0)
+        np.testing.assert_allclose(planar.actuator_positions(q), s, atol=0)
         np.testing.assert_allclose(planar.pose_from_configuration(q), pose, atol=0)
 
 
@@ -254,7 +259,7 @@ def _multistart(robot, s, n, seed):
 @pytest.mark.parametrize("case", ["default-home", "default-moved", "six-modes", "four-modes"])
 def test_assembly_modes_match_brute_force_multistart(case, planar, six_mode):
     robot, s = {
-        "default-home": (planar, planar.home_s),
+        "default-home": (planar, planar.home_actuators),
         "default-moved": (planar, np.array([0.15, 0.22, 0.19])),
         "six-modes": (six_mode, SIX_MODE_S),
         "four-modes": (six_mode, np.array([0.05694418, 0.13131802, -0.53408195])),
@@ -338,7 +343,7 @@ def test_bad_dynamics_inputs(planar):
 def test_link_perpendicular_to_rail_is_singular(planar):
     # slider 0 right above platform point 0: link 0 perpendicular to rail 0
     pose = np.array([0.0, 0.0, 0.0])
-    s = planar.home_s.copy()
+    s = planar.home_actuators.copy()
     s[0] = 0.0
     with pytest.raises(SingularityError):
         planar.branch_of(pose + [0.0, 0.35 - 0.12 - 0.3, 0.0], s)
@@ -382,7 +387,7 @@ def test_tree_velocity_and_acceleration_by_finite_differences(planar):
     fd_a = (planar.velocity(path(h), rate(h)) - planar.velocity(path(-h), rate(-h))) / (2 * h)
     np.testing.assert_allclose(planar.acceleration(pose, twist, twist_dot), fd_a, atol=1e-7)
     sdot = planar.jacobian(pose) @ twist
-    np.testing.assert_allclose(planar.twist_from_sdot(pose, sdot), twist, atol=1e-12)
+    np.testing.assert_allclose(planar.twist_from_actuator_velocities(pose, sdot), twist, atol=1e-12)
 
 
 # -- statics ----------------------------------------------------------------------------------
@@ -412,7 +417,7 @@ def test_statics_match_virtual_work(planar):
         expected = np.linalg.solve(jac.T, grad_v - wrench)
         np.testing.assert_allclose(planar.static_forces(pose, wrench), expected,
                                    rtol=1e-7, atol=1e-7)
-        assert planar.potential_energy(pose) == pytest.approx(
+        assert planar.energies(pose, np.zeros(3)).potential == pytest.approx(
             _potential_by_hand(g, pose, planar.inverse_kinematics(pose)), rel=1e-12)
 
 
@@ -424,26 +429,27 @@ def test_forward_and_inverse_dynamics_are_inverse(planar):
         twist = rng.normal(size=3) * [0.2, 0.2, 1.0]
         twist_dot = rng.normal(size=3) * [1.0, 1.0, 5.0]
         wrench = rng.normal(size=3) * [2.0, 2.0, 0.2]
-        forces = planar.inverse_dynamics(pose, twist, twist_dot, wrench).forces
-        for method in ("kkt", "qp", "pinocchio"):
+        forces = planar.inverse_dynamics(pose, twist, twist_dot, wrench).actuator_forces
+        for method in ("nullspace", "kkt", "qp", "pinocchio"):
             res = planar.forward_dynamics(pose, twist, forces, wrench, method=method)
-            assert np.all(np.isfinite(res.tree.a)) and np.all(np.isfinite(res.link_forces))
+            assert np.all(np.isfinite(res.tree_acceleration))
+            assert np.all(np.isfinite(res.closure_forces))
             np.testing.assert_allclose(res.twist_dot, twist_dot, atol=1e-8)
         # the other way round, and the two inverse-dynamics routes agree
         forces2 = rng.normal(size=3) * 5.0
         acc = planar.forward_dynamics(pose, twist, forces2, wrench).twist_dot
         for method in ("kkt", "qp"):
             np.testing.assert_allclose(
-                planar.inverse_dynamics(pose, twist, acc, wrench, method=method).forces,
+                planar.inverse_dynamics(pose, twist, acc, wrench, method=method).actuator_forces,
                 forces2, atol=1e-9)
 
 
 def test_multipliers_are_finite_and_in_plane(planar):
     res = planar.inverse_dynamics([0.01, 0.0, 0.1], [0.1, 0.0, 0.2], [0.0, 1.0, 0.0])
-    lam = res.tree.multipliers
+    lam = res.multipliers
     assert np.all(np.isfinite(lam))
     np.testing.assert_allclose(lam[[2, 5, 8]], 0.0, atol=1e-12)
-    np.testing.assert_allclose(res.link_forces.reshape(-1), np.delete(lam, [2, 5, 8]))
+    np.testing.assert_allclose(-res.closure_forces.reshape(-1), np.delete(lam, [2, 5, 8]))
 
 
 def _rk4_energy_drift(planar, state, duration, steps):
@@ -452,7 +458,7 @@ def _rk4_energy_drift(planar, state, duration, steps):
         acc = planar.forward_dynamics(pose, twist, np.zeros(3)).twist_dot
         return np.concatenate([twist, acc])
 
-    energy0 = planar.energy(state[:3], state[3:])
+    energy0 = planar.energies(state[:3], state[3:]).total
     dt, drift = duration / steps, 0.0
     for _ in range(steps):
         k1 = deriv(state)
@@ -460,7 +466,7 @@ def _rk4_energy_drift(planar, state, duration, steps):
         k3 = deriv(state + dt / 2 * k2)
         k4 = deriv(state + dt * k3)
         state = state + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        drift = max(drift, abs(planar.energy(state[:3], state[3:]) - energy0))
+        drift = max(drift, abs(planar.energies(state[:3], state[3:]).total - energy0))
     return drift, state
 
 
@@ -470,8 +476,9 @@ def test_energy_is_conserved_without_actuation(planar):
     start = np.concatenate([[0.0, 0.0, 0.0], [0.05, 0.1, 0.4]])
     coarse, end = _rk4_energy_drift(planar, start, 0.1, 25)
     fine, _ = _rk4_energy_drift(planar, start, 0.1, 50)
-    moved = planar.potential_energy(end[:3]) - planar.potential_energy(np.zeros(3))
-    kinetic = planar.kinetic_energy(start[:3], start[3:])
+    moved = (planar.energies(end[:3], np.zeros(3)).potential
+             - planar.energies(np.zeros(3), np.zeros(3)).potential)
+    kinetic = planar.energies(start[:3], start[3:]).kinetic
     assert abs(moved) > 0.1 * kinetic          # energy did flow between T and V
     assert coarse < 1e-5 * kinetic
     assert fine < coarse / 10                  # fourth order: 16x for dt / 2
@@ -498,7 +505,7 @@ def test_kinetic_energy_by_hand(planar):
                       + g.link_mass * g.link_length ** 2 / 12 * np.sum(omega ** 2)
                       + g.platform_mass * np.sum(twist[:2] ** 2)
                       + g.platform_inertia * twist[2] ** 2)
-    assert planar.kinetic_energy(pose, twist) == pytest.approx(expected, rel=1e-12)
+    assert planar.energies(pose, twist).kinetic == pytest.approx(expected, rel=1e-12)
 
 
 def test_gravity_acts_along_minus_y(planar):
@@ -573,14 +580,15 @@ def test_closed_form_dynamics_match_generic_tree_routes(which, branch, planar, s
 
         res = robot.inverse_dynamics(pose, twist, twist_dot, wrench, branch=branch)
         ref = inverse_dynamics_tree(model, q, v, a, tau_ext, method="kkt")
-        assert res.tree.method == "kkt" and "closed form" in res.tree.status
+        assert res.method == "kkt" and "closed form" in res.status
         scale = max(1.0, np.abs(ref.actuator_forces).max())
-        np.testing.assert_allclose(res.forces, ref.actuator_forces, rtol=0, atol=1e-10 * scale)
-        np.testing.assert_allclose(res.tree.multipliers, ref.multipliers, rtol=0,
+        np.testing.assert_allclose(res.actuator_forces, ref.actuator_forces, rtol=0,
                                    atol=1e-10 * scale)
-        np.testing.assert_allclose(res.link_forces.reshape(-1),
+        np.testing.assert_allclose(res.multipliers, ref.multipliers, rtol=0,
+                                   atol=1e-10 * scale)
+        np.testing.assert_allclose(-res.closure_forces.reshape(-1),
                                    np.delete(ref.multipliers, [2, 5, 8]), atol=1e-10 * scale)
-        assert 0.0 <= res.tree.residual <= 1e-10 * scale
+        assert 0.0 <= res.residual <= 1e-10 * scale
 
         static = robot.static_forces(pose, wrench, branch=branch)
         zero = np.zeros(model.nv)
@@ -590,23 +598,23 @@ def test_closed_form_dynamics_match_generic_tree_routes(which, branch, planar, s
 
         forces = rng.normal(size=3) * 5.0
         fd = robot.forward_dynamics(pose, twist, forces, wrench, branch=branch)
-        tau = tau_ext.copy()
-        tau[idx.slider] += forces
-        ref_fd = forward_dynamics_tree(model, q, v, tau, method="kkt")
+        ref_fd = forward_dynamics_tree(model, q, v, forces, tau_ext, method="kkt")
         acc_scale = max(1.0, np.abs(ref_fd.a).max())
-        assert fd.tree.method == "kkt" and "closed form" in fd.tree.status
-        assert fd.tree.rank == ref_fd.rank == 6
-        np.testing.assert_allclose(fd.tree.a, ref_fd.a, rtol=0, atol=1e-10 * acc_scale)
+        assert fd.method == "nullspace" and "closed form" in fd.status
+        assert ref_fd.rank == 6
+        np.testing.assert_allclose(fd.tree_acceleration, ref_fd.a, rtol=0,
+                                   atol=1e-10 * acc_scale)
         np.testing.assert_allclose(fd.twist_dot, ref_fd.a[idx.platform], atol=1e-10 * acc_scale)
-        np.testing.assert_allclose(fd.slider_accelerations, ref_fd.a[idx.slider],
+        np.testing.assert_allclose(fd.actuator_accelerations, ref_fd.a[idx.slider],
                                    atol=1e-10 * acc_scale)
         lam_scale = max(1.0, np.abs(ref_fd.multipliers).max())
-        np.testing.assert_allclose(fd.tree.multipliers, ref_fd.multipliers, rtol=0,
+        np.testing.assert_allclose(fd.multipliers, ref_fd.multipliers, rtol=0,
                                    atol=1e-10 * lam_scale)
         # the closures hold at acceleration level, evaluated on Pinocchio
-        drift = model.constraint_jacobian(q) @ fd.tree.a + model.constraint_drift(q, v)
+        drift = model.constraint_jacobian(q) @ fd.tree_acceleration \
+            + model.constraint_drift(q, v)
         assert np.max(np.abs(drift)) <= 1e-10 * acc_scale
-        assert 0.0 <= fd.tree.constraint_residual <= 1e-10 * acc_scale
+        assert 0.0 <= ref_fd.constraint_residual <= 1e-10 * acc_scale
 
 
 def _type_two_theta(robot):
@@ -637,20 +645,21 @@ def test_type_two_singularity_falls_back_to_the_generic_route(planar):
     tau_ext[planar.indices.platform] = wrench
     res = planar.inverse_dynamics(pose, twist, twist_dot, wrench)
     ref = inverse_dynamics_tree(planar.model, q, v, a, tau_ext, method="kkt")
-    assert res.tree.status == ref.status and "closed form" not in res.tree.status
-    assert np.all(np.isfinite(res.forces))
-    np.testing.assert_allclose(res.forces, ref.actuator_forces, atol=1e-9)
+    assert res.status == ref.status and "closed form" not in res.status
+    assert np.all(np.isfinite(res.actuator_forces))
+    np.testing.assert_allclose(res.actuator_forces, ref.actuator_forces, atol=1e-9)
     # near (not at) the singularity the closed form is used and still agrees
     near = pose + [0.0, 0.0, 1e-3]
     q, v, a = _generic_tree_state(planar, near, twist, twist_dot, None)
     res = planar.inverse_dynamics(near, twist, twist_dot, wrench)
     ref = inverse_dynamics_tree(planar.model, q, v, a, tau_ext, method="kkt")
-    assert "closed form" in res.tree.status
+    assert "closed form" in res.status
     scale = np.abs(ref.actuator_forces).max()
-    np.testing.assert_allclose(res.forces, ref.actuator_forces, rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(res.actuator_forces, ref.actuator_forces, rtol=0,
+                               atol=1e-9 * scale)
     # forward dynamics stays regular there (the closures alone fix the multipliers)
     fd = planar.forward_dynamics(pose, twist, [1.0, 2.0, 3.0], wrench)
-    assert "closed form" in fd.tree.status and np.all(np.isfinite(fd.tree.a))
+    assert "closed form" in fd.status and np.all(np.isfinite(fd.tree_acceleration))
 
 
 @pytest.mark.parametrize("call, name", [
@@ -661,13 +670,17 @@ def test_type_two_singularity_falls_back_to_the_generic_route(planar):
     (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], [np.nan, 0, 0]),
      "wrench"),
     (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0], [0, 0, 0]), "twist"),
-    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], bounds=0.0), "bounds"),
-    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], bounds=[1.0, 2.0]),
-     "bounds"),
-    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], bounds=np.nan), "bounds"),
+    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], branch=[1, 2, 1]),
+     "branch"),
+    (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], method="qp",
+                                  branch=[1, 1]), "branch"),
     (lambda r: r.inverse_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], method="lu"), "method"),
-    (lambda r: r.forward_dynamics([0, 0, 0], [0, 0, 0], [0.0, 0.0, np.inf]), "forces"),
-    (lambda r: r.forward_dynamics([0, 0, 0], [0, 0, 0], [1.0, 2.0, 3.0, 4.0]), "forces"),
+    (lambda r: r.forward_dynamics([0, 0, 0], [0, 0, 0], [0.0, 0.0, np.inf]),
+     "actuator_forces"),
+    (lambda r: r.forward_dynamics([0, 0, 0], [0, 0, 0], [1.0, 2.0, 3.0, 4.0]),
+     "actuator_forces"),
+    (lambda r: r.forward_dynamics([0, 0, 0], [0, 0, 0], [0.0, np.nan, 0.0], method="kkt"),
+     "actuator_forces"),
     (lambda r: r.forward_dynamics([0, 0, 0], [0, 0, 0], [0, 0, 0], [0, 0, np.nan]),
      "wrench"),
     (lambda r: r.forward_dynamics([0, 0, 0], "abc", [0, 0, 0]), "twist"),
@@ -706,14 +719,20 @@ def test_fast_path_errors_carry_values(planar):
             call()
     # bounds: the needed (unbounded) forces are carried, never a clipped answer
     pose, twist, twist_dot = [0.01, 0.0, 0.1], [0.1, 0.0, 0.2], [0.0, 20.0, 0.0]
-    needed = planar.inverse_dynamics(pose, twist, twist_dot).forces
+    needed = planar.inverse_dynamics(pose, twist, twist_dot).actuator_forces
     bound = 0.5 * np.abs(needed).max()
+    tight = Planar3PRR(planar.geometry.replace(max_actuator_force=bound))
     for method in ("kkt", "qp"):
         with pytest.raises(ActuatorSaturationError) as info:
-            planar.inverse_dynamics(pose, twist, twist_dot, bounds=bound, method=method)
+            tight.inverse_dynamics(pose, twist, twist_dot, method=method)
         np.testing.assert_allclose(info.value.needed, needed, rtol=1e-8)
-    loose = planar.inverse_dynamics(pose, twist, twist_dot, bounds=2 * np.abs(needed).max())
-    np.testing.assert_allclose(loose.forces, needed, atol=0)
+        # bounded=False lifts the geometry's bound
+        np.testing.assert_allclose(tight.inverse_dynamics(pose, twist, twist_dot, method=method,
+                                                          bounded=False).actuator_forces,
+                                   needed, rtol=1e-9, atol=1e-12)
+    loose = Planar3PRR(planar.geometry.replace(max_actuator_force=2 * np.abs(needed).max()))
+    np.testing.assert_allclose(loose.inverse_dynamics(pose, twist, twist_dot).actuator_forces,
+                               needed, atol=0)
 
 
 def test_fast_path_accepts_array_likes_and_returns_fresh_arrays(planar):
@@ -725,23 +744,26 @@ def test_fast_path_accepts_array_likes_and_returns_fresh_arrays(planar):
     frozen = pose.copy()
     frozen.setflags(write=False)
     for variant in (pose.tolist(), tuple(pose), strided[:, 0], frozen, pd_series_like(pose)):
-        np.testing.assert_array_equal(planar.inverse_dynamics(variant, twist, twist_dot).forces,
-                                      ref.forces)
+        np.testing.assert_array_equal(
+            planar.inverse_dynamics(variant, twist, twist_dot).actuator_forces,
+            ref.actuator_forces)
     np.testing.assert_allclose(planar.inverse_dynamics(pose.astype(np.float32), twist,
-                                                       twist_dot).forces, ref.forces, rtol=1e-5)
+                                                       twist_dot).actuator_forces,
+                               ref.actuator_forces, rtol=1e-5)
     np.testing.assert_array_equal(planar.static_forces([0, 0, 0], [1, 2, 0]),
                                   planar.static_forces(np.zeros(3), np.array([1.0, 2.0, 0.0])))
     # results own their memory: later calls and edits of one result leave the others alone
-    fd = planar.forward_dynamics(pose, twist, ref.forces)
-    kept = [ref.forces.copy(), ref.link_forces.copy(), ref.tree.multipliers.copy(),
-            fd.twist_dot.copy(), fd.tree.a.copy(), fd.link_forces.copy()]
-    ref.forces[:] = 0.0
+    fd = planar.forward_dynamics(pose, twist, ref.actuator_forces)
+    kept = [ref.actuator_forces.copy(), ref.closure_forces.copy(), ref.multipliers.copy(),
+            fd.twist_dot.copy(), fd.tree_acceleration.copy(), fd.closure_forces.copy()]
+    ref.actuator_forces[:] = 0.0
     planar.inverse_dynamics(-pose, -twist, twist_dot)
     planar.forward_dynamics(-pose, -twist, [9.0, 9.0, 9.0])
-    for before, now in zip(kept[1:], [ref.link_forces, ref.tree.multipliers, fd.twist_dot,
-                                      fd.tree.a, fd.link_forces]):
+    for before, now in zip(kept[1:], [ref.closure_forces, ref.multipliers, fd.twist_dot,
+                                      fd.tree_acceleration, fd.closure_forces]):
         np.testing.assert_array_equal(before, now)
-    np.testing.assert_array_equal(ref.tree.actuator_forces, kept[0])
+    np.testing.assert_array_equal(planar.inverse_dynamics(pose, twist, twist_dot).actuator_forces,
+                                  kept[0])
     s = planar.inverse_kinematics(pose)
     jac = planar.jacobian(pose)
     planar.inverse_kinematics(-pose)

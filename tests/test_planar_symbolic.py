@@ -6,7 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hexapod_pin.planar.robot import Planar3PRR, PlanarGeometry
+from hexapod_pin.planar.geometry import PlanarGeometry
+from hexapod_pin.planar.robot import Planar3PRR
 from hexapod_pin.planar.symbolic import (PlanarSymbolicDynamics, derive_equations,
                                          numeric_functions)
 
@@ -87,8 +88,9 @@ def test_symbolic_and_pinocchio_dynamics_agree(pair):
 
         pin_id = robot.inverse_dynamics(pose, twist, twist_dot, wrench)
         sym_id = sym.inverse_dynamics(q, v, a, wrench)
-        np.testing.assert_allclose(sym_id.forces, pin_id.forces, rtol=0, atol=1e-9)
-        np.testing.assert_allclose(sym_id.multipliers, pin_id.link_forces.reshape(-1),
+        np.testing.assert_allclose(sym_id.forces, pin_id.actuator_forces, rtol=0, atol=1e-9)
+        # the symbolic multipliers act ON the links: the opposite of the closure forces
+        np.testing.assert_allclose(sym_id.multipliers, -pin_id.closure_forces.reshape(-1),
                                    rtol=0, atol=1e-9)
 
         forces = rng.normal(size=3) * 5.0
@@ -96,8 +98,9 @@ def test_symbolic_and_pinocchio_dynamics_agree(pair):
         sym_fd = sym.forward_dynamics(q, v, forces, wrench)
         order = np.concatenate([robot.indices.slider, robot.indices.link,
                                 robot.indices.platform])
-        np.testing.assert_allclose(sym_fd.qddot, pin_fd.tree.a[order], rtol=0, atol=1e-9)
-        np.testing.assert_allclose(sym_fd.multipliers, pin_fd.link_forces.reshape(-1),
+        np.testing.assert_allclose(sym_fd.qddot, pin_fd.tree_acceleration[order], rtol=0,
+                                   atol=1e-9)
+        np.testing.assert_allclose(sym_fd.multipliers, -pin_fd.closure_forces.reshape(-1),
                                    rtol=0, atol=1e-9)
 
 
@@ -108,8 +111,10 @@ def test_symbolic_and_pinocchio_energies_agree(pair):
     twist = rng.normal(size=3) * [0.3, 0.3, 1.5]
     q, v = _coordinates(robot, pose, twist)
     kinetic, potential = sym.energy(q, v)
-    assert kinetic == pytest.approx(robot.kinetic_energy(pose, twist), rel=1e-12)
-    assert potential == pytest.approx(robot.potential_energy(pose), rel=1e-12, abs=1e-14)
+    energies = robot.energies(pose, twist)
+    assert kinetic == pytest.approx(energies.kinetic, rel=1e-12)
+    assert potential == pytest.approx(energies.potential, rel=1e-12, abs=1e-14)
+    assert energies.total == pytest.approx(kinetic + potential, rel=1e-12)
 
 
 def test_symbolic_statics_match_the_reference_home_state():

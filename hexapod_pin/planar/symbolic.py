@@ -52,7 +52,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import SingularityError
-from .robot import PlanarGeometry
+from .geometry import PlanarGeometry
 from ..core.checks import as_array
 
 N_COORDINATES = 9

@@ -1,0 +1,484 @@
+"""Dynamics of the planar 3-PRR robot at the platform level, and their batches.
+
+Every single-state route builds the tree state and solves the closed-loop equations in
+ONE call of the compiled closed form (:mod:`hexapod_pin.planar.kernels`: Newton-Euler of
+the sliders, links and platform, the closure forces per loop); the batches run the same
+kernels over N states. The generic tree routes of :mod:`hexapod_pin.core.dynamics` are
+the other methods (and the reference the tests compare with). Conventions: see
+:mod:`hexapod_pin.planar.geometry` and :mod:`hexapod_pin.core.robot_api`; on the tree
+(Pinocchio's ``q``, ``v``, ``a``)::
+
+    M a + h - tau_ext = S^T tau + J_c^T lambda,     J_c a = -gamma
+
+with ``tau_ext`` the wrench on the platform chain (its joints are world x, world y and
+z), ``lambda`` (9,) the closure multipliers (point closure k: the force of the platform
+ON link k, world axes; the out-of-plane rows identically zero and their multipliers
+zero, the minimum-norm choice). ``closure_forces`` (3, 2) is the force of link k ON the
+platform: ``-lambda_k`` in x and y.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from types import MappingProxyType
+
+import numpy as np
+import pinocchio as pin
+
+from ..core.checks import as_array, max_abs, owned_copy
+from ..core.closed_loop import ClosedLoopModel
+from ..core.dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
+from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
+                            ComputedDetails, Energies, ForwardDynamicsResult,
+                            InverseDynamicsResult, ReducedDynamics)
+from ..core.robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS
+from ..errors import (ActuatorSaturationError, BatchActuatorSaturationError, InputError,
+                      SolverError)
+from . import kernels
+from .geometry import N_ACTUATORS, PlanarGeometry
+from .kinematics import PlanarWorkspace, vec3
+
+STATUS_ID = "solved (closed form; out-of-plane multipliers zero: minimum norm)"
+STATUS_FD = "solved (closed form, null-space; out-of-plane multipliers zero: minimum norm)"
+#: relative tolerance of the checks on a tree route's answer
+CHECK_RTOL = 1e-9
+
+
+class TreeDetails:
+    """The parts of a planar dynamics result computed on first access
+    (:class:`~hexapod_pin.core.results.ResultDetails`).
+
+    Args:
+        dyn: the tree's :class:`~hexapod_pin.core.dynamics.ClosedLoopDynamics`.
+        ws: the robot's workspace.
+        state: ``(q, v, a)`` the tree state.
+        tau: actuator forces (3,); tau_ext: the wrench on the tree (nv,).
+        wrench: the wrench (3,) or None; wanted: whether joint wrenches were asked for.
+        closure: (3, 2) closure forces, or None to read them from ``multipliers``.
+        multipliers: (n_rows,) multipliers, or None to build them from ``closure``.
+        residual: the route's residual, or None to evaluate it on Pinocchio.
+    """
+
+    __slots__ = ("_closure", "_multipliers", "_residual", "dyn", "platform_joint", "state",
+                 "tau", "tau_ext", "wanted", "wrench", "ws")
+
+    def __init__(self, dyn, ws, state, tau, tau_ext, wrench, wanted, platform_joint,
+                 closure=None, multipliers=None, residual=None):
+        self.dyn, self.ws, self.state, self.tau, self.tau_ext = dyn, ws, state, tau, tau_ext
+        self.wrench, self.wanted, self.platform_joint = wrench, wanted, platform_joint
+        self._closure, self._multipliers, self._residual = closure, multipliers, residual
+
+    def multipliers(self) -> np.ndarray:
+        if self._multipliers is None:
+            self._multipliers = multipliers_of(self.ws, self._closure)
+        return self._multipliers
+
+    def closure_forces(self) -> np.ndarray:
+        if self._closure is None:
+            self._closure = closure_of(self.ws, self._multipliers)
+        return self._closure
+
+    def joint_wrenches(self) -> Mapping[str, np.ndarray]:
+        if not self.wanted:
+            return MappingProxyType({})
+        q, v, a = self.state
+        fext = None
+        if self.wrench is not None:
+            # the wrench in the LOCAL frame of platform_theta (at the platform origin)
+            c, s = np.cos(q[self.ws.indices.platform[2]]), np.sin(q[self.ws.indices.platform[2]])
+            fx, fy, mz = self.wrench
+            fext = {self.platform_joint: pin.Force(np.array([c * fx + s * fy,
+                                                             -s * fx + c * fy, 0.0]),
+                                                   np.array([0.0, 0.0, mz]))}
+        table, _ = self.dyn.joint_wrenches(q, v, a, self.multipliers(), fext)
+        return MappingProxyType(table)
+
+    def residual(self) -> float:
+        if self._residual is None:
+            q, v, a = self.state
+            dyn = self.dyn
+            full = pin.rnea(dyn.model, dyn.data, q, v, a) - self.tau_ext
+            full[dyn.clm.actuated_v] -= self.tau
+            full -= dyn.constraint_jacobian(q).T @ self.multipliers()
+            self._residual = max_abs(full)
+        return float(self._residual)
+
+
+def multipliers_of(ws: PlanarWorkspace, closure: np.ndarray) -> np.ndarray:
+    """The tree multipliers (n_rows,) of closure forces (3, 2) (``lambda_k = -closure_k``
+    in the in-plane rows, zero out of plane)."""
+    lam = np.zeros(ws.n_rows)
+    lam[ws.rows] = -closure[:, 0]
+    lam[ws.rows + 1] = -closure[:, 1]
+    return lam
+
+
+def closure_of(ws: PlanarWorkspace, multipliers: np.ndarray) -> np.ndarray:
+    """Closure forces (3, 2) of the tree multipliers (n_rows,)."""
+    return -np.stack([multipliers[ws.rows], multipliers[ws.rows + 1]], axis=1)
+
+
+class PlanarDynamics:
+    """The dynamics of one planar 3-PRR (see the module docstring).
+
+    Args:
+        geometry: the robot's geometry; model: its :class:`ClosedLoopModel`;
+        workspace: its :class:`~hexapod_pin.planar.kinematics.PlanarWorkspace`.
+    """
+
+    def __init__(self, geometry: PlanarGeometry, model: ClosedLoopModel,
+                 workspace: PlanarWorkspace):
+        self.geometry, self.model, self.ws = geometry, model, workspace
+        self.dyn = dynamics_of(model)
+        self.data = model.model.createData()
+        self.platform_joint = model.model.getJointId("platform_theta")
+        limit = geometry.max_actuator_force
+        self.limits = None if not np.isfinite(limit) else np.full(N_ACTUATORS, limit)
+
+    # -- helpers -----------------------------------------------------------------------------
+    def bounds(self, bounded: bool) -> np.ndarray | None:
+        """The actuator bounds (3,) (N) enforced with ``bounded``, or None (none)."""
+        return self.limits if bounded else None
+
+    def check_bounds(self, tau: np.ndarray, bounds: np.ndarray | None) -> None:
+        """Raise :class:`ActuatorSaturationError` (needed forces, bound) when ``|tau|``
+        exceeds the bounds (relative slack 1e-9)."""
+        if bounds is not None and np.any(np.abs(tau) > bounds * (1.0 + CHECK_RTOL)):
+            raise ActuatorSaturationError(tau, bounds)
+
+    def tau_ext(self, wrench: np.ndarray | None) -> np.ndarray:
+        """The wrench ``(fx, fy, mz)`` as a tree generalised force (nv,) (the platform
+        chain's joints are world x, world y and z at the platform origin)."""
+        tau = np.zeros(self.model.nv)
+        if wrench is not None:
+            tau[self.ws.indices.platform] = wrench
+        return tau
+
+    def _tree_check(self, q, v, acc, branch, twist_a) -> None:
+        """Check a tree route's acceleration: finite, and its leg rows equal to the closed
+        form's for its own platform rows (the closures at acceleration level)."""
+        ws = self.ws
+        if not np.all(np.isfinite(acc)):
+            raise SolverError("tree forward dynamics", "non-finite acceleration")
+        twist_dot = np.ascontiguousarray(acc[ws.indices.platform])
+        _, _, expected = ws.state(2, True, branch, (), np.ascontiguousarray(
+            q[ws.indices.platform]), twist_a, twist_dot)
+        miss = max_abs(expected - acc)
+        if not miss <= CHECK_RTOL * max(1.0, max_abs(acc)):
+            raise SolverError("tree forward dynamics", "closures violated at acceleration "
+                              f"level", f"leg accelerations off by {miss:.3e}")
+
+    # -- inverse dynamics ---------------------------------------------------------------------
+    def inverse_dynamics(self, pose, twist, twist_dot, wrench=None, *, branch=None,
+                         method: str = "kkt", bounded: bool = True,
+                         joint_wrenches: bool = True) -> InverseDynamicsResult:
+        """Actuator forces that produce a platform motion (closed-loop inverse dynamics).
+
+        ``M a + h - tau_ext = S^T tau + J_c^T lambda`` with the closure-keeping tree state
+        of the motion, gravity ``-g`` along y included.
+
+        Args:
+            pose: ``(x, y, theta)`` (m, m, rad), shape (3,).
+            twist: ``(vx, vy, omega)`` (m/s, rad/s), world axes, shape (3,).
+            twist_dot: its time derivative (m/s^2, rad/s^2), shape (3,).
+            wrench: ``(fx, fy, mz)`` applied ON the platform by the environment (N, N m),
+                moment about the platform origin; default zero.
+            branch: IK branch, default all ``+1``.
+            method: "kkt" (default): that square system solved in closed form
+                (:func:`kernels.solve_inverse`); at a type-II singularity, where its
+                platform 3x3 is singular, the dense least-squares solve of
+                :func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree`. "qp": ProxSuite
+                through :func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree`, with
+                the bounds as constraints. Both agree to round-off when no bound is
+                active.
+            bounded: enforce ``abs(tau) <= geometry.max_actuator_force``.
+            joint_wrenches: make the reaction wrench of every tree joint available
+                (computed on first access: one more ``pin.rnea``).
+
+        Returns:
+            :class:`~hexapod_pin.core.results.InverseDynamicsResult` (forces along
+            ``+u_k``, N; closure forces (3, 2) of each link ON the platform).
+
+        Raises:
+            InputError: a malformed input or method.
+            UnreachablePoseError: the pose cannot be reached.
+            SingularityError: a link perpendicular to its rail.
+            ActuatorSaturationError: the motion needs more than the bound (carries the
+                needed forces; no clipped answer).
+        """
+        if method not in INVERSE_DYNAMICS_METHODS:
+            raise InputError("method", method, f"expected one of {INVERSE_DYNAMICS_METHODS}")
+        ws = self.ws
+        inputs = ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot"),
+                  (wrench, "wrench"))
+        pose_a, twist_a = vec3(pose, "pose"), vec3(twist, "twist")
+        twist_dot_a = vec3(twist_dot, "twist_dot")
+        wrench_a = None if wrench is None else vec3(wrench, "wrench")
+        nv = ws.nv
+        q, v, a = np.empty(nv), np.empty(nv), np.empty(nv)
+        tau, closure = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, 2))
+        status = kernels.inverse_dynamics(
+            ws.geo, ws.idx, pose_a, twist_a, twist_dot_a,
+            ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None,
+            ws.signs(branch), q, v, a, tau, closure, ws.buf, ws.info)
+        if status in (kernels.NONFINITE, kernels.UNREACHABLE, kernels.TYPE_I):
+            ws.raise_for(status, inputs)
+        bounds = self.bounds(bounded)
+        wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
+        tau_ext = self.tau_ext(wrench_kept)
+        if method == "kkt" and status == kernels.OK:
+            self.check_bounds(tau, bounds)
+            details = TreeDetails(self.dyn, ws, (q, v, a), tau, tau_ext, wrench_kept,
+                                  joint_wrenches, self.platform_joint, closure=closure)
+            return InverseDynamicsResult(tau, q, v, a, "kkt", STATUS_ID, 0, details)
+        res = inverse_dynamics_tree(self.model, q, v, a, tau_ext, bounds=bounds,
+                                    method=method)
+        tau = res.actuator_forces.copy()
+        if not np.all(np.isfinite(tau)) or not np.all(np.isfinite(res.multipliers)):
+            raise SolverError("tree inverse dynamics", res.status, "non-finite forces")
+        details = TreeDetails(self.dyn, ws, (q, v, a), tau, tau_ext, wrench_kept,
+                              joint_wrenches, self.platform_joint,
+                              multipliers=res.multipliers.copy(), residual=res.residual)
+        return InverseDynamicsResult(tau, q, v, a, method, res.status, res.iterations, details)
+
+    def static_forces(self, pose, wrench=None, *, branch=None,
+                      bounded: bool = True) -> np.ndarray:
+        """Actuator forces (3,) (N, along ``+u_k``) holding the platform at rest.
+
+        Balances gravity (``-g`` along y, every body) and the ``wrench`` ``(fx, fy, mz)``
+        applied ON the platform (N, N m, moment about its origin): the closed-form
+        inverse dynamics at zero twist and twist_dot (the least-squares tree route at a
+        type-II singularity).
+
+        Raises:
+            InputError, UnreachablePoseError, SingularityError, ActuatorSaturationError:
+            see :meth:`inverse_dynamics`.
+        """
+        ws = self.ws
+        pose_a = vec3(pose, "pose")
+        wrench_a = None if wrench is None else vec3(wrench, "wrench")
+        nv = ws.nv
+        q, v, a = np.empty(nv), np.empty(nv), np.empty(nv)
+        tau, closure = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, 2))
+        status = kernels.inverse_dynamics(
+            ws.geo, ws.idx, pose_a, ws.zero3, ws.zero3,
+            ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None,
+            ws.signs(branch), q, v, a, tau, closure, ws.buf, ws.info)
+        if status in (kernels.NONFINITE, kernels.UNREACHABLE, kernels.TYPE_I):
+            ws.raise_for(status, ((pose, "pose"), (wrench, "wrench")))
+        bounds = self.bounds(bounded)
+        if status != kernels.OK:
+            tau = inverse_dynamics_tree(self.model, q, v, a, self.tau_ext(wrench_a),
+                                        bounds=bounds, method="kkt").actuator_forces.copy()
+        self.check_bounds(tau, bounds)
+        return tau
+
+    # -- forward dynamics ----------------------------------------------------------------------
+    def forward_dynamics(self, pose, twist, actuator_forces, wrench=None, *, branch=None,
+                         method: str = "nullspace") -> ForwardDynamicsResult:
+        """Platform acceleration produced by actuator forces (constrained forward dynamics).
+
+        Args:
+            pose: ``(x, y, theta)``, shape (3,).
+            twist: ``(vx, vy, omega)`` (m/s, rad/s), world axes, shape (3,).
+            actuator_forces: (3,) (N), on slider k along ``+u_k``.
+            wrench: ``(fx, fy, mz)`` on the platform (N, N m); default zero.
+            branch: IK branch, default all ``+1``.
+            method: "nullspace" (default): ``M_x twist_dot = J^T tau + wrench - h_x`` in
+                closed form (:func:`kernels.forward`), ``a = a_0 + G twist_dot``, the
+                closure forces per loop from its slider and link rows; "pinocchio"
+                (``pin.constraintDynamics``, proximal on the redundant rows), "qp"
+                (Gauss principle, ProxSuite) or "kkt" (numpy) through
+                :func:`~hexapod_pin.core.dynamics.forward_dynamics_tree`, each checked
+                against the closed-form closures at acceleration level. They agree to
+                1e-10.
+
+        Returns:
+            :class:`~hexapod_pin.core.results.ForwardDynamicsResult`.
+
+        Raises:
+            InputError, UnreachablePoseError, SingularityError: see
+            :meth:`inverse_dynamics`.
+            SolverError: a route's answer failed its checks.
+        """
+        if method not in FORWARD_DYNAMICS_METHODS:
+            raise InputError("method", method, f"expected one of {FORWARD_DYNAMICS_METHODS}")
+        ws = self.ws
+        inputs = ((pose, "pose"), (twist, "twist"), (actuator_forces, "actuator_forces"),
+                  (wrench, "wrench"))
+        pose_a, twist_a = vec3(pose, "pose"), vec3(twist, "twist")
+        forces_a = vec3(actuator_forces, "actuator_forces")
+        wrench_a = None if wrench is None else vec3(wrench, "wrench")
+        signs = ws.signs(branch)
+        if method == "nullspace":
+            nv = ws.nv
+            q, v, a = np.empty(nv), np.empty(nv), np.empty(nv)
+            twist_dot, closure = np.empty(3), np.empty((N_ACTUATORS, 2))
+            status = kernels.forward_dynamics(
+                ws.geo, ws.idx, pose_a, twist_a, forces_a,
+                ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None, signs,
+                q, v, a, twist_dot, closure, ws.buf, ws.info)
+            if status != kernels.OK:
+                ws.raise_for(status, inputs)
+            details = ComputedDetails(multipliers_of(ws, closure), closure)
+            return ForwardDynamicsResult(twist_dot, a[ws.indices.slider], a, method,
+                                         STATUS_FD, 0, details)
+        q, v, _ = ws.state(1, True, branch, inputs[:2], pose_a, twist_a)
+        forces = as_array(actuator_forces, (N_ACTUATORS,), "actuator_forces")
+        wrench_c = None if wrench is None else as_array(wrench, (3,), "wrench")
+        res = forward_dynamics_tree(self.model, q, v, forces, self.tau_ext(wrench_c),
+                                    method=method)
+        acc = res.a.copy()
+        self._tree_check(q, v, acc, branch, twist_a)
+        details = ComputedDetails(res.multipliers.copy(), closure_of(ws, res.multipliers))
+        return ForwardDynamicsResult(acc[ws.indices.platform], acc[ws.indices.slider], acc,
+                                     method, res.status, res.iterations, details)
+
+    # -- reduced dynamics and energies --------------------------------------------------------
+    def reduced_dynamics(self, pose, twist, branch=None) -> ReducedDynamics:
+        """Dynamics in platform coordinates: ``J^T tau + wrench = M_x twist_dot + h_x``.
+
+        ``M_x = G^T M G`` (3, 3) (kg, kg m, kg m^2) and ``h_x = G^T (M a_0 + h)`` (3,)
+        (N, N m) in closed form (:func:`kernels.reduced`), with ``G`` the velocity map
+        ``v = G twist`` (returned as ``velocity_map``, (nv, 3)) and ``a_0`` the tree
+        acceleration at ``twist_dot = 0``.
+
+        Raises:
+            InputError, UnreachablePoseError, SingularityError.
+        """
+        ws = self.ws
+        m_x, h_x, jac = np.empty((3, 3)), np.empty(3), np.empty((3, 3))
+        status = kernels.reduced_dynamics(ws.geo, vec3(pose, "pose"), vec3(twist, "twist"),
+                                          ws.signs(branch), m_x, h_x, jac, ws.buf, ws.info)
+        if status != kernels.OK:
+            ws.raise_for(status, ((pose, "pose"), (twist, "twist")))
+        vmap = np.empty((ws.nv, 3))
+        kernels.velocity_map(ws.geo, ws.idx, ws.buf, vmap)
+        return ReducedDynamics(m_x, h_x, jac, vmap)
+
+    def energies(self, pose, twist, branch=None) -> Energies:
+        """Kinetic and gravity potential energy of every body (J), by Pinocchio on the
+        closed-form tree state (potential zero when every centre of mass is at y = 0).
+
+        Raises:
+            InputError, UnreachablePoseError, SingularityError.
+        """
+        inputs = ((pose, "pose"), (twist, "twist"))
+        q, v, _ = self.ws.state(1, True, branch, inputs, vec3(pose, "pose"),
+                                vec3(twist, "twist"))
+        kin = float(pin.computeKineticEnergy(self.model.model, self.data, q, v))
+        pot = float(pin.computePotentialEnergy(self.model.model, self.data, q))
+        return Energies(kin, pot, kin + pot)
+
+    # -- batches --------------------------------------------------------------------------------
+    def _raise_first(self, status: np.ndarray, infos: np.ndarray, tau=None,
+                     bounds=None) -> None:
+        """Raise the Batch* error of the first state that failed or saturates."""
+        bad = status != kernels.OK
+        if tau is not None and bounds is not None:
+            bad = bad | np.any(np.abs(tau) > bounds * (1.0 + CHECK_RTOL), axis=1)
+        if not bad.any():
+            return
+        first = int(np.argmax(bad))
+        if status[first] == kernels.OK:
+            raise BatchActuatorSaturationError(first, tau[first], bounds)
+        self.ws.raise_for(int(status[first]), (), infos[first], index=first)
+
+    def _batch_inverse(self, poses, twists, twist_dots, wrenches, bounded):
+        ws = self.ws
+        n = poses.shape[0]
+        has_wrench = wrenches is not None
+        tau, closure = np.empty((n, N_ACTUATORS)), np.empty((n, N_ACTUATORS, 2))
+        status, infos = np.empty(n, np.int64), np.zeros((n, kernels.INFO_SIZE))
+        kernels.inverse_dynamics_batch(ws.geo, ws.idx, ws.home_signs, poses, twists,
+                                       twist_dots, wrenches if has_wrench else np.zeros((n, 3)),
+                                       has_wrench, tau, closure, status, infos)
+        self._raise_first(status, infos, tau, self.bounds(bounded))
+        return tau, closure, infos[:, kernels.X_RES].copy()
+
+    def inverse_dynamics_batch(self, poses, twists, twist_dots, wrenches=None, *,
+                               bounded: bool = True) -> BatchInverseDynamics:
+        """:meth:`inverse_dynamics` ("kkt", home branch) of N states, the same compiled
+        kernel over the states in parallel.
+
+        Args:
+            poses, twists, twist_dots: (N, 3) each; wrenches: (N, 3) or None.
+            bounded: raise for the first state beyond ``geometry.max_actuator_force``.
+
+        Raises:
+            InputError: bad shapes, NaN / inf, rows of different lengths.
+            BatchUnreachablePoseError, BatchSingularityError (type I, or type II: no
+            least-squares fallback in a batch), BatchActuatorSaturationError: for the
+            first such state (``index``).
+        """
+        poses, twists, twist_dots, wrenches = check_batch(
+            poses=poses, twists=twists, twist_dots=twist_dots, wrenches=wrenches)
+        tau, closure, residual = self._batch_inverse(poses, twists, twist_dots, wrenches,
+                                                     bounded)
+        return BatchInverseDynamics(tau, closure, residual)
+
+    def static_forces_batch(self, poses, wrenches=None, *, bounded: bool = True) -> np.ndarray:
+        """:meth:`static_forces` of N poses (N, 3): (N, 3) forces (N). Raises as
+        :meth:`inverse_dynamics_batch`."""
+        poses, wrenches = check_batch(poses=poses, wrenches=wrenches)
+        zero = np.zeros_like(poses)
+        return self._batch_inverse(poses, zero, zero, wrenches, bounded)[0]
+
+    def forward_dynamics_batch(self, poses, twists, actuator_forces,
+                               wrenches=None) -> BatchForwardDynamics:
+        """:meth:`forward_dynamics` ("nullspace", home branch) of N states.
+
+        Raises:
+            InputError, BatchUnreachablePoseError, BatchSingularityError.
+        """
+        poses, twists, forces, wrenches = check_batch(
+            poses=poses, twists=twists, actuator_forces=actuator_forces, wrenches=wrenches)
+        ws = self.ws
+        n = poses.shape[0]
+        has_wrench = wrenches is not None
+        twist_dot, acc = np.empty((n, 3)), np.empty((n, N_ACTUATORS))
+        closure = np.empty((n, N_ACTUATORS, 2))
+        status, infos = np.empty(n, np.int64), np.zeros((n, kernels.INFO_SIZE))
+        kernels.forward_dynamics_batch(ws.geo, ws.idx, ws.home_signs, poses, twists, forces,
+                                       wrenches if has_wrench else np.zeros((n, 3)),
+                                       has_wrench, twist_dot, acc, closure, status, infos)
+        self._raise_first(status, infos)
+        return BatchForwardDynamics(twist_dot, acc, closure)
+
+    def reduced_dynamics_batch(self, poses, twists) -> BatchReducedDynamics:
+        """:meth:`reduced_dynamics` (home branch) of N states: ``M_x`` (N, 3, 3), ``h_x``
+        (N, 3), ``J`` (N, 3, 3).
+
+        Raises:
+            InputError, BatchUnreachablePoseError, BatchSingularityError.
+        """
+        poses, twists = check_batch(poses=poses, twists=twists)
+        ws = self.ws
+        n = poses.shape[0]
+        m_x, h_x, jac = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3, 3))
+        status, infos = np.empty(n, np.int64), np.zeros((n, kernels.INFO_SIZE))
+        kernels.reduced_dynamics_batch(ws.geo, ws.home_signs, poses, twists, m_x, h_x, jac,
+                                       status, infos)
+        self._raise_first(status, infos)
+        return BatchReducedDynamics(m_x, h_x, jac)
+
+
+def check_batch(**arrays) -> list:
+    """Validate batch inputs: each ``(N, 3)`` (None passed through), the same N.
+
+    Raises:
+        InputError: bad shape, NaN / inf, or rows of different lengths.
+    """
+    out, n = [], None
+    for name, value in arrays.items():
+        if value is None:
+            out.append(None)
+            continue
+        arr = as_array(value, (3,), name, batch=True)
+        if n is None:
+            n = arr.shape[0]
+        elif arr.shape[0] != n:
+            raise InputError(name, value, f"expected {n} rows like the poses, got "
+                             f"{arr.shape[0]}")
+        out.append(arr)
+    return out

@@ -1,0 +1,382 @@
+"""Kinematics of the planar 3-PRR robot: inverse kinematics, Jacobian and its derivative,
+singularity measures, the closed-form tree state, and their batches.
+
+Every route runs the compiled closed form of :mod:`hexapod_pin.planar.kernels` (one
+kernel call per single state; the batches run the same kernels over N states) and raises
+the library's exception with the values the kernel reports. Conventions: see
+:mod:`hexapod_pin.planar.geometry`; ``actuator velocities = J @ twist``, ``J`` (3, 3),
+rows in actuator order, columns ``(vx, vy, omega)`` (world axes).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.checks import as_array
+from ..core.closed_loop import ClosedLoopModel
+from ..core.measures import singularity_measures
+from ..core.results import InverseKinematicsBatch, JacobianBatch, SingularityMeasures
+from ..errors import (AssemblyError, BatchSingularityError, BatchUnreachablePoseError,
+                      DescriptionError, InputError, SingularityError, StrokeLimitError,
+                      UnreachablePoseError)
+from . import kernels
+from .geometry import HOME_BRANCH, N_ACTUATORS, PlanarGeometry, PlanarIndices, check_branch
+
+#: closure residual accepted for a closed-form configuration (m)
+CLOSED_FORM_TOL = 1e-12
+#: ``J`` is called singular (type II, or type I) below this ratio of singular values
+JACOBIAN_RCOND = 1e-12
+_TYPE_I_WHAT = "inverse kinematic Jacobian (a link perpendicular to its rail)"
+
+
+def vec3(value, name: str) -> np.ndarray:
+    """A float64 (3,) array from an input, for the compiled kernels.
+
+    A contiguous, writeable float64 ndarray of shape (3,) is passed through; anything
+    else is copied to one and its shape checked, or sent to :func:`as_array`, which
+    raises the :class:`InputError`. Finiteness is checked by the kernels; when they
+    report a non-finite value the caller re-validates with :func:`as_array`.
+    """
+    if (type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (3,)
+            and value.flags.c_contiguous and value.flags.writeable):
+        return value            # (one array layout: one compiled specialisation)
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or arr.shape != (3,):
+        return as_array(value, (3,), name)
+    return arr
+
+
+class PlanarWorkspace:
+    """The cache of one robot: the kernels' geometry vector and tree indices, scratch
+    buffers (single states; not thread-safe), and where the closures' rows sit.
+
+    Args:
+        geometry: the robot's geometry.
+        model: its :class:`ClosedLoopModel` (closures ``link_<k>_tip`` on
+            ``platform_anchor_<k>``, in that order).
+
+    Raises:
+        DescriptionError: the loops file does not hold those closures.
+    """
+
+    def __init__(self, geometry: PlanarGeometry, model: ClosedLoopModel):
+        expected = [("point", f"link_{k}_tip", f"platform_anchor_{k}")
+                    for k in range(N_ACTUATORS)]
+        if [(c.type, c.frame1, c.frame2) for c in model.closures] != expected:
+            raise DescriptionError("planar_3prr.loops.yaml", "expected the point closures "
+                                   f"{expected}, in that order")
+        self.indices = PlanarIndices(
+            np.array([model.joint_v_index(f"slider_{k}") for k in range(N_ACTUATORS)]),
+            np.array([model.joint_v_index(f"link_{k}_joint") for k in range(N_ACTUATORS)]),
+            np.array([model.joint_v_index(j) for j in ("platform_x", "platform_y",
+                                                       "platform_theta")]))
+        #: first multiplier row of each closure (its in-plane rows: that one and the next)
+        self.rows = np.array([r.start for r in model.row_slices])
+        self.idx = np.concatenate([self.indices.platform, self.indices.slider,
+                                   self.indices.link, self.rows]).astype(np.int64)
+        self.geo = kernels.pack_geometry(geometry)
+        #: rail midpoints ``m_k``, directions ``u_k``, platform points ``p_k`` (3, 2), read-only
+        self.mids = _frozen(geometry.rail_midpoints)
+        self.dirs = _frozen(geometry.rail_directions)
+        self.pts = _frozen(geometry.platform_points)
+        self.half_stroke = geometry.rail_half_length
+        self.nq, self.nv, self.n_rows = model.nq, model.nv, model.n_rows
+        self.home_signs = HOME_BRANCH.copy()
+        self.zero3 = np.zeros(3)
+        self.buf = np.zeros((N_ACTUATORS, kernels.LEG_COLS))
+        self.info = np.zeros(kernels.INFO_SIZE)
+
+    def signs(self, branch) -> np.ndarray:
+        """A validated branch (3,) (``None``: the home branch)."""
+        return self.home_signs if branch is None else np.array(check_branch(branch))
+
+    def raise_for(self, status: int, inputs, info: np.ndarray | None = None,
+                  index: int | None = None) -> None:
+        """Raise the library's exception for a kernel status.
+
+        Args:
+            status: the kernel's status (not OK).
+            inputs: ``(value, name)`` pairs as given, for an :class:`InputError`.
+            info: the kernel's info vector (default: the single-state one).
+            index: the state of a batch (Batch* errors), or None.
+
+        Raises:
+            InputError, UnreachablePoseError, SingularityError (Batch* with ``index``).
+        """
+        info = self.info if info is None else info
+        if status == kernels.NONFINITE:
+            for value, name in inputs:
+                if value is not None:
+                    as_array(value, (3,), name)          # raises, naming the value
+            raise InputError(inputs[0][1], inputs[0][0], "contains NaN or inf")
+        if status == kernels.UNREACHABLE:
+            bad = [k for k in range(N_ACTUATORS) if info[3 + k] > 0.0]
+            short = [info[k] for k in bad]
+            if index is not None:
+                raise BatchUnreachablePoseError(index, bad, short)
+            raise UnreachablePoseError(bad, short)
+        if status == kernels.TYPE_I:
+            what, value = _TYPE_I_WHAT, info[kernels.X_WORST]
+        elif status == kernels.TYPE_II:
+            what = "platform closure matrix (type II singularity; Hadamard ratio)"
+            value = info[kernels.X_HADAMARD]
+        else:
+            what = "closed-form closure system (ill-conditioned: residual)"
+            value = info[kernels.X_RES]
+        if index is not None:
+            raise BatchSingularityError(index, what, value)
+        raise SingularityError(what, value)
+
+    def state(self, level: int, singular: bool, branch, inputs, pose, twist=None,
+              twist_dot=None):
+        """Tree ``q``, ``v``, ``a`` (fresh (nv,) arrays, model order) of a platform state,
+        by :func:`kernels.tree_state` (``v`` filled from ``level`` 1, ``a`` from 2); the
+        leg buffer then holds the legs. Raises as :meth:`raise_for`."""
+        nv = self.nv
+        q, v, a = np.empty(nv), np.empty(nv), np.empty(nv)
+        status = kernels.tree_state(self.geo, self.idx, pose,
+                                    self.zero3 if twist is None else twist,
+                                    self.zero3 if twist_dot is None else twist_dot,
+                                    self.signs(branch), level, singular, q, v, a, self.buf,
+                                    self.info)
+        if status != kernels.OK:
+            self.raise_for(status, inputs)
+        return q, v, a
+
+
+class PlanarKinematics:
+    """The kinematics of one planar 3-PRR (see the module docstring).
+
+    Args:
+        geometry: the robot's geometry.
+        model: its :class:`ClosedLoopModel`.
+        workspace: its :class:`PlanarWorkspace`.
+    """
+
+    def __init__(self, geometry: PlanarGeometry, model: ClosedLoopModel,
+                 workspace: PlanarWorkspace):
+        self.geometry, self.model, self.ws = geometry, model, workspace
+        self.mids, self.dirs, self.pts = workspace.mids, workspace.dirs, workspace.pts
+
+    # -- points ----------------------------------------------------------------------------
+    def platform_points_world(self, pose) -> np.ndarray:
+        """World positions ``P_k`` of the three platform joints (m), shape (3, 2)."""
+        pose = as_array(pose, (3,), "pose")
+        c, s = np.cos(pose[2]), np.sin(pose[2])
+        return pose[:2] + self.pts @ np.array([[c, s], [-s, c]])
+
+    def slider_points(self, actuators) -> np.ndarray:
+        """World positions ``c_k = m_k + s_k u_k`` of the slider joints (m), shape (3, 2)."""
+        s = as_array(actuators, (N_ACTUATORS,), "actuators")
+        return self.mids + s[:, None] * self.dirs
+
+    def link_vectors(self, pose, actuators) -> np.ndarray:
+        """Link vectors ``n_k = P_k - c_k`` (m), shape (3, 2); ``|n_k| = L`` when closed."""
+        return self.platform_points_world(pose) - self.slider_points(actuators)
+
+    def branch_of(self, pose, actuators) -> np.ndarray:
+        """The IK branch (3 signs) that maps ``pose`` to ``actuators``: ``-sign(n_k . u_k)``.
+
+        Raises:
+            SingularityError: a link perpendicular to its rail (both branches meet).
+        """
+        dots = np.einsum("ki,ki->k", self.link_vectors(pose, actuators), self.dirs)
+        worst = float(np.min(np.abs(dots))) / self.geometry.link_length
+        if worst < kernels.TYPE_I_TOL:
+            raise SingularityError(_TYPE_I_WHAT, worst)
+        return -np.sign(dots)
+
+    # -- inverse kinematics ----------------------------------------------------------------
+    def inverse_kinematics(self, pose, branch=None, check_limits: bool = True) -> np.ndarray:
+        """Slider positions (3,) (m along ``u_k`` from the rail midpoint) of a pose.
+
+        ``s_k = u_k . d_k + branch_k sqrt(L^2 - |d_k|^2 + (u_k . d_k)^2)``,
+        ``d_k = P_k - m_k`` (closed form, :func:`kernels.legs`).
+
+        Args:
+            pose: ``(x, y, theta)`` (m, m, rad), shape (3,).
+            branch: three signs ``+1`` / ``-1`` choosing the root of each slider's
+                quadratic (``+1``: the larger ``s_k``, the home branch); default all
+                ``+1``. The 8 branches are :data:`~hexapod_pin.planar.geometry.ALL_BRANCHES`.
+            check_limits: check ``abs(s_k) <= rail_half_length``.
+
+        Raises:
+            InputError: wrong shape, NaN / inf, or a malformed branch.
+            UnreachablePoseError: a link cannot reach its rail (``carriages``: the
+                actuator indices, ``shortfall``: how much too short, m).
+            StrokeLimitError: with ``check_limits``, a slider outside its stroke.
+        """
+        ws = self.ws
+        ws.state(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
+        s = ws.buf[:, kernels.S].copy()
+        if check_limits and ws.info[kernels.X_SMAX] > ws.half_stroke:
+            self.check_stroke(s)
+        return s
+
+    def stroke_violations(self, actuators) -> list[str]:
+        """Human-readable stroke violations of slider positions (3,)."""
+        s = as_array(actuators, (N_ACTUATORS,), "actuators")
+        h = self.ws.half_stroke
+        return [f"slider {k}: |s|={abs(s[k]):.6g} > rail_half_length={h:g}"
+                for k in range(N_ACTUATORS) if abs(s[k]) > h]
+
+    def check_stroke(self, actuators) -> None:
+        """Raise :class:`StrokeLimitError` when the slider positions leave the stroke."""
+        violations = self.stroke_violations(actuators)
+        if violations:
+            raise StrokeLimitError(actuators, violations)
+
+    # -- Jacobian ---------------------------------------------------------------------------
+    def jacobian(self, pose, branch=None) -> np.ndarray:
+        """Workspace Jacobian ``J`` (3, 3), ``actuator velocities = J @ twist``.
+
+        From ``d/dt |n_k|^2 = 0`` with ``dP_k/dt = v + omega z x r_k``, ``r_k = R p_k``:
+        ``J[k] = [n_k, r_k x n_k] / (n_k . u_k)``.
+
+        Raises:
+            InputError, UnreachablePoseError: see :meth:`inverse_kinematics`.
+            SingularityError: a link perpendicular to its rail (type I singularity).
+        """
+        self.ws.state(0, True, branch, ((pose, "pose"),), vec3(pose, "pose"))
+        return self.ws.buf[:, kernels.J0:kernels.J2 + 1].copy()
+
+    def twist_from_actuator_velocities(self, pose, actuator_velocities,
+                                       branch=None) -> np.ndarray:
+        """Platform twist (3,) from slider velocities (m/s): solves ``J @ twist = sdot``.
+
+        Raises:
+            SingularityError: where ``J`` is singular (type II, or type I).
+        """
+        jac = self.jacobian(pose, branch=branch)
+        sdot = as_array(actuator_velocities, (N_ACTUATORS,), "actuator_velocities")
+        sv = np.linalg.svd(jac, compute_uv=False)
+        if sv[-1] <= JACOBIAN_RCOND * sv[0]:
+            raise SingularityError("workspace Jacobian", sv[-1])
+        return np.linalg.solve(jac, sdot)
+
+    def jacobian_derivative(self, pose, twist, branch=None) -> np.ndarray:
+        """``dJ/dt`` (3, 3) along the motion ``twist`` (closed form,
+        :func:`kernels.jacobian_derivative`); ``actuator accelerations = J twist_dot +
+        dJ/dt twist``.
+
+        Raises:
+            InputError, UnreachablePoseError, SingularityError: see :meth:`jacobian`.
+        """
+        twist_a = vec3(twist, "twist")
+        self.ws.state(1, True, branch, ((pose, "pose"), (twist, "twist")), vec3(pose, "pose"),
+                      twist_a)
+        out = np.empty((3, 3))
+        kernels.jacobian_derivative(self.ws.geo, self.ws.buf, twist_a, out)
+        return out
+
+    def singularity(self, pose, branch=None) -> SingularityMeasures:
+        """Distances to type-I and type-II singularities (never raises at one).
+
+        Definitions: :class:`~hexapod_pin.core.results.SingularityMeasures`, computed by
+        :func:`hexapod_pin.core.measures.singularity_measures`; the characteristic length
+        is the platform radius.
+
+        Raises:
+            InputError, UnreachablePoseError.
+        """
+        ws = self.ws
+        ws.state(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
+        cosines, a_hat = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, 3))
+        kernels.singularity_parts(ws.geo, ws.buf, cosines, a_hat)
+        jac = None
+        if ws.info[kernels.X_WORST] >= kernels.TYPE_I_TOL:
+            jac = ws.buf[:, kernels.J0:kernels.J2 + 1].copy()
+        return singularity_measures(jac, cosines, a_hat, self.geometry.platform_radius)
+
+    # -- tree state -------------------------------------------------------------------------
+    def configuration(self, pose, branch=None) -> np.ndarray:
+        """Pinocchio configuration ``q`` (nq = 9,) of the tree for a pose (closed form).
+
+        Sliders from the inverse kinematics (stroke not checked), link angles
+        ``atan2(n_k) - (a_k + 90 deg)`` in (-pi, pi], the platform chain the pose itself;
+        the closures are then evaluated on the Pinocchio model.
+
+        Raises:
+            InputError, UnreachablePoseError: see :meth:`inverse_kinematics`.
+            AssemblyError: the closed form misses the closures by more than 1e-12 m.
+        """
+        q, _, _ = self.ws.state(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
+        err = float(np.max(np.abs(self.model.residual(q))))
+        if not err <= CLOSED_FORM_TOL:
+            raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
+        return q
+
+    def velocity(self, pose, twist, branch=None) -> np.ndarray:
+        """Tree velocity ``v`` (nv = 9,) of a platform motion, every closure kept: sliders
+        ``J @ twist``, link rates ``n_k x (dP_k/dt - s'_k u_k) / L^2``, the platform
+        chain the twist itself.
+
+        Raises:
+            InputError, UnreachablePoseError, SingularityError: see :meth:`jacobian`.
+        """
+        inputs = ((pose, "pose"), (twist, "twist"))
+        return self.ws.state(1, True, branch, inputs, vec3(pose, "pose"),
+                             vec3(twist, "twist"))[1]
+
+    def acceleration(self, pose, twist, twist_dot, branch=None) -> np.ndarray:
+        """Tree acceleration ``a`` (nv = 9,) of a platform motion, every closure kept
+        (closed form: :func:`kernels.accelerations`); the platform chain's is
+        ``twist_dot``.
+
+        Raises:
+            InputError, UnreachablePoseError, SingularityError: see :meth:`jacobian`.
+        """
+        inputs = ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot"))
+        return self.ws.state(2, True, branch, inputs, vec3(pose, "pose"),
+                             vec3(twist, "twist"), vec3(twist_dot, "twist_dot"))[2]
+
+    def pose_from_configuration(self, q) -> np.ndarray:
+        """Platform pose (3,) read from a Pinocchio configuration (nq,)."""
+        return self.model.check_q(q)[self.ws.indices.platform].copy()
+
+    def actuator_positions(self, q) -> np.ndarray:
+        """Slider positions (3,) read from a Pinocchio configuration (nq,)."""
+        return self.model.check_q(q)[self.ws.indices.slider].copy()
+
+    # -- batches ----------------------------------------------------------------------------
+    def inverse_kinematics_batch(self, poses, branch=None) -> InverseKinematicsBatch:
+        """:meth:`inverse_kinematics` of N poses (N, 3) at once (never raises for a state).
+
+        Raises:
+            InputError: bad shape, NaN / inf, malformed branch.
+        """
+        poses = as_array(poses, (3,), "poses", batch=True)
+        n = poses.shape[0]
+        positions = np.empty((n, N_ACTUATORS))
+        reachable, regular = np.empty(n, bool), np.empty(n, bool)
+        infos = np.empty((n, kernels.INFO_SIZE))
+        kernels.inverse_kinematics_batch(self.ws.geo, self.ws.signs(branch), poses,
+                                         positions, reachable, regular, infos)
+        within = np.all(np.abs(positions) <= self.ws.half_stroke, axis=1)
+        return InverseKinematicsBatch(positions, reachable, within, reachable & within)
+
+    def jacobian_batch(self, poses, branch=None) -> JacobianBatch:
+        """:meth:`jacobian` of N poses (N, 3) at once: ``J`` (N, 3, 3), zero where a state
+        is unreachable or type-I singular (never raises for a state).
+
+        Raises:
+            InputError: bad shape, NaN / inf, malformed branch.
+        """
+        poses = as_array(poses, (3,), "poses", batch=True)
+        n = poses.shape[0]
+        jac, positions = np.empty((n, N_ACTUATORS, 3)), np.empty((n, N_ACTUATORS))
+        reachable, regular = np.empty(n, bool), np.empty(n, bool)
+        infos = np.empty((n, kernels.INFO_SIZE))
+        kernels.jacobian_batch(self.ws.geo, self.ws.signs(branch), poses, jac, positions,
+                               reachable, regular, infos)
+        within = np.all(np.abs(positions) <= self.ws.half_stroke, axis=1)
+        return JacobianBatch(jac, positions, reachable, regular, within, reachable & regular)
+
+
+def _frozen(array: np.ndarray) -> np.ndarray:
+    array = np.array(array, dtype=float)
+    array.setflags(write=False)
+    return array
