@@ -16,8 +16,9 @@ from .hexapod.geometry import HexapodGeometry
 from .hexapod.robot import Hexapod
 from .hexapod.kinematics import InverseKinematicsBatch, JacobianBatch, LegMotion, SingularityMeasures
 from .loaders.parallel_robots import load_parallel_robot
-from .planar.robot import (AssemblyPolynomial, Planar3PRR, PlanarForwardDynamics, PlanarGeometry,
-                     PlanarInverseDynamics)
+from .planar.assembly_modes import AssemblyPolynomial
+from .planar.geometry import PlanarGeometry
+from .planar.robot import Planar3PRR
 
 __version__ = "0.1.0"
 
@@ -26,8 +27,8 @@ __all__ = [
     "ClosureSpec", "DescriptionError", "GeometryError", "Hexapod", "HexapodGeometry",
     "HexapodPinError", "InputError", "LoopsSpec", "RankInfo", "SingularityError",
     "SolverError", "StrokeLimitError", "UnreachablePoseError", "expand_xacro", "load_loops",
-    "parse_loops", "urdf_dir", "AssemblyPolynomial", "Planar3PRR", "PlanarForwardDynamics",
-    "PlanarGeometry", "PlanarInverseDynamics", "load_parallel_robot", "derivatives", "robots", "sdf",
+    "parse_loops", "urdf_dir", "AssemblyPolynomial", "Planar3PRR",
+    "PlanarGeometry", "load_parallel_robot", "derivatives", "robots", "sdf",
     "workspace", "InverseKinematicsBatch", "JacobianBatch", "LegMotion", "SingularityMeasures",
 ]
 from .hexapod import derivatives
