@@ -139,9 +139,8 @@ class Legacy:
 
     def forward(self, pose, twist, forces, wrench):
         q, v, _, rot = self.state(pose, twist)
-        tau = self.tau_ext(rot, wrench)
-        tau[self.clm.actuated_v] += forces
-        a = forward_dynamics_tree(self.clm, q, v, tau, "pinocchio").a
+        a = forward_dynamics_tree(self.clm, q, v, forces, self.tau_ext(rot, wrench),
+                                  method="pinocchio").a
         a_ff = a[self.ff]
         return np.concatenate([rot @ a_ff[:3] + np.cross(twist[3:], twist[:3]), rot @ a_ff[3:]])
 
@@ -240,7 +239,8 @@ def main(argv=None) -> int:
 
     for k in range(min(n_states, 4)):
         q, v, a, tau = tree[k]
-        fds = {m: forward_dynamics_tree(clm, q, v, tau, m) for m in ("pinocchio", "qp", "kkt")}
+        fds = {m: forward_dynamics_tree(clm, q, v, tau[clm.actuated_v], method=m)
+               for m in ("pinocchio", "qp", "kkt")}
         note("FD routes, a", max(np.abs(fds[m].a - fds["kkt"].a).max() for m in fds))
         note("FD(ID(x)) - x, a", np.abs(fds["pinocchio"].a - a).max())
         ids = {m: inverse_dynamics_tree(clm, q, v, a, method=m) for m in ("qp", "kkt")}

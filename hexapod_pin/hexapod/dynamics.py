@@ -1,10 +1,10 @@
 """The hexapod's dynamics at the platform level (pose, twist, twist_dot, wrench).
 
-Single states build the tree state in closed form (:mod:`hexapod_pin.hexapod.platform_map`,
-compiled in :mod:`hexapod_pin.hexapod.kernels`) and need one or two Pinocchio calls
+Single states build the tree state in closed form (the kernels of
+:mod:`hexapod_pin.hexapod.kernels`) and need one or two Pinocchio calls
 (``rnea``, ``computeGeneralizedGravity``, ``crba`` or ``constraintDynamics``) and a 6x6
 solve; the ``*_batch`` methods use the vectorised closed form of
-:mod:`hexapod_pin.hexapod.batch_dynamics`. Generic tree dynamics: :mod:`hexapod_pin.core.dynamics`.
+:mod:`hexapod_pin.hexapod.batch` (the Newton-Euler kernels over N states). Generic tree dynamics: :mod:`hexapod_pin.core.dynamics`.
 """
 
 from __future__ import annotations
@@ -18,20 +18,13 @@ import pinocchio as pin
 import proxsuite
 
 from . import kernels
-from .batch_dynamics import (  # noqa: F401  (re-exported: part of this module's API)
-    BatchActuatorSaturationError,
-    BatchDynamics,
-    BatchForwardDynamics,
-    BatchInverseDynamics,
-    BatchReducedDynamics,
-    BatchSingularityError,
-    BatchUnreachablePoseError,
-    check_batch,
-)
-from ..core.checks import max_abs, owned_copy
+from . import batch
+from .batch import check_batch
+from ..core.checks import as_array, max_abs, owned_copy
 from ..core.closed_loop import ClosedLoopModel
 from ..core.compiled import all_finite
-from ..core.results import (Energies, ForwardDynamicsResult, InverseDynamicsResult,
+from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
+                            Energies, ForwardDynamicsResult, InverseDynamicsResult,
                             ReducedDynamics)
 from ..core.dynamics import (INVERSE_METHODS, QP_SOLVED, QP_STATUS, RESIDUAL_RTOL,
                              ClosedLoopDynamics, dynamics_of)
@@ -42,8 +35,6 @@ from ..errors import (
     InputError,
     SolverError,
 )
-from .kinematics import HOME_BRANCH, _floats6
-from .platform_map import TYPE_II_PIVOT_RTOL, PlatformMap
 from ..core.pose import rotation_from_rpy
 from ..core.checks import vec6 as _vec6
 
@@ -60,34 +51,22 @@ class _InverseDetails:
     """The parts of an inverse-dynamics result computed on first access
     (:class:`~hexapod_pin.core.results.ResultDetails`)."""
 
-    def __init__(self, ws, legs, force, tau, wrench, q, v, a, wrenches_wanted, pose=None):
-        self.ws, self._legs, self.force, self.tau, self.wrench = ws, legs, force, tau, wrench
+    def __init__(self, ws, force, tau, wrench, q, v, a, wrenches_wanted, pose):
+        self.ws, self.force, self.tau, self.wrench = ws, force, tau, wrench
         self.q, self.v, self.a, self.wrenches_wanted = q, v, a, wrenches_wanted
         self.pose = pose
         self._tips = None
 
-    @property
-    def legs(self):
-        """The Python leg geometry (rebuilt from the pose when the compiled route ran)."""
-        if self._legs is None:
-            self._legs = self.ws.pmap.legs(list(self.pose), self.ws.signs, angles=True)
-        return self._legs
-
     def tip_forces(self) -> np.ndarray:
         """(6, 3) force of the platform on each leg tip (carriage order), world axes."""
         if self._tips is None:
-            if self._legs is None:
-                self._tips = self.ws.compiled.tip_forces(self.pose, self.force, self.tau)
-            else:
-                self._tips = np.array(self.ws.pmap.leg_forces(self.legs, self.force,
-                                                              list(self.tau)))
+            self._tips = self.ws.compiled.tip_forces(self.pose, self.force, self.tau)
         return self._tips
 
     def tau_ext(self) -> np.ndarray:
         tau = np.zeros(self.ws.dyn.nv)
         if self.wrench is not None:
-            rot = rotation_from_rpy(self.pose[3:]) if self._legs is None else \
-                np.array(self._legs.rot).reshape(3, 3)
+            rot = rotation_from_rpy(self.pose[3:])
             wrench = np.asarray(self.wrench, dtype=float)
             tau[self.ws.ff_v] = np.concatenate([rot.T @ wrench[:3], rot.T @ wrench[3:]])
         return tau
@@ -173,11 +152,15 @@ class _HexapodWorkspace:
     free_v: np.ndarray
     leg_of_closure: np.ndarray
     bounds: np.ndarray | None
-    pmap: PlatformMap
-    batch: BatchDynamics
-    signs: list
     platform_joint: int
-    compiled: kernels.CompiledMap
+    compiled: kernels.ClosedForm
+    q: np.ndarray = field(default_factory=lambda: np.empty(25))
+    v: np.ndarray = field(default_factory=lambda: np.empty(24))
+    a: np.ndarray = field(default_factory=lambda: np.empty(24))
+    tau: np.ndarray = field(default_factory=lambda: np.empty(6))
+    multipliers: np.ndarray = field(default_factory=lambda: np.empty(6))
+    jac_t: np.ndarray = field(default_factory=lambda: np.empty((6, 6)))
+    work: np.ndarray = field(default_factory=lambda: np.empty((36, 6)))
     qps: dict = field(default_factory=dict)
 
 
@@ -189,7 +172,7 @@ class HexapodDynamics:
         geometry: the :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry`.
         model: the hexapod's :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`.
         indices: where the hexapod's coordinates sit in the tree (``HexapodIndices``).
-        platform_map: the closed-form platform -> tree map of the same robot.
+        closed_form: the :class:`~hexapod_pin.hexapod.kernels.ClosedForm` of the same robot.
 
     It keeps its per-robot workspace (Pinocchio data, compiled-map buffers, ProxSuite
     problems, the derivatives' workspace) as explicit attributes, built on first use.
@@ -200,21 +183,21 @@ class HexapodDynamics:
     platform origin (N, N m).
 
     Single states go through the Pinocchio tree. The tree state comes in closed form
-    (:class:`~hexapod_pin.platform_map.PlatformMap`, compiled with numba in
-    :mod:`~hexapod_pin.platform_kernels` for the hot paths): ``q`` from the inverse kinematics
+    (the kernels of :mod:`~hexapod_pin.hexapod.kernels`): ``q`` from the inverse kinematics
     (home branch) and the leg directions, ``v = G twist`` and ``a`` from the leg
     kinematics (they keep the closures by construction), the free-flyer part
     ``(R^T v, R^T w)`` and ``(R^T (vdot - w x v), R^T wdot)``; the wrench enters as the
     free-flyer generalised force ``(R^T f, R^T m)``. By virtual power the tree equation
     ``M a + h - tau_ext = S^T tau + J_c^T lambda`` projected with ``G^T`` (``J_c G = 0``,
     ``S G = J``) is ``J^T tau = G^T rnea(q, v, a) - wrench``: one ``pin.rnea`` and a 6x6
-    solve. Batches (``*_batch``) use the independent closed form of
-    :mod:`hexapod_pin.batch_dynamics`; the tests check that both agree to 1e-10.
+    solve. Batches (``*_batch``) run the Newton-Euler kernels (:mod:`hexapod_pin.hexapod.batch`),
+    independent of ``pin.rnea``; the tests check that both agree to 1e-10.
     """
 
-    def __init__(self, geometry, model: ClosedLoopModel, indices, platform_map: PlatformMap):
+    def __init__(self, geometry, model: ClosedLoopModel, indices,
+                 closed_form: kernels.ClosedForm):
         self.geometry, self.model, self.indices = geometry, model, indices
-        self.platform_map = platform_map
+        self.closed_form = closed_form
         self._ws: _HexapodWorkspace | None = None
         self._derivatives: DerivativesWorkspace | None = None
 
@@ -252,28 +235,32 @@ class HexapodDynamics:
         limit = self.geometry.max_actuator_force
         bounds = None if not np.isfinite(limit) else np.full(6, limit)
         ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds,
-                               self.platform_map,
-                               BatchDynamics(self.geometry), HOME_BRANCH.tolist(),
-                               clm.model.getJointId("platform_joint"),
-                               kernels.CompiledMap(self.platform_map, HOME_BRANCH))
-        home_legs = self.platform_map.legs(self.geometry.home_pose.tolist(), ws.signs,
-                                           angles=True)
-        home_q = np.array(self.platform_map.configuration(home_legs))
+                               clm.model.getJointId("platform_joint"), self.closed_form)
+        home_q, _ = self.tree_state(self.geometry.home_pose, np.zeros(6), ws)
         dyn._ensure_rank(home_q)
-        ws.compiled.check_mass_structure(pin.crba(dyn.model, dyn.data, home_q))
+        kernels.check_mass_structure(pin.crba(dyn.model, dyn.data, home_q))
         self._ws = ws
         return ws
 
-    def tree_state(self, pose, twist) -> tuple[np.ndarray, np.ndarray]:
+    def tree_state(self, pose, twist, ws=None) -> tuple[np.ndarray, np.ndarray]:
         """Tree configuration ``q`` (nq,) and velocity ``v`` (nv,) (Pinocchio conventions) of
-        a platform pose and twist (6,) each, home branch, in closed form."""
-        ws = self._workspace()
-        legs = ws.pmap.legs(_floats6(pose, "pose"), ws.signs, angles=True)
-        vel, _ = ws.pmap.velocity(legs, _floats6(twist, "twist"))
-        return np.array(ws.pmap.configuration(legs)), np.array(vel)
+        a platform pose and twist (6,) each, home branch, in closed form.
+
+        Raises:
+            InputError, UnreachablePoseError, SingularityError (type I, gimbal lock).
+        """
+        ck = (self._workspace() if ws is None else ws).compiled
+        pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
+        q, v = np.empty(25), np.empty(24)
+        s = ck.scratch
+        code = kernels.tree_state(ck.geo, ck.signs, pose_a, twist_a, twist_a, 1, q, v, v,
+                                  s.rot, s.wk)
+        if code != kernels.OK:
+            self._raise_code(ck, code, pose=pose, twist=twist)
+        return q, v
 
     # -- inverse dynamics --------------------------------------------------------------
-    def inverse_dynamics(self, pose, twist, twist_dot, wrench=None, method: str = "qp",
+    def inverse_dynamics(self, pose, twist, twist_dot, wrench=None, *, method: str = "kkt",
                          bounded: bool = True,
                          joint_wrenches: bool = True) -> InverseDynamicsResult:
         """Actuator forces that produce a platform motion (closed-loop inverse dynamics).
@@ -289,10 +276,11 @@ class HexapodDynamics:
             twist_dot: time derivative of the twist (m/s^2, rad/s^2), (6,).
             wrench: ``(f, m)`` applied on the platform by the environment, world axes,
                 moment about the platform origin (N, N m), (6,); default zero.
-            method: "qp" (ProxSuite: minimise ``1/2 |tau|^2`` subject to ``J^T tau =
+            method: "kkt" (default: the 6x6 LU solve, the bounds then checked) or "qp"
+                (ProxSuite: minimise ``1/2 |tau|^2`` subject to ``J^T tau =
                 G^T rnea - wrench`` and the box bounds, i.e. the tree QP of
                 :func:`inverse_dynamics_tree` with the closure multipliers eliminated by
-                ``G^T``) or "kkt" (the 6x6 LU solve); they agree to 1e-10 when no bound
+                ``G^T``); they agree to 1e-10 when no bound
                 is active. The QP is warm-started at the equality-constrained solution
                 and its multipliers (from the LU): ProxSuite then certifies it (primal
                 and dual residuals below 2e-14 relative) in 0 iterations, or, when a
@@ -324,48 +312,35 @@ class HexapodDynamics:
         wrench_a = None if wrench is None else _vec6(wrench, "wrench")
         bounds = ws.bounds if bounded else None
         q, v, a = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
-        code = kernels.tree_state(ck.geo, pose_a, twist_a, tdot_a, ck.signs, 2, q, v, a, ck.buf)
+        s = ck.scratch
+        code = kernels.tree_state(ck.geo, ck.signs, pose_a, twist_a, tdot_a, 2, q, v, a, s.rot,
+                                  s.wk)
         if code != kernels.OK or (wrench_a is not None and not all_finite(wrench_a)):
-            # the Python route raises the specific error (or agrees at a tolerance border)
-            legs = ws.pmap.legs(_floats6(pose, "pose"), ws.signs, angles=True)
-            return self._inverse_at(ws, legs, _floats6(twist, "twist"),
-                                    _floats6(twist_dot, "twist_dot"),
-                                    None if wrench is None else _floats6(wrench, "wrench"),
-                                    method, bounds, joint_wrenches)
+            self._raise_code(ck, code, pose=pose, twist=twist, twist_dot=twist_dot,
+                             wrench=wrench)
         force = pin.rnea(dyn.model, dyn.data, q, v, a)
-        rhs = np.empty(6)
-        kernels.project(ck.geo, ck.buf, force, ck.zero6 if wrench_a is None else wrench_a,
-                        wrench_a is not None, rhs)
-        tau, mult = np.empty(6), np.empty(6)
-        if kernels.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, mult, ck.lu,
-                                ck.jt) != kernels.OK:
-            # LAPACK's LU decides (raises SingularityError, or solves at the border)
-            tau = self._python_forces(pose_a, rhs)
-            mult = np.linalg.solve(ck.jt.T, -tau)
-        tau, status, iters = self._bounded_forces(ws, ck.jt, rhs, tau, mult, method, bounds)
-        details = _InverseDetails(ws, None, force, tau,
+        tau, status, iters, rhs = self._solve_tree(ws, force, wrench_a, method, bounds)
+        details = _InverseDetails(ws, force, tau,
                                   None if wrench_a is None else owned_copy(wrench_a, wrench), q, v,
                                   a, joint_wrenches, pose=owned_copy(pose_a, pose))
         return InverseDynamicsResult(tau, q, v, a, method, status, iters, details)
 
-    def _inverse_at(self, ws, legs, twist, twist_dot, wrench, method, bounds,
-                    joint_wrenches) -> InverseDynamicsResult:
-        """:meth:`inverse_dynamics` through the Python map (legs of :class:`PlatformMap`)."""
-        pm, dyn = ws.pmap, ws.dyn
-        vel, dlegs = pm.velocity(legs, twist)
-        acc = pm.acceleration(legs, twist, twist_dot, vel, dlegs)
-        q, v, a = np.array(pm.configuration(legs)), np.array(vel), np.array(acc)
-        force = pin.rnea(dyn.model, dyn.data, q, v, a).tolist()
-        rhs = pm.project(legs, force)
-        if wrench is not None:
-            rhs = [b - w for b, w in zip(rhs, wrench)]
-        tau = np.array(pm.solve_forces(legs, rhs))
-        jac_t = pm.force_matrix(legs) / np.array(legs.along)        # J^T = A^T diag(1/n.u)
-        mult = np.linalg.solve(jac_t.T, -tau)
-        tau, status, iters = self._bounded_forces(ws, jac_t, np.array(rhs), tau, mult, method,
+    def _solve_tree(self, ws, force, wrench_a, method, bounds):
+        """``J^T tau = G^T force - wrench`` at the legs of the last tree state, under the
+        bounds by ``method``: ``(tau, status, iterations, rhs)``. Raises
+        :class:`SingularityError` at a type-II singularity."""
+        ck = ws.compiled
+        s = ck.scratch
+        rhs = np.empty(6)
+        kernels.project(ck.geo, s.rot, s.wk, force, kernels.ZERO6 if wrench_a is None
+                        else wrench_a, wrench_a is not None, rhs)
+        tau, mult = np.empty(6), np.empty(6)
+        code = kernels.solve_forces(ck.geo, s.wk, s.mats, rhs, tau, mult, ws.jac_t)
+        if code != kernels.OK:
+            raise ck.error(code)
+        tau, status, iters = self._bounded_forces(ws, ws.jac_t, rhs, tau, mult, method,
                                                   bounds)
-        details = _InverseDetails(ws, legs, force, tau, wrench, q, v, a, joint_wrenches)
-        return InverseDynamicsResult(tau, q, v, a, method, status, iters, details)
+        return tau, status, iters, rhs
 
     def _bounded_forces(self, ws, jac_t, rhs, tau, mult, method, bounds):
         """The actuator forces of ``J^T tau = rhs`` under the bounds, by ``method``.
@@ -422,14 +397,20 @@ class HexapodDynamics:
         ``wrench`` (6,) as in :meth:`inverse_dynamics` (no checks beyond the
         singularities): the legs are read from the universal-joint angles of ``q``."""
         ws = self._workspace()
-        legs = ws.pmap.legs_at(np.asarray(q, dtype=float).tolist(), angles=True)
-        twist = np.asarray(twist, dtype=float).tolist()
-        twist_dot = np.asarray(twist_dot, dtype=float).tolist()
-        wrench = None if wrench is None else np.asarray(wrench, dtype=float).tolist()
-        return self._inverse_at(ws, legs, twist, twist_dot, wrench, method, None,
-                                False).actuator_forces
+        ck, dyn = ws.compiled, ws.dyn
+        s = ck.scratch
+        q = np.ascontiguousarray(q, dtype=float)
+        twist_a, tdot_a = _vec6(twist, "twist"), _vec6(twist_dot, "twist_dot")
+        wrench_a = None if wrench is None else _vec6(wrench, "wrench")
+        code = kernels.legs_from_tree(ck.geo, q, np.empty(6), s.rot, s.wk)
+        if code != kernels.OK:
+            raise ck.error(code)
+        v, a = np.empty(24), np.empty(24)
+        kernels.tree_motion(ck.geo, s.rot, s.wk, twist_a, tdot_a, 2, v, a)
+        force = pin.rnea(dyn.model, dyn.data, q, v, a)
+        return self._solve_tree(ws, force, wrench_a, method, None)[0]
 
-    def static_forces(self, pose, wrench=None, bounded: bool = True) -> np.ndarray:
+    def static_forces(self, pose, wrench=None, *, bounded: bool = True) -> np.ndarray:
         """Actuator forces holding the platform at rest at ``pose`` under gravity and a wrench.
 
         ``J^T tau = G^T g(q) - wrench`` with ``g(q)`` the tree's generalised gravity
@@ -452,46 +433,35 @@ class HexapodDynamics:
         ck, dyn = ws.compiled, ws.dyn
         pose_a = _vec6(pose, "pose")
         wrench_a = None if wrench is None else _vec6(wrench, "wrench")
-        q = np.empty(dyn.clm.nq)
-        code = kernels.tree_state(ck.geo, pose_a, ck.zero6, ck.zero6, ck.signs, 0, q, ck.v,
-                                  ck.a, ck.buf)
+        q, s = ws.q, ck.scratch
+        code = kernels.tree_state(ck.geo, ck.signs, pose_a, kernels.ZERO6, kernels.ZERO6, 0,
+                                  q, ws.v, ws.a, s.rot, s.wk)
         if code != kernels.OK or (wrench_a is not None and not all_finite(wrench_a)):
-            self._raise_for(pose, wrench=wrench)
+            self._raise_code(ck, code, pose=pose, wrench=wrench)
         gravity = pin.computeGeneralizedGravity(dyn.model, dyn.data, q)
         rhs = np.empty(6)
-        kernels.project(ck.geo, ck.buf, gravity, ck.zero6 if wrench_a is None else wrench_a,
-                        wrench_a is not None, rhs)
+        kernels.project(ck.geo, s.rot, s.wk, gravity, kernels.ZERO6 if wrench_a is None
+                        else wrench_a, wrench_a is not None, rhs)
         tau = np.empty(6)
-        if kernels.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, ck.multipliers, ck.lu,
-                                ck.jt) != kernels.OK:
-            tau = self._python_forces(pose_a, rhs)
+        code = kernels.solve_forces(ck.geo, s.wk, s.mats, rhs, tau, ws.multipliers, ws.jac_t)
+        if code != kernels.OK:
+            raise ck.error(code)
         if bounded and ws.bounds is not None and \
                 max(map(abs, tau.tolist())) > ws.bounds[0] * (1.0 + RESIDUAL_RTOL):
             raise ActuatorSaturationError(tau, ws.bounds)
         return tau
 
-    def _python_forces(self, pose, rhs) -> np.ndarray:
-        """``J^T tau = rhs`` by :meth:`PlatformMap.solve_forces` (LAPACK), for a state whose
-        compiled LU met the type-II pivot test: raises :class:`SingularityError` with its
-        value, or (at the border of the test) returns the forces."""
-        ws = self._workspace()
-        legs = ws.pmap.legs(list(pose), ws.signs, angles=True)
-        return np.array(ws.pmap.solve_forces(legs, rhs.tolist()))
-
-    def _raise_for(self, pose, **vectors) -> None:
-        """Raise the error of a state the compiled map refused: the Python map's
-        :class:`InputError`, :class:`UnreachablePoseError` or :class:`SingularityError`
-        with its values."""
-        ws = self._workspace()
+    @staticmethod
+    def _raise_code(ck, code, **vectors) -> None:
+        """Raise the error of a state the kernels refused: the :class:`InputError` of a
+        non-finite input (by name), else :meth:`kernels.ClosedForm.error` of ``code``."""
         for name, value in vectors.items():
             if value is not None:
-                _floats6(value, name)
-        ws.pmap.legs(_floats6(pose, "pose"), ws.signs, angles=True)
-        raise HexapodPinError("internal: the compiled platform map refused a state that "
-                              f"the Python map accepts (pose {list(pose)})")
+                as_array(value, (6,), name)
+        raise ck.error(code)
 
     # -- forward dynamics ----------------------------------------------------------------
-    def forward_dynamics(self, pose, twist, actuator_forces, wrench=None,
+    def forward_dynamics(self, pose, twist, actuator_forces, wrench=None, *,
                          method: str = "nullspace") -> ForwardDynamicsResult:
         """Platform acceleration produced by actuator forces (constrained forward dynamics).
 
@@ -527,34 +497,38 @@ class HexapodDynamics:
         q, v, acc0 = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
         # the drift a_0 (tree acceleration at twist_dot = 0) only for the null-space route
         level = 2 if method == "nullspace" else 1
-        code = kernels.tree_state(ck.geo, pose_a, twist_a, ck.zero6, ck.signs, level, q, v,
-                                  acc0, ck.buf)
+        s = ck.scratch
+        code = kernels.tree_state(ck.geo, ck.signs, pose_a, twist_a, kernels.ZERO6, level, q,
+                                  v, acc0, s.rot, s.wk)
         if code != kernels.OK:
-            self._raise_for(pose, twist=twist, actuator_forces=actuator_forces, wrench=wrench)
+            self._raise_code(ck, code, pose=pose, twist=twist, actuator_forces=actuator_forces,
+                             wrench=wrench)
         twist_dot = np.empty(6)
         if method == "nullspace":
             mass = pin.crba(dyn.model, dyn.data, q)
             bias = pin.rnea(dyn.model, dyn.data, q, v, acc0)
             acc = np.empty(dyn.nv)
             code = kernels.nullspace_forward(
-                ck.geo, ck.buf, mass, bias, tau_a, ck.zero6 if wrench_a is None else wrench_a,
-                wrench_a is not None, acc0, ck.work, twist_dot, acc)
+                ck.geo, s.rot, s.wk, mass, bias, tau_a,
+                kernels.ZERO6 if wrench_a is None else wrench_a, wrench_a is not None, acc0,
+                ws.work, twist_dot, acc)
             if code == -1:
-                self._raise_for(pose, twist=twist, actuator_forces=actuator_forces,
-                                wrench=wrench)
+                self._raise_code(ck, code, pose=pose, twist=twist,
+                                 actuator_forces=actuator_forces, wrench=wrench)
             if code != kernels.OK:
                 raise SolverError("null-space forward dynamics", "mass matrix not positive "
-                                  "definite", f"M_x = {ck.work[24:30].tolist()}")
+                                  "definite", f"M_x = {ws.work[24:30].tolist()}")
             details = _ForwardDetails(dyn, q, ws.leg_of_closure, rows=_LazyTreeMultipliers(
                 ws, owned_copy(pose_a, pose), q, v, acc, owned_copy(tau_a, actuator_forces)))
             return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                          "solved", 0, details)
         if not all_finite(tau_a) or (wrench_a is not None and not all_finite(wrench_a)):
-            self._raise_for(pose, twist=twist, actuator_forces=actuator_forces, wrench=wrench)
+            self._raise_code(ck, kernels.NONFINITE, pose=pose, twist=twist,
+                             actuator_forces=actuator_forces, wrench=wrench)
         tau = np.zeros(dyn.nv)
         tau[dyn.clm.actuated_v] = tau_a
         if wrench_a is not None:
-            kernels.wrench_to_tree(ck.buf, wrench_a, tau)
+            kernels.wrench_to_tree(s.rot, wrench_a, tau)
         acc = None
         if method == "pinocchio" and dyn._rank == dyn.n_rows:
             acc, prox = dyn._pin_call(q, v, tau, False)
@@ -566,7 +540,7 @@ class HexapodDynamics:
             res = dyn.forward(q, v, tau, method)
             acc, status, iters = res.a, res.status, res.iterations
             details = _ForwardDetails(dyn, q, ws.leg_of_closure, rows=res.multipliers)
-        kernels.twist_dot_of(ck.buf, twist_a, acc[ws.ff_v], twist_dot)
+        kernels.twist_dot_of(s.rot, twist_a, acc[ws.ff_v], twist_dot)
         return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                      status, iters, details)
 
@@ -596,13 +570,15 @@ class HexapodDynamics:
         ck, dyn = ws.compiled, ws.dyn
         pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
         q, v, acc0 = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
-        if kernels.tree_state(ck.geo, pose_a, twist_a, ck.zero6, ck.signs, 2, q, v, acc0,
-                              ck.buf) != kernels.OK:
-            self._raise_for(pose, twist=twist)
+        s = ck.scratch
+        code = kernels.tree_state(ck.geo, ck.signs, pose_a, twist_a, kernels.ZERO6, 2, q, v,
+                                  acc0, s.rot, s.wk)
+        if code != kernels.OK:
+            self._raise_code(ck, code, pose=pose, twist=twist)
         mass = pin.crba(dyn.model, dyn.data, q)
         bias = pin.rnea(dyn.model, dyn.data, q, v, acc0)
         vmap, m_x, h_x = np.empty((dyn.nv, 6)), np.empty((6, 6)), np.empty(6)
-        kernels.reduced(ck.geo, ck.buf, mass, bias, vmap, m_x, h_x)
+        kernels.reduced_tree(ck.geo, s.rot, s.wk, mass, bias, vmap, m_x, h_x)
         return ReducedDynamics(m_x, h_x, vmap[self.indices.carriage_v].copy(), vmap)
 
     # -- energies ----------------------------------------------------------------------------
@@ -627,12 +603,12 @@ class HexapodDynamics:
         return Energies(kin, pot, kin + pot)
 
     # -- batch ----------------------------------------------------------------------------
-    def inverse_dynamics_batch(self, poses, twists, twist_dots, wrenches=None,
+    def inverse_dynamics_batch(self, poses, twists, twist_dots, wrenches=None, *,
                                bounded: bool = True) -> BatchInverseDynamics:
         """Inverse dynamics of N states at once (closed form, vectorised numpy).
 
-        The route of :mod:`hexapod_pin.batch_dynamics` (independent of the Pinocchio
-        tree route of :meth:`inverse_dynamics`; they agree to round-off).
+        The Newton-Euler kernels over N states (:mod:`hexapod_pin.hexapod.batch`; independent
+        of the Pinocchio tree route of :meth:`inverse_dynamics`; they agree to round-off).
 
         Args:
             poses, twists, twist_dots: (N, 6) each, conventions as in
@@ -642,7 +618,7 @@ class HexapodDynamics:
                 :class:`ActuatorSaturationError`) for the first state beyond the bounds.
 
         Returns:
-            :class:`~hexapod_pin.batch_dynamics.BatchInverseDynamics`.
+            :class:`~hexapod_pin.core.results.BatchInverseDynamics`.
 
         Raises:
             InputError: bad shapes or NaN / inf, rows of different lengths.
@@ -652,14 +628,15 @@ class HexapodDynamics:
         """
         poses, twists, twist_dots, wrenches, _ = check_batch(poses, twists, twist_dots,
                                                              wrenches)
-        return self._workspace().batch.inverse(poses, twists, twist_dots, wrenches, bounded)
+        return batch.inverse_dynamics_batch(self.closed_form.geo, poses, twists, twist_dots,
+                                            wrenches, bounded)
 
     def forward_dynamics_batch(self, poses, twists, actuator_forces,
                                wrenches=None) -> BatchForwardDynamics:
         """Forward dynamics of N states at once (closed form, vectorised numpy).
 
         Solves the reduced equation ``M_x twist_dot = J^T tau + wrench - h_x`` per state
-        (:mod:`hexapod_pin.batch_dynamics`).
+        (:mod:`hexapod_pin.hexapod.batch`).
 
         Args:
             poses, twists: (N, 6) each (m, rad; m/s, rad/s, world axes).
@@ -667,16 +644,17 @@ class HexapodDynamics:
             wrenches: (N, 6) or None.
 
         Returns:
-            :class:`~hexapod_pin.batch_dynamics.BatchForwardDynamics`.
+            :class:`~hexapod_pin.core.results.BatchForwardDynamics`.
 
         Raises:
             InputError, BatchUnreachablePoseError, BatchSingularityError.
         """
         poses, twists, _, wrenches, forces = check_batch(poses, twists, None, wrenches,
                                                          actuator_forces)
-        return self._workspace().batch.forward(poses, twists, forces, wrenches)
+        return batch.forward_dynamics_batch(self.closed_form.geo, poses, twists, forces,
+                                            wrenches)
 
-    def static_forces_batch(self, poses, wrenches=None, bounded: bool = True) -> np.ndarray:
+    def static_forces_batch(self, poses, wrenches=None, *, bounded: bool = True) -> np.ndarray:
         """:meth:`static_forces` of N poses at once (closed form): (N, 6) forces (N).
 
         Raises:
@@ -684,7 +662,7 @@ class HexapodDynamics:
             BatchActuatorSaturationError (with ``bounded``).
         """
         poses, _, _, wrenches, _ = check_batch(poses, None, None, wrenches)
-        return self._workspace().batch.static(poses, wrenches, bounded)
+        return batch.static_forces_batch(self.closed_form.geo, poses, wrenches, bounded)
 
     def reduced_dynamics_batch(self, poses, twists) -> BatchReducedDynamics:
         """:meth:`reduced_dynamics` of N states at once (closed form): ``M_x`` (N, 6, 6),
@@ -694,7 +672,7 @@ class HexapodDynamics:
             InputError, BatchUnreachablePoseError, BatchSingularityError.
         """
         poses, twists, _, _, _ = check_batch(poses, twists)
-        return self._workspace().batch.reduced(poses, twists)
+        return batch.reduced_dynamics_batch(self.closed_form.geo, poses, twists)
 
     # -- derivatives ------------------------------------------------------------------------
     def inverse_dynamics_derivatives(self, pose, twist, twist_dot,
@@ -720,6 +698,6 @@ class HexapodDynamics:
             InputError, UnreachablePoseError, SingularityError, SolverError.
         """
         if self._derivatives is None:
-            self._derivatives = DerivativesWorkspace(self.model, self.platform_map,
+            self._derivatives = DerivativesWorkspace(self.model, self.closed_form,
                                                      self.indices, self.geometry)
         return analytic_derivatives(self._derivatives, pose, twist, twist_dot, wrench)
