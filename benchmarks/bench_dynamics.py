@@ -301,7 +301,7 @@ def main(argv=None) -> int:
          note="machine speed reference")
     prox = pin.ProximalSettings(1e-13, 0.0, 1)
     data = clm.model.createData()
-    cms, cds = dyn._cms, dyn._cds
+    cms, cds = dyn.pin_models, dyn.pin_datas
     pin.initConstraintDynamics(clm.model, data, cms, cds)
     t_rnea = _row("pin.rnea (floor)", _time(lambda k: pin.rnea(clm.model, data, *tree[cyc(k)][:3]),
                                             number, repeat))

@@ -42,6 +42,7 @@ import math
 import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -78,6 +79,17 @@ QP_STATUS = {
     proxsuite.proxqp.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE: "solved_closest_primal_feasible",
     proxsuite.proxqp.PROXQP_NOT_RUN: "not_run",
 }
+
+
+class ClosureFrames(NamedTuple):
+    """Where one closure sits in the tree: its type, rows and Pinocchio frame / joint ids."""
+
+    is_point: bool
+    rows: slice
+    frame1: int
+    frame2: int
+    joint1: int
+    joint2: int
 
 
 # --------------------------------------------------------------------------------------
@@ -158,14 +170,16 @@ class ClosedLoopDynamics:
         self.nv = self.model.nv
         self.n_rows = clm.n_rows
         self.n_act = clm.n_actuated
-        self._cms, self._cds = clm.pinocchio_constraints()
+        #: Pinocchio's constraint models and datas of the closures (for ``constraintDynamics``)
+        self.pin_models, self.pin_datas = clm.pinocchio_constraints()
         self._pin_ready = False
-        self._closures = []  # (is_point, rows, frame1_id, frame2_id, joint1, joint2)
+        #: one :class:`ClosureFrames` per closure, in the order of the loops file
+        self.closure_frames: list[ClosureFrames] = []
         for closure, rows, cm in zip(clm.closures, clm.row_slices, clm.constraint_models):
             f1 = self.model.getFrameId(f"{closure.name}/anchor1")
             f2 = self.model.getFrameId(f"{closure.name}/anchor2")
-            self._closures.append((closure.type == "point", rows, f1, f2,
-                                   cm.joint1_id, cm.joint2_id))
+            self.closure_frames.append(ClosureFrames(closure.type == "point", rows, f1, f2,
+                                                     cm.joint1_id, cm.joint2_id))
         self._selection = np.zeros((self.nv, self.n_act))
         self._selection[clm.actuated_v, np.arange(self.n_act)] = 1.0
         self._zero_v = np.zeros(self.nv)
@@ -174,7 +188,9 @@ class ClosedLoopDynamics:
         self._qps: dict = {}
 
     # -- rank ----------------------------------------------------------------------------
-    def _ensure_rank(self, q: np.ndarray, force: bool = False) -> int:
+    def closure_rank(self, q: np.ndarray, force: bool = False) -> int:
+        """Rank of ``J_c``, evaluated at ``q`` on the first call (or when ``force``) and
+        assumed structural afterwards."""
         if self._rank is None or force:
             self._rank = self.clm.rank(q).rank if self.n_rows else 0
         return self._rank
@@ -195,7 +211,7 @@ class ClosedLoopDynamics:
         out = np.empty((self.n_rows, self.nv))
         model, data = self.model, self.data
         lwa, loc = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ReferenceFrame.LOCAL
-        for is_point, rows, f1, f2, _, _ in self._closures:
+        for is_point, rows, f1, f2, _, _ in self.closure_frames:
             if is_point:
                 out[rows] = (pin.getFrameJacobian(model, data, f1, lwa)[:3]
                              - pin.getFrameJacobian(model, data, f2, lwa)[:3])
@@ -213,7 +229,7 @@ class ClosedLoopDynamics:
         pin.updateFramePlacements(model, data)
         out = np.empty(self.n_rows)
         lwa, loc = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ReferenceFrame.LOCAL
-        for is_point, rows, f1, f2, _, _ in self._closures:
+        for is_point, rows, f1, f2, _, _ in self.closure_frames:
             if is_point:
                 out[rows] = (pin.getFrameClassicalAcceleration(model, data, f1, lwa).linear
                              - pin.getFrameClassicalAcceleration(model, data, f2, lwa).linear)
@@ -240,7 +256,7 @@ class ClosedLoopDynamics:
         """
         out = []
         data = self.data
-        for is_point, rows, f1, f2, _, _ in self._closures:
+        for is_point, rows, f1, f2, _, _ in self.closure_frames:
             lam = multipliers[rows]
             p1 = data.oMf[f1].translation
             if is_point:
@@ -261,7 +277,7 @@ class ClosedLoopDynamics:
             rots = np.array([cd.oMc1.rotation for cd in self._cd_list])
             return np.einsum("kij,kj->ki", rots, lam_pin.reshape(-1, 3)).reshape(-1)
         out = np.empty(self.n_rows)
-        for (is_point, rows, _, _, _, _), cd in zip(self._closures, self._cd_list):
+        for (is_point, rows, _, _, _, _), cd in zip(self.closure_frames, self._cd_list):
             if is_point:
                 out[rows] = cd.oMc1.rotation @ lam_pin[rows]
             else:
@@ -277,7 +293,7 @@ class ClosedLoopDynamics:
         tau = self.clm.check_v(tau, "tau")
         if method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
-        rank = self._ensure_rank(q)
+        rank = self.closure_rank(q)
         if method == "pinocchio":
             return self._forward_pinocchio(q, v, tau, rank)
         jac = self.constraint_jacobian(q)
@@ -288,15 +304,22 @@ class ClosedLoopDynamics:
             return self._forward_kkt(mass, bias, jac, gamma, tau, rank)
         return self._forward_qp(mass, bias, jac, gamma, tau, rank)
 
+    def pinocchio_arguments(self) -> tuple:
+        """``((model, data), (constraint models, constraint datas, proximal settings))``: the
+        arguments of ``pin.constraintDynamics`` for non-redundant closures (exact settings)."""
+        if not self._pin_ready:
+            self._init_pinocchio()
+        return ((self.model, self.data), (self.pin_models, self.pin_datas, self._prox_exact))
+
     def _init_pinocchio(self) -> None:
-        pin.initConstraintDynamics(self.model, self.data, self._cms, self._cds)
+        pin.initConstraintDynamics(self.model, self.data, self.pin_models, self.pin_datas)
         self._prox_exact = pin.ProximalSettings(1e-13, 0.0, 1)
         self._prox_redundant = pin.ProximalSettings(1e-13, _PIN_PROX_MU, _PIN_PROX_ITERS)
-        self._cd_list = list(self._cds)
-        self._all_points = all(c[0] for c in self._closures)
+        self._cd_list = list(self.pin_datas)
+        self._all_points = all(c[0] for c in self.closure_frames)
         self._pin_ready = True
 
-    def _pin_call(self, q, v, tau, redundant: bool):
+    def pinocchio_call(self, q, v, tau, redundant: bool):
         """One ``pin.constraintDynamics`` call; returns (a or None if it failed, prox).
 
         ``a`` is Pinocchio's own buffer (copy it before the next call). A failed solve
@@ -305,7 +328,7 @@ class ClosedLoopDynamics:
         if not self._pin_ready:
             self._init_pinocchio()
         prox = self._prox_redundant if redundant else self._prox_exact
-        acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self._cms, self._cds,
+        acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models, self.pin_datas,
                                      prox)
         if not math.isfinite(acc.sum()):
             return None, prox
@@ -320,14 +343,14 @@ class ClosedLoopDynamics:
         mass = self.data.M.copy()
         mass[self._lower] = mass.T[self._lower]
         force = mass @ acc + self.data.nle - tau
-        jac = pin.getConstraintsJacobian(self.model, self.data, self._cms, self._cds)
+        jac = pin.getConstraintsJacobian(self.model, self.data, self.pin_models, self.pin_datas)
         sol, *_ = np.linalg.lstsq(jac.T, force, rcond=None)
         return sol
 
-    def _acceleration_pinocchio(self, q, v, tau) -> np.ndarray:
-        """Tree acceleration only (no multipliers), for integrators; no input checks."""
-        rank = self._ensure_rank(q)
-        acc, _ = self._pin_call(q, v, tau, rank < self.n_rows)
+    def pinocchio_acceleration(self, q, v, tau) -> np.ndarray:
+        """Tree acceleration (nv,) only (no multipliers), for integrators; no input checks."""
+        rank = self.closure_rank(q)
+        acc, _ = self.pinocchio_call(q, v, tau, rank < self.n_rows)
         if acc is None:
             return self._forward_pinocchio(q, v, tau, rank).a
         return acc.copy()
@@ -335,7 +358,7 @@ class ClosedLoopDynamics:
     def _forward_pinocchio(self, q, v, tau, rank) -> TreeForwardDynamics:
         for attempt in range(2):
             redundant = rank < self.n_rows
-            acc, prox = self._pin_call(q, v, tau, redundant)
+            acc, prox = self.pinocchio_call(q, v, tau, redundant)
             if acc is not None:
                 if not redundant:
                     lam_pin, status = self.data.lambda_c, "solved"
@@ -346,7 +369,7 @@ class ClosedLoopDynamics:
                 return TreeForwardDynamics(acc.copy(), self._pin_to_row_multipliers(lam_pin),
                                            "pinocchio", status, int(prox.iter), rank, -1.0)
             if attempt == 0:
-                new_rank = self._ensure_rank(q, force=True)
+                new_rank = self.closure_rank(q, force=True)
                 if new_rank == rank and redundant:
                     break
                 rank = new_rank
@@ -449,7 +472,7 @@ class ClosedLoopDynamics:
         bounds = self._check_bounds(bounds)
         if method not in INVERSE_METHODS:
             raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
-        rank = self._ensure_rank(q)
+        rank = self.closure_rank(q)
         rhs = pin.rnea(self.model, self.data, q, v, a) - tau_ext
         jac = self.constraint_jacobian(q)
         return self._inverse_solve(jac, rhs, bounds, method, rank)
@@ -553,7 +576,7 @@ class ClosedLoopDynamics:
         for _ in range(model.njoints):
             forces.append(pin.Force.Zero())
         for world, (_, _, _, _, j1, j2) in zip(self._closure_world_forces(multipliers),
-                                               self._closures):
+                                               self.closure_frames):
             forces[j1] = forces[j1] + data.oMi[j1].actInv(world)
             forces[j2] = forces[j2] - data.oMi[j2].actInv(world)
         for joint, force in (fext or {}).items():

@@ -136,18 +136,16 @@ class ClosedLoopIntegrator:
                 acc = pin.constraintDynamics(*fast[0], q, v, tau, *fast[1])
                 if not checked or math.isfinite(acc.sum()):
                     return acc.copy()
-            return dyn._acceleration_pinocchio(q, v, tau)
+            return dyn.pinocchio_acceleration(q, v, tau)
         return dyn.forward(q, v, tau, self.method).a
 
     def _fast_call(self, q: np.ndarray):
         """Bound arguments of ``pin.constraintDynamics`` when the closures are not
         redundant (else ``()``: the generic route handles redundancy)."""
         dyn = self.dyn
-        if dyn._ensure_rank(q) < dyn.n_rows:
+        if dyn.closure_rank(q) < dyn.n_rows:
             return ()
-        if not dyn._pin_ready:
-            dyn._init_pinocchio()
-        return ((dyn.model, dyn.data), (dyn._cms, dyn._cds, dyn._prox_exact))
+        return dyn.pinocchio_arguments()
 
     def step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
              projection_tol: float = PROJECTION_TOL):
@@ -241,7 +239,7 @@ class ClosedLoopIntegrator:
     def _residual_from_data(self) -> np.ndarray:
         data = self.dyn.data
         out = np.empty(self.dyn.n_rows)
-        for is_point, rows, f1, f2, _, _ in self.dyn._closures:
+        for is_point, rows, f1, f2, _, _ in self.dyn.closure_frames:
             m1, m2 = data.oMf[f1], data.oMf[f2]
             out[rows] = (m1.translation - m2.translation if is_point
                          else pin.log6(m2.actInv(m1)).vector)
