@@ -20,6 +20,7 @@ import hexapod_pin as hp
 from hexapod_pin import files
 from hexapod_pin import motion as motions
 from hexapod_pin.cli import app, common
+from hexapod_pin.viz.plotting import CONDITION_LABEL
 
 RUN = CliRunner()
 HOME_STATIC_FORCE = 1.651   # N, the number for the defaults at home
@@ -163,6 +164,11 @@ def test_jacobian_matches_finite_differences(robot):
     np.testing.assert_allclose(out["jacobian"], fd_jacobian(robot.geometry, pose), atol=1e-6)
     sv = np.linalg.svd(np.array(out["jacobian"]), compute_uv=False)
     assert out["condition_number"] == pytest.approx(sv[0] / sv[-1], rel=1e-12)
+    # the one condition number of the library, printed under its label
+    assert out["condition_number"] == pytest.approx(robot.singularity(pose).condition_number,
+                                                    rel=1e-12)
+    text = " ".join(invoke("jacobian", *pose).stdout.split())
+    assert f"{CONDITION_LABEL}: {out['condition_number']:.6g}" in text
 
 
 def test_fk_inverts_ik(robot):

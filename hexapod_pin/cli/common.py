@@ -16,6 +16,7 @@ from typing import Annotated
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -61,8 +62,8 @@ def robot_of(geometry_file: Path | None, overrides: list[str] | None) -> Hexapod
 def fail(exc: Exception) -> None:
     """Print ``error: <message>`` on one line of stderr and exit with code 1."""
     text = " ".join(str(exc).split())
-    Console(stderr=True).print(f"[bold red]error:[/] {text}", highlight=False, markup=True,
-                               soft_wrap=True)
+    Console(stderr=True).print(f"[bold red]error:[/] {escape(text)}", highlight=False,
+                               markup=True, soft_wrap=True)
     raise typer.Exit(code=1)
 
 
@@ -159,7 +160,7 @@ def fmt(values, spec: str = "+.6f") -> str:
 def note(quiet: bool, text: str) -> None:
     """A note on stderr, unless ``quiet``."""
     if not quiet:
-        Console(stderr=True).print(text, highlight=False)
+        Console(stderr=True).print(text, highlight=False, markup=False)
 
 
 @contextlib.contextmanager

@@ -153,7 +153,8 @@ def jacobian(pose: Values = None, degrees: Degrees = False, as_json: AsJson = Fa
     for key, value in payload["singularity"].items():
         shown = fmt(value, ".4g") if isinstance(value, list) else (
             f"{value:.6g}" if isinstance(value, float) else str(value))
-        console.print(f"{SINGULARITY_LABELS.get(key, key)}: {shown}", highlight=False)
+        console.print(f"{SINGULARITY_LABELS.get(key, key)}: {shown}", highlight=False,
+                      markup=False)
 
 
 def jacobian_table(jac: np.ndarray) -> Table:

@@ -31,6 +31,7 @@ from pathlib import Path
 import coal
 import numpy as np
 import pinocchio as pin
+import umsgpack
 
 from ..errors import DescriptionError
 from ..files import write_text_atomic
@@ -48,18 +49,16 @@ DISCRETE_INTERPOLATION = 2300
 
 
 def _meshcat():
-    """meshcat's geometry module and msgpack, imported on first use: importing meshcat
-    pulls in IPython and zmq (a second or more), which a library import should not pay."""
+    """meshcat's geometry module, imported on first use (not to hide a cycle): importing
+    meshcat pulls in IPython and zmq, which ``import hexapod_pin`` should not pay."""
     with warnings.catch_warnings():  # meshcat's server module imports a deprecated zmq API
         warnings.simplefilter("ignore", DeprecationWarning)
         import meshcat.geometry as mg
-    import umsgpack
-
-    return mg, umsgpack
+    return mg
 
 
 def _assets_js() -> str:
-    mg, _ = _meshcat()
+    mg = _meshcat()
     path = Path(mg.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
     if not path.is_file():
         raise DescriptionError(str(path), "meshcat's viewer JavaScript is missing")
@@ -127,7 +126,6 @@ class Scene:
 
     def html(self) -> str:
         """The scene as one self-contained HTML page (meshcat viewer inlined)."""
-        _, umsgpack = _meshcat()
         blobs = [base64.b64encode(umsgpack.packb(c)).decode("ascii") for c in self._commands]
         target = _three(self.camera_target)
         camera = _three(self.camera_position)
@@ -235,7 +233,7 @@ def _color_int(rgba) -> int:
 def _mesh(geometry, color: int, opacity: float = 1.0,
           intrinsic: np.ndarray | None = None) -> dict:
     """Lower a meshcat geometry + phong material, with a correct intrinsic transform."""
-    mg, _ = _meshcat()
+    mg = _meshcat()
     material = mg.MeshPhongMaterial(color=int(color), opacity=float(opacity))
     lowered = mg.Mesh(geometry, material).lower()
     mat = np.eye(4) if intrinsic is None else np.asarray(intrinsic, dtype=float)
@@ -257,7 +255,7 @@ def shape_objects(gobj: pin.GeometryObject, opacity: float = 1.0
     bounding box. The colour is the object's ``meshColor``; its alpha is multiplied by
     ``opacity``. The sub-path is ``""`` for a single object.
     """
-    mg, _ = _meshcat()
+    mg = _meshcat()
     geom = gobj.geometry
     color, opacity = _color_int(gobj.meshColor), float(opacity) * float(gobj.meshColor[3])
     scale = np.diag(np.append(np.asarray(gobj.meshScale, dtype=float), 1.0))
@@ -333,7 +331,7 @@ def box_corners(placement: pin.SE3, half: np.ndarray) -> np.ndarray:
 
 def arrow_objects(color: int, radius: float) -> list[tuple[str, dict]]:
     """A unit arrow along local +y (shaft 0.8, head 0.2), as two lowered meshes."""
-    mg, _ = _meshcat()
+    mg = _meshcat()
     shaft, head = np.eye(4), np.eye(4)
     shaft[1, 3], head[1, 3] = 0.4, 0.9
     return [("shaft", _mesh(mg.Cylinder(0.8, radius), color, 1.0, shaft)),
@@ -419,7 +417,7 @@ def points_extent(points: list[np.ndarray]) -> float:
 def point_cloud_object(points: np.ndarray, colors: np.ndarray, size: float) -> dict:
     """A lowered meshcat point cloud: ``points`` (N, 3) (m, world axes), ``colors``
     (N, 3) RGB in [0, 1], point ``size`` (m)."""
-    mg, _ = _meshcat()
+    mg = _meshcat()
     geometry = mg.PointsGeometry(np.asarray(points, dtype=np.float32).T,
                                  color=np.asarray(colors, dtype=np.float32).T)
     return mg.Points(geometry, mg.PointsMaterial(size=float(size))).lower()
