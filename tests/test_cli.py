@@ -20,7 +20,7 @@ import hexapod_pin as hp
 from hexapod_pin import files
 from hexapod_pin import motion as motions
 from hexapod_pin.cli import app, common
-from hexapod_pin.viz.plotting import CONDITION_LABEL
+from hexapod_pin.viz.workspace_plots import CONDITION_LABEL
 
 RUN = CliRunner()
 HOME_STATIC_FORCE = 1.651   # N, the number for the defaults at home

@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 
 import hexapod_pin as hp
 from hexapod_pin.viz import plotting as pl
+from hexapod_pin.viz import workspace_plots as wpl
 
 pytest.importorskip("matplotlib", reason="matplotlib (the plot extra) is not installed")
 
@@ -98,7 +99,7 @@ def test_conditioning_matches_finite_difference_jacobian(robot):
     poses = np.tile(robot.home_pose, (5, 1))
     poses[:, 2] += np.linspace(-0.1, 0.02, 5)
     poses[:, 4] = 0.05
-    cond = pl.conditioning(robot, poses)
+    cond = wpl.conditioning(robot, poses)
     for n, pose in enumerate(poses):
         sv = np.linalg.svd(fd_jacobian(robot, pose), compute_uv=False)
         assert cond.condition_number[n] == pytest.approx(sv[0] / sv[-1], rel=1e-6)
@@ -113,16 +114,16 @@ def test_conditioning_matches_finite_difference_jacobian(robot):
 def test_conditioning_marks_unreachable_poses(robot, tmp_path):
     poses = np.tile(robot.home_pose, (3, 1))
     poses[1, 2] = 1.0
-    cond = pl.conditioning(robot, poses)
+    cond = wpl.conditioning(robot, poses)
     assert cond.reachable.tolist() == [True, False, True]
     assert cond.condition_number[1] == np.inf and cond.inverse_condition[1] == 0.0
-    fig = pl.plot_conditioning(robot, poses, path=tmp_path / "c.png")
+    fig = wpl.plot_conditioning(robot, poses, path=tmp_path / "c.png")
     assert len(fig.axes) == 2 and (tmp_path / "c.png").stat().st_size > 10000
-    assert fig.axes[0].get_ylabel() == pl.CONDITION_LABEL
+    assert fig.axes[0].get_ylabel() == wpl.CONDITION_LABEL
 
 
 def test_workspace_slice_status_from_independent_geometry(robot, tmp_path):
-    ws = pl.workspace_slice(robot, z=0.30, half_width=0.15, resolution=21)
+    ws = wpl.workspace_slice(robot, z=0.30, half_width=0.15, resolution=21)
     g = robot.geometry
     mids, dirs, pts = rail_frames(g)
     counts = np.bincount(ws.status.ravel(), minlength=3)
@@ -135,19 +136,19 @@ def test_workspace_slice_status_from_independent_geometry(robot, tmp_path):
             along = np.einsum("ij,ij->i", d, u)
             disc = g.leg_length ** 2 - (np.einsum("ij,ij->i", d, d) - along ** 2)
             if np.any(disc < 0):
-                assert ws.status[iy, ix] == pl.OUT_OF_REACH
+                assert ws.status[iy, ix] == wpl.OUT_OF_REACH
                 continue
             q = along + np.tile([-1.0, 1.0], 3) * np.sqrt(disc)
             ok = np.all(np.abs(q) <= g.rail_half_length) and \
                 np.all(q[1::2] - q[::2] >= g.carriage_min_gap)
-            assert ws.status[iy, ix] == (pl.REACHABLE if ok else pl.STROKE_LIMIT), (x, y)
+            assert ws.status[iy, ix] == (wpl.REACHABLE if ok else wpl.STROKE_LIMIT), (x, y)
             assert np.isfinite(ws.condition_number[iy, ix]) == ok
-    fig = pl.plot_workspace_slice(ws, path=tmp_path / "ws.png")
+    fig = wpl.plot_workspace_slice(ws, path=tmp_path / "ws.png")
     assert any("condition" in ax.get_ylabel() for ax in fig.axes)   # the colour bar
-    assert any(pl.CONDITION_LABEL in ax.get_ylabel() for ax in fig.axes)
+    assert any(wpl.CONDITION_LABEL in ax.get_ylabel() for ax in fig.axes)
     # the colours are the condition numbers of workspace.evaluate, the library's measure
     shown = fig.axes[0].images[1].get_array()
-    ok = ws.status == pl.REACHABLE
+    ok = ws.status == wpl.REACHABLE
     np.testing.assert_allclose(np.ma.filled(shown, np.nan)[ok], np.log10(ws.condition_number[ok]))
     iy, ix = np.argwhere(ok)[len(np.argwhere(ok)) // 2]
     pose = np.array([ws.x[ix], ws.y[iy], 0.30, 0.0, 0.0, 0.0])
@@ -157,7 +158,7 @@ def test_workspace_slice_status_from_independent_geometry(robot, tmp_path):
 
 
 def test_workspace_slice_default_extent_frames_the_reachable_region(robot):
-    ws = pl.workspace_slice(robot, resolution=15)
+    ws = wpl.workspace_slice(robot, resolution=15)
     assert 0.05 < ws.reachable_fraction < 0.9
     assert ws.x[-1] < robot.geometry.rail_radius
 
@@ -172,7 +173,7 @@ def test_bad_input_and_missing_matplotlib(robot, tmp_path, monkeypatch):
     with pytest.raises(hp.InputError, match="suffix"):
         pl.plot_closure_residual([0, 1], [1e-9, 1e-9], path=tmp_path / "x.gif")
     with pytest.raises(hp.InputError, match="resolution"):
-        pl.workspace_slice(robot, resolution=1)
+        wpl.workspace_slice(robot, resolution=1)
     monkeypatch.setitem(sys.modules, "matplotlib.figure", None)
     with pytest.raises(pl.MissingDependencyError, match=r"hexapod-pin\[plot\]"):
         pl.plot_closure_residual([0, 1], [1e-9, 1e-9])

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from hexapod_pin.viz import plotting
+from hexapod_pin.viz import workspace_plots
 from hexapod_pin.hexapod import sweeps
 from hexapod_pin.viz import scenes as viz
 from hexapod_pin.hexapod import workspace as ws
@@ -58,7 +58,8 @@ def test_browser_shows_the_workspace_cloud(robot, tmp_path):
 
 
 def test_force_capability_map_matches_the_workspace_call(robot, tmp_path):
-    fig = plotting.plot_force_capability_slice(robot, resolution=21, path=tmp_path / "fc.png")
+    fig = workspace_plots.plot_force_capability_slice(robot, resolution=21,
+                                                      path=tmp_path / "fc.png")
     assert (tmp_path / "fc.png").stat().st_size > 5000
     image = fig.axes[0].images[0].get_array()
     poses = ws.constant_orientation_grid([0, 0, robot.home_pose[2]], [0.12, 0.12, 1.0], (21, 21, 1))
@@ -71,9 +72,10 @@ def test_design_sweep_heat_map(tmp_path):
     table = sweeps.design_sweep(sweeps.design_grid(rail_radius=[0.33, 0.37], leg_length=[0.25, 0.45]),
                                 sweeps.SweepSettings(n_samples=1000, payload_samples=20),
                                 use_dask=False)
-    fig = plotting.plot_design_sweep(table, "rail_radius", "leg_length", path=tmp_path / "s.svg")
+    fig = workspace_plots.plot_design_sweep(table, "rail_radius", "leg_length",
+                                            path=tmp_path / "s.svg")
     assert (tmp_path / "s.svg").stat().st_size > 2000
     mesh = fig.axes[0].collections[0].get_array()
     assert np.ma.count_masked(mesh) == 2 or np.isnan(np.ma.filled(mesh, np.nan)).sum() == 2
     with pytest.raises(InputError):
-        plotting.plot_design_sweep(table, "rail_radius", "nope")
+        workspace_plots.plot_design_sweep(table, "rail_radius", "nope")

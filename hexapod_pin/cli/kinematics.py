@@ -11,7 +11,7 @@ from rich.table import Table
 
 from ..errors import InputError
 from ..viz import hexapod_scenes, scenes
-from ..viz.plotting import CONDITION_LABEL
+from ..viz.workspace_plots import CONDITION_LABEL
 from .common import (
     AsJson,
     Degrees,

@@ -11,7 +11,7 @@ import typer
 
 from .. import motion as motions
 from ..errors import InputError
-from ..viz import hexapod_scenes, plotting, scenes
+from ..viz import hexapod_scenes, plotting, scenes, workspace_plots
 from .common import (
     AsJson,
     Degrees,
@@ -163,22 +163,23 @@ def plot(kind: Annotated[str, typer.Argument(
     elif kind == "conditioning":
         if motion_file is not None:
             motion = motions.read_motion(motion_file)
-            plotting.plot_conditioning(robot, motion.poses, motion.t, path=out,
-                                       s_label="time (s)")
+            workspace_plots.plot_conditioning(robot, motion.poses, motion.t, path=out,
+                                              s_label="time (s)")
         else:
             zs = np.linspace(0.3, 1.2, 200) * robot.home_pose[2]
             poses = np.tile(robot.home_pose, (len(zs), 1))
             poses[:, 2] = zs
-            plotting.plot_conditioning(robot, poses, zs, path=out, s_label="height z (m)")
+            workspace_plots.plot_conditioning(robot, poses, zs, path=out,
+                                              s_label="height z (m)")
     else:
         orientation = (0.0, 0.0, 0.0) if rpy is None else parse_numbers(
             [rpy], 3, "rpy", "roll pitch yaw")
         if degrees:
             orientation = np.radians(orientation)
         with progress_bar(quiet, "sampling the workspace slice"):
-            ws = plotting.workspace_slice(robot, z=z, orientation=orientation,
-                                          half_width=half_width, resolution=resolution)
-        plotting.plot_workspace_slice(ws, path=out)
+            ws = workspace_plots.workspace_slice(robot, z=z, orientation=orientation,
+                                                 half_width=half_width, resolution=resolution)
+        workspace_plots.plot_workspace_slice(ws, path=out)
     note(quiet, f"wrote {out}")
     if as_json:
         emit_json({"figure": out, "kind": kind})

@@ -9,5 +9,8 @@ matplotlib figures.
   of any robot, and their ``write_*_html`` functions.
 * :mod:`~hexapod_pin.viz.hexapod_scenes`: the hexapod's scenes from platform poses and
   simulation results.
-* :mod:`~hexapod_pin.viz.plotting`: matplotlib figures (the ``plot`` extra).
+* :mod:`~hexapod_pin.viz.plotting`: matplotlib figures along a motion (the ``plot``
+  extra) and the figure helpers.
+* :mod:`~hexapod_pin.viz.workspace_plots`: workspace figures: cond(J) along a path,
+  slices, force capability, design sweeps.
 """
