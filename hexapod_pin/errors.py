@@ -195,3 +195,33 @@ class BatchSingularityError(SingularityError):
         self.index = int(index)
         super().__init__(what, sigma_min)
         self.args = (f"state {self.index}: {self.args[0]}",)
+
+
+class MotionSampleError(HexapodPinError):
+    """A computation failed at one sample of a motion.
+
+    Attributes:
+        index: the row (0-based sample index).
+        time: its time (s).
+        error: the library error raised there (also the ``__cause__``).
+    """
+
+    def __init__(self, index: int, time: float, error: Exception):
+        self.index = index
+        self.time = time
+        self.error = error
+        super().__init__(f"row {index} (t = {time:g} s): {error}")
+
+
+class MissingDependencyError(HexapodPinError, ImportError):
+    """An optional dependency is not installed.
+
+    Attributes:
+        package: the missing package.
+        extra: the hexapod-pin extra that installs it.
+    """
+
+    def __init__(self, package: str, extra: str):
+        self.package = package
+        self.extra = extra
+        super().__init__(f"{package} is needed for this: pip install \"hexapod-pin[{extra}]\"")

@@ -40,7 +40,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .core.pose import euler_rates_matrix
-from .errors import DescriptionError, HexapodPinError, InputError
+from .errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
 from .files import write_text_atomic
 from .hexapod import simulation
 
@@ -119,22 +119,6 @@ class MotionForces(NamedTuple):
 
     actuator_forces: np.ndarray
     closure_forces: np.ndarray
-
-
-class MotionSampleError(HexapodPinError):
-    """A computation failed at one sample of a motion.
-
-    Attributes:
-        index: the row (0-based sample index).
-        time: its time (s).
-        error: the library error raised there (also the ``__cause__``).
-    """
-
-    def __init__(self, index: int, time: float, error: Exception):
-        self.index = index
-        self.time = time
-        self.error = error
-        super().__init__(f"row {index} (t = {time:g} s): {error}")
 
 
 _JSON_KEYS = {"twist": "twists", "twist_dot": "twist_dots", "wrench": "wrenches", "q": "q",

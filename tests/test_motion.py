@@ -127,7 +127,7 @@ def test_inverse_dynamics_error_names_the_failing_row(robot):
     t = np.linspace(0.0, 0.4, 5)
     poses = np.tile(robot.home_pose, (5, 1))
     poses[3, 2] = 1.0                                   # out of reach at row 3
-    with pytest.raises(motions.MotionSampleError, match=r"row 3 \(t = 0.3 s\)") as err:
+    with pytest.raises(hp.errors.MotionSampleError, match=r"row 3 \(t = 0.3 s\)") as err:
         motions.inverse_dynamics_along(robot, motions.Motion(t, poses, np.zeros((5, 6)),
                                                              np.zeros((5, 6))))
     assert err.value.index == 3 and err.value.time == pytest.approx(0.3)

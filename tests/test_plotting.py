@@ -175,5 +175,5 @@ def test_bad_input_and_missing_matplotlib(robot, tmp_path, monkeypatch):
     with pytest.raises(hp.InputError, match="resolution"):
         wpl.workspace_slice(robot, resolution=1)
     monkeypatch.setitem(sys.modules, "matplotlib.figure", None)
-    with pytest.raises(pl.MissingDependencyError, match=r"hexapod-pin\[plot\]"):
+    with pytest.raises(hp.errors.MissingDependencyError, match=r"hexapod-pin\[plot\]"):
         pl.plot_closure_residual([0, 1], [1e-9, 1e-9])

@@ -21,25 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import HexapodPinError, InputError
+from ..errors import InputError, MissingDependencyError
 
 #: colours of carriages 0..5 (rail k has a dark and a light shade)
 CARRIAGE_COLORS = ("#d95f02", "#fdae61", "#1b9e77", "#66c2a5", "#7570b3", "#b3b0d9")
 IMAGE_SUFFIXES = (".png", ".svg", ".pdf")
-
-
-class MissingDependencyError(HexapodPinError, ImportError):
-    """An optional dependency is not installed.
-
-    Attributes:
-        package: the missing package.
-        extra: the hexapod-pin extra that installs it.
-    """
-
-    def __init__(self, package: str, extra: str):
-        self.package = package
-        self.extra = extra
-        super().__init__(f"{package} is needed for this: pip install \"hexapod-pin[{extra}]\"")
 
 
 def figure_class():
