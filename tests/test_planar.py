@@ -784,3 +784,107 @@ def pd_series_like(values):
             return self.data[i]
 
     return Seq(values)
+
+
+# -- the shared API's planar specifics ------------------------------------------------------
+def test_singularity_measures_by_hand(planar):
+    """type I / II from link and rail vectors written out here; zero where expected."""
+    rng = np.random.default_rng(31)
+    g = planar.geometry
+    for _ in range(3):
+        pose = random_pose(planar, rng)
+        s = planar.inverse_kinematics(pose)
+        sliders, points = hand_points(g, pose, s)
+        n, r = points - sliders, points - pose[:2]
+        cosines = np.abs(np.einsum("ki,ki->k", n, g.rail_directions)) / g.link_length
+        a_hat = np.column_stack([n / g.link_length,
+                                 (r[:, 0] * n[:, 1] - r[:, 1] * n[:, 0])
+                                 / (g.link_length * g.platform_radius)])
+        meas = planar.singularity(pose)
+        assert meas.type_one == pytest.approx(cosines.min(), rel=1e-12)
+        assert meas.type_one_actuator == int(np.argmin(cosines))
+        np.testing.assert_allclose(meas.type_two_singular_values,
+                                   np.linalg.svd(a_hat, compute_uv=False), rtol=1e-12)
+        assert meas.characteristic_length == g.platform_radius
+    # at the type-II pose the closure matrix is singular, and the measure says so
+    theta = _type_two_theta(planar)
+    assert planar.singularity([0.0, 0.0, theta]).type_two < 1e-12
+    assert planar.singularity([0.0, 0.0, theta + 0.05]).type_two > 1e-3
+    # a link perpendicular to its rail: type one 0, no Jacobian; never raises
+    meas = planar.singularity([0.0, 0.35 - 0.12 - 0.3, 0.0])
+    assert meas.type_one < 1e-9 and meas.jacobian_singular_values is None
+    assert meas.condition_number == np.inf
+
+
+def test_joint_wrenches_transmit_the_actuator_forces(planar):
+    """Pinocchio's rnea with the closure forces: each slider joint transmits its actuator
+    force along its axis, the passive joints nothing about theirs."""
+    rng = np.random.default_rng(32)
+    pose = random_pose(planar, rng)
+    twist, twist_dot = rng.normal(size=3) * [0.2, 0.2, 1.0], rng.normal(size=3)
+    wrench = np.array([1.5, -2.0, 0.1])
+    res = planar.inverse_dynamics(pose, twist, twist_dot, wrench)
+    table = res.joint_wrenches
+    scale = max(1.0, np.abs(res.actuator_forces).max())
+    for k in range(3):
+        assert table[f"slider_{k}"][0] == pytest.approx(res.actuator_forces[k], abs=1e-10 * scale)
+        assert abs(table[f"link_{k}_joint"][5]) < 1e-10 * scale
+    assert abs(table["platform_x"][0]) < 1e-10 * scale
+    assert abs(table["platform_y"][1]) < 1e-10 * scale
+    np.testing.assert_allclose(table["platform_theta"][[0, 1, 5]], 0.0, atol=1e-10 * scale)
+    assert planar.inverse_dynamics(pose, twist, twist_dot, wrench,
+                                   joint_wrenches=False).joint_wrenches == {}
+
+
+def test_batches_flag_and_name_singular_states(planar):
+    from hexapod_pin.errors import BatchSingularityError
+
+    theta = _type_two_theta(planar)
+    poses = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.1], [0.0, 0.0, theta],
+                      [0.0, 0.35 - 0.12 - 0.3, 0.0]])
+    zero = np.zeros_like(poses)
+    with pytest.raises(BatchSingularityError) as info:
+        planar.inverse_dynamics_batch(poses, zero, zero)
+    assert info.value.index == 2 and "type II" in str(info.value)
+    # the single-state route takes the least-squares tree route there instead
+    assert np.all(np.isfinite(planar.static_forces(poses[2])))
+    jb = planar.jacobian_batch(poses)
+    assert jb.regular.tolist() == [True, True, True, False]
+    np.testing.assert_array_equal(jb.jacobian[3], 0.0)
+    with pytest.raises(BatchSingularityError) as info:
+        planar.forward_dynamics_batch(poses[[0, 3]], zero[:2], zero[:2])
+    assert info.value.index == 1
+    # forward dynamics stays regular at type II (the closures alone fix the multipliers)
+    fd = planar.forward_dynamics_batch(poses[:3], zero[:3], np.ones((3, 3)))
+    np.testing.assert_allclose(fd.twist_dot[2], planar.forward_dynamics(
+        poses[2], [0, 0, 0], [1, 1, 1], method="kkt").twist_dot, atol=1e-9)
+
+
+def test_batch_inputs_are_checked(planar):
+    with pytest.raises(InputError) as info:
+        planar.inverse_dynamics_batch(np.zeros((3, 3)), np.zeros((2, 3)), np.zeros((3, 3)))
+    assert info.value.name == "twists"
+    with pytest.raises(InputError) as info:
+        planar.static_forces_batch(np.zeros((2, 3)), np.full((2, 3), np.nan))
+    assert info.value.name == "wrenches"
+    with pytest.raises(InputError):
+        planar.inverse_kinematics_batch(np.zeros(3))
+
+
+def test_branches_reach_the_dynamics(planar):
+    """A non-home branch gives the tree route's answer on that branch's configuration."""
+    from hexapod_pin.core.dynamics import inverse_dynamics_tree
+
+    branch = ALL_BRANCHES[5]
+    rng = np.random.default_rng(33)
+    pose = _regular_pose(planar, rng, branch)
+    twist, twist_dot = rng.normal(size=3) * 0.1, rng.normal(size=3)
+    res = planar.inverse_dynamics(pose, twist, twist_dot, branch=branch)
+    q, v, a = _generic_tree_state(planar, pose, twist, twist_dot, branch)
+    ref = inverse_dynamics_tree(planar.model, q, v, a, method="kkt")
+    np.testing.assert_allclose(res.actuator_forces, ref.actuator_forces, atol=1e-9)
+    red = planar.reduced_dynamics(pose, twist, branch=branch)
+    np.testing.assert_allclose(red.jacobian, planar.jacobian(pose, branch), atol=1e-12)
+    np.testing.assert_allclose(planar.forward_dynamics(pose, twist, res.actuator_forces,
+                                                       branch=branch).twist_dot,
+                               twist_dot, atol=1e-9)
