@@ -390,16 +390,17 @@ def planar_routes(n_states: int, seed: int = 0):
     for method in ("kkt", "qp"):
         routes.append(PlanarRoute(
             f"ours Planar3PRR.inverse_dynamics {method}", "forces",
-            lambda i, m=method: robot.inverse_dynamics(*samples[i], method=m).forces,
+            lambda i, m=method: robot.inverse_dynamics(*samples[i], method=m).actuator_forces,
             RIGID_TOL))
     routes.append(PlanarRoute("raw Pinocchio rnea + lstsq (tree state given) [reference]",
                               "forces", lambda i: raw.inverse(*tree[i], wrenches[i]),
                               RIGID_TOL))
-    for method in ("kkt", "qp", "pinocchio"):
+    for method in ("nullspace", "qp", "pinocchio"):
         routes.append(PlanarRoute(
             f"ours Planar3PRR.forward_dynamics {method}", "acceleration",
             lambda i, m=method: robot.forward_dynamics(
-                *samples[i][:2], forces[i], samples[i][3], method=m).tree.a, RIGID_TOL))
+                *samples[i][:2], forces[i], samples[i][3], method=m).tree_acceleration,
+            RIGID_TOL))
     routes.append(PlanarRoute("raw Pinocchio constraintDynamics mu=1e-2 (tree state given)",
                               "acceleration",
                               lambda i: raw.forward(*tree[i][:2], forces[i], wrenches[i]),
