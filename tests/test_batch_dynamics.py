@@ -1,10 +1,11 @@
-"""Batch (closed-form, vectorised numpy) dynamics against the Pinocchio tree route.
+"""Batch dynamics (the Newton-Euler kernels over N states) against the Pinocchio tree route.
 
-The batch route (:mod:`hexapod_pin.hexapod.batch_dynamics`: platform Newton-Euler, legs as
-consistent-mass rods, carriages as point masses) shares no code with the single-state
-route (:mod:`hexapod_pin.hexapod.platform_map` + ``pin.rnea`` / ``pin.constraintDynamics``), and
-its masses come from the geometry rather than from the URDF: agreement to 1e-10 checks
-both, and the URDF against the geometry.
+The batch route (:mod:`hexapod_pin.hexapod.batch` running :mod:`hexapod_pin.hexapod.kernels`:
+platform Newton-Euler, legs as consistent-mass rods, carriages as point masses) shares no
+dynamics with the single-state tree route (``pin.rnea`` / ``pin.constraintDynamics`` on the
+tree state), and its masses come from the geometry rather than from the URDF: agreement to
+1e-10 checks both, and the URDF against the geometry. Batch answers equal the single-state
+kernels' (the same code) to 1e-12.
 """
 
 import numpy as np
@@ -12,13 +13,11 @@ import pytest
 from conftest import random_pose
 
 import hexapod_pin as hp
-from hexapod_pin.hexapod.batch_dynamics import (
-    CHUNK,
-    BatchDynamics,
-    BatchSingularityError,
-    BatchUnreachablePoseError,
-)
-from hexapod_pin.errors import BatchActuatorSaturationError
+from hexapod_pin.errors import (BatchActuatorSaturationError, BatchSingularityError,
+                                BatchUnreachablePoseError)
+from hexapod_pin.hexapod import kernels as K
+from hexapod_pin.hexapod.batch import CHUNK
+from hexapod_pin.hexapod.fast import fast_dynamics
 from hexapod_pin.errors import InputError, SingularityError, UnreachablePoseError
 
 
@@ -55,7 +54,8 @@ def test_forward_batch_matches_constraint_dynamics(any_robot, rng):
         single = robot.forward_dynamics(poses[k], twists[k], forces[k], wrenches[k],
                                         method="pinocchio")
         np.testing.assert_allclose(batch.twist_dot[k], single.twist_dot, atol=1e-10)
-        np.testing.assert_allclose(batch.qddot[k], single.actuator_accelerations, atol=1e-10)
+        np.testing.assert_allclose(batch.actuator_accelerations[k], single.actuator_accelerations,
+                                   atol=1e-10)
         np.testing.assert_allclose(batch.closure_forces[k], single.closure_forces, atol=1e-10)
     # and FD(ID) = identity inside the batch route itself
     back = robot.inverse_dynamics_batch(poses, twists, batch.twist_dot, wrenches, bounded=False)
@@ -129,12 +129,15 @@ def test_batch_errors_name_the_first_bad_state(robot, rng):
 
 
 def test_type_two_check_and_saturation(robot):
-    bd = BatchDynamics(robot.geometry)
-    mat = np.tile(np.eye(6), (3, 1, 1))
-    mat[2, :, 5] = mat[2, :, 4]                       # two equal columns: singular
-    with pytest.raises(BatchSingularityError) as info:
-        bd._check_type_two(mat, 10)
-    assert info.value.index == 12
+    # the platform in the rail plane: every leg horizontal, A_hat of rank 3 (type II)
+    flat = robot.home_pose.copy()
+    flat[2] = 0.0
+    assert robot.singularity(flat).type_two < 1e-12
+    poses = np.array([robot.home_pose, robot.home_pose, flat])
+    with pytest.raises(BatchSingularityError, match="type-II") as info:
+        robot.static_forces_batch(poses, bounded=False)
+    assert info.value.index == 2
+    assert info.value.sigma_min == pytest.approx(robot.singularity(flat).type_two, abs=1e-15)
     pose = robot.home_pose
     fast = np.array([0.0, 0.0, 150.0, 0.0, 0.0, 0.0])
     with pytest.raises(BatchActuatorSaturationError) as info:
@@ -169,3 +172,70 @@ def test_batch_of_one_and_home_statics(robot):
 def test_gravity_free_geometry_batch():
     robot = hp.Hexapod(hp.HexapodGeometry(gravity=0.0))
     np.testing.assert_allclose(robot.static_forces_batch(robot.home_pose[None]), 0.0, atol=1e-14)
+
+
+def test_batch_equals_single_state_kernels(robot, rng):
+    """The batch functions run the single-state kernels: ID, FD, statics, reduced, IK and J
+    of every state equal the single-state answers (1e-12)."""
+    poses, twists, twist_dots, wrenches = _states(robot, rng, 7)
+    fd = fast_dynamics(robot)
+    inv = robot.inverse_dynamics_batch(poses, twists, twist_dots, wrenches, bounded=False)
+    fwd = robot.forward_dynamics_batch(poses, twists, inv.actuator_forces, wrenches)
+    stat = robot.static_forces_batch(poses, wrenches, bounded=False)
+    red = robot.reduced_dynamics_batch(poses, twists)
+    ik = robot.inverse_kinematics_batch(poses)
+    jb = robot.jacobian_batch(poses)
+    s = K.Scratch()
+    for k in range(7):
+        np.testing.assert_allclose(inv.actuator_forces[k], fd.inverse_dynamics(
+            poses[k], twists[k], twist_dots[k], wrenches[k], bounded=False), rtol=0, atol=1e-12)
+        acc, qdd = fd.forward_dynamics_full(poses[k], twists[k], inv.actuator_forces[k],
+                                            wrenches[k])
+        np.testing.assert_allclose(fwd.twist_dot[k], acc, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(fwd.actuator_accelerations[k], qdd, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(stat[k], fd.static_forces(poses[k], wrenches[k],
+                                                             bounded=False), rtol=0, atol=1e-12)
+        mass, bias, jac = np.empty((6, 6)), np.empty(6), np.empty((6, 6))
+        assert K.reduced_dynamics(fd.geo, K.HOME_BRANCH, poses[k], twists[k], mass, bias, jac,
+                                  s.rot, s.wk, s.mats) == K.OK
+        np.testing.assert_allclose(red.mass_matrix[k], mass, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(red.bias[k], bias, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(ik.actuator_positions[k], robot.inverse_kinematics(
+            poses[k], check_limits=False), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(jb.jacobian[k], robot.jacobian(poses[k]), rtol=0,
+                                   atol=1e-12)
+
+
+def test_one_type_two_predicate_for_single_and_batch_routes(robot):
+    """Walk the platform down to the rail plane (a type-II singularity: every leg
+    horizontal). At each pose the single-state routes (tree ID, compiled ID, statics,
+    twist from carriage rates) and the batch routes raise SingularityError exactly where
+    the type-II measure of Hexapod.singularity (sigma_min of A_hat) is below TYPE_II_TOL."""
+    fd = fast_dynamics(robot)
+    zero = np.zeros(6)
+    heights = np.concatenate([[0.05, 1e-3, 1e-6, 1e-9], np.logspace(-11, -13, 9), [0.0]])
+    verdicts = set()
+    for z in heights:
+        pose = robot.home_pose.copy()
+        pose[2] = z
+        measure = robot.singularity(pose).type_two
+        if abs(measure / K.TYPE_II_TOL - 1.0) < 1e-6:
+            continue                                  # round-off decides at the border
+        singular = measure < K.TYPE_II_TOL
+        verdicts.add(singular)
+        routes = (lambda: robot.inverse_dynamics(pose, zero, zero, bounded=False),
+                  lambda: robot.static_forces(pose, bounded=False),
+                  lambda: fd.inverse_dynamics(pose, zero, zero, bounded=False),
+                  lambda: fd.static_forces(pose, bounded=False),
+                  lambda: robot.twist_from_actuator_velocities(pose, np.ones(6)),
+                  lambda: robot.inverse_dynamics_batch(pose[None], zero[None], zero[None],
+                                                       bounded=False),
+                  lambda: robot.static_forces_batch(np.array([robot.home_pose, pose]),
+                                                    bounded=False))
+        for route in routes:
+            if singular:
+                with pytest.raises(SingularityError, match="type-II"):
+                    route()
+            else:
+                route()
+    assert verdicts == {True, False}

@@ -17,8 +17,8 @@ from conftest import forward_dynamics_full_tau
 
 from hexapod_pin.core.dynamics import inverse_dynamics_tree
 from hexapod_pin.errors import SingularityError
+from hexapod_pin.hexapod import kernels as K
 from hexapod_pin.hexapod.kinematics import HOME_BRANCH
-from hexapod_pin.hexapod.platform_map import Legs
 from hexapod_pin.core.pose import rotation_from_rpy
 from hexapod_pin.hexapod.simulation import ClosedLoopIntegrator
 
@@ -30,11 +30,11 @@ def _motion(rng):
 
 
 def _tree(robot, pose, twist, twist_dot):
-    pm = robot.platform_map
-    legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
-    v, dlegs = pm.velocity(legs, twist.tolist())
-    a = pm.acceleration(legs, twist.tolist(), twist_dot.tolist(), v, dlegs)
-    return legs, np.array(pm.configuration(legs)), np.array(v), np.array(a)
+    cf = K.ClosedForm(robot.geometry, robot.indices)
+    q, v, a = np.empty(25), np.empty(24), np.empty(24)
+    assert K.tree_state(cf.geo, HOME_BRANCH, pose, twist, twist_dot, 2, q, v, a,
+                        cf.scratch.rot, cf.scratch.wk) == K.OK
+    return cf, q, v, a
 
 
 def test_tree_state_keeps_the_closures(any_robot, rng):
@@ -67,35 +67,20 @@ def test_tree_state_keeps_the_closures(any_robot, rng):
 
 def test_velocity_map_and_projection(any_robot, rng):
     robot = any_robot
-    pm = robot.platform_map
     pose = random_pose(robot, rng)
-    legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
-    gmap = pm.velocity_map(legs)
-    q = np.array(pm.configuration(legs))
+    twist, _, _ = _motion(rng)
+    cf, q, v, _ = _tree(robot, pose, twist, np.zeros(6))
+    gmap = np.empty((24, 6))
+    K.velocity_map(cf.geo, cf.scratch.rot, cf.scratch.wk, gmap)
     assert np.max(np.abs(robot.model.constraint_jacobian(q) @ gmap)) <= 1e-12
     np.testing.assert_allclose(gmap[robot.indices.carriage_v], robot.jacobian(pose), atol=1e-12)
-    twist, _, _ = _motion(rng)
-    v, _ = pm.velocity(legs, twist.tolist())
     np.testing.assert_allclose(gmap @ twist, v, atol=1e-13)
     force = rng.normal(size=robot.model.nv)
-    np.testing.assert_allclose(pm.project(legs, force.tolist()), gmap.T @ force, atol=1e-12)
+    out = np.empty(6)
+    K.project(cf.geo, cf.scratch.rot, cf.scratch.wk, force, K.ZERO6, False, out)
+    np.testing.assert_allclose(out, gmap.T @ force, atol=1e-12)
     # virtual power: twist . G^T f == (G twist) . f
     assert twist @ gmap.T @ force == pytest.approx(v @ force, rel=1e-12, abs=1e-14)
-
-
-def test_legs_from_the_tree_and_closed_form_residual(any_robot, rng):
-    robot = any_robot
-    pm = robot.platform_map
-    pose = random_pose(robot, rng)
-    legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
-    again = pm.legs_at(pm.configuration(legs))
-    np.testing.assert_allclose(np.array(again.legs), np.array(legs.legs), atol=1e-14)
-    np.testing.assert_allclose(again.q, legs.q, atol=0)
-    for _ in range(3):
-        q = pin.integrate(robot.model.model, robot.configuration(pose),
-                          0.02 * rng.normal(size=robot.model.nv))
-        assert pm.closure_residual(q.tolist()) == pytest.approx(
-            np.max(np.abs(robot.model.residual(q))), rel=1e-12, abs=1e-16)
 
 
 def test_configuration_at_a_singular_pose_is_still_returned(robot):
@@ -151,20 +136,8 @@ def test_single_routes_match_the_generic_tree_solvers(any_robot, rng):
         np.testing.assert_allclose(at_q, tree.actuator_forces, atol=1e-10)
 
 
-def test_type_two_singular_leg_matrix_raises(robot):
-    pm = robot.platform_map
-    legs = pm.legs(robot.home_pose.tolist(), HOME_BRANCH.tolist())
-    flat = Legs()
-    for name in Legs.__slots__:
-        setattr(flat, name, getattr(legs, name, None))
-    flat.legs = [legs.legs[0]] * 6                       # every leg parallel: rank 2
-    with pytest.raises(SingularityError):
-        pm.solve_forces(flat, [0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
-
-
 def test_integrator_with_closed_form_residual_matches_generic(robot):
-    pm = robot.platform_map
-    fast = ClosedLoopIntegrator(robot.model, residual=lambda q: pm.closure_residual(q.tolist()))
+    fast = ClosedLoopIntegrator(robot.model, residual=robot.closed_form.closure_residual)
     slow = ClosedLoopIntegrator(robot.model)
     q0 = robot.configuration(robot.home_pose + np.array([0.01, 0.0, -0.01, 0.05, 0.0, 0.02]))
     v0 = np.zeros(robot.model.nv)

@@ -3,16 +3,14 @@
 Independent routes: the Pinocchio tree routes of Hexapod (ID / FD / statics), the tree
 integrator of simulate(), the mechanism's energy from Pinocchio (computeKineticEnergy
 / computePotentialEnergy), one integrator step written out with Pinocchio's forward
-dynamics and SO(3) exponential, and the convergence orders of the integrators. Compiled
-tests are skipped when numba is absent; the plain-Python fallback of the module is
-checked in a subprocess.
+dynamics and SO(3) exponential, and the convergence orders of the integrators (numba is a
+dependency of the library).
 """
 
 from __future__ import annotations
 
 import subprocess
 import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -113,15 +111,6 @@ def test_errors_match_the_reference_routes(numba, robot):
             fd.inverse_dynamics(home, zero, big)
         np.testing.assert_allclose(exc.value.needed, fd.inverse_dynamics(home, zero, big,
                                                                           bounded=False))
-
-
-def test_type_two_check_of_the_leg_solve(numba, robot):
-    """Every leg parallel (rank-2 leg matrix) -> TYPE_II code, as PlatformMap.solve_forces."""
-    wk = np.zeros((fast._WORK_ROWS, 6))
-    wk[fast._RX], wk[fast._RY] = np.cos(np.arange(6)), np.sin(np.arange(6))
-    wk[fast._NX], wk[fast._NY], wk[fast._NZ] = 0.1, 0.2, 0.3
-    rhs = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
-    assert fast._solve_legs(wk, rhs, 1e-12, np.empty((6, 6))) == fast.TYPE_II
 
 
 def test_energy_is_conserved_unactuated(numba, any_robot):
@@ -314,43 +303,6 @@ def test_semi_implicit_euler_energy_of_an_oscillation(numba, robot):
     assert 0.01 < last < 1.05 * first
     first, last = peaks["rk4"]
     assert last > 2.0 * first
-
-
-FALLBACK = textwrap.dedent("""
-    import importlib
-    import sys
-
-    import numpy as np
-    import hexapod_pin as hp
-    from hexapod_pin.hexapod import fast
-    robot = hp.Hexapod.default()
-    pose, zero = robot.home_pose, np.zeros(6)
-    tau = robot.inverse_dynamics(pose, zero, zero, method="kkt").actuator_forces
-    acc = robot.forward_dynamics(pose, zero, tau).twist_dot
-    forces = tau * 1.3
-    runs = {name: fast.simulate_fast(robot, 0.005, 1e-3, actuator_forces=forces,
-                                     integrator=name).poses
-            for name in fast.INTEGRATORS}
-    sys.modules["numba"] = None                     # the module as if numba were missing
-    fast = importlib.reload(fast)
-    assert not fast.available()
-    fd = fast.fast_dynamics(robot)
-    assert np.abs(fd.inverse_dynamics(pose, zero, zero) - tau).max() < 1e-10
-    assert np.abs(fd.forward_dynamics(pose, zero, tau) - acc).max() < 1e-10
-    for name, compiled in runs.items():
-        tr = fast.simulate_fast(robot, 0.005, 1e-3, actuator_forces=forces, integrator=name)
-        assert tr.status == "completed" and tr.poses.shape == (6, 6), name
-        assert np.abs(tr.poses - compiled).max() < 1e-12, name
-    print("ok")
-""")
-
-
-def test_plain_python_fallback():
-    """numba made unimportable for hexapod_pin.hexapod.fast (reloaded): the same functions run as
-    plain Python and agree with the compiled ones (each integrator)."""
-    out = subprocess.run([sys.executable, "-c", FALLBACK], capture_output=True, text=True,
-                         timeout=300, cwd=ROOT, check=False)
-    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stdout + out.stderr
 
 
 def test_bench_fast_smoke():

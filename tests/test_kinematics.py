@@ -97,7 +97,7 @@ def test_forward_kinematics_converges_quadratically(robot, rng):
     the iterations with tol = 0, which makes the solver report its last error)."""
     pose = random_pose(robot, rng)
     q = robot.inverse_kinematics(pose)
-    system = am.circle_system(robot.kinematics_part._circles, q)
+    system = am.circle_system(robot.kinematics_part.circles, q)
     start = system.angles_of(robot.platform_points_world(pose + np.r_[0.01, -0.01, 0.01,
                                                                       0.05, 0.03, -0.04]))
     errors = []
@@ -402,7 +402,7 @@ def test_singularity_measures(robot, rng):
     cos = np.abs(np.einsum("ij,ij->i", motion.direction,
                            robot.geometry.rail_directions[hp.hexapod.kinematics.RAIL_OF]))
     assert s.type_one == pytest.approx(cos.min(), rel=1e-12)
-    assert s.type_one_carriage == int(np.argmin(cos))
+    assert s.type_one_actuator == int(np.argmin(cos))
     assert 0.0 < s.type_two <= 1.0 + 1e-12
     assert s.type_two_singular_values.shape == (6,)
 
@@ -444,7 +444,7 @@ def test_batch_matches_single_pose_results(any_robot, rng):
     for br in (None, branch):
         ik = any_robot.inverse_kinematics_batch(poses, branch=br)
         jb = any_robot.jacobian_batch(poses, branch=br)
-        np.testing.assert_array_equal(ik.q, jb.q)
+        np.testing.assert_array_equal(ik.actuator_positions, jb.actuator_positions)
         np.testing.assert_array_equal(ik.within_stroke, jb.within_stroke)
         kinds = set()
         for n, pose in enumerate(poses):
@@ -460,7 +460,7 @@ def test_batch_matches_single_pose_results(any_robot, rng):
             assert ik.reachable[n] == (outcome != "unreachable")
             if outcome != "unreachable":
                 assert ik.within_stroke[n] == (outcome == "ok")
-                np.testing.assert_allclose(ik.q[n], any_robot.inverse_kinematics(
+                np.testing.assert_allclose(ik.actuator_positions[n], any_robot.inverse_kinematics(
                     pose, branch=br, check_limits=False), rtol=1e-13, atol=1e-15)
             try:
                 jac = any_robot.jacobian(pose, branch=br)
@@ -471,17 +471,17 @@ def test_batch_matches_single_pose_results(any_robot, rng):
                 assert np.all(jb.jacobian[n] == 0.0)
         assert kinds == ({"ok", "unreachable", "stroke"} if br is None
                          else {"unreachable", "stroke"} | kinds)
-        assert np.all(np.isfinite(ik.q)) and np.all(np.isfinite(jb.jacobian))
+        assert np.all(np.isfinite(ik.actuator_positions)) and np.all(np.isfinite(jb.jacobian))
 
 
 def test_batch_per_row_branches_and_chunks(robot, rng):
-    chunk = hp.hexapod.kinematics.BATCH_CHUNK
+    chunk = hp.hexapod.batch.CHUNK
     n = chunk + 100
     poses = np.tile(robot.home_pose, (n, 1)) + rng.normal(scale=0.01, size=(n, 6))
     branches = np.where(rng.uniform(size=(n, 6)) < 0.5, -1.0, 1.0)
     out = robot.jacobian_batch(poses, branch=branches)
     for k in (0, chunk - 1, chunk, n - 1):
-        np.testing.assert_allclose(out.q[k], robot.inverse_kinematics(
+        np.testing.assert_allclose(out.actuator_positions[k], robot.inverse_kinematics(
             poses[k], branch=branches[k], check_limits=False), atol=1e-15)
         np.testing.assert_allclose(out.jacobian[k], robot.jacobian(poses[k], branches[k]),
                                    rtol=1e-11, atol=1e-13)

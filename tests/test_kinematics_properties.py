@@ -94,4 +94,4 @@ def test_singularity_measures_are_bounded_and_batch_agrees(name, offset):
     batch = robot.jacobian_batch(np.stack([pose, pose + 1e-4]))
     assert batch.ok[0]
     np.testing.assert_allclose(batch.jacobian[0], robot.jacobian(pose), rtol=1e-12, atol=1e-13)
-    np.testing.assert_allclose(batch.q[0], robot.inverse_kinematics(pose), atol=1e-15)
+    np.testing.assert_allclose(batch.actuator_positions[0], robot.inverse_kinematics(pose), atol=1e-15)

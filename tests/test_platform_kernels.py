@@ -1,8 +1,8 @@
-"""The compiled platform -> tree map (hexapod_pin.hexapod.kernels).
+"""The compiled closed form of the hexapod (hexapod_pin.hexapod.kernels): its tree map.
 
-Checked against Pinocchio (closure residual, ``J_c v = 0``, ``J_c a = -gamma`` with
-Pinocchio's own Jacobian and drift), virtual power (``G^T f . twist = f . v``), numpy
-linear algebra, and bit for bit against the Python map it compiles.
+Checked against Pinocchio (closure residual, ``J_c v = 0``, ``J_c a = -gamma``, ``J_c G = 0``
+with Pinocchio's own Jacobian and drift, constraintDynamics), virtual power
+(``G^T f . twist = f . v``) and numpy linear algebra.
 """
 
 import numpy as np
@@ -13,7 +13,6 @@ from conftest import random_pose
 import hexapod_pin as hp
 from hexapod_pin.hexapod import kernels as K
 from hexapod_pin.hexapod.kinematics import HOME_BRANCH
-from hexapod_pin.hexapod.platform_map import TYPE_II_PIVOT_RTOL
 
 
 def _motion(rng):
@@ -22,9 +21,11 @@ def _motion(rng):
 
 
 def _state(robot, pose, twist, twist_dot, level=2):
-    ck = K.CompiledMap(robot.platform_map, HOME_BRANCH)
+    ck = K.ClosedForm(robot.geometry, robot.indices)
+    s = ck.scratch
     q, v, a = np.empty(25), np.empty(24), np.empty(24)
-    code = K.tree_state(ck.geo, pose, twist, twist_dot, ck.signs, level, q, v, a, ck.buf)
+    code = K.tree_state(ck.geo, HOME_BRANCH, pose, twist, twist_dot, level, q, v, a, s.rot,
+                        s.wk)
     return code, ck, q, v, a
 
 
@@ -49,23 +50,37 @@ def test_tree_state_keeps_the_closures(any_robot, rng):
                                                            rot.T @ twist_dot[3:]]), atol=1e-13)
 
 
-def test_kernels_equal_the_python_map(any_robot, rng):
-    """Same arithmetic as PlatformMap, so the same bits (the Python map stays the
-    reference of the lazy parts of the results)."""
+def test_velocity_map_against_the_tree(any_robot, rng):
+    """``J_c G = 0`` with Pinocchio's J_c; the carriage rows of G are the kinematics'
+    Jacobian; ``G twist`` is the tree velocity of the same state."""
     robot = any_robot
-    pm = robot.platform_map
     pose = random_pose(robot, rng)
     twist, twist_dot = _motion(rng)
-    _, ck, q, v, a = _state(robot, pose, twist, twist_dot)
-    legs = pm.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True)
-    vel, dlegs = pm.velocity(legs, twist.tolist())
-    acc = pm.acceleration(legs, twist.tolist(), twist_dot.tolist(), vel, dlegs)
-    np.testing.assert_array_equal(q, pm.configuration(legs))
-    np.testing.assert_array_equal(v, vel)
-    np.testing.assert_array_equal(a, acc)
+    _, ck, q, v, _ = _state(robot, pose, twist, twist_dot)
     g_map = np.empty((24, 6))
-    K.velocity_map(ck.geo, ck.buf, g_map)
-    np.testing.assert_array_equal(g_map, pm.velocity_map(legs))
+    K.velocity_map(ck.geo, ck.scratch.rot, ck.scratch.wk, g_map)
+    assert np.max(np.abs(robot.model.constraint_jacobian(q) @ g_map)) <= 1e-12
+    np.testing.assert_allclose(g_map[robot.indices.carriage_v], robot.jacobian(pose),
+                               atol=1e-12)
+    np.testing.assert_allclose(g_map @ twist, v, atol=1e-13)
+
+
+def test_legs_from_the_tree_and_closed_form_residual(any_robot, rng):
+    """Legs read back from the universal-joint angles equal the IK legs; the closed-form
+    closure residual equals Pinocchio's on perturbed configurations."""
+    robot = any_robot
+    pose = random_pose(robot, rng)
+    _, ck, q, _, _ = _state(robot, pose, np.zeros(6), np.zeros(6), level=0)
+    ik_legs = ck.scratch.wk[[K.NX, K.NY, K.NZ, K.Q]].copy()
+    back, rot, wk = np.empty(6), np.empty(9), np.zeros((K.WK_ROWS, 6))
+    assert K.legs_from_tree(ck.geo, q, back, rot, wk) == K.OK
+    np.testing.assert_allclose(wk[[K.NX, K.NY, K.NZ, K.Q]], ik_legs, atol=1e-14)
+    np.testing.assert_allclose(back, pose, atol=1e-13)
+    for _ in range(3):
+        qp = pin.integrate(robot.model.model, robot.configuration(pose),
+                           0.02 * rng.normal(size=robot.model.nv))
+        assert ck.closure_residual(qp) == pytest.approx(
+            np.max(np.abs(robot.model.residual(qp))), rel=1e-12, abs=1e-16)
 
 
 def test_projection_is_virtual_power_and_solve_is_exact(any_robot, rng):
@@ -75,14 +90,15 @@ def test_projection_is_virtual_power_and_solve_is_exact(any_robot, rng):
     _, ck, _q, v, _ = _state(robot, pose, twist, twist_dot)
     force, wrench = rng.normal(size=24), rng.normal(size=6)
     rhs = np.empty(6)
-    K.project(ck.geo, ck.buf, force, wrench, True, rhs)
+    s = ck.scratch
+    K.project(ck.geo, s.rot, s.wk, force, wrench, True, rhs)
     # (G^T f - w) . twist == f . v_tree - w . twist  (virtual power)
     assert rhs @ twist == pytest.approx(force @ v - wrench @ twist, rel=1e-12, abs=1e-12)
     tau, mult, jac_t = np.empty(6), np.empty(6), np.empty((6, 6))
-    assert K.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, mult, ck.lu, jac_t) == K.OK
-    # J^T from Pinocchio's tree: J = S G, with G from the Python map
-    g_map = robot.platform_map.velocity_map(
-        robot.platform_map.legs(pose.tolist(), HOME_BRANCH.tolist(), angles=True))
+    assert K.solve_forces(ck.geo, s.wk, s.mats, rhs, tau, mult, jac_t) == K.OK
+    # J^T from the tree: J = S G, with G checked against Pinocchio's J_c above
+    g_map = np.empty((24, 6))
+    K.velocity_map(ck.geo, s.rot, s.wk, g_map)
     np.testing.assert_allclose(jac_t, g_map[robot.model.actuated_v].T, atol=1e-12)
     np.testing.assert_allclose(np.linalg.solve(jac_t, rhs), tau, rtol=1e-10, atol=1e-10)
     # the QP multipliers: stationarity tau + J mult = 0
@@ -101,8 +117,9 @@ def test_nullspace_forward_matches_constraint_dynamics(any_robot, rng):
     mass = pin.crba(model, data, q)
     bias = pin.rnea(model, data, q, v, acc0)
     twist_dot, acc = np.empty(6), np.empty(24)
-    assert K.nullspace_forward(ck.geo, ck.buf, mass, bias, forces, ck.zero6, False, acc0,
-                               ck.work, twist_dot, acc) == K.OK
+    s = ck.scratch
+    assert K.nullspace_forward(ck.geo, s.rot, s.wk, mass, bias, forces, K.ZERO6, False, acc0,
+                               np.empty((36, 6)), twist_dot, acc) == K.OK
     tau = np.zeros(model.nv)
     tau[clm.actuated_v] = forces
     cms, cds = clm.pinocchio_constraints()
@@ -118,11 +135,11 @@ def test_error_codes(robot):
     assert _state(robot, pose, np.zeros(6), np.zeros(6))[0] == K.UNREACHABLE
     bad = robot.home_pose.copy()
     bad[0] = np.nan
-    assert _state(robot, bad, np.zeros(6), np.zeros(6))[0] == -1
+    assert _state(robot, bad, np.zeros(6), np.zeros(6))[0] == K.NONFINITE
     twist = np.zeros(6)
     twist[4] = np.inf
     assert _state(robot, robot.home_pose, twist, np.zeros(6), level=0)[0] == K.OK
-    assert _state(robot, robot.home_pose, twist, np.zeros(6), level=1)[0] == -1
+    assert _state(robot, robot.home_pose, twist, np.zeros(6), level=1)[0] == K.NONFINITE
 
 
 def test_public_routes_take_any_array_like(robot, rng):
@@ -152,23 +169,34 @@ def test_mass_structure_check(robot):
     coupling between two leg chains would be refused."""
     clm = robot.model
     mass = pin.crba(clm.model, clm.model.createData(), robot.home_configuration)
-    K.CompiledMap.check_mass_structure(mass)
+    K.check_mass_structure(mass)
     coupled = mass.copy()
     coupled[0, 5] = 1e-3
     with pytest.raises(hp.HexapodPinError, match="block-diagonal"):
-        K.CompiledMap.check_mass_structure(coupled)
+        K.check_mass_structure(coupled)
 
 
-def test_type_two_pivot_test(robot):
-    """Six parallel legs (A^T of rank 2): the compiled LU reports TYPE_II, like LAPACK's
-    route in PlatformMap.solve_forces; a regular state solves."""
+def test_type_two_test_of_the_leg_matrix(robot):
+    """Six parallel legs (A of rank 2): the leg factorisation reports TYPE_II, and its
+    measure is sigma_min(A_hat) (numpy's SVD of core.measures' A_hat); a regular state
+    solves."""
     _, ck, _, _, _ = _state(robot, robot.home_pose, np.zeros(6), np.zeros(6), level=0)
-    tau, mult, lu, jac_t = np.empty(6), np.empty(6), np.empty((6, 6)), np.empty((6, 6))
+    s = ck.scratch
+    tau, mult, jac_t = np.empty(6), np.empty(6), np.empty((6, 6))
     rhs = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
-    assert K.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, mult, lu, jac_t) == K.OK
-    for row in (K._NX, K._NY, K._NZ):
-        ck.buf[row, :] = ck.buf[row, 0]
-    assert K.solve_forces(ck.buf, rhs, TYPE_II_PIVOT_RTOL, tau, mult, lu, jac_t) == K.TYPE_II
+    assert K.solve_forces(ck.geo, s.wk, s.mats, rhs, tau, mult, jac_t) == K.OK
+    legs = s.wk[[K.NX, K.NY, K.NZ]].T
+    arms = s.wk[[K.RX, K.RY, K.RZ]].T
+    a_hat = hp.core.measures.closure_matrix_hat(legs / robot.geometry.leg_length,
+                                                np.cross(arms, legs) / robot.geometry.leg_length,
+                                                robot.geometry.platform_radius)
+    want = np.linalg.svd(a_hat, compute_uv=False)[-1]
+    assert K.type_two_measure(ck.geo, s.wk, np.empty((6, 6))) == pytest.approx(want, rel=1e-12)
+    for row in (K.NX, K.NY, K.NZ):
+        s.wk[row, :] = s.wk[row, 0]
+    assert K.factor_legs(ck.geo, s.wk, s.mats) == K.TYPE_II
+    assert K.solve_forces(ck.geo, s.wk, s.mats, rhs, tau, mult, jac_t) == K.TYPE_II
+    assert K.type_two_measure(ck.geo, s.wk, np.empty((6, 6))) < 1e-15
 
 
 def test_lazy_parts_do_not_follow_the_callers_arrays(robot, rng):

@@ -52,7 +52,7 @@ class ClosedLoopIntegrator:
             conserved to better than O(dt)).
         residual: optional callable ``q -> max-abs closure residual`` (m) replacing the
             generic evaluation through Pinocchio's frames (e.g. the hexapod's closed form
-            :meth:`~hexapod_pin.platform_map.PlatformMap.closure_residual`); it must
+            :meth:`~hexapod_pin.hexapod.kernels.ClosedForm.closure_residual`); it must
             return the same quantity as :meth:`ClosedLoopModel.residual`.
 
     Raises:

@@ -12,7 +12,7 @@ partials ``ddq_dq``, ``ddq_dv``, ``ddq_dtau`` of the tree acceleration), into th
     d tau / d twist_dot =  (d FD / d tau)^-1                  (d FD / d tau = M_x^-1 J^T)
 
 Chain rule through the tree. ``G`` (nv, 6) is the closed-form map ``v_tree = G twist``
-(:meth:`~hexapod_pin.platform_map.PlatformMap.velocity_map`). A change of pose is a
+(:func:`~hexapod_pin.hexapod.kernels.velocity_map`). A change of pose is a
 world tangent ``delta = (dp, dtheta)``: ``dp`` the displacement of the platform origin,
 ``dtheta`` the rotation vector in world axes (``R -> exp([dtheta]) R``); in pose
 coordinates ``dtheta = E(rpy) d(rpy)`` (:func:`~hexapod_pin.pose.euler_rates_matrix`).
@@ -55,9 +55,9 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dgesv
 
-from ..errors import HexapodPinError, SingularityError, SolverError
-from .kinematics import HOME_BRANCH, RAIL_OF, _floats6
-from .platform_map import TYPE_II_PIVOT_RTOL
+from ..core.checks import as_array, vec6
+from ..errors import HexapodPinError, SolverError
+from . import kernels
 
 __all__ = ["AnalyticDerivatives", "DerivativesWorkspace", "analytic_derivatives"]
 
@@ -101,21 +101,22 @@ class DerivativesWorkspace:
 
     Args:
         clm: the hexapod's :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`.
-        platform_map: its closed-form platform -> tree map.
+        closed_form: its :class:`~hexapod_pin.hexapod.kernels.ClosedForm`.
         indices: its :class:`~hexapod_pin.hexapod.robot.HexapodIndices`.
         geometry: its :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry`.
 
 
-    Relies on the tree layout that :class:`~hexapod_pin.platform_map.PlatformMap`
-    enforces: velocity rows ``(carriage_i, u_i_a, u_i_b)`` at ``3 i .. 3 i + 2`` for
+    Relies on the tree layout that :class:`~hexapod_pin.hexapod.kernels.ClosedForm`
+    checks: velocity rows ``(carriage_i, u_i_a, u_i_b)`` at ``3 i .. 3 i + 2`` for
     ``i = 0..5``, then the platform's free-flyer at 18..23; six point closures.
     """
 
-    def __init__(self, clm, platform_map, indices, geometry):
+    def __init__(self, clm, closed_form, indices, geometry):
         model = clm.model
         self.model = model
-        self.pmap = platform_map
-        self.signs = HOME_BRANCH.tolist()
+        self.closed_form = closed_form
+        self.scratch = kernels.Scratch()
+        self.gmap = np.empty((24, 6))
         self.nv = model.nv
         self.act = np.asarray(clm.actuated_v, dtype=int)
         if (clm.n_rows != 18 or any(c.type != "point" for c in clm.closures)
@@ -128,12 +129,11 @@ class DerivativesWorkspace:
         self.kin = model.createData()           # rnea
         pin.initConstraintDynamics(model, self.data, self.cms, self.cds)
         self.prox = pin.ProximalSettings(1e-14, 0.0, 1)
-        self.rail_of = RAIL_OF.tolist()
         geo = geometry
         self.length = float(geo.leg_length)
         # per carriage: the rail direction u and l = z x u (the rails are horizontal)
         self.axes = [(tuple(u), (-u[1], u[0], 0.0))
-                     for u in geo.rail_directions[RAIL_OF].tolist()]
+                     for u in geo.rail_directions[kernels.RAIL_OF].tolist()]
         # rows (dq | dv | dtau_tree) x columns (world tangent | twist | wrench | tau); the
         # zeros and the actuation block stay, the rest is overwritten at each call
         chain = np.zeros((3 * self.nv, 24))
@@ -195,23 +195,30 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose, twist, twist_dot,
             rail (gimbal lock) or a type-II singularity.
         SolverError: Pinocchio's constrained dynamics returned non-finite values.
     """
-    pose = _floats6(pose, "pose")
-    twist = _floats6(twist, "twist")
-    twist_dot = _floats6(twist_dot, "twist_dot")
-    wrench = [0.0] * 6 if wrench is None else _floats6(wrench, "wrench")
-    model, pm, data = ws.model, ws.pmap, ws.data
+    pose, twist = as_array(pose, (6,), "pose"), as_array(twist, (6,), "twist")
+    twist_dot = as_array(twist_dot, (6,), "twist_dot")
+    wrench_a = kernels.ZERO6 if wrench is None else vec6(as_array(wrench, (6,), "wrench"),
+                                                         "wrench")
+    model, data, ck, scr = ws.model, ws.data, ws.closed_form, ws.scratch
 
     # -- the inverse-dynamics point (closed-form tree state, one rnea, one 6x6 solve)
-    legs = pm.legs(pose, ws.signs, angles=True)
-    vel, dlegs = pm.velocity(legs, twist)
-    acc = pm.acceleration(legs, twist, twist_dot, vel, dlegs)
-    q, v = np.array(pm.configuration(legs)), np.array(vel)
-    force = pin.rnea(model, ws.kin, q, v, np.array(acc)).tolist()
-    rhs = [b - w for b, w in zip(pm.project(legs, force), wrench)]
-    tau = pm.solve_forces(legs, rhs)           # raises SingularityError at type II
+    q, v, acc = np.empty(25), np.empty(24), np.empty(24)
+    code = kernels.tree_state(ck.geo, ck.signs, pose, twist, twist_dot, 2, q, v, acc,
+                              scr.rot, scr.wk)
+    if code != kernels.OK:
+        raise kernels.error_of(code, ck.geo, scr.wk)
+    force = pin.rnea(model, ws.kin, q, v, acc)
+    rhs, tau = np.empty(6), np.empty(6)
+    kernels.project(ck.geo, scr.rot, scr.wk, force, wrench_a, True, rhs)
+    code = kernels.solve_forces(ck.geo, scr.wk, scr.mats, rhs, tau, np.empty(6),
+                                np.empty((6, 6)))
+    if code != kernels.OK:                     # type II
+        raise kernels.error_of(code, ck.geo, scr.wk)
+    wrench = wrench_a.tolist()
+    twist_l, twist_dot = twist.tolist(), twist_dot.tolist()
 
     # -- constrained forward dynamics and its derivatives at (q, v, tau_tree)
-    rot = legs.rot
+    rot = scr.rot.tolist()
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
     fx, fy, fz, mx, my, mz = wrench
     tau_tree = []
@@ -232,11 +239,12 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose, twist, twist_dot,
 
     # -- the chain (72, 24): rows (dq | dv | dtau_tree), columns (world tangent | twist |
     #    wrench | tau); its constant part is set up once (see DerivativesWorkspace)
-    g_rows, dv_rows = _leg_rates(ws, legs, twist, vel, dlegs)
+    kernels.velocity_map(ck.geo, scr.rot, scr.wk, ws.gmap)
+    dv_rows = _leg_rates(ws, scr.wk, ws.gmap, twist_l, v.tolist())
     chain = ws.chain
-    chain[0:18, 0:6] = chain[24:42, 6:12] = np.array(g_rows)  # dq = G delta, dv = G dtwist
+    chain[0:18, 0:6] = chain[24:42, 6:12] = ws.gmap[:18]       # dq = G delta, dv = G dtwist
     chain[24:42, 0:6] = dv_rows                               # dv along delta, twist held
-    vx, vy, vz, wx, wy, wz = twist
+    vx, vy, vz, wx, wy, wz = twist_l
     chain[ws.skew_rows, ws.skew_cols] = (-vz, vy, vz, -vx, -vy, vx, -wz, wy, wz, -wx, -wy,
                                          wx, -fz, fy, fz, -fx, -fy, fx, -mz, my, mz, -mx,
                                          -my, mx)
@@ -250,30 +258,27 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose, twist, twist_dot,
     # implicit-function theorem: d tau = -(d twist_dot / d tau)^-1 d twist_dot / d (.)
     dxi_dtau = rows[:, 18:24].copy()                          # = M_x^-1 J^T
     rows[:, 18:24] = ws.eye6
-    lu, _, sol, info = dgesv(dxi_dtau, rows)
-    pivots = np.abs(lu.diagonal())
-    if info != 0 or not pivots.min() > TYPE_II_PIVOT_RTOL * pivots.max():
-        raise SingularityError("d twist_dot / d tau = M_x^-1 J^T (type-II singularity; "
-                               "smallest LU pivot over the largest)",
-                               pivots.min() / pivots.max() if pivots.max() > 0.0 else 0.0)
-    if not math.isfinite(sol.sum()):
+    # (regular: the type-II test of the leg matrix passed above)
+    _, _, sol, info = dgesv(dxi_dtau, rows)
+    if info != 0 or not math.isfinite(sol.sum()):
         raise SolverError("pin.constraintDynamics / computeConstraintDynamicsDerivatives",
                           "non-finite derivatives", "the closures may be redundant")
     neg = -sol
     d_pose = neg[:, 0:6].copy()
     d_pose[:, 3:] = neg[:, 3:6] @ _euler_rates(pose[4], pose[5])
-    return AnalyticDerivatives(np.array(tau), d_pose, neg[:, 0:6], neg[:, 6:12],
+    return AnalyticDerivatives(tau, d_pose, neg[:, 0:6], neg[:, 6:12],
                                sol[:, 18:24], neg[:, 12:18])
 
 
-def _leg_rates(ws: DerivativesWorkspace, legs, twist, vel, dlegs):
-    """Leg rows of ``G`` and of ``dv = d(G twist)`` along the six world tangents.
+def _leg_rates(ws: DerivativesWorkspace, wk, gmap, twist, vel):
+    """Leg rows of ``dv = d(G twist)`` along the six world tangents, from the legs in
+    ``wk`` (:mod:`~hexapod_pin.hexapod.kernels` rows) and ``G`` (24, 6).
 
-    Returns two lists of 18 rows (6 floats each), rows ``3 i, 3 i + 1, 3 i + 2`` for the
+    Returns a list of 18 rows (6 floats each), rows ``3 i, 3 i + 1, 3 i + 2`` for the
     carriage, ``u_i_a`` and ``u_i_b`` velocities of leg ``i`` (columns ``(dp, dtheta)``).
 
-    Per leg (carriage ``i`` on rail ``k``; closed form of
-    :meth:`~hexapod_pin.platform_map.PlatformMap.velocity`), along ``delta = (dp,
+    Per leg (carriage ``i`` on rail ``k``; the tree velocity of
+    :func:`~hexapod_pin.hexapod.kernels.tree_velocity`), along ``delta = (dp,
     dtheta)`` with the twist held, the platform point moves by ``D = dp + dtheta x r``,
     the arm by ``dr = dtheta x r`` and the tip velocity ``V = v + w x r`` by
     ``dV = w x dr``. Every differential below is ``a.D + b.dr`` for 3-vectors ``a``,
@@ -291,21 +296,17 @@ def _leg_rates(ws: DerivativesWorkspace, legs, twist, vel, dlegs):
     length = ws.length
     inv_len = 1.0 / length
     wx, wy, wz = twist[3:]
-    g_rows, dv_rows = [], []
+    K = kernels
+    dv_rows = []
+    cols = wk[[K.NX, K.NY, K.NZ, K.RX, K.RY, K.RZ, K.NU, K.XA, K.YA, K.RHO2, K.DNX, K.DNY,
+               K.DNZ]].T.tolist()
     for i, ((ux, uy, uz), (lx, ly, lz)) in enumerate(ws.axes):
-        nx, ny, nz = legs.legs[i]
-        rx, ry, rz = legs.arms[ws.rail_of[i]]
-        nu, big_x, big_y, rho2 = legs.along[i], legs.xs[i], legs.ys[i], legs.rho2[i]
+        nx, ny, nz, rx, ry, rz, nu, big_x, big_y, rho2, ex, ey, ez = cols[i]   # ex: dn/dt
         rho = rho2 ** 0.5
         qdot, adot, bdot = vel[3 * i:3 * i + 3]
-        ex, ey, ez = dlegs[i]                                  # dn/dt
         tx, ty, tz = ex + qdot * ux, ey + qdot * uy, ez + qdot * uz   # V
-        # G rows
-        gcx, gcy, gcz = nx / nu, ny / nu, nz / nu
-        ca = -inv_len / rho2
-        gax, gay, gaz = ca * (big_x * lx), ca * (big_x * ly), ca * (big_x * lz + big_y)
-        cb = inv_len / rho
-        gbx, gby, gbz = cb * (ux - gcx), cb * (uy - gcy), cb * (uz - gcz)
+        # the legs' rows [g, r x g] of G: g_c, g_a, g_b
+        gcx, gcy, gcz = gmap[3 * i, :3]
         # d qdot: a = (V - (V.u) g_c - qdot (u - g_c)) / nu,  b = (n x w) / nu
         tu = tx * ux + ty * uy + tz * uz
         aqx = (tx - tu * gcx - qdot * (ux - gcx)) / nu
@@ -338,13 +339,10 @@ def _leg_rates(ws: DerivativesWorkspace, legs, twist, vel, dlegs):
         bbx = (uy * wz - uz * wy - bqx) * k_b
         bby = (uz * wx - ux * wz - bqy) * k_b
         bbz = (ux * wy - uy * wx - bqz) * k_b
-        for (ax, ay, az), (sx, sy, sz), rows in (
-                ((gcx, gcy, gcz), (0.0, 0.0, 0.0), g_rows),
-                ((gax, gay, gaz), (0.0, 0.0, 0.0), g_rows),
-                ((gbx, gby, gbz), (0.0, 0.0, 0.0), g_rows),
-                ((aqx, aqy, aqz), (bqx, bqy, bqz), dv_rows),
-                ((aax, aay, aaz), (bax, bay, baz), dv_rows),
-                ((abx, aby, abz), (bbx, bby, bbz), dv_rows)):
+        for (ax, ay, az), (sx, sy, sz) in (((aqx, aqy, aqz), (bqx, bqy, bqz)),
+                                           ((aax, aay, aaz), (bax, bay, baz)),
+                                           ((abx, aby, abz), (bbx, bby, bbz))):
             sx, sy, sz = sx + ax, sy + ay, sz + az
-            rows.append((ax, ay, az, ry * sz - rz * sy, rz * sx - rx * sz, rx * sy - ry * sx))
-    return g_rows, dv_rows
+            dv_rows.append((ax, ay, az, ry * sz - rz * sy, rz * sx - rx * sz,
+                            rx * sy - ry * sx))
+    return dv_rows

@@ -116,7 +116,7 @@ class _ForwardDetails:
             # Pinocchio's LOCAL contact forces, rotated into world axes: lambda = R_c1 lambda_pin
             dyn = self.dyn
             pin.framesForwardKinematics(dyn.model, dyn.data, self.q)
-            rots = np.array([dyn.data.oMf[c[2]].rotation for c in dyn._closures])
+            rots = np.array([dyn.data.oMf[c[2]].rotation for c in dyn.closure_frames])
             self.rows = np.einsum("kij,kj->ki", rots, self.local.reshape(-1, 3)).reshape(-1)
         return self.rows
 
@@ -237,7 +237,7 @@ class HexapodDynamics:
         ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds,
                                clm.model.getJointId("platform_joint"), self.closed_form)
         home_q, _ = self.tree_state(self.geometry.home_pose, np.zeros(6), ws)
-        dyn._ensure_rank(home_q)
+        dyn.closure_rank(home_q)
         kernels.check_mass_structure(pin.crba(dyn.model, dyn.data, home_q))
         self._ws = ws
         return ws
@@ -512,7 +512,7 @@ class HexapodDynamics:
                 ck.geo, s.rot, s.wk, mass, bias, tau_a,
                 kernels.ZERO6 if wrench_a is None else wrench_a, wrench_a is not None, acc0,
                 ws.work, twist_dot, acc)
-            if code == -1:
+            if code == kernels.NONFINITE:
                 self._raise_code(ck, code, pose=pose, twist=twist,
                                  actuator_forces=actuator_forces, wrench=wrench)
             if code != kernels.OK:
@@ -530,8 +530,8 @@ class HexapodDynamics:
         if wrench_a is not None:
             kernels.wrench_to_tree(s.rot, wrench_a, tau)
         acc = None
-        if method == "pinocchio" and dyn._rank == dyn.n_rows:
-            acc, prox = dyn._pin_call(q, v, tau, False)
+        if method == "pinocchio" and dyn.redundant is False:
+            acc, prox = dyn.pinocchio_call(q, v, tau, False)
         if acc is not None:
             acc = acc.copy()
             details = _ForwardDetails(dyn, q, ws.leg_of_closure, local=dyn.data.lambda_c.copy())
@@ -549,7 +549,7 @@ class HexapodDynamics:
         """Dynamics in platform coordinates (null-space / independent-coordinate method).
 
         With ``T`` (nv, 6) the map ``v = T twist`` that keeps the closures
-        (``J_c T = 0``, closed form: :meth:`PlatformMap.velocity_map`) and ``a = T
+        (``J_c T = 0``, closed form: :func:`kernels.velocity_map`) and ``a = T
         twist_dot + a_0``, projecting the tree equation of motion on ``T^T`` removes the
         closure forces::
 

@@ -1,24 +1,12 @@
-"""Compiled fast path (numba) for the hexapod's single-state dynamics and simulation.
+"""Compiled drivers of the hexapod's closed form: single-state dynamics and simulation.
 
-The kernels below are a scalar, one-state port of the closed form of
-:mod:`hexapod_pin.batch_dynamics` (see its docstring for the model and the equations):
-inverse dynamics, forward dynamics (reduced equation ``M_x twist_dot = J^T tau + wrench -
-h_x``, Cholesky) and statics, plus a simulation loop in independent coordinates. They
-never call Pinocchio; the tests check them against the Pinocchio routes of
-:class:`~hexapod_pin.dynamics.HexapodDynamics` to 1e-10.
-
-Compilation: numba compiles the kernels on first use (``@njit(cache=True)``: the machine
-code is cached next to this module, in ``__pycache__``, so later processes only load it:
-about 25-30 s to compile on a small 2-core machine, under a second to load). numba is a
-dependency of the library (:mod:`hexapod_pin.platform_kernels` needs it too); should this
-module fail to import it (the tests simulate that), :func:`available` is False and the same
-functions run as plain Python: correct, but slower than the reference routes (ID about
-350 µs, simulation about 0.4x real time at 1 kHz). No other module of the library imports
-this one. The kernels are compiled with the fast-math flags ``contract,
-reassoc, nsz`` only (no ``nnan`` / ``ninf``: the finiteness checks stay exact); results
-differ from the reference routes by round-off. The small helpers are inlined by LLVM
-(``forceinline``) and compiled, like the simulation loop, without numba's reference
-counting (they never allocate): handing arrays to a helper then costs nothing.
+:class:`FastDynamics` calls the single-state kernels of :mod:`hexapod_pin.hexapod.kernels`
+(Newton-Euler inverse dynamics, forward dynamics by the reduced equation ``M_x twist_dot =
+J^T tau + wrench - h_x``, statics) with preallocated scratch and raises the library's
+exceptions from their status codes. :func:`simulate_fast` and :class:`FastStepper`
+integrate the dynamics in independent (platform) coordinates in one compiled loop
+(:func:`simulate_kernel`) that calls the same kernels; the tests check them against the
+Pinocchio routes of the hexapod to 1e-10 and against the tree simulator.
 
 Conventions (those of the library): pose ``(x, y, z, roll, pitch, yaw)`` (m, rad) with
 ``R = Rz(yaw) Ry(pitch) Rx(roll)``; twist ``(v, w)`` of the platform origin, world axes;
@@ -26,537 +14,52 @@ Conventions (those of the library): pose ``(x, y, z, roll, pitch, yaw)`` (m, rad
 (N), carriage order; wrench ``(f, m)`` applied on the platform by the environment, world
 axes, moment about the platform origin (N, N m); home IK branch.
 
-Errors: the kernels return a status code, never NaN. The public functions validate their
-inputs once; on any non-zero code they re-run the reference (Pinocchio) route of the same
-state, which raises the library's usual exception with its values
-(:class:`~hexapod_pin.errors.UnreachablePoseError`,
-:class:`~hexapod_pin.errors.SingularityError`, :class:`~hexapod_pin.errors.InputError`);
-at the exact border of a tolerance, where that route succeeds, its answer is returned.
-
 Simulation (:func:`simulate_fast`): state ``(p, Q, v, w)`` with ``Q`` the unit quaternion
 of ``R`` (no gimbal lock), ``dp/dt = v``, ``dQ/dt = 1/2 (0, w) (x) Q`` (world angular
 velocity), ``d(v, w)/dt = a`` from the forward dynamics. Forces are held over a step
 (zero-order hold), either constant or a joint PID on carriage set-points (IK and
 ``J twist`` of a sampled platform reference, computed once per reference sample before
-the loop; the law of :class:`~hexapod_pin.simulate.PIDController`). Integrators:
+the loop; the law of :class:`~hexapod_pin.hexapod.simulation.PIDController`). Integrators:
 
 ``"rk4"`` (default)
     classical Runge-Kutta, four forward dynamics per step, the quaternion renormalised
-    after the step; fourth order (the error falls 16x when ``dt`` halves). Unactuated
-    under gravity, the total energy is kept to about 1e-11 of the kinetic energy at
-    1 kHz. Caveat of the zero-order hold, not of RK4: a command held over the step lags
-    by half a step on average, so an undamped stiff P-law (no ``kd``) gains energy.
+    after the step; fourth order (the error falls 16x when ``dt`` halves). Caveat of the
+    zero-order hold, not of RK4: a command held over the step lags by half a step on
+    average, so an undamped stiff P-law (no ``kd``) gains energy.
 ``"rk2"``
-    explicit midpoint, two forward dynamics per step; second order (error 4x smaller
-    when ``dt`` halves); energy error about 1e-6 of the kinetic energy unactuated.
+    explicit midpoint, two forward dynamics per step; second order.
 ``"semi_implicit_euler"``
     one forward dynamics per step: ``(v, w)+ = (v, w) + dt a``, then ``p+ = p + dt v+``
     and ``Q+ = exp(dt w+) (x) Q`` (the scheme of MuJoCo's default Euler integrator for a
-    free joint). First order (error 2x smaller when ``dt`` halves). Energy: unactuated
-    under gravity it loses about 1.4 % of the kinetic energy reached at 1 kHz (first
-    order in ``dt``); on an oscillation it neither grows nor stays constant but decays
-    slowly (about 1.4 % of the kinetic energy per second at 1 kHz; the scheme is not
-    symplectic here, the mass matrix depending on the pose), including under the
-    undamped P-law where the Runge-Kutta schemes gain energy. The only one of the three
-    above 1000x real time at 1 kHz on a small machine (see ``benchmarks/bench_fast.py``).
+    free joint). First order; not symplectic here (the mass matrix depends on the pose):
+    unactuated it slowly loses energy, also under an undamped P-law.
 
 Independent coordinates keep the closures exactly (the tree is rebuilt from the pose), so
 there is no drift to project. The result, :class:`FastTrajectory`, is a smaller
-:class:`~hexapod_pin.simulate.Trajectory` (no tree configurations; rebuild one with
-``robot.configuration(pose)``).
+:class:`~hexapod_pin.hexapod.simulation.Trajectory` (no tree configurations; rebuild one
+with ``robot.configuration(pose)``).
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
-from .kinematics import GIMBAL_TOL, HOME_BRANCH, RAIL_OF, TYPE_I_TOL
-from .kernels import GIMBAL, NOT_PD, OK, TYPE_I, TYPE_II, UNREACHABLE, lu_solve6
-from .platform_map import TYPE_II_PIVOT_RTOL
 from ..core.checks import as_array
-from .simulation import check_run_arguments
+from ..core.compiled import all_finite
+from ..errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
+from . import kernels as K
+from .kernels import (GAP, GIMBAL, NONFINITE, NOT_PD, OK, SATURATED, STROKE, TYPE_I, TYPE_II,
+                      UNREACHABLE, jit, jit_inline, jit_lean)
+from .simulation import Trajectory, check_run_arguments
 
-try:  # a dependency; the plain-Python fallback below is for its absence
-    import numba as _numba
-except ImportError:  # pragma: no cover - exercised in a subprocess by the tests
-    _numba = None
+__all__ = ["FastDynamics", "FastStepper", "FastTrajectory", "fast_dynamics", "simulate_fast"]
 
-__all__ = ["FastDynamics", "FastTrajectory", "available", "fast_dynamics", "simulate_fast"]
-
-
-def available() -> bool:
-    """Whether numba is importable (the kernels are then compiled, else plain Python:
-    correct but slower than the reference routes)."""
-    return _numba is not None
-
-
-_FLAGS = {"cache": True, "error_model": "numpy", "fastmath": {"contract", "reassoc", "nsz"}}
-
-
-def _jit(func):
-    return _numba.njit(**_FLAGS)(func) if _numba is not None else func
-
-
-def _lean_options() -> dict:
-    """Options compiling a kernel without numba's reference-counting runtime, for code
-    that never allocates (numba's private jit option ``_nrt``, present in numba 0.68;
-    plain options when a numba lacks it: same results, slower)."""
-    try:
-        from numba.core.options import DefaultOptions
-    except ImportError:  # pragma: no cover - another numba layout: plain options
-        return {}
-    return {"_nrt": False} if hasattr(DefaultOptions, "_nrt") else {}
-
-
-_LEAN = _lean_options() if _numba is not None else {}
-#: the shared 6x6 LU of platform_kernels (its plain-Python body in the fallback)
-_lu_solve6 = lu_solve6 if _numba is not None else lu_solve6.py_func
-
-
-def _jit_lean(func):
-    """:func:`_jit` without reference counting (an allocation-free kernel)."""
-    return _numba.njit(**_LEAN, **_FLAGS)(func) if _numba is not None else func
-
-
-def _jit_inline(func):
-    """:func:`_jit_lean`, inlined by LLVM into its compiled callers (``forceinline``): a
-    small helper then costs its arithmetic only, no call and no reference count of its
-    array arguments (together they were about a third of a semi-implicit Euler step)."""
-    if _numba is None:
-        return func
-    return _numba.njit(forceinline=True, **_LEAN, **_FLAGS)(func)
-
-
-# status codes of the kernels
-NONFINITE, STROKE, GAP, SATURATED = range(6, 10)   # OK .. NOT_PD (0-5): platform_kernels'
 _STATUS_OF_CODE = {STROKE: "stroke_limit", GAP: "carriage_gap"}
-
-# layout of the packed geometry vector (per-carriage blocks of 6, then scalars)
-_MX, _MY, _UX, _UY, _PX, _PY, _SG = (6 * j for j in range(7))
-_L, _MC, _ML, _MP, _IA, _IB, _IC, _G, _T1, _GIM, _T2, _BND, _HALF, _GAP = range(42, 56)
-# rows of the per-carriage work array (n_rows, 6)
-_RX, _RY, _RZ, _NX, _NY, _NZ, _NU, _Q, _QD, _DN2, _A0X, _A0Y, _A0Z, _QDD0, _INV = range(15)
-_WORK_ROWS = 15
-
-
-def pack_geometry(geometry) -> np.ndarray:
-    """The geometry as the flat float64 vector the kernels read (56,).
-
-    Raises:
-        HexapodPinError: rails or platform points off the planes ``z = 0`` (the closed
-            form relies on it, as :mod:`hexapod_pin.batch_dynamics`).
-    """
-    g = geometry
-    mids, dirs, pts = g.rail_midpoints[RAIL_OF], g.rail_directions[RAIL_OF], \
-        g.platform_points[RAIL_OF]
-    if np.any(mids[:, 2] != 0.0) or np.any(dirs[:, 2] != 0.0) or np.any(pts[:, 2] != 0.0):
-        raise HexapodPinError("the compiled dynamics needs rails and platform points in the "
-                              "planes z = 0 of their frames")
-    out = np.zeros(56)
-    for start, values in ((_MX, mids[:, 0]), (_MY, mids[:, 1]), (_UX, dirs[:, 0]),
-                          (_UY, dirs[:, 1]), (_PX, pts[:, 0]), (_PY, pts[:, 1]),
-                          (_SG, HOME_BRANCH)):
-        out[start:start + 6] = values
-    ia, ib, ic = g.platform_inertia
-    out[_L:_GAP + 1] = (g.leg_length, g.carriage_mass, g.leg_mass, g.platform_mass, ia, ib, ic,
-                        g.gravity, TYPE_I_TOL * g.leg_length, GIMBAL_TOL, TYPE_II_PIVOT_RTOL,
-                        g.max_actuator_force, g.rail_half_length, g.carriage_min_gap)
-    return out
-
-
-# --------------------------------------------------------------------------------------
-# kernels (scalar code; compiled when numba is present)
-# --------------------------------------------------------------------------------------
-@_jit_inline
-def _rotation_rpy(roll, pitch, yaw, rot):
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    rot[0], rot[1], rot[2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
-    rot[3], rot[4], rot[5] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
-    rot[6], rot[7], rot[8] = -sp, cp * sr, cp * cr
-
-
-@_jit_inline
-def _rotation_quat(w, x, y, z, rot):
-    """``R`` (row-major 9) of a quaternion ``(w, x, y, z)`` (any non-zero norm)."""
-    s = 2.0 / (w * w + x * x + y * y + z * z)
-    rot[0], rot[1], rot[2] = 1.0 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)
-    rot[3], rot[4], rot[5] = s * (x * y + z * w), 1.0 - s * (x * x + z * z), s * (y * z - x * w)
-    rot[6], rot[7], rot[8] = s * (x * z - y * w), s * (y * z + x * w), 1.0 - s * (x * x + y * y)
-
-
-@_jit_inline
-def _legs(geo, x, y, z, rot, wk):
-    """Carriage positions and leg vectors of a pose (home branch); returns a code."""
-    length = geo[_L]
-    worst = OK
-    for i in range(6):
-        px, py = geo[_PX + i], geo[_PY + i]
-        ux, uy = geo[_UX + i], geo[_UY + i]
-        rx = rot[0] * px + rot[1] * py
-        ry = rot[3] * px + rot[4] * py
-        rz = rot[6] * px + rot[7] * py
-        dx, dy, dz = x + rx - geo[_MX + i], y + ry - geo[_MY + i], z + rz
-        along = dx * ux + dy * uy
-        disc = length * length - (dx * dx + dy * dy + dz * dz) + along * along
-        if not disc >= 0.0:
-            return UNREACHABLE
-        root = math.sqrt(disc)
-        q = along + geo[_SG + i] * root
-        nx, ny = dx - q * ux, dy - q * uy
-        nu = nx * ux + ny * uy
-        if not abs(nu) >= geo[_T1]:
-            worst = TYPE_I
-        else:
-            nl = -nx * uy + ny * ux                       # n . l, l = z x u
-            if not (dz * dz + nl * nl) / (length * length) >= geo[_GIM]:
-                worst = GIMBAL
-        wk[_RX, i], wk[_RY, i], wk[_RZ, i] = rx, ry, rz
-        wk[_NX, i], wk[_NY, i], wk[_NZ, i] = nx, ny, dz
-        wk[_NU, i], wk[_Q, i] = nu, q
-    return worst
-
-
-@_jit_inline
-def _rates(geo, twist, wk, drift=True):
-    """Carriage rates and (``drift``) ``|dn/dt|^2``, ``w x (w x r)``, ``qddot_0``."""
-    vx, vy, vz, wx, wy, wz = twist[0], twist[1], twist[2], twist[3], twist[4], twist[5]
-    for i in range(6):
-        rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
-        nx, ny, nz, nu = wk[_NX, i], wk[_NY, i], wk[_NZ, i], wk[_NU, i]
-        ux, uy = geo[_UX + i], geo[_UY + i]
-        cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx
-        tx, ty, tz = vx + cx, vy + cy, vz + cz
-        inv = 1.0 / nu
-        wk[_INV, i] = inv
-        qd = (nx * tx + ny * ty + nz * tz) * inv
-        wk[_QD, i] = qd
-        if drift:
-            ex, ey = tx - qd * ux, ty - qd * uy
-            dn2 = ex * ex + ey * ey + tz * tz
-            ax, ay, az = wy * cz - wz * cy, wz * cx - wx * cz, wx * cy - wy * cx
-            wk[_DN2, i] = dn2
-            wk[_A0X, i], wk[_A0Y, i], wk[_A0Z, i] = ax, ay, az
-            wk[_QDD0, i] = (dn2 + nx * ax + ny * ay + nz * az) * inv
-
-
-@_jit_inline
-def _inertia_world(geo, rot, vx, vy, vz, out, offset):
-    """``out[offset:offset+3] += R I R^T v``."""
-    b0 = geo[_IA] * (rot[0] * vx + rot[3] * vy + rot[6] * vz)
-    b1 = geo[_IB] * (rot[1] * vx + rot[4] * vy + rot[7] * vz)
-    b2 = geo[_IC] * (rot[2] * vx + rot[5] * vy + rot[8] * vz)
-    out[offset] += rot[0] * b0 + rot[1] * b1 + rot[2] * b2
-    out[offset + 1] += rot[3] * b0 + rot[4] * b1 + rot[5] * b2
-    out[offset + 2] += rot[6] * b0 + rot[7] * b1 + rot[8] * b2
-
-
-@_jit_inline
-def _gyroscopic(geo, rot, twist, out, sign):
-    """``out[3:6] += sign * w x (I_w w)``."""
-    wx, wy, wz = twist[3], twist[4], twist[5]
-    b0 = geo[_IA] * (rot[0] * wx + rot[3] * wy + rot[6] * wz)
-    b1 = geo[_IB] * (rot[1] * wx + rot[4] * wy + rot[7] * wz)
-    b2 = geo[_IC] * (rot[2] * wx + rot[5] * wy + rot[8] * wz)
-    hx = rot[0] * b0 + rot[1] * b1 + rot[2] * b2
-    hy = rot[3] * b0 + rot[4] * b1 + rot[5] * b2
-    hz = rot[6] * b0 + rot[7] * b1 + rot[8] * b2
-    out[3] += sign * (wy * hz - wz * hy)
-    out[4] += sign * (wz * hx - wx * hz)
-    out[5] += sign * (wx * hy - wy * hx)
-
-
-@_jit_inline
-def _add_tip_loads(wk, i, fx, fy, fz, out):
-    """``out += [F, r x F]`` for the tip load of carriage i."""
-    rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
-    out[0] += fx
-    out[1] += fy
-    out[2] += fz
-    out[3] += ry * fz - rz * fy
-    out[4] += rz * fx - rx * fz
-    out[5] += rx * fy - ry * fx
-
-
-@_jit
-def _solve_legs(wk, rhs, rtol, mat):
-    """Solve ``A^T t = rhs`` in place (``A^T`` columns ``[n_i, r_k x n_i]``) by LU with
-    partial pivoting; returns TYPE_II when the smallest pivot is below ``rtol`` times the
-    largest (as :meth:`PlatformMap.solve_forces`)."""
-    for i in range(6):
-        rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
-        nx, ny, nz = wk[_NX, i], wk[_NY, i], wk[_NZ, i]
-        mat[0, i], mat[1, i], mat[2, i] = nx, ny, nz
-        mat[3, i], mat[4, i], mat[5, i] = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx
-    return _lu_solve6(mat, rhs, rtol, np.arange(6))
-
-
-@_jit_inline
-def _finite(vec):
-    for k in range(vec.shape[0]):
-        if not math.isfinite(vec[k]):
-            return False
-    return True
-
-
-@_jit_inline
-def _check_bound(geo, tau, bounded):
-    if bounded and math.isfinite(geo[_BND]):
-        for i in range(6):
-            if abs(tau[i]) > geo[_BND] * (1.0 + 1e-9):
-                return SATURATED
-    return OK
-
-
-@_jit
-def _state_of(geo, pose, twist, other, wrench, rot, wk):
-    """The common start of the single-state kernels: the four input vectors finite, then
-    ``R``, the legs and their rates of ``(pose, twist)``; returns a code."""
-    if not (_finite(pose) and _finite(twist) and _finite(other) and _finite(wrench)):
-        return NONFINITE
-    _rotation_rpy(pose[3], pose[4], pose[5], rot)
-    code = _legs(geo, pose[0], pose[1], pose[2], rot, wk)
-    if code != OK:
-        return code
-    _rates(geo, twist, wk)
-    return OK
-
-
-@_jit
-def inverse_kernel(geo, pose, twist, twist_dot, wrench, bounded, tau):
-    """Inverse dynamics: fills ``tau`` (6,) and returns a status code."""
-    rot = np.empty(9)
-    wk = np.empty((_WORK_ROWS, 6))
-    code = _state_of(geo, pose, twist, twist_dot, wrench, rot, wk)
-    if code != OK:
-        return code
-    m_c, m_l, m_p, g = geo[_MC], geo[_ML], geo[_MP], geo[_G]
-    ax, ay, az, bx, by, bz = (twist_dot[0], twist_dot[1], twist_dot[2], twist_dot[3],
-                              twist_dot[4], twist_dot[5])
-    rhs = np.zeros(6)
-    for i in range(6):
-        rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
-        cx = wk[_A0X, i] + ax + (by * rz - bz * ry)
-        cy = wk[_A0Y, i] + ay + (bz * rx - bx * rz)
-        cz = wk[_A0Z, i] + az + (bx * ry - by * rx)
-        qdd = (wk[_DN2, i] + wk[_NX, i] * cx + wk[_NY, i] * cy + wk[_NZ, i] * cz) / wk[_NU, i]
-        ux, uy = geo[_UX + i], geo[_UY + i]
-        tau[i] = (m_c + m_l / 3.0) * qdd + (m_l / 6.0) * (ux * cx + uy * cy)
-        side = (m_l / 6.0) * qdd
-        _add_tip_loads(wk, i, side * ux + (m_l / 3.0) * cx, side * uy + (m_l / 3.0) * cy,
-                       (m_l / 3.0) * cz + 0.5 * m_l * g, rhs)
-    rhs[0] += m_p * ax
-    rhs[1] += m_p * ay
-    rhs[2] += m_p * (az + g)
-    _gyroscopic(geo, rot, twist, rhs, 1.0)
-    _inertia_world(geo, rot, bx, by, bz, rhs, 3)
-    for j in range(6):
-        rhs[j] -= wrench[j]
-    mat = np.empty((6, 6))
-    code = _solve_legs(wk, rhs, geo[_T2], mat)
-    if code != OK:
-        return code
-    for i in range(6):
-        tau[i] += wk[_NU, i] * rhs[i]
-    return _check_bound(geo, tau, bounded)
-
-
-@_jit
-def _static_at(geo, wk, wrench, rhs, mat, tau):
-    """Statics at legs ``wk`` (no rates needed): fills ``tau`` (6,); returns a code."""
-    for j in range(6):
-        rhs[j] = -wrench[j]
-    half_leg = 0.5 * geo[_ML] * geo[_G]
-    for i in range(6):
-        _add_tip_loads(wk, i, 0.0, 0.0, half_leg, rhs)
-    rhs[2] += geo[_MP] * geo[_G]
-    code = _solve_legs(wk, rhs, geo[_T2], mat)
-    if code != OK:
-        return code
-    for i in range(6):
-        tau[i] = wk[_NU, i] * rhs[i]
-    return OK
-
-
-@_jit
-def static_kernel(geo, pose, wrench, bounded, tau):
-    """Statics: fills ``tau`` (6,) holding ``pose`` at rest; returns a status code."""
-    if not (_finite(pose) and _finite(wrench)):
-        return NONFINITE
-    rot = np.empty(9)
-    wk = np.empty((_WORK_ROWS, 6))
-    _rotation_rpy(pose[3], pose[4], pose[5], rot)
-    code = _legs(geo, pose[0], pose[1], pose[2], rot, wk)
-    if code != OK:
-        return code
-    code = _static_at(geo, wk, wrench, np.empty(6), np.empty((6, 6)), tau)
-    if code != OK:
-        return code
-    return _check_bound(geo, tau, bounded)
-
-
-@_jit_inline
-def _forward_core(geo, rot, twist, forces, wrench, wk, mats, out):
-    """Reduced forward dynamics at legs ``wk`` (rates done): ``out`` = twist_dot (6,);
-    ``mats[0]`` gets ``J^T`` (6, 6) (column i: ``J_i = [n_i, r_i x n_i] / (n_i . u_i)``),
-    ``mats[1]`` the Cholesky factor of the reduced mass matrix. Returns OK or NOT_PD."""
-    jac, mass = mats[0], mats[1]
-    m_c, m_l, m_p, g = geo[_MC], geo[_ML], geo[_MP], geo[_G]
-    mu = m_l / 3.0
-    m_leg, m_side = m_c + m_l / 3.0, m_l / 6.0
-    o0, o1, o2 = wrench[0], wrench[1], wrench[2] - m_p * g
-    o3, o4, o5 = wrench[3], wrench[4], wrench[5]
-    # the 21 entries of the legs' share of the mass matrix (upper triangle), in registers
-    m00 = m01 = m02 = m03 = m04 = m05 = m11 = m12 = m13 = m14 = m15 = 0.0
-    m22 = m23 = m24 = m25 = m33 = m34 = m35 = m44 = m45 = m55 = 0.0
-    sx = sy = sz = 0.0
-    pxx = pyy = pzz = pxy = pxz = pyz = 0.0
-    for i in range(6):
-        rx, ry, rz = wk[_RX, i], wk[_RY, i], wk[_RZ, i]
-        nx, ny, nz, inv = wk[_NX, i], wk[_NY, i], wk[_NZ, i], wk[_INV, i]
-        ux, uy = geo[_UX + i], geo[_UY + i]
-        j0, j1, j2 = nx * inv, ny * inv, nz * inv
-        j3, j4, j5 = (ry * nz - rz * ny) * inv, (rz * nx - rx * nz) * inv, \
-            (rx * ny - ry * nx) * inv
-        jac[0, i], jac[1, i], jac[2, i], jac[3, i], jac[4, i], jac[5, i] = j0, j1, j2, j3, j4, j5
-        # U_i = [u, r x u] = (ux, uy, 0, -rz uy, rz ux, rx uy - ry ux); the leg's share of
-        # the mass matrix is m_leg J J^T + m_side (J U^T + U J^T) = J W^T + V J^T with
-        # W = m_leg J + m_side U, V = m_side U (V_2 = 0)
-        v0, v1 = m_side * ux, m_side * uy
-        v3, v4, v5 = -rz * v1, rz * v0, rx * v1 - ry * v0
-        w0, w1, w2 = m_leg * j0 + v0, m_leg * j1 + v1, m_leg * j2
-        w3, w4, w5 = m_leg * j3 + v3, m_leg * j4 + v4, m_leg * j5 + v5
-        m00, m01 = m00 + j0 * w0 + v0 * j0, m01 + j0 * w1 + v0 * j1
-        m02, m03 = m02 + j0 * w2 + v0 * j2, m03 + j0 * w3 + v0 * j3
-        m04, m05 = m04 + j0 * w4 + v0 * j4, m05 + j0 * w5 + v0 * j5
-        m11, m12 = m11 + j1 * w1 + v1 * j1, m12 + j1 * w2 + v1 * j2
-        m13, m14 = m13 + j1 * w3 + v1 * j3, m14 + j1 * w4 + v1 * j4
-        m15 = m15 + j1 * w5 + v1 * j5
-        m22, m23 = m22 + j2 * w2, m23 + j2 * w3
-        m24, m25 = m24 + j2 * w4, m25 + j2 * w5
-        m33, m34 = m33 + j3 * w3 + v3 * j3, m34 + j3 * w4 + v3 * j4
-        m35 = m35 + j3 * w5 + v3 * j5
-        m44, m45 = m44 + j4 * w4 + v4 * j4, m45 + j4 * w5 + v4 * j5
-        m55 = m55 + j5 * w5 + v5 * j5
-        sx += rx
-        sy += ry
-        sz += rz
-        pxx += rx * rx
-        pyy += ry * ry
-        pzz += rz * rz
-        pxy += rx * ry
-        pxz += rx * rz
-        pyz += ry * rz
-        # bias: end loads at the drift accelerations (twist_dot = 0), J^T c0 and tip loads
-        qdd0 = wk[_QDD0, i]
-        a0x, a0y, a0z = wk[_A0X, i], wk[_A0Y, i], wk[_A0Z, i]
-        c0 = m_leg * qdd0 + m_side * (ux * a0x + uy * a0y)
-        f0 = m_side * qdd0
-        fx, fy, fz = f0 * ux + mu * a0x, f0 * uy + mu * a0y, mu * a0z + 0.5 * m_l * g
-        load = forces[i] - c0
-        o0 += j0 * load - fx
-        o1 += j1 * load - fy
-        o2 += j2 * load - fz
-        o3 += j3 * load - (ry * fz - rz * fy)
-        o4 += j4 * load - (rz * fx - rx * fz)
-        o5 += j5 * load - (rx * fy - ry * fx)
-    mass[0, 0], mass[0, 1], mass[0, 2] = m00, m01, m02
-    mass[0, 3], mass[0, 4], mass[0, 5] = m03, m04, m05
-    mass[1, 1], mass[1, 2], mass[1, 3], mass[1, 4], mass[1, 5] = m11, m12, m13, m14, m15
-    mass[2, 2], mass[2, 3], mass[2, 4], mass[2, 5] = m22, m23, m24, m25
-    mass[3, 3], mass[3, 4], mass[3, 5] = m33, m34, m35
-    mass[4, 4], mass[4, 5] = m44, m45
-    mass[5, 5] = m55
-    # platform plus point masses mu at the six tips, as one rigid body (upper triangle)
-    sx, sy, sz = mu * sx, mu * sy, mu * sz
-    total = m_p + 6.0 * mu
-    for j in range(3):
-        mass[j, j] += total
-    mass[0, 4] += sz
-    mass[0, 5] -= sy
-    mass[1, 3] -= sz
-    mass[1, 5] += sx
-    mass[2, 3] += sy
-    mass[2, 4] -= sx
-    trace = pxx + pyy + pzz
-    # world inertia of the platform R diag(I) R^T (upper triangle), its part of the mass
-    # matrix, and the gyroscopic moment w x (I_w w)
-    ia, ib, ic = geo[_IA], geo[_IB], geo[_IC]
-    i00 = rot[0] * rot[0] * ia + rot[1] * rot[1] * ib + rot[2] * rot[2] * ic
-    i11 = rot[3] * rot[3] * ia + rot[4] * rot[4] * ib + rot[5] * rot[5] * ic
-    i22 = rot[6] * rot[6] * ia + rot[7] * rot[7] * ib + rot[8] * rot[8] * ic
-    i01 = rot[0] * rot[3] * ia + rot[1] * rot[4] * ib + rot[2] * rot[5] * ic
-    i02 = rot[0] * rot[6] * ia + rot[1] * rot[7] * ib + rot[2] * rot[8] * ic
-    i12 = rot[3] * rot[6] * ia + rot[4] * rot[7] * ib + rot[5] * rot[8] * ic
-    mass[3, 3] += mu * (trace - pxx) + i00
-    mass[4, 4] += mu * (trace - pyy) + i11
-    mass[5, 5] += mu * (trace - pzz) + i22
-    mass[3, 4] += i01 - mu * pxy
-    mass[3, 5] += i02 - mu * pxz
-    mass[4, 5] += i12 - mu * pyz
-    wx, wy, wz = twist[3], twist[4], twist[5]
-    hx = i00 * wx + i01 * wy + i02 * wz
-    hy = i01 * wx + i11 * wy + i12 * wz
-    hz = i02 * wx + i12 * wy + i22 * wz
-    out[0], out[1], out[2] = o0, o1, o2
-    out[3] = o3 - (wy * hz - wz * hy)
-    out[4] = o4 - (wz * hx - wx * hz)
-    out[5] = o5 - (wx * hy - wy * hx)
-    # Cholesky M = R^T R (R upper, in place on the upper triangle, 1 / R_jj on the
-    # diagonal), then the two triangular solves
-    for j in range(6):
-        d = mass[j, j]
-        for k in range(j):
-            d -= mass[k, j] * mass[k, j]
-        if not d > 0.0:
-            return NOT_PD
-        inv_d = 1.0 / math.sqrt(d)
-        mass[j, j] = inv_d
-        for c in range(j + 1, 6):
-            t = mass[j, c]
-            for k in range(j):
-                t -= mass[k, j] * mass[k, c]
-            mass[j, c] = t * inv_d
-    for r in range(6):
-        t = out[r]
-        for k in range(r):
-            t -= mass[k, r] * out[k]
-        out[r] = t * mass[r, r]
-    for r in range(5, -1, -1):
-        t = out[r]
-        for k in range(r + 1, 6):
-            t -= mass[r, k] * out[k]
-        out[r] = t * mass[r, r]
-    return OK
-
-
-@_jit
-def forward_kernel(geo, pose, twist, forces, wrench, twist_dot, qddot):
-    """Forward dynamics: fills ``twist_dot`` (6,), ``qddot`` (6,); returns a code."""
-    rot = np.empty(9)
-    wk = np.empty((_WORK_ROWS, 6))
-    code = _state_of(geo, pose, twist, forces, wrench, rot, wk)
-    if code != OK:
-        return code
-    mats = np.empty((2, 6, 6))
-    code = _forward_core(geo, rot, twist, forces, wrench, wk, mats, twist_dot)
-    if code != OK:
-        return code
-    jac = mats[0]
-    for i in range(6):
-        s = wk[_QDD0, i]
-        for a in range(6):
-            s += jac[a, i] * twist_dot[a]
-        qddot[i] = s
-    return OK
-
+_ZERO6 = K.ZERO6
 
 # -- simulation -------------------------------------------------------------------------
 # integrators (codes of the kernel) and their explicit Runge-Kutta tableaux (diagonal:
@@ -569,58 +72,45 @@ _RK_B = np.array([[1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0], [1.0, 0.0, 0.0, 
 _RK_STAGES = np.array([4, 1, 2])
 
 
-@_jit_inline
+@jit_inline
 def _carriages(geo, state, rot, wk, twist):
-    """Legs (and rates) of a state ``(p, Q (w, x, y, z), v, w)``; returns a code (stroke
-    not checked)."""
-    _rotation_quat(state[3], state[4], state[5], state[6], rot)
-    code = _legs(geo, state[0], state[1], state[2], rot, wk)
+    """Legs (home branch) and rates of a state ``(p, Q (w, x, y, z), v, w)``; returns a
+    code (stroke not checked)."""
+    K.rotation_quat(state[3], state[4], state[5], state[6], rot)
+    code = K.legs(geo, state[0], state[1], state[2], rot, K.HOME_BRANCH, wk)
     if code != OK:
         return code
     for j in range(6):
         twist[j] = state[7 + j]
-    _rates(geo, twist, wk)
+    K.rates(geo, twist, wk, True)
     return OK
 
 
-@_jit_inline
-def _limits(geo, wk):
-    for i in range(6):
-        if abs(wk[_Q, i]) > geo[_HALF]:
-            return STROKE
-    for k in range(3):
-        if wk[_Q, 2 * k + 1] - wk[_Q, 2 * k] < geo[_GAP]:
-            return GAP
-    return OK
-
-
-@_jit
+@jit
 def _set_points(geo, ref_poses, ref_twists, feedforward, setpoints):
     """Carriage set-points of the reference rows into ``setpoints`` (3, m, 6): ``q``
     (IK), ``qdot`` (``J twist``) and, with ``feedforward``, the static forces of the pose
     (zero wrench), else zero. Returns ``(first_bad_row, code)``; ``first_bad_row = m``
     when all succeed."""
-    rot = np.empty(9)
-    wk = np.empty((_WORK_ROWS, 6))
-    rhs, mat = np.empty(6), np.empty((6, 6))
+    rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6))
     n_rows = setpoints.shape[1]
     for row in range(n_rows):
-        _rotation_rpy(ref_poses[row, 3], ref_poses[row, 4], ref_poses[row, 5], rot)
-        code = _legs(geo, ref_poses[row, 0], ref_poses[row, 1], ref_poses[row, 2], rot, wk)
+        code = K.leg_state(geo, K.HOME_BRANCH, ref_poses[row], rot, wk)
         if code != OK:
             return row, code
-        _rates(geo, ref_twists[row], wk, False)
+        K.rates(geo, ref_twists[row], wk, False)
         for i in range(6):
-            setpoints[0, row, i], setpoints[1, row, i] = wk[_Q, i], wk[_QD, i]
+            setpoints[0, row, i], setpoints[1, row, i] = wk[K.Q, i], wk[K.QD, i]
             setpoints[2, row, i] = 0.0
         if feedforward:
-            code = _static_at(geo, wk, _ZERO6, rhs, mat, setpoints[2, row])
+            code = K.static_forces(geo, K.HOME_BRANCH, ref_poses[row], K.ZERO6, False,
+                                   setpoints[2, row], rot, wk, mats)
             if code != OK:
                 return row, code
     return n_rows, OK
 
 
-@_jit_inline
+@jit_inline
 def _command(geo, wk, k, mode, forces_in, ref_q, ref_qd, ref_ff, bad_row, bad_code, gains,
              integral, dt, saturation, forces):
     """Actuator forces of step ``k`` into ``forces``; returns (code, saturated)."""
@@ -633,12 +123,12 @@ def _command(geo, wk, k, mode, forces_in, ref_q, ref_qd, ref_ff, bad_row, bad_co
             return bad_code, False
         kp, ki, kd = gains[0], gains[1], gains[2]
         for i in range(6):
-            err = ref_q[row, i] - wk[_Q, i]
-            forces[i] = kp * err + ki * integral[i] + kd * (ref_qd[row, i] - wk[_QD, i])
+            err = ref_q[row, i] - wk[K.Q, i]
+            forces[i] = kp * err + ki * integral[i] + kd * (ref_qd[row, i] - wk[K.QD, i])
             integral[i] += err * dt
             forces[i] += ref_ff[row, i]
     sat = False
-    bound = geo[_BND]
+    bound = geo[K.BOUND]
     if saturation != 2 and math.isfinite(bound):
         for i in range(6):
             if saturation == 1 and abs(forces[i]) > bound:
@@ -650,16 +140,16 @@ def _command(geo, wk, k, mode, forces_in, ref_q, ref_qd, ref_ff, bad_row, bad_co
     return OK, sat
 
 
-@_jit_inline
+@jit_inline
 def _record(rec_state, rec_q, rec_qd, rec_f, rec_sat, n, state, wk, forces, sat):
     for j in range(13):
         rec_state[n, j] = state[j]
     for i in range(6):
-        rec_q[n, i], rec_qd[n, i], rec_f[n, i] = wk[_Q, i], wk[_QD, i], forces[i]
+        rec_q[n, i], rec_qd[n, i], rec_f[n, i] = wk[K.Q, i], wk[K.QD, i], forces[i]
     rec_sat[n] = sat
 
 
-@_jit_inline
+@jit_inline
 def _euler_update(state, acc, dt):
     """Semi-implicit Euler on ``state`` in place: ``(v, w) += dt acc``, then ``p += dt v``
     and ``Q <- exp(dt w) (x) Q`` with the new ``(v, w)``; ``Q`` renormalised."""
@@ -683,7 +173,7 @@ def _euler_update(state, acc, dt):
     state[3], state[4], state[5], state[6] = qw * inv, qx * inv, qy * inv, qz * inv
 
 
-@_jit_lean
+@jit_lean
 def simulate_kernel(geo, n_steps, dt, record_every, integrator, mode, forces_in, wrench,
                     setpoints, bad_row, bad_code, gains, saturation, check_limits, work,
                     record, last_forces):
@@ -693,7 +183,7 @@ def simulate_kernel(geo, n_steps, dt, record_every, integrator, mode, forces_in,
     on ``setpoints`` (3, m, 6) (carriage ``q``, ``qdot`` and feedforward forces of each
     reference row, from :func:`_set_points`; rows ``>= bad_row`` failed with
     ``bad_code``). ``saturation`` 0: clip, 1: raise (code SATURATED), 2: ignore.
-    ``work``: scratch ``(vecs (4, 13), rot (9,), wk, mats (2, 6, 6), small (3, 6))``,
+    ``work``: scratch ``(vecs (4, 13), rot (9,), wk, mats (3, 6, 6), small (3, 6))``,
     ``vecs[0]`` the initial state. ``record``: ``(state, q, qdot, forces, saturated)``
     arrays of the samples. ``last_forces`` gets the last command computed (before
     clipping when it raised). One loop, one evaluation of the dynamics per pass (a step
@@ -720,7 +210,7 @@ def simulate_kernel(geo, n_steps, dt, record_every, integrator, mode, forces_in,
             return code, step + 1, n_rec + 1
         if stage == 0:
             # a step boundary: limits, command, recording
-            stop = _limits(geo, wk) if (check_limits and step > 0) else OK
+            stop = K.limits(geo, wk) if (check_limits and step > 0) else OK
             sat = False
             if stop == OK:
                 code, sat = _command(geo, wk, step, mode, forces_in, ref_q, ref_qd, ref_ff,
@@ -745,7 +235,7 @@ def simulate_kernel(geo, n_steps, dt, record_every, integrator, mode, forces_in,
                 return stop, step, n_rec + 1
             if step == n_steps:
                 return OK, n_steps, n_rec + 1
-        code = _forward_core(geo, rot, twist, forces, wrench, wk, mats, acc)
+        code = K.forward_core(geo, rot, twist, forces, wrench, wk, mats, acc)
         if code != OK:
             return code, step + 1, n_rec + 1
         if integrator == SEMI_IMPLICIT_EULER:
@@ -776,7 +266,7 @@ def simulate_kernel(geo, n_steps, dt, record_every, integrator, mode, forces_in,
                 for j in range(3, 7):
                     state[j] *= inv
         if stage == n_stages:
-            if not _finite(state):
+            if not all_finite(state):
                 return NONFINITE, step + 1, n_rec + 1
             for j in range(13):
                 point[j] = state[j]
@@ -784,10 +274,10 @@ def simulate_kernel(geo, n_steps, dt, record_every, integrator, mode, forces_in,
             stage = 0
 
 
+
 # --------------------------------------------------------------------------------------
 # Python boundary
 # --------------------------------------------------------------------------------------
-_ZERO6 = np.zeros(6)
 
 
 def _vec6(value, name: str) -> np.ndarray:
@@ -800,9 +290,9 @@ def _vec6(value, name: str) -> np.ndarray:
 class FastDynamics:
     """Compiled single-state dynamics of one hexapod (get it with :func:`fast_dynamics`).
 
-    Same conventions and results as the reference routes of
-    :class:`~hexapod_pin.dynamics.HexapodDynamics` (to round-off), leaner answers:
-    plain (6,) arrays, no tree state.
+    The Newton-Euler closed form of :mod:`~hexapod_pin.hexapod.kernels`: same conventions
+    and answers as the Pinocchio routes of the hexapod (to round-off), leaner results
+    (plain (6,) arrays, no tree state). Not thread-safe (one scratch per robot).
 
     Args:
         robot: the :class:`~hexapod_pin.Hexapod`.
@@ -810,22 +300,25 @@ class FastDynamics:
 
     def __init__(self, robot):
         self.robot = robot
-        self.geo = pack_geometry(robot.geometry)
+        self.geo = K.pack_geometry(robot.geometry)
+        self.signs = K.HOME_BRANCH.copy()
+        self._scratch = K.Scratch()
         bound = float(robot.geometry.max_actuator_force)
         self._bounds = np.full(6, bound) if math.isfinite(bound) else None
 
-    def _fail(self, code: int, reference: Callable[[], np.ndarray], tau=None):
+    def _fail(self, code: int, vectors: dict, tau=None):
         if code == SATURATED:
             raise ActuatorSaturationError(tau, self._bounds)
-        # the reference route raises the precise exception (InputError, unreachable,
-        # singular); at a tolerance border where it succeeds, its answer stands
-        return reference()
+        if code == NONFINITE:
+            for name, value in vectors.items():
+                as_array(value, (6,), name)
+        raise K.error_of(code, self.geo, self._scratch.wk, self._scratch.mats[1])
 
     def inverse_dynamics(self, pose, twist, twist_dot, wrench=None,
                          bounded: bool = True) -> np.ndarray:
         """Actuator forces producing a platform motion (closed-loop inverse dynamics).
 
-        As :meth:`Hexapod.inverse_dynamics` with ``method="kkt"`` (the 6x6 solve).
+        As :meth:`Hexapod.inverse_dynamics` with ``method="kkt"``.
 
         Args:
             pose: (6,) (m, rad). twist: ``(v, w)`` world axes (m/s, rad/s), (6,).
@@ -843,12 +336,12 @@ class FastDynamics:
         pose, twist, twist_dot = _vec6(pose, "pose"), _vec6(twist, "twist"), \
             _vec6(twist_dot, "twist_dot")
         wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")
-        tau = np.empty(6)
-        code = inverse_kernel(self.geo, pose, twist, twist_dot, wrench, bounded, tau)
+        tau, s = np.empty(6), self._scratch
+        code = K.inverse_dynamics(self.geo, self.signs, pose, twist, twist_dot, wrench,
+                                  bounded, tau, s.rot, s.wk, s.mats)
         if code:
-            return self._fail(code, lambda: self.robot.inverse_dynamics(
-                pose, twist, twist_dot, None if wrench is _ZERO6 else wrench, method="kkt",
-                bounded=bounded, joint_wrenches=False).actuator_forces, tau)
+            self._fail(code, {"pose": pose, "twist": twist, "twist_dot": twist_dot,
+                              "wrench": wrench}, tau)
         return tau
 
     def forward_dynamics(self, pose, twist, actuator_forces, wrench=None) -> np.ndarray:
@@ -870,18 +363,17 @@ class FastDynamics:
         return self.forward_dynamics_full(pose, twist, actuator_forces, wrench)[0]
 
     def forward_dynamics_full(self, pose, twist, actuator_forces, wrench=None):
-        """:meth:`forward_dynamics` returning ``(twist_dot, qddot)``, each (6,)."""
+        """:meth:`forward_dynamics` returning ``(twist_dot, actuator_accelerations)``,
+        each (6,)."""
         pose, twist = _vec6(pose, "pose"), _vec6(twist, "twist")
         forces = _vec6(actuator_forces, "actuator_forces")
         wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")
-        twist_dot, qddot = np.empty(6), np.empty(6)
-        code = forward_kernel(self.geo, pose, twist, forces, wrench, twist_dot, qddot)
+        twist_dot, qddot, s = np.empty(6), np.empty(6), self._scratch
+        code = K.forward_dynamics(self.geo, self.signs, pose, twist, forces, wrench,
+                                  twist_dot, qddot, s.rot, s.wk, s.mats)
         if code:
-            def reference():
-                res = self.robot.forward_dynamics(pose, twist, forces,
-                                                  None if wrench is _ZERO6 else wrench)
-                return res.twist_dot, res.actuator_accelerations
-            return self._fail(code, reference)
+            self._fail(code, {"pose": pose, "twist": twist, "actuator_forces": forces,
+                              "wrench": wrench})
         return twist_dot, qddot
 
     def static_forces(self, pose, wrench=None, bounded: bool = True) -> np.ndarray:
@@ -891,11 +383,11 @@ class FastDynamics:
         """
         pose = _vec6(pose, "pose")
         wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")
-        tau = np.empty(6)
-        code = static_kernel(self.geo, pose, wrench, bounded, tau)
+        tau, s = np.empty(6), self._scratch
+        code = K.static_forces(self.geo, self.signs, pose, wrench, bounded, tau, s.rot, s.wk,
+                               s.mats)
         if code:
-            return self._fail(code, lambda: self.robot.static_forces(
-                pose, None if wrench is _ZERO6 else wrench, bounded=bounded), tau)
+            self._fail(code, {"pose": pose, "wrench": wrench}, tau)
         return tau
 
 
@@ -946,8 +438,7 @@ class FastTrajectory:
     @property
     def real_time_factor(self) -> float:
         """Simulated time divided by wall time (that of
-        :attr:`hexapod_pin.simulate.Trajectory.real_time_factor`, shared)."""
-        from .simulation import Trajectory  # lazily: simulate may come to import us
+        :attr:`hexapod_pin.hexapod.simulation.Trajectory.real_time_factor`, shared)."""
         return Trajectory.real_time_factor.fget(self)
 
 
@@ -1039,13 +530,14 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
     if not np.all(np.isfinite(gains)):
         raise InputError("gains", gains, "must be finite")
     feedforward = bool(feedforward)
-    geo = fast_dynamics(robot).geo
-    robot.static_forces(pose0, bounded=False)    # raises for an unreachable / singular pose0
+    fd = fast_dynamics(robot)
+    geo = fd.geo
+    fd.static_forces(pose0, bounded=False)    # raises for an unreachable / singular pose0
     vecs = np.zeros((4, 13))
     vecs[0, :3] = pose0[:3]
     vecs[0, 3:7] = _quaternion_wxyz(pose0[3:])
     vecs[0, 7:] = twist0
-    work = (vecs, np.empty(9), np.empty((_WORK_ROWS, 6)), np.empty((2, 6, 6)),
+    work = (vecs, np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6)),
             np.zeros((3, 6)))
     n_rec = n_steps // record_every + 2
     record = (np.empty((n_rec, 13)), np.empty((n_rec, 6)), np.empty((n_rec, 6)),
@@ -1117,8 +609,8 @@ class FastStepper:
         self.robot, self.dt, self.integrator = robot, float(dt), integrator
         self.check_limits = bool(check_limits)
         self._geo = fast_dynamics(robot).geo
-        self._work = (np.zeros((4, 13)), np.empty(9), np.empty((_WORK_ROWS, 6)),
-                      np.empty((2, 6, 6)), np.zeros((3, 6)))
+        self._work = (np.zeros((4, 13)), np.empty(9), np.zeros((K.WK_ROWS, 6)),
+                      np.empty((3, 6, 6)), np.zeros((3, 6)))
         self._record = (np.empty((3, 13)), np.empty((3, 6)), np.empty((3, 6)),
                         np.empty((3, 6)), np.zeros(3, dtype=np.bool_))
         self._setpoints = np.zeros((3, 1, 6))
@@ -1132,7 +624,7 @@ class FastStepper:
         """Set the platform state (pose (6,), m and rad; twist (6,), world axes) and the
         time to 0. Raises as the constructor."""
         pose, twist = as_array(pose, (6,), "pose"), as_array(twist, (6,), "twist")
-        self.robot.static_forces(pose, bounded=False)   # raises for an unreachable / singular pose
+        fast_dynamics(self.robot).static_forces(pose, bounded=False)   # raises if unreachable / singular
         state = self._work[0][0]
         state[:3] = pose[:3]
         state[3:7] = _quaternion_wxyz(pose[3:])
@@ -1152,7 +644,7 @@ class FastStepper:
         """
         forces = _vec6(actuator_forces, "actuator_forces")
         wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")
-        if not (_finite(forces) and _finite(wrench)):
+        if not (all_finite(forces) and all_finite(wrench)):
             as_array(forces, (6,), "actuator_forces")
             as_array(wrench, (6,), "wrench")
         state = self._work[0][0]
@@ -1191,32 +683,23 @@ def _describe(robot, code: int, pose) -> str:
              GIMBAL: "universal joint in gimbal lock", TYPE_II: "type-II singularity",
              NOT_PD: "reduced mass matrix not positive definite", NONFINITE: "non-finite state"}
     try:
-        robot.static_forces(pose, bounded=False)
+        fast_dynamics(robot).static_forces(pose, bounded=False)
     except HexapodPinError as exc:
         return str(exc)
     return f"{names.get(code, f'status {code}')} within the step from the last recorded state"
 
 
 def _quaternion_wxyz(rpy) -> np.ndarray:
-    roll, pitch, yaw = (0.5 * float(a) for a in rpy)
-    c1, s1, c2, s2 = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
-    c3, s3 = math.cos(yaw), math.sin(yaw)
-    return np.array([c1 * c2 * c3 + s1 * s2 * s3, s1 * c2 * c3 - c1 * s2 * s3,
-                     c1 * s2 * c3 + s1 * c2 * s3, c1 * c2 * s3 - s1 * s2 * c3])
+    """Unit quaternion ``(w, x, y, z)`` of roll, pitch, yaw (rad)."""
+    return np.array(K.quaternion_rpy(float(rpy[0]), float(rpy[1]), float(rpy[2])))
 
 
-@_jit
+@jit
 def _poses_of(states, out):
     """Poses ``(x, y, z, roll, pitch, yaw)`` (n, 6) of recorded states ``(p, Q (w, x, y, z),
-    ...)``: :func:`hexapod_pin.pose.rpy_from_rotation` of ``R(Q)`` (pitch in [-pi/2,
-    pi/2]; at gimbal lock roll = 0 and yaw takes the rest)."""
+    ...)`` (:func:`hexapod_pin.hexapod.kernels.rpy_of`)."""
     rot = np.empty(9)
     for k in range(out.shape[0]):
-        _rotation_quat(states[k, 3], states[k, 4], states[k, 5], states[k, 6], rot)
+        K.rotation_quat(states[k, 3], states[k, 4], states[k, 5], states[k, 6], rot)
         out[k, 0], out[k, 1], out[k, 2] = states[k, 0], states[k, 1], states[k, 2]
-        horizontal = math.hypot(rot[0], rot[3])
-        out[k, 4] = math.atan2(-rot[6], horizontal)
-        if horizontal < 1e-12:
-            out[k, 3], out[k, 5] = 0.0, math.atan2(-rot[1], rot[4])
-        else:
-            out[k, 3], out[k, 5] = math.atan2(rot[7], rot[8]), math.atan2(rot[3], rot[0])
+        out[k, 3], out[k, 4], out[k, 5] = K.rpy_of(rot)

@@ -1,33 +1,57 @@
-"""Compiled (numba) kernels of the closed-form platform -> tree map, for single-state calls.
+"""The hexapod's closed form, written once: compiled (numba) kernels for one state.
 
-:class:`~hexapod_pin.platform_map.PlatformMap` writes the map in plain Python floats; it
-stays the reference (and the route for the less frequent calls: tree states read back
-from a configuration, the analytic derivatives, the simulator on the tree). The hot single-state routes of
-:class:`~hexapod_pin.dynamics.HexapodDynamics` (inverse and forward dynamics, statics)
-spend most of their time in that Python glue around a few cheap Pinocchio calls, so the
-same equations are compiled here:
+Every closed-form route of the hexapod runs these kernels: the single-state methods
+(kinematics, the tree state of the Pinocchio routes, the compiled dynamics), the batch
+methods (:mod:`hexapod_pin.hexapod.batch` runs the same kernels over N states with
+``numba.prange``) and the simulator (:mod:`hexapod_pin.hexapod.fast`). The Pinocchio tree
+routes stay the independent reference the tests compare them with.
 
-* :func:`tree_state`: pose (and twist, twist_dot) -> tree ``q``, ``v``, ``a`` (the
-  equations of the :mod:`~hexapod_pin.platform_map` docstring), plus a leg buffer that
-  the other kernels read;
-* :func:`project`: ``G^T f - wrench`` (the platform wrench equivalent by virtual power to
-  a tree generalised force);
-* :func:`solve_forces`: ``J^T tau = rhs`` by LU with partial pivoting, and the
-  multipliers of the equality-constrained minimum-effort QP (ProxSuite's warm start);
-* :func:`reduced`, :func:`nullspace_forward`: ``M_x = G^T M G`` and ``G^T b`` from the
-  tree mass matrix (block diagonal) and bias, the null-space forward dynamics solved by
-  Cholesky;
-* :func:`leg_forces`: the closure forces from the legs' tree rows;
-* :func:`lu_solve6`: the 6x6 LU shared with :mod:`hexapod_pin.fast`.
+Conventions (those of :mod:`hexapod_pin.hexapod.geometry`): pose ``(x, y, z, roll, pitch,
+yaw)`` (m, rad), ``R = Rz(yaw) Ry(pitch) Rx(roll)``; twist ``(v, w)`` of the platform
+origin in world axes, ``twist_dot`` its plain time derivative; wrench ``(f, m)`` applied
+ON the platform, world axes, moment about the platform origin (N, N m); actuator force
+``tau_i`` on carriage ``i`` along ``+u_k`` (N); carriage ``i`` on rail ``k = i // 2``.
 
-Kernels return an integer status, never raise: the caller re-runs the Python route,
-which raises the library's exception with its values. The tests check every kernel
-against Pinocchio (closure residual, ``J_c v = 0``, ``J_c a = -drift``, virtual power)
-and against :class:`~hexapod_pin.platform_map.PlatformMap`.
+Legs (:func:`legs`). With ``r_k = R p_k`` and ``d_i = t + r_k - m_k``, carriage ``i`` sits
+at ``q_i = u.d + s_i sqrt(L^2 - |d|^2 + (u.d)^2)`` (branch sign ``s_i``), its leg is
+``n_i = d_i - q_i u_k`` and ``J[i] = [n_i, r_k x n_i] / (n_i . u_k)`` (``qdot = J twist``).
+Rates: ``dn/dt = v + w x r - qdot u``; carriage accelerations
+``qddot_i = (|dn/dt|^2 + n.A_k) / (n.u)`` with ``A_k = vdot + wdot x r + w x (w x r)``.
 
-Compiled with ``@njit(cache=True)``: the machine code is cached in ``__pycache__`` next
-to this file (or numba's user cache directory when that is read-only), so only the first
-call after an install compiles (a few seconds).
+Tree state (:func:`tree_state`, the Pinocchio tree of ``urdf/hexapod.urdf.xacro``: per
+carriage a prismatic joint, a universal joint ``u_i_a`` about ``u_k`` then ``u_i_b``, and
+the platform's free-flyer). In the carriage frame ``(u, l, z)``, ``l = z x u``, the unit
+leg direction ``e = n / L = sin(b) u - sin(a) cos(b) l + cos(a) cos(b) z``, so
+``b = atan2(e.u, rho)``, ``a = atan2(-e.l, e.z)``, ``rho^2 = X^2 + Y^2`` with ``X = e.z``,
+``Y = -e.l``; the rates differentiate those, the free-flyer gets ``(R^T v, R^T w)`` and
+``(R^T (vdot - w x v), R^T wdot)``. ``v_tree = G twist`` (:func:`velocity_map`) and ``G^T``
+maps a tree generalised force to a platform wrench (:func:`project`).
+
+Newton-Euler closed form (:func:`inverse_dynamics`, :func:`forward_dynamics`,
+:func:`static_forces`): carriage = point mass ``m_c``; leg = uniform rod ``m_l`` without
+axial inertia, dynamically equivalent to point masses ``m_l/6, 2 m_l/3, m_l/6`` at its
+ends and middle, i.e. end loads ``c_i = (m_c + m_l/3) qddot_i + (m_l/6) u.A_k`` on the
+carriage and ``F_i = (m_l/6) qddot_i u + (m_l/3) A_k + (0, 0, m_l g / 2)`` at the tip; the
+rest of the leg force is axial, ``t_i n_i``. Platform (world axes, about its origin)::
+
+    sum_i [F_i, r_k x F_i] + [m_p (vdot + g e_z), I_w wdot + w x I_w w] - wrench
+        = sum_i t_i [n_i, r_k x n_i] = A^T t,           tau_i = c_i + t_i (n_i . u_k)
+
+Forward dynamics solves the reduced equation ``M_x twist_dot = J^T tau + wrench - h_x``
+(``M_x`` symmetric positive definite, by Cholesky). The closure force of leg ``i`` ON
+the platform is ``t_i n_i - F_i``. Rails and platform points lie in the planes ``z = 0``
+of their frames (checked by :func:`pack_geometry`).
+
+Measures: type I where ``|n.u| / L < TYPE_I_TOL`` (a leg perpendicular to its rail); the
+universal joint's gimbal lock where ``rho^2 < GIMBAL_TOL``; type II where the smallest
+singular value of ``A_hat`` (rows ``[e_i, (r_k x e_i) / platform_radius]``, the measure of
+:class:`~hexapod_pin.core.results.SingularityMeasures`) is below ``TYPE_II_TOL``: one test
+(:func:`factor_legs`) for every route that solves with ``A``.
+
+Kernels never raise: they return a status code (:data:`OK`, ...), and :func:`error_of`
+turns a code into the library's exception with the offending values. Scratch arrays are
+passed in (``rot`` (9,), ``wk`` (WK_ROWS, 6), ``mats`` (3, 6, 6)), so that the kernels
+allocate nothing and run inside ``prange`` loops and the simulator.
 """
 
 from __future__ import annotations
@@ -37,100 +61,194 @@ import math
 import numba
 import numpy as np
 
-from ..core.compiled import all_finite
-from ..errors import HexapodPinError
-from .kinematics import GIMBAL_TOL
+from ..core.compiled import FLAGS, all_finite
+from ..errors import (BatchSingularityError, BatchUnreachablePoseError, HexapodPinError,
+                      SingularityError, UnreachablePoseError)
 
-#: status codes
-OK, UNREACHABLE, TYPE_I, GIMBAL, TYPE_II, NOT_PD = 0, 1, 2, 3, 4, 5
+#: the home IK branch: even carriages on the smaller root
+HOME_BRANCH = np.array([-1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
+#: rail of each carriage
+RAIL_OF = np.array([0, 0, 1, 1, 2, 2])
+#: ``|cos(leg, rail)|`` below which a leg counts as perpendicular to its rail (type I).
+#: Near that singularity the cosine comes from ``sqrt(disc)`` of the IK quadratic, whose
+#: rounding (~1e-16 L^2) limits it to about ``sqrt(eps) ~ 1.5e-8``: smaller values cannot
+#: be told from 0, so the threshold sits above that noise (J entries ~ 1e7 there).
+TYPE_I_TOL = 1e-7
+#: ``1 - cos(leg, rail)^2`` below which a leg lies along its rail (the universal joint is
+#: in gimbal lock: the leg's spin and the tree angles are undefined)
+GIMBAL_TOL = 1e-10
+#: smallest singular value of ``A_hat`` below which a pose is type-II singular (the
+#: platform moves with the carriages locked; ``A_hat`` is dimensionless, its largest
+#: singular value of order 1)
+TYPE_II_TOL = 1e-12
+#: relative slack of the actuator bounds
+BOUND_RTOL = 1e-9
 
-# geometry vector layout: per carriage i (9 values) k, m (3), u (3), l (2); points (9);
-# leg length, type-I tolerance, gimbal tolerance
-_CAR, _PTS, _LEN, _TYPE1, _GIMB = 0, 54, 63, 64, 65
-GEO_SIZE = 66
+#: status codes of the kernels
+OK, UNREACHABLE, TYPE_I, GIMBAL, TYPE_II, NOT_PD, NONFINITE, STROKE, GAP, SATURATED = range(10)
 
-# leg buffer rows (each row: 6 legs, carriage order)
-_RX, _RY, _RZ, _NX, _NY, _NZ, _NU, _X, _Y, _RHO2, _EX, _DX, _DY, _DZ = range(14)
-#: rows of the scratch of :func:`nullspace_forward`
-FORWARD_WORK_ROWS = 41
-#: rows of the leg buffer; ``buf[14, 0:9]`` holds ``R`` row-major
-BUF_ROWS = 16
-_ROT = 14
-
-_jit = numba.njit(cache=True, error_model="numpy")
+# -- compilation options ---------------------------------------------------------------
+#: the library's kernel options plus the fast-math flags ``contract, reassoc, nsz`` (no
+#: ``nnan`` / ``ninf``: the finiteness checks stay exact)
+FAST_FLAGS = dict(FLAGS, fastmath={"contract", "reassoc", "nsz"})
 
 
-def pack_geometry(pmap) -> np.ndarray:
-    """The constants of a :class:`~hexapod_pin.platform_map.PlatformMap` as a flat vector."""
+def _lean_options() -> dict:
+    """numba's private option compiling without the reference-counting runtime (for
+    kernels that never allocate); plain options when this numba lacks it."""
+    try:
+        from numba.core.options import DefaultOptions
+    except ImportError:  # pragma: no cover - another numba layout: plain options
+        return {}
+    return {"_nrt": False} if hasattr(DefaultOptions, "_nrt") else {}
+
+
+LEAN_FLAGS = dict(FAST_FLAGS, **_lean_options())
+#: a compiled kernel
+jit = numba.njit(**FAST_FLAGS)
+#: a compiled kernel that never allocates (no reference counting)
+jit_lean = numba.njit(**LEAN_FLAGS)
+#: a small allocation-free helper, inlined by LLVM into its compiled callers
+jit_inline = numba.njit(forceinline=True, **LEAN_FLAGS)
+
+# -- packed geometry: per carriage i a block of 11 values at 11 i, then scalars --------
+MX, MY, MZ, UX, UY, UZ, LX, LY, PX, PY, PZ = range(11)
+BLOCK = 11
+(LEN, MC, ML, MP, IA, IB, IC, GRAV, TOL1, GIMB, TOL2, BOUND, HALF, GAP_MIN,
+ RADIUS) = range(66, 81)
+GEO_SIZE = 81
+
+# -- rows of the per-leg work array wk (WK_ROWS, 6), carriage order ------------------------
+(RX, RY, RZ, NX, NY, NZ, NU, Q, DISC, INV, QD, DNX, DNY, DNZ, DN2, A0X, A0Y, A0Z, QDD0,
+ XA, YA, RHO2, EU, QDD, AX, AY, AZ, FX, FY, FZ, CC, AXIAL, RHS, RHS0, PERM, TMP,
+ TMP2) = range(37)
+WK_ROWS = 37
+#: the zero 6-vector (twist, twist_dot or wrench at rest)
+ZERO6 = np.zeros(6)
+
+
+def pack_geometry(geometry) -> np.ndarray:
+    """The :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry` as the flat float64
+    vector (GEO_SIZE,) that every kernel reads.
+
+    Raises:
+        HexapodPinError: rails or platform points off the planes ``z = 0``.
+    """
+    g = geometry
+    mids, dirs, pts = g.rail_midpoints, g.rail_directions, g.platform_points
+    if np.any(mids[:, 2] != 0.0) or np.any(dirs[:, 2] != 0.0) or np.any(pts[:, 2] != 0.0):
+        raise HexapodPinError("the closed form needs rails and platform points in the "
+                              "planes z = 0 of their frames")
     out = np.zeros(GEO_SIZE)
-    for i, (k, mx, my, mz, ux, uy, uz, lx, ly) in enumerate(pmap._carriages):
-        out[9 * i:9 * i + 9] = (k, mx, my, mz, ux, uy, uz, lx, ly)
-    out[_PTS:_PTS + 9] = np.array(pmap._points, dtype=float).reshape(-1)
-    out[_LEN], out[_TYPE1], out[_GIMB] = pmap.leg_length, pmap._type_one, GIMBAL_TOL
+    for i in range(6):
+        k = RAIL_OF[i]
+        (mx, my, mz), (ux, uy, uz), (px, py, pz) = mids[k], dirs[k], pts[k]
+        # l = z x u (the carriage frame's second axis)
+        out[BLOCK * i:BLOCK * (i + 1)] = (mx, my, mz, ux, uy, uz, -uy, ux, px, py, pz)
+    ia, ib, ic = g.platform_inertia
+    out[LEN:GEO_SIZE] = (g.leg_length, g.carriage_mass, g.leg_mass, g.platform_mass, ia, ib,
+                         ic, g.gravity, TYPE_I_TOL * g.leg_length, GIMBAL_TOL, TYPE_II_TOL,
+                         g.max_actuator_force, g.rail_half_length, g.carriage_min_gap,
+                         g.platform_radius)
     return out
 
 
-@_jit
-def tree_state(geo, pose, twist, twist_dot, signs, level, q, v, a, buf):
-    """Tree state of a platform state (home or any IK branch ``signs``).
+class Scratch:
+    """The scratch arrays of the kernels for one state (``rot``, ``wk``, ``mats``).
 
-    ``level`` 0: ``q`` only; 1: ``q``, ``v``; 2: ``q``, ``v``, ``a``. Returns OK, or
-    -1 (a non-finite input), UNREACHABLE, TYPE_I, GIMBAL (the checks of
-    :meth:`PlatformMap.legs`).
+    Not thread-safe: one per robot and thread.
     """
-    if not all_finite(pose):
-        return -1
-    if level >= 1 and not all_finite(twist):
-        return -1
-    if level >= 2 and not all_finite(twist_dot):
-        return -1
-    x, y, z, roll, pitch, yaw = pose[0], pose[1], pose[2], pose[3], pose[4], pose[5]
+
+    __slots__ = ("mats", "rot", "wk")
+
+    def __init__(self):
+        self.rot = np.empty(9)
+        self.wk = np.zeros((WK_ROWS, 6))
+        self.mats = np.empty((3, 6, 6))
+
+
+class ClosedForm:
+    """The closed form of one hexapod: its packed geometry, home branch and scratch (one
+    explicit cache object per robot; not thread-safe).
+
+    Args:
+        geometry: the :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry`.
+        indices: the tree's ``HexapodIndices`` (optional): checked against the joint order
+            the tree kernels assume, ``(carriage_i, u_i_a, u_i_b)`` for ``i = 0..5`` then
+            the platform's free-flyer (``q`` 25, ``v`` 24).
+
+    Raises:
+        HexapodPinError: a tree of another layout, or rails off the plane ``z = 0``.
+    """
+
+    def __init__(self, geometry, indices=None):
+        self.geometry = geometry
+        self.geo = pack_geometry(geometry)
+        self.signs = HOME_BRANCH.copy()
+        self.scratch = Scratch()
+        if indices is not None:
+            legs3 = np.arange(18).reshape(6, 3)
+            layout = [(indices.carriage_q, legs3[:, 0]), (indices.u_a_q, legs3[:, 1]),
+                      (indices.u_b_q, legs3[:, 2]), (indices.carriage_v, legs3[:, 0]),
+                      (indices.u_a_v, legs3[:, 1]), (indices.u_b_v, legs3[:, 2])]
+            if (any(not np.array_equal(got, want) for got, want in layout)
+                    or indices.platform_q != slice(18, 25)
+                    or indices.platform_v != slice(18, 24)):
+                raise HexapodPinError("the hexapod kernels expect the joint order of "
+                                      "urdf/hexapod.urdf.xacro: (carriage_i, u_i_a, u_i_b) "
+                                      f"for i = 0..5, then platform_joint; got {indices}")
+
+    def error(self, code: int) -> HexapodPinError:
+        """:func:`error_of` for the state last computed in :attr:`scratch`."""
+        return error_of(code, self.geo, self.scratch.wk, self.scratch.mats[1])
+
+    def tip_forces(self, pose, force, tau) -> np.ndarray:
+        """(6, 3) force of the platform ON each leg tip (:func:`leg_forces`) at ``pose`` (6,)
+        for a tree generalised force ``force`` (24,) and actuator forces ``tau`` (6,); the
+        legs are rebuilt in a fresh scratch (a result may ask long after its call).
+
+        Raises:
+            HexapodPinError: the pose is refused (it was accepted when ``force`` was made).
+        """
+        rot, wk, out = np.empty(9), np.zeros((WK_ROWS, 6)), np.empty((6, 3))
+        code = leg_state(self.geo, self.signs, pose, rot, wk)
+        if code != OK:
+            raise error_of(code, self.geo, wk)
+        tree_angles(self.geo, wk)
+        leg_forces(self.geo, wk, force, tau, out)
+        return out
+
+    def closure_residual(self, q) -> float:
+        """:func:`closure_residual` of a tree configuration (25,) (m)."""
+        return closure_residual(self.geo, np.ascontiguousarray(q, dtype=float))
+
+
+# --------------------------------------------------------------------------------------
+# rotations
+# --------------------------------------------------------------------------------------
+@jit_inline
+def rotation_rpy(roll, pitch, yaw, rot):
+    """``rot`` (9,) = ``Rz(yaw) Ry(pitch) Rx(roll)`` row-major."""
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
     cy, sy = math.cos(yaw), math.sin(yaw)
-    r00, r01, r02 = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
-    r10, r11, r12 = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
-    r20, r21, r22 = -sp, cp * sr, cp * cr
-    rot = buf[_ROT]
-    rot[0], rot[1], rot[2], rot[3], rot[4], rot[5] = r00, r01, r02, r10, r11, r12
-    buf[_ROT + 1, 0], buf[_ROT + 1, 1], buf[_ROT + 1, 2] = r20, r21, r22
-    length = geo[_LEN]
-    inv_len = 1.0 / length
-    code = OK
-    for i in range(6):
-        c = 9 * i
-        k = int(geo[c])
-        px, py, pz = geo[_PTS + 3 * k], geo[_PTS + 3 * k + 1], geo[_PTS + 3 * k + 2]
-        rx = r00 * px + r01 * py + r02 * pz
-        ry = r10 * px + r11 * py + r12 * pz
-        rz = r20 * px + r21 * py + r22 * pz
-        ux, uy, uz, lx, ly = geo[c + 4], geo[c + 5], geo[c + 6], geo[c + 7], geo[c + 8]
-        dx, dy, dz = x + rx - geo[c + 1], y + ry - geo[c + 2], z + rz - geo[c + 3]
-        al = dx * ux + dy * uy + dz * uz
-        disc = length * length - (dx * dx + dy * dy + dz * dz - al * al)
-        if not disc >= 0.0:
-            return UNREACHABLE
-        qi = al + signs[i] * math.sqrt(disc)
-        nx, ny, nz = dx - qi * ux, dy - qi * uy, dz - qi * uz
-        nu = nx * ux + ny * uy + nz * uz
-        if not abs(nu) >= geo[_TYPE1]:
-            code = TYPE_I
-        big_x = nz * inv_len
-        big_y = -(nx * lx + ny * ly) * inv_len
-        rho2 = big_x * big_x + big_y * big_y
-        if code == OK and not rho2 >= geo[_GIMB]:
-            code = GIMBAL
-        ex = nu * inv_len
-        buf[_RX, i], buf[_RY, i], buf[_RZ, i] = rx, ry, rz
-        buf[_NX, i], buf[_NY, i], buf[_NZ, i], buf[_NU, i] = nx, ny, nz, nu
-        buf[_X, i], buf[_Y, i], buf[_RHO2, i], buf[_EX, i] = big_x, big_y, rho2, ex
-        q[3 * i] = qi
-        q[3 * i + 1] = math.atan2(big_y, big_x)
-        q[3 * i + 2] = math.atan2(ex, math.sqrt(rho2))
-    if code != OK:
-        return code
-    q[18], q[19], q[20] = x, y, z
-    # quaternion (x, y, z, w) of Rz(yaw) Ry(pitch) Rx(roll), w >= 0
+    rot[0], rot[1], rot[2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
+    rot[3], rot[4], rot[5] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+    rot[6], rot[7], rot[8] = -sp, cp * sr, cp * cr
+
+
+@jit_inline
+def rotation_quat(w, x, y, z, rot):
+    """``rot`` (9,) row-major of a quaternion ``(w, x, y, z)`` of any non-zero norm."""
+    s = 2.0 / (w * w + x * x + y * y + z * z)
+    rot[0], rot[1], rot[2] = 1.0 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)
+    rot[3], rot[4], rot[5] = s * (x * y + z * w), 1.0 - s * (x * x + z * z), s * (y * z - x * w)
+    rot[6], rot[7], rot[8] = s * (x * z - y * w), s * (y * z + x * w), 1.0 - s * (x * x + y * y)
+
+
+@jit_inline
+def quaternion_rpy(roll, pitch, yaw):
+    """Unit quaternion ``(w, x, y, z)`` of ``Rz(yaw) Ry(pitch) Rx(roll)``, ``w >= 0``."""
     c1, s1 = math.cos(0.5 * roll), math.sin(0.5 * roll)
     c2, s2 = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
     c3, s3 = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
@@ -139,89 +257,917 @@ def tree_state(geo, pose, twist, twist_dot, signs, level, q, v, a, buf):
     qy = c1 * s2 * c3 + s1 * c2 * s3
     qz = c1 * c2 * s3 - s1 * s2 * c3
     if qw < 0.0:
-        qx, qy, qz, qw = -qx, -qy, -qz, -qw
-    q[21], q[22], q[23], q[24] = qx, qy, qz, qw
-    if level < 1:
-        return OK
+        return -qw, -qx, -qy, -qz
+    return qw, qx, qy, qz
+
+
+@jit_inline
+def rpy_of(rot):
+    """``(roll, pitch, yaw)`` of ``rot`` (9,), pitch in [-pi/2, pi/2]; at gimbal lock
+    roll = 0 and yaw takes the rest (as :func:`hexapod_pin.core.pose.rpy_from_rotation`)."""
+    horizontal = math.hypot(rot[0], rot[3])
+    pitch = math.atan2(-rot[6], horizontal)
+    if horizontal < 1e-12:
+        return 0.0, pitch, math.atan2(-rot[1], rot[4])
+    return math.atan2(rot[7], rot[8]), pitch, math.atan2(rot[3], rot[0])
+
+
+# --------------------------------------------------------------------------------------
+# legs, rates, accelerations
+# --------------------------------------------------------------------------------------
+@jit_inline
+def _worse(code, new):
+    """The more severe of two leg codes (UNREACHABLE > TYPE_I > GIMBAL > OK)."""
+    if new != OK and (code == OK or new < code):
+        return new
+    return code
+
+
+@jit_inline
+def legs(geo, x, y, z, rot, signs, wk):
+    """Inverse kinematics and leg vectors of a platform position and ``rot`` on the branch
+    ``signs`` (6,). Fills rows RX..RZ (arms ``r_k``), NX..NZ (legs), NU (``n.u``), Q, DISC
+    (the discriminant; a leg that cannot reach gets the nearest rail point, DISC < 0).
+    Returns UNREACHABLE, TYPE_I, GIMBAL (the worst over the legs) or OK."""
+    length = geo[LEN]
+    code = OK
+    for i in range(6):
+        b = BLOCK * i
+        px, py, pz = geo[b + PX], geo[b + PY], geo[b + PZ]
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        rx = rot[0] * px + rot[1] * py + rot[2] * pz
+        ry = rot[3] * px + rot[4] * py + rot[5] * pz
+        rz = rot[6] * px + rot[7] * py + rot[8] * pz
+        dx, dy, dz = x + rx - geo[b + MX], y + ry - geo[b + MY], z + rz - geo[b + MZ]
+        along = dx * ux + dy * uy + dz * uz
+        disc = length * length - (dx * dx + dy * dy + dz * dz) + along * along
+        wk[DISC, i] = disc
+        root = 0.0
+        if disc >= 0.0:
+            root = math.sqrt(disc)
+        else:
+            code = UNREACHABLE
+        qi = along + signs[i] * root
+        nx, ny, nz = dx - qi * ux, dy - qi * uy, dz - qi * uz
+        nu = nx * ux + ny * uy + nz * uz
+        wk[RX, i], wk[RY, i], wk[RZ, i] = rx, ry, rz
+        wk[NX, i], wk[NY, i], wk[NZ, i] = nx, ny, nz
+        wk[NU, i], wk[Q, i] = nu, qi
+        if not abs(nu) >= geo[TOL1]:
+            code = _worse(code, TYPE_I)
+        else:
+            nl = nx * geo[b + LX] + ny * geo[b + LY]
+            if not (nz * nz + nl * nl) >= geo[GIMB] * length * length:
+                code = _worse(code, GIMBAL)
+    return code
+
+
+@jit
+def leg_state(geo, signs, pose, rot, wk):
+    """:func:`legs` of a pose (6,): NONFINITE for a non-finite pose, else its code."""
+    if not all_finite(pose):
+        return NONFINITE
+    rotation_rpy(pose[3], pose[4], pose[5], rot)
+    return legs(geo, pose[0], pose[1], pose[2], rot, signs, wk)
+
+
+@jit_inline
+def rates(geo, twist, wk, drift):
+    """Carriage rates QD (``J twist``), INV (``1 / n.u``), leg rates DNX..DNZ and, with
+    ``drift``, ``|dn/dt|^2`` (DN2), ``w x (w x r)`` (A0X..A0Z) and the carriage
+    accelerations at ``twist_dot = 0`` (QDD0)."""
     vx, vy, vz, wx, wy, wz = twist[0], twist[1], twist[2], twist[3], twist[4], twist[5]
     for i in range(6):
-        c = 9 * i
-        ux, uy, uz, lx, ly = geo[c + 4], geo[c + 5], geo[c + 6], geo[c + 7], geo[c + 8]
-        rx, ry, rz = buf[_RX, i], buf[_RY, i], buf[_RZ, i]
-        nx, ny, nz, nu = buf[_NX, i], buf[_NY, i], buf[_NZ, i], buf[_NU, i]
-        big_x, big_y, rho2 = buf[_X, i], buf[_Y, i], buf[_RHO2, i]
-        tx, ty, tz = vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx
-        qd = (nx * tx + ny * ty + nz * tz) / nu
-        dx, dy, dz = tx - qd * ux, ty - qd * uy, tz - qd * uz
-        buf[_DX, i], buf[_DY, i], buf[_DZ, i] = dx, dy, dz
-        v[3 * i] = qd
-        v[3 * i + 1] = (big_x * -(dx * lx + dy * ly) - big_y * dz) * inv_len / rho2
-        v[3 * i + 2] = (dx * ux + dy * uy + dz * uz) * inv_len / math.sqrt(rho2)
-    v[18] = r00 * vx + r10 * vy + r20 * vz
-    v[19] = r01 * vx + r11 * vy + r21 * vz
-    v[20] = r02 * vx + r12 * vy + r22 * vz
-    v[21] = r00 * wx + r10 * wy + r20 * wz
-    v[22] = r01 * wx + r11 * wy + r21 * wz
-    v[23] = r02 * wx + r12 * wy + r22 * wz
-    if level < 2:
-        return OK
+        b = BLOCK * i
+        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
+        nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx
+        tx, ty, tz = vx + cx, vy + cy, vz + cz
+        inv = 1.0 / wk[NU, i]
+        wk[INV, i] = inv
+        qd = (nx * tx + ny * ty + nz * tz) * inv
+        wk[QD, i] = qd
+        ex, ey, ez = tx - qd * ux, ty - qd * uy, tz - qd * uz
+        wk[DNX, i], wk[DNY, i], wk[DNZ, i] = ex, ey, ez
+        if drift:
+            dn2 = ex * ex + ey * ey + ez * ez
+            ax, ay, az = wy * cz - wz * cy, wz * cx - wx * cz, wx * cy - wy * cx
+            wk[DN2, i] = dn2
+            wk[A0X, i], wk[A0Y, i], wk[A0Z, i] = ax, ay, az
+            wk[QDD0, i] = (dn2 + nx * ax + ny * ay + nz * az) * inv
+
+
+@jit_inline
+def tip_accelerations(wk, twist_dot):
+    """Platform-point accelerations AX..AZ (``A_k``) and carriage accelerations QDD for a
+    ``twist_dot`` (after :func:`rates` with ``drift``)."""
     ax, ay, az = twist_dot[0], twist_dot[1], twist_dot[2]
     bx, by, bz = twist_dot[3], twist_dot[4], twist_dot[5]
     for i in range(6):
-        c = 9 * i
-        ux, uy, uz, lx, ly = geo[c + 4], geo[c + 5], geo[c + 6], geo[c + 7], geo[c + 8]
-        rx, ry, rz = buf[_RX, i], buf[_RY, i], buf[_RZ, i]
-        nx, ny, nz, nu = buf[_NX, i], buf[_NY, i], buf[_NZ, i], buf[_NU, i]
-        big_x, big_y, rho2, ex = buf[_X, i], buf[_Y, i], buf[_RHO2, i], buf[_EX, i]
-        dx, dy, dz = buf[_DX, i], buf[_DY, i], buf[_DZ, i]
-        # A_k = vdot + wdot x r + w x (w x r)
-        cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx
-        tx = ax + by * rz - bz * ry + wy * cz - wz * cy
-        ty = ay + bz * rx - bx * rz + wz * cx - wx * cz
-        tz = az + bx * ry - by * rx + wx * cy - wy * cx
-        qdd = (dx * dx + dy * dy + dz * dz + nx * tx + ny * ty + nz * tz) / nu
-        ddx, ddy, ddz = tx - qdd * ux, ty - qdd * uy, tz - qdd * uz
+        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
+        cx = wk[A0X, i] + ax + (by * rz - bz * ry)
+        cy = wk[A0Y, i] + ay + (bz * rx - bx * rz)
+        cz = wk[A0Z, i] + az + (bx * ry - by * rx)
+        wk[AX, i], wk[AY, i], wk[AZ, i] = cx, cy, cz
+        wk[QDD, i] = (wk[DN2, i] + wk[NX, i] * cx + wk[NY, i] * cy + wk[NZ, i] * cz) \
+            * wk[INV, i]
+
+
+@jit
+def motion_state(geo, signs, pose, twist, other, wrench, rot, wk):
+    """The common start of the dynamics kernels: the four input vectors finite, then
+    ``R``, the legs and their rates (with drift); returns a code."""
+    if not (all_finite(pose) and all_finite(twist) and all_finite(other)
+            and all_finite(wrench)):
+        return NONFINITE
+    rotation_rpy(pose[3], pose[4], pose[5], rot)
+    code = legs(geo, pose[0], pose[1], pose[2], rot, signs, wk)
+    if code != OK:
+        return code
+    rates(geo, twist, wk, True)
+    return OK
+
+
+@jit_inline
+def limits(geo, wk):
+    """STROKE (``|q_i| > rail_half_length``), GAP (``q_2k+1 - q_2k < carriage_min_gap``)
+    or OK, for the carriages in row Q."""
+    for i in range(6):
+        if abs(wk[Q, i]) > geo[HALF]:
+            return STROKE
+    for k in range(3):
+        if wk[Q, 2 * k + 1] - wk[Q, 2 * k] < geo[GAP_MIN]:
+            return GAP
+    return OK
+
+
+# --------------------------------------------------------------------------------------
+# Jacobians
+# --------------------------------------------------------------------------------------
+@jit_inline
+def jacobian(wk, out):
+    """``J`` (6, 6): ``J[i] = [n_i, r_k x n_i] / (n_i . u_k)`` (after :func:`legs`)."""
+    for i in range(6):
+        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
+        nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
+        inv = 1.0 / wk[NU, i]
+        out[i, 0], out[i, 1], out[i, 2] = nx * inv, ny * inv, nz * inv
+        out[i, 3] = (ry * nz - rz * ny) * inv
+        out[i, 4] = (rz * nx - rx * nz) * inv
+        out[i, 5] = (rx * ny - ry * nx) * inv
+
+
+@jit
+def jacobian_derivative(geo, wk, twist, out):
+    """``dJ/dt`` (6, 6) along ``twist`` (after :func:`rates`): with ``dr = w x r``,
+    ``dJ[i] = [dn, dr x n + r x dn] / (n.u) - J[i] (dn.u) / (n.u)``."""
+    wx, wy, wz = twist[3], twist[4], twist[5]
+    for i in range(6):
+        b = BLOCK * i
+        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
+        nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
+        ex, ey, ez = wk[DNX, i], wk[DNY, i], wk[DNZ, i]
+        inv = wk[INV, i]
+        rate = (ex * geo[b + UX] + ey * geo[b + UY] + ez * geo[b + UZ]) * inv
+        sx, sy, sz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx
+        mx = sy * nz - sz * ny + ry * ez - rz * ey
+        my = sz * nx - sx * nz + rz * ex - rx * ez
+        mz = sx * ny - sy * nx + rx * ey - ry * ex
+        out[i, 0] = (ex - nx * rate) * inv
+        out[i, 1] = (ey - ny * rate) * inv
+        out[i, 2] = (ez - nz * rate) * inv
+        out[i, 3] = (mx - (ry * nz - rz * ny) * rate) * inv
+        out[i, 4] = (my - (rz * nx - rx * nz) * rate) * inv
+        out[i, 5] = (mz - (rx * ny - ry * nx) * rate) * inv
+
+
+@jit
+def leg_motion(geo, wk, with_acc, out):
+    """Motion of the six rigid legs (after :func:`rates` and, with ``with_acc``,
+    :func:`tip_accelerations`) into ``out`` (6, 6, 3): per leg the unit direction
+    ``e``, centre of mass ``c_i + e L/2``, angular velocity ``w = e x de + lam e``
+    (``lam = c (e x de).u / (1 - c^2)``, ``c = u.e``: the spin the universal joint
+    imposes), centre-of-mass velocity ``qdot u + dn/2`` and, with ``with_acc``, the
+    angular acceleration ``e x dde + dlam e + lam de`` and the centre-of-mass acceleration
+    ``qddot u + ddn/2``. Returns GIMBAL where a leg lies along its rail, else OK."""
+    inv_len = 1.0 / geo[LEN]
+    for i in range(6):
+        b = BLOCK * i
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        nx, ny, nz, qi = wk[NX, i], wk[NY, i], wk[NZ, i], wk[Q, i]
+        ex, ey, ez = nx * inv_len, ny * inv_len, nz * inv_len
+        dx, dy, dz = wk[DNX, i] * inv_len, wk[DNY, i] * inv_len, wk[DNZ, i] * inv_len
+        cosine = wk[NU, i] * inv_len
+        gimbal = 1.0 - cosine * cosine
+        if not gimbal >= geo[GIMB]:
+            return GIMBAL
+        px, py, pz = ey * dz - ez * dy, ez * dx - ex * dz, ex * dy - ey * dx
+        sigma = px * ux + py * uy + pz * uz
+        spin = cosine * sigma / gimbal
+        qd = wk[QD, i]
+        out[0, i, 0], out[0, i, 1], out[0, i, 2] = ex, ey, ez
+        out[1, i, 0] = geo[b + MX] + qi * ux + 0.5 * nx
+        out[1, i, 1] = geo[b + MY] + qi * uy + 0.5 * ny
+        out[1, i, 2] = geo[b + MZ] + qi * uz + 0.5 * nz
+        out[2, i, 0], out[2, i, 1], out[2, i, 2] = px + spin * ex, py + spin * ey, \
+            pz + spin * ez
+        out[3, i, 0] = qd * ux + 0.5 * wk[DNX, i]
+        out[3, i, 1] = qd * uy + 0.5 * wk[DNY, i]
+        out[3, i, 2] = qd * uz + 0.5 * wk[DNZ, i]
+        if not with_acc:
+            continue
+        qdd = wk[QDD, i]
+        ddx, ddy, ddz = wk[AX, i] - qdd * ux, wk[AY, i] - qdd * uy, wk[AZ, i] - qdd * uz
+        fx, fy, fz = ddx * inv_len, ddy * inv_len, ddz * inv_len
+        qx, qy, qz = ey * fz - ez * fy, ez * fx - ex * fz, ex * fy - ey * fx
+        dcos = dx * ux + dy * uy + dz * uz
+        dspin = ((dcos * sigma + cosine * (qx * ux + qy * uy + qz * uz)) / gimbal
+                 + 2.0 * cosine * cosine * dcos * sigma / (gimbal * gimbal))
+        out[4, i, 0] = qx + dspin * ex + spin * dx
+        out[4, i, 1] = qy + dspin * ey + spin * dy
+        out[4, i, 2] = qz + dspin * ez + spin * dz
+        out[5, i, 0] = qdd * ux + 0.5 * ddx
+        out[5, i, 1] = qdd * uy + 0.5 * ddy
+        out[5, i, 2] = qdd * uz + 0.5 * ddz
+    return OK
+
+
+# --------------------------------------------------------------------------------------
+# the leg matrix: one factorisation, one type-II test
+# --------------------------------------------------------------------------------------
+@jit_inline
+def _lu_solve(lu, perm, vec, out):
+    """``out = (P^T L U)^-1 vec`` for the factors of :func:`factor_legs`."""
+    for j in range(6):
+        out[j] = vec[int(perm[j])]
+    for r in range(6):
+        acc = out[r]
+        for c in range(r):
+            acc -= lu[r, c] * out[c]
+        out[r] = acc
+    for r in range(5, -1, -1):
+        acc = out[r]
+        for c in range(r + 1, 6):
+            acc -= lu[r, c] * out[c]
+        out[r] = acc / lu[r, r]
+
+
+@jit_inline
+def closure_matrix_hat(geo, wk, out):
+    """``A_hat`` (6, 6), rows ``[e_i, (r_k x e_i) / platform_radius]``, ``e = n / L``."""
+    inv_len = 1.0 / geo[LEN]
+    inv_rad = inv_len / geo[RADIUS]
+    for i in range(6):
+        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
+        nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
+        out[i, 0], out[i, 1], out[i, 2] = nx * inv_len, ny * inv_len, nz * inv_len
+        out[i, 3] = (ry * nz - rz * ny) * inv_rad
+        out[i, 4] = (rz * nx - rx * nz) * inv_rad
+        out[i, 5] = (rx * ny - ry * nx) * inv_rad
+
+
+@jit
+def smallest_singular_value(mat):
+    """The smallest singular value of a (6, 6) matrix, overwritten (one-sided Jacobi:
+    orthogonalise the columns by plane rotations; their norms are the singular values,
+    each to high relative accuracy)."""
+    for _ in range(60):
+        rotated = False
+        for p in range(5):
+            for q in range(p + 1, 6):
+                alpha = beta = gamma = 0.0
+                for r in range(6):
+                    alpha += mat[r, p] * mat[r, p]
+                    beta += mat[r, q] * mat[r, q]
+                    gamma += mat[r, p] * mat[r, q]
+                if gamma == 0.0 or abs(gamma) <= 1e-16 * math.sqrt(alpha * beta):
+                    continue
+                rotated = True
+                zeta = (beta - alpha) / (2.0 * gamma)
+                t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+                c = 1.0 / math.sqrt(1.0 + t * t)
+                s = c * t
+                for r in range(6):
+                    a, b = mat[r, p], mat[r, q]
+                    mat[r, p], mat[r, q] = c * a - s * b, s * a + c * b
+        if not rotated:
+            break
+    small = np.inf
+    for c in range(6):
+        acc = 0.0
+        for r in range(6):
+            acc += mat[r, c] * mat[r, c]
+        small = min(small, math.sqrt(acc))
+    return small
+
+
+@jit
+def type_two_measure(geo, wk, scratch):
+    """``sigma_min(A_hat)`` of the legs in ``wk`` (the type-II measure); ``scratch`` (6, 6)."""
+    closure_matrix_hat(geo, wk, scratch)
+    return smallest_singular_value(scratch)
+
+
+@jit
+def factor_legs(geo, wk, mats):
+    """Factor ``A_hat^T`` (column i ``[e_i, (r_k x e_i) / platform_radius]``) by LU with
+    partial pivoting into ``mats[0]`` (row order in wk[PERM]) and apply the type-II test:
+    TYPE_II where ``sigma_min(A_hat) < TYPE_II_TOL``, else OK.
+
+    The test is exact and cheap: ``1 / |A_hat^-1|_F <= sigma_min``, so a pose passes at
+    once when that bound clears the tolerance; only below it are the singular values
+    computed (:func:`smallest_singular_value`)."""
+    lu, scratch = mats[0], mats[1]
+    perm = wk[PERM]
+    closure_matrix_hat(geo, wk, scratch)
+    for r in range(6):
+        perm[r] = r
+        for c in range(6):
+            lu[r, c] = scratch[c, r]
+    singular = False
+    for col in range(6):
+        piv, best = col, abs(lu[col, col])
+        for row in range(col + 1, 6):
+            if abs(lu[row, col]) > best:
+                piv, best = row, abs(lu[row, col])
+        if best == 0.0:
+            singular = True
+            break
+        if piv != col:
+            for j in range(6):
+                lu[col, j], lu[piv, j] = lu[piv, j], lu[col, j]
+            perm[col], perm[piv] = perm[piv], perm[col]
+        for row in range(col + 1, 6):
+            f = lu[row, col] / lu[col, col]
+            lu[row, col] = f
+            for j in range(col + 1, 6):
+                lu[row, j] -= f * lu[col, j]
+    if singular:
+        return TYPE_II
+    unit, col = wk[TMP], wk[TMP2]
+    frob = 0.0
+    for j in range(6):
+        for r in range(6):
+            unit[r] = 0.0
+        unit[j] = 1.0
+        _lu_solve(lu, perm, unit, col)
+        for r in range(6):
+            frob += col[r] * col[r]
+    tol = geo[TOL2]
+    if frob * tol * tol <= 1.0:
+        return OK
+    if smallest_singular_value(scratch) < tol:
+        return TYPE_II
+    return OK
+
+
+@jit_inline
+def solve_legs(geo, wk, mats, rhs):
+    """Solve ``A^T t = rhs`` in place (``A`` rows ``[n_i, r_k x n_i]``) with the factors of
+    :func:`factor_legs` (``A^T = L D^-1 A_hat^T``, ``D = diag(1, 1, 1, 1/R, 1/R, 1/R)``)."""
+    inv_len = 1.0 / geo[LEN]
+    inv_rad = inv_len / geo[RADIUS]
+    vec = wk[TMP]
+    for j in range(3):
+        vec[j] = rhs[j] * inv_len
+        vec[3 + j] = rhs[3 + j] * inv_rad
+    _lu_solve(mats[0], wk[PERM], vec, rhs)
+
+
+# --------------------------------------------------------------------------------------
+# Newton-Euler closed form
+# --------------------------------------------------------------------------------------
+@jit_inline
+def end_loads(geo, wk):
+    """Carriage loads CC (``c_i``) and tip loads FX..FZ (``F_i``) of the legs (after
+    :func:`tip_accelerations`)."""
+    m_l = geo[ML]
+    m_leg, m_side, mu = geo[MC] + m_l / 3.0, m_l / 6.0, m_l / 3.0
+    half_weight = 0.5 * m_l * geo[GRAV]
+    for i in range(6):
+        b = BLOCK * i
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        qdd, ax, ay, az = wk[QDD, i], wk[AX, i], wk[AY, i], wk[AZ, i]
+        wk[CC, i] = m_leg * qdd + m_side * (ux * ax + uy * ay + uz * az)
+        side = m_side * qdd
+        wk[FX, i] = side * ux + mu * ax
+        wk[FY, i] = side * uy + mu * ay
+        wk[FZ, i] = side * uz + mu * az + half_weight
+
+
+@jit_inline
+def _inertia_world(geo, rot, vx, vy, vz):
+    """``R I R^T v`` (3 floats)."""
+    b0 = geo[IA] * (rot[0] * vx + rot[3] * vy + rot[6] * vz)
+    b1 = geo[IB] * (rot[1] * vx + rot[4] * vy + rot[7] * vz)
+    b2 = geo[IC] * (rot[2] * vx + rot[5] * vy + rot[8] * vz)
+    return (rot[0] * b0 + rot[1] * b1 + rot[2] * b2, rot[3] * b0 + rot[4] * b1 + rot[5] * b2,
+            rot[6] * b0 + rot[7] * b1 + rot[8] * b2)
+
+
+@jit_inline
+def platform_rhs(geo, rot, wk, twist, twist_dot, wrench, out):
+    """``sum_i [F_i, r_k x F_i] + [m_p (vdot + g e_z), I_w wdot + w x I_w w] - wrench``."""
+    for j in range(6):
+        out[j] = -wrench[j]
+    for i in range(6):
+        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
+        fx, fy, fz = wk[FX, i], wk[FY, i], wk[FZ, i]
+        out[0] += fx
+        out[1] += fy
+        out[2] += fz
+        out[3] += ry * fz - rz * fy
+        out[4] += rz * fx - rx * fz
+        out[5] += rx * fy - ry * fx
+    m_p = geo[MP]
+    out[0] += m_p * twist_dot[0]
+    out[1] += m_p * twist_dot[1]
+    out[2] += m_p * (twist_dot[2] + geo[GRAV])
+    wx, wy, wz = twist[3], twist[4], twist[5]
+    hx, hy, hz = _inertia_world(geo, rot, wx, wy, wz)
+    ix, iy, iz = _inertia_world(geo, rot, twist_dot[3], twist_dot[4], twist_dot[5])
+    out[3] += ix + wy * hz - wz * hy
+    out[4] += iy + wz * hx - wx * hz
+    out[5] += iz + wx * hy - wy * hx
+
+
+@jit_inline
+def check_bound(geo, tau, bounded):
+    """SATURATED when ``bounded`` and some ``|tau_i|`` exceeds the bound, else OK."""
+    if bounded and math.isfinite(geo[BOUND]):
+        for i in range(6):
+            if abs(tau[i]) > geo[BOUND] * (1.0 + BOUND_RTOL):
+                return SATURATED
+    return OK
+
+
+@jit
+def _axial_and_forces(geo, wk, mats, tau):
+    """With the end loads and the platform right-hand side in wk[RHS]: the axial forces
+    (AXIAL, ``A^T t = rhs``, the right-hand side kept in RHS0) and ``tau``."""
+    code = factor_legs(geo, wk, mats)
+    if code != OK:
+        return code
+    rhs = wk[RHS]
+    for j in range(6):
+        wk[RHS0, j] = rhs[j]
+    solve_legs(geo, wk, mats, rhs)
+    for i in range(6):
+        wk[AXIAL, i] = rhs[i]
+        tau[i] = wk[CC, i] + wk[NU, i] * rhs[i]
+    return OK
+
+
+@jit
+def inverse_dynamics(geo, signs, pose, twist, twist_dot, wrench, bounded, tau, rot, wk,
+                     mats):
+    """Inverse dynamics (Newton-Euler closed form): fills ``tau`` (6,); the closure
+    forces follow from :func:`closure_forces`. Returns a status code."""
+    code = motion_state(geo, signs, pose, twist, twist_dot, wrench, rot, wk)
+    if code != OK:
+        return code
+    tip_accelerations(wk, twist_dot)
+    end_loads(geo, wk)
+    platform_rhs(geo, rot, wk, twist, twist_dot, wrench, wk[RHS])
+    code = _axial_and_forces(geo, wk, mats, tau)
+    if code != OK:
+        return code
+    return check_bound(geo, tau, bounded)
+
+
+@jit
+def static_forces(geo, signs, pose, wrench, bounded, tau, rot, wk, mats):
+    """Statics: :func:`inverse_dynamics` at rest; fills ``tau`` (6,), returns a code."""
+    return inverse_dynamics(geo, signs, pose, ZERO6, ZERO6, wrench, bounded, tau, rot, wk,
+                            mats)
+
+
+@jit_inline
+def closure_forces(wk, out):
+    """Force (6, 3) of each leg ON the platform, world axes: ``t_i n_i - F_i``."""
+    for i in range(6):
+        t = wk[AXIAL, i]
+        out[i, 0] = t * wk[NX, i] - wk[FX, i]
+        out[i, 1] = t * wk[NY, i] - wk[FY, i]
+        out[i, 2] = t * wk[NZ, i] - wk[FZ, i]
+
+
+@jit_inline
+def platform_residual(wk):
+    """Max-abs of ``A^T t - rhs`` of the platform equation (after inverse dynamics)."""
+    fx = fy = fz = mx = my = mz = 0.0
+    for i in range(6):
+        t = wk[AXIAL, i]
+        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
+        nx, ny, nz = t * wk[NX, i], t * wk[NY, i], t * wk[NZ, i]
+        fx += nx
+        fy += ny
+        fz += nz
+        mx += ry * nz - rz * ny
+        my += rz * nx - rx * nz
+        mz += rx * ny - ry * nx
+    worst = max(abs(fx - wk[RHS0, 0]), abs(fy - wk[RHS0, 1]), abs(fz - wk[RHS0, 2]))
+    return max(worst, abs(mx - wk[RHS0, 3]), abs(my - wk[RHS0, 4]), abs(mz - wk[RHS0, 5]))
+
+
+@jit_inline
+def reduced_core(geo, rot, twist, wk, mass, bias, jac_t):
+    """Reduced dynamics ``J^T tau + wrench = M_x twist_dot + h_x`` of the legs in ``wk``
+    (after :func:`rates` with drift): ``mass`` (6, 6) gets ``M_x``, ``bias`` (6,) ``h_x``,
+    ``jac_t`` (6, 6) ``J^T``.
+
+    ``M_x = J^T diag(m_c + m_l/3) J + (m_l/6) (J^T U + U^T J) + M_p`` (``U`` rows
+    ``[u_k, r_k x u_k]``, ``M_p`` the platform plus point masses ``m_l/3`` at the six tips
+    as one rigid body); ``h_x`` the right-hand side at ``twist_dot = 0``."""
+    m_l, m_p, g = geo[ML], geo[MP], geo[GRAV]
+    mu = m_l / 3.0
+    m_leg, m_side = geo[MC] + m_l / 3.0, m_l / 6.0
+    h0, h1, h2, h3, h4, h5 = 0.0, 0.0, m_p * g, 0.0, 0.0, 0.0
+    m00 = m01 = m02 = m03 = m04 = m05 = m11 = m12 = m13 = m14 = m15 = 0.0
+    m22 = m23 = m24 = m25 = m33 = m34 = m35 = m44 = m45 = m55 = 0.0
+    sx = sy = sz = 0.0
+    pxx = pyy = pzz = pxy = pxz = pyz = 0.0
+    for i in range(6):
+        b = BLOCK * i
+        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
+        nx, ny, nz, inv = wk[NX, i], wk[NY, i], wk[NZ, i], wk[INV, i]
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        j0, j1, j2 = nx * inv, ny * inv, nz * inv
+        j3, j4, j5 = (ry * nz - rz * ny) * inv, (rz * nx - rx * nz) * inv, \
+            (rx * ny - ry * nx) * inv
+        jac_t[0, i], jac_t[1, i], jac_t[2, i] = j0, j1, j2
+        jac_t[3, i], jac_t[4, i], jac_t[5, i] = j3, j4, j5
+        # the leg's share m_leg J J^T + m_side (J U^T + U J^T) = J W^T + V J^T with
+        # V = m_side U, W = m_leg J + V
+        v0, v1, v2 = m_side * ux, m_side * uy, m_side * uz
+        v3, v4, v5 = ry * v2 - rz * v1, rz * v0 - rx * v2, rx * v1 - ry * v0
+        w0, w1, w2 = m_leg * j0 + v0, m_leg * j1 + v1, m_leg * j2 + v2
+        w3, w4, w5 = m_leg * j3 + v3, m_leg * j4 + v4, m_leg * j5 + v5
+        m00, m01 = m00 + j0 * w0 + v0 * j0, m01 + j0 * w1 + v0 * j1
+        m02, m03 = m02 + j0 * w2 + v0 * j2, m03 + j0 * w3 + v0 * j3
+        m04, m05 = m04 + j0 * w4 + v0 * j4, m05 + j0 * w5 + v0 * j5
+        m11, m12 = m11 + j1 * w1 + v1 * j1, m12 + j1 * w2 + v1 * j2
+        m13, m14 = m13 + j1 * w3 + v1 * j3, m14 + j1 * w4 + v1 * j4
+        m15 = m15 + j1 * w5 + v1 * j5
+        m22, m23 = m22 + j2 * w2 + v2 * j2, m23 + j2 * w3 + v2 * j3
+        m24, m25 = m24 + j2 * w4 + v2 * j4, m25 + j2 * w5 + v2 * j5
+        m33, m34 = m33 + j3 * w3 + v3 * j3, m34 + j3 * w4 + v3 * j4
+        m35 = m35 + j3 * w5 + v3 * j5
+        m44, m45 = m44 + j4 * w4 + v4 * j4, m45 + j4 * w5 + v4 * j5
+        m55 = m55 + j5 * w5 + v5 * j5
+        sx += rx
+        sy += ry
+        sz += rz
+        pxx += rx * rx
+        pyy += ry * ry
+        pzz += rz * rz
+        pxy += rx * ry
+        pxz += rx * rz
+        pyz += ry * rz
+        # bias: the end loads at the drift (twist_dot = 0): J^T c0 + [F0, r x F0]
+        qdd0 = wk[QDD0, i]
+        a0x, a0y, a0z = wk[A0X, i], wk[A0Y, i], wk[A0Z, i]
+        c0 = m_leg * qdd0 + m_side * (ux * a0x + uy * a0y + uz * a0z)
+        f0 = m_side * qdd0
+        fx, fy, fz = f0 * ux + mu * a0x, f0 * uy + mu * a0y, f0 * uz + mu * a0z + 0.5 * m_l * g
+        h0 += j0 * c0 + fx
+        h1 += j1 * c0 + fy
+        h2 += j2 * c0 + fz
+        h3 += j3 * c0 + ry * fz - rz * fy
+        h4 += j4 * c0 + rz * fx - rx * fz
+        h5 += j5 * c0 + rx * fy - ry * fx
+    # the platform plus point masses mu at the six tips, as one rigid body
+    sx, sy, sz = mu * sx, mu * sy, mu * sz
+    total = m_p + 6.0 * mu
+    trace = pxx + pyy + pzz
+    ia, ib, ic = geo[IA], geo[IB], geo[IC]
+    i00 = rot[0] * rot[0] * ia + rot[1] * rot[1] * ib + rot[2] * rot[2] * ic
+    i11 = rot[3] * rot[3] * ia + rot[4] * rot[4] * ib + rot[5] * rot[5] * ic
+    i22 = rot[6] * rot[6] * ia + rot[7] * rot[7] * ib + rot[8] * rot[8] * ic
+    i01 = rot[0] * rot[3] * ia + rot[1] * rot[4] * ib + rot[2] * rot[5] * ic
+    i02 = rot[0] * rot[6] * ia + rot[1] * rot[7] * ib + rot[2] * rot[8] * ic
+    i12 = rot[3] * rot[6] * ia + rot[4] * rot[7] * ib + rot[5] * rot[8] * ic
+    mass[0, 0], mass[0, 1], mass[0, 2] = m00 + total, m01, m02
+    mass[0, 3], mass[0, 4], mass[0, 5] = m03, m04 + sz, m05 - sy
+    mass[1, 1], mass[1, 2] = m11 + total, m12
+    mass[1, 3], mass[1, 4], mass[1, 5] = m13 - sz, m14, m15 + sx
+    mass[2, 2], mass[2, 3], mass[2, 4], mass[2, 5] = m22 + total, m23 + sy, m24 - sx, m25
+    mass[3, 3] = m33 + mu * (trace - pxx) + i00
+    mass[3, 4] = m34 + i01 - mu * pxy
+    mass[3, 5] = m35 + i02 - mu * pxz
+    mass[4, 4] = m44 + mu * (trace - pyy) + i11
+    mass[4, 5] = m45 + i12 - mu * pyz
+    mass[5, 5] = m55 + mu * (trace - pzz) + i22
+    for r in range(6):
+        for c in range(r):
+            mass[r, c] = mass[c, r]
+    # the gyroscopic moment w x (I_w w)
+    wx, wy, wz = twist[3], twist[4], twist[5]
+    hx = i00 * wx + i01 * wy + i02 * wz
+    hy = i01 * wx + i11 * wy + i12 * wz
+    hz = i02 * wx + i12 * wy + i22 * wz
+    bias[0], bias[1], bias[2] = h0, h1, h2
+    bias[3] = h3 + wy * hz - wz * hy
+    bias[4] = h4 + wz * hx - wx * hz
+    bias[5] = h5 + wx * hy - wy * hx
+
+
+@jit_inline
+def cholesky_solve(mat, rhs, out, scratch):
+    """``out = mat^-1 rhs`` for a symmetric positive-definite (6, 6) ``mat`` (upper
+    triangle read, not changed); returns OK or NOT_PD."""
+    for i in range(6):
+        for j in range(i, 6):
+            scratch[i, j] = mat[i, j]
+    for j in range(6):
+        d = scratch[j, j]
+        for k in range(j):
+            d -= scratch[k, j] * scratch[k, j]
+        if not d > 0.0:
+            return NOT_PD
+        inv_d = 1.0 / math.sqrt(d)
+        scratch[j, j] = inv_d
+        for c in range(j + 1, 6):
+            t = scratch[j, c]
+            for k in range(j):
+                t -= scratch[k, j] * scratch[k, c]
+            scratch[j, c] = t * inv_d
+    for r in range(6):
+        t = rhs[r]
+        for k in range(r):
+            t -= scratch[k, r] * out[k]
+        out[r] = t * scratch[r, r]
+    for r in range(5, -1, -1):
+        t = out[r]
+        for k in range(r + 1, 6):
+            t -= scratch[r, k] * out[k]
+        out[r] = t * scratch[r, r]
+    return OK
+
+
+@jit_inline
+def forward_core(geo, rot, twist, forces, wrench, wk, mats, out):
+    """Forward dynamics at the legs in ``wk`` (rates done): ``out`` = ``twist_dot`` (6,)
+    from ``M_x twist_dot = J^T tau + wrench - h_x``; ``mats[2]`` holds ``M_x``,
+    ``mats[0]`` ``J^T``, wk[RHS] ``h_x``. Returns OK or NOT_PD."""
+    jac_t, mass, bias = mats[0], mats[2], wk[RHS]
+    reduced_core(geo, rot, twist, wk, mass, bias, jac_t)
+    rhs = wk[RHS0]
+    for r in range(6):
+        acc = wrench[r] - bias[r]
+        for i in range(6):
+            acc += jac_t[r, i] * forces[i]
+        rhs[r] = acc
+    return cholesky_solve(mass, rhs, out, mats[1])
+
+
+@jit
+def forward_dynamics(geo, signs, pose, twist, forces, wrench, twist_dot, qddot, rot, wk,
+                     mats):
+    """Forward dynamics: fills ``twist_dot`` (6,) and ``qddot`` (6,); returns a code."""
+    code = motion_state(geo, signs, pose, twist, forces, wrench, rot, wk)
+    if code != OK:
+        return code
+    code = forward_core(geo, rot, twist, forces, wrench, wk, mats, twist_dot)
+    if code != OK:
+        return code
+    jac_t = mats[0]
+    for i in range(6):
+        s = wk[QDD0, i]
+        for a in range(6):
+            s += jac_t[a, i] * twist_dot[a]
+        qddot[i] = s
+    return OK
+
+
+@jit
+def forward_closure_forces(geo, wk, twist_dot, forces, out):
+    """Closure forces (6, 3) ON the platform of a forward-dynamics answer: the end loads
+    at the motion and the axial forces ``t_i = (tau_i - c_i) / (n.u)``."""
+    tip_accelerations(wk, twist_dot)
+    end_loads(geo, wk)
+    for i in range(6):
+        wk[AXIAL, i] = (forces[i] - wk[CC, i]) * wk[INV, i]
+    closure_forces(wk, out)
+
+
+@jit
+def reduced_dynamics(geo, signs, pose, twist, mass, bias, jac, rot, wk, mats):
+    """``M_x`` (6, 6), ``h_x`` (6,) and ``J`` (6, 6) of a state; returns a code."""
+    code = motion_state(geo, signs, pose, twist, ZERO6, ZERO6, rot, wk)
+    if code != OK:
+        return code
+    reduced_core(geo, rot, twist, wk, mass, bias, mats[0])
+    for r in range(6):
+        for c in range(6):
+            jac[r, c] = mats[0][c, r]
+    return OK
+
+
+# --------------------------------------------------------------------------------------
+# the Pinocchio tree: state, velocity map, projections
+# --------------------------------------------------------------------------------------
+@jit_inline
+def tree_angles(geo, wk):
+    """XA (``X = e.z``), YA (``Y = -e.l``), RHO2 (``X^2 + Y^2``), EU (``e.u``)."""
+    inv_len = 1.0 / geo[LEN]
+    for i in range(6):
+        b = BLOCK * i
+        nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
+        big_x = nz * inv_len
+        big_y = -(nx * geo[b + LX] + ny * geo[b + LY]) * inv_len
+        wk[XA, i], wk[YA, i] = big_x, big_y
+        wk[RHO2, i] = big_x * big_x + big_y * big_y
+        wk[EU, i] = wk[NU, i] * inv_len
+
+
+@jit
+def tree_configuration(pose, wk, q):
+    """Tree ``q`` (25,): per carriage ``(q_i, a_i, b_i)``, then ``(t, quaternion x y z w)``
+    (after :func:`legs` and :func:`tree_angles`)."""
+    for i in range(6):
+        q[3 * i] = wk[Q, i]
+        q[3 * i + 1] = math.atan2(wk[YA, i], wk[XA, i])
+        q[3 * i + 2] = math.atan2(wk[EU, i], math.sqrt(wk[RHO2, i]))
+    q[18], q[19], q[20] = pose[0], pose[1], pose[2]
+    qw, qx, qy, qz = quaternion_rpy(pose[3], pose[4], pose[5])
+    q[21], q[22], q[23], q[24] = qx, qy, qz, qw
+
+
+@jit
+def tree_velocity(geo, rot, wk, twist, v):
+    """Tree ``v`` (24,) of a twist (after :func:`rates` and :func:`tree_angles`)."""
+    inv_len = 1.0 / geo[LEN]
+    for i in range(6):
+        b = BLOCK * i
+        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
+        dx, dy, dz = wk[DNX, i], wk[DNY, i], wk[DNZ, i]
+        big_x, big_y, rho2 = wk[XA, i], wk[YA, i], wk[RHO2, i]
+        v[3 * i] = wk[QD, i]
+        v[3 * i + 1] = (big_x * -(dx * lx + dy * ly) - big_y * dz) * inv_len / rho2
+        v[3 * i + 2] = (dx * ux + dy * uy + dz * uz) * inv_len / math.sqrt(rho2)
+    vx, vy, vz, wx, wy, wz = twist[0], twist[1], twist[2], twist[3], twist[4], twist[5]
+    v[18] = rot[0] * vx + rot[3] * vy + rot[6] * vz
+    v[19] = rot[1] * vx + rot[4] * vy + rot[7] * vz
+    v[20] = rot[2] * vx + rot[5] * vy + rot[8] * vz
+    v[21] = rot[0] * wx + rot[3] * wy + rot[6] * wz
+    v[22] = rot[1] * wx + rot[4] * wy + rot[7] * wz
+    v[23] = rot[2] * wx + rot[5] * wy + rot[8] * wz
+
+
+@jit
+def tree_acceleration(geo, rot, wk, twist, twist_dot, v, a):
+    """Tree ``a`` (24,) of a ``twist_dot`` (after :func:`tree_velocity` and
+    :func:`tip_accelerations`)."""
+    inv_len = 1.0 / geo[LEN]
+    for i in range(6):
+        b = BLOCK * i
+        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
+        dx, dy, dz = wk[DNX, i], wk[DNY, i], wk[DNZ, i]
+        big_x, big_y, rho2 = wk[XA, i], wk[YA, i], wk[RHO2, i]
+        qdd = wk[QDD, i]
+        ddx, ddy, ddz = wk[AX, i] - qdd * ux, wk[AY, i] - qdd * uy, wk[AZ, i] - qdd * uz
         adot, bdot = v[3 * i + 1], v[3 * i + 2]
         d_x, d_y = dz * inv_len, -(dx * lx + dy * ly) * inv_len
         a[3 * i] = qdd
         a[3 * i + 1] = ((big_x * -(ddx * lx + ddy * ly) - big_y * ddz) * inv_len / rho2
                         - 2.0 * adot * (big_x * d_x + big_y * d_y) / rho2)
-        a[3 * i + 2] = ((ddx * ux + ddy * uy + ddz * uz) * inv_len + ex * bdot * bdot) \
-            / math.sqrt(rho2)
-    # a_ff = (R^T (vdot - w x v), R^T wdot)
+        a[3 * i + 2] = ((ddx * ux + ddy * uy + ddz * uz) * inv_len
+                        + wk[EU, i] * bdot * bdot) / math.sqrt(rho2)
+    vx, vy, vz, wx, wy, wz = twist[0], twist[1], twist[2], twist[3], twist[4], twist[5]
+    ax, ay, az = twist_dot[0], twist_dot[1], twist_dot[2]
+    bx, by, bz = twist_dot[3], twist_dot[4], twist_dot[5]
     px = ax - (wy * vz - wz * vy)
     py = ay - (wz * vx - wx * vz)
     pz = az - (wx * vy - wy * vx)
-    a[18] = r00 * px + r10 * py + r20 * pz
-    a[19] = r01 * px + r11 * py + r21 * pz
-    a[20] = r02 * px + r12 * py + r22 * pz
-    a[21] = r00 * bx + r10 * by + r20 * bz
-    a[22] = r01 * bx + r11 * by + r21 * bz
-    a[23] = r02 * bx + r12 * by + r22 * bz
+    a[18] = rot[0] * px + rot[3] * py + rot[6] * pz
+    a[19] = rot[1] * px + rot[4] * py + rot[7] * pz
+    a[20] = rot[2] * px + rot[5] * py + rot[8] * pz
+    a[21] = rot[0] * bx + rot[3] * by + rot[6] * bz
+    a[22] = rot[1] * bx + rot[4] * by + rot[7] * bz
+    a[23] = rot[2] * bx + rot[5] * by + rot[8] * bz
+
+
+@jit
+def tree_state(geo, signs, pose, twist, twist_dot, level, q, v, a, rot, wk):
+    """Tree state of a platform state on the branch ``signs``: ``level`` 0 ``q`` (25,);
+    1 also ``v`` (24,); 2 also ``a`` (24,). Returns OK, NONFINITE, UNREACHABLE, TYPE_I
+    or GIMBAL (the tree angles need a leg neither perpendicular to nor along its rail)."""
+    if not all_finite(pose) or (level >= 1 and not all_finite(twist)) or (
+            level >= 2 and not all_finite(twist_dot)):
+        return NONFINITE
+    rotation_rpy(pose[3], pose[4], pose[5], rot)
+    code = legs(geo, pose[0], pose[1], pose[2], rot, signs, wk)
+    if code != OK:
+        return code
+    tree_angles(geo, wk)
+    tree_configuration(pose, wk, q)
+    if level >= 1:
+        tree_motion(geo, rot, wk, twist, twist_dot, level, v, a)
     return OK
 
 
-@_jit
-def _rot(buf):
-    r = buf[_ROT]
-    s = buf[_ROT + 1]
-    return r[0], r[1], r[2], r[3], r[4], r[5], s[0], s[1], s[2]
+@jit
+def tree_motion(geo, rot, wk, twist, twist_dot, level, v, a):
+    """Tree ``v`` (``level`` >= 1) and ``a`` (``level`` 2) of the legs in ``wk`` (after
+    :func:`tree_angles`)."""
+    rates(geo, twist, wk, level >= 2)
+    tree_velocity(geo, rot, wk, twist, v)
+    if level >= 2:
+        tip_accelerations(wk, twist_dot)
+        tree_acceleration(geo, rot, wk, twist, twist_dot, v, a)
 
 
-@_jit
-def velocity_map(geo, buf, out):
-    """``G`` (24, 6) with ``v_tree = G twist`` (see :meth:`PlatformMap.velocity_map`)."""
-    inv_len = 1.0 / geo[_LEN]
+@jit
+def tree_configuration_unchecked(geo, signs, pose, q, rot, wk):
+    """Tree ``q`` (25,) of a finite pose without the singularity checks (a leg that
+    cannot reach returns UNREACHABLE); the closure error of the result, rebuilt from the
+    tree angles, is :func:`closure_error`."""
+    rotation_rpy(pose[3], pose[4], pose[5], rot)
+    code = legs(geo, pose[0], pose[1], pose[2], rot, signs, wk)
+    if code == UNREACHABLE:
+        return code
+    tree_angles(geo, wk)
+    tree_configuration(pose, wk, q)
+    return OK
+
+
+@jit
+def closure_residual(geo, q):
+    """Max-abs gap (m) between each leg tip, placed by the tree's joints from ``q`` (25,),
+    and its platform anchor: the closure residual in closed form."""
+    qx, qy, qz, qw = q[21], q[22], q[23], q[24]
+    rot = np.empty(9)
+    rotation_quat(qw, qx, qy, qz, rot)
+    length = geo[LEN]
+    worst = 0.0
+    for i in range(6):
+        b = BLOCK * i
+        px, py, pz = geo[b + PX], geo[b + PY], geo[b + PZ]
+        ax = q[18] + rot[0] * px + rot[1] * py + rot[2] * pz
+        ay = q[19] + rot[3] * px + rot[4] * py + rot[5] * pz
+        az = q[20] + rot[6] * px + rot[7] * py + rot[8] * pz
+        qc, qa, qb = q[3 * i], q[3 * i + 1], q[3 * i + 2]
+        sb, cb = math.sin(qb), math.cos(qb)
+        eu, el, ez = length * sb, -length * math.sin(qa) * cb, length * math.cos(qa) * cb
+        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
+        worst = max(worst, abs(geo[b + MX] + qc * ux + eu * ux + el * lx - ax),
+                    abs(geo[b + MY] + qc * uy + eu * uy + el * ly - ay),
+                    abs(geo[b + MZ] + qc * uz + eu * uz + ez - az))
+    return worst
+
+
+@jit
+def legs_from_tree(geo, q, pose, rot, wk):
+    """Legs of an assembled tree configuration ``q`` (25,): leg vectors from the
+    universal-joint angles (what the tree sees), the platform from its free-flyer; fills
+    ``pose`` (6,) and ``wk`` as :func:`legs` (DISC left 0) and :func:`tree_angles`.
+    Returns TYPE_I, GIMBAL or OK."""
+    rotation_quat(q[24], q[21], q[22], q[23], rot)
+    pose[0], pose[1], pose[2] = q[18], q[19], q[20]
+    pose[3], pose[4], pose[5] = rpy_of(rot)
+    length = geo[LEN]
+    code = OK
+    for i in range(6):
+        b = BLOCK * i
+        px, py, pz = geo[b + PX], geo[b + PY], geo[b + PZ]
+        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
+        qc, qa, qb = q[3 * i], q[3 * i + 1], q[3 * i + 2]
+        sb, cb = math.sin(qb), math.cos(qb)
+        eu, el, ez = sb, -math.sin(qa) * cb, math.cos(qa) * cb
+        nx, ny, nz = length * (eu * ux + el * lx), length * (eu * uy + el * ly), \
+            length * (eu * uz + ez)
+        nu = nx * ux + ny * uy + nz * uz
+        wk[RX, i] = rot[0] * px + rot[1] * py + rot[2] * pz
+        wk[RY, i] = rot[3] * px + rot[4] * py + rot[5] * pz
+        wk[RZ, i] = rot[6] * px + rot[7] * py + rot[8] * pz
+        wk[NX, i], wk[NY, i], wk[NZ, i], wk[NU, i], wk[Q, i], wk[DISC, i] = \
+            nx, ny, nz, nu, qc, 0.0
+        if not abs(nu) >= geo[TOL1]:
+            code = _worse(code, TYPE_I)
+        elif not (nz * nz + (nx * lx + ny * ly) ** 2) >= geo[GIMB] * length * length:
+            code = _worse(code, GIMBAL)
+    tree_angles(geo, wk)
+    return code
+
+
+@jit
+def velocity_map(geo, rot, wk, out):
+    """``G`` (24, 6) with ``v_tree = G twist`` (after :func:`tree_angles`): leg rows
+    ``[g, r_k x g]`` with ``g_carriage = n / (n.u)``, ``g_a = -(X l + Y z) / (L rho^2)``,
+    ``g_b = (u - n / (n.u)) / (L rho)``; free-flyer rows ``blockdiag(R^T, R^T)``."""
+    inv_len = 1.0 / geo[LEN]
     for i in range(24):
         for j in range(6):
             out[i, j] = 0.0
     for i in range(6):
-        c = 9 * i
-        ux, uy, uz, lx, ly = geo[c + 4], geo[c + 5], geo[c + 6], geo[c + 7], geo[c + 8]
-        rx, ry, rz = buf[_RX, i], buf[_RY, i], buf[_RZ, i]
-        nx, ny, nz, nu = buf[_NX, i], buf[_NY, i], buf[_NZ, i], buf[_NU, i]
-        big_x, big_y, rho2 = buf[_X, i], buf[_Y, i], buf[_RHO2, i]
-        inv_nu = 1.0 / nu
+        b = BLOCK * i
+        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
+        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
+        nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
+        big_x, big_y, rho2 = wk[XA, i], wk[YA, i], wk[RHO2, i]
+        inv_nu = 1.0 / wk[NU, i]
         cb = inv_len / math.sqrt(rho2)
         ca = -inv_len / rho2
         for row in range(3):
@@ -236,64 +1182,101 @@ def velocity_map(geo, buf, out):
             out[r, 0], out[r, 1], out[r, 2] = gx, gy, gz
             out[r, 3], out[r, 4], out[r, 5] = ry * gz - rz * gy, rz * gx - rx * gz, \
                 rx * gy - ry * gx
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rot(buf)
-    out[18, 0], out[18, 1], out[18, 2] = r00, r10, r20
-    out[19, 0], out[19, 1], out[19, 2] = r01, r11, r21
-    out[20, 0], out[20, 1], out[20, 2] = r02, r12, r22
-    out[21, 3], out[21, 4], out[21, 5] = r00, r10, r20
-    out[22, 3], out[22, 4], out[22, 5] = r01, r11, r21
-    out[23, 3], out[23, 4], out[23, 5] = r02, r12, r22
+    for j in range(3):
+        out[18 + j, 0], out[18 + j, 1], out[18 + j, 2] = rot[j], rot[3 + j], rot[6 + j]
+        out[21 + j, 3], out[21 + j, 4], out[21 + j, 5] = rot[j], rot[3 + j], rot[6 + j]
 
 
-@_jit
-def project(geo, buf, force, wrench, has_wrench, out):
-    """``out = G^T force - wrench`` (6,): world axes, about the platform origin."""
-    inv_len = 1.0 / geo[_LEN]
+@jit
+def project(geo, rot, wk, force, wrench, has_wrench, out):
+    """``out = G^T force - wrench`` (6,): the platform wrench (world axes, about the
+    platform origin) equivalent by virtual power to a tree generalised force (24,)."""
+    inv_len = 1.0 / geo[LEN]
     fx = fy = fz = mx = my = mz = 0.0
     for i in range(6):
-        c = 9 * i
-        ux, uy, uz, lx, ly = geo[c + 4], geo[c + 5], geo[c + 6], geo[c + 7], geo[c + 8]
-        nx, ny, nz, nu = buf[_NX, i], buf[_NY, i], buf[_NZ, i], buf[_NU, i]
-        big_x, big_y, rho2 = buf[_X, i], buf[_Y, i], buf[_RHO2, i]
+        b = BLOCK * i
+        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
+        nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
+        big_x, big_y, rho2 = wk[XA, i], wk[YA, i], wk[RHO2, i]
         f_c, f_a, f_b = force[3 * i], force[3 * i + 1], force[3 * i + 2]
         f_b *= inv_len / math.sqrt(rho2)
         f_a *= -inv_len / rho2
-        coef = (f_c - f_b) / nu
+        coef = (f_c - f_b) / wk[NU, i]
         f_ax = f_a * big_x
         gx = coef * nx + f_b * ux + f_ax * lx
         gy = coef * ny + f_b * uy + f_ax * ly
         gz = coef * nz + f_b * uz + f_a * big_y
-        rx, ry, rz = buf[_RX, i], buf[_RY, i], buf[_RZ, i]
+        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
         fx += gx
         fy += gy
         fz += gz
         mx += ry * gz - rz * gy
         my += rz * gx - rx * gz
         mz += rx * gy - ry * gx
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rot(buf)
     a0, a1, a2, b0, b1, b2 = force[18], force[19], force[20], force[21], force[22], force[23]
-    out[0] = fx + r00 * a0 + r01 * a1 + r02 * a2
-    out[1] = fy + r10 * a0 + r11 * a1 + r12 * a2
-    out[2] = fz + r20 * a0 + r21 * a1 + r22 * a2
-    out[3] = mx + r00 * b0 + r01 * b1 + r02 * b2
-    out[4] = my + r10 * b0 + r11 * b1 + r12 * b2
-    out[5] = mz + r20 * b0 + r21 * b1 + r22 * b2
+    out[0] = fx + rot[0] * a0 + rot[1] * a1 + rot[2] * a2
+    out[1] = fy + rot[3] * a0 + rot[4] * a1 + rot[5] * a2
+    out[2] = fz + rot[6] * a0 + rot[7] * a1 + rot[8] * a2
+    out[3] = mx + rot[0] * b0 + rot[1] * b1 + rot[2] * b2
+    out[4] = my + rot[3] * b0 + rot[4] * b1 + rot[5] * b2
+    out[5] = mz + rot[6] * b0 + rot[7] * b1 + rot[8] * b2
     if has_wrench:
         for j in range(6):
             out[j] -= wrench[j]
 
 
-@_jit
-def leg_forces(geo, buf, force, tau, out):
-    """Force (world axes) of the platform on each leg tip, ``out`` (6, 3): leg i's three
-    tree rows ``[u, u x n, b x n]^T lambda_i = (force_c - tau_i, force_a, force_b)``
-    (:meth:`PlatformMap.leg_forces`), by Cramer's rule."""
+@jit
+def solve_forces(geo, wk, mats, rhs, tau, multipliers, jac_t):
+    """``J^T tau = rhs`` (6 equations) with the leg factorisation (:func:`factor_legs`,
+    the type-II test included); ``jac_t`` gets ``J^T`` and ``multipliers`` ``y`` with
+    ``J y = -tau``: the equality multipliers of ``min 1/2 |tau|^2 s.t. J^T tau = rhs``
+    (ProxSuite's sign convention). ``rhs`` is kept. Returns OK or TYPE_II."""
+    code = factor_legs(geo, wk, mats)
+    if code != OK:
+        return code
+    for j in range(6):
+        tau[j] = rhs[j]
+    solve_legs(geo, wk, mats, tau)
     for i in range(6):
-        c = 9 * i
-        ux, uy, uz, lx, ly = geo[c + 4], geo[c + 5], geo[c + 6], geo[c + 7], geo[c + 8]
-        nx, ny, nz = buf[_NX, i], buf[_NY, i], buf[_NZ, i]
-        rho = math.sqrt(buf[_RHO2, i])
-        bx, by, bz = buf[_X, i] * lx / rho, buf[_X, i] * ly / rho, buf[_Y, i] / rho
+        tau[i] *= wk[NU, i]
+    jacobian(wk, mats[1])
+    for r in range(6):
+        for c in range(6):
+            jac_t[r, c] = mats[1][c, r]
+    # J = diag(1/nu) L A_hat D^-1 and A_hat = U^T L_f^T P: J y = -tau is
+    # U^T w = -nu tau / L, L_f^T x = w, z = P^T x, y = D z
+    lu, perm, w = mats[0], wk[PERM], wk[TMP]
+    inv_len = 1.0 / geo[LEN]
+    for row in range(6):
+        acc = -tau[row] * wk[NU, row] * inv_len
+        for j in range(row):
+            acc -= lu[j, row] * w[j]
+        w[row] = acc / lu[row, row]
+    for row in range(5, -1, -1):
+        acc = w[row]
+        for j in range(row + 1, 6):
+            acc -= lu[j, row] * w[j]
+        w[row] = acc
+    for j in range(6):
+        multipliers[int(perm[j])] = w[j]
+    for j in range(3, 6):
+        multipliers[j] /= geo[RADIUS]
+    return OK
+
+
+@jit
+def leg_forces(geo, wk, force, tau, out):
+    """Force (6, 3) of the platform ON each leg tip, world axes (after
+    :func:`tree_angles`): leg i's tree rows ``[u, u x n, b x n]^T lambda_i = (force_c -
+    tau_i, force_a, force_b)`` (``b = (X l + Y z) / rho``, the second universal axis) by
+    Cramer's rule."""
+    for i in range(6):
+        bl = BLOCK * i
+        ux, uy, uz, lx, ly = geo[bl + UX], geo[bl + UY], geo[bl + UZ], geo[bl + LX], \
+            geo[bl + LY]
+        nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
+        rho = math.sqrt(wk[RHO2, i])
+        bx, by, bz = wk[XA, i] * lx / rho, wk[XA, i] * ly / rho, wk[YA, i] / rho
         c2x, c2y, c2z = uy * nz - uz * ny, uz * nx - ux * nz, ux * ny - uy * nx
         c3x, c3y, c3z = by * nz - bz * ny, bz * nx - bx * nz, bx * ny - by * nx
         y1, y2, y3 = force[3 * i] - tau[i], force[3 * i + 1], force[3 * i + 2]
@@ -306,129 +1289,12 @@ def leg_forces(geo, buf, force, tau, out):
         out[i, 2] = (y1 * k23z + y2 * k31z + y3 * k12z) / det
 
 
-@_jit
-def force_matrix(buf, out):
-    """``A^T`` (6, 6): column i is ``[n_i, r_k x n_i]``; ``J^T = A^T diag(1 / (n.u))``."""
-    for i in range(6):
-        rx, ry, rz = buf[_RX, i], buf[_RY, i], buf[_RZ, i]
-        nx, ny, nz = buf[_NX, i], buf[_NY, i], buf[_NZ, i]
-        out[0, i], out[1, i], out[2, i] = nx, ny, nz
-        out[3, i], out[4, i], out[5, i] = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx
-
-
-@_jit
-def jacobian_transpose(buf, out):
-    """``J^T`` (6, 6) of the legs in the buffer: ``A^T diag(1 / (n.u))``."""
-    force_matrix(buf, out)
-    for i in range(6):
-        inv = 1.0 / buf[_NU, i]
-        for r in range(6):
-            out[r, i] *= inv
-
-
-@_jit
-def check_solution(mat, x, rhs):
-    """``(max |mat x - rhs|, max |x|, max |rhs|)`` of a 6x6 system."""
-    res = big_x = big_b = 0.0
-    for r in range(6):
-        acc = -rhs[r]
-        for c in range(6):
-            acc += mat[r, c] * x[c]
-        res = max(res, abs(acc))
-        big_x = max(big_x, abs(x[r]))
-        big_b = max(big_b, abs(rhs[r]))
-    return res, big_x, big_b
-
-
-@_jit
-def lu_solve6(mat, rhs, pivot_rtol, perm):
-    """Solve ``mat x = rhs`` (6 x 6) in place by LU with partial pivoting.
-
-    ``rhs`` becomes ``x``; ``mat`` holds the factors (``P mat = L U``, unit ``L`` below the
-    diagonal) and ``perm`` the row order (``(P y)[j] = y[perm[j]]``; pass
-    ``np.arange(6)``). Returns OK, or TYPE_II when the smallest pivot is below
-    ``pivot_rtol`` times the largest (or zero).
-    """
-    small, big = np.inf, 0.0
-    for col in range(6):
-        piv, best = col, abs(mat[col, col])
-        for row in range(col + 1, 6):
-            if abs(mat[row, col]) > best:
-                piv, best = row, abs(mat[row, col])
-        if piv != col:
-            for j in range(6):
-                mat[col, j], mat[piv, j] = mat[piv, j], mat[col, j]
-            rhs[col], rhs[piv] = rhs[piv], rhs[col]
-            perm[col], perm[piv] = perm[piv], perm[col]
-        small, big = min(small, best), max(big, best)
-        if best == 0.0:
-            return TYPE_II
-        for row in range(col + 1, 6):
-            f = mat[row, col] / mat[col, col]
-            mat[row, col] = f
-            for j in range(col + 1, 6):
-                mat[row, j] -= f * mat[col, j]
-            rhs[row] -= f * rhs[col]
-    if not small > pivot_rtol * big:
-        return TYPE_II
-    for row in range(5, -1, -1):
-        acc = rhs[row]
-        for j in range(row + 1, 6):
-            acc -= mat[row, j] * rhs[j]
-        rhs[row] = acc / mat[row, row]
-    return OK
-
-
-@_jit
-def solve_forces(buf, rhs, pivot_rtol, tau, multipliers, lu, jac_t):
-    """``J^T tau = rhs`` (6 equations) by LU with partial pivoting of ``A^T``.
-
-    Also fills ``jac_t`` with ``J^T`` (6, 6).
-
-    Also fills ``multipliers`` with ``y``, ``J y = -tau``: the equality multipliers of the
-    QP ``min 1/2 |tau|^2 s.t. J^T tau = rhs`` (stationarity ``tau + J y = 0``, ProxSuite's
-    sign convention). ``lu`` (6, 6) is scratch. Returns OK, or TYPE_II when the smallest
-    pivot is below ``pivot_rtol`` times the largest (:meth:`PlatformMap.solve_forces`).
-    """
-    jacobian_transpose(buf, jac_t)
-    force_matrix(buf, lu)
-    for j in range(6):
-        tau[j] = rhs[j]
-    perm = np.arange(6)
-    code = lu_solve6(lu, tau, pivot_rtol, perm)
-    if code != OK:
-        return code
-    # tau = diag(n.u) s with A^T s = rhs
-    for i in range(6):
-        tau[i] *= buf[_NU, i]
-    # J y = -tau with J = diag(1 / n.u) F^T (F = A^T, factored P F = L U):
-    # F^T y = -(n.u) tau, F^T = U^T L^T P: solve U^T w = -(n.u) tau, L^T z = w, P y = z
-    w = np.empty(6)
-    for row in range(6):
-        acc = -tau[row] * buf[_NU, row]
-        for j in range(row):
-            acc -= lu[j, row] * w[j]
-        w[row] = acc / lu[row, row]
-    for row in range(5, -1, -1):
-        acc = w[row]
-        for j in range(row + 1, 6):
-            acc -= lu[j, row] * w[j]
-        w[row] = acc
-    for j in range(6):
-        multipliers[perm[j]] = w[j]
-    return OK
-
-
-@_jit
-def reduced(geo, buf, mass, bias, g_map, m_x, h_x):
+@jit
+def reduced_tree(geo, rot, wk, mass, bias, g_map, m_x, h_x):
     """``M_x = G^T M G`` (6, 6) and ``h_x = G^T bias`` (6,) from the tree's ``M`` (24, 24;
-    upper triangle read, as ``pin.crba`` fills it) and a tree generalised force ``bias``.
-
-    ``M`` is block diagonal (every leg chain and the free-flyer hang from the fixed
-    world: blocks ``3 i .. 3 i + 2`` and ``18 .. 23``, checked once by
-    :meth:`CompiledMap.check_mass_structure`), so only the blocks are read.
-    """
-    velocity_map(geo, buf, g_map)
+    upper triangle read, as ``pin.crba`` fills it; block diagonal, see
+    :func:`check_mass_structure`) and a tree generalised force ``bias``."""
+    velocity_map(geo, rot, wk, g_map)
     tmp = np.empty((24, 6))
     for r in range(24):
         start = 18 if r >= 18 else 3 * (r // 3)
@@ -452,66 +1318,33 @@ def reduced(geo, buf, mass, bias, g_map, m_x, h_x):
         h_x[i] = acc
 
 
-@_jit
-def cholesky_solve(mat, rhs, out, scratch):
-    """``out = mat^-1 rhs`` for a symmetric positive-definite (6, 6) ``mat`` (not changed);
-    returns OK or NOT_PD."""
-    for i in range(6):
-        for j in range(6):
-            scratch[i, j] = mat[i, j]
-    for j in range(6):
-        d = scratch[j, j]
-        for k in range(j):
-            d -= scratch[k, j] * scratch[k, j]
-        if not d > 0.0:
-            return NOT_PD
-        d = math.sqrt(d)
-        scratch[j, j] = d
-        for c in range(j + 1, 6):
-            t = scratch[j, c]
-            for k in range(j):
-                t -= scratch[k, j] * scratch[k, c]
-            scratch[j, c] = t / d
-    for r in range(6):
-        t = rhs[r]
-        for k in range(r):
-            t -= scratch[k, r] * out[k]
-        out[r] = t / scratch[r, r]
-    for r in range(5, -1, -1):
-        t = out[r]
-        for k in range(r + 1, 6):
-            t -= scratch[r, k] * out[k]
-        out[r] = t / scratch[r, r]
-    return OK
+@jit
+def wrench_to_tree(rot, wrench, out):
+    """``out[18:24] += (R^T f, R^T m)``: the free-flyer generalised force of a wrench."""
+    fx, fy, fz, mx, my, mz = wrench[0], wrench[1], wrench[2], wrench[3], wrench[4], wrench[5]
+    for j in range(3):
+        out[18 + j] += rot[j] * fx + rot[3 + j] * fy + rot[6 + j] * fz
+        out[21 + j] += rot[j] * mx + rot[3 + j] * my + rot[6 + j] * mz
 
 
-@_jit
-def nullspace_forward(geo, buf, mass, bias, forces, wrench, has_wrench, acc0, work,
+@jit
+def nullspace_forward(geo, rot, wk, mass, bias, forces, wrench, has_wrench, acc0, work,
                       twist_dot, acc):
-    """Null-space forward dynamics: ``M_x twist_dot = G^T (S^T tau + tau_ext - bias)``.
-
-    Args:
-        mass: the tree's ``M`` (24, 24; upper triangle read, as ``pin.crba`` fills it).
-        bias: ``rnea(q, v, a_0)`` (24,): the bias at zero platform acceleration.
-        forces: actuator forces (6,) on the carriage rows ``3 i``; wrench (6,) on the
-            platform, world axes (used when ``has_wrench``).
-        acc0: the tree acceleration ``a_0`` at ``twist_dot = 0`` (24,).
-        work: scratch (FORWARD_WORK_ROWS, 6): rows 0-23 get ``G``, 24-29 ``M_x``.
-        twist_dot (6,), acc (24,): outputs (``acc = G twist_dot + a_0``).
-
-    Returns OK, -1 (non-finite forces or wrench) or NOT_PD.
-    """
-    g_map, m_x, scratch = work[0:24], work[24:30], work[30:36]
-    h_x, rest = work[36], work[37:41].reshape(24)
+    """Null-space forward dynamics on the tree: ``M_x twist_dot = G^T (S^T tau + tau_ext -
+    bias)`` with ``M`` (24, 24) from ``pin.crba`` and ``bias = rnea(q, v, a_0)``, ``a_0``
+    the tree acceleration at ``twist_dot = 0``; ``acc = G twist_dot + a_0``. ``work``
+    (36, 6) scratch: rows 0-23 get ``G``, 24-29 ``M_x``. Returns OK, NONFINITE or NOT_PD."""
     if not all_finite(forces) or (has_wrench and not all_finite(wrench)):
-        return -1
+        return NONFINITE
+    g_map, m_x, scratch = work[0:24], work[24:30], work[30:36]
+    h_x, rest = wk[RHS], np.empty(24)
     for r in range(24):
         rest[r] = -bias[r]
     for i in range(6):
         rest[3 * i] += forces[i]
     if has_wrench:
-        wrench_to_tree(buf, wrench, rest)
-    reduced(geo, buf, mass, rest, g_map, m_x, h_x)
+        wrench_to_tree(rot, wrench, rest)
+    reduced_tree(geo, rot, wk, mass, rest, g_map, m_x, h_x)
     code = cholesky_solve(m_x, h_x, twist_dot, scratch)
     if code != OK:
         return code
@@ -523,77 +1356,84 @@ def nullspace_forward(geo, buf, mass, bias, forces, wrench, has_wrench, acc0, wo
     return OK
 
 
-@_jit
-def twist_dot_of(buf, twist, acc_ff, out):
+@jit
+def twist_dot_of(rot, twist, acc_ff, out):
     """``twist_dot = (R a_lin + w x v, R a_ang)`` from the free-flyer acceleration (6,)."""
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rot(buf)
     ax, ay, az, bx, by, bz = acc_ff[0], acc_ff[1], acc_ff[2], acc_ff[3], acc_ff[4], acc_ff[5]
     vx, vy, vz, wx, wy, wz = twist[0], twist[1], twist[2], twist[3], twist[4], twist[5]
-    out[0] = r00 * ax + r01 * ay + r02 * az + wy * vz - wz * vy
-    out[1] = r10 * ax + r11 * ay + r12 * az + wz * vx - wx * vz
-    out[2] = r20 * ax + r21 * ay + r22 * az + wx * vy - wy * vx
-    out[3] = r00 * bx + r01 * by + r02 * bz
-    out[4] = r10 * bx + r11 * by + r12 * bz
-    out[5] = r20 * bx + r21 * by + r22 * bz
+    out[0] = rot[0] * ax + rot[1] * ay + rot[2] * az + wy * vz - wz * vy
+    out[1] = rot[3] * ax + rot[4] * ay + rot[5] * az + wz * vx - wx * vz
+    out[2] = rot[6] * ax + rot[7] * ay + rot[8] * az + wx * vy - wy * vx
+    out[3] = rot[0] * bx + rot[1] * by + rot[2] * bz
+    out[4] = rot[3] * bx + rot[4] * by + rot[5] * bz
+    out[5] = rot[6] * bx + rot[7] * by + rot[8] * bz
 
 
-@_jit
-def wrench_to_tree(buf, wrench, out):
-    """The free-flyer generalised force ``(R^T f, R^T m)`` of a world wrench into ``out[18:]``."""
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rot(buf)
-    fx, fy, fz, mx, my, mz = wrench[0], wrench[1], wrench[2], wrench[3], wrench[4], wrench[5]
-    out[18] += r00 * fx + r10 * fy + r20 * fz
-    out[19] += r01 * fx + r11 * fy + r21 * fz
-    out[20] += r02 * fx + r12 * fy + r22 * fz
-    out[21] += r00 * mx + r10 * my + r20 * mz
-    out[22] += r01 * mx + r11 * my + r21 * mz
-    out[23] += r02 * mx + r12 * my + r22 * mz
+@jit
+def check_solution(mat, x, rhs):
+    """``(max |mat x - rhs|, max |x|, max |rhs|)`` of a 6x6 system."""
+    res = big_x = big_b = 0.0
+    for r in range(6):
+        acc = -rhs[r]
+        for c in range(6):
+            acc += mat[r, c] * x[c]
+        res = max(res, abs(acc))
+        big_x = max(big_x, abs(x[r]))
+        big_b = max(big_b, abs(rhs[r]))
+    return res, big_x, big_b
 
 
-class CompiledMap:
-    """Preallocated buffers and the packed geometry for the kernels of one hexapod.
+def check_mass_structure(mass) -> None:
+    """Raise unless the tree's mass matrix (24, 24) is block diagonal as
+    :func:`reduced_tree` assumes (legs ``3 i .. 3 i + 2``, free-flyer ``18 .. 23``)."""
+    full = np.triu(mass) + np.triu(mass, 1).T
+    mask = np.ones((24, 24), dtype=bool)
+    for start, stop in [(3 * i, 3 * i + 3) for i in range(6)] + [(18, 24)]:
+        mask[start:stop, start:stop] = False
+    if np.any(full[mask] != 0.0):
+        raise HexapodPinError("the compiled reduced dynamics needs a block-diagonal tree "
+                              "mass matrix (each leg chain and the platform attached to "
+                              "the world)")
 
-    Not thread-safe (one instance per robot; the buffers are reused across calls).
 
-    Args:
-        pmap: the :class:`~hexapod_pin.platform_map.PlatformMap`.
-        signs: the IK branch (6 floats +1 / -1).
+# --------------------------------------------------------------------------------------
+# status codes -> exceptions
+# --------------------------------------------------------------------------------------
+def error_of(code: int, geo: np.ndarray, wk: np.ndarray, scratch: np.ndarray | None = None,
+             index: int | None = None) -> HexapodPinError:
+    """The library's exception for a kernel's status ``code``, with the offending values
+    read from the legs in ``wk`` (``index``: the batch state, giving the Batch* variant).
+
+    UNREACHABLE: the carriages that cannot reach and how short each leg is (m); TYPE_I:
+    the leg nearest perpendicular to its rail and its ``|cos|``; GIMBAL: the leg along its
+    rail and ``1 - cos^2``; TYPE_II: ``sigma_min(A_hat)``; other codes: an internal
+    error (inputs are validated before the kernels run).
     """
-
-    def __init__(self, pmap, signs):
-        self.geo = pack_geometry(pmap)
-        self.signs = np.asarray(signs, dtype=float).copy()
-        self.buf = np.zeros((BUF_ROWS, 6))
-        self.rhs = np.empty(6)
-        self.tau = np.empty(6)
-        self.multipliers = np.empty(6)
-        self.lu = np.empty((6, 6))
-        self.jt = np.empty((6, 6))
-        self.work = np.empty((FORWARD_WORK_ROWS, 6))
-        self.zero6 = np.zeros(6)
-        self.v = np.empty(24)
-        self.a = np.empty(24)
-
-    @staticmethod
-    def check_mass_structure(mass) -> None:
-        """Raise unless the tree's mass matrix (24, 24) is block diagonal as
-        :func:`reduced` assumes (legs ``3 i .. 3 i + 2``, free-flyer ``18 .. 23``)."""
-        full = np.triu(mass) + np.triu(mass, 1).T
-        mask = np.ones((24, 24), dtype=bool)
-        for start, stop in [(3 * i, 3 * i + 3) for i in range(6)] + [(18, 24)]:
-            mask[start:stop, start:stop] = False
-        if np.any(full[mask] != 0.0):
-            raise HexapodPinError("the compiled reduced dynamics needs a block-diagonal tree "
-                                  "mass matrix (each leg chain and the platform attached to "
-                                  "the world)")
-
-    def tip_forces(self, pose, force, tau) -> np.ndarray:
-        """(6, 3) :func:`leg_forces` at ``pose`` (its legs rebuilt in a fresh buffer, so
-        that a result computed earlier can still ask for them)."""
-        buf, q, out = np.empty((BUF_ROWS, 6)), np.empty(25), np.empty((6, 3))
-        if tree_state(self.geo, pose, self.zero6, self.zero6, self.signs, 0, q, self.v,
-                      self.a, buf) != OK:
-            raise HexapodPinError(f"tip_forces: pose {pose.tolist()} refused by the "
-                                  "compiled map (it was accepted before)")
-        leg_forces(self.geo, buf, force, tau, out)
-        return out
+    prefix = "" if index is None else f"state {index}: "
+    length = float(geo[LEN])
+    if code == UNREACHABLE:
+        bad = np.flatnonzero(~(wk[DISC] >= 0.0))
+        short = np.sqrt(length * length - wk[DISC, bad]) - length
+        if index is None:
+            return UnreachablePoseError(bad, short)
+        return BatchUnreachablePoseError(index, bad, short)
+    if code == TYPE_I:
+        worst = int(np.argmin(np.abs(wk[NU])))
+        what = (f"workspace Jacobian: type-I singularity, the leg of carriage {worst} is "
+                "perpendicular to its rail (|cos|)")
+        value = abs(wk[NU, worst]) / length
+    elif code == GIMBAL:
+        cosine2 = (wk[NU] / length) ** 2
+        worst = int(np.argmax(cosine2))
+        what = (f"leg of carriage {worst} lies along its rail (universal joint in gimbal "
+                "lock; 1 - cos^2)")
+        value = 1.0 - cosine2[worst]
+    elif code == TYPE_II:
+        what = ("leg matrix A_hat = [e_i, (r_k x e_i) / platform_radius] (type-II "
+                "singularity; sigma_min(A_hat))")
+        value = type_two_measure(geo, wk, np.empty((6, 6)) if scratch is None else scratch)
+    else:
+        return HexapodPinError(f"{prefix}internal: kernel status {code} for validated inputs")
+    if index is None:
+        return SingularityError(what, value)
+    return BatchSingularityError(index, what, value)

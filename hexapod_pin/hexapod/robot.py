@@ -15,19 +15,19 @@ from functools import cached_property
 import numpy as np
 import pinocchio as pin
 
+from ..core.checks import as_array
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import build_model, load_loops, urdf_dir
 from ..core.robot_api import delegate
 from .dynamics import HexapodDynamics
 from ..errors import AssemblyError
 from .geometry import HexapodGeometry, hexapod_urdf
-from .kinematics import HOME_BRANCH, HexapodKinematics, _floats6, check_branch
-from .platform_map import PlatformMap
+from . import kernels
+from .kinematics import HexapodKinematics, check_branch
 from ..core.pose import rpy_from_rotation
 
 #: closure residual accepted for a closed-form configuration (m)
 CLOSED_FORM_TOL = 1e-12
-_HOME_SIGNS = HOME_BRANCH.tolist()
 
 
 @dataclass(frozen=True)
@@ -90,11 +90,10 @@ class Hexapod:
         self.model.model.gravity = pin.Motion(np.array([0.0, 0.0, -self.geometry.gravity,
                                                         0.0, 0.0, 0.0]))
         self.indices = self._indices()
-        self.platform_map = PlatformMap(self.geometry, self.indices, self.model.nq,
-                                        self.model.nv)
+        self.closed_form = kernels.ClosedForm(self.geometry, self.indices)
         self.kinematics_part = HexapodKinematics(self.geometry)
         self.dynamics_part = HexapodDynamics(self.geometry, self.model, self.indices,
-                                             self.platform_map)
+                                             self.closed_form)
 
     # -- kinematics (HexapodKinematics) ----------------------------------------------------
     platform_points_world = delegate("kinematics_part", HexapodKinematics.platform_points_world)
@@ -107,6 +106,8 @@ class Hexapod:
     jacobian_batch = delegate("kinematics_part", HexapodKinematics.jacobian_batch)
     jacobian = delegate("kinematics_part", HexapodKinematics.jacobian)
     twist_from_qdot = delegate("kinematics_part", HexapodKinematics.twist_from_qdot)
+    twist_from_actuator_velocities = delegate("kinematics_part",
+                                              HexapodKinematics.twist_from_actuator_velocities)
     jacobian_derivative = delegate("kinematics_part", HexapodKinematics.jacobian_derivative)
     qddot = delegate("kinematics_part", HexapodKinematics.qddot)
     leg_motion = delegate("kinematics_part", HexapodKinematics.leg_motion)
@@ -174,7 +175,7 @@ class Hexapod:
 
         Carriages from the inverse kinematics (stroke limits not checked),
         universal-joint angles from the leg directions (see
-        :mod:`hexapod_pin.platform_map`), the free-flyer from the pose. The second
+        :mod:`hexapod_pin.hexapod.kernels`), the free-flyer from the pose. The second
         universal angle lies in [-pi/2, pi/2].
 
         Args:
@@ -191,11 +192,14 @@ class Hexapod:
             AssemblyError: the closed form misses the closures by more than
                 1e-12 m (a leg along its first universal axis).
         """
-        signs = _HOME_SIGNS if branch is None else check_branch(branch).tolist()
-        pmap = self.platform_map
-        legs = pmap.legs(_floats6(pose, "pose"), signs, angles=True, checks=False)
-        q = np.array(pmap.configuration(legs))
-        err = pmap.closure_error(legs)
+        cf = self.closed_form
+        signs = cf.signs if branch is None else check_branch(branch)
+        q = np.empty(self.model.nq)
+        code = kernels.tree_configuration_unchecked(cf.geo, signs, as_array(pose, (6,), "pose"),
+                                                    q, cf.scratch.rot, cf.scratch.wk)
+        if code != kernels.OK:
+            raise cf.error(code)
+        err = cf.closure_residual(q)
         if not err <= CLOSED_FORM_TOL:
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
         return q

@@ -331,9 +331,9 @@ def simulate(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist0=Non
     clm = robot.model
     idx = robot.indices
     geom = robot.geometry
-    pmap = robot.platform_map
+    closed_form = robot.closed_form
     integ = ClosedLoopIntegrator(clm, method, integrator,
-                                 residual=lambda q: pmap.closure_residual(q.tolist()))
+                                 residual=closed_form.closure_residual)
     q_tree, v_tree = robot.dynamics_part.tree_state(pose0, twist0)
     q_tree = q_tree.copy()
     limit = geom.max_actuator_force

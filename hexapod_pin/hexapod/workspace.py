@@ -37,9 +37,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
-from ..core.pose import rotation_from_rpy
 from ..core.checks import as_array
+from ..core.measures import condition_number
+from ..errors import InputError
+from . import batch
+from . import kernels as K
 
 #: poses processed per chunk (bounds the temporary memory to ~100 MB)
 CHUNK = 65_536
@@ -169,7 +171,7 @@ def evaluate(robot, poses, payload=None, branch=None, threads: int = 1,
         raise InputError("payload", payload, f"expected (6,) or ({n}, 6)")
     if int(threads) != threads or threads < 1:
         raise InputError("threads", threads, "must be a positive integer")
-    signs = robot.kinematics_part._batch_signs(branch, n)
+    signs = batch.batch_signs(branch, n)
     out = {name: np.empty(n, dtype=bool) for name in ("reachable", "within", "regular")}
     q = np.empty((n, 6))
     cond, smin, t1, t2 = (np.empty(n) for _ in range(4))
@@ -178,7 +180,7 @@ def evaluate(robot, poses, payload=None, branch=None, threads: int = 1,
     def work(start: int) -> None:
         stop = min(start + CHUNK, n)
         sl = slice(start, stop)
-        chunk_signs = signs[sl] if signs.ndim == 2 else signs
+        chunk_signs = signs[sl] if signs.shape[0] > 1 else signs
         chunk_payload = payload[sl] if payload.ndim == 2 else payload
         res = _chunk(robot, poses[sl], chunk_signs, chunk_payload, singularity, statics)
         q[sl], cond[sl], smin[sl], t1[sl], t2[sl], forces[sl] = res[:6]
@@ -193,59 +195,37 @@ def evaluate(robot, poses, payload=None, branch=None, threads: int = 1,
             list(pool.map(work, starts))
     ok = out["reachable"] & out["within"] & out["regular"]
     forces[~ok] = 0.0
+    branch_used = signs if (branch is not None and np.ndim(branch) == 2) else signs[0]
     return WorkspaceMeasures(poses, q, out["reachable"], out["within"], out["regular"], ok,
-                             cond, smin, t1, t2, forces, signs)
+                             cond, smin, t1, t2, forces, branch_used)
 
 
 def _chunk(robot, poses, signs, payload, singularity: bool, statics: bool):
-    g = robot.geometry
+    geo = robot.kinematics_part.geo
     n = poses.shape[0]
-    batch = robot.jacobian_batch(poses, branch=signs)
-    jac = batch.jacobian
-    good = batch.ok & batch.within_stroke
+    jb = batch.kinematics_batch(geo, poses, signs, with_jacobian=True)
+    good = jb.ok & jb.within_stroke
     smin = np.zeros(n)
     cond = np.full(n, np.inf)
     if np.any(good):  # singular values only where the pose is ok (the rest stays 0 / inf)
-        sv = np.linalg.svd(jac[good], compute_uv=False)
+        sv = np.linalg.svd(jb.jacobian[good], compute_uv=False)
         smin[good] = sv[:, -1]
-        with np.errstate(divide="ignore"):
-            cond[good] = np.where(sv[:, -1] > 0.0, sv[:, 0] / np.maximum(sv[:, -1], 1e-300),
-                                  np.inf)
-    nonzero = good & (smin > 0.0)
+        cond[good] = condition_number(sv)
     type_one = np.zeros(n)
     type_two = np.zeros(n)
     forces = np.zeros((n, 6))
-    if not (singularity or statics):
-        return (batch.q, cond, smin, type_one, type_two, forces,
-                batch.reachable, batch.within_stroke, batch.regular)
-    mids, dirs, pts = robot.kinematics_part._carriage_frames()
-    arms = np.einsum("nij,kj->nki", rotation_from_rpy(poses[:, 3:]), pts)   # R p_k (n, 6, 3)
     if singularity:
-        e = (poses[:, None, :3] + arms - (mids + batch.q[..., None] * dirs)) / g.leg_length
-        cosine = np.abs(np.einsum("nki,ki->nk", e, dirs))
-        type_one = np.where(batch.reachable, cosine.min(axis=1), 0.0)
-        a_hat = np.concatenate([e, np.cross(arms, e) / g.platform_radius], axis=2)
-        type_two = np.where(batch.reachable, np.linalg.svd(a_hat, compute_uv=False)[:, -1], 0.0)
-    if statics and np.any(nonzero):
-        # virtual power: J^T tau = -(payload + gravity wrench)
-        wrench = _gravity_wrench(g, arms[:, ::2]) + payload
-        forces[nonzero] = -np.linalg.solve(np.swapaxes(jac[nonzero], 1, 2),
-                                           wrench[nonzero][..., None])[..., 0]
-    return (batch.q, cond, smin, type_one, type_two, forces,
-            batch.reachable, batch.within_stroke, batch.regular)
-
-
-def _gravity_wrench(geometry, arms) -> np.ndarray:
-    """Gravity wrench (n, 6) about the platform origin: platform weight at the origin plus
-    half of each leg's weight at its tip (``arms`` (n, 3, 3): ``R p_k`` per rail)."""
-    g = geometry.gravity
-    n = arms.shape[0]
-    leg_force = np.array([0.0, 0.0, -0.5 * geometry.leg_mass * g])
-    total = np.zeros((n, 6))
-    total[:, 2] = -(geometry.platform_mass + 3.0 * geometry.leg_mass) * g
-    # two legs per rail tip: moment of 2 * half-leg weights at each platform point
-    total[:, 3:] = 2.0 * np.cross(arms, leg_force).sum(axis=1)
-    return total
+        cosine, a_hat = batch.closure_measures(geo, poses, signs)
+        type_one = np.where(jb.reachable, cosine, 0.0)
+        type_two = np.where(jb.reachable, np.linalg.svd(a_hat, compute_uv=False)[:, -1], 0.0)
+    if statics and np.any(good):
+        # the statics kernels: J^T tau = h_gravity - payload (zeros where they refuse)
+        tau, codes = batch.static_forces_codes(geo, poses, np.atleast_2d(payload), False,
+                                               signs)
+        keep = good & (codes == K.OK)
+        forces[keep] = tau[keep]
+    return (jb.actuator_positions, cond, smin, type_one, type_two, forces,
+            jb.reachable, jb.within_stroke, jb.regular)
 
 
 @dataclass(frozen=True)
@@ -326,12 +306,11 @@ def leg_reachable(robot, poses, branch=None) -> np.ndarray:
     """Per-leg reach masks (N, 6): leg i can reach its platform point (strokes ignored)."""
     poses = as_array(poses, (6,), "poses", batch=True)
     out = np.empty((poses.shape[0], 6), dtype=bool)
-    signs = robot.kinematics_part._batch_signs(branch, poses.shape[0])
+    signs = batch.batch_signs(branch, poses.shape[0])
     for start in range(0, poses.shape[0], CHUNK):
         sl = slice(start, start + CHUNK)
-        chunk_signs = signs[sl] if signs.ndim == 2 else signs
-        _, disc, _, _ = robot.kinematics_part._leg_solution(poses[sl], chunk_signs)
-        out[sl] = disc >= 0.0
+        chunk_signs = signs[sl] if signs.shape[0] > 1 else signs
+        out[sl] = batch.leg_reachable_batch(robot.kinematics_part.geo, poses[sl], chunk_signs)
     return out
 
 
