@@ -130,6 +130,16 @@ class PlanarWorkspace:
             raise BatchSingularityError(index, what, value)
         raise SingularityError(what, value)
 
+    def legs(self, level: int, singular: bool, branch, inputs, pose, twist=None) -> None:
+        """Fill the leg buffer of a platform state by :func:`kernels.leg_state` (``level``
+        0: legs and Jacobian rows; 1: also the rates of ``twist``). Raises as
+        :meth:`raise_for`."""
+        status = kernels.leg_state(self.geo, pose, self.zero3 if twist is None else twist,
+                                   self.zero3, self.signs(branch), level, singular, self.buf,
+                                   self.info)
+        if status != kernels.OK:
+            self.raise_for(status, inputs)
+
     def state(self, level: int, singular: bool, branch, inputs, pose, twist=None,
               twist_dot=None):
         """Tree ``q``, ``v``, ``a`` (fresh (nv,) arrays, model order) of a platform state,
@@ -210,7 +220,7 @@ class PlanarKinematics:
             StrokeLimitError: with ``check_limits``, a slider outside its stroke.
         """
         ws = self.ws
-        ws.state(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
+        ws.legs(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
         s = ws.buf[:, kernels.S].copy()
         if check_limits and ws.info[kernels.X_SMAX] > ws.half_stroke:
             self.check_stroke(s)
@@ -240,7 +250,7 @@ class PlanarKinematics:
             InputError, UnreachablePoseError: see :meth:`inverse_kinematics`.
             SingularityError: a link perpendicular to its rail (type I singularity).
         """
-        self.ws.state(0, True, branch, ((pose, "pose"),), vec3(pose, "pose"))
+        self.ws.legs(0, True, branch, ((pose, "pose"),), vec3(pose, "pose"))
         return self.ws.buf[:, kernels.J0:kernels.J2 + 1].copy()
 
     def twist_from_actuator_velocities(self, pose, actuator_velocities,
@@ -266,8 +276,8 @@ class PlanarKinematics:
             InputError, UnreachablePoseError, SingularityError: see :meth:`jacobian`.
         """
         twist_a = vec3(twist, "twist")
-        self.ws.state(1, True, branch, ((pose, "pose"), (twist, "twist")), vec3(pose, "pose"),
-                      twist_a)
+        self.ws.legs(1, True, branch, ((pose, "pose"), (twist, "twist")), vec3(pose, "pose"),
+                     twist_a)
         out = np.empty((3, 3))
         kernels.jacobian_derivative(self.ws.geo, self.ws.buf, twist_a, out)
         return out
@@ -283,7 +293,7 @@ class PlanarKinematics:
             InputError, UnreachablePoseError.
         """
         ws = self.ws
-        ws.state(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
+        ws.legs(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
         cosines, a_hat = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, 3))
         kernels.singularity_parts(ws.geo, ws.buf, cosines, a_hat)
         jac = None
