@@ -98,3 +98,76 @@ def test_missing_files_raise(tmp_path):
     with pytest.raises(DescriptionError, match="Pinocchio could not parse"):
         build_model("<robot name='x'><link name='a'/><joint name='j' type='revolute'>"
                     "<parent link='a'/><child link='missing'/></joint></robot>")
+
+
+# -- descriptions validated at load (Pinocchio alone only warns, or loads non-physics) ----------
+TWO_LINKS = """<robot name="t">
+  <link name="base"/>
+  <link name="arm"><inertial><origin xyz="0 0 0.1"/><mass value="{mass}"/>
+    <inertia ixx="{ixx}" iyy="0.02" izz="0.03" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j" type="revolute"><parent link="base"/><child link="arm"/>
+    <origin xyz="{x} 0 0"/><axis xyz="{axis}"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>"""
+
+
+def _two_links(mass="1.0", ixx="0.02", x="0", axis="0 0 1"):
+    return TWO_LINKS.format(mass=mass, ixx=ixx, x=x, axis=axis)
+
+
+def test_a_valid_description_loads():
+    model = build_model(_two_links(), source="two")
+    assert model.nq == 1 and model.inertias[1].mass == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("changes, words", [
+    ({"mass": "-1.0"}, "mass must be finite and >= 0"),
+    ({"mass": "nan"}, "mass must be finite"),
+    ({"mass": "abc"}, "malformed URDF"),
+    ({"ixx": "-0.02"}, "not positive semi-definite"),
+    ({"ixx": "0.001"}, "triangle inequality"),
+    ({"mass": "0"}, "zero mass with a non-zero inertia"),
+    ({"axis": "0 0 0"}, "axis must be finite and non-zero"),
+    ({"x": "1e300"}, "joint origin beyond"),
+    ({"x": "inf"}, "joint origin must be finite"),
+])
+def test_non_physical_descriptions_are_refused(changes, words):
+    with pytest.raises(DescriptionError, match=words) as err:
+        build_model(_two_links(**changes), source="two")
+    assert err.value.source == "two"
+    # Pinocchio alone accepts (or silently repairs) most of these: the check is ours
+    assert err.value.culprit in ("link arm", "joint j", None)
+
+
+def test_binary_and_missing_files_are_description_errors(tmp_path):
+    binary = tmp_path / "robot.urdf"
+    binary.write_bytes(bytes(range(256)) * 4)
+    loops = tmp_path / "robot.loops.yaml"
+    loops.write_bytes(b"\xff\xfe\x00closures")
+    with pytest.raises(DescriptionError, match="not UTF-8"):
+        hp.ClosedLoopModel.from_files(binary, urdf_dir() / "hexapod.loops.yaml")
+    with pytest.raises(DescriptionError, match="not UTF-8"):
+        hp.load_loops(loops)
+    with pytest.raises(DescriptionError, match="file not found"):
+        hp.load_loops(tmp_path / "missing.yaml")
+
+
+def test_unknown_xacro_arguments_are_refused():
+    with pytest.raises(DescriptionError, match="unknown xacro argument"):
+        hp.expand_xacro(urdf_dir() / "hexapod.urdf.xacro", {"leg_lenght": "0.5"})
+
+
+def test_huge_closure_offsets_are_refused():
+    text = ("closures:\n  - {name: c, type: point, frame1: a, frame2: b,\n"
+            "     offset1: {xyz: [1.0e160, 0, 0]}}\nactuated: [j]\n")
+    with pytest.raises(DescriptionError, match="offset xyz beyond"):
+        parse_loops(text)
+
+
+def test_inertia_check_is_shared_by_the_sdf_reader():
+    from hexapod_pin.loaders.sdf import parse_sdf
+    sdf = """<sdf version="1.9"><model name="m"><link name="a"><inertial><mass>1</mass>
+      <inertia><ixx>0.001</ixx><iyy>0.02</iyy><izz>0.03</izz></inertia></inertial></link>
+      </model></sdf>"""
+    with pytest.raises(DescriptionError, match="triangle inequality"):
+        parse_sdf(sdf)

@@ -55,7 +55,7 @@ PENDULUM_16 = """
   </link>
   <link name="arm"><pose>0.1 0.2 0.9 0.3 -0.2 0.5</pose>
     <inertial><pose>0.05 0 -0.2 0 0.4 0</pose><mass>0.7</mass>
-      <inertia><ixx>0.01</ixx><iyy>0.02</iyy><izz>0.005</izz><ixy>0.001</ixy><ixz>-0.002</ixz><iyz>0.0005</iyz></inertia></inertial>
+      <inertia><ixx>0.01</ixx><iyy>0.02</iyy><izz>0.015</izz><ixy>0.001</ixy><ixz>-0.002</ixz><iyz>0.0005</iyz></inertia></inertial>
     <visual name="arm_vis"><pose>0 0 -0.2 0 0 0</pose><geometry><box><size>0.02 0.02 0.4</size></box></geometry></visual>
   </link>
   <link name="slider"><pose>0.15 0.1 0.6 -0.4 0.1 1.2</pose>
@@ -85,7 +85,7 @@ PENDULUM_17 = """
   </link>
   <link name="arm"><pose relative_to="base">{arm_in_base}</pose>
     <inertial><pose>0.05 0 -0.2 0 0.4 0</pose><mass>0.7</mass>
-      <inertia><ixx>0.01</ixx><iyy>0.02</iyy><izz>0.005</izz><ixy>0.001</ixy><ixz>-0.002</ixz><iyz>0.0005</iyz></inertia></inertial>
+      <inertia><ixx>0.01</ixx><iyy>0.02</iyy><izz>0.015</izz><ixy>0.001</ixy><ixz>-0.002</ixz><iyz>0.0005</iyz></inertia></inertial>
   </link>
   <link name="slider"><pose relative_to="arm">{slider_in_arm}</pose>
     <inertial><mass>0.3</mass><inertia><ixx>0.001</ixx><iyy>0.001</iyy><izz>0.001</izz></inertia></inertial>
@@ -192,7 +192,7 @@ def test_mass_and_centre_of_mass_match_the_written_inertials():
     # rotational inertia of the arm about the hinge axis, from the written tensor
     arm = homogeneous(*links["arm"])
     rot_in = arm[:3, :3] @ rpy_matrix(0, 0.4, 0)
-    inertia = np.array([[0.01, 0.001, -0.002], [0.001, 0.02, 0.0005], [-0.002, 0.0005, 0.005]])
+    inertia = np.array([[0.01, 0.001, -0.002], [0.001, 0.02, 0.0005], [-0.002, 0.0005, 0.015]])
     c_arm = (arm @ np.r_[0.05, 0, -0.2, 1])[:3]
     axis = arm[:3, :3] @ np.array([0.6, 0, 0.8])
     hinge_point = (arm @ np.r_[0, 0, 0.1, 1])[:3]

@@ -23,6 +23,9 @@ Nothing here is specific to the hexapod.
 from __future__ import annotations
 
 import functools
+import io
+import re
+import warnings
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -30,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import yaml
+import yourdfpy
 
 from ..errors import DescriptionError
 
@@ -90,12 +94,17 @@ def expand_xacro(path: str | Path, args: dict[str, str] | None = None) -> str:
         args: xacro arguments, name -> value as text.
 
     Raises:
-        DescriptionError: when the file is missing or does not expand.
+        DescriptionError: when the file is missing, is not text, does not expand, or an
+            argument is not one the file declares (``<xacro:arg name=...>``).
     """
     path = Path(path)
-    if not path.is_file():
-        raise DescriptionError(str(path), "file not found")
-    args = dict(args or {})
+    text = read_text(path)
+    args = {str(k): str(v) for k, v in (args or {}).items()}
+    declared = set(re.findall(r"<xacro:arg\s+name\s*=\s*[\"']([^\"']+)[\"']", text))
+    unknown = sorted(set(args) - declared)
+    if unknown:
+        raise DescriptionError(str(path), f"unknown xacro argument(s) {unknown}; the file "
+                                          f"declares {sorted(declared)}")
     return _expand_cached(str(path.resolve()), path.stat().st_mtime_ns,
                           tuple(sorted(args.items())))
 
@@ -111,15 +120,133 @@ def _expand_cached(path: str, mtime: int, args: tuple) -> str:
         raise DescriptionError(path, f"xacro expansion failed: {exc}") from exc
 
 
-def build_model(urdf_xml: str, source: str = "<urdf>") -> pin.Model:
-    """Build the Pinocchio tree model from URDF text (no root joint added).
+#: relative tolerance of the inertia checks (positive semi-definiteness, triangle inequality)
+INERTIA_RTOL = 1e-9
+#: largest coordinate accepted in a description (m): far beyond any robot, far below overflow
+MAX_COORDINATE = 1e6
+
+
+def validate_urdf(urdf_xml: str, source: str = "<urdf>") -> None:
+    """Parse URDF text strictly (``yourdfpy``) and check its physics before Pinocchio loads it.
+
+    Pinocchio's parser only warns about (and then drops) a malformed inertial, and accepts
+    non-physical values; this check refuses them. Every link's inertial: mass finite and
+    ``>= 0`` (a zero mass only with a zero inertia: a massless link); inertia tensor
+    finite, symmetric positive semi-definite and satisfying the triangle inequality of
+    its principal moments (``I1 + I2 >= I3``), to ``INERTIA_RTOL`` relative to its
+    largest moment. Every joint: a finite origin within ``MAX_COORDINATE``; a finite,
+    non-zero axis for revolute, continuous and prismatic joints; finite limits with
+    ``lower <= upper``.
 
     Raises:
-        DescriptionError: when Pinocchio cannot parse the URDF or the model fails
-            Pinocchio's consistency check.
+        DescriptionError: naming the source, the element at fault and the problem.
     """
+    if not isinstance(urdf_xml, str):
+        raise DescriptionError(source, f"URDF must be text, got {type(urdf_xml).__name__}")
     try:
-        model = pin.buildModelFromXML(urdf_xml)
+        # non-finite numbers are reported below; the parser's own arithmetic on them
+        # (trimesh's transforms) must not warn
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore", RuntimeWarning)
+            robot = yourdfpy.URDF.load(io.StringIO(urdf_xml), build_scene_graph=False,
+                                       build_collision_scene_graph=False, load_meshes=False,
+                                       load_collision_meshes=False).robot
+    except Exception as exc:  # yourdfpy / lxml raise ValueError, KeyError, XMLSyntaxError...
+        raise DescriptionError(source, f"malformed URDF: {exc}") from exc
+    for link in robot.links:
+        if link.inertial is not None:
+            _check_inertial(link.inertial, source, f"link {link.name}")
+    for joint in robot.joints:
+        _check_joint(joint, source)
+
+
+def _check_inertial(inertial, source: str, where: str) -> None:
+    mass = float(inertial.mass) if inertial.mass is not None else 0.0
+    inertia = np.zeros((3, 3)) if inertial.inertia is None else np.asarray(inertial.inertia,
+                                                                             dtype=float)
+    origin = np.eye(4) if inertial.origin is None else np.asarray(inertial.origin, dtype=float)
+    if not np.isfinite(origin).all() or np.abs(origin[:3, 3]).max() > MAX_COORDINATE:
+        raise DescriptionError(source, f"inertial origin must be finite and within "
+                                       f"{MAX_COORDINATE:g} m", where)
+    check_inertia(mass, inertia, source, where)
+
+
+def check_inertia(mass: float, inertia: np.ndarray, source: str, where: str) -> None:
+    """Check one body's inertial parameters (every description format uses this check).
+
+    Args:
+        mass: kg; finite and ``>= 0``; zero only with a zero inertia (a massless body).
+        inertia: 3x3 rotational inertia about the centre of mass (kg m^2): finite,
+            symmetric, positive semi-definite, its principal moments satisfying the
+            triangle inequality ``I1 + I2 >= I3``, all to ``INERTIA_RTOL`` relative to its
+            largest entry.
+        source, where: the description and the element, for the error message.
+
+    Raises:
+        DescriptionError: naming the source, the element and the violated condition.
+    """
+    mass = float(mass)
+    inertia = np.asarray(inertia, dtype=float)
+    if not np.isfinite(mass) or mass < 0.0:
+        raise DescriptionError(source, f"mass must be finite and >= 0, got {mass!r}", where)
+    if inertia.shape != (3, 3) or not np.isfinite(inertia).all():
+        raise DescriptionError(source, "inertia must be a finite 3x3 tensor", where)
+    scale = float(np.abs(inertia).max())
+    if mass == 0.0 and scale > 0.0:
+        raise DescriptionError(source, "zero mass with a non-zero inertia", where)
+    if scale == 0.0:
+        return
+    tol = INERTIA_RTOL * scale
+    if np.abs(inertia - inertia.T).max() > tol:
+        raise DescriptionError(source, "inertia tensor is not symmetric", where)
+    moments = np.linalg.eigvalsh(0.5 * (inertia + inertia.T))
+    if moments[0] < -tol:
+        raise DescriptionError(source, "inertia tensor is not positive semi-definite "
+                                       f"(principal moments {moments.tolist()})", where)
+    if moments[0] + moments[1] < moments[2] - tol:
+        raise DescriptionError(source, "principal moments violate the triangle inequality "
+                                       f"I1 + I2 >= I3 ({moments.tolist()})", where)
+
+
+def _check_joint(joint, source: str) -> None:
+    where = f"joint {joint.name}"
+    origin = np.eye(4) if joint.origin is None else np.asarray(joint.origin, dtype=float)
+    if not np.isfinite(origin).all():
+        raise DescriptionError(source, "joint origin must be finite", where)
+    if np.abs(origin[:3, 3]).max() > MAX_COORDINATE:
+        raise DescriptionError(source, f"joint origin beyond {MAX_COORDINATE:g} m", where)
+    if joint.type in ("revolute", "continuous", "prismatic"):
+        axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0),
+                          dtype=float)
+        if not np.isfinite(axis).all() or np.linalg.norm(axis) == 0.0:
+            raise DescriptionError(source, f"joint axis must be finite and non-zero, got "
+                                           f"{axis.tolist()}", where)
+    limit = joint.limit
+    if limit is not None and joint.type in ("revolute", "prismatic"):
+        low, high = limit.lower, limit.upper
+        if low is not None and high is not None:
+            if not (np.isfinite(low) and np.isfinite(high)) or low > high:
+                raise DescriptionError(source, f"joint limits must be finite with lower <= "
+                                               f"upper, got [{low}, {high}]", where)
+
+
+def build_model(urdf_xml: str, source: str = "<urdf>", root_joint=None) -> pin.Model:
+    """Build the Pinocchio tree model from URDF text, validated first (:func:`validate_urdf`).
+
+    Args:
+        urdf_xml: the URDF text.
+        source: the file or description it came from (for error messages).
+        root_joint: a Pinocchio root joint (e.g. ``pin.JointModelFreeFlyer()``); None: the
+            URDF's root link is fixed to the world.
+
+    Raises:
+        DescriptionError: the URDF is malformed or non-physical (:func:`validate_urdf`),
+            Pinocchio cannot parse it, or the model fails Pinocchio's consistency check.
+    """
+    validate_urdf(urdf_xml, source)
+    try:
+        model = (pin.buildModelFromXML(urdf_xml) if root_joint is None
+                 else pin.buildModelFromXML(urdf_xml, root_joint))
     except Exception as exc:
         raise DescriptionError(source, f"Pinocchio could not parse the URDF: {exc}") from exc
     if not model.check(model.createData()):
@@ -143,6 +270,9 @@ def _placement(entry, source: str, culprit: str) -> pin.SE3:
                                                       and np.all(np.isfinite(rpy))):
         raise DescriptionError(source, "offset xyz and rpy must be 3 finite numbers each",
                                culprit)
+    if np.abs(xyz).max() > MAX_COORDINATE:
+        raise DescriptionError(source, f"offset xyz beyond {MAX_COORDINATE:g} m: "
+                                       f"{xyz.tolist()}", culprit)
     return pin.SE3(pin.rpy.rpyToMatrix(*rpy), xyz)
 
 
@@ -202,9 +332,24 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
     return LoopsSpec(tuple(closures), tuple(actuated))
 
 
-def load_loops(path: str | Path) -> LoopsSpec:
-    """Read and parse a loops description file (see :func:`parse_loops`)."""
+def read_text(path: str | Path) -> str:
+    """The UTF-8 text of a description file.
+
+    Raises:
+        DescriptionError: the file is missing, unreadable, or not UTF-8 text (binary).
+    """
     path = Path(path)
     if not path.is_file():
         raise DescriptionError(str(path), "file not found")
-    return parse_loops(path.read_text(), source=str(path))
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise DescriptionError(str(path), f"not UTF-8 text ({exc.reason} at byte "
+                                          f"{exc.start})") from None
+    except OSError as exc:
+        raise DescriptionError(str(path), f"cannot be read: {exc.strerror}") from None
+
+
+def load_loops(path: str | Path) -> LoopsSpec:
+    """Read and parse a loops description file (see :func:`parse_loops`)."""
+    return parse_loops(read_text(path), source=str(path))

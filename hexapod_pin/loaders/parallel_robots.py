@@ -50,7 +50,7 @@ import pinocchio as pin
 import yaml
 
 from ..core.closed_loop import ClosedLoopModel
-from ..core.description import ClosureSpec, LoopsSpec, build_model
+from ..core.description import ClosureSpec, LoopsSpec, build_model, read_text
 from ..errors import DescriptionError
 
 KEYS = ("closed_loop", "type", "name_mot", "joint_name", "joint_type")
@@ -162,10 +162,7 @@ def _valid_joint_type(jtype) -> bool:
 
 def load_robot_yaml(path: str | Path) -> ParallelRobotSpec:
     """Read and parse a ``robot.yaml`` file (see :func:`parse_robot_yaml`)."""
-    path = Path(path)
-    if not path.is_file():
-        raise DescriptionError(str(path), "file not found")
-    return parse_robot_yaml(path.read_text(), source=str(path))
+    return parse_robot_yaml(read_text(path), source=str(path))
 
 
 def apply_joint_types(model: pin.Model, spec: ParallelRobotSpec,
@@ -297,10 +294,8 @@ def load_parallel_robot(path: str | Path, urdf_name: str = "robot.urdf",
     spec = load_robot_yaml(folder / yaml_name)
     source = str(folder)
     try:
-        if free_flyer:
-            tree = pin.buildModelFromXML(urdf.read_text(), pin.JointModelFreeFlyer())
-        else:
-            tree = build_model(urdf.read_text(), source=str(urdf))
+        tree = build_model(read_text(urdf), source=str(urdf),
+                           root_joint=pin.JointModelFreeFlyer() if free_flyer else None)
     except DescriptionError:
         raise
     except Exception as exc:  # Pinocchio raises plain RuntimeError / ValueError

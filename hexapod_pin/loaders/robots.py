@@ -32,7 +32,7 @@ import pinocchio as pin
 import scipy.linalg
 
 from ..core.closed_loop import AssemblyResult, ClosedLoopModel
-from ..core.description import WORLD, ClosureSpec, LoopsSpec
+from ..core.description import WORLD, ClosureSpec, LoopsSpec, build_model, read_text
 from ..errors import HexapodPinError, InputError
 
 SOLO12_FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
@@ -121,7 +121,7 @@ def solo12_urdf_text() -> str:
 def solo12_tree() -> pin.Model:
     """Solo-12's tree with a free-flyer root (``root_joint``), from example-robot-data."""
     urdf = robot_file("solo_description/robots/solo12.urdf")
-    model = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
+    model = build_model(read_text(urdf), source=str(urdf), root_joint=pin.JointModelFreeFlyer())
     srdf = example_robot_data_dir() / "solo_description" / "srdf" / "solo.srdf"
     if srdf.is_file():
         pin.loadReferenceConfigurations(model, str(srdf), False)
@@ -278,7 +278,7 @@ def cassie(root: str = "fixed", sdf_name: str = "cassie_v2.sdf",
         if root != "fixed":
             raise InputError("root", root, "via_urdf supports root='fixed' only")
         urdf, loops = cassie_urdf(sdf_name, snap_angles)
-        return ClosedLoopModel(pin.buildModelFromXML(urdf), loops,
+        return ClosedLoopModel(build_model(urdf, source=f"cassie ({sdf_name}) via URDF"), loops,
                                name=f"cassie ({sdf_name}, fixed, via URDF)")
     sdf = load_sdf(cassie_sdf_path(sdf_name), snap_angles=snap_angles)
     tree = build_tree(sdf, root_joint=pin.JointModelFreeFlyer() if root == "free_flyer" else None,

@@ -51,7 +51,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.closed_loop import ClosedLoopModel
-from ..core.description import WORLD, ClosureSpec, LoopsSpec
+from ..core.description import WORLD, ClosureSpec, LoopsSpec, check_inertia, read_text
 from ..errors import DescriptionError
 
 MODEL_FRAME = "__model__"
@@ -215,9 +215,7 @@ class SdfTree:
 def load_sdf(path: str | Path, snap_angles: float = 0.0) -> SdfModel:
     """Read and parse an SDF file (see :func:`parse_sdf`)."""
     path = Path(path)
-    if not path.is_file():
-        raise DescriptionError(str(path), "file not found")
-    return parse_sdf(path.read_text(), source=str(path), base_dir=path.parent,
+    return parse_sdf(read_text(path), source=str(path), base_dir=path.parent,
                      snap_angles=snap_angles)
 
 
@@ -381,9 +379,6 @@ class _ModelParser:
 
     def _inertial(self, element, link: str) -> SdfInertial:
         mass = _float(element, "mass", 1.0, self.source, link)
-        if not (mass >= 0.0 and math.isfinite(mass)):
-            raise DescriptionError(self.source, f"mass {mass} is not a finite non-negative "
-                                                "number", link)
         inertia = np.eye(3)
         xml_inertia = element.find("inertia")
         if xml_inertia is not None:
@@ -393,10 +388,7 @@ class _ModelParser:
             inertia = np.array([[vals["ixx"], vals["ixy"], vals["ixz"]],
                                 [vals["ixy"], vals["iyy"], vals["iyz"]],
                                 [vals["ixz"], vals["iyz"], vals["izz"]]])
-        eig = np.linalg.eigvalsh(inertia)
-        if not np.all(np.isfinite(eig)) or eig[0] < -1e-12 * max(1.0, eig[-1]):
-            raise DescriptionError(self.source, f"inertia is not positive semi-definite "
-                                                f"(eigenvalues {eig})", link)
+        check_inertia(mass, inertia, self.source, link)
         return SdfInertial(mass, self.local_pose(element, link, link), inertia)
 
     def _geometry(self, element, link: str) -> SdfGeometry | None:
