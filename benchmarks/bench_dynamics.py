@@ -376,8 +376,7 @@ def main(argv=None) -> int:
         _batch_rows(robot, legacy, n, (poses, twists, twist_dots, wrenches, forces), number,
                     repeat)
 
-    pmap = robot.platform_map
-    integ = ClosedLoopIntegrator(clm, residual=lambda q: pmap.closure_residual(q.tolist()))
+    integ = ClosedLoopIntegrator(clm, residual=robot.closed_form.closure_residual)
     generic = ClosedLoopIntegrator(clm)
     q0, v0 = robot.home_configuration.copy(), np.zeros(clm.nv)
     state = {"q": q0, "v": v0}

@@ -47,6 +47,7 @@ import sys
 import tempfile
 import time
 
+import numba
 import numpy as np
 
 import hexapod_pin as hp
@@ -167,7 +168,7 @@ def main(argv=None) -> int:
 
     print(f"# hexapod_pin.hexapod.fast benchmark ({'smoke' if args.smoke else 'full'})")
     print(f"python {platform.python_version()}, numpy {np.__version__}, numba "
-          f"{fast._numba.__version__ if fast.available() else 'absent (plain Python)'}, "
+          f"{numba.__version__}, "
           f"{platform.machine()}, {os.cpu_count()} CPUs, load average "
           f"{os.getloadavg()[0]:.2f}")
     print()
@@ -258,7 +259,7 @@ def main(argv=None) -> int:
         print(f"| {name} | " + " | ".join(row) + " |")
     print()
 
-    if not args.smoke and fast.available():
+    if not args.smoke:
         print("| first call in a fresh process | import + robot (s) | first ID + FD + "
               "statics + 10-step simulation (s) |")
         print("| --- | --- | --- |")

@@ -99,7 +99,8 @@ def smoke_checks(robot, rng) -> list[str]:
         q = robot.inverse_kinematics(pose)
         if not (batch.ok[n] and ik.ok[n]):
             failures.append(f"batch masks reject the reachable pose {n}")
-        if np.max(np.abs(batch.q[n] - q)) > 1e-14 or np.max(np.abs(ik.q[n] - q)) > 1e-14:
+        if (np.max(np.abs(batch.actuator_positions[n] - q)) > 1e-14
+                or np.max(np.abs(ik.actuator_positions[n] - q)) > 1e-14):
             failures.append(f"batch IK differs from IK at pose {n}")
         jac = robot.jacobian(pose)
         if np.max(np.abs(batch.jacobian[n] - jac)) > 1e-11 * np.max(np.abs(jac)):

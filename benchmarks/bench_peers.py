@@ -109,7 +109,7 @@ def _fast(robot):
         import hexapod_pin.hexapod.fast as fast
     except ImportError:
         return None
-    label = "numba" if fast.available() else "plain Python, numba absent"
+    label = "numba"
     return fast.fast_dynamics(robot), getattr(fast, "simulate_fast", None), label
 
 
@@ -169,7 +169,7 @@ class HexapodPeers:
             Route("ours inverse_kinematics", lambda i: r.inverse_kinematics(
                 self.poses[i], check_limits=False)),
             Route("ours inverse_kinematics_batch", batch=None if batch is None else (
-                lambda n: batch(self.poses[:n]).q)),
+                lambda n: batch(self.poses[:n]).actuator_positions)),
             Route("numpy", batch=lambda n: nh.inverse_kinematics(p, self.poses[:n])),
             Route("raw Pinocchio", missing=NO_ROUTE), Route("MuJoCo", missing=NO_ROUTE),
         ], reference="numpy")
@@ -270,9 +270,7 @@ class HexapodPeers:
 
         def ours_tree_fd(i):
             q, v, _ = s.pin_state[i]
-            tau = s.tau_ext[i].copy()
-            tau[raw.actuated_v] += s.forces[i]
-            acc = tree_fd(r.model, q, v, tau, method="pinocchio").a
+            acc = tree_fd(r.model, q, v, s.forces[i], s.tau_ext[i], method="pinocchio").a
             return np.concatenate([raw.twist_dot_from_a(q, v, acc), acc[raw.idx.carriage_v]])
 
         routes.append(Route("ours forward_dynamics_tree pinocchio (tree state given)",

@@ -6,7 +6,8 @@ single-state answer of the same state. Inputs are (N, 6) float64 arrays, C-conti
 finite (the callers validate them: :func:`check_batch`); the branch is one row of six signs
 for every state or one row per state. Conventions: those of the kernels.
 
-The Python functions raise for the first state whose kernel failed (lowest index; states
+Small batches run the same loop on the calling thread (:data:`PARALLEL_MIN`). The Python
+functions raise for the first state whose kernel failed (lowest index; states
 the mechanism cannot take before saturated ones), with the Batch* exceptions of
 :mod:`hexapod_pin.errors` naming it (``index``); the kinematics batches return masks.
 """
@@ -24,8 +25,25 @@ from . import kernels as K
 
 #: states per chunk of a prange loop (one scratch per chunk)
 CHUNK = 64
+#: batches with fewer states run on the calling thread (waking the worker threads costs
+#: more than it saves below this size, and much more on a loaded machine)
+PARALLEL_MIN = 50_000
 
-prange_jit = numba.njit(parallel=True, **K.FAST_FLAGS)
+
+class _Driver:
+    """A batch loop compiled twice from the same source: with ``prange`` on the worker
+    threads, and as a plain loop on the calling thread (``prange`` is ``range`` there)."""
+
+    def __init__(self, func):
+        self.parallel = numba.njit(parallel=True, **K.FAST_FLAGS)(func)
+        self.serial = numba.njit(**K.FAST_FLAGS)(func)
+
+    def __call__(self, *args):
+        n = args[2].shape[0]                  # (geo, signs, poses, ...)
+        return (self.parallel if n >= PARALLEL_MIN else self.serial)(*args)
+
+
+prange_jit = _Driver
 
 
 @prange_jit
