@@ -639,6 +639,17 @@ def solve_legs(geo, wk, mats, rhs):
 # Newton-Euler closed form
 # --------------------------------------------------------------------------------------
 @jit_inline
+def add_point_force(out, rx, ry, rz, fx, fy, fz):
+    """``out[0:6] += [f, r x f]``: a force ``f`` at ``r`` as a wrench about the origin."""
+    out[0] += fx
+    out[1] += fy
+    out[2] += fz
+    out[3] += ry * fz - rz * fy
+    out[4] += rz * fx - rx * fz
+    out[5] += rx * fy - ry * fx
+
+
+@jit_inline
 def end_loads(geo, wk):
     """Carriage loads CC (``c_i``) and tip loads FX..FZ (``F_i``) of the legs (after
     :func:`tip_accelerations`)."""
@@ -672,14 +683,7 @@ def platform_rhs(geo, rot, wk, twist, twist_dot, wrench, out):
     for j in range(6):
         out[j] = -wrench[j]
     for i in range(6):
-        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
-        fx, fy, fz = wk[FX, i], wk[FY, i], wk[FZ, i]
-        out[0] += fx
-        out[1] += fy
-        out[2] += fz
-        out[3] += ry * fz - rz * fy
-        out[4] += rz * fx - rx * fz
-        out[5] += rx * fy - ry * fx
+        add_point_force(out, wk[RX, i], wk[RY, i], wk[RZ, i], wk[FX, i], wk[FY, i], wk[FZ, i])
     m_p = geo[MP]
     out[0] += m_p * twist_dot[0]
     out[1] += m_p * twist_dot[1]
@@ -756,19 +760,17 @@ def closure_forces(wk, out):
 @jit_inline
 def platform_residual(wk):
     """Max-abs of ``A^T t - rhs`` of the platform equation (after inverse dynamics)."""
-    fx = fy = fz = mx = my = mz = 0.0
+    acc = wk[TMP]
+    for j in range(6):
+        acc[j] = -wk[RHS0, j]
     for i in range(6):
         t = wk[AXIAL, i]
-        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
-        nx, ny, nz = t * wk[NX, i], t * wk[NY, i], t * wk[NZ, i]
-        fx += nx
-        fy += ny
-        fz += nz
-        mx += ry * nz - rz * ny
-        my += rz * nx - rx * nz
-        mz += rx * ny - ry * nx
-    worst = max(abs(fx - wk[RHS0, 0]), abs(fy - wk[RHS0, 1]), abs(fz - wk[RHS0, 2]))
-    return max(worst, abs(mx - wk[RHS0, 3]), abs(my - wk[RHS0, 4]), abs(mz - wk[RHS0, 5]))
+        add_point_force(acc, wk[RX, i], wk[RY, i], wk[RZ, i], t * wk[NX, i], t * wk[NY, i],
+                        t * wk[NZ, i])
+    worst = 0.0
+    for j in range(6):
+        worst = max(worst, abs(acc[j]))
+    return worst
 
 
 @jit_inline
@@ -995,6 +997,14 @@ def tree_configuration(pose, wk, q):
     q[21], q[22], q[23], q[24] = qx, qy, qz, qw
 
 
+@jit_inline
+def _rotate_back(rot, x, y, z, out, at):
+    """``out[at:at + 3] = R^T (x, y, z)`` (world axes to platform axes)."""
+    out[at] = rot[0] * x + rot[3] * y + rot[6] * z
+    out[at + 1] = rot[1] * x + rot[4] * y + rot[7] * z
+    out[at + 2] = rot[2] * x + rot[5] * y + rot[8] * z
+
+
 @jit
 def tree_velocity(geo, rot, wk, twist, v):
     """Tree ``v`` (24,) of a twist (after :func:`rates` and :func:`tree_angles`)."""
@@ -1007,13 +1017,8 @@ def tree_velocity(geo, rot, wk, twist, v):
         v[3 * i] = wk[QD, i]
         v[3 * i + 1] = (big_x * -(dx * lx + dy * ly) - big_y * dz) * inv_len / rho2
         v[3 * i + 2] = (dx * ux + dy * uy + dz * uz) * inv_len / math.sqrt(rho2)
-    vx, vy, vz, wx, wy, wz = twist[0], twist[1], twist[2], twist[3], twist[4], twist[5]
-    v[18] = rot[0] * vx + rot[3] * vy + rot[6] * vz
-    v[19] = rot[1] * vx + rot[4] * vy + rot[7] * vz
-    v[20] = rot[2] * vx + rot[5] * vy + rot[8] * vz
-    v[21] = rot[0] * wx + rot[3] * wy + rot[6] * wz
-    v[22] = rot[1] * wx + rot[4] * wy + rot[7] * wz
-    v[23] = rot[2] * wx + rot[5] * wy + rot[8] * wz
+    _rotate_back(rot, twist[0], twist[1], twist[2], v, 18)
+    _rotate_back(rot, twist[3], twist[4], twist[5], v, 21)
 
 
 @jit
@@ -1041,12 +1046,8 @@ def tree_acceleration(geo, rot, wk, twist, twist_dot, v, a):
     px = ax - (wy * vz - wz * vy)
     py = ay - (wz * vx - wx * vz)
     pz = az - (wx * vy - wy * vx)
-    a[18] = rot[0] * px + rot[3] * py + rot[6] * pz
-    a[19] = rot[1] * px + rot[4] * py + rot[7] * pz
-    a[20] = rot[2] * px + rot[5] * py + rot[8] * pz
-    a[21] = rot[0] * bx + rot[3] * by + rot[6] * bz
-    a[22] = rot[1] * bx + rot[4] * by + rot[7] * bz
-    a[23] = rot[2] * bx + rot[5] * by + rot[8] * bz
+    _rotate_back(rot, px, py, pz, a, 18)
+    _rotate_back(rot, bx, by, bz, a, 21)
 
 
 @jit
@@ -1192,7 +1193,8 @@ def project(geo, rot, wk, force, wrench, has_wrench, out):
     """``out = G^T force - wrench`` (6,): the platform wrench (world axes, about the
     platform origin) equivalent by virtual power to a tree generalised force (24,)."""
     inv_len = 1.0 / geo[LEN]
-    fx = fy = fz = mx = my = mz = 0.0
+    for j in range(6):
+        out[j] = 0.0
     for i in range(6):
         b = BLOCK * i
         ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
@@ -1206,20 +1208,14 @@ def project(geo, rot, wk, force, wrench, has_wrench, out):
         gx = coef * nx + f_b * ux + f_ax * lx
         gy = coef * ny + f_b * uy + f_ax * ly
         gz = coef * nz + f_b * uz + f_a * big_y
-        rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
-        fx += gx
-        fy += gy
-        fz += gz
-        mx += ry * gz - rz * gy
-        my += rz * gx - rx * gz
-        mz += rx * gy - ry * gx
+        add_point_force(out, wk[RX, i], wk[RY, i], wk[RZ, i], gx, gy, gz)
     a0, a1, a2, b0, b1, b2 = force[18], force[19], force[20], force[21], force[22], force[23]
-    out[0] = fx + rot[0] * a0 + rot[1] * a1 + rot[2] * a2
-    out[1] = fy + rot[3] * a0 + rot[4] * a1 + rot[5] * a2
-    out[2] = fz + rot[6] * a0 + rot[7] * a1 + rot[8] * a2
-    out[3] = mx + rot[0] * b0 + rot[1] * b1 + rot[2] * b2
-    out[4] = my + rot[3] * b0 + rot[4] * b1 + rot[5] * b2
-    out[5] = mz + rot[6] * b0 + rot[7] * b1 + rot[8] * b2
+    out[0] += rot[0] * a0 + rot[1] * a1 + rot[2] * a2
+    out[1] += rot[3] * a0 + rot[4] * a1 + rot[5] * a2
+    out[2] += rot[6] * a0 + rot[7] * a1 + rot[8] * a2
+    out[3] += rot[0] * b0 + rot[1] * b1 + rot[2] * b2
+    out[4] += rot[3] * b0 + rot[4] * b1 + rot[5] * b2
+    out[5] += rot[6] * b0 + rot[7] * b1 + rot[8] * b2
     if has_wrench:
         for j in range(6):
             out[j] -= wrench[j]
