@@ -1,8 +1,9 @@
 """The planar 3-PRR's closed form, compiled: the one source of its mechanics.
 
 Every single-state route of :class:`~hexapod_pin.planar.robot.Planar3PRR` calls one of
-these kernels once, and every batch route runs the same kernels over N states with
-``numba.prange``. The Pinocchio tree routes (:mod:`hexapod_pin.core.dynamics`) stay the
+these kernels once, and every batch route runs the same kernels over N states
+(:mod:`hexapod_pin.core.batching`: ``numba.prange`` over chunks of states, on the calling
+thread for small batches). The Pinocchio tree routes (:mod:`hexapod_pin.core.dynamics`) stay the
 independent reference the tests compare them with.
 
 The equations (conventions of :mod:`hexapod_pin.planar.geometry`; ``z x w = (-w_y, w_x)``,
@@ -52,10 +53,9 @@ import math
 import numba
 import numpy as np
 
-from ..core.compiled import FLAGS, all_finite, jit
+from ..core.batching import CHUNK, n_chunks, prange_jit
+from ..core.compiled import all_finite, jit
 from .geometry import N_ACTUATORS, PlanarGeometry, rail_angles
-
-_pjit = numba.njit(parallel=True, **FLAGS)
 
 #: status codes
 OK, NONFINITE, UNREACHABLE, TYPE_I, TYPE_II, RESIDUAL = 0, -1, 1, 2, 3, 4
@@ -528,67 +528,77 @@ def reduced_dynamics(geo, pose, twist, signs, m_x, h_x, jac, buf, info):
 
 
 # ---------------------------------------------------------------------------------------
-# batches: the same kernels over N states
+# batches: the same kernels over N states (chunks of CHUNK states, one scratch per chunk)
 # ---------------------------------------------------------------------------------------
-@_pjit
+@prange_jit(2)
 def inverse_kinematics_batch(geo, signs, poses, positions, reachable, regular, infos):
     """:func:`legs` of N poses: positions (N, 3), reachable and regular (no type I) flags,
     each state's ``info``."""
-    for i in numba.prange(poses.shape[0]):
+    n = poses.shape[0]
+    for c in numba.prange(n_chunks(n)):
         buf = np.empty((N_ACTUATORS, LEG_COLS))
-        status = legs(geo, poses[i], signs, buf, infos[i])
-        for k in range(N_ACTUATORS):
-            positions[i, k] = buf[k, S]
-        reachable[i] = status == OK
-        regular[i] = status == OK and infos[i, X_WORST] >= geo[_G_TOL]
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            status = legs(geo, poses[i], signs, buf, infos[i])
+            for k in range(N_ACTUATORS):
+                positions[i, k] = buf[k, S]
+            reachable[i] = status == OK
+            regular[i] = status == OK and infos[i, X_WORST] >= geo[_G_TOL]
 
 
-@_pjit
+@prange_jit(2)
 def jacobian_batch(geo, signs, poses, jacobians, positions, reachable, regular, infos):
     """:func:`inverse_kinematics_batch` and the Jacobians (N, 3, 3); zero where a state is
     unreachable or type-I singular."""
-    for i in numba.prange(poses.shape[0]):
+    n = poses.shape[0]
+    for c in numba.prange(n_chunks(n)):
         buf = np.empty((N_ACTUATORS, LEG_COLS))
-        status = legs(geo, poses[i], signs, buf, infos[i])
-        ok = status == OK and infos[i, X_WORST] >= geo[_G_TOL]
-        for k in range(N_ACTUATORS):
-            positions[i, k] = buf[k, S]
-            for j in range(3):
-                jacobians[i, k, j] = buf[k, J0 + j] if ok else 0.0
-        reachable[i] = status == OK
-        regular[i] = ok
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            status = legs(geo, poses[i], signs, buf, infos[i])
+            ok = status == OK and infos[i, X_WORST] >= geo[_G_TOL]
+            for k in range(N_ACTUATORS):
+                positions[i, k] = buf[k, S]
+                for j in range(3):
+                    jacobians[i, k, j] = buf[k, J0 + j] if ok else 0.0
+            reachable[i] = status == OK
+            regular[i] = ok
 
 
-@_pjit
+@prange_jit(3)
 def inverse_dynamics_batch(geo, idx, signs, poses, twists, twist_dots, wrenches, has_wrench,
                            tau, closure, status, infos):
     """:func:`inverse_dynamics` of N states (statics: zero twists and twist_dots)."""
-    for i in numba.prange(poses.shape[0]):
+    n = poses.shape[0]
+    for c in numba.prange(n_chunks(n)):
         buf = np.empty((N_ACTUATORS, LEG_COLS))
         q, v, a = np.empty(9), np.empty(9), np.empty(9)
-        status[i] = inverse_dynamics(geo, idx, poses[i], twists[i], twist_dots[i],
-                                     wrenches[i], has_wrench, signs, q, v, a, tau[i],
-                                     closure[i], buf, infos[i])
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            status[i] = inverse_dynamics(geo, idx, poses[i], twists[i], twist_dots[i],
+                                         wrenches[i], has_wrench, signs, q, v, a, tau[i],
+                                         closure[i], buf, infos[i])
 
 
-@_pjit
+@prange_jit(3)
 def forward_dynamics_batch(geo, idx, signs, poses, twists, forces, wrenches, has_wrench,
                            twist_dots, accelerations_out, closure, status, infos):
     """:func:`forward_dynamics` of N states; actuator accelerations (N, 3)."""
-    for i in numba.prange(poses.shape[0]):
+    n = poses.shape[0]
+    for c in numba.prange(n_chunks(n)):
         buf = np.empty((N_ACTUATORS, LEG_COLS))
         q, v, a = np.empty(9), np.empty(9), np.empty(9)
-        status[i] = forward_dynamics(geo, idx, poses[i], twists[i], forces[i], wrenches[i],
-                                     has_wrench, signs, q, v, a, twist_dots[i], closure[i],
-                                     buf, infos[i])
-        for k in range(N_ACTUATORS):
-            accelerations_out[i, k] = buf[k, SDD]
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            status[i] = forward_dynamics(geo, idx, poses[i], twists[i], forces[i],
+                                         wrenches[i], has_wrench, signs, q, v, a,
+                                         twist_dots[i], closure[i], buf, infos[i])
+            for k in range(N_ACTUATORS):
+                accelerations_out[i, k] = buf[k, SDD]
 
 
-@_pjit
+@prange_jit(2)
 def reduced_dynamics_batch(geo, signs, poses, twists, m_x, h_x, jac, status, infos):
     """:func:`reduced_dynamics` of N states."""
-    for i in numba.prange(poses.shape[0]):
+    n = poses.shape[0]
+    for c in numba.prange(n_chunks(n)):
         buf = np.empty((N_ACTUATORS, LEG_COLS))
-        status[i] = reduced_dynamics(geo, poses[i], twists[i], signs, m_x[i], h_x[i], jac[i],
-                                     buf, infos[i])
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            status[i] = reduced_dynamics(geo, poses[i], twists[i], signs, m_x[i], h_x[i],
+                                         jac[i], buf, infos[i])

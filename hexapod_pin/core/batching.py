@@ -1,0 +1,46 @@
+"""Batch drivers of the compiled kernels of every robot: one source, two compilations.
+
+A batch loop (``for c in numba.prange(n_chunks(n))``, each chunk of :data:`CHUNK` states
+with its own scratch) is compiled twice from the same source with :func:`prange_jit`:
+with ``parallel=True`` on numba's worker threads, and as a plain loop on the calling
+thread (``prange`` is ``range`` there). Batches of fewer than :data:`PARALLEL_MIN`
+states run serially: waking the worker threads costs more than it saves below that
+size, and much more on a loaded machine. Both compilations give the same numbers.
+"""
+
+from __future__ import annotations
+
+import numba
+
+from .compiled import FLAGS, jit
+
+#: states per chunk of a prange loop (one scratch per chunk)
+CHUNK = 64
+#: batches with fewer states run on the calling thread
+PARALLEL_MIN = 50_000
+
+
+@jit
+def n_chunks(n: int) -> int:
+    """Number of chunks of :data:`CHUNK` states covering ``n`` states."""
+    return (n + CHUNK - 1) // CHUNK
+
+
+class BatchDriver:
+    """A batch loop compiled with and without ``parallel=True``; a call picks one by the
+    number of states (the first axis of argument ``states_arg``)."""
+
+    def __init__(self, func, states_arg: int):
+        self.parallel = numba.njit(parallel=True, **FLAGS)(func)
+        self.serial = numba.njit(**FLAGS)(func)
+        self.states_arg = states_arg
+        self.__doc__ = func.__doc__
+
+    def __call__(self, *args):
+        n = args[self.states_arg].shape[0]
+        return (self.parallel if n >= PARALLEL_MIN else self.serial)(*args)
+
+
+def prange_jit(states_arg: int):
+    """Decorator: a :class:`BatchDriver` whose states are argument ``states_arg``'s rows."""
+    return lambda func: BatchDriver(func, states_arg)
