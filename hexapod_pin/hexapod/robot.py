@@ -137,6 +137,11 @@ class Hexapod:
     def __repr__(self) -> str:
         return f"Hexapod({self.geometry!r})"
 
+    def urdf(self) -> str:
+        """The URDF text of the tree (the xacro expanded with this geometry; the loops are
+        in ``urdf/hexapod.loops.yaml``): ``robot.model.urdf_xml``."""
+        return self.model.urdf_xml
+
     def _indices(self) -> HexapodIndices:
         m = self.model
         names = [f"carriage_{i}" for i in range(6)]

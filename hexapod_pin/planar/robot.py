@@ -72,6 +72,11 @@ class Planar3PRR:
     def __repr__(self) -> str:
         return f"Planar3PRR({self.geometry!r})"
 
+    def urdf(self) -> str:
+        """The URDF text of the tree (the xacro expanded with this geometry; the loops are
+        in ``urdf/planar_3prr.loops.yaml``): ``robot.model.urdf_xml``."""
+        return self.model.urdf_xml
+
     # -- home ---------------------------------------------------------------------------------
     @property
     def home_pose(self) -> np.ndarray:
