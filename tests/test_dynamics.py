@@ -16,6 +16,7 @@ from conftest import geometry_from_reference, load_reference, random_pose
 import hexapod_pin as hp
 from hexapod_pin.errors import BatchActuatorSaturationError
 from hexapod_pin.errors import ActuatorSaturationError, InputError
+from hexapod_pin.core.dynamics import inverse_dynamics_tree
 from hexapod_pin.core.pose import euler_rates_matrix, rotation_from_rpy
 
 FD_METHODS = ("pinocchio", "nullspace", "qp", "kkt")
@@ -349,3 +350,36 @@ def test_gravity_comes_from_the_geometry():
     none = hp.Hexapod(hp.HexapodGeometry(gravity=0.0))
     np.testing.assert_allclose(none.static_forces(none.home_pose), 0.0, atol=1e-12)
     assert none.energies(none.home_pose, np.zeros(6)).potential == 0.0
+
+
+def test_dynamics_on_another_ik_branch(robot):
+    """Every dynamics route takes the IK branch: on a regular non-home branch (the two
+    carriages of rail 0 swapped to the other roots) the closed-form routes agree with the
+    generic tree routes on the configuration of that branch, and the round trips hold."""
+    pose = robot.home_pose + np.array([0.01, -0.02, 0.01, 0.05, -0.03, 0.1])
+    branch = [1, -1, -1, 1, -1, 1]
+    twist, twist_dot = np.full(6, 0.1), np.ones(6)
+    q = robot.configuration(pose, branch)
+    assert np.abs(robot.actuator_positions(q)
+                  - robot.inverse_kinematics(pose, branch, check_limits=False)).max() == 0.0
+    assert np.abs(robot.actuator_positions(q) - robot.inverse_kinematics(
+        pose, check_limits=False)).max() > 1e-3          # really another configuration
+    res = robot.inverse_dynamics(pose, twist, twist_dot, branch=branch, bounded=False)
+    np.testing.assert_array_equal(res.configuration, q)
+    tree = inverse_dynamics_tree(robot.model, q, res.velocity, res.acceleration, method="kkt")
+    np.testing.assert_allclose(res.actuator_forces, tree.actuator_forces, rtol=0, atol=1e-10)
+    assert res.residual < 1e-10
+    fwd = robot.forward_dynamics(pose, twist, res.actuator_forces, branch=branch)
+    np.testing.assert_allclose(fwd.twist_dot, twist_dot, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(fwd.closure_forces, res.closure_forces, rtol=0, atol=1e-9)
+    rest = robot.inverse_dynamics(pose, np.zeros(6), np.zeros(6), branch=branch,
+                                  bounded=False).actuator_forces
+    np.testing.assert_allclose(robot.static_forces(pose, branch=branch, bounded=False), rest,
+                               rtol=0, atol=1e-10)
+    m_x, h_x = robot.reduced_dynamics(pose, twist, branch=branch)
+    jac = robot.jacobian(pose, branch)
+    np.testing.assert_allclose(jac.T @ res.actuator_forces, m_x @ twist_dot + h_x, rtol=0,
+                               atol=1e-9)
+    kinetic = 0.5 * res.velocity @ robot.dynamics_part.tree_dynamics.mass_matrix(q) @ res.velocity
+    assert robot.energies(pose, twist, branch=branch).kinetic == pytest.approx(kinetic,
+                                                                                rel=1e-12)

@@ -29,6 +29,7 @@ from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchRed
 from ..core.dynamics import (INVERSE_METHODS, QP_SOLVED, QP_STATUS, RESIDUAL_RTOL,
                              ClosedLoopDynamics, dynamics_of)
 from .derivatives import AnalyticDerivatives, DerivativesWorkspace, analytic_derivatives
+from .kinematics import check_branch
 from ..errors import (
     ActuatorSaturationError,
     HexapodPinError,
@@ -51,16 +52,17 @@ class _InverseDetails:
     """The parts of an inverse-dynamics result computed on first access
     (:class:`~hexapod_pin.core.results.ResultDetails`)."""
 
-    def __init__(self, ws, force, tau, wrench, q, v, a, wrenches_wanted, pose):
+    def __init__(self, ws, force, tau, wrench, q, v, a, wrenches_wanted, pose, signs):
         self.ws, self.force, self.tau, self.wrench = ws, force, tau, wrench
         self.q, self.v, self.a, self.wrenches_wanted = q, v, a, wrenches_wanted
-        self.pose = pose
+        self.pose, self.signs = pose, signs
         self._tips = None
 
     def tip_forces(self) -> np.ndarray:
         """(6, 3) force of the platform on each leg tip (carriage order), world axes."""
         if self._tips is None:
-            self._tips = self.ws.compiled.tip_forces(self.pose, self.force, self.tau)
+            self._tips = self.ws.compiled.tip_forces(self.pose, self.force, self.tau,
+                                                      self.signs)
         return self._tips
 
     def tau_ext(self) -> np.ndarray:
@@ -125,18 +127,18 @@ class _LazyTreeMultipliers:
     """Closure multipliers of a null-space forward-dynamics result, from the legs' tree
     rows at the computed motion (as the inverse dynamics does)."""
 
-    __slots__ = ("acc", "forces", "pose", "q", "v", "ws")
+    __slots__ = ("acc", "forces", "pose", "q", "signs", "v", "ws")
 
-    def __init__(self, ws, pose, q, v, acc, forces):
+    def __init__(self, ws, pose, q, v, acc, forces, signs):
         self.ws, self.pose, self.q, self.v, self.acc = ws, pose, q, v, acc
-        self.forces = forces
+        self.forces, self.signs = forces, signs
 
     def __call__(self) -> np.ndarray:
         ws = self.ws
         # each leg's three tree rows (carriage, u_a, u_b) of rnea = S^T tau + J_c^T lambda
         # (the wrench acts on the platform rows only)
         force = pin.rnea(ws.dyn.model, ws.dyn.data, self.q, self.v, self.acc)
-        tips = ws.compiled.tip_forces(self.pose, force, self.forces)
+        tips = ws.compiled.tip_forces(self.pose, force, self.forces, self.signs)
         return tips[ws.leg_of_closure].reshape(-1)
 
 
@@ -236,32 +238,33 @@ class HexapodDynamics:
         bounds = None if not np.isfinite(limit) else np.full(6, limit)
         ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds,
                                clm.model.getJointId("platform_joint"), self.closed_form)
-        home_q, _ = self.tree_state(self.geometry.home_pose, np.zeros(6), ws)
+        home_q, _ = self.tree_state(self.geometry.home_pose, np.zeros(6), ws=ws)
         dyn.closure_rank(home_q)
         kernels.check_mass_structure(pin.crba(dyn.model, dyn.data, home_q))
         self._ws = ws
         return ws
 
-    def tree_state(self, pose, twist, ws=None) -> tuple[np.ndarray, np.ndarray]:
+    def tree_state(self, pose, twist, branch=None, ws=None) -> tuple[np.ndarray, np.ndarray]:
         """Tree configuration ``q`` (nq,) and velocity ``v`` (nv,) (Pinocchio conventions) of
-        a platform pose and twist (6,) each, home branch, in closed form.
+        a platform pose and twist (6,) each, on ``branch`` (default home), in closed form.
 
         Raises:
             InputError, UnreachablePoseError, SingularityError (type I, gimbal lock).
         """
         ck = (self._workspace() if ws is None else ws).compiled
+        signs = ck.signs if branch is None else check_branch(branch)
         pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
         q, v = np.empty(25), np.empty(24)
         s = ck.scratch
-        code = kernels.tree_state(ck.geo, ck.signs, pose_a, twist_a, twist_a, 1, q, v, v,
+        code = kernels.tree_state(ck.geo, signs, pose_a, twist_a, twist_a, 1, q, v, v,
                                   s.rot, s.wk)
         if code != kernels.OK:
             self._raise_code(ck, code, pose=pose, twist=twist)
         return q, v
 
     # -- inverse dynamics --------------------------------------------------------------
-    def inverse_dynamics(self, pose, twist, twist_dot, wrench=None, *, method: str = "kkt",
-                         bounded: bool = True,
+    def inverse_dynamics(self, pose, twist, twist_dot, wrench=None, *, branch=None,
+                         method: str = "kkt", bounded: bool = True,
                          joint_wrenches: bool = True) -> InverseDynamicsResult:
         """Actuator forces that produce a platform motion (closed-loop inverse dynamics).
 
@@ -276,6 +279,8 @@ class HexapodDynamics:
             twist_dot: time derivative of the twist (m/s^2, rad/s^2), (6,).
             wrench: ``(f, m)`` applied on the platform by the environment, world axes,
                 moment about the platform origin (N, N m), (6,); default zero.
+            branch: the IK branch of the legs (six +1 / -1, see
+                :meth:`HexapodKinematics.inverse_kinematics`); default the home branch.
             method: "kkt" (default: the 6x6 LU solve, the bounds then checked) or "qp"
                 (ProxSuite: minimise ``1/2 |tau|^2`` subject to ``J^T tau =
                 G^T rnea - wrench`` and the box bounds, i.e. the tree QP of
@@ -307,13 +312,14 @@ class HexapodDynamics:
             raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
+        signs = ck.signs if branch is None else check_branch(branch)
         pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
         tdot_a = _vec6(twist_dot, "twist_dot")
         wrench_a = None if wrench is None else _vec6(wrench, "wrench")
         bounds = ws.bounds if bounded else None
         q, v, a = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
         s = ck.scratch
-        code = kernels.tree_state(ck.geo, ck.signs, pose_a, twist_a, tdot_a, 2, q, v, a, s.rot,
+        code = kernels.tree_state(ck.geo, signs, pose_a, twist_a, tdot_a, 2, q, v, a, s.rot,
                                   s.wk)
         if code != kernels.OK or (wrench_a is not None and not all_finite(wrench_a)):
             self._raise_code(ck, code, pose=pose, twist=twist, twist_dot=twist_dot,
@@ -322,7 +328,7 @@ class HexapodDynamics:
         tau, status, iters, rhs = self._solve_tree(ws, force, wrench_a, method, bounds)
         details = _InverseDetails(ws, force, tau,
                                   None if wrench_a is None else owned_copy(wrench_a, wrench), q, v,
-                                  a, joint_wrenches, pose=owned_copy(pose_a, pose))
+                                  a, joint_wrenches, owned_copy(pose_a, pose), signs)
         return InverseDynamicsResult(tau, q, v, a, method, status, iters, details)
 
     def _solve_tree(self, ws, force, wrench_a, method, bounds):
@@ -410,7 +416,8 @@ class HexapodDynamics:
         force = pin.rnea(dyn.model, dyn.data, q, v, a)
         return self._solve_tree(ws, force, wrench_a, method, None)[0]
 
-    def static_forces(self, pose, wrench=None, *, bounded: bool = True) -> np.ndarray:
+    def static_forces(self, pose, wrench=None, *, branch=None,
+                      bounded: bool = True) -> np.ndarray:
         """Actuator forces holding the platform at rest at ``pose`` under gravity and a wrench.
 
         ``J^T tau = G^T g(q) - wrench`` with ``g(q)`` the tree's generalised gravity
@@ -431,10 +438,11 @@ class HexapodDynamics:
         """
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
+        signs = ck.signs if branch is None else check_branch(branch)
         pose_a = _vec6(pose, "pose")
         wrench_a = None if wrench is None else _vec6(wrench, "wrench")
         q, s = ws.q, ck.scratch
-        code = kernels.tree_state(ck.geo, ck.signs, pose_a, kernels.ZERO6, kernels.ZERO6, 0,
+        code = kernels.tree_state(ck.geo, signs, pose_a, kernels.ZERO6, kernels.ZERO6, 0,
                                   q, ws.v, ws.a, s.rot, s.wk)
         if code != kernels.OK or (wrench_a is not None and not all_finite(wrench_a)):
             self._raise_code(ck, code, pose=pose, wrench=wrench)
@@ -461,7 +469,7 @@ class HexapodDynamics:
         raise ck.error(code)
 
     # -- forward dynamics ----------------------------------------------------------------
-    def forward_dynamics(self, pose, twist, actuator_forces, wrench=None, *,
+    def forward_dynamics(self, pose, twist, actuator_forces, wrench=None, *, branch=None,
                          method: str = "nullspace") -> ForwardDynamicsResult:
         """Platform acceleration produced by actuator forces (constrained forward dynamics).
 
@@ -491,6 +499,7 @@ class HexapodDynamics:
             raise InputError("method", method, f"expected one of {HEXAPOD_FORWARD_METHODS}")
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
+        signs = ck.signs if branch is None else check_branch(branch)
         pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
         tau_a = _vec6(actuator_forces, "actuator_forces")
         wrench_a = None if wrench is None else _vec6(wrench, "wrench")
@@ -498,7 +507,7 @@ class HexapodDynamics:
         # the drift a_0 (tree acceleration at twist_dot = 0) only for the null-space route
         level = 2 if method == "nullspace" else 1
         s = ck.scratch
-        code = kernels.tree_state(ck.geo, ck.signs, pose_a, twist_a, kernels.ZERO6, level, q,
+        code = kernels.tree_state(ck.geo, signs, pose_a, twist_a, kernels.ZERO6, level, q,
                                   v, acc0, s.rot, s.wk)
         if code != kernels.OK:
             self._raise_code(ck, code, pose=pose, twist=twist, actuator_forces=actuator_forces,
@@ -519,7 +528,8 @@ class HexapodDynamics:
                 raise SolverError("null-space forward dynamics", "mass matrix not positive "
                                   "definite", f"M_x = {ws.work[24:30].tolist()}")
             details = _ForwardDetails(dyn, q, ws.leg_of_closure, rows=_LazyTreeMultipliers(
-                ws, owned_copy(pose_a, pose), q, v, acc, owned_copy(tau_a, actuator_forces)))
+                ws, owned_copy(pose_a, pose), q, v, acc, owned_copy(tau_a, actuator_forces),
+                signs))
             return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                          "solved", 0, details)
         if not all_finite(tau_a) or (wrench_a is not None and not all_finite(wrench_a)):
@@ -545,7 +555,7 @@ class HexapodDynamics:
                                      status, iters, details)
 
     # -- reduced (null-space) dynamics ------------------------------------------------------
-    def reduced_dynamics(self, pose, twist) -> ReducedDynamics:
+    def reduced_dynamics(self, pose, twist, branch=None) -> ReducedDynamics:
         """Dynamics in platform coordinates (null-space / independent-coordinate method).
 
         With ``T`` (nv, 6) the map ``v = T twist`` that keeps the closures
@@ -568,10 +578,11 @@ class HexapodDynamics:
         """
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
+        signs = ck.signs if branch is None else check_branch(branch)
         pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
         q, v, acc0 = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
         s = ck.scratch
-        code = kernels.tree_state(ck.geo, ck.signs, pose_a, twist_a, kernels.ZERO6, 2, q, v,
+        code = kernels.tree_state(ck.geo, signs, pose_a, twist_a, kernels.ZERO6, 2, q, v,
                                   acc0, s.rot, s.wk)
         if code != kernels.OK:
             self._raise_code(ck, code, pose=pose, twist=twist)
@@ -582,7 +593,7 @@ class HexapodDynamics:
         return ReducedDynamics(m_x, h_x, vmap[self.indices.carriage_v].copy(), vmap)
 
     # -- energies ----------------------------------------------------------------------------
-    def energies(self, pose, twist) -> Energies:
+    def energies(self, pose, twist, branch=None) -> Energies:
         """Kinetic and potential energy of the whole mechanism (J).
 
         Potential: ``sum m_b g z_b`` over every body's centre of mass (zero at z = 0).
@@ -591,7 +602,7 @@ class HexapodDynamics:
             pose: (6,) (m, rad).
             twist: ``(v, w)`` world axes (6,).
         """
-        q, v = self.tree_state(pose, twist)
+        q, v = self.tree_state(pose, twist, branch)
         return self.tree_energies(q, v)
 
     def tree_energies(self, q, v) -> Energies:

@@ -202,16 +202,17 @@ class ClosedForm:
         """:func:`error_of` for the state last computed in :attr:`scratch`."""
         return error_of(code, self.geo, self.scratch.wk, self.scratch.mats[1])
 
-    def tip_forces(self, pose, force, tau) -> np.ndarray:
+    def tip_forces(self, pose, force, tau, signs=None) -> np.ndarray:
         """(6, 3) force of the platform ON each leg tip (:func:`leg_forces`) at ``pose`` (6,)
-        for a tree generalised force ``force`` (24,) and actuator forces ``tau`` (6,); the
-        legs are rebuilt in a fresh scratch (a result may ask long after its call).
+        for a tree generalised force ``force`` (24,) and actuator forces ``tau`` (6,), on the
+        IK branch ``signs`` (6,) (default home); the legs are rebuilt in a fresh scratch (a
+        result may ask long after its call).
 
         Raises:
             HexapodPinError: the pose is refused (it was accepted when ``force`` was made).
         """
         rot, wk, out = np.empty(9), np.zeros((WK_ROWS, 6)), np.empty((6, 3))
-        code = leg_state(self.geo, self.signs, pose, rot, wk)
+        code = leg_state(self.geo, self.signs if signs is None else signs, pose, rot, wk)
         if code != OK:
             raise error_of(code, self.geo, wk)
         tree_angles(self.geo, wk)

@@ -48,6 +48,9 @@ LEG_COM_FRACTION = 0.5
 
 __all__ = ["HexapodKinematics", "LegMotion", "check_branch"]
 
+#: Newton iteration limit of :meth:`HexapodKinematics.forward_kinematics`
+FK_MAX_ITER = 50
+
 
 def check_branch(branch) -> np.ndarray:
     """Validate a branch (six values, each +1 or -1); ``None`` -> the home branch."""
@@ -403,8 +406,8 @@ class HexapodKinematics:
         return singularity_measures(jac, cosines, a_hat, self.geometry.platform_radius)
 
     # -- forward kinematics and assembly modes -------------------------------------------------
-    def forward_kinematics(self, q, guess=None, max_iter: int = 50) -> np.ndarray:
-        """Platform pose for carriage positions ``q``: Newton's method from ``guess``.
+    def forward_kinematics(self, actuators, guess=None) -> np.ndarray:
+        """Platform pose for carriage positions ``actuators``: Newton's method from ``guess``.
 
         The 18 closure equations reduce exactly to three (see
         :mod:`hexapod_pin.assembly_modes`): each platform point lies on the circle
@@ -423,9 +426,8 @@ class HexapodKinematics:
         Stroke limits are not checked.
 
         Args:
-            q: carriage positions (6,) (m).
+            actuators: carriage positions (6,) (m).
             guess: a pose (6,) near the wanted one; default the home pose.
-            max_iter: Newton iteration limit.
 
         Returns:
             pose ``(x, y, z, roll, pitch, yaw)`` (6,) (m, rad), pitch in [-pi/2, pi/2].
@@ -435,9 +437,10 @@ class HexapodKinematics:
             AssemblyError: no assembly (two carriages of a rail more than
                 ``2 leg_length`` apart), degenerate carriages (coincident, or
                 exactly ``2 leg_length`` apart), a singular Jacobian (type II), no
-                convergence, or a final leg-length error above 1e-12 m.
+                convergence within ``FK_MAX_ITER`` iterations, or a final leg-length error above
+                1e-12 m.
         """
-        q = as_array(q, (6,), "q").tolist()
+        q = as_array(actuators, (6,), "actuators").tolist()
         guess = self._home_list if guess is None else as_array(guess, (6,), "guess").tolist()
         cg = self.circles
         system = am.circle_system(cg, q)
@@ -447,7 +450,7 @@ class HexapodKinematics:
                                 "2 leg_length apart", excess, 0)
         theta = system.angles_of_t(am.platform_points_t(cg, guess))
         scale = max(1.0, cg.leg_length)
-        result = am.newton_circles(system, theta, max_iter=max_iter, tol=am.INNER_TOL * scale)
+        result = am.newton_circles(system, theta, max_iter=FK_MAX_ITER, tol=am.INNER_TOL * scale)
         pose = am.pose_from_points_t(cg, system.points_t(*result.theta))
         err = am.leg_length_error(cg, pose, q)
         if not err <= am.POSE_TOL * scale:
@@ -455,8 +458,8 @@ class HexapodKinematics:
                                 result.iterations)
         return np.array(pose)
 
-    def assembly_modes(self, q) -> np.ndarray:
-        """Every real assembly of the closed chain for carriage positions ``q``.
+    def assembly_modes(self, actuators) -> np.ndarray:
+        """Every real assembly of the closed chain for carriage positions ``actuators``.
 
         Method (details and the completeness argument in
         :func:`hexapod_pin.assembly_modes.enumerate_assemblies`): with the
@@ -479,7 +482,7 @@ class HexapodKinematics:
         The branch of each carriage in a mode is :meth:`branch_of`.
 
         Args:
-            q: carriage positions (6,) (m).
+            actuators: carriage positions (6,) (m).
 
         Returns:
             poses (n_modes, 6) (m, rad), sorted by height z, highest first; no rows
@@ -491,7 +494,7 @@ class HexapodKinematics:
                 assemblies (two carriages of a rail coincide, stand exactly
                 ``2 leg_length`` apart, or the eliminant vanishes identically).
         """
-        q = as_array(q, (6,), "q")
+        q = as_array(actuators, (6,), "actuators")
         cg = self.circles
         system = am.circle_system(cg, q)
         if system is None:
