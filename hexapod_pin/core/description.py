@@ -280,7 +280,7 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
     """Parse a loops description (YAML text) into a :class:`LoopsSpec`.
 
     Only the syntax is checked here; names are checked against the tree by
-    :class:`hexapod_pin.closed_loop.ClosedLoopModel`.
+    :class:`hexapod_pin.core.closed_loop.ClosedLoopModel`.
 
     Raises:
         DescriptionError: malformed YAML, missing keys, unknown closure type,

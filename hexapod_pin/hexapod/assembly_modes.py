@@ -388,7 +388,7 @@ def pose_from_points_t(cg: CircleGeometry, points) -> list[float]:
     """:func:`pose_from_points` in plain floats, returning the pose (6 floats, m and rad).
 
     The rotation is converted with the same formulas as
-    :func:`hexapod_pin.pose.rpy_from_rotation` (pitch in [-pi/2, pi/2]).
+    :func:`hexapod_pin.core.pose.rpy_from_rotation` (pitch in [-pi/2, pi/2]).
     """
     (x0, y0, z0), (x1, y1, z1), (x2, y2, z2) = points
     ax, ay, az = x1 - x0, y1 - y0, z1 - z0

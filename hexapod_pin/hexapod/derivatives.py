@@ -1,7 +1,7 @@
 """Analytic derivatives of the hexapod's closed-loop inverse dynamics.
 
 ``tau = ID(pose, twist, twist_dot, wrench)`` (the unbounded ``method="kkt"`` route of
-:meth:`~hexapod_pin.dynamics.HexapodDynamics.inverse_dynamics`) is the inverse in ``tau``
+:meth:`~hexapod_pin.hexapod.dynamics.HexapodDynamics.inverse_dynamics`) is the inverse in ``tau``
 of the constrained forward dynamics ``twist_dot = FD(pose, twist, tau, wrench)``. The
 implicit-function theorem turns the derivatives of ``FD``, which Pinocchio computes on
 the tree with the loop closures (``pin.computeConstraintDynamicsDerivatives``: the
@@ -15,7 +15,7 @@ Chain rule through the tree. ``G`` (nv, 6) is the closed-form map ``v_tree = G t
 (:func:`~hexapod_pin.hexapod.kernels.velocity_map`). A change of pose is a
 world tangent ``delta = (dp, dtheta)``: ``dp`` the displacement of the platform origin,
 ``dtheta`` the rotation vector in world axes (``R -> exp([dtheta]) R``); in pose
-coordinates ``dtheta = E(rpy) d(rpy)`` (:func:`~hexapod_pin.pose.euler_rates_matrix`).
+coordinates ``dtheta = E(rpy) d(rpy)`` (:func:`~hexapod_pin.core.pose.euler_rates_matrix`).
 With the twist ``(v, w)`` and the wrench ``(f, m)`` held in world axes::
 
     dq        = G delta                              (tree tangent, as pin.integrate)
@@ -68,7 +68,7 @@ class AnalyticDerivatives:
 
     Rows: carriage ``i`` (force on carriage ``i`` along ``+u_k``, N). Every derivative
     holds the other arguments fixed; twist, twist_dot and wrench are held in world axes.
-    The field names match :class:`~hexapod_pin.dynamics.InverseDynamicsDerivatives`.
+    The field names match :class:`~hexapod_pin.hexapod.dynamics.InverseDynamicsDerivatives`.
 
     Attributes:
         actuator_forces: ``tau`` (6,) at the point (N).
@@ -91,7 +91,7 @@ class AnalyticDerivatives:
 
 
 def _euler_rates(pitch: float, yaw: float) -> np.ndarray:
-    """``E`` (3, 3) with ``w = E d(rpy)/dt`` (as :func:`~hexapod_pin.pose.euler_rates_matrix`)."""
+    """``E`` (3, 3) with ``w = E d(rpy)/dt`` (as :func:`~hexapod_pin.core.pose.euler_rates_matrix`)."""
     cp, sp, cy, sy = math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
     return np.array(((cy * cp, -sy, 0.0), (sy * cp, cy, 0.0), (-sp, 0.0, 1.0)))
 

@@ -143,7 +143,7 @@ class _LazyTreeMultipliers:
 
 
 #: result of :meth:`HexapodDynamics.inverse_dynamics_derivatives` (one class with
-#: :class:`hexapod_pin.derivatives.AnalyticDerivatives`)
+#: :class:`hexapod_pin.hexapod.derivatives.AnalyticDerivatives`)
 InverseDynamicsDerivatives = AnalyticDerivatives
 
 
@@ -474,7 +474,7 @@ class HexapodDynamics:
         """Platform acceleration produced by actuator forces (constrained forward dynamics).
 
         The tree state ``(q, v)`` comes in closed form (compiled,
-        :mod:`~hexapod_pin.platform_kernels`). "nullspace" (default) is the
+        :mod:`~hexapod_pin.hexapod.kernels`). "nullspace" (default) is the
         independent-coordinate method: ``M_x twist_dot = J^T tau + wrench - h_x`` with
         ``M_x = G^T M G`` (``pin.crba``) and ``h_x = G^T rnea(q, v, a_0)``, one 6x6
         Cholesky solve, then ``a = G twist_dot + a_0`` (closure multipliers from the
@@ -693,16 +693,16 @@ class HexapodDynamics:
         The implicit-function theorem on Pinocchio's constrained forward-dynamics
         derivatives (``pin.computeConstraintDynamicsDerivatives`` on the tree with the
         loop closures) and the closed-form derivatives of the platform -> tree map; see
-        :mod:`hexapod_pin.derivatives`. Exact up to round-off (the tests compare with
+        :mod:`hexapod_pin.hexapod.derivatives`. Exact up to round-off (the tests compare with
         finite differences). ``d_pose`` is in pose coordinates, with the twist, twist_dot
-        and wrench held in world axes; :func:`hexapod_pin.derivatives.analytic_derivatives`
+        and wrench held in world axes; :func:`hexapod_pin.hexapod.derivatives.analytic_derivatives`
         also gives the derivative along a world-frame tangent ``(dp, dtheta)``.
 
         Args:
             pose, twist, twist_dot, wrench: as in :meth:`inverse_dynamics`.
 
         Returns:
-            :class:`~hexapod_pin.derivatives.AnalyticDerivatives` (``actuator_forces``,
+            :class:`~hexapod_pin.hexapod.derivatives.AnalyticDerivatives` (``actuator_forces``,
             ``d_pose``, ``d_world``, ``d_twist``, ``d_twist_dot``, ``d_wrench``).
 
         Raises:

@@ -401,7 +401,7 @@ def fast_dynamics(robot) -> FastDynamics:
 
 @dataclass(frozen=True)
 class FastTrajectory:
-    """Result of :func:`simulate_fast` (a smaller :class:`~hexapod_pin.simulate.Trajectory`).
+    """Result of :func:`simulate_fast` (a smaller :class:`~hexapod_pin.hexapod.simulation.Trajectory`).
 
     Attributes:
         times: (n,) (s).
@@ -477,9 +477,9 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
             ``reference``, its first sample).
         actuator_forces: constant (6,) forces (N) without a reference; default zero.
         wrench: constant ``(f, m)`` on the platform (world axes, about its origin), held
-            in world axes (:func:`~hexapod_pin.simulate.simulate` holds it in platform
+            in world axes (:func:`~hexapod_pin.hexapod.simulation.simulate` holds it in platform
             axes over a step: the two differ by O(dt)).
-        reference: enables the joint PID of :class:`~hexapod_pin.simulate.PIDController`
+        reference: enables the joint PID of :class:`~hexapod_pin.hexapod.simulation.PIDController`
             (``tau = kp e + ki sum(e dt) + kd (qdot_ref - qdot)``, ``e = q_ref - q``,
             ``q_ref`` = IK of the reference pose, ``qdot_ref = J`` reference twist, both
             computed in compiled code for each sample before the loop): a callable

@@ -410,7 +410,7 @@ class HexapodKinematics:
         """Platform pose for carriage positions ``actuators``: Newton's method from ``guess``.
 
         The 18 closure equations reduce exactly to three (see
-        :mod:`hexapod_pin.assembly_modes`): each platform point lies on the circle
+        :mod:`hexapod_pin.hexapod.assembly_modes`): each platform point lies on the circle
         where its two legs' spheres meet, at angle ``theta_k``; the unknowns are
         the three angles and the equations the three sides of the platform
         triangle. Newton's method on this 3x3 system converges quadratically (its
@@ -462,7 +462,7 @@ class HexapodKinematics:
         """Every real assembly of the closed chain for carriage positions ``actuators``.
 
         Method (details and the completeness argument in
-        :func:`hexapod_pin.assembly_modes.enumerate_assemblies`): with the
+        :func:`hexapod_pin.hexapod.assembly_modes.enumerate_assemblies`): with the
         carriages held, platform point k lies on a circle (the two leg spheres of
         rail k meet there) at an angle ``theta_k``; the three sides of the platform
         triangle give three equations bilinear in ``(cos, sin)`` of two angles.

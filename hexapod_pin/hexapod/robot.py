@@ -3,8 +3,8 @@
 ``Hexapod`` ties a :class:`HexapodGeometry` to the generic
 :class:`ClosedLoopModel` built from ``urdf/hexapod.urdf.xacro`` and
 ``urdf/hexapod.loops.yaml``, and adds the hexapod's closed forms (kinematics,
-dynamics) as methods. Conventions: see :mod:`hexapod_pin.geometry` and
-:mod:`hexapod_pin.pose`.
+dynamics) as methods. Conventions: see :mod:`hexapod_pin.hexapod.geometry` and
+:mod:`hexapod_pin.core.pose`.
 """
 
 from __future__ import annotations

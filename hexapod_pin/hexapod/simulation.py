@@ -248,7 +248,7 @@ class Trajectory:
 
 def check_run_arguments(duration, dt, on_limit, saturation, record_every) -> int:
     """Validate the run arguments shared by :func:`simulate` and
-    :func:`hexapod_pin.fast.simulate_fast`; returns ``record_every`` as an int.
+    :func:`hexapod_pin.hexapod.fast.simulate_fast`; returns ``record_every`` as an int.
 
     Raises:
         InputError: a non-positive or non-finite ``duration`` / ``dt``, an unknown

@@ -2,7 +2,7 @@
 
 Gepetto's *example-parallel-robots* project (BSD-3) describes a closed-loop robot
 as a URDF tree plus a YAML file beside it. This module reads that pair into a
-:class:`~hexapod_pin.closed_loop.ClosedLoopModel`, following the semantics of its
+:class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`, following the semantics of its
 ``loader_tools.completeRobotLoader``:
 
 ``closed_loop``

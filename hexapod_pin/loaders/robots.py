@@ -1,9 +1,9 @@
-"""Robots nobody here designed, as :class:`~hexapod_pin.closed_loop.ClosedLoopModel` s.
+"""Robots nobody here designed, as :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel` s.
 
 * **Solo-12** (example-robot-data's ``solo12.urdf``): a free-flyer base, 12 actuated
   joints, the four feet held on the ground by 3-D point closures to the world
   (contacts as holonomic closures). :func:`solo12`, :func:`solo12_stand`.
-* **Cassie** (example-robot-data's ``cassie_v2.sdf``, read by :mod:`hexapod_pin.sdf`):
+* **Cassie** (example-robot-data's ``cassie_v2.sdf``, read by :mod:`hexapod_pin.loaders.sdf`):
   the achilles-rod and plantar-rod loops closed at their ball joints (3-D point
   closures), the pelvis fixed (hanging) or on a free-flyer. :func:`cassie`.
 * :func:`actuation_report` for any closed-loop model: mobility from the constraint
@@ -157,7 +157,7 @@ def solo12(foot_positions=None) -> ClosedLoopModel:
 
     Each foot frame (``FL_FOOT``, ...) is held by a 3-D point closure named
     ``<foot>_contact`` (``frame1`` = the foot, ``frame2`` = the world point). With
-    the closure convention of :mod:`hexapod_pin.dynamics`, the closure multiplier of
+    the closure convention of :mod:`hexapod_pin.core.dynamics`, the closure multiplier of
     a foot is the force the ground exerts on that foot, world axes (N).
 
     Args:
@@ -257,7 +257,7 @@ def cassie(root: str = "fixed", sdf_name: str = "cassie_v2.sdf",
             or ``"free_flyer"`` (``root_joint``; ``pin.neutral`` puts the pelvis at
             the world origin).
         sdf_name: which SDF of ``cassie_description/robots``.
-        snap_angles: passed to :func:`hexapod_pin.sdf.load_sdf` (0: as written).
+        snap_angles: passed to :func:`hexapod_pin.loaders.sdf.load_sdf` (0: as written).
         via_urdf: build the tree from :func:`cassie_urdf`'s URDF with Pinocchio's URDF
             parser instead of directly (``root="fixed"`` only). Same mechanism;
             the link frames are then the URDF's (each link's frame is its joint's
@@ -289,7 +289,7 @@ def cassie(root: str = "fixed", sdf_name: str = "cassie_v2.sdf",
 def cassie_urdf(sdf_name: str = "cassie_v2.sdf",
                 snap_angles: float = CASSIE_SNAP_ANGLES) -> tuple[str, LoopsSpec]:
     """Cassie's tree as URDF text (fixed pelvis) and its loops, via
-    :func:`hexapod_pin.sdf.sdf_to_urdf`; mesh file names are resolved to the installed
+    :func:`hexapod_pin.loaders.sdf.sdf_to_urdf`; mesh file names are resolved to the installed
     STL files. Build the model to draw with ``cassie(via_urdf=True)``."""
     from .sdf import load_sdf, resolve_uri, sdf_to_urdf
 

@@ -24,7 +24,7 @@ such models use:
 A link graph with loops is cut into a spanning tree (joints followed from parent to
 child, non-ball joints preferred; ``cut=`` chooses by hand). Each joint left out of
 the tree becomes a closure of the generic loops format (see
-:mod:`hexapod_pin.description`): a ``ball`` joint a 3-D point closure (a ball joint
+:mod:`hexapod_pin.core.description`): a ``ball`` joint a 3-D point closure (a ball joint
 is exactly a point-on-point constraint), a ``fixed`` joint a weld. The tree is
 built in depth-first order (Pinocchio's algorithms silently give wrong numbers
 otherwise).
@@ -724,7 +724,7 @@ class _TreeBuilder:
 def closed_loop_from_sdf(path_or_sdf, actuated: Sequence[str] = (),
                          root_joint: pin.JointModel | None = None, root_link: str | None = None,
                          cut: Iterable[str] | None = None):
-    """Load an SDF into a :class:`hexapod_pin.closed_loop.ClosedLoopModel`.
+    """Load an SDF into a :class:`hexapod_pin.core.closed_loop.ClosedLoopModel`.
 
     Args:
         path_or_sdf: an SDF file path or a parsed :class:`SdfModel`.
@@ -815,7 +815,7 @@ def sdf_to_urdf(sdf: SdfModel, root_link: str | None = None,
 
 
 def loops_yaml(loops: LoopsSpec) -> str:
-    """The loops description (format of :mod:`hexapod_pin.description`) as YAML text."""
+    """The loops description (format of :mod:`hexapod_pin.core.description`) as YAML text."""
     lines = ["closures:"] if loops.closures else ["closures: []"]
     for c in loops.closures:
         off = []

@@ -166,7 +166,7 @@ def plot_simulation(trajectory, *, path=None, title: str = ""):
     """Carriage positions, actuator forces and closure residual of a simulation result.
 
     Reads ``times``, ``q``, ``actuator_forces`` and ``closure_residual`` from
-    ``trajectory`` (``hexapod_pin.simulate.Trajectory`` or any object with them;
+    ``trajectory`` (``hexapod_pin.hexapod.simulation.Trajectory`` or any object with them;
     missing ones are left out).
 
     Raises:

@@ -245,7 +245,7 @@ def plot_workspace_slice(robot_or_slice, *, path=None, title: str = "", **slice_
     return finish_figure(fig, path)
 
 
-# -- workspace analysis maps (hexapod_pin.workspace, hexapod_pin.sweeps) ----------------------
+# -- workspace analysis maps (hexapod_pin.hexapod.workspace, hexapod_pin.hexapod.sweeps) ----------------------
 def plot_force_capability_slice(robot, direction=None, *, z: float | None = None,
                                 orientation: Sequence[float] = (0, 0, 0),
                                 half_width: float = 0.12, resolution: int = 81, path=None,
@@ -297,7 +297,7 @@ def plot_design_sweep(table, x: str, y: str, value: str = "reachable_volume", *,
     """Heat map of one summary column of a design sweep over two swept parameters.
 
     Args:
-        table: the DataFrame of :func:`hexapod_pin.sweeps.design_sweep`.
+        table: the DataFrame of :func:`hexapod_pin.hexapod.sweeps.design_sweep`.
         x, y: two swept parameter columns (their values form the grid).
         value: the summary column coloured (invalid designs are left white).
 
