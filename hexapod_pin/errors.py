@@ -160,6 +160,23 @@ class SolverError(HexapodPinError, RuntimeError):
         super().__init__(f"{solver} failed with status {status}" + (f": {detail}" if detail else ""))
 
 
+class InconsistentMotionError(SolverError):
+    """Given motion coordinates cannot keep the closures: ``J_c x = rhs`` has no solution
+    with them (the given coordinates over-determine the closures: a singular
+    configuration, an unassembled one, or values that contradict each other).
+
+    Attributes:
+        what: which motion (e.g. "velocity from actuated").
+        residual: the least max-abs closure-row miss that can be reached.
+    """
+
+    def __init__(self, what: str, residual: float):
+        self.what = what
+        self.residual = float(residual)
+        super().__init__("closure motion", "inconsistent",
+                         f"{what} cannot keep the closures (rows missed by {residual:.3e})")
+
+
 def _short(value: Any, limit: int = 120) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."
@@ -225,3 +242,34 @@ class MissingDependencyError(HexapodPinError, ImportError):
         self.package = package
         self.extra = extra
         super().__init__(f"{package} is needed for this: pip install \"hexapod-pin[{extra}]\"")
+
+
+class InfeasiblePathError(HexapodPinError, ValueError):
+    """A path cannot be followed within the limits (:mod:`hexapod_pin.planning`).
+
+    Attributes:
+        index: the grid point (0-based) where it fails.
+        s: its path parameter (m).
+        pose: the platform pose there, shape (dim,).
+        reason: what fails (a pose the robot cannot hold statically within its force
+            limits, a stroke left, an unreachable pose, a singularity, an end speed that
+            cannot be reached, ...).
+        actuator: the actuator at fault, or None.
+        value, limit: the offending value and its bound (units of the limit), or None.
+    """
+
+    def __init__(self, index: int, s: float, pose, reason: str, actuator: int | None = None,
+                 value: float | None = None, limit: float | None = None):
+        self.index = int(index)
+        self.s = float(s)
+        self.pose = np.array(pose, dtype=float, copy=True)
+        self.reason = reason
+        self.actuator = None if actuator is None else int(actuator)
+        self.value = None if value is None else float(value)
+        self.limit = None if limit is None else float(limit)
+        detail = "" if actuator is None else f" (actuator {actuator}"
+        if actuator is not None:
+            detail += "" if value is None else f": {value:.6g} against the limit {limit:.6g}"
+            detail += ")"
+        super().__init__(f"path infeasible at grid point {self.index} (s = {self.s:.6g} m, "
+                         f"pose {np.array2string(self.pose, precision=4)}): {reason}{detail}")

@@ -30,8 +30,10 @@ import pinocchio as pin
 import scipy.linalg
 
 from .description import WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro, load_loops
-from ..errors import AssemblyError, DescriptionError, InputError, SolverError
+from ..errors import AssemblyError, DescriptionError, InputError
 from .checks import as_array
+from .closure_motion import complete, project
+from .frame_ik import FrameIKResult, frame_inverse_kinematics
 
 _EPS = np.finfo(float).eps
 #: default relative singular-value threshold of :meth:`ClosedLoopModel.rank`
@@ -96,6 +98,8 @@ class ClosedLoopModel:
         self.name = name
         #: the URDF text the tree was built from, when known (drawing uses its visuals)
         self.urdf_xml = urdf_xml
+        #: the tree as given (without the closure anchor frames), for derived models
+        self.tree_model = pin.Model(model)
         self.model = pin.Model(model)
         if not self.model.check(self.model.createData()):
             raise DescriptionError(name, "model fails Pinocchio's consistency check "
@@ -379,104 +383,78 @@ class ClosedLoopModel:
         raise AssemblyError(f"no convergence to {tol:g} in {max_iter} iterations", err,
                             max_iter, q)
 
-    # -- velocity / acceleration completion ------------------------------------------
-    def complete_velocity(self, q, known: Sequence[int], values) -> np.ndarray:
-        """Tree velocity keeping every closure, given some of its coordinates.
+    # -- motion on the closures (closure_motion.py) -------------------------------------
+    def complete_velocity(self, q, known: Sequence[int], values,
+                          method: str = "lstsq") -> np.ndarray:
+        """Tree velocity (nv,) keeping every closure, given some of its coordinates.
 
-        Solves ``J_c v = 0`` with ``v[known] = values`` for the other
-        coordinates (least squares / minimum norm when redundant).
+        Solves ``J_c v = 0`` with ``v[known] = values``; the other coordinates get the
+        least Euclidean norm where the closures leave them free (see
+        :func:`~hexapod_pin.core.closure_motion.complete`; ``method`` "lstsq" or "qp").
+
+        Raises:
+            InconsistentMotionError: no velocity keeps the closures with these values.
+        """
+        jac = self.constraint_jacobian(q)
+        return complete(jac, np.zeros(self.n_rows), known, values, method, "velocity")
+
+    def complete_acceleration(self, q, v, known: Sequence[int], values,
+                              method: str = "lstsq") -> np.ndarray:
+        """Tree acceleration (nv,) keeping every closure, given some of its coordinates.
+
+        Solves ``J_c a = -gamma(q, v)`` with ``a[known] = values`` (least norm elsewhere);
+        ``v`` must keep the closures.
+        """
+        gamma = self.constraint_drift(q, v)
+        jac = self.constraint_jacobian(q)
+        return complete(jac, -gamma, known, values, method, "acceleration")
+
+    def actuated_velocity_map(self, q, method: str = "lstsq") -> np.ndarray:
+        """Linear map ``G`` (nv, n_actuated) from actuated to tree velocities: ``v = G qdot_act``.
+
+        Column j is the tree velocity keeping every closure (``J_c v = 0``) when actuated
+        joint j moves at unit speed and the others are held: the minimum-norm passive
+        velocity ``min |v_p|`` s.t. ``J_c[:, p] v_p = -J_c[:, j]``. Unique where the
+        actuators determine the passive motion (the hexapod); redundant closure rows are
+        harmless; passive motion the closures leave free (a rod spinning about its axis)
+        gets the least norm. Free-flyer velocities are Pinocchio's (body frame).
 
         Args:
             q: an assembled configuration (nq,).
-            known: indices into ``v`` whose values are given.
-            values: their values (len(known),).
-
-        Returns:
-            v (nv,).
-        """
-        jac = self.constraint_jacobian(q)
-        return _complete(jac, np.zeros(self.n_rows), known, values, self.model.nv)
-
-    def complete_acceleration(self, q, v, known: Sequence[int], values) -> np.ndarray:
-        """Tree acceleration keeping every closure, given some of its coordinates.
-
-        Solves ``J_c a = -gamma(q, v)`` with ``a[known] = values``.
-        """
-        gamma = self.constraint_drift(q, v)
-        jac = self.constraint_jacobian(q)
-        return _complete(jac, -gamma, known, values, self.model.nv)
-
-    # -- generic workspace kinematics (ProxSuite) -------------------------------------
-    def actuated_velocity_map(self, q, tol: float = 1e-13) -> np.ndarray:
-        """Linear map ``G`` (nv, n_actuated) from actuated to tree velocities: ``v = G qdot_act``.
-
-        Column j is the tree velocity that keeps every closure (``J_c v = 0``)
-        when actuated joint j moves at unit speed and the other actuated joints
-        are held, posed as the equality-constrained least-squares problem
-
-            minimise ``1/2 |v_p|^2``  subject to  ``J_c[:, p] v_p = -J_c[:, a] qdot_a``
-
-        over the passive coordinates ``p`` (actuated ones ``a`` fixed), solved with
-        ProxSuite's dense proximal QP. For a mechanism whose passive motion is
-        determined by its actuators (the hexapod) the objective is irrelevant and
-        the solution is the unique one; a redundant (rank-deficient) ``J_c`` is
-        harmless, and passive motion left free by the closures gets the least
-        norm. Free-flyer velocities are Pinocchio's (body frame).
-
-        Args:
-            q: an assembled configuration (nq,); the closures are assumed to hold.
-            tol: ProxSuite's absolute tolerance (primal and dual residuals).
-
-        Returns:
-            G, shape (nv, n_actuated).
+            method: "lstsq" (SVD least squares) or "qp" (ProxSuite on the independent
+                rows); they agree to 1e-10.
 
         Raises:
-            SolverError: ProxSuite did not report a solution, or the solution
-                misses the constraints by more than ``1e3 tol`` (inconsistent
-                closures: ``q`` not assembled or a singular configuration).
+            InconsistentMotionError: an actuated velocity that no closure-keeping motion
+                has (a singular configuration, or ``q`` not assembled).
         """
         jac = self.constraint_jacobian(q)
-        rhs = -jac[:, self.actuated_v]                        # one column per actuator
-        sol = self._equality_qp(jac[:, self.passive_v], rhs, tol)
-        out = np.zeros((self.model.nv, self.n_actuated))
-        out[self.actuated_v, np.arange(self.n_actuated)] = 1.0
-        out[self.passive_v] = sol
-        return out
+        return complete(jac, np.zeros((self.n_rows, self.n_actuated)), self.actuated_v,
+                        np.eye(self.n_actuated), method, "velocity map")
 
-    def velocity_from_actuated(self, q, qdot_act, tol: float = 1e-13) -> np.ndarray:
+    def velocity_from_actuated(self, q, qdot_act, method: str = "lstsq") -> np.ndarray:
         """Tree velocity (nv,) keeping every closure, given the actuated velocities.
 
-        Same problem as :meth:`actuated_velocity_map` with the right-hand side
-        ``qdot_act`` (n_actuated,) (m/s or rad/s per actuated joint), solved once.
+        ``qdot_act`` (n_actuated,) in ``actuated_joints`` order (m/s or rad/s); the
+        problem and routes of :meth:`actuated_velocity_map`, solved once.
         """
         qdot_act = as_array(qdot_act, (self.n_actuated,), "qdot_act")
-        jac = self.constraint_jacobian(q)
-        rhs = -jac[:, self.actuated_v] @ qdot_act
-        out = np.zeros(self.model.nv)
-        out[self.actuated_v] = qdot_act
-        out[self.passive_v] = self._equality_qp(jac[:, self.passive_v], rhs[:, None], tol)[:, 0]
-        return out
+        return self.complete_velocity(q, self.actuated_v, qdot_act, method)
 
-    def acceleration_from_actuated(self, q, v, qddot_act, tol: float = 1e-13) -> np.ndarray:
+    def acceleration_from_actuated(self, q, v, qddot_act, method: str = "lstsq") -> np.ndarray:
         """Tree acceleration (nv,) keeping every closure, given the actuated accelerations.
 
-        Solves ``J_c a = -gamma(q, v)`` (the drift of :meth:`constraint_drift`) with
-        ``a[actuated] = qddot_act`` as the ProxSuite least-squares problem of
-        :meth:`actuated_velocity_map`. ``v`` must itself keep the closures.
+        Solves ``J_c a = -gamma(q, v)`` (drift of :meth:`constraint_drift`) with
+        ``a[actuated] = qddot_act`` (least norm of the passive part where free). ``v``
+        must itself keep the closures.
         """
         qddot_act = as_array(qddot_act, (self.n_actuated,), "qddot_act")
-        gamma = self.constraint_drift(q, v)
-        jac = self.constraint_jacobian(q)
-        rhs = -gamma - jac[:, self.actuated_v] @ qddot_act
-        out = np.zeros(self.model.nv)
-        out[self.actuated_v] = qddot_act
-        out[self.passive_v] = self._equality_qp(jac[:, self.passive_v], rhs[:, None], tol)[:, 0]
-        return out
+        return self.complete_acceleration(q, v, self.actuated_v, qddot_act, method)
 
     def frame_jacobian_from_actuated(self, q, frame: str | int,
                                      reference: pin.ReferenceFrame =
                                      pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
-                                     tol: float = 1e-13) -> np.ndarray:
+                                     method: str = "lstsq") -> np.ndarray:
         """Workspace Jacobian of a frame with respect to the actuated velocities.
 
         ``K = J_frame(q) G(q)`` (6, n_actuated): the spatial velocity of ``frame``
@@ -490,68 +468,90 @@ class ClosedLoopModel:
             q: an assembled configuration (nq,).
             frame: frame name or id.
             reference: ``pin.ReferenceFrame`` of the result.
-            tol: ProxSuite tolerance, see :meth:`actuated_velocity_map`.
+            method: see :meth:`actuated_velocity_map`.
 
         Raises:
             InputError: unknown frame.
-            SolverError: see :meth:`actuated_velocity_map`.
+            InconsistentMotionError: see :meth:`actuated_velocity_map`.
         """
-        fid = self._lookup_frame(frame)
-        gmap = self.actuated_velocity_map(q, tol)
-        pin.computeJointJacobians(self.model, self.data, self.check_q(q))
-        pin.updateFramePlacements(self.model, self.data)
+        fid = self.frame_id(frame)
+        gmap = self.actuated_velocity_map(q, method)
+        # constraint_jacobian left the joint Jacobians of q in self.data
         return pin.getFrameJacobian(self.model, self.data, fid, reference) @ gmap
 
-    def _lookup_frame(self, frame: str | int) -> int:
+    def acceleration_bias_from_actuated(self, q, v, frame: str | int,
+                                        method: str = "lstsq") -> np.ndarray:
+        """Frame acceleration at zero actuated acceleration (6,): ``dK/dt qdot_act``.
+
+        The classical acceleration of ``frame`` (origin acceleration; angular
+        acceleration, world axes) when the tree moves with ``v`` (closure-consistent)
+        and the actuated accelerations are zero, so that the frame acceleration is
+        ``K(q) qddot_act + bias`` with ``K`` of :meth:`frame_jacobian_from_actuated`.
+        """
+        fid = self.frame_id(frame)
+        a0 = self.acceleration_from_actuated(q, v, np.zeros(self.n_actuated), method)
+        pin.forwardKinematics(self.model, self.data, self.check_q(q), self.check_v(v), a0)
+        return pin.getFrameClassicalAcceleration(
+            self.model, self.data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED).vector
+
+    def project_velocity(self, q, v, metric: str = "mass", method: str = "lstsq") -> np.ndarray:
+        """The closure-consistent velocity (``J_c v' = 0``) closest to ``v`` (nv,).
+
+        Args:
+            q: an assembled configuration (nq,).
+            v: any tree velocity (nv,).
+            metric: "mass" (kinetic-energy metric ``(v' - v)^T M(q) (v' - v)``, the
+                physical one: the velocity jump of a perfectly plastic impulsive
+                closure) or "euclidean" (``|v' - v|``, needed when ``M`` is singular,
+                e.g. massless links).
+            method: "lstsq" or "qp" (ProxSuite), see :mod:`~hexapod_pin.core.closure_motion`.
+
+        Raises:
+            SingularityError: metric "mass" with a singular mass matrix.
+        """
+        q, v = self.check_q(q), self.check_v(v)
+        weight = self._metric(q, metric)
+        return project(self.constraint_jacobian(q), np.zeros(self.n_rows), v, weight, method,
+                       "projected velocity")
+
+    def project_acceleration(self, q, v, a, metric: str = "mass",
+                             method: str = "lstsq") -> np.ndarray:
+        """The closure-consistent acceleration (``J_c a' = -gamma(q, v)``) closest to ``a``.
+
+        ``v`` must keep the closures (project it first). With the mass metric this is
+        Gauss's principle: the constrained acceleration is the projection of the
+        unconstrained one ``M^-1 (tau - h)``. Arguments as :meth:`project_velocity`.
+        """
+        q, v, a = self.check_q(q), self.check_v(v), self.check_v(a, "a")
+        weight = self._metric(q, metric)
+        gamma = self.constraint_drift(q, v)
+        return project(self.constraint_jacobian(q), -gamma, a, weight, method,
+                       "projected acceleration")
+
+    def _metric(self, q: np.ndarray, metric: str) -> np.ndarray | None:
+        if metric == "euclidean":
+            return None
+        if metric == "mass":
+            return pin.crba(self.model, self.data, q)
+        raise InputError("metric", metric, "expected 'mass' or 'euclidean'")
+
+    # -- frame-target inverse kinematics (frame_ik.py) ------------------------------------
+    def frame_inverse_kinematics(self, frame, target, q0=None, *, position_only=False,
+                                 fixed=None, weights=None, **options) -> FrameIKResult:
+        """Place one or several frames at targets with every closure held.
+
+        See :func:`~hexapod_pin.core.frame_ik.frame_inverse_kinematics` (this method
+        calls it with ``self``): arguments, options (``method``, ``tol``,
+        ``max_iter``, ``limits``), result and errors.
+        """
+        return frame_inverse_kinematics(self, frame, target, q0, position_only=position_only,
+                                        fixed=fixed, weights=weights, **options)
+
+    def frame_id(self, frame: str | int) -> int:
+        """Pinocchio id of a frame given by name or id; raises InputError if unknown."""
         if isinstance(frame, (int, np.integer)) and not isinstance(frame, bool):
             if 0 <= int(frame) < self.model.nframes:
                 return int(frame)
         elif isinstance(frame, str) and self.model.existFrame(frame):
             return self.model.getFrameId(frame)
         raise InputError("frame", frame, f"no such frame in {self.name}")
-
-    @staticmethod
-    def _equality_qp(a_mat: np.ndarray, rhs: np.ndarray, tol: float) -> np.ndarray:
-        """Solve min 1/2 |x|^2 s.t. ``a_mat x = rhs[:, j]`` for each column j (ProxSuite)."""
-        import proxsuite
-
-        n, m = a_mat.shape[1], a_mat.shape[0]
-        qp = proxsuite.proxqp.dense.QP(n, m, 0)
-        qp.settings.eps_abs = tol
-        qp.settings.eps_rel = 0.0
-        qp.settings.verbose = False
-        a_mat = np.ascontiguousarray(a_mat)
-        out = np.empty((n, rhs.shape[1]))
-        for col in range(rhs.shape[1]):
-            b = np.ascontiguousarray(rhs[:, col])
-            if col == 0:
-                qp.init(np.eye(n), np.zeros(n), a_mat, b, None, None, None)
-            else:
-                qp.update(b=b)
-            qp.solve()
-            status = qp.results.info.status
-            if status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
-                raise SolverError("proxsuite.proxqp.dense", str(status),
-                                  f"velocity completion, column {col}")
-            x = np.array(qp.results.x)
-            miss = float(np.max(np.abs(a_mat @ x - b), initial=0.0))
-            if not miss <= 1e3 * tol * max(1.0, float(np.max(np.abs(b), initial=0.0))):
-                raise SolverError("proxsuite.proxqp.dense", "inconsistent",
-                                  f"constraints missed by {miss:.3e} (q not assembled, or "
-                                  "singular)")
-            out[:, col] = x
-        return out
-
-
-def _complete(jac: np.ndarray, rhs: np.ndarray, known, values, nv: int) -> np.ndarray:
-    known = np.asarray(known, dtype=int)
-    values = np.asarray(values, dtype=float)
-    if values.shape != known.shape:
-        raise InputError("values", values, f"expected shape {known.shape}")
-    free = np.setdiff1d(np.arange(nv), known)
-    out = np.zeros(nv)
-    out[known] = values
-    sol, *_ = np.linalg.lstsq(jac[:, free], rhs - jac[:, known] @ values, rcond=None)
-    out[free] = sol
-    return out
-

@@ -1,0 +1,217 @@
+"""Motion on the closures: linear algebra of ``J_c x = rhs`` for any closed-loop model.
+
+Pure array functions (no model): :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`
+builds ``J_c`` (and the drift) and calls them. Two problems, each with two routes that
+agree to 1e-10 (tested against an SVD null-space computation written in the tests):
+
+* **completion** (:func:`complete`): given the values of some coordinates ``x[known]``,
+  the other coordinates with ``J_c x = rhs`` and, where the closures leave them free
+  (a rod spinning about its own axis between two ball joints), the least Euclidean norm
+  ``|x[free]|``. Redundant (rank-deficient) rows are harmless. Given values that no
+  motion can match raise :class:`~hexapod_pin.errors.InconsistentMotionError`.
+* **projection** (:func:`project`): the motion ``x`` with ``J_c x = rhs`` closest to a
+  given one in the metric ``|x - x0|_W`` (``W`` symmetric positive definite; the mass
+  matrix makes it the kinetic-energy metric, the physical one: Gauss's principle).
+
+Routes: ``"lstsq"`` (the direct one: LAPACK's SVD least squares, ``numpy.linalg.lstsq``;
+or a Cholesky factor of ``W`` then least squares) and ``"qp"`` (ProxSuite's dense
+proximal QP on the independent rows of ``J_c``, chosen by a column-pivoted QR, because
+redundant equality rows make the proximal iterations crawl). Every answer is checked
+(finite, constraint residual relative to the data) before it is returned.
+
+Units follow the caller: velocities (m/s, rad/s) or accelerations (m/s^2, rad/s^2) of
+the tree coordinates, ``rhs`` in the closure-row units.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import proxsuite
+import scipy.linalg
+
+from ..errors import InconsistentMotionError, InputError, SingularityError, SolverError
+
+METHODS = ("lstsq", "qp")
+#: a completion / projection is accepted when ``|J_c x - rhs|`` is below this, relative to
+#: ``max(1, |rhs|, |J_c| |x|)`` (max-abs norms)
+CONSISTENCY_RTOL = 1e-9
+#: relative singular-value threshold for the independent rows (as ClosedLoopModel.rank)
+ROW_RTOL = 1e-10
+#: ProxSuite's absolute accuracy on the (scaled) problems
+QP_EPS = 1e-13
+
+
+def check_method(method: str) -> str:
+    """``method`` if it is one of :data:`METHODS`; raises InputError otherwise."""
+    if method not in METHODS:
+        raise InputError("method", method, f"expected one of {METHODS}")
+    return method
+
+
+def independent_rows(jac: np.ndarray, rtol: float = ROW_RTOL) -> np.ndarray:
+    """Indices (sorted) of a maximal set of linearly independent rows of ``jac``.
+
+    Chosen by a column-pivoted QR of ``jac^T``; a row counts when its pivot exceeds
+    ``rtol`` times the largest one.
+    """
+    if jac.shape[0] == 0 or jac.shape[1] == 0:
+        return np.zeros(0, dtype=int)
+    _, r_mat, piv = scipy.linalg.qr(jac.T, pivoting=True, mode="economic")
+    diag = np.abs(np.diag(r_mat))
+    if diag.size == 0 or diag[0] == 0.0:
+        return np.zeros(0, dtype=int)
+    rank = int(np.sum(diag > rtol * diag[0]))
+    return np.sort(piv[:rank])
+
+
+def complete(jac: np.ndarray, rhs: np.ndarray, known, values, method: str = "lstsq",
+             what: str = "motion") -> np.ndarray:
+    """Coordinates ``x`` with ``J_c x = rhs`` and ``x[known] = values``, least norm elsewhere.
+
+    Args:
+        jac: ``J_c``, shape (n_rows, n).
+        rhs: right-hand side, shape (n_rows,) or (n_rows, k) for k problems at once.
+        known: indices into ``x`` whose values are given (int array-like).
+        values: their values, shape (len(known),) or (len(known), k).
+        method: "lstsq" or "qp" (see the module docstring).
+        what: a label for error messages.
+
+    Returns:
+        x, shape (n,) or (n, k).
+
+    Raises:
+        InputError: shapes that do not match, NaN / inf, unknown method.
+        InconsistentMotionError: no ``x`` keeps the closures with these values (the given
+            coordinates over-determine the closures at this configuration: a singular
+            configuration, or ``q`` not assembled).
+    """
+    check_method(method)
+    n = jac.shape[1]
+    known = np.asarray(known, dtype=int).reshape(-1)
+    if known.size and (known.min() < 0 or known.max() >= n or np.unique(known).size < known.size):
+        raise InputError("known", known, f"expected distinct indices in [0, {n})")
+    rhs = np.asarray(rhs, dtype=float)
+    values = np.asarray(values, dtype=float)
+    single = rhs.ndim == 1
+    rhs2 = rhs[:, None] if single else rhs
+    values2 = values.reshape(known.size, -1) if values.ndim <= 1 else values
+    if values2.shape != (known.size, rhs2.shape[1]) or (values.ndim <= 1 and values.size != known.size):
+        raise InputError("values", values, f"expected {known.size} values per problem")
+    if not (np.all(np.isfinite(values2)) and np.all(np.isfinite(rhs2))):
+        raise InputError("values", values, "NaN or inf")
+    free = np.setdiff1d(np.arange(n), known)
+    b = rhs2 - jac[:, known] @ values2
+    a_free = jac[:, free]
+    if method == "lstsq":
+        sol = np.linalg.lstsq(a_free, b, rcond=None)[0] if free.size else np.zeros((0, b.shape[1]))
+    else:
+        sol = _min_norm_qp(a_free, b)
+    out = np.empty((n, b.shape[1]))
+    out[known] = values2
+    out[free] = sol
+    _verify(jac, out, rhs2, what)
+    return out[:, 0] if single else out
+
+
+def project(jac: np.ndarray, rhs: np.ndarray, x0: np.ndarray, metric: np.ndarray | None = None,
+            method: str = "lstsq", what: str = "motion") -> np.ndarray:
+    """The ``x`` closest to ``x0`` with ``J_c x = rhs``: minimise ``(x - x0)^T W (x - x0)``.
+
+    Args:
+        jac: ``J_c``, shape (n_rows, n).
+        rhs: right-hand side (n_rows,).
+        x0: the motion to project (n,).
+        metric: ``W`` (n, n), symmetric positive definite; None: the identity.
+        method: "lstsq" (Cholesky of ``W``, then the least-norm correction by SVD least
+            squares) or "qp" (ProxSuite on the independent rows).
+        what: a label for error messages.
+
+    Returns:
+        x (n,).
+
+    Raises:
+        SingularityError: ``W`` is not positive definite (e.g. the mass matrix of a tree
+            with massless links): use the Euclidean metric.
+        InconsistentMotionError: the rows ``J_c x = rhs`` have no solution.
+    """
+    check_method(method)
+    n = jac.shape[1]
+    if not (np.all(np.isfinite(x0)) and np.all(np.isfinite(rhs))):
+        raise InputError(what, x0, "NaN or inf")
+    miss = rhs - jac @ x0
+    if metric is None:
+        chol = None
+    else:
+        try:
+            chol = np.linalg.cholesky(0.5 * (metric + metric.T))
+        except np.linalg.LinAlgError:
+            sv = np.linalg.eigvalsh(0.5 * (metric + metric.T))
+            raise SingularityError("projection metric (positive definite needed)",
+                                   float(sv[0])) from None
+    if method == "lstsq":
+        if chol is None:
+            step = np.linalg.lstsq(jac, miss, rcond=None)[0]
+        else:
+            # W = L L^T; with y = L^T d: min |y| s.t. J L^-T y = miss
+            a_mat = scipy.linalg.solve_triangular(chol, jac.T, lower=True).T
+            y = np.linalg.lstsq(a_mat, miss, rcond=None)[0]
+            step = scipy.linalg.solve_triangular(chol.T, y, lower=False)
+    else:
+        hess = np.eye(n) if metric is None else 0.5 * (metric + metric.T)
+        step = _qp(hess, np.zeros(n), jac, miss[:, None], "projection")[:, 0]
+    out = x0 + step
+    _verify(jac, out[:, None], rhs[:, None], what)
+    return out
+
+
+# ------------------------------------------------------------------------------ helpers
+def _verify(jac: np.ndarray, x: np.ndarray, rhs: np.ndarray, what: str) -> None:
+    if not np.all(np.isfinite(x)):
+        raise SolverError("closure motion", "non-finite", f"{what} has NaN or inf")
+    miss = np.max(np.abs(jac @ x - rhs), axis=0, initial=0.0)
+    scale = np.maximum(1.0, np.maximum(np.max(np.abs(rhs), axis=0, initial=0.0),
+                                       np.max(np.abs(jac), initial=0.0)
+                                       * np.max(np.abs(x), axis=0, initial=0.0)))
+    worst = int(np.argmax(miss / scale))
+    if not miss[worst] <= CONSISTENCY_RTOL * scale[worst]:
+        raise InconsistentMotionError(what, float(miss[worst]))
+
+
+def _min_norm_qp(a_mat: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    n = a_mat.shape[1]
+    if n == 0:
+        return np.zeros((0, rhs.shape[1]))
+    return _qp(np.eye(n), np.zeros(n), a_mat, rhs, "minimum-norm completion")
+
+
+def _qp(hess: np.ndarray, grad: np.ndarray, a_mat: np.ndarray, rhs: np.ndarray,
+        what: str) -> np.ndarray:
+    """``min 1/2 x^T H x + g^T x`` s.t. ``A x = rhs[:, j]``, for each column j (ProxSuite).
+
+    The redundant rows of ``A`` are dropped first (a consistent right-hand side keeps the
+    same solution set); each row is scaled to unit norm. Success is judged from the
+    verified residual of the caller, not from ProxSuite's status alone.
+    """
+    rows = independent_rows(a_mat)
+    a_ind = a_mat[rows]
+    norms = np.linalg.norm(a_ind, axis=1)
+    a_ind = np.ascontiguousarray(a_ind / norms[:, None])
+    n = a_mat.shape[1]
+    qp = proxsuite.proxqp.dense.QP(n, rows.size, 0)
+    qp.settings.eps_abs = QP_EPS
+    qp.settings.eps_rel = 0.0
+    qp.settings.verbose = False
+    out = np.empty((n, rhs.shape[1]))
+    for col in range(rhs.shape[1]):
+        b = np.ascontiguousarray(rhs[rows, col] / norms)
+        if col == 0:
+            qp.init(np.ascontiguousarray(hess), np.ascontiguousarray(grad), a_ind, b,
+                    None, None, None)
+        else:
+            qp.update(b=b)
+        qp.solve()
+        status = qp.results.info.status
+        if status != proxsuite.proxqp.PROXQP_SOLVED:
+            raise SolverError("proxsuite.proxqp.dense", str(status), f"{what}, column {col}")
+        out[:, col] = qp.results.x
+    return out
