@@ -1,0 +1,20 @@
+"""Time-optimal motion of parallel robots within their closed-loop limits.
+
+:func:`time_optimal` retimes a path through platform waypoints as fast as the actuator
+forces, velocities and accelerations, the platform speeds and the strokes allow (TOPP-RA
+on the robot's own closed-loop inverse dynamics); :func:`check_feasibility` measures the
+margins of a timed motion against the same limits. Both take any robot with the shared
+API (:mod:`hexapod_pin.core.robot_api`).
+
+Modules: :mod:`.path` (C2 paths, rotations on SO(3)), :mod:`.limits` (limits, payload,
+their coefficients along a path), :mod:`.solver` (compiled TOPP-RA),
+:mod:`.trajectory` (:func:`time_optimal`, :class:`TimedTrajectory`), :mod:`.feasibility`
+(:func:`check_feasibility`, :class:`FeasibilityReport`).
+"""
+
+from .limits import Limits, Payload
+from .path import GeometricPath, PathSamples
+from .trajectory import PhaseProfile, TimedTrajectory, time_optimal
+
+__all__ = ["GeometricPath", "Limits", "PathSamples", "Payload", "PhaseProfile",
+           "TimedTrajectory", "time_optimal"]

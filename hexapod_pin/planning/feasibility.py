@@ -1,0 +1,232 @@
+"""Margins of a timed motion against the limits: :func:`check_feasibility`.
+
+For N samples ``(t, pose, twist, twist_dot)`` the robot's batch routes give the actuator
+forces (inverse dynamics, payload included), velocities (``J twist``) and accelerations
+(forward dynamics driven by those forces), the platform's linear and angular speeds, and
+whether each pose is within its strokes. A margin is ``bound - |value|`` (units of the
+bound; negative where violated).
+
+Uniform slow-down: played ``k`` times slower (``t -> k t``), velocities scale by ``1/k``
+and accelerations by ``1/k^2``; so do the velocity-product terms of the dynamics, so the
+forces are ``tau(k) = c + (tau - c) / k^2`` exactly, ``c`` the static forces (weight,
+constant wrenches). The smallest ``k`` meeting every limit is then found in closed form
+(``k < 1``: the motion could be played faster; ``inf``: a pose cannot be held statically).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.pose import euler_rates_matrix
+from ..errors import InputError
+from ..motion import Motion, read_motion
+from .limits import Limits, Payload
+from .trajectory import TimedTrajectory
+
+
+@dataclass(frozen=True)
+class Violation:
+    """The worst sample of a motion against one limit.
+
+    Attributes:
+        limit: "actuator_force", "actuator_velocity", "actuator_acceleration",
+            "linear_speed", "angular_speed" or "stroke".
+        index: the sample (0-based); time: its time (s).
+        component: the actuator (or 0 for the platform speeds).
+        value: the absolute value there; bound: the limit; excess: ``value - bound``
+            (> 0: violated; for "stroke" 1.0 when the stroke is left).
+    """
+
+    limit: str
+    index: int
+    time: float
+    component: int
+    value: float
+    bound: float
+    excess: float
+
+
+@dataclass(frozen=True)
+class FeasibilityReport:
+    """Margins of a timed motion against its limits.
+
+    Attributes:
+        feasible: every limit holds at every sample (to 1e-9 relative).
+        t: (N,) the sample times (s).
+        values: limit name -> (N, c) absolute values (N, m/s, m/s^2, m/s, rad/s).
+        bounds: limit name -> (c,) bounds (``inf``: none).
+        margins: limit name -> (N, c) ``bound - value`` (negative where violated).
+        within_stroke: (N,) bool.
+        worst: the :class:`Violation` with the largest relative excess
+            (``value / bound``), violated or not; None when no limit is finite.
+        slow_down: the smallest uniform slow-down factor ``k`` (``t -> k t``) that meets
+            every limit (``< 1``: could be played faster; ``inf``: a pose cannot be held
+            statically, or a stroke is left).
+    """
+
+    feasible: bool
+    t: np.ndarray
+    values: Mapping[str, np.ndarray]
+    bounds: Mapping[str, np.ndarray]
+    margins: Mapping[str, np.ndarray]
+    within_stroke: np.ndarray
+    worst: Violation | None
+    slow_down: float
+
+
+def motion_arrays(robot, motion) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                          np.ndarray | None]:
+    """``(t, poses, twists, twist_dots, wrenches)`` of a motion given as a
+    :class:`TimedTrajectory`, a :class:`~hexapod_pin.motion.Motion`, a motion file
+    (:func:`~hexapod_pin.motion.read_motion`) or a mapping with ``t``, ``poses`` and
+    optionally ``twists``, ``twist_dots``, ``wrenches``. Missing rates come from the poses
+    by second-order finite differences (angles unwrapped; in space ``w = E(rpy) d(rpy)/dt``).
+
+    Raises:
+        InputError: missing keys, wrong shapes, fewer than 3 samples without rates.
+        DescriptionError: a malformed motion file.
+    """
+    if isinstance(motion, (str, os.PathLike)):
+        motion = read_motion(motion)
+    if isinstance(motion, (TimedTrajectory, Motion)):
+        fields = {"t": motion.t, "poses": motion.poses, "twists": motion.twists,
+                  "twist_dots": motion.twist_dots,
+                  "wrenches": getattr(motion, "wrenches", None)}
+    elif isinstance(motion, Mapping):
+        fields = {key: motion.get(key) for key in ("t", "poses", "twists", "twist_dots",
+                                                   "wrenches")}
+    else:
+        raise InputError("motion", motion, "expected a TimedTrajectory, Motion, motion file "
+                                           "or mapping")
+    if fields["t"] is None or fields["poses"] is None:
+        raise InputError("motion", motion, "needs t and poses")
+    t = np.asarray(fields["t"], dtype=float)
+    dim = robot.pose_dim
+    arrays = {}
+    for key in ("poses", "twists", "twist_dots", "wrenches"):
+        if fields[key] is not None:
+            arr = np.asarray(fields[key], dtype=float)
+            if arr.shape != (len(t), dim) or not np.all(np.isfinite(arr)):
+                raise InputError(key, fields[key], f"expected ({len(t)}, {dim}) finite values")
+            arrays[key] = arr
+    if t.ndim != 1 or len(t) < 1 or np.any(np.diff(t) <= 0) or not np.all(np.isfinite(t)):
+        raise InputError("t", t, "expected strictly increasing finite times")
+    poses = arrays["poses"]
+    twists, twist_dots = arrays.get("twists"), arrays.get("twist_dots")
+    if (twists is None or twist_dots is None) and len(t) < 3:
+        raise InputError("motion", motion, "at least 3 samples are needed to differentiate")
+    if twists is None:
+        lin = 3 if dim == 6 else 2
+        angles = np.unwrap(poses[:, lin:], axis=0)
+        rates = np.gradient(angles, t, axis=0, edge_order=2)
+        if dim == 6:
+            rates = np.einsum("nij,nj->ni", euler_rates_matrix(angles), rates)
+        twists = np.hstack([np.gradient(poses[:, :lin], t, axis=0, edge_order=2), rates])
+    if twist_dots is None:
+        twist_dots = np.gradient(twists, t, axis=0, edge_order=2)
+    return t, poses, twists, twist_dots, arrays.get("wrenches")
+
+
+def check_feasibility(robot, motion, *, limits: Limits | None = None,
+                      payload: Payload | None = None) -> FeasibilityReport:
+    """Margins of a timed motion against the limits (see the module docstring).
+
+    Args:
+        robot: a robot with the shared API.
+        motion: see :func:`motion_arrays`; a motion's own ``wrenches`` act on the
+            platform on top of the payload (constant in the slow-down).
+        limits: :class:`Limits` (default: the robot's force bound); payload: :class:`Payload`.
+
+    Returns:
+        :class:`FeasibilityReport`.
+
+    Raises:
+        InputError, DescriptionError: a malformed motion; the robot's batch errors
+        (``BatchUnreachablePoseError``, ``BatchSingularityError``) for a pose out of reach.
+    """
+    limits = Limits() if limits is None else limits
+    payload = Payload() if payload is None else payload
+    payload.check(robot.pose_dim)
+    t, poses, twists, twist_dots, extra = motion_arrays(robot, motion)
+    n, dim = len(t), robot.pose_dim
+    lin = 3 if dim == 6 else 2
+    bounds = limits.per_actuator(robot)
+
+    def wrench(tdots):
+        w = payload.wrenches(robot, tdots)
+        if extra is None:
+            return w
+        return extra if w is None else w + extra
+
+    zero = np.zeros_like(twists)
+    forces = robot.inverse_dynamics_batch(poses, twists, twist_dots, wrench(twist_dots),
+                                          bounded=False).actuator_forces
+    static = robot.inverse_dynamics_batch(poses, zero, zero, wrench(zero),
+                                          bounded=False).actuator_forces
+    jac = robot.jacobian_batch(poses)
+    velocities = np.einsum("nij,nj->ni", jac.jacobian, twists)
+    values = {"actuator_force": np.abs(forces), "actuator_velocity": np.abs(velocities),
+              "linear_speed": np.linalg.norm(twists[:, :lin], axis=1)[:, None],
+              "angular_speed": np.linalg.norm(twists[:, lin:], axis=1)[:, None]}
+    limit_of = {"actuator_force": bounds["force"], "actuator_velocity": bounds["velocity"],
+                "linear_speed": np.array([limits.linear_speed], dtype=float),
+                "angular_speed": np.array([limits.angular_speed], dtype=float)}
+    if np.any(np.isfinite(bounds["acceleration"])):
+        acc = robot.forward_dynamics_batch(poses, twists, forces,
+                                           wrench(twist_dots)).actuator_accelerations
+        values["actuator_acceleration"] = np.abs(acc)
+        limit_of["actuator_acceleration"] = bounds["acceleration"]
+    within = robot.inverse_kinematics_batch(poses).within_stroke if limits.strokes \
+        else np.ones(n, dtype=bool)
+    margins = {key: limit_of[key] - values[key] for key in values}
+    feasible = bool(np.all(within)) and all(
+        np.all(values[key] <= limit_of[key] * (1 + 1e-9)) for key in values)
+    return FeasibilityReport(feasible, t, values, limit_of, margins, within,
+                             _worst(t, values, limit_of, within),
+                             _slow_down(forces, static, values, limit_of, within))
+
+
+def _worst(t, values, bounds, within) -> Violation | None:
+    if not np.all(within):
+        k = int(np.argmin(within))
+        return Violation("stroke", k, float(t[k]), 0, 1.0, 0.0, 1.0)
+    best, best_ratio = None, -np.inf
+    for key, vals in values.items():
+        finite = np.isfinite(bounds[key])
+        if not np.any(finite):
+            continue
+        ratio = np.where(finite, vals / np.where(finite, bounds[key], 1.0), -np.inf)
+        k, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+        if ratio[k, j] > best_ratio:
+            best_ratio = ratio[k, j]
+            best = Violation(key, int(k), float(t[k]), int(j), float(vals[k, j]),
+                             float(bounds[key][j]), float(vals[k, j] - bounds[key][j]))
+    return best
+
+
+def _slow_down(forces, static, values, bounds, within) -> float:
+    if not np.all(within):
+        return float("inf")
+    needed = 0.0
+    force_bound = bounds["actuator_force"]
+    finite = np.isfinite(force_bound)
+    if np.any(finite):
+        c, d, f = static[:, finite], (forces - static)[:, finite], force_bound[finite]
+        if np.any(np.abs(c) > f):
+            return float("inf")
+        # |c + lam d| <= f for lam = 1 / k^2 in (0, lam_max]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lam = np.where(d > 0, (f - c) / d, np.where(d < 0, (-f - c) / d, np.inf))
+        lam_max = float(np.min(lam))
+        needed = max(needed, 0.0 if lam_max == np.inf else 1.0 / np.sqrt(max(lam_max, 0.0)))
+    for key, power in (("actuator_velocity", 1), ("linear_speed", 1), ("angular_speed", 1),
+                       ("actuator_acceleration", 2)):
+        if key in values:
+            with np.errstate(divide="ignore"):
+                ratio = np.max(values[key] / bounds[key]) if values[key].size else 0.0
+            needed = max(needed, float(ratio) ** (1.0 / power))
+    return float(needed)

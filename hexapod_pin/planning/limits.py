@@ -1,0 +1,243 @@
+"""Limits and payload of a motion, and their coefficients along a path.
+
+Along a path ``x(s)`` with tangent ``xi(s)`` and its derivative ``xi'(s)``
+(:mod:`hexapod_pin.planning.path`), the robot's closed-loop inverse dynamics is affine in
+``s_ddot`` and ``s_dot^2`` (it is affine in ``twist_dot`` and the wrench, and its velocity
+terms are quadratic in the twist)::
+
+    tau(s, s_dot, s_ddot) = a(s) s_ddot + b(s) s_dot^2 + c(s)
+    c = ID(x, 0, 0, w_0),  a = ID(x, 0, xi, w_0 - m [xi_v, 0]) - c,
+    b = ID(x, xi, xi', w_0 - m [xi'_v, 0]) - c
+
+with ``w_0`` the constant payload wrench plus the weight of the payload mass ``m`` (a
+point mass at the platform origin: its inertial force ``-m dv/dt`` is affine in
+``s_ddot`` and ``s_dot^2`` too). One call of the robot's ``inverse_dynamics_batch`` over
+the 3 N states gives ``a, b, c``. The actuator velocities are ``q' s_dot`` with
+``q' = J xi`` (``jacobian_batch``); the actuator accelerations ``q' s_ddot + q'' s_dot^2``
+with ``q'' = J xi' + dJ/ds xi`` read from ``forward_dynamics_batch`` driven by the forces
+of the state ``(x, xi, xi')``.
+
+Units: forces N (or N m), actuator velocities m/s (or rad/s), accelerations m/s^2 (or
+rad/s^2), platform linear speed m/s, angular speed rad/s; every limit is a bound on the
+absolute value, ``inf`` for none.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import HexapodPinError, InfeasiblePathError, InputError
+from .path import PathSamples
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Bounds on the motion (absolute values; ``inf``: none).
+
+    Attributes:
+        actuator_force: N (or N m), a scalar or one value per actuator; None: the robot's
+            ``geometry.max_actuator_force``.
+        actuator_velocity: m/s (or rad/s), scalar or per actuator.
+        actuator_acceleration: m/s^2 (or rad/s^2), scalar or per actuator.
+        linear_speed: speed of the platform origin (m/s).
+        angular_speed: norm of the platform's angular velocity (rad/s).
+        strokes: reject a path that leaves the actuators' strokes (else only reachability
+            is required).
+    """
+
+    actuator_force: float | tuple | None = None
+    actuator_velocity: float | tuple = np.inf
+    actuator_acceleration: float | tuple = np.inf
+    linear_speed: float = np.inf
+    angular_speed: float = np.inf
+    strokes: bool = True
+
+    def per_actuator(self, robot) -> dict[str, np.ndarray]:
+        """``{"force", "velocity", "acceleration"}`` -> (n_act,) bounds for ``robot``.
+
+        Raises:
+            InputError: a bound that is negative, NaN or of the wrong length.
+        """
+        n = robot.n_actuators
+        force = robot.geometry.max_actuator_force if self.actuator_force is None \
+            else self.actuator_force
+        out = {}
+        for name, value in (("force", force), ("velocity", self.actuator_velocity),
+                            ("acceleration", self.actuator_acceleration)):
+            arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)) \
+                if np.ndim(value) == 0 else np.asarray(value, dtype=float)
+            if arr.shape != (n,) or np.any(np.isnan(arr)) or np.any(arr <= 0):
+                raise InputError(f"actuator_{name}", value,
+                                 f"expected a positive bound or {n} positive bounds")
+            out[name] = arr.copy()
+        for name in ("linear_speed", "angular_speed"):
+            value = getattr(self, name)
+            if not (np.ndim(value) == 0 and float(value) > 0):
+                raise InputError(name, value, "expected a positive bound")
+        return out
+
+
+@dataclass(frozen=True)
+class Payload:
+    """What the platform carries.
+
+    Attributes:
+        mass: a point mass at the platform origin (kg), >= 0: its weight and inertial
+            force act on the platform.
+        wrench: a constant wrench ``(f, m)`` ON the platform (world axes, moment about the
+            platform origin; N, N m), shape (dim,), or None.
+    """
+
+    mass: float = 0.0
+    wrench: tuple | None = None
+
+    def check(self, dim: int) -> None:
+        """Raise :class:`InputError` on a negative mass or a malformed wrench."""
+        if not (np.isfinite(self.mass) and self.mass >= 0):
+            raise InputError("payload.mass", self.mass, "must be finite and >= 0 (kg)")
+        if self.wrench is not None:
+            w = np.asarray(self.wrench, dtype=float)
+            if w.shape != (dim,) or not np.all(np.isfinite(w)):
+                raise InputError("payload.wrench", self.wrench, f"expected {dim} finite values")
+
+    @property
+    def is_zero(self) -> bool:
+        return self.mass == 0.0 and (self.wrench is None or not np.any(self.wrench))
+
+    def wrenches(self, robot, twist_dots) -> np.ndarray | None:
+        """The payload's wrench on the platform (N, dim) for platform accelerations
+        ``twist_dots`` (N, dim): ``wrench + m (g - dv/dt)`` (no moment: the mass sits at
+        the platform origin); None for no payload."""
+        if self.is_zero:
+            return None
+        dim = robot.pose_dim
+        lin = 3 if dim == 6 else 2
+        out = np.zeros((len(twist_dots), dim))
+        if self.wrench is not None:
+            out += np.asarray(self.wrench, dtype=float)
+        gravity = np.asarray(robot.model.model.gravity.linear, dtype=float)[:lin]
+        out[:, :lin] += self.mass * (gravity - np.asarray(twist_dots)[:, :lin])
+        return out
+
+
+@dataclass(frozen=True)
+class PathCoefficients:
+    """The limits along a sampled path as affine functions of ``(s_ddot, s_dot^2)``.
+
+    Attributes:
+        samples: the :class:`PathSamples` (N points).
+        force_a, force_b, force_c: (N, n_act), ``tau = a s_ddot + b s_dot^2 + c`` (N).
+        velocity_ratio: (N, n_act) ``q' = J xi``: actuator velocities per unit path speed.
+        acceleration_b: (N, n_act) ``q''`` (None unless accelerations are limited).
+        actuator_positions: (N, n_act) (m or rad).
+        speed_bound: (N,) the largest ``s_dot^2`` the velocity limits allow (``inf``: none).
+    """
+
+    samples: PathSamples
+    force_a: np.ndarray
+    force_b: np.ndarray
+    force_c: np.ndarray
+    velocity_ratio: np.ndarray
+    acceleration_b: np.ndarray | None
+    actuator_positions: np.ndarray
+    speed_bound: np.ndarray
+
+
+def _fail_at(samples: PathSamples, index: int, reason: str, **kw) -> InfeasiblePathError:
+    return InfeasiblePathError(index, samples.s[index], samples.poses[index], reason, **kw)
+
+
+def path_coefficients(robot, samples: PathSamples, limits: Limits,
+                      payload: Payload) -> PathCoefficients:
+    """:class:`PathCoefficients` of ``robot`` along ``samples`` (see the module docstring).
+
+    Raises:
+        InfeasiblePathError: a grid pose out of reach, out of its strokes (with
+            ``limits.strokes``) or singular (it names the grid point).
+    """
+    n, dim = len(samples.s), robot.pose_dim
+    bounds = limits.per_actuator(robot)
+    ik = robot.inverse_kinematics_batch(samples.poses)
+    bad = ~(ik.ok if limits.strokes else ik.reachable)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        reason = "the actuators leave their strokes" if ik.reachable[k] else \
+            "the pose is out of reach"
+        raise _fail_at(samples, k, reason)
+    jac = robot.jacobian_batch(samples.poses)
+    if not np.all(jac.ok):
+        raise _fail_at(samples, int(np.argmax(~jac.ok)), "type-I singularity")
+    zero = np.zeros((n, dim))
+    xi, dxi = samples.tangents, samples.curvatures
+    wrenches = None
+    if not payload.is_zero:
+        wrenches = np.vstack([payload.wrenches(robot, zero), payload.wrenches(robot, xi),
+                              payload.wrenches(robot, dxi)])
+    poses3 = np.vstack([samples.poses] * 3)
+    try:
+        forces = robot.inverse_dynamics_batch(poses3, np.vstack([zero, zero, xi]),
+                                              np.vstack([zero, xi, dxi]), wrenches,
+                                              bounded=False).actuator_forces
+    except HexapodPinError as exc:
+        k = getattr(exc, "index", None)
+        if k is None:
+            raise
+        raise _fail_at(samples, k % n, f"inverse dynamics failed: {exc}") from exc
+    c = forces[:n]
+    velocity_ratio = np.einsum("nij,nj->ni", jac.jacobian, xi)
+    acc_b = None
+    if np.any(np.isfinite(bounds["acceleration"])):
+        acc_b = robot.forward_dynamics_batch(
+            samples.poses, xi, forces[2 * n:],
+            None if wrenches is None else wrenches[2 * n:]).actuator_accelerations
+    lin = 3 if dim == 6 else 2
+    with np.errstate(divide="ignore"):
+        ratios = [np.abs(velocity_ratio) / bounds["velocity"],
+                  np.linalg.norm(xi[:, :lin], axis=1)[:, None] / limits.linear_speed,
+                  np.linalg.norm(xi[:, lin:], axis=1)[:, None] / limits.angular_speed]
+        worst = np.max(np.hstack(ratios), axis=1)
+        speed_bound = np.where(worst > 0, 1.0 / worst ** 2, np.inf)
+    return PathCoefficients(samples, forces[n:2 * n] - c, forces[2 * n:] - c, c,
+                            velocity_ratio, acc_b, ik.actuator_positions, speed_bound)
+
+
+def constraint_rows(coeffs: PathCoefficients, robot, limits: Limits) -> np.ndarray:
+    """The limits as rows ``alpha s_ddot + beta s_dot^2 + gamma <= 0``, (N, m, 3), each
+    divided by its bound (dimensionless).
+
+    Raises:
+        InfeasiblePathError: a grid point where the robot cannot hold the path's pose
+            statically within its force limits (it names the point and the actuator).
+    """
+    bounds = limits.per_actuator(robot)
+    blocks = []
+    force = bounds["force"]
+    finite = np.flatnonzero(np.isfinite(force))
+    if finite.size:
+        over = np.abs(coeffs.force_c[:, finite]) > force[finite]
+        if np.any(over):
+            k, j = np.unravel_index(int(np.argmax(over)), over.shape)
+            i = int(finite[j])
+            raise _fail_at(coeffs.samples, k, "the robot cannot hold this pose statically "
+                                              "within its force limits", actuator=i,
+                           value=coeffs.force_c[k, i], limit=force[i])
+        blocks.append(_two_sided(coeffs.force_a[:, finite], coeffs.force_b[:, finite],
+                                 coeffs.force_c[:, finite], force[finite]))
+    acc = bounds["acceleration"]
+    finite = np.flatnonzero(np.isfinite(acc))
+    if finite.size:
+        blocks.append(_two_sided(coeffs.velocity_ratio[:, finite],
+                                 coeffs.acceleration_b[:, finite],
+                                 np.zeros((len(coeffs.force_c), finite.size)), acc[finite]))
+    if not blocks:
+        return np.zeros((len(coeffs.force_c), 1, 3))
+    return np.ascontiguousarray(np.concatenate(blocks, axis=1))
+
+
+def _two_sided(a, b, c, bound) -> np.ndarray:
+    """Rows of ``-bound <= a u + b x + c <= bound``, divided by ``bound``: (N, 2 n, 3)."""
+    upper = np.stack([a / bound, b / bound, c / bound - 1.0], axis=-1)
+    lower = np.stack([-a / bound, -b / bound, -c / bound - 1.0], axis=-1)
+    return np.concatenate([upper, lower], axis=1)

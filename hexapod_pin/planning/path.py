@@ -1,0 +1,182 @@
+"""Geometric paths through platform waypoints: C2 in their parameter, rotations on SO(3).
+
+A :class:`GeometricPath` maps the path parameter ``s`` (m, see below) to a platform pose
+``x(s)`` and gives, in the robot's twist convention, the path tangent
+``xi(s) = twist / s_dot`` and its derivative ``xi'(s) = d xi / ds``, so that along a
+timing law ``s(t)``::
+
+    twist     = xi(s) s_dot
+    twist_dot = xi(s) s_ddot + xi'(s) s_dot^2
+
+Interpolation (each a natural cubic spline: C2 in ``s``, no curvature at the ends):
+
+* positions: componentwise cubic spline through the waypoint positions;
+* rotations in space (``(x, y, z, roll, pitch, yaw)`` poses, ``R = Rz(yaw) Ry(pitch)
+  Rx(roll)``): a cubic spline of the exponential coordinates relative to the first
+  waypoint, ``R(s) = R_0 exp([phi(s)]x)`` with ``phi_k = log(R_0^T R_k)``. It is C2 on
+  SO(3) (``exp`` is smooth), passes through every waypoint, does not depend on the
+  Euler-angle chart, and between two waypoints only it is the geodesic (constant axis).
+  Every waypoint must lie less than pi (rad) from the first one. The world angular velocity
+  per unit ``s`` is ``omega_s = R_0 J_l(phi) phi'`` with ``J_l`` the left Jacobian of
+  SO(3); its derivative is computed in closed form (series near ``|phi| = 0``);
+* rotations in the plane (``(x, y, theta)``): a cubic spline of ``theta``, the waypoint
+  angles unwrapped first (consecutive differences below pi).
+
+The parameter ``s`` runs over ``[0, length]`` with knots at the cumulative chord length
+``sqrt(|dp|^2 + (rotation_length |dphi|)^2)`` between waypoints (m), where
+``rotation_length`` (m) converts rotation angles to lengths (default: the robot's
+characteristic length, its platform radius).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.spatial.transform import Rotation
+
+from ..core.checks import as_array
+from ..core.pose import rotation_from_rpy, rpy_from_rotation
+from ..errors import InputError
+
+#: below this rotation angle (rad) the SO(3) Jacobian coefficients use their series
+_SERIES_ANGLE = 1e-2
+#: largest distance (rad) of a waypoint rotation from the first one
+_MAX_ANGLE = np.pi - 1e-6
+
+
+@dataclass(frozen=True)
+class PathSamples:
+    """The path and its derivatives at N values of ``s``.
+
+    Attributes:
+        s: (N,) path parameter (m).
+        poses: (N, dim) platform poses (m, rad); in space the Euler angles are unwrapped
+            along the samples.
+        tangents: (N, dim) ``xi(s)``: the twist per unit path speed (world axes; m/m and
+            rad/m).
+        curvatures: (N, dim) ``xi'(s) = d xi / ds`` (1/m, rad/m^2).
+    """
+
+    s: np.ndarray
+    poses: np.ndarray
+    tangents: np.ndarray
+    curvatures: np.ndarray
+
+
+class GeometricPath:
+    """A C2 path of the platform through waypoints (see the module docstring).
+
+    Args:
+        waypoints: (K, dim) poses, K >= 2, dim 6 (space) or 3 (plane).
+        rotation_length: length (m) weighting rotations in the knot spacing; > 0.
+
+    Attributes:
+        waypoints: (K, dim) the waypoints as given.
+        knots: (K,) the parameter of each waypoint (m), ``knots[0] = 0``.
+        length: ``knots[-1]`` (m).
+        pose_dim: 6 or 3.
+
+    Raises:
+        InputError: a wrong shape, NaN / inf, fewer than two waypoints, two consecutive
+            equal waypoints, a rotation pi or more from the first waypoint.
+    """
+
+    def __init__(self, waypoints, rotation_length: float):
+        pts = np.asarray(waypoints, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] not in (3, 6):
+            raise InputError("waypoints", waypoints, "expected shape (K, 6) or (K, 3)")
+        pts = as_array(pts, (pts.shape[1],), "waypoints", batch=True)
+        if len(pts) < 2:
+            raise InputError("waypoints", waypoints, "need at least two waypoints")
+        if not (np.isfinite(rotation_length) and rotation_length > 0):
+            raise InputError("rotation_length", rotation_length, "must be > 0 (m)")
+        self.waypoints = pts.copy()
+        self.pose_dim = pts.shape[1]
+        self.rotation_length = float(rotation_length)
+        lin = 3 if self.pose_dim == 6 else 2
+        positions = pts[:, :lin]
+        if self.pose_dim == 6:
+            self._r0 = rotation_from_rpy(pts[0, 3:])
+            rel = np.einsum("ji,njk->nik", self._r0, rotation_from_rpy(pts[:, 3:]))
+            angles = Rotation.from_matrix(rel).as_rotvec()
+            far = np.flatnonzero(np.linalg.norm(angles, axis=1) >= _MAX_ANGLE)
+            if far.size:
+                raise InputError("waypoints", pts[far[0]],
+                                 f"waypoint {far[0]} is pi or more from the first rotation")
+        else:
+            self._r0 = None
+            angles = np.unwrap(pts[:, 2])[:, None]
+        steps = np.sqrt(np.sum(np.diff(positions, axis=0) ** 2, axis=1)
+                        + (rotation_length ** 2) * np.sum(np.diff(angles, axis=0) ** 2, axis=1))
+        same = np.flatnonzero(steps <= 1e-12)
+        if same.size:
+            raise InputError("waypoints", pts[same[0] + 1],
+                             f"waypoints {same[0]} and {same[0] + 1} are equal")
+        self.knots = np.concatenate([[0.0], np.cumsum(steps)])
+        self.length = float(self.knots[-1])
+        self._lin = lin
+        self._positions = CubicSpline(self.knots, positions, axis=0, bc_type="natural")
+        self._angles = CubicSpline(self.knots, angles, axis=0, bc_type="natural")
+
+    def sample(self, s) -> PathSamples:
+        """Poses, tangents and curvatures at ``s`` (N,) (m), each clipped to [0, length].
+
+        Raises:
+            InputError: NaN / inf in ``s``.
+        """
+        s = np.clip(as_array(np.ravel(np.asarray(s, dtype=float)), (), "s", batch=True),
+                    0.0, self.length)
+        p = [self._positions(s, nu) for nu in range(3)]
+        f = [self._angles(s, nu) for nu in range(3)]
+        if self.pose_dim == 3:
+            return PathSamples(s, np.hstack([p[0], f[0]]), np.hstack([p[1], f[1]]),
+                               np.hstack([p[2], f[2]]))
+        rot = np.einsum("ij,njk->nik", self._r0, Rotation.from_rotvec(f[0]).as_matrix())
+        omega, omega_s = _left_jacobian_terms(f[0], f[1], f[2])
+        rpy = np.unwrap(rpy_from_rotation(rot), axis=0)
+        return PathSamples(s, np.hstack([p[0], rpy]), np.hstack([p[1], omega @ self._r0.T]),
+                           np.hstack([p[2], omega_s @ self._r0.T]))
+
+
+def _left_jacobian_terms(phi, dphi, ddphi):
+    """``J_l(phi) phi'`` and its derivative along ``s``, rows (N, 3) (in R_0's axes).
+
+    ``J_l = I + a K + b K^2`` with ``K = [phi]x``, ``a = (1 - cos t) / t^2``,
+    ``b = (t - sin t) / t^3``, ``t = |phi|``. Then ``d/ds (J_l phi') = J_l phi'' +
+    (phi . phi') (A1 w1 + B1 w2) + b phi' x w1`` with ``w1 = phi x phi'``,
+    ``w2 = phi x w1``, ``A1 = a'(t) / t``, ``B1 = b'(t) / t``.
+    """
+    t2 = np.sum(phi * phi, axis=1)
+    t = np.sqrt(t2)
+    small = t < _SERIES_ANGLE
+    tb = np.where(small, 1.0, t)
+    sin_t, cos_t = np.sin(tb), np.cos(tb)
+    a = np.where(small, 0.5 - t2 / 24 + t2 ** 2 / 720, (1 - cos_t) / tb ** 2)
+    b = np.where(small, 1 / 6 - t2 / 120 + t2 ** 2 / 5040, (tb - sin_t) / tb ** 3)
+    a1 = np.where(small, -1 / 12 + t2 / 180 - t2 ** 2 / 6720,
+                  (tb * sin_t - 2 * (1 - cos_t)) / tb ** 4)
+    b1 = np.where(small, -1 / 60 + t2 / 1260 - t2 ** 2 / 60480,
+                  ((1 - cos_t) / tb ** 3 - 3 * (tb - sin_t) / tb ** 4) / tb)
+
+    a, b = a[:, None], b[:, None]
+
+    def jl(vec):
+        w = _cross(phi, vec)
+        return vec + a * w + b * _cross(phi, w)
+
+    w1 = _cross(phi, dphi)
+    w2 = _cross(phi, w1)
+    dot = np.sum(phi * dphi, axis=1)[:, None]
+    omega_s = jl(ddphi) + dot * (a1[:, None] * w1 + b1[:, None] * w2) + b * _cross(dphi, w1)
+    return jl(dphi), omega_s
+
+
+def _cross(u, v):
+    """Row-wise cross product of (N, 3) arrays."""
+    out = np.empty_like(u)
+    out[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
+    out[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
+    out[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+    return out

@@ -1,0 +1,228 @@
+"""Time-optimal motion along a path within the closed-loop limits: :func:`time_optimal`.
+
+The path through the waypoints (:class:`~hexapod_pin.planning.path.GeometricPath`) is
+sampled at a uniform grid of its parameter ``s`` (m); the limits become rows affine in
+``(s_ddot, s_dot^2)`` from the robot's own batch inverse dynamics
+(:mod:`hexapod_pin.planning.limits`); TOPP-RA (:mod:`hexapod_pin.planning.solver`) finds
+the fastest ``s_dot(s)``; the timing follows from ``dt = 2 ds / (s_dot_k + s_dot_{k+1})``
+(constant ``s_ddot`` on each segment).
+
+A :class:`TimedTrajectory` holds the result at the grid points (``s_ddot`` of the
+segment that starts there; the last point takes the last segment's) in the robot's
+conventions (pose, twist ``(v, w)`` in world axes, ``twist_dot`` its plain derivative,
+actuator forces along each actuator's positive direction) and samples the same motion at
+any time (:meth:`TimedTrajectory.sample`, :meth:`TimedTrajectory.resample`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InfeasiblePathError, InputError
+from . import solver
+from .limits import Limits, Payload, constraint_rows, path_coefficients
+from .path import GeometricPath
+
+#: default number of grid points
+DEFAULT_GRID_POINTS = 1000
+
+
+@dataclass(frozen=True)
+class PhaseProfile:
+    """The solution in the phase plane ``(s, s_dot)`` at the grid points.
+
+    Attributes:
+        s: (N,) grid (m).
+        s_dot: (N,) path speed (m/s).
+        s_ddot: (N - 1,) path acceleration on each segment (m/s^2).
+        controllable: (N, 2) the controllable set ``[lo, hi]`` of ``s_dot^2`` (m^2/s^2).
+        max_velocity_curve: (N,) the largest ``s_dot^2`` any path acceleration allows at
+            each grid point on its own (``inf`` where nothing bounds it).
+    """
+
+    s: np.ndarray
+    s_dot: np.ndarray
+    s_ddot: np.ndarray
+    controllable: np.ndarray
+    max_velocity_curve: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class TimedTrajectory:
+    """A timed motion of the platform (N samples), in the robot's conventions.
+
+    Attributes:
+        t: (N,) times (s) from 0.
+        poses: (N, dim) platform poses (m, rad).
+        twists: (N, dim) twists ``(v, w)``, world axes (m/s, rad/s).
+        twist_dots: (N, dim) their time derivatives (m/s^2, rad/s^2).
+        actuator_forces: (N, n_act) (N or N m), the payload included.
+        actuator_velocities: (N, n_act) (m/s or rad/s).
+        actuator_positions: (N, n_act) (m or rad).
+        s, s_dot, s_ddot: (N,) path parameter (m), speed (m/s), acceleration (m/s^2).
+        path: the :class:`GeometricPath`.
+        phase: the :class:`PhaseProfile` of the solution (grid points).
+        robot, limits, payload: what it was planned for.
+    """
+
+    t: np.ndarray
+    poses: np.ndarray
+    twists: np.ndarray
+    twist_dots: np.ndarray
+    actuator_forces: np.ndarray
+    actuator_velocities: np.ndarray
+    actuator_positions: np.ndarray
+    s: np.ndarray
+    s_dot: np.ndarray
+    s_ddot: np.ndarray
+    path: GeometricPath
+    phase: PhaseProfile
+    robot: object
+    limits: Limits
+    payload: Payload
+
+    @property
+    def duration(self) -> float:
+        """``t[-1] - t[0]`` (s)."""
+        return float(self.t[-1] - self.t[0])
+
+    def sample(self, times) -> "TimedTrajectory":
+        """The same motion at the given times (s), each clipped to ``[0, duration]``.
+
+        Between grid points the path acceleration is that of the segment (a time on a
+        grid point takes the segment that starts there); poses, twists and accelerations
+        come from the path, the forces from the robot's ``inverse_dynamics_batch``.
+
+        Raises:
+            InputError: NaN / inf times.
+        """
+        times = np.asarray(times, dtype=float).ravel()
+        if not np.all(np.isfinite(times)):
+            raise InputError("times", times, "contains NaN or inf")
+        grid_t, ph = self.phase_times(), self.phase
+        times = np.clip(times, 0.0, grid_t[-1])
+        k = np.clip(np.searchsorted(grid_t, times, side="right") - 1, 0, len(grid_t) - 2)
+        tau = times - grid_t[k]
+        u = ph.s_ddot[k]
+        s_dot = np.maximum(ph.s_dot[k] + u * tau, 0.0)
+        s = np.minimum(ph.s[k] + ph.s_dot[k] * tau + 0.5 * u * tau ** 2, ph.s[k + 1])
+        return _assemble(self.robot, self.path, self.limits, self.payload, self.phase,
+                         times, s, s_dot, u)
+
+    def resample(self, rate: float) -> "TimedTrajectory":
+        """:meth:`sample` at ``rate`` (Hz) from 0 to the duration (both ends included).
+
+        Raises:
+            InputError: a rate that is not positive and finite.
+        """
+        if not (np.isfinite(rate) and rate > 0):
+            raise InputError("rate", rate, "must be > 0 (Hz)")
+        count = max(int(np.ceil(self.duration * rate)) + 1, 2)
+        return self.sample(np.linspace(0.0, self.duration, count))
+
+    def phase_times(self) -> np.ndarray:
+        """(N_grid,) the times (s) of the grid points."""
+        return _grid_times(self.phase)
+
+
+def time_optimal(robot, waypoints, *, limits: Limits | None = None,
+                 payload: Payload | None = None, start_speed: float = 0.0,
+                 end_speed: float = 0.0, grid_points: int = DEFAULT_GRID_POINTS,
+                 rotation_length: float | None = None) -> TimedTrajectory:
+    """The fastest motion along the path through ``waypoints`` within the limits.
+
+    Args:
+        robot: a robot with the shared API (:class:`hexapod_pin.Hexapod`,
+            :class:`hexapod_pin.Planar3PRR`).
+        waypoints: (K, dim) poses (m, rad), K >= 2; the path is C2 through them
+            (:mod:`hexapod_pin.planning.path`).
+        limits: :class:`Limits`; default: the robot's actuator force bound only.
+        payload: :class:`Payload` carried by the platform; default none.
+        start_speed, end_speed: path speeds ``s_dot`` (m/s) at the ends; default rest.
+        grid_points: number of grid points N of the path parameter (>= 3).
+        rotation_length: length (m) weighting rotations in the path parameter; default
+            the robot's characteristic length (its platform radius).
+
+    Returns:
+        :class:`TimedTrajectory` at the N grid points.
+
+    Raises:
+        InputError: malformed waypoints, limits or speeds; no finite limit at all.
+        InfeasiblePathError: a pose the robot cannot hold statically within its force
+            limits, a pose out of reach or out of its strokes, a singular pose, an end
+            or start speed the limits do not allow; it names the grid point.
+    """
+    limits = Limits() if limits is None else limits
+    payload = Payload() if payload is None else payload
+    payload.check(robot.pose_dim)
+    if not (isinstance(grid_points, (int, np.integer)) and grid_points >= 3):
+        raise InputError("grid_points", grid_points, "must be an integer >= 3")
+    for name, value in (("start_speed", start_speed), ("end_speed", end_speed)):
+        if not (np.isfinite(value) and value >= 0):
+            raise InputError(name, value, "must be finite and >= 0 (m/s)")
+    if rotation_length is None:
+        rotation_length = robot.singularity(robot.home_pose).characteristic_length
+    path = GeometricPath(waypoints, rotation_length)
+    if path.pose_dim != robot.pose_dim:
+        raise InputError("waypoints", waypoints, f"expected poses of {robot.pose_dim} values")
+    samples = path.sample(np.linspace(0.0, path.length, int(grid_points)))
+    coeffs = path_coefficients(robot, samples, limits, payload)
+    rows = constraint_rows(coeffs, robot, limits)
+    if not np.any(rows) and not np.any(np.isfinite(coeffs.speed_bound)):
+        raise InputError("limits", limits, "no finite limit: the motion is unbounded")
+    phase = _solve(rows, coeffs.speed_bound, samples, start_speed, end_speed)
+    x, u = phase.s_dot ** 2, np.append(phase.s_ddot, phase.s_ddot[-1])
+    return TimedTrajectory(
+        _grid_times(phase), samples.poses, samples.tangents * phase.s_dot[:, None],
+        samples.tangents * u[:, None] + samples.curvatures * x[:, None],
+        coeffs.force_a * u[:, None] + coeffs.force_b * x[:, None] + coeffs.force_c,
+        coeffs.velocity_ratio * phase.s_dot[:, None], coeffs.actuator_positions,
+        samples.s, phase.s_dot, u, path, phase, robot, limits, payload)
+
+
+def _solve(rows, speed_bound, samples, start_speed, end_speed) -> PhaseProfile:
+    npts = len(samples.s)
+    steps = np.diff(samples.s)
+    lo, hi = np.empty(npts), np.empty(npts)
+    status, k = solver.backward_pass(rows, steps, speed_bound, end_speed ** 2, lo, hi)
+    if status != solver.OK:
+        raise InfeasiblePathError(k, samples.s[k], samples.poses[k],
+                                  "no speed here can still reach the end speed within the "
+                                  "limits")
+    x, u = np.empty(npts), np.empty(npts - 1)
+    status, k = solver.forward_pass(rows, steps, lo, hi, start_speed ** 2, x, u)
+    if status != solver.OK:
+        raise InfeasiblePathError(0, samples.s[0], samples.poses[0],
+                                  f"the start speed exceeds what the limits allow "
+                                  f"(at most {np.sqrt(max(hi[0], 0.0)):.6g} m/s)")
+    speed = np.sqrt(x)
+    stall = np.flatnonzero(speed[:-1] + speed[1:] <= 0.0)
+    if stall.size:
+        k = int(stall[0])
+        raise InfeasiblePathError(k, samples.s[k], samples.poses[k],
+                                  "the robot cannot set off along the path from rest here "
+                                  "within the limits")
+    mvc = np.empty(npts)
+    solver.max_velocity_curve(rows, speed_bound, mvc)
+    return PhaseProfile(samples.s, speed, u, np.stack([lo, hi], axis=1), mvc)
+
+
+def _grid_times(phase: PhaseProfile) -> np.ndarray:
+    dt = 2.0 * np.diff(phase.s) / (phase.s_dot[:-1] + phase.s_dot[1:])
+    return np.concatenate([[0.0], np.cumsum(dt)])
+
+
+def _assemble(robot, path, limits, payload, phase, times, s, s_dot, s_ddot) -> TimedTrajectory:
+    samples = path.sample(s)
+    twists = samples.tangents * s_dot[:, None]
+    twist_dots = samples.tangents * s_ddot[:, None] + samples.curvatures * (s_dot ** 2)[:, None]
+    forces = robot.inverse_dynamics_batch(samples.poses, twists, twist_dots,
+                                          payload.wrenches(robot, twist_dots),
+                                          bounded=False).actuator_forces
+    jac = robot.jacobian_batch(samples.poses)
+    return TimedTrajectory(times, samples.poses, twists, twist_dots, forces,
+                           np.einsum("nij,nj->ni", jac.jacobian, twists),
+                           jac.actuator_positions, samples.s, s_dot, s_ddot, path, phase,
+                           robot, limits, payload)
