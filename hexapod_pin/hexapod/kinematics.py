@@ -42,10 +42,6 @@ from . import batch
 from . import kernels as K
 from .kernels import GIMBAL_TOL, HOME_BRANCH, RAIL_OF, TYPE_I_TOL, TYPE_II_TOL  # noqa: F401
 
-#: position of a leg's centre of mass along the leg, as a fraction of its length
-#: from the universal joint (a uniform rod, as in the URDF; used by the kernels)
-LEG_COM_FRACTION = 0.5
-
 __all__ = ["HexapodKinematics", "LegMotion", "check_branch"]
 
 #: Newton iteration limit of :meth:`HexapodKinematics.forward_kinematics`
