@@ -94,8 +94,11 @@ def complete(jac: np.ndarray, rhs: np.ndarray, known, values, method: str = "lst
     values = np.asarray(values, dtype=float)
     single = rhs.ndim == 1
     rhs2 = rhs[:, None] if single else rhs
-    values2 = values.reshape(known.size, -1) if values.ndim <= 1 else values
-    if values2.shape != (known.size, rhs2.shape[1]) or (values.ndim <= 1 and values.size != known.size):
+    if values.ndim <= 1 and values.size == known.size and single:
+        values2 = values.reshape(known.size, 1)
+    else:
+        values2 = values
+    if values2.shape != (known.size, rhs2.shape[1]):
         raise InputError("values", values, f"expected {known.size} values per problem")
     if not (np.all(np.isfinite(values2)) and np.all(np.isfinite(rhs2))):
         raise InputError("values", values, "NaN or inf")
