@@ -47,18 +47,26 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 import proxsuite
+import scipy.optimize
 
 from ..errors import ActuatorSaturationError, InputError, SolverError
 from .checks import as_array, max_abs
-from .closed_loop import ClosedLoopModel
+from .closed_loop import RANK_RTOL, ClosedLoopModel
 
 FORWARD_METHODS = ("pinocchio", "qp", "kkt")
 INVERSE_METHODS = ("qp", "kkt")
 
 #: relative tolerance on equation residuals before a route is declared failed
 RESIDUAL_RTOL = 1e-9
-#: ProxSuite accuracy (absolute, on primal and dual residuals)
-_QP_EPS = 1e-13
+#: ProxSuite accuracy (absolute, on primal and dual residuals of the scaled problems)
+_QP_EPS = 1e-12
+#: relative miss of ``J_c a + gamma`` above which an inverse-dynamics motion is refused
+_MOTION_RTOL = 1e-8
+#: a floor for scales (avoids dividing by zero on all-zero data)
+_TINY = 1e-300
+_EPS = np.finfo(float).eps
+#: box-constrained least-squares miss (relative) above which bounds count as infeasible
+_INFEASIBLE_RTOL = 1e-6
 #: iteration cap of the tree QPs (redundant closure rows slow the proximal iterations down)
 _QP_MAX_ITER = 1000
 #: a stalled tree QP is accepted when its residuals are below this, relative to its data
@@ -67,6 +75,8 @@ _QP_ACCEPT = 1e-10
 #: converges in a few iterations; the multipliers are then polished to minimum norm)
 _PIN_PROX_MU = 1e-6
 _PIN_PROX_ITERS = 5
+#: iterations of the continued proximal solve when the first ones did not converge
+_PIN_PROX_DEEP_ITERS = 500
 #: weight of the multipliers in the inverse-dynamics QP objective (relative to forces)
 _LAMBDA_WEIGHT = 1e-2
 
@@ -95,31 +105,58 @@ class ClosureFrames(NamedTuple):
 # --------------------------------------------------------------------------------------
 # results
 # --------------------------------------------------------------------------------------
-@dataclass(frozen=True)
 class TreeForwardDynamics:
-    """Result of :func:`forward_dynamics_tree`.
+    """Result of :func:`forward_dynamics_tree` (immutable).
 
     Attributes:
         a: tree acceleration (nv,), Pinocchio convention (free-flyer part: derivative
             of the body-frame velocity).
         multipliers: closure multipliers (n_rows,), ``M a + h = tau + J_c^T multipliers``,
             rows as in :meth:`ClosedLoopModel.constraint_jacobian` (N for point rows,
-            world axes). Minimum-norm when the closures are redundant.
+            world axes). Minimum-norm when the closures are redundant. Converted from
+            Pinocchio's LOCAL convention on first access (the "pinocchio" route).
         method: the route used ("pinocchio", "qp" or "kkt").
-        status: "solved", or a note on how it was solved (redundant rows, fallback).
+        status: "solved", or a note on how it was solved (redundant rows, fallback,
+            a ProxSuite status other than solved whose residuals were verified).
         iterations: solver iterations (0 for a direct solve).
         rank: rank of ``J_c`` assumed by the solve.
         constraint_residual: max-abs of ``J_c a + gamma`` (m/s^2); -1.0 (not
-            computed, never NaN) for the "pinocchio" route, which does not form ``J_c``.
+            computed, never NaN) for the "pinocchio" route, which verifies the same
+            equation in Pinocchio's LOCAL rows instead.
     """
 
-    a: np.ndarray
-    multipliers: np.ndarray
-    method: str
-    status: str
-    iterations: int
-    rank: int
-    constraint_residual: float
+    __slots__ = (
+        "_multipliers",
+        "a",
+        "constraint_residual",
+        "iterations",
+        "method",
+        "rank",
+        "status",
+    )
+
+    def __init__(self, a, multipliers, method, status, iterations, rank, constraint_residual):
+        for name, value in (("a", a), ("_multipliers", multipliers), ("method", method),
+                            ("status", status), ("iterations", iterations), ("rank", rank),
+                            ("constraint_residual", constraint_residual)):
+            object.__setattr__(self, name, value)
+
+    @property
+    def multipliers(self) -> np.ndarray:
+        value = self._multipliers
+        if callable(value):
+            value = value()
+            object.__setattr__(self, "_multipliers", value)
+        return value
+
+    def __setattr__(self, name, value):
+        raise AttributeError(f"TreeForwardDynamics is immutable (cannot set {name!r})")
+
+    def __repr__(self) -> str:
+        return (f"TreeForwardDynamics(a={self.a!r}, multipliers={self.multipliers!r}, "
+                f"method={self.method!r}, status={self.status!r}, "
+                f"iterations={self.iterations}, rank={self.rank}, "
+                f"constraint_residual={self.constraint_residual!r})")
 
 
 @dataclass(frozen=True)
@@ -131,9 +168,8 @@ class TreeInverseDynamics:
             (N for prismatic, N m for revolute), in ``clm.actuated_joints`` order.
         multipliers: closure multipliers (n_rows,), same convention as
             :class:`TreeForwardDynamics` (minimum-norm when redundant).
-        residual: max-abs of ``M a + h - tau_ext - S^T u - J_c^T multipliers`` (N, N m).
-            Non-zero only when ``a`` does not keep the closures and the system is
-            over-determined (redundant rows), where the least-squares answer is given.
+        residual: max-abs of ``M a + h - tau_ext - S^T u - J_c^T multipliers`` (N, N m),
+            verified below :data:`RESIDUAL_RTOL` relative to the data.
         method: "qp" or "kkt".
         status: solver status ("solved", ...).
         iterations: solver iterations (0 for a direct solve).
@@ -186,6 +222,14 @@ class ClosedLoopDynamics:
         self._lower = np.tril_indices(self.nv, -1)
         self._rank: int | None = None
         self._qps: dict = {}
+        self._aux_data = self.model.createData()   # lazy multiplier conversions
+        self._kkt = np.zeros((self.nv + self.n_rows, self.nv + self.n_rows))
+        self._id_matrix = np.zeros((self.nv, self.n_act + self.n_rows))
+        self._id_matrix[:, :self.n_act] = self._selection
+        self._id_hess = np.diag(np.concatenate([np.ones(self.n_act),
+                                                np.full(self.n_rows, _LAMBDA_WEIGHT)]))
+        self._id_box = np.zeros((self.n_act, self.n_act + self.n_rows))
+        self._id_box[:, :self.n_act] = np.eye(self.n_act)
 
     # -- rank ----------------------------------------------------------------------------
     def closure_rank(self, q: np.ndarray, force: bool = False) -> int:
@@ -267,23 +311,47 @@ class ClosedLoopDynamics:
                 out.append(data.oMf[f1].act(local))
         return out
 
-    def _pin_to_row_multipliers(self, lam_pin: np.ndarray) -> np.ndarray:
-        """Convert Pinocchio's LOCAL contact forces into our row convention.
+    # -- verification -----------------------------------------------------------------------
+    def verify(self, mass, bias, tau, jac, drift, acc, lam, route: str) -> tuple[float, float]:
+        """Relative residuals of the two equations a forward solution must satisfy.
 
-        Point rows: ``lambda = R_c1 lambda_pin`` (``J_c = R_c1 J_pin``); weld rows:
-        ``lambda = Jlog6^-T lambda_pin`` (``J_c = Jlog6 J_pin``).
+        ``M a + h - tau - J^T lam`` relative to the largest of ``|M a|``, ``|h - tau|``,
+        ``|J^T lam|``, and ``J a + drift`` relative to ``|J| |a|`` and ``|drift|`` (max-abs
+        norms). ``jac`` / ``drift`` may be ours (``J_c``, ``gamma``) or Pinocchio's LOCAL ones
+        (``J_pin``, ``-primal_rhs``): both equations hold in either row convention.
+
+        Returns:
+            (equation-of-motion residual, closure residual), both relative.
+
+        Raises:
+            SolverError: either exceeds :data:`RESIDUAL_RTOL` or is not finite; the
+                message names the equation and its residual.
         """
-        if self._all_points:
-            rots = np.array([cd.oMc1.rotation for cd in self._cd_list])
-            return np.einsum("kij,kj->ki", rots, lam_pin.reshape(-1, 3)).reshape(-1)
-        out = np.empty(self.n_rows)
-        for (is_point, rows, _, _, _, _), cd in zip(self.closure_frames, self._cd_list):
-            if is_point:
-                out[rows] = cd.oMc1.rotation @ lam_pin[rows]
-            else:
-                jlog = pin.Jlog6(cd.c1Mc2.inverse())
-                out[rows] = np.linalg.solve(jlog.T, lam_pin[rows])
-        return out
+        m_a = mass @ acc
+        force = jac.T @ lam if lam.size else np.zeros_like(acc)
+        rest = bias - tau
+        eom = max_abs(m_a + rest - force) / max(max_abs(m_a), max_abs(rest), max_abs(force),
+                                                 _TINY)
+        if jac.shape[0]:
+            j_a = jac @ acc
+            con = max_abs(j_a + drift) / max(max_abs(jac) * max_abs(acc), max_abs(drift), _TINY)
+        else:
+            con = 0.0
+        if not eom <= RESIDUAL_RTOL:
+            raise SolverError(route, "unverified", "equation of motion M a + h = tau + J_c^T "
+                              f"lambda missed by {eom:.3e} (relative)")
+        if not con <= RESIDUAL_RTOL:
+            raise SolverError(route, "unverified", "closure equation J_c a = -gamma missed by "
+                              f"{con:.3e} (relative)")
+        return eom, con
+
+    def _terms(self, q, v):
+        """(M, h, J_c, gamma) at (q, v), ours."""
+        jac = self.constraint_jacobian(q)
+        gamma = self.constraint_drift(q, v)
+        mass = self.mass_matrix(q)
+        bias = pin.nonLinearEffects(self.model, self.data, q, v)
+        return mass, bias, jac, gamma
 
     # -- forward dynamics -----------------------------------------------------------------
     def forward(self, q, v, tau, method: str = "pinocchio") -> TreeForwardDynamics:
@@ -293,13 +361,15 @@ class ClosedLoopDynamics:
         tau = self.clm.check_v(tau, "tau")
         if method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
+        return self.forward_unchecked(q, v, tau, method)
+
+    def forward_unchecked(self, q, v, tau, method: str) -> TreeForwardDynamics:
+        """:meth:`forward` without the input checks (contiguous float64 arrays of the right
+        sizes, a known method); for batch drivers and integrators."""
         rank = self.closure_rank(q)
         if method == "pinocchio":
             return self._forward_pinocchio(q, v, tau, rank)
-        jac = self.constraint_jacobian(q)
-        gamma = self.constraint_drift(q, v)
-        mass = self.mass_matrix(q)
-        bias = pin.nonLinearEffects(self.model, self.data, q, v)
+        mass, bias, jac, gamma = self._terms(q, v)
         if method == "kkt":
             return self._forward_kkt(mass, bias, jac, gamma, tau, rank)
         return self._forward_qp(mass, bias, jac, gamma, tau, rank)
@@ -315,150 +385,252 @@ class ClosedLoopDynamics:
         pin.initConstraintDynamics(self.model, self.data, self.pin_models, self.pin_datas)
         self._prox_exact = pin.ProximalSettings(1e-13, 0.0, 1)
         self._prox_redundant = pin.ProximalSettings(1e-13, _PIN_PROX_MU, _PIN_PROX_ITERS)
+        self._prox_deep = pin.ProximalSettings(1e-14, _PIN_PROX_MU, _PIN_PROX_DEEP_ITERS)
         self._cd_list = list(self.pin_datas)
         self._all_points = all(c[0] for c in self.closure_frames)
         self._pin_ready = True
 
     def pinocchio_call(self, q, v, tau, redundant: bool):
-        """One ``pin.constraintDynamics`` call; returns (a or None if it failed, prox).
+        """One verified ``pin.constraintDynamics`` call; returns (a or None, prox).
 
-        ``a`` is Pinocchio's own buffer (copy it before the next call). A failed solve
-        shows as non-finite accelerations (the multipliers come from the same solve).
+        ``a`` is Pinocchio's own buffer (copy it before the next call); Pinocchio's LOCAL
+        multipliers are in ``self.data.lambda_c``. ``None`` when the solve is not finite or
+        misses one of the equations by more than :data:`RESIDUAL_RTOL` (relative; checked
+        with Pinocchio's own ``M``, ``nle``, constraint Jacobian and drift). With
+        ``redundant`` the proximal solve (``mu > 0``) is continued (up to
+        ``_PIN_PROX_DEEP_ITERS`` iterations) when its first iterations did not converge.
         """
         if not self._pin_ready:
             self._init_pinocchio()
         prox = self._prox_redundant if redundant else self._prox_exact
-        acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models, self.pin_datas,
-                                     prox)
+        acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
+                                     self.pin_datas, prox)
+        if self._pin_verified(acc, tau):
+            return acc, prox
+        if redundant:
+            prox = self._prox_deep
+            acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
+                                         self.pin_datas, prox)
+            if self._pin_verified(acc, tau):
+                return acc, prox
+        return None, prox
+
+    def _pin_verified(self, acc, tau) -> bool:
         if not math.isfinite(acc.sum()):
-            return None, prox
-        return acc, prox
-
-    def _pin_min_norm_multipliers(self, acc, tau) -> np.ndarray:
-        """Minimum-norm LOCAL multipliers from Pinocchio's own ``M``, ``nle`` and ``J``.
-
-        ``J_pin^T lambda = M a + nle - tau``; the blocks of ``J_pin`` are rotations of
-        ours, so the minimum norm is the same in either row convention.
-        """
-        mass = self.data.M.copy()
-        mass[self._lower] = mass.T[self._lower]
-        force = mass @ acc + self.data.nle - tau
-        jac = pin.getConstraintsJacobian(self.model, self.data, self.pin_models, self.pin_datas)
-        sol, *_ = np.linalg.lstsq(jac.T, force, rcond=None)
-        return sol
+            return False
+        data = self.data
+        mass = data.M
+        mass[self._lower] = mass.T[self._lower]       # Pinocchio fills the upper triangle
+        if self.n_rows:
+            jac = pin.getConstraintsJacobian(self.model, data, self.pin_models, self.pin_datas)
+            drift = -data.primal_rhs_contact[:self.n_rows]
+        else:
+            jac, drift = np.zeros((0, self.nv)), np.zeros(0)
+        try:
+            self.verify(mass, data.nle, tau, jac, drift, acc, data.lambda_c, "pinocchio")
+        except SolverError:
+            return False
+        self._pin_last = (mass, jac, tau)
+        return True
 
     def pinocchio_acceleration(self, q, v, tau) -> np.ndarray:
-        """Tree acceleration (nv,) only (no multipliers), for integrators; no input checks."""
+        """Tree acceleration (nv,) only (no multipliers), verified; for integrators; no
+        input checks."""
         rank = self.closure_rank(q)
         acc, _ = self.pinocchio_call(q, v, tau, rank < self.n_rows)
         if acc is None:
             return self._forward_pinocchio(q, v, tau, rank).a
         return acc.copy()
 
+    def _lazy_rows(self, q, lam_pin):
+        """A callable giving our row multipliers from Pinocchio's LOCAL ones at ``q``."""
+        q = q.copy()
+
+        def convert() -> np.ndarray:
+            lam = lam_pin() if callable(lam_pin) else lam_pin
+            pin.framesForwardKinematics(self.model, self._aux_data, q)
+            return self._pin_to_row_multipliers(lam, self._aux_data)
+        return convert
+
+    def _pin_to_row_multipliers(self, lam_pin: np.ndarray, data) -> np.ndarray:
+        """Convert Pinocchio's LOCAL contact forces into our row convention.
+
+        Point rows: ``lambda = R_c1 lambda_pin`` (``J_c = R_c1 J_pin``); weld rows:
+        ``lambda = Jlog6^-T lambda_pin`` (``J_c = Jlog6 J_pin``). ``data`` holds the frame
+        placements at the state of the solve.
+        """
+        out = np.empty(self.n_rows)
+        for is_point, rows, f1, f2, _, _ in self.closure_frames:
+            if is_point:
+                out[rows] = data.oMf[f1].rotation @ lam_pin[rows]
+            else:
+                jlog = pin.Jlog6(data.oMf[f2].actInv(data.oMf[f1]))
+                out[rows] = np.linalg.solve(jlog.T, lam_pin[rows])
+        return out
+
     def _forward_pinocchio(self, q, v, tau, rank) -> TreeForwardDynamics:
-        for attempt in range(2):
-            redundant = rank < self.n_rows
-            acc, prox = self.pinocchio_call(q, v, tau, redundant)
-            if acc is not None:
-                if not redundant:
-                    lam_pin, status = self.data.lambda_c, "solved"
-                else:
-                    lam_pin = self._pin_min_norm_multipliers(acc, tau)
-                    status = (f"solved (redundant rows: proximal mu={_PIN_PROX_MU:g}, "
-                              f"{_PIN_PROX_ITERS} iterations; minimum-norm multipliers)")
-                return TreeForwardDynamics(acc.copy(), self._pin_to_row_multipliers(lam_pin),
-                                           "pinocchio", status, int(prox.iter), rank, -1.0)
-            if attempt == 0:
-                new_rank = self.closure_rank(q, force=True)
-                if new_rank == rank and redundant:
-                    break
-                rank = new_rank
-        # last resort: the KKT route (reported in the status)
-        jac = self.constraint_jacobian(q)
-        gamma = self.constraint_drift(q, v)
-        mass = self.mass_matrix(q)
-        bias = pin.nonLinearEffects(self.model, self.data, q, v)
+        redundant = rank < self.n_rows
+        acc, prox = self.pinocchio_call(q, v, tau, redundant)
+        if acc is None and not redundant:
+            # a structural rank found too high at the first call: re-evaluate here
+            new_rank = self.closure_rank(q, force=True)
+            if new_rank < rank:
+                rank, redundant = new_rank, True
+                acc, prox = self.pinocchio_call(q, v, tau, True)
+        if acc is not None:
+            status = "solved"
+            if redundant:
+                status = (f"solved (redundant rows: proximal mu={_PIN_PROX_MU:g}, "
+                          f"{prox.iter} iterations; minimum-norm multipliers)")
+            lam_pin = self.data.lambda_c.copy()
+            if redundant:
+                # the proximal multipliers are minimum-norm only up to the conditioning of
+                # the regularised system: polish them by least squares on Pinocchio's own
+                # M, nle and J (rotations of ours: the minimum norm is the same)
+                mass, jac, tau_used = self._pin_last
+                force = mass @ acc + self.data.nle - tau_used
+                lam_pin = _LazyMinNorm(jac.copy(), force)
+            return TreeForwardDynamics(acc.copy(), self._lazy_rows(q, lam_pin), "pinocchio",
+                                       status, int(prox.iter), rank, -1.0)
+        # Pinocchio's factorisation cannot hold this problem (e.g. a zero pivot of M from a
+        # massless link): the exact KKT route answers, and the status says so
+        mass, bias, jac, gamma = self._terms(q, v)
         res = self._forward_kkt(mass, bias, jac, gamma, tau, rank)
         return TreeForwardDynamics(res.a, res.multipliers, "pinocchio",
-                                   "pin.constraintDynamics failed; solved by the KKT route",
+                                   "pin.constraintDynamics unverified; solved by the KKT route"
+                                   + (" (redundant rows: minimum-norm multipliers)"
+                                      if res.rank < self.n_rows else ""),
                                    0, res.rank, res.constraint_residual)
 
     def _forward_kkt(self, mass, bias, jac, gamma, tau, rank) -> TreeForwardDynamics:
         nv, nr = self.nv, self.n_rows
-        kkt = np.zeros((nv + nr, nv + nr))
-        kkt[:nv, :nv] = mass
-        kkt[:nv, nv:] = jac.T
-        kkt[nv:, :nv] = jac
-        rhs = np.concatenate([tau - bias, -gamma])
-        sol = None
-        status = "solved"
+        rhs = np.empty(nv + nr)
+        rhs[:nv] = tau - bias
+        rhs[nv:] = -gamma
+        sol, status = None, "solved"
         if rank == nr:
+            kkt = self._kkt_matrix(mass, jac)
             try:
                 sol = np.linalg.solve(kkt, rhs)
             except np.linalg.LinAlgError:
                 sol = None
-            if sol is not None and not _small(kkt @ sol - rhs, rhs):
-                sol = None
+            if sol is not None:
+                try:
+                    self.verify(mass, bias, tau, jac, gamma, sol[:nv], -sol[nv:], "kkt")
+                except SolverError:
+                    sol = None
             if sol is None:
                 rank = self._ensure_rank_from(jac)
         if sol is None:
-            sol, *_ = np.linalg.lstsq(kkt, rhs, rcond=None)
-            status = "solved (redundant rows: minimum-norm multipliers)"
-        acc = sol[:nv]
-        lam = -sol[nv:]
+            acc, lam = self._nullspace_forward(mass, bias, jac, gamma, tau)
+            status = "solved (redundant rows: minimum-norm multipliers)" if rank < nr \
+                else "solved (null-space route)"
+        else:
+            acc, lam = sol[:nv], -sol[nv:]
+        self.verify(mass, bias, tau, jac, gamma, acc, lam, "kkt")
         return TreeForwardDynamics(acc, lam, "kkt", status, 0, rank,
                                    max_abs(jac @ acc + gamma))
+
+    def _kkt_matrix(self, mass, jac) -> np.ndarray:
+        nv = self.nv
+        kkt = self._kkt
+        kkt[:nv, :nv] = mass
+        kkt[:nv, nv:] = jac.T
+        kkt[nv:, :nv] = jac
+        return kkt
+
+    def _nullspace_forward(self, mass, bias, jac, gamma, tau):
+        """Exact solve for any rank: ``a = a_p + N z`` with ``N`` an orthonormal basis of
+        ``ker J_c`` (SVD), ``(N^T M N) z = N^T (tau - h - M a_p)``; minimum-norm multipliers
+        ``lambda = (J_c^T)^+ (M a + h - tau)``."""
+        if self.n_rows == 0:
+            return np.linalg.solve(mass, tau - bias), np.zeros(0)
+        u_mat, sv, vt = np.linalg.svd(jac)
+        tol = max(RANK_RTOL * sv[0], max(jac.shape) * _EPS) if sv.size else 0.0
+        r = int(np.sum(sv > tol))
+        a_p = vt[:r].T @ ((u_mat[:, :r].T @ -gamma) / sv[:r])
+        basis = vt[r:].T
+        reduced = basis.T @ mass @ basis
+        try:
+            z = np.linalg.solve(reduced, basis.T @ (tau - bias - mass @ a_p))
+        except np.linalg.LinAlgError:
+            raise SolverError("null-space forward dynamics", "singular",
+                              "N^T M N is singular: the mass matrix is not positive on the "
+                              "motions the closures allow") from None
+        acc = a_p + basis @ z
+        force = mass @ acc + bias - tau
+        lam = u_mat[:, :r] @ ((vt[:r] @ force) / sv[:r])
+        return acc, lam
 
     def _ensure_rank_from(self, jac: np.ndarray) -> int:
         self._rank = int(np.linalg.matrix_rank(jac))
         return self._rank
 
-    def _qp_solve(self, key, n_in, args, scale: float = 1.0) -> proxsuite.proxqp.dense.QP:
-        """Initialise (first call) or update the cached ProxSuite problem ``key``; solve.
-
-        The absolute tolerance is ``_QP_EPS * scale``: ``scale`` is the magnitude of the
-        problem's data (large accelerations or forces need a proportional tolerance,
-        or the solver stalls at its iteration limit on rounding)."""
-        entry = self._qps.get(key)
-        if entry is None:
+    def _qp_solve(self, key, n_in, args, warm=None) -> proxsuite.proxqp.dense.QP:
+        """Initialise (first call) or update the cached ProxSuite problem ``key``; solve,
+        warm-started from ``warm = (x, y, z)`` when given. The data must be scaled to
+        order one (tolerance ``_QP_EPS`` absolute)."""
+        qp = self._qps.get(key)
+        if qp is None:
             hess, _, amat = args[0], args[1], args[2]
             qp = proxsuite.proxqp.dense.QP(hess.shape[0], amat.shape[0], n_in)
             qp.settings.eps_abs = _QP_EPS
             qp.settings.eps_rel = 0.0
             qp.settings.max_iter = _QP_MAX_ITER
             qp.settings.verbose = False
-            qp.settings.initial_guess = \
-                proxsuite.proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
+            qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START
             qp.init(*args)
             self._qps[key] = qp
         else:
-            qp = entry
             qp.update(*args, update_preconditioner=True)
-        qp.settings.eps_abs = _QP_EPS * max(1.0, float(scale))
-        qp.solve()
+        if warm is None:
+            qp.solve()
+        else:
+            qp.solve(*warm)
         return qp
 
     def _forward_qp(self, mass, bias, jac, gamma, tau, rank) -> TreeForwardDynamics:
-        # Gauss: min 1/2 (a - a_free)^T M (a - a_free) = 1/2 a^T M a + (h - tau)^T a + const
-        scale = max(1.0, max_abs(bias - tau), max_abs(gamma))
-        qp = self._qp_solve("fd", 0, (mass, bias - tau, jac, -gamma, None, None, None),
-                            scale=scale)
-        status = QP_STATUS.get(qp.results.info.status, str(qp.results.info.status))
+        """Gauss principle as a ProxSuite QP, reformulated so that it is well posed on every
+        class: ``min 1/2 a^T H a + g^T a  s.t.  D J_c a = -D gamma`` with the augmented
+        Hessian ``H = M + rho J_c^T J_c`` (same minimiser on the feasible set; positive
+        definite when ``M`` is only positive on ``ker J_c``: massless links), rows of
+        ``J_c`` normalised by ``D``, the objective divided by its scale; warm-started from
+        the direct (KKT) solution."""
+        direct = self._forward_kkt(mass, bias, jac, gamma, tau, rank)
+        rank = direct.rank
+        nr = self.n_rows
+        scale_m = max(max_abs(np.diag(mass)), _TINY)
+        if nr:
+            norms = np.sqrt(np.einsum("ij,ij->i", jac, jac))
+            dinv = 1.0 / np.maximum(norms, _TINY)
+            jac_s = jac * dinv[:, None]
+            rho = scale_m
+            hess = (mass + rho * (jac_s.T @ jac_s)) / scale_m
+            grad = (bias - tau + rho * (jac_s.T @ (gamma * dinv))) / scale_m
+            b = -gamma * dinv
+        else:
+            jac_s, dinv, hess, grad, b = jac, np.ones(0), mass / scale_m, \
+                (bias - tau) / scale_m, np.zeros(0)
+        # ProxSuite: H x + g + A^T y = 0 with A = D J_c  =>  lambda = -scale_m D y
+        y0 = -direct.multipliers / (scale_m * dinv) if nr else np.zeros(0)
+        qp = self._qp_solve("fd", 0, (hess, grad, jac_s, b, None, None, None),
+                            warm=(direct.a, y0, None))
         info = qp.results.info
-        if (status == "max_iter_reached" and max(info.pri_res, info.dua_res)
-                <= _QP_ACCEPT * scale):
-            # ill-conditioned redundant rows: the residuals stall at rounding level
-            status = f"solved (residuals within {_QP_ACCEPT:g} relative at max_iter)"
-        elif status != "solved":
-            raise SolverError("ProxSuite (forward dynamics QP)", status,
-                              f"primal residual {qp.results.info.pri_res:.3e}, "
-                              f"dual residual {qp.results.info.dua_res:.3e}")
+        status = QP_STATUS.get(info.status, str(info.status))
         acc = qp.results.x.copy()
-        lam = -qp.results.y  # ProxSuite: H x + g + A^T y = 0
-        if rank < self.n_rows:
-            lam = _min_norm_multipliers(jac, lam)
-            status = "solved (redundant rows: minimum-norm multipliers)"
-        return TreeForwardDynamics(acc, lam, "qp", status, int(qp.results.info.iter), rank,
+        lam = -qp.results.y * scale_m * dinv if nr else np.zeros(0)
+        try:
+            self.verify(mass, bias, tau, jac, gamma, acc, lam, "ProxSuite (forward dynamics QP)")
+        except SolverError as exc:
+            raise SolverError("ProxSuite (forward dynamics QP)", status,
+                              f"{exc}; primal residual {info.pri_res:.3e}, dual residual "
+                              f"{info.dua_res:.3e}") from None
+        if rank < nr:
+            lam = direct.multipliers            # same generalised force; minimum norm
+            status = f"{status} (redundant rows: minimum-norm multipliers)"
+        elif status != "solved":
+            status = f"{status} (residuals verified)"
+        return TreeForwardDynamics(acc, lam, "qp", status, int(info.iter), rank,
                                    max_abs(jac @ acc + gamma))
 
     # -- inverse dynamics -------------------------------------------------------------------
@@ -472,10 +644,28 @@ class ClosedLoopDynamics:
         bounds = self._check_bounds(bounds)
         if method not in INVERSE_METHODS:
             raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
+        return self.inverse_unchecked(q, v, a, tau_ext, bounds, method)
+
+    def inverse_unchecked(self, q, v, a, tau_ext, bounds, method) -> TreeInverseDynamics:
+        """:meth:`inverse` without the input checks (``bounds`` None or (n_act,) array)."""
         rank = self.closure_rank(q)
         rhs = pin.rnea(self.model, self.data, q, v, a) - tau_ext
         jac = self.constraint_jacobian(q)
+        self._check_motion(q, v, a, jac)
         return self._inverse_solve(jac, rhs, bounds, method, rank)
+
+    def _check_motion(self, q, v, a, jac) -> None:
+        """Raise SolverError when ``a`` does not keep the closures (``J_c a != -gamma``):
+        no actuator force can produce it."""
+        if not self.n_rows:
+            return
+        gamma = self.constraint_drift(q, v)
+        miss = max_abs(jac @ a + gamma)
+        scale = max(max_abs(jac) * max_abs(a), max_abs(gamma), _TINY)
+        if not miss <= _MOTION_RTOL * scale:
+            raise SolverError("closed-loop inverse dynamics", "inconsistent motion",
+                              f"closure equation J_c a = -gamma missed by {miss / scale:.3e} "
+                              "(relative): the acceleration does not keep the closures")
 
     def _check_bounds(self, bounds) -> np.ndarray | None:
         if bounds is None:
@@ -492,26 +682,35 @@ class ClosedLoopDynamics:
         return None if np.all(np.isinf(arr)) else arr
 
     def _inverse_solve(self, jac, rhs, bounds, method, rank) -> TreeInverseDynamics:
-        mat = np.empty((self.nv, self.n_act + self.n_rows))
-        mat[:, :self.n_act] = self._selection
+        mat = self._id_matrix
         mat[:, self.n_act:] = jac.T
         if method == "kkt":
             sol, status = self._inverse_kkt(mat, rhs, rank, jac)
             iters = 0
         else:
-            sol, status, iters = self._inverse_qp(mat, rhs, bounds)
+            sol, status, iters = self._inverse_qp(mat, rhs, bounds, rank, jac)
         u = sol[:self.n_act]
         if bounds is not None and np.any(np.abs(u) > bounds * (1.0 + RESIDUAL_RTOL)):
             raise ActuatorSaturationError(u, bounds)
-        return TreeInverseDynamics(u.copy(), sol[self.n_act:].copy(), max_abs(mat @ sol - rhs),
-                                   method, status, iters)
+        residual = self._verify_inverse(mat, sol, rhs, method)
+        return TreeInverseDynamics(u.copy(), sol[self.n_act:].copy(), residual, method, status,
+                                   iters)
 
-    def _inverse_kkt(self, mat, rhs, rank, jac=None):
+    def _verify_inverse(self, mat, sol, rhs, route: str) -> float:
+        """Max-abs residual of ``S^T u + J_c^T lambda = M a + h - tau_ext``; SolverError when
+        it exceeds :data:`RESIDUAL_RTOL` relative to the data."""
+        prod = mat @ sol
+        res = max_abs(prod - rhs)
+        scale = max(max_abs(rhs), max_abs(mat) * max_abs(sol), _TINY)
+        if not res <= RESIDUAL_RTOL * scale:
+            raise SolverError(route, "unverified", "equation of motion S^T u + J_c^T lambda = "
+                              f"M a + h - tau_ext missed by {res / scale:.3e} (relative)")
+        return res
+
+    def _inverse_kkt(self, mat, rhs, rank, jac):
         if mat.shape[0] == mat.shape[1] and rank == self.n_rows:
             # square system: the passive rows give the multipliers, the actuated rows u
             act, passive = self.clm.actuated_v, self.clm.passive_v
-            if jac is None:
-                jac = mat[:, self.n_act:].T
             try:
                 lam = np.linalg.solve(jac[:, passive].T, rhs[passive])
                 sol = np.concatenate([rhs[act] - jac[:, act].T @ lam, lam])
@@ -520,32 +719,87 @@ class ClosedLoopDynamics:
             except np.linalg.LinAlgError:
                 pass
         sol, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
+        if rank < self.n_rows:
+            return sol, "solved (redundant rows: minimum-norm multipliers)"
         return sol, "solved (least squares / minimum norm)"
 
-    def _inverse_qp(self, mat, rhs, bounds):
+    def _inverse_qp(self, mat, rhs, bounds, rank, jac):
+        """Bounded ID as a ProxSuite QP: ``min 1/2 |u|^2 + 1/2 w |lambda|^2`` s.t. the
+        equation of motion (rows scaled by their norms, forces by their scale) and
+        ``|u| <= bounds``; warm-started from the direct (minimum-norm) solution."""
         n = self.n_act + self.n_rows
-        weights = np.concatenate([np.ones(self.n_act), np.full(self.n_rows, _LAMBDA_WEIGHT)])
-        hess = np.diag(weights)
+        direct, _ = self._inverse_kkt(mat, rhs, rank, jac)
+        f_scale = max(max_abs(rhs), max_abs(direct), _TINY)
+        norms = np.sqrt(np.einsum("ij,ij->i", mat, mat))
+        dinv = 1.0 / np.maximum(norms, _TINY)
+        mat_s = mat * dinv[:, None]
+        b = rhs * dinv / f_scale
+        x0 = direct / f_scale
+        hess = self._id_hess
         zero_g = np.zeros(n)
         if bounds is None:
-            qp = self._qp_solve("id", 0, (hess, zero_g, mat, rhs, None, None, None),
-                                scale=max_abs(rhs))
+            qp = self._qp_solve("id", 0, (hess, zero_g, mat_s, b, None, None, None),
+                                warm=(x0, None, None))
         else:
-            cmat = np.zeros((self.n_act, n))
-            cmat[:, :self.n_act] = np.eye(self.n_act)
+            x0 = x0.copy()
+            x0[:self.n_act] = np.clip(x0[:self.n_act], -bounds / f_scale, bounds / f_scale)
             qp = self._qp_solve("id_bounded", self.n_act,
-                                (hess, zero_g, mat, rhs, cmat, -bounds, bounds),
-                                scale=max_abs(rhs))
-        status = QP_STATUS.get(qp.results.info.status, str(qp.results.info.status))
-        sol = qp.results.x.copy()
-        ok = status == "solved" and _small(mat @ sol - rhs, rhs, rtol=1e-8)
-        if not ok:
-            needed, _ = self._inverse_kkt(mat, rhs, self._rank or self.n_rows)
-            if bounds is not None and np.any(np.abs(needed[:self.n_act]) > bounds):
-                raise ActuatorSaturationError(needed[:self.n_act], bounds)
+                                (hess, zero_g, mat_s, b, self._id_box, -bounds / f_scale,
+                                 bounds / f_scale), warm=(x0, None, None))
+        info = qp.results.info
+        status = QP_STATUS.get(info.status, str(info.status))
+        sol = self._polish_inverse(mat, rhs, qp.results.x * f_scale, bounds)
+        try:
+            self._verify_inverse(mat, sol, rhs, "ProxSuite (inverse dynamics QP)")
+            if bounds is not None and np.any(np.abs(sol[:self.n_act])
+                                             > bounds * (1.0 + RESIDUAL_RTOL)):
+                raise SolverError("ProxSuite (inverse dynamics QP)", status, "bounds missed")
+        except SolverError as exc:
+            if bounds is not None:
+                needed = self._bounds_infeasible(mat, rhs, bounds, direct)
+                if needed is not None:
+                    raise ActuatorSaturationError(needed, bounds) from None
             raise SolverError("ProxSuite (inverse dynamics QP)", status,
-                              f"primal residual {qp.results.info.pri_res:.3e}")
-        return sol, status, int(qp.results.info.iter)
+                              f"{exc}; primal residual {info.pri_res:.3e}") from None
+        if status != "solved":
+            status = f"{status} (residuals verified)"
+        return sol, status, int(info.iter)
+
+    def _polish_inverse(self, mat, rhs, sol, bounds) -> np.ndarray:
+        """Exact solution on the QP's active set: the actuators at a bound held there, the
+        rest of ``x = (u, lambda)`` minimising the weighted norm of the QP subject to the
+        equation of motion (weighted minimum-norm least squares). Returns ``sol`` unchanged
+        when the polished point leaves the bounds."""
+        n_act = self.n_act
+        fixed = np.zeros(sol.size, dtype=bool)
+        if bounds is not None:
+            fixed[:n_act] = np.abs(sol[:n_act]) >= bounds * (1.0 - 1e-7)
+        out = sol.copy()
+        out[:n_act][fixed[:n_act]] = np.sign(sol[:n_act][fixed[:n_act]]) * \
+            bounds[fixed[:n_act]] if bounds is not None else 0.0
+        free = ~fixed
+        root_w = np.sqrt(np.diag(self._id_hess))[free]
+        step, *_ = np.linalg.lstsq(mat[:, free] / root_w, rhs - mat[:, fixed] @ out[fixed],
+                                   rcond=None)
+        out[free] = step / root_w
+        if bounds is not None and np.any(np.abs(out[:n_act]) > bounds * (1.0 + RESIDUAL_RTOL)):
+            return sol
+        return out
+
+    def _bounds_infeasible(self, mat, rhs, bounds, direct) -> np.ndarray | None:
+        """The needed forces when no ``|u| <= bounds`` satisfies the equation of motion, else
+        None. Certified by a box-constrained least-squares problem (``scipy.optimize.
+        lsq_linear``): the bounds are infeasible when its smallest residual exceeds
+        ``_INFEASIBLE_RTOL`` relative to the data. The needed forces are the direct
+        (minimum-norm) ones."""
+        lower = np.concatenate([-bounds, np.full(self.n_rows, -np.inf)])
+        upper = np.concatenate([bounds, np.full(self.n_rows, np.inf)])
+        fit = scipy.optimize.lsq_linear(mat, rhs, bounds=(lower, upper), method="bvls",
+                                        tol=1e-14)
+        miss = max_abs(mat @ fit.x - rhs)
+        if miss > _INFEASIBLE_RTOL * max(max_abs(rhs), _TINY):
+            return direct[:self.n_act].copy()
+        return None
 
     # -- joint reaction wrenches ------------------------------------------------------------
     def joint_wrenches(self, q, v, a, multipliers, fext: Mapping[int, pin.Force] | None = None
@@ -676,13 +930,17 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=No
 # --------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------
+class _LazyMinNorm:
+    """Minimum-norm ``lambda`` with ``J^T lambda = force``, computed when called."""
+
+    def __init__(self, jac: np.ndarray, force: np.ndarray):
+        self.jac, self.force = jac, force
+
+    def __call__(self) -> np.ndarray:
+        sol, *_ = np.linalg.lstsq(self.jac.T, self.force, rcond=None)
+        return sol
+
+
 def _small(residual: np.ndarray, rhs: np.ndarray, rtol: float = RESIDUAL_RTOL) -> bool:
     scale = max(1.0, max_abs(rhs))
     return bool(np.all(np.isfinite(residual)) and max_abs(residual) <= rtol * scale)
-
-
-def _min_norm_multipliers(jac: np.ndarray, lam: np.ndarray) -> np.ndarray:
-    """The minimum-norm multipliers giving the same generalised force ``J_c^T lam``."""
-    sol, *_ = np.linalg.lstsq(jac.T, jac.T @ lam, rcond=None)
-    return sol
-

@@ -1,0 +1,170 @@
+"""The generic closed-loop core on test robots of each hard class (tests/stress_robots.py).
+
+Independent reference, written here: the null-space solution of the constrained dynamics
+from Pinocchio's crba / nle and the closed-loop model's own J_c and gamma (themselves
+checked against finite differences in test_closed_loop.py), with an SVD basis of ker J_c
+and the minimum-norm multipliers (J_c^T)^+ (M a + h - tau). Every forward and inverse
+route must agree with it to 1e-9 relative, on every class, for every sampled state (no
+SolverError on these well-posed states), and must raise on a deliberately inconsistent
+problem.
+"""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import stress_robots
+
+from hexapod_pin.core.closed_loop import ClosedLoopModel
+from hexapod_pin.core.description import build_model, parse_loops
+from hexapod_pin.core.dynamics import (
+    FORWARD_METHODS,
+    INVERSE_METHODS,
+    dynamics_of,
+    forward_dynamics_tree,
+    inverse_dynamics_tree,
+)
+from hexapod_pin.errors import ActuatorSaturationError, SolverError
+
+RTOL = 1e-9
+STATES = 4
+
+
+@pytest.fixture(scope="module", params=sorted(stress_robots.BUILDERS))
+def stress(request):
+    return stress_robots.build(request.param)
+
+
+def reference_terms(clm, q, v):
+    data = clm.model.createData()
+    mass = pin.crba(clm.model, data, q)
+    mass = np.triu(mass) + np.triu(mass, 1).T
+    bias = pin.nonLinearEffects(clm.model, data, q, v)
+    return mass, bias, clm.constraint_jacobian(q), clm.constraint_drift(q, v)
+
+
+def reference_forward(clm, q, v, tau):
+    """(a, minimum-norm lambda) by the null-space method (numpy SVD)."""
+    mass, bias, jac, gamma = reference_terms(clm, q, v)
+    _, sv, vt = np.linalg.svd(jac)
+    r = int(np.sum(sv > 1e-10 * sv[0]))
+    a_p = np.linalg.pinv(jac, rcond=1e-10) @ -gamma
+    basis = vt[r:].T
+    z = np.linalg.solve(basis.T @ mass @ basis, basis.T @ (tau - bias - mass @ a_p))
+    acc = a_p + basis @ z
+    lam = np.linalg.pinv(jac.T, rcond=1e-10) @ (mass @ acc + bias - tau)
+    return acc, lam
+
+
+def assert_close(value, ref, what):
+    scale = max(np.max(np.abs(ref)), 1e-300)
+    err = np.max(np.abs(value - ref)) / scale
+    assert err <= RTOL, f"{what}: relative error {err:.3e}"
+
+
+def _tau(clm, rng):
+    tau = np.zeros(clm.nv)
+    tau[clm.actuated_v] = rng.normal(size=clm.n_actuated)
+    return tau
+
+
+def test_every_forward_route_matches_the_nullspace_reference(stress):
+    rng = np.random.default_rng(1)
+    clm = stress.clm
+    for _ in range(STATES):
+        q, v = stress.sample(rng)
+        tau = _tau(clm, rng)
+        a_ref, lam_ref = reference_forward(clm, q, v, tau)
+        for method in FORWARD_METHODS:
+            res = forward_dynamics_tree(clm, q, v, tau[clm.actuated_v], method=method)
+            assert_close(res.a, a_ref, f"{stress.name} {method} a")
+            assert_close(res.multipliers, lam_ref, f"{stress.name} {method} lambda")
+            redundant = np.linalg.matrix_rank(clm.constraint_jacobian(q)) < clm.n_rows
+            assert ("redundant" in res.status) == redundant, res.status
+
+
+def test_every_inverse_route_matches_the_reference(stress):
+    rng = np.random.default_rng(2)
+    clm = stress.clm
+    for _ in range(STATES):
+        q, v = stress.sample(rng)
+        tau = _tau(clm, rng)
+        a_ref, lam_ref = reference_forward(clm, q, v, tau)
+        for method in INVERSE_METHODS:
+            for bounds in (None, 10.0 * np.max(np.abs(tau))):
+                inv = inverse_dynamics_tree(clm, q, v, a_ref, method=method, bounds=bounds)
+                assert_close(inv.actuator_forces, tau[clm.actuated_v],
+                             f"{stress.name} {method} u")
+                assert_close(inv.multipliers, lam_ref, f"{stress.name} {method} lambda")
+
+
+def test_saturation_only_when_the_bounds_are_infeasible(stress):
+    rng = np.random.default_rng(3)
+    clm = stress.clm
+    q, v = stress.sample(rng)
+    tau = _tau(clm, rng)
+    a_ref, _ = reference_forward(clm, q, v, tau)
+    needed = np.abs(tau[clm.actuated_v])
+    with pytest.raises(ActuatorSaturationError):
+        inverse_dynamics_tree(clm, q, v, a_ref, bounds=0.5 * np.max(needed), method="qp")
+    ok = inverse_dynamics_tree(clm, q, v, a_ref, bounds=1.001 * np.max(needed), method="qp")
+    assert_close(ok.actuator_forces, tau[clm.actuated_v], f"{stress.name} u at the bound")
+
+
+def test_inverse_of_a_motion_that_breaks_the_closures_raises(stress):
+    rng = np.random.default_rng(4)
+    clm = stress.clm
+    q, v = stress.sample(rng)
+    a_ref, _ = reference_forward(clm, q, v, _tau(clm, rng))
+    jac = clm.constraint_jacobian(q)
+    # a direction that the closures forbid (in the row space of J_c)
+    bad = a_ref + 0.1 * np.max(np.abs(a_ref)) * jac.T @ rng.normal(size=clm.n_rows) \
+        / np.max(np.abs(jac))
+    for method in INVERSE_METHODS:
+        with pytest.raises(SolverError, match="closure equation"):
+            inverse_dynamics_tree(clm, q, v, bad, method=method)
+
+
+PENDULUM = """<?xml version="1.0"?>
+<robot name="pendulum">
+  <link name="world"/>
+  <joint name="hinge" type="revolute"><parent link="world"/><child link="rod"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="rod"><inertial><origin xyz="0 0 -0.25"/><mass value="1"/>
+    <inertia ixx="0.02" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.001"/></inertial></link>
+  <joint name="tip_mount" type="fixed"><parent link="rod"/><child link="tip"/>
+    <origin xyz="0 0 -0.5"/></joint>
+  <link name="tip"/>
+  <joint name="slider" type="prismatic"><parent link="world"/><child link="cart"/>
+    <axis xyz="1 0 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="cart"><inertial><mass value="1"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+</robot>
+"""
+
+
+def test_gamma_outside_the_range_of_the_jacobian_raises():
+    """A pendulum whose tip is pinned to the world (3 rows, rank 1), moving: the drift
+    (centripetal, radial) is outside the range of J_c (tangential), so J_c a = -gamma has
+    no solution; every forward route must raise instead of returning a least-squares a.
+    (A free slider beside it keeps nv = 2.)"""
+    loops = parse_loops("closures:\n  - {name: pin, type: point, frame1: tip, "
+                        "frame2: world, offset2: {xyz: [0, 0, -0.5]}}\nactuated: [hinge, slider]\n")
+    clm = ClosedLoopModel(build_model(PENDULUM), loops)
+    q, v = np.zeros(2), np.array([2.0, 0.0])
+    gamma = clm.constraint_drift(q, v)
+    assert np.max(np.abs(gamma)) > 1.0
+    for method in FORWARD_METHODS:
+        with pytest.raises(SolverError):
+            forward_dynamics_tree(clm, q, v, np.zeros(2), method=method)
+
+
+def test_pinocchio_route_reports_its_fallback_on_massless_links():
+    robot = stress_robots.build("ladder_massless")
+    q, v = robot.sample(np.random.default_rng(5))
+    res = forward_dynamics_tree(robot.clm, q, v, np.ones(1), method="pinocchio")
+    assert res.status.startswith("pin.constraintDynamics unverified")
+    dyn = dynamics_of(robot.clm)
+    tau = np.zeros(robot.clm.nv)
+    tau[robot.clm.actuated_v] = 1.0
+    acc, _ = dyn.pinocchio_call(q, v, tau, False)
+    assert acc is None                          # the raw call is refused, not returned
