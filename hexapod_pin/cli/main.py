@@ -6,7 +6,8 @@ functions:
 * ``demo`` (:mod:`.demo`);
 * ``ik``, ``fk``, ``modes``, ``jacobian`` (:mod:`.kinematics`);
 * ``statics``, ``id``, ``simulate`` (:mod:`.dynamics`);
-* ``view``, ``plot`` (:mod:`.views`).
+* ``view``, ``plot`` (:mod:`.views`);
+* ``retime``, ``check`` (:mod:`.planning`).
 
 Common options (:mod:`.common`):
 
@@ -36,7 +37,7 @@ from __future__ import annotations
 
 import typer
 
-from . import demo, dynamics, kinematics, views
+from . import demo, dynamics, kinematics, planning, views
 from .common import NUMBERS
 
 app = typer.Typer(help="Kinematics and dynamics of the rail-driven hexapod.", no_args_is_help=True,
@@ -59,6 +60,8 @@ app.command("id")(dynamics.inverse_dynamics)
 app.command()(dynamics.simulate)
 app.command(context_settings=NUMBERS)(views.view)
 app.command()(views.plot)
+app.command()(planning.retime)
+app.command()(planning.check)
 
 
 def main() -> None:  # pragma: no cover - console entry point

@@ -30,7 +30,11 @@ characteristic length, its platform radius).
 
 from __future__ import annotations
 
+import csv
+import json
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -38,7 +42,8 @@ from scipy.spatial.transform import Rotation
 
 from ..core.checks import as_array
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
-from ..errors import InputError
+from ..errors import DescriptionError, InputError
+from ..motion import POSE_NAMES
 
 #: below this rotation angle (rad) the SO(3) Jacobian coefficients use their series
 _SERIES_ANGLE = 1e-2
@@ -138,6 +143,43 @@ class GeometricPath:
         rpy = np.unwrap(rpy_from_rotation(rot), axis=0)
         return PathSamples(s, np.hstack([p[0], rpy]), np.hstack([p[1], omega @ self._r0.T]),
                            np.hstack([p[2], omega_s @ self._r0.T]))
+
+
+def read_waypoints(path: str | os.PathLike) -> np.ndarray:
+    """Platform waypoints (K, 6) (m, rad) from a file: a CSV with a header naming at
+    least the pose columns ``x, y, z, roll, pitch, yaw`` (other columns, e.g. ``t``, are
+    ignored; ``#`` comment lines allowed), or a JSON object with ``"pose"`` (K x 6), as in
+    the motion files of :mod:`hexapod_pin.motion`.
+
+    Raises:
+        DescriptionError: a missing file, another suffix, missing columns, a value that is
+            not a finite number.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DescriptionError(str(path), "waypoint file not found")
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".json":
+            data = json.loads(path.read_text(encoding="utf-8"))
+            poses = np.asarray(data["pose"], dtype=float)
+        elif suffix in (".csv", ".txt"):
+            lines = [ln for ln in path.read_text(encoding="utf-8").splitlines()
+                     if ln.strip() and not ln.lstrip().startswith("#")]
+            rows = list(csv.reader(lines))
+            header = [h.strip() for h in rows[0]]
+            missing = [name for name in POSE_NAMES if name not in header]
+            if missing:
+                raise DescriptionError(str(path), f"missing columns {missing}")
+            cols = [header.index(name) for name in POSE_NAMES]
+            poses = np.array([[float(row[c]) for c in cols] for row in rows[1:]])
+        else:
+            raise DescriptionError(str(path), "waypoint files are .csv or .json")
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise DescriptionError(str(path), f"malformed waypoints: {exc}") from None
+    if poses.ndim != 2 or poses.shape[1] != 6 or not np.all(np.isfinite(poses)):
+        raise DescriptionError(str(path), "expected rows of 6 finite pose values")
+    return poses
 
 
 def _left_jacobian_terms(phi, dphi, ddphi):

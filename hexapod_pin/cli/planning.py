@@ -1,0 +1,168 @@
+"""Planning commands: ``retime`` (the fastest timing of a path within the limits) and
+``check`` (margins of a timed motion against the limits), over :mod:`hexapod_pin.planning`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from .. import motion as motions
+from ..planning import Limits, Payload, time_optimal
+from ..planning.feasibility import check_feasibility
+from ..planning.path import read_waypoints
+from ..viz import hexapod_scenes, planning_plots, plotting
+from .common import (
+    AsJson,
+    GeometryFile,
+    Quiet,
+    SetFields,
+    check_suffix,
+    console,
+    emit_json,
+    guard,
+    note,
+    parse_numbers,
+    quantity_table,
+    robot_of,
+)
+
+# -- the limit options shared by both commands ------------------------------------------------
+MaxForce = Annotated[float | None, typer.Option(
+    "--max-force", help="bound on |actuator force| (N); default the geometry's "
+                        "max_actuator_force", show_default=False)]
+MaxVelocity = Annotated[float, typer.Option(
+    "--max-velocity", help="bound on |actuator velocity| (m/s)")]
+MaxAcceleration = Annotated[float, typer.Option(
+    "--max-acceleration", help="bound on |actuator acceleration| (m/s^2)")]
+MaxLinear = Annotated[float, typer.Option(
+    "--max-linear-speed", help="bound on the platform origin's speed (m/s)")]
+MaxAngular = Annotated[float, typer.Option(
+    "--max-angular-speed", help="bound on the platform's angular speed (rad/s)")]
+PayloadMass = Annotated[float, typer.Option(
+    "--payload-mass", help="point mass carried at the platform origin (kg)")]
+PayloadWrench = Annotated[str | None, typer.Option(
+    "--payload-wrench", help="constant wrench on the platform 'fx,fy,fz,mx,my,mz' "
+                             "(N, N m, world axes)", show_default=False)]
+NoStrokes = Annotated[bool, typer.Option(
+    "--no-strokes", help="do not reject poses outside the actuator strokes")]
+
+
+def _limits(max_force, max_velocity, max_acceleration, max_linear, max_angular,
+            no_strokes) -> Limits:
+    return Limits(actuator_force=max_force, actuator_velocity=max_velocity,
+                  actuator_acceleration=max_acceleration, linear_speed=max_linear,
+                  angular_speed=max_angular, strokes=not no_strokes)
+
+
+def _payload(mass, wrench) -> Payload:
+    values = None if wrench is None else tuple(parse_numbers([wrench], 6, "payload-wrench",
+                                                             "fx fy fz mx my mz"))
+    return Payload(mass=mass, wrench=values)
+
+
+@guard
+def retime(path_file: Annotated[Path, typer.Argument(
+               help="waypoints: .csv with columns x,y,z,roll,pitch,yaw (others ignored) "
+                    "or .json with 'pose'")],
+           out: Annotated[Path | None, typer.Option(
+               help="write the timed motion (.csv / .json motion file)")] = None,
+           max_force: MaxForce = None, max_velocity: MaxVelocity = float("inf"),
+           max_acceleration: MaxAcceleration = float("inf"),
+           max_linear_speed: MaxLinear = float("inf"),
+           max_angular_speed: MaxAngular = float("inf"),
+           payload_mass: PayloadMass = 0.0, payload_wrench: PayloadWrench = None,
+           no_strokes: NoStrokes = False,
+           grid: Annotated[int, typer.Option(help="grid points along the path")] = 1000,
+           rate: Annotated[float | None, typer.Option(
+               help="resample the output at this rate (Hz); default the grid points",
+               show_default=False)] = None,
+           plot: Annotated[Path | None, typer.Option(
+               help="figure of the forces against their limits and of the phase plane "
+                    "(.png / .svg / .pdf; the phase plane gets a '-phase' suffix)")] = None,
+           html: Annotated[Path | None, typer.Option(
+               help="write an animated HTML view")] = None,
+           as_json: AsJson = False, quiet: Quiet = False,
+           geometry: GeometryFile = None, set_: SetFields = None) -> None:
+    """Fastest timing of the path through the waypoints within the actuator limits
+    (time-optimal path parameterisation on the closed-loop inverse dynamics), from rest
+    to rest. The path is C2 through the waypoints, rotations interpolated on SO(3)."""
+    quiet = quiet or as_json
+    check_suffix("out", out, motions.MOTION_SUFFIXES)
+    check_suffix("plot", plot, plotting.IMAGE_SUFFIXES)
+    check_suffix("html", html, (".html", ".htm"))
+    robot = robot_of(geometry, set_)
+    limits = _limits(max_force, max_velocity, max_acceleration, max_linear_speed,
+                     max_angular_speed, no_strokes)
+    traj = time_optimal(robot, read_waypoints(path_file), limits=limits,
+                        payload=_payload(payload_mass, payload_wrench), grid_points=grid)
+    timed = traj if rate is None else traj.resample(rate)
+    if out is not None:
+        motions.write_motion(out, motions.Motion(
+            timed.t, timed.poses, timed.twists, timed.twist_dots, q=timed.actuator_positions,
+            actuator_forces=timed.actuator_forces))
+        note(quiet, f"wrote {out}")
+    if plot is not None:
+        planning_plots.plot_forces_against_limits(traj, path=plot)
+        phase = plot.with_name(plot.stem + "-phase" + plot.suffix)
+        planning_plots.plot_phase_plane(traj, path=phase)
+        note(quiet, f"wrote {plot} and {phase}")
+    if html is not None:
+        hexapod_scenes.write_hexapod_trajectory_html(
+            html, robot, timed.t, timed.poses, carriages=timed.actuator_positions,
+            actuator_forces=timed.actuator_forces,
+            caption=f"time-optimal motion, {traj.duration:.4g} s")
+        note(quiet, f"wrote {html}")
+    summary = {"duration_s": traj.duration, "grid_points": len(traj.t),
+               "samples_written": len(timed.t),
+               "path_length_m": traj.path.length,
+               "max_abs_actuator_force_n": float(np.max(np.abs(traj.actuator_forces))),
+               "max_abs_actuator_velocity_m_s": float(np.max(np.abs(traj.actuator_velocities))),
+               "out": out, "plot": plot, "html": html}
+    if as_json:
+        emit_json(summary)
+        return
+    console.print(quantity_table("time-optimal retiming", {
+        key: f"{value:.6g}" if isinstance(value, float) else str(value)
+        for key, value in summary.items() if value is not None}))
+
+
+@guard
+def check(motion_file: Annotated[Path, typer.Argument(
+              help="timed motion file (.csv / .json, see `hexapod-pin id --help`)")],
+          max_force: MaxForce = None, max_velocity: MaxVelocity = float("inf"),
+          max_acceleration: MaxAcceleration = float("inf"),
+          max_linear_speed: MaxLinear = float("inf"),
+          max_angular_speed: MaxAngular = float("inf"),
+          payload_mass: PayloadMass = 0.0, payload_wrench: PayloadWrench = None,
+          no_strokes: NoStrokes = False, as_json: AsJson = False,
+          geometry: GeometryFile = None, set_: SetFields = None) -> None:
+    """Margins of a timed motion against the limits: the worst sample, and the smallest
+    uniform slow-down factor that makes it feasible (< 1: it could run faster). Exit code
+    1 when a limit is violated."""
+    robot = robot_of(geometry, set_)
+    limits = _limits(max_force, max_velocity, max_acceleration, max_linear_speed,
+                     max_angular_speed, no_strokes)
+    report = check_feasibility(robot, motion_file, limits=limits,
+                               payload=_payload(payload_mass, payload_wrench))
+    largest = {key: float(np.max(report.values[key] / report.bounds[key]))
+               for key in report.values if np.any(np.isfinite(report.bounds[key]))}
+    summary = {"feasible": report.feasible, "samples": len(report.t),
+               "slow_down": report.slow_down, "worst": report.worst,
+               "largest_ratio_to_limit": largest,
+               "samples_outside_strokes": int(np.sum(~report.within_stroke))}
+    if as_json:
+        emit_json(summary)
+    else:
+        rows = {"feasible": str(report.feasible),
+                "uniform slow-down factor": f"{report.slow_down:.6g}"}
+        if report.worst is not None:
+            w = report.worst
+            rows["worst"] = (f"{w.limit} at sample {w.index} (t = {w.time:.6g} s), "
+                             f"component {w.component}: {w.value:.6g} vs {w.bound:.6g}")
+        rows.update({f"max {key} / limit": f"{value:.6g}" for key, value in largest.items()})
+        console.print(quantity_table(f"feasibility of {motion_file}", rows))
+    if not report.feasible:
+        raise typer.Exit(code=1)
