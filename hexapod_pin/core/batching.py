@@ -27,12 +27,13 @@ def n_chunks(n: int) -> int:
 
 
 class BatchDriver:
-    """A batch loop compiled with and without ``parallel=True``; a call picks one by the
-    number of states (the first axis of argument ``states_arg``)."""
+    """A batch loop compiled with and without ``parallel=True`` (with the compile options
+    ``flags``); a call picks one by the number of states (the first axis of argument
+    ``states_arg``)."""
 
-    def __init__(self, func, states_arg: int):
-        self.parallel = numba.njit(parallel=True, **FLAGS)(func)
-        self.serial = numba.njit(**FLAGS)(func)
+    def __init__(self, func, states_arg: int, flags: dict = FLAGS):
+        self.parallel = numba.njit(parallel=True, **flags)(func)
+        self.serial = numba.njit(**flags)(func)
         self.states_arg = states_arg
         self.__doc__ = func.__doc__
 
@@ -41,6 +42,7 @@ class BatchDriver:
         return (self.parallel if n >= PARALLEL_MIN else self.serial)(*args)
 
 
-def prange_jit(states_arg: int):
-    """Decorator: a :class:`BatchDriver` whose states are argument ``states_arg``'s rows."""
-    return lambda func: BatchDriver(func, states_arg)
+def prange_jit(states_arg: int, flags: dict = FLAGS):
+    """Decorator: a :class:`BatchDriver` whose states are argument ``states_arg``'s rows,
+    compiled with ``flags`` (default :data:`~hexapod_pin.core.compiled.FLAGS`)."""
+    return lambda func: BatchDriver(func, states_arg, flags)

@@ -1,9 +1,17 @@
-"""Platform poses and twists: rotations and their conversions (vectorised numpy).
+"""Platform poses and twists: the rotation conventions, written once.
 
 A pose is ``(x, y, z, roll, pitch, yaw)``: the position of the platform origin
 in the world (m) and the rotation ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (rad) from
 platform axes to world axes. A twist is ``(v, w)``: the linear velocity of the
 platform origin and the angular velocity, both in world axes (m/s, rad/s).
+Quaternions are unit quaternions; :func:`rotation_quat` and :func:`quaternion_rpy` use
+``(w, x, y, z)``, :func:`rotation_from_quaternion` Pinocchio's ``(x, y, z, w)``.
+
+The conversions are compiled scalar kernels (:func:`rotation_rpy`, :func:`rotation_quat`,
+:func:`quaternion_rpy`, :func:`rpy_of`: rotations as 9 row-major floats), called by the
+robots' compiled closed forms; the array functions (:func:`rotation_from_rpy`,
+:func:`rpy_from_rotation`, :func:`rotation_from_quaternion`) run the same kernels over
+any number of rotations.
 """
 
 from __future__ import annotations
@@ -12,52 +20,93 @@ import math
 
 import numpy as np
 
+from .compiled import jit_inline, jit_lean
 
 
-def rotation_from_rpy(rpy: np.ndarray) -> np.ndarray:
-    """``Rz(yaw) Ry(pitch) Rx(roll)`` for ``rpy`` of shape (..., 3) -> (..., 3, 3)."""
-    rpy = np.asarray(rpy, dtype=float)
-    cr, sr = np.cos(rpy[..., 0]), np.sin(rpy[..., 0])
-    cp, sp = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
-    cy, sy = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
-    out = np.empty(rpy.shape[:-1] + (3, 3))
-    out[..., 0, 0] = cy * cp
-    out[..., 0, 1] = cy * sp * sr - sy * cr
-    out[..., 0, 2] = cy * sp * cr + sy * sr
-    out[..., 1, 0] = sy * cp
-    out[..., 1, 1] = sy * sp * sr + cy * cr
-    out[..., 1, 2] = sy * sp * cr - cy * sr
-    out[..., 2, 0] = -sp
-    out[..., 2, 1] = cp * sr
-    out[..., 2, 2] = cp * cr
-    return out
-
-
-def rotation_tuple(roll: float, pitch: float, yaw: float):
-    """``Rz(yaw) Ry(pitch) Rx(roll)`` as nested tuples of plain floats (rows), for hot
-    scalar code where small numpy arrays cost more than they save."""
+@jit_inline
+def rotation_rpy(roll, pitch, yaw, rot):
+    """``rot`` (9,) = ``Rz(yaw) Ry(pitch) Rx(roll)`` row-major."""
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
     cy, sy = math.cos(yaw), math.sin(yaw)
-    return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
-            (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
-            (-sp, cp * sr, cp * cr))
+    rot[0], rot[1], rot[2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
+    rot[3], rot[4], rot[5] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+    rot[6], rot[7], rot[8] = -sp, cp * sr, cp * cr
 
 
-def rpy_from_rotation(rot: np.ndarray) -> np.ndarray:
+@jit_inline
+def rotation_quat(w, x, y, z, rot):
+    """``rot`` (9,) row-major of a quaternion ``(w, x, y, z)`` of any non-zero norm."""
+    s = 2.0 / (w * w + x * x + y * y + z * z)
+    rot[0], rot[1], rot[2] = 1.0 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)
+    rot[3], rot[4], rot[5] = s * (x * y + z * w), 1.0 - s * (x * x + z * z), s * (y * z - x * w)
+    rot[6], rot[7], rot[8] = s * (x * z - y * w), s * (y * z + x * w), 1.0 - s * (x * x + y * y)
+
+
+@jit_inline
+def quaternion_rpy(roll, pitch, yaw):
+    """Unit quaternion ``(w, x, y, z)`` of ``Rz(yaw) Ry(pitch) Rx(roll)``, ``w >= 0``."""
+    c1, s1 = math.cos(0.5 * roll), math.sin(0.5 * roll)
+    c2, s2 = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+    c3, s3 = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+    qw = c1 * c2 * c3 + s1 * s2 * s3
+    qx = s1 * c2 * c3 - c1 * s2 * s3
+    qy = c1 * s2 * c3 + s1 * c2 * s3
+    qz = c1 * c2 * s3 - s1 * s2 * c3
+    if qw < 0.0:
+        return -qw, -qx, -qy, -qz
+    return qw, qx, qy, qz
+
+
+@jit_inline
+def rpy_of(rot):
+    """``(roll, pitch, yaw)`` of ``rot`` (9,), pitch in [-pi/2, pi/2]; at gimbal lock
+    roll = 0 and yaw takes the rest."""
+    horizontal = math.hypot(rot[0], rot[3])
+    pitch = math.atan2(-rot[6], horizontal)
+    if horizontal < 1e-12:
+        return 0.0, pitch, math.atan2(-rot[1], rot[4])
+    return math.atan2(rot[7], rot[8]), pitch, math.atan2(rot[3], rot[0])
+
+
+@jit_lean
+def _rotations_rpy(rpy, out):
+    for k in range(rpy.shape[0]):
+        rotation_rpy(rpy[k, 0], rpy[k, 1], rpy[k, 2], out[k])
+
+
+@jit_lean
+def _rpys(rot, out):
+    for k in range(rot.shape[0]):
+        out[k, 0], out[k, 1], out[k, 2] = rpy_of(rot[k])
+
+
+def rotation_from_rpy(rpy) -> np.ndarray:
+    """``Rz(yaw) Ry(pitch) Rx(roll)`` for ``rpy`` of shape (..., 3) -> (..., 3, 3)."""
+    rpy = np.asarray(rpy, dtype=float)
+    flat = np.ascontiguousarray(rpy.reshape(-1, 3))
+    out = np.empty((flat.shape[0], 9))
+    _rotations_rpy(flat, out)
+    return out.reshape(rpy.shape[:-1] + (3, 3))
+
+
+def rpy_from_rotation(rot) -> np.ndarray:
     """Inverse of :func:`rotation_from_rpy`, pitch in [-pi/2, pi/2]; (..., 3, 3) -> (..., 3).
 
     At pitch = +-pi/2 (gimbal lock) roll is set to 0 and yaw absorbs the rest.
     """
     rot = np.asarray(rot, dtype=float)
-    pitch = np.arctan2(-rot[..., 2, 0], np.hypot(rot[..., 0, 0], rot[..., 1, 0]))
-    roll = np.arctan2(rot[..., 2, 1], rot[..., 2, 2])
-    yaw = np.arctan2(rot[..., 1, 0], rot[..., 0, 0])
-    locked = np.hypot(rot[..., 0, 0], rot[..., 1, 0]) < 1e-12
-    if np.any(locked):
-        roll = np.where(locked, 0.0, roll)
-        yaw = np.where(locked, np.arctan2(-rot[..., 0, 1], rot[..., 1, 1]), yaw)
-    return np.stack([roll, pitch, yaw], axis=-1)
+    flat = np.ascontiguousarray(rot.reshape(-1, 9))
+    out = np.empty((flat.shape[0], 3))
+    _rpys(flat, out)
+    return out.reshape(rot.shape[:-2] + (3,))
+
+
+def rotation_from_quaternion(x: float, y: float, z: float, w: float) -> np.ndarray:
+    """Rotation matrix (3, 3) of a quaternion ``(x, y, z, w)`` (Pinocchio's order)."""
+    out = np.empty(9)
+    rotation_quat(float(w), float(x), float(y), float(z), out)
+    return out.reshape(3, 3)
 
 
 def euler_rates_matrix(rpy: np.ndarray) -> np.ndarray:
@@ -83,11 +132,3 @@ def skew(vec: np.ndarray) -> np.ndarray:
     out[..., 1, 0], out[..., 1, 2] = vec[..., 2], -vec[..., 0]
     out[..., 2, 0], out[..., 2, 1] = -vec[..., 1], vec[..., 0]
     return out
-
-
-def rotation_from_quaternion(x: float, y: float, z: float, w: float) -> np.ndarray:
-    """Rotation matrix (3, 3) of a unit quaternion ``(x, y, z, w)`` (Pinocchio's order)."""
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])

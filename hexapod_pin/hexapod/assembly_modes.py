@@ -39,7 +39,7 @@ import numpy as np
 
 from ..errors import AssemblyError
 from .geometry import HexapodGeometry
-from ..core.pose import rotation_tuple
+from ..core.pose import rotation_rpy, rpy_of
 
 #: the three triangle equations, as (j, k) pairs of rails
 PAIRS = ((0, 1), (1, 2), (2, 0))
@@ -406,25 +406,18 @@ def pose_from_points_t(cg: CircleGeometry, points) -> list[float]:
     cx, cy, cz = cg.centroid_t
     mean = ((x0 + x1 + x2) / 3.0, (y0 + y1 + y2) / 3.0, (z0 + z1 + z2) / 3.0)
     t = [mean[i] - (rot[i][0] * cx + rot[i][1] * cy + rot[i][2] * cz) for i in range(3)]
-    return t + rpy_from_rotation_t(rot)
-
-
-def rpy_from_rotation_t(rot) -> list[float]:
-    """Roll, pitch, yaw of a rotation given as nested lists (plain floats)."""
-    horizontal = math.hypot(rot[0][0], rot[1][0])
-    pitch = math.atan2(-rot[2][0], horizontal)
-    if horizontal < 1e-12:
-        return [0.0, pitch, math.atan2(-rot[0][1], rot[1][1])]
-    return [math.atan2(rot[2][1], rot[2][2]), pitch, math.atan2(rot[1][0], rot[0][0])]
+    return t + list(rpy_of(np.array(rot).reshape(9)))
 
 
 def platform_points_t(cg: CircleGeometry, pose):
     """World platform points ``t + R p_k`` (three 3-tuples) of a pose (6 floats)."""
     x, y, z, roll, pitch, yaw = pose
-    rot = rotation_tuple(roll, pitch, yaw)
-    return [(x + rot[0][0] * px + rot[0][1] * py + rot[0][2] * pz,
-             y + rot[1][0] * px + rot[1][1] * py + rot[1][2] * pz,
-             z + rot[2][0] * px + rot[2][1] * py + rot[2][2] * pz) for px, py, pz in cg.points_t]
+    buf = np.empty(9)
+    rotation_rpy(roll, pitch, yaw, buf)
+    r = buf.tolist()
+    return [(x + r[0] * px + r[1] * py + r[2] * pz,
+             y + r[3] * px + r[4] * py + r[5] * pz,
+             z + r[6] * px + r[7] * py + r[8] * pz) for px, py, pz in cg.points_t]
 
 
 def leg_length_error(cg: CircleGeometry, pose, q) -> float:

@@ -6,7 +6,8 @@ single-state answer of the same state. Inputs are (N, 6) float64 arrays, C-conti
 finite (the callers validate them: :func:`check_batch`); the branch is one row of six signs
 for every state or one row per state. Conventions: those of the kernels.
 
-Small batches run the same loop on the calling thread (:data:`PARALLEL_MIN`). The Python
+Small batches run the same loop on the calling thread
+(:data:`~hexapod_pin.core.batching.PARALLEL_MIN`). The Python
 functions raise for the first state whose kernel failed (lowest index; states
 the mechanism cannot take before saturated ones), with the Batch* exceptions of
 :mod:`hexapod_pin.errors` naming it (``index``); the kinematics batches return masks.
@@ -17,41 +18,24 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ..core.batching import CHUNK, n_chunks, prange_jit
 from ..core.checks import as_array
+from ..core.compiled import FAST_FLAGS
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                             InverseKinematicsBatch, JacobianBatch)
 from ..errors import BatchActuatorSaturationError, InputError
 from . import kernels as K
 
-#: states per chunk of a prange loop (one scratch per chunk)
-CHUNK = 64
-#: batches with fewer states run on the calling thread (waking the worker threads costs
-#: more than it saves below this size, and much more on a loaded machine)
-PARALLEL_MIN = 50_000
+#: the batch loops: states are argument 2 (``poses``), fast-math kernels
+batch_jit = prange_jit(2, FAST_FLAGS)
 
 
-class _Driver:
-    """A batch loop compiled twice from the same source: with ``prange`` on the worker
-    threads, and as a plain loop on the calling thread (``prange`` is ``range`` there)."""
-
-    def __init__(self, func):
-        self.parallel = numba.njit(parallel=True, **K.FAST_FLAGS)(func)
-        self.serial = numba.njit(**K.FAST_FLAGS)(func)
-
-    def __call__(self, *args):
-        n = args[2].shape[0]                  # (geo, signs, poses, ...)
-        return (self.parallel if n >= PARALLEL_MIN else self.serial)(*args)
-
-
-prange_jit = _Driver
-
-
-@prange_jit
+@batch_jit
 def _inverse(geo, signs, poses, twists, twist_dots, wrenches, bounded, tau, closure,
              residual, codes):
     n = poses.shape[0]
     ss, ws = signs.shape[0] > 1, wrenches.shape[0] > 1
-    for c in numba.prange((n + CHUNK - 1) // CHUNK):
+    for c in numba.prange(n_chunks(n)):
         rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6))
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             code = K.inverse_dynamics(geo, signs[k if ss else 0], poses[k], twists[k],
@@ -63,22 +47,22 @@ def _inverse(geo, signs, poses, twists, twist_dots, wrenches, bounded, tau, clos
                 residual[k] = K.platform_residual(wk)
 
 
-@prange_jit
+@batch_jit
 def _static(geo, signs, poses, wrenches, bounded, tau, codes):
     n = poses.shape[0]
     ss, ws = signs.shape[0] > 1, wrenches.shape[0] > 1
-    for c in numba.prange((n + CHUNK - 1) // CHUNK):
+    for c in numba.prange(n_chunks(n)):
         rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6))
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             codes[k] = K.static_forces(geo, signs[k if ss else 0], poses[k],
                                        wrenches[k if ws else 0], bounded, tau[k], rot, wk, mats)
 
 
-@prange_jit
+@batch_jit
 def _forward(geo, signs, poses, twists, forces, wrenches, twist_dot, qddot, closure, codes):
     n = poses.shape[0]
     ss, ws = signs.shape[0] > 1, wrenches.shape[0] > 1
-    for c in numba.prange((n + CHUNK - 1) // CHUNK):
+    for c in numba.prange(n_chunks(n)):
         rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6))
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             code = K.forward_dynamics(geo, signs[k if ss else 0], poses[k], twists[k],
@@ -89,22 +73,22 @@ def _forward(geo, signs, poses, twists, forces, wrenches, twist_dot, qddot, clos
                 K.forward_closure_forces(geo, wk, twist_dot[k], forces[k], closure[k])
 
 
-@prange_jit
+@batch_jit
 def _reduced(geo, signs, poses, twists, mass, bias, jac, codes):
     n = poses.shape[0]
     ss = signs.shape[0] > 1
-    for c in numba.prange((n + CHUNK - 1) // CHUNK):
+    for c in numba.prange(n_chunks(n)):
         rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6))
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             codes[k] = K.reduced_dynamics(geo, signs[k if ss else 0], poses[k], twists[k],
                                           mass[k], bias[k], jac[k], rot, wk, mats)
 
 
-@prange_jit
+@batch_jit
 def _kinematics(geo, signs, poses, with_jacobian, q, jac, codes, within):
     n = poses.shape[0]
     ss = signs.shape[0] > 1
-    for c in numba.prange((n + CHUNK - 1) // CHUNK):
+    for c in numba.prange(n_chunks(n)):
         rot, wk = np.empty(9), np.zeros((K.WK_ROWS, 6))
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             code = K.leg_state(geo, signs[k if ss else 0], poses[k], rot, wk)
@@ -121,11 +105,11 @@ def _kinematics(geo, signs, poses, with_jacobian, q, jac, codes, within):
                             jac[k, i, j] = 0.0
 
 
-@prange_jit
+@batch_jit
 def _leg_reach(geo, signs, poses, out):
     n = poses.shape[0]
     ss = signs.shape[0] > 1
-    for c in numba.prange((n + CHUNK - 1) // CHUNK):
+    for c in numba.prange(n_chunks(n)):
         rot, wk = np.empty(9), np.zeros((K.WK_ROWS, 6))
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             K.leg_state(geo, signs[k if ss else 0], poses[k], rot, wk)
@@ -133,11 +117,11 @@ def _leg_reach(geo, signs, poses, out):
                 out[k, i] = wk[K.DISC, i] >= 0.0
 
 
-@prange_jit
+@batch_jit
 def _closure_measures(geo, signs, poses, cosine, a_hat):
     n = poses.shape[0]
     ss = signs.shape[0] > 1
-    for c in numba.prange((n + CHUNK - 1) // CHUNK):
+    for c in numba.prange(n_chunks(n)):
         rot, wk = np.empty(9), np.zeros((K.WK_ROWS, 6))
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             K.leg_state(geo, signs[k if ss else 0], poses[k], rot, wk)

@@ -56,6 +56,7 @@ import pinocchio as pin
 from scipy.linalg.lapack import dgesv
 
 from ..core.checks import as_array, vec6
+from ..core.pose import euler_rates_matrix
 from ..errors import HexapodPinError, SolverError
 from . import kernels
 
@@ -88,12 +89,6 @@ class AnalyticDerivatives:
     d_twist: np.ndarray
     d_twist_dot: np.ndarray
     d_wrench: np.ndarray
-
-
-def _euler_rates(pitch: float, yaw: float) -> np.ndarray:
-    """``E`` (3, 3) with ``w = E d(rpy)/dt`` (as :func:`~hexapod_pin.core.pose.euler_rates_matrix`)."""
-    cp, sp, cy, sy = math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
-    return np.array(((cy * cp, -sy, 0.0), (sy * cp, cy, 0.0), (-sp, 0.0, 1.0)))
 
 
 class DerivativesWorkspace:
@@ -265,7 +260,7 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose, twist, twist_dot,
                           "non-finite derivatives", "the closures may be redundant")
     neg = -sol
     d_pose = neg[:, 0:6].copy()
-    d_pose[:, 3:] = neg[:, 3:6] @ _euler_rates(pose[4], pose[5])
+    d_pose[:, 3:] = neg[:, 3:6] @ euler_rates_matrix(np.array(pose[3:]))
     return AnalyticDerivatives(tau, d_pose, neg[:, 0:6], neg[:, 6:12],
                                sol[:, 18:24], neg[:, 12:18])
 

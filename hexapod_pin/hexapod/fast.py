@@ -52,8 +52,11 @@ from ..core.checks import as_array
 from ..core.compiled import all_finite
 from ..errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
 from . import kernels as K
+from ..core.compiled import jit_inline, jit_lean
+from ..core.compiled import jit_fast as jit
+from ..core.pose import quaternion_rpy, rotation_quat, rpy_of
 from .kernels import (GAP, GIMBAL, NONFINITE, NOT_PD, OK, SATURATED, STROKE, TYPE_I, TYPE_II,
-                      UNREACHABLE, jit, jit_inline, jit_lean)
+                      UNREACHABLE)
 from .simulation import Trajectory, check_run_arguments
 
 __all__ = ["FastDynamics", "FastStepper", "FastTrajectory", "fast_dynamics", "simulate_fast"]
@@ -76,7 +79,7 @@ _RK_STAGES = np.array([4, 1, 2])
 def _carriages(geo, state, rot, wk, twist):
     """Legs (home branch) and rates of a state ``(p, Q (w, x, y, z), v, w)``; returns a
     code (stroke not checked)."""
-    K.rotation_quat(state[3], state[4], state[5], state[6], rot)
+    rotation_quat(state[3], state[4], state[5], state[6], rot)
     code = K.legs(geo, state[0], state[1], state[2], rot, K.HOME_BRANCH, wk)
     if code != OK:
         return code
@@ -691,15 +694,15 @@ def _describe(robot, code: int, pose) -> str:
 
 def _quaternion_wxyz(rpy) -> np.ndarray:
     """Unit quaternion ``(w, x, y, z)`` of roll, pitch, yaw (rad)."""
-    return np.array(K.quaternion_rpy(float(rpy[0]), float(rpy[1]), float(rpy[2])))
+    return np.array(quaternion_rpy(float(rpy[0]), float(rpy[1]), float(rpy[2])))
 
 
 @jit
 def _poses_of(states, out):
     """Poses ``(x, y, z, roll, pitch, yaw)`` (n, 6) of recorded states ``(p, Q (w, x, y, z),
-    ...)`` (:func:`hexapod_pin.hexapod.kernels.rpy_of`)."""
+    ...)`` (:func:`hexapod_pin.core.pose.rpy_of`)."""
     rot = np.empty(9)
     for k in range(out.shape[0]):
-        K.rotation_quat(states[k, 3], states[k, 4], states[k, 5], states[k, 6], rot)
+        rotation_quat(states[k, 3], states[k, 4], states[k, 5], states[k, 6], rot)
         out[k, 0], out[k, 1], out[k, 2] = states[k, 0], states[k, 1], states[k, 2]
-        out[k, 3], out[k, 4], out[k, 5] = K.rpy_of(rot)
+        out[k, 3], out[k, 4], out[k, 5] = rpy_of(rot)

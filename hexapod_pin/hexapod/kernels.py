@@ -58,10 +58,11 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-from ..core.compiled import FLAGS, all_finite
+from ..core.compiled import all_finite, jit_inline
+from ..core.compiled import jit_fast as jit
+from ..core.pose import quaternion_rpy, rotation_quat, rotation_rpy, rpy_of
 from ..errors import (BatchSingularityError, BatchUnreachablePoseError, HexapodPinError,
                       SingularityError, UnreachablePoseError)
 
@@ -86,30 +87,6 @@ BOUND_RTOL = 1e-9
 
 #: status codes of the kernels
 OK, UNREACHABLE, TYPE_I, GIMBAL, TYPE_II, NOT_PD, NONFINITE, STROKE, GAP, SATURATED = range(10)
-
-# -- compilation options ---------------------------------------------------------------
-#: the library's kernel options plus the fast-math flags ``contract, reassoc, nsz`` (no
-#: ``nnan`` / ``ninf``: the finiteness checks stay exact)
-FAST_FLAGS = dict(FLAGS, fastmath={"contract", "reassoc", "nsz"})
-
-
-def _lean_options() -> dict:
-    """numba's private option compiling without the reference-counting runtime (for
-    kernels that never allocate); plain options when this numba lacks it."""
-    try:
-        from numba.core.options import DefaultOptions
-    except ImportError:  # pragma: no cover - another numba layout: plain options
-        return {}
-    return {"_nrt": False} if hasattr(DefaultOptions, "_nrt") else {}
-
-
-LEAN_FLAGS = dict(FAST_FLAGS, **_lean_options())
-#: a compiled kernel
-jit = numba.njit(**FAST_FLAGS)
-#: a compiled kernel that never allocates (no reference counting)
-jit_lean = numba.njit(**LEAN_FLAGS)
-#: a small allocation-free helper, inlined by LLVM into its compiled callers
-jit_inline = numba.njit(forceinline=True, **LEAN_FLAGS)
 
 # -- packed geometry: per carriage i a block of 11 values at 11 i, then scalars --------
 MX, MY, MZ, UX, UY, UZ, LX, LY, PX, PY, PZ = range(11)
@@ -222,55 +199,6 @@ class ClosedForm:
     def closure_residual(self, q) -> float:
         """:func:`closure_residual` of a tree configuration (25,) (m)."""
         return closure_residual(self.geo, np.ascontiguousarray(q, dtype=float))
-
-
-# --------------------------------------------------------------------------------------
-# rotations
-# --------------------------------------------------------------------------------------
-@jit_inline
-def rotation_rpy(roll, pitch, yaw, rot):
-    """``rot`` (9,) = ``Rz(yaw) Ry(pitch) Rx(roll)`` row-major."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    rot[0], rot[1], rot[2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
-    rot[3], rot[4], rot[5] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
-    rot[6], rot[7], rot[8] = -sp, cp * sr, cp * cr
-
-
-@jit_inline
-def rotation_quat(w, x, y, z, rot):
-    """``rot`` (9,) row-major of a quaternion ``(w, x, y, z)`` of any non-zero norm."""
-    s = 2.0 / (w * w + x * x + y * y + z * z)
-    rot[0], rot[1], rot[2] = 1.0 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)
-    rot[3], rot[4], rot[5] = s * (x * y + z * w), 1.0 - s * (x * x + z * z), s * (y * z - x * w)
-    rot[6], rot[7], rot[8] = s * (x * z - y * w), s * (y * z + x * w), 1.0 - s * (x * x + y * y)
-
-
-@jit_inline
-def quaternion_rpy(roll, pitch, yaw):
-    """Unit quaternion ``(w, x, y, z)`` of ``Rz(yaw) Ry(pitch) Rx(roll)``, ``w >= 0``."""
-    c1, s1 = math.cos(0.5 * roll), math.sin(0.5 * roll)
-    c2, s2 = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
-    c3, s3 = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
-    qw = c1 * c2 * c3 + s1 * s2 * s3
-    qx = s1 * c2 * c3 - c1 * s2 * s3
-    qy = c1 * s2 * c3 + s1 * c2 * s3
-    qz = c1 * c2 * s3 - s1 * s2 * c3
-    if qw < 0.0:
-        return -qw, -qx, -qy, -qz
-    return qw, qx, qy, qz
-
-
-@jit_inline
-def rpy_of(rot):
-    """``(roll, pitch, yaw)`` of ``rot`` (9,), pitch in [-pi/2, pi/2]; at gimbal lock
-    roll = 0 and yaw takes the rest (as :func:`hexapod_pin.core.pose.rpy_from_rotation`)."""
-    horizontal = math.hypot(rot[0], rot[3])
-    pitch = math.atan2(-rot[6], horizontal)
-    if horizontal < 1e-12:
-        return 0.0, pitch, math.atan2(-rot[1], rot[4])
-    return math.atan2(rot[7], rot[8]), pitch, math.atan2(rot[3], rot[0])
 
 
 # --------------------------------------------------------------------------------------

@@ -166,7 +166,7 @@ class PlanarDynamics:
         miss = max_abs(expected - acc)
         if not miss <= CHECK_RTOL * max(1.0, max_abs(acc)):
             raise SolverError("tree forward dynamics", "closures violated at acceleration "
-                              f"level", f"leg accelerations off by {miss:.3e}")
+                              "level", f"leg accelerations off by {miss:.3e}")
 
     # -- inverse dynamics ---------------------------------------------------------------------
     def inverse_dynamics(self, pose, twist, twist_dot, wrench=None, *, branch=None,
