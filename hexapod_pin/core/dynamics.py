@@ -51,6 +51,7 @@ import scipy.optimize
 
 from ..errors import ActuatorSaturationError, InputError, SolverError
 from .checks import as_array, max_abs
+from .compiled import all_finite, jit
 from .closed_loop import RANK_RTOL, ClosedLoopModel
 
 FORWARD_METHODS = ("pinocchio", "qp", "kkt")
@@ -223,6 +224,8 @@ class ClosedLoopDynamics:
         self._rank: int | None = None
         self._qps: dict = {}
         self._aux_data = self.model.createData()   # lazy multiplier conversions
+        self._res_out = np.empty(2)
+        self._no_rows = (np.zeros((0, self.nv)), np.zeros(0))
         self._kkt = np.zeros((self.nv + self.n_rows, self.nv + self.n_rows))
         self._id_matrix = np.zeros((self.nv, self.n_act + self.n_rows))
         self._id_matrix[:, :self.n_act] = self._selection
@@ -327,16 +330,7 @@ class ClosedLoopDynamics:
             SolverError: either exceeds :data:`RESIDUAL_RTOL` or is not finite; the
                 message names the equation and its residual.
         """
-        m_a = mass @ acc
-        force = jac.T @ lam if lam.size else np.zeros_like(acc)
-        rest = bias - tau
-        eom = max_abs(m_a + rest - force) / max(max_abs(m_a), max_abs(rest), max_abs(force),
-                                                 _TINY)
-        if jac.shape[0]:
-            j_a = jac @ acc
-            con = max_abs(j_a + drift) / max(max_abs(jac) * max_abs(acc), max_abs(drift), _TINY)
-        else:
-            con = 0.0
+        eom, con = forward_residuals(mass, bias, tau, jac, drift, acc, lam, self._res_out)
         if not eom <= RESIDUAL_RTOL:
             raise SolverError(route, "unverified", "equation of motion M a + h = tau + J_c^T "
                               f"lambda missed by {eom:.3e} (relative)")
@@ -356,9 +350,9 @@ class ClosedLoopDynamics:
     # -- forward dynamics -----------------------------------------------------------------
     def forward(self, q, v, tau, method: str = "pinocchio") -> TreeForwardDynamics:
         """Constrained forward dynamics; see :func:`forward_dynamics_tree`."""
-        q = self.clm.check_q(q)
-        v = self.clm.check_v(v)
-        tau = self.clm.check_v(tau, "tau")
+        q = _vector(q, self.model.nq, "q")
+        v = _vector(v, self.nv, "v")
+        tau = _vector(tau, self.nv, "tau")
         if method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
         return self.forward_unchecked(q, v, tau, method)
@@ -416,22 +410,17 @@ class ClosedLoopDynamics:
         return None, prox
 
     def _pin_verified(self, acc, tau) -> bool:
-        if not math.isfinite(acc.sum()):
-            return False
         data = self.data
-        mass = data.M
-        mass[self._lower] = mass.T[self._lower]       # Pinocchio fills the upper triangle
         if self.n_rows:
             jac = pin.getConstraintsJacobian(self.model, data, self.pin_models, self.pin_datas)
-            drift = -data.primal_rhs_contact[:self.n_rows]
+            drift = data.primal_rhs_contact[:self.n_rows]
+            drift *= -1.0
         else:
-            jac, drift = np.zeros((0, self.nv)), np.zeros(0)
-        try:
-            self.verify(mass, data.nle, tau, jac, drift, acc, data.lambda_c, "pinocchio")
-        except SolverError:
-            return False
-        self._pin_last = (mass, jac, tau)
-        return True
+            jac, drift = self._no_rows
+        eom, con = forward_residuals(data.M, data.nle, tau, jac, drift, acc, data.lambda_c,
+                                     self._res_out)
+        self._pin_last = (data.M, jac, tau)
+        return eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL
 
     def pinocchio_acceleration(self, q, v, tau) -> np.ndarray:
         """Tree acceleration (nv,) only (no multipliers), verified; for integrators; no
@@ -488,8 +477,8 @@ class ClosedLoopDynamics:
                 # the regularised system: polish them by least squares on Pinocchio's own
                 # M, nle and J (rotations of ours: the minimum norm is the same)
                 mass, jac, tau_used = self._pin_last
-                force = mass @ acc + self.data.nle - tau_used
-                lam_pin = _LazyMinNorm(jac.copy(), force)
+                lam_pin = _LazyMinNorm(jac.copy(), mass.copy(), acc.copy(),
+                                       self.data.nle - tau_used)
             return TreeForwardDynamics(acc.copy(), self._lazy_rows(q, lam_pin), "pinocchio",
                                        status, int(prox.iter), rank, -1.0)
         # Pinocchio's factorisation cannot hold this problem (e.g. a zero pivot of M from a
@@ -888,10 +877,17 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=N
         SolverError: the QP did not converge.
     """
     dyn = dynamics_of(clm)
-    u = as_array(actuator_forces, (clm.n_actuated,), "actuator_forces")
-    tau = np.zeros(clm.nv) if tau_ext is None else clm.check_v(tau_ext, "tau_ext").copy()
+    q = _vector(q, dyn.model.nq, "q")
+    v = _vector(v, dyn.nv, "v")
+    u = _vector(actuator_forces, dyn.n_act, "actuator_forces")
+    if method not in FORWARD_METHODS:
+        raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
+    if tau_ext is None:
+        tau = np.zeros(dyn.nv)
+    else:
+        tau = _vector(tau_ext, dyn.nv, "tau_ext").copy()
     tau[clm.actuated_v] += u
-    return dyn.forward(q, v, tau, method)
+    return dyn.forward_unchecked(q, v, tau, method)
 
 
 def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=None,
@@ -930,14 +926,75 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=No
 # --------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------
-class _LazyMinNorm:
-    """Minimum-norm ``lambda`` with ``J^T lambda = force``, computed when called."""
+def _vector(value, size: int, name: str) -> np.ndarray:
+    """``value`` when it is already a finite contiguous float64 (size,) array (the cheap
+    path), else :func:`~hexapod_pin.core.checks.as_array` (converts or raises InputError)."""
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (size,) \
+            and value.flags.c_contiguous and all_finite(value):
+        return value
+    return as_array(value, (size,), name)
 
-    def __init__(self, jac: np.ndarray, force: np.ndarray):
-        self.jac, self.force = jac, force
+
+@jit
+def forward_residuals(mass, bias, tau, jac, drift, acc, lam, out):
+    """Relative residuals of ``M a + h - tau - J^T lam = 0`` and ``J a + drift = 0``.
+
+    Reads only the upper triangle of ``mass`` (Pinocchio's ``crba`` fills that one), so a
+    symmetric matrix or Pinocchio's half-filled ``data.M`` give the same result. The
+    first residual is relative to the largest of ``|M a|``, ``|h - tau|``, ``|J^T lam|``,
+    the second to ``max|J| max|a|`` and ``|drift|`` (max-abs norms). Non-finite data give
+    inf. Returns ``(eom, closure)`` (also written to ``out``).
+    """
+    nv = acc.shape[0]
+    nr = jac.shape[0]
+    eom_num = 0.0
+    eom_den = 1e-300
+    for i in range(nv):
+        m_a = 0.0
+        for j in range(nv):
+            m_a += (mass[i, j] if j >= i else mass[j, i]) * acc[j]
+        force = 0.0
+        for k in range(nr):
+            force += jac[k, i] * lam[k]
+        rest = bias[i] - tau[i]
+        r = abs(m_a + rest - force)
+        if not math.isfinite(r):
+            eom_num = math.inf
+        elif r > eom_num:
+            eom_num = r
+        eom_den = max(eom_den, abs(m_a), abs(rest), abs(force))
+    con_num = 0.0
+    jmax = 0.0
+    dmax = 0.0
+    amax = 0.0
+    for j in range(nv):
+        amax = max(amax, abs(acc[j]))
+    for k in range(nr):
+        j_a = 0.0
+        for j in range(nv):
+            j_a += jac[k, j] * acc[j]
+            jmax = max(jmax, abs(jac[k, j]))
+        r = abs(j_a + drift[k])
+        if not math.isfinite(r):
+            con_num = math.inf
+        elif r > con_num:
+            con_num = r
+        dmax = max(dmax, abs(drift[k]))
+    out[0] = eom_num / eom_den
+    out[1] = con_num / max(jmax * amax, dmax, 1e-300) if nr else 0.0
+    return out[0], out[1]
+
+
+class _LazyMinNorm:
+    """Minimum-norm ``lambda`` with ``J^T lambda = M a + rest`` (``M``: upper triangle
+    filled, as Pinocchio's ``data.M``), computed when called."""
+
+    def __init__(self, jac, mass, acc, rest):
+        self.jac, self.mass, self.acc, self.rest = jac, mass, acc, rest
 
     def __call__(self) -> np.ndarray:
-        sol, *_ = np.linalg.lstsq(self.jac.T, self.force, rcond=None)
+        mass = np.triu(self.mass) + np.triu(self.mass, 1).T
+        sol, *_ = np.linalg.lstsq(self.jac.T, mass @ self.acc + self.rest, rcond=None)
         return sol
 
 
