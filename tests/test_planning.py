@@ -416,3 +416,40 @@ def test_plots(planned, tmp_path):
     assert len(fig.axes) >= 1 and (tmp_path / "f.png").stat().st_size > 0
     fig = plot_phase_plane(traj, path=tmp_path / "p.svg")
     assert (tmp_path / "p.svg").stat().st_size > 0
+
+
+@pytest.mark.parametrize("case", ["hexapod-payload-rates", "planar-payload"])
+def test_solver_agrees_with_toppra_on_the_same_rows(robots, case):
+    """The compiled TOPP-RA against toppra's (seidel LP solver wrapper, interpolation
+    discretisation), both fed the same constraint rows: the same speed profile."""
+    toppra = pytest.importorskip("toppra")
+    import toppra.constraint as tc
+
+    from hexapod_pin.planning import limits as planning_limits
+
+    robot_name, path, limits, payload = CASES[case]
+    robot = robots[robot_name]
+    traj = time_optimal(robot, path(robot), limits=limits, payload=payload, grid_points=GRID)
+    samples = traj.path.sample(traj.s)
+    coeffs = planning_limits.path_coefficients(robot, samples, limits, payload)
+    rows = planning_limits.constraint_rows(coeffs, robot, limits)
+
+    class Rows(tc.LinearConstraint):
+        def __init__(self):
+            super().__init__()
+            self.discretization_type = tc.DiscretizationType.Interpolation
+            self.identical = True
+
+        def compute_constraint_params(self, path, gridpoints, *args, **kwargs):
+            m = rows.shape[1]
+            a, b, c, f, g, _, _ = tc.canlinear_colloc_to_interpolate(
+                rows[:, :, 0], rows[:, :, 1], rows[:, :, 2], np.eye(m), np.zeros(m),
+                None, None, gridpoints, identical=True)
+            xbound = np.stack([np.zeros(len(traj.s)), np.minimum(coeffs.speed_bound, 1e8)],
+                              axis=1)
+            return a, b, c, f, g, None, xbound
+
+    algo = toppra.algorithm.TOPPRA([Rows()], toppra.SplineInterpolator(traj.s, traj.poses),
+                                   gridpoints=traj.s, solver_wrapper="seidel")
+    _, s_dot, _ = algo.compute_parameterization(0, 0)
+    np.testing.assert_allclose(traj.s_dot, s_dot, atol=1e-6 * np.max(s_dot))
