@@ -20,17 +20,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core import layouts
 from ..core.checks import validate_scalars
 from ..core.description import expand_xacro, urdf_dir
 from ..errors import GeometryError
 
 N_RAILS = 3
 N_CARRIAGES = 6
-
-
-def rail_angles() -> np.ndarray:
-    """Angles ``a_k = 90 deg + 120 deg k`` of the three rails (rad), shape (3,)."""
-    return np.pi / 2 + 2 * np.pi / 3 * np.arange(N_RAILS)
 
 
 @dataclass(frozen=True)
@@ -139,20 +135,17 @@ class HexapodGeometry:
     @property
     def rail_midpoints(self) -> np.ndarray:
         """Rail midpoints ``m_k`` in the world (m), shape (3, 3)."""
-        a = rail_angles()
-        return self.rail_radius * np.stack([np.cos(a), np.sin(a), np.zeros(3)], axis=1)
+        return layouts.points_on_circle(self.rail_radius, 3)
 
     @property
     def rail_directions(self) -> np.ndarray:
         """Unit rail directions ``u_k`` in the world, shape (3, 3)."""
-        a = rail_angles()
-        return np.stack([-np.sin(a), np.cos(a), np.zeros(3)], axis=1)
+        return layouts.rail_directions(3)
 
     @property
     def platform_points(self) -> np.ndarray:
         """Spherical-joint points ``p_k`` in the platform frame (m), shape (3, 3)."""
-        a = rail_angles()
-        return self.platform_radius * np.stack([np.cos(a), np.sin(a), np.zeros(3)], axis=1)
+        return layouts.points_on_circle(self.platform_radius, 3)
 
     def xacro_args(self) -> dict[str, str]:
         """The xacro arguments of ``urdf/hexapod.urdf.xacro`` for this geometry."""

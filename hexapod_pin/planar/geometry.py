@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from ..core import layouts
 from ..core.checks import check_signs, validate_scalars
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import build_model, expand_xacro, load_loops, urdf_dir
@@ -38,11 +39,6 @@ HOME_BRANCH = np.ones(N_ACTUATORS)
 #: every inverse-kinematics branch, home first
 ALL_BRANCHES = tuple(np.array(b, dtype=float)
                      for b in itertools.product((1.0, -1.0), repeat=N_ACTUATORS))
-
-
-def rail_angles() -> np.ndarray:
-    """Angles ``a_k = 90 deg + 120 deg k`` of the three rails (rad), shape (3,)."""
-    return np.pi / 2 + 2 * np.pi / 3 * np.arange(N_ACTUATORS)
 
 
 def check_branch(branch) -> np.ndarray:
@@ -129,20 +125,17 @@ class PlanarGeometry:
     @property
     def rail_midpoints(self) -> np.ndarray:
         """Rail midpoints ``m_k`` in the world (m), shape (3, 2)."""
-        a = rail_angles()
-        return self.rail_radius * np.stack([np.cos(a), np.sin(a)], axis=1)
+        return layouts.points_on_circle(self.rail_radius, 2)
 
     @property
     def rail_directions(self) -> np.ndarray:
         """Unit rail directions ``u_k``, shape (3, 2)."""
-        a = rail_angles()
-        return np.stack([-np.sin(a), np.cos(a)], axis=1)
+        return layouts.rail_directions(2)
 
     @property
     def platform_points(self) -> np.ndarray:
         """Platform joint points ``p_k`` in the platform frame (m), shape (3, 2)."""
-        a = rail_angles()
-        return self.platform_radius * np.stack([np.cos(a), np.sin(a)], axis=1)
+        return layouts.points_on_circle(self.platform_radius, 2)
 
     def xacro_args(self) -> dict[str, str]:
         """The xacro arguments of ``urdf/planar_3prr.urdf.xacro`` for this geometry

@@ -55,7 +55,8 @@ import numpy as np
 
 from ..core.batching import CHUNK, n_chunks, prange_jit
 from ..core.compiled import all_finite, jit
-from .geometry import N_ACTUATORS, PlanarGeometry, rail_angles
+from ..core.layouts import rail_angles
+from .geometry import N_ACTUATORS, PlanarGeometry
 
 #: status codes
 OK, NONFINITE, UNREACHABLE, TYPE_I, TYPE_II, RESIDUAL = 0, -1, 1, 2, 3, 4
