@@ -38,6 +38,10 @@ from .frame_ik import FrameIKResult, frame_inverse_kinematics
 _EPS = np.finfo(float).eps
 #: default relative singular-value threshold of :meth:`ClosedLoopModel.rank`
 RANK_RTOL = 1e-10
+#: a frame name shared by several frames (a URDF link and joint named alike) means the
+#: first of these types
+FRAME_TYPE_ORDER = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT,
+                    pin.FrameType.JOINT, pin.FrameType.SENSOR)
 
 
 @dataclass(frozen=True)
@@ -148,8 +152,7 @@ class ClosedLoopModel:
         return cls(model, load_loops(loops_path), name=Path(urdf_path).name, urdf_xml=xml)
 
     def _frame_id(self, frame: str, closure: str) -> int:
-        for ftype in (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT,
-                      pin.FrameType.JOINT):
+        for ftype in FRAME_TYPE_ORDER:
             if self.model.existFrame(frame, ftype):
                 return self.model.getFrameId(frame, ftype)
         raise DescriptionError(self.name, f"frame {frame!r} is not in the tree", closure)
@@ -548,10 +551,16 @@ class ClosedLoopModel:
                                         fixed=fixed, weights=weights, **options)
 
     def frame_id(self, frame: str | int) -> int:
-        """Pinocchio id of a frame given by name or id; raises InputError if unknown."""
+        """Pinocchio id of a frame given by name (see ``FRAME_TYPE_ORDER``) or id.
+
+        Raises:
+            InputError: no such frame.
+        """
         if isinstance(frame, (int, np.integer)) and not isinstance(frame, bool):
             if 0 <= int(frame) < self.model.nframes:
                 return int(frame)
-        elif isinstance(frame, str) and self.model.existFrame(frame):
-            return self.model.getFrameId(frame)
+        elif isinstance(frame, str):
+            for ftype in FRAME_TYPE_ORDER:
+                if self.model.existFrame(frame, ftype):
+                    return self.model.getFrameId(frame, ftype)
         raise InputError("frame", frame, f"no such frame in {self.name}")

@@ -61,6 +61,16 @@ class FrameTask(NamedTuple):
     weight: np.ndarray
 
 
+class JointBox(NamedTuple):
+    """Position limits of the limited 1-DoF joints among the free coordinates."""
+
+    lower: np.ndarray     # (k,) lower limits (m or rad)
+    upper: np.ndarray     # (k,) upper limits
+    q_index: np.ndarray   # (k,) their indices in q
+    position: np.ndarray  # (k,) their positions among the free coordinates
+    v_index: np.ndarray   # (k,) their indices in v
+
+
 @dataclass(frozen=True)
 class FrameIKResult:
     """Result of :func:`frame_inverse_kinematics`.
@@ -111,8 +121,9 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
         tol: convergence threshold on the max-abs task error (m / rad).
         closure_tol: closure residual kept at every iterate (m / rad).
         max_iter: iteration cap.
-        limits: enforce the model's finite position limits of 1-DoF joints on each step
-            (route "qp").
+        limits: keep 1-DoF joints with finite position limits in their range (route
+            "qp": bounds of each step, and joints put on their bound while the loops
+            close); a joint that starts outside its range may not go further out.
         damping: Levenberg-Marquardt factor (see the module docstring).
 
     Returns:
@@ -134,7 +145,7 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
     free = np.setdiff1d(np.arange(clm.nv), fixed_v)
     start = clm.neutral() if q0 is None else clm.check_q(q0, "q0")
     q = clm.assemble(start, fixed=fixed_v, tol=closure_tol).q
-    box = _limits(clm, free) if (limits and method == "qp") else None
+    box = _limits(clm, free, q) if (limits and method == "qp") else None
     err, jac_t, jac_c, res_c = _linearise(clm, tasks, q)
     weight = np.concatenate([t.weight for t in tasks])
     cost = float(err @ (weight * err))
@@ -146,9 +157,8 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
         lam = max(damping * cost, DAMPING_FLOOR)
         step = np.zeros(clm.nv)
         step[free] = _step(jac_t[:, free], err, weight, jac_c[:, free], res_c, lam, method,
-                           None if box is None else (box[0] - q[box[2]], box[1] - q[box[2]]),
-                           None if box is None else box[3])
-        accepted = _line_search(clm, tasks, q, step, fixed_v, closure_tol, weight, cost)
+                           box, q)
+        accepted = _line_search(clm, tasks, q, step, fixed_v, closure_tol, weight, cost, box)
         if accepted is None:      # no decrease along a descent step: stationary
             return _result(clm, tasks, q, False, iteration, closure_tol)
         q_new, cost_new = accepted
@@ -215,8 +225,12 @@ def _fixed_indices(clm, fixed) -> np.ndarray:
     return np.unique(np.asarray(out, dtype=int))
 
 
-def _limits(clm, free: np.ndarray):
-    """(lower, upper, q indices, positions among the free coordinates) of limited joints."""
+def _limits(clm, free: np.ndarray, q: np.ndarray) -> JointBox | None:
+    """The limited 1-DoF joints among the free coordinates, or None.
+
+    A joint that starts outside its range gets the range extended to its start value
+    (it may come back, never go further out).
+    """
     model = clm.model
     lo, hi, qi, pos = [], [], [], []
     where = {int(v): k for k, v in enumerate(free)}
@@ -229,7 +243,8 @@ def _limits(clm, free: np.ndarray):
             lo.append(low), hi.append(up), qi.append(joint.idx_q), pos.append(where[joint.idx_v])
     if not pos:
         return None
-    return np.array(lo), np.array(hi), np.array(qi, dtype=int), np.array(pos, dtype=int)
+    pos, qi = np.array(pos, dtype=int), np.array(qi, dtype=int)
+    return JointBox(np.minimum(lo, q[qi]), np.maximum(hi, q[qi]), qi, pos, free[pos])
 
 
 def _linearise(clm, tasks: list[FrameTask], q: np.ndarray):
@@ -251,7 +266,7 @@ def _linearise(clm, tasks: list[FrameTask], q: np.ndarray):
     return np.concatenate(errs), np.vstack(jacs), jac_c, res_c
 
 
-def _step(jac_t, err, weight, jac_c, res_c, lam, method, bounds, limited) -> np.ndarray:
+def _step(jac_t, err, weight, jac_c, res_c, lam, method, box, q) -> np.ndarray:
     n = jac_t.shape[1]
     hess = jac_t.T @ (weight[:, None] * jac_t) + lam * np.eye(n)
     grad = jac_t.T @ (weight * err)
@@ -270,12 +285,13 @@ def _step(jac_t, err, weight, jac_c, res_c, lam, method, bounds, limited) -> np.
     norms = np.linalg.norm(a_mat, axis=1)
     a_mat = np.ascontiguousarray(a_mat / norms[:, None]) if rows.size else None
     b = np.ascontiguousarray(-res_c[rows] / norms / s) if rows.size else None
-    n_in = 0 if limited is None else limited.size
+    n_in = 0 if box is None else box.position.size
     c_mat = low = up = None
     if n_in:
         c_mat = np.zeros((n_in, n))
-        c_mat[np.arange(n_in), limited] = 1.0
-        low, up = np.minimum(bounds[0], 0.0) / s, np.maximum(bounds[1], 0.0) / s
+        c_mat[np.arange(n_in), box.position] = 1.0
+        low = np.minimum(box.lower - q[box.q_index], 0.0) / s
+        up = np.maximum(box.upper - q[box.q_index], 0.0) / s
     qp = proxsuite.proxqp.dense.QP(n, rows.size, n_in)
     qp.settings.eps_abs = _QP_EPS
     qp.settings.eps_rel = 0.0
@@ -292,22 +308,45 @@ def _step(jac_t, err, weight, jac_c, res_c, lam, method, bounds, limited) -> np.
     return step
 
 
-def _line_search(clm, tasks, q, step, fixed_v, closure_tol, weight, cost):
+def _line_search(clm, tasks, q, step, fixed_v, closure_tol, weight, cost, box):
     """First of ``q + 2^-k step`` (loops closed again) that lowers ``|e|_W^2``, or None."""
     alpha = 1.0
     for _ in range(30):
-        trial = pin.integrate(clm.model, q, alpha * step)
-        try:
-            trial = clm.assemble(trial, fixed=fixed_v, tol=closure_tol).q
-        except AssemblyError:
-            alpha *= 0.5
-            continue
-        err = _errors(clm, tasks, trial)
-        trial_cost = float(err @ (weight * err))
-        if np.isfinite(trial_cost) and trial_cost < cost:
-            return trial, trial_cost
+        trial = _retract(clm, pin.integrate(clm.model, q, alpha * step), fixed_v, closure_tol,
+                         box)
+        if trial is not None:
+            err = _errors(clm, tasks, trial)
+            trial_cost = float(err @ (weight * err))
+            if np.isfinite(trial_cost) and trial_cost < cost:
+                return trial, trial_cost
         alpha *= 0.5
     return None
+
+
+def _retract(clm, q, fixed_v, closure_tol, box):
+    """Close the loops again from ``q`` (None if they cannot be closed).
+
+    With limits, a limited joint outside its range is put on the bound and held there
+    while the loops close (repeated while the closing pushes another one out).
+    """
+    hold = fixed_v
+    for _ in range(1 + (0 if box is None else box.position.size)):
+        if box is not None:
+            values = q[box.q_index]
+            out = (values < box.lower) | (values > box.upper)
+            if hold is not fixed_v and not out.any():
+                return q
+            q = q.copy()
+            q[box.q_index] = np.clip(values, box.lower, box.upper)
+            hold = np.union1d(hold, box.v_index[out])
+        try:
+            q = clm.assemble(q, fixed=hold, tol=closure_tol).q
+        except AssemblyError:
+            return None
+        if box is None:
+            return q
+    values = q[box.q_index]
+    return q if np.all((values >= box.lower) & (values <= box.upper)) else None
 
 
 def _errors(clm, tasks, q) -> np.ndarray:

@@ -1,0 +1,252 @@
+"""Frame-target inverse kinematics with the closures held (core/frame_ik.py).
+
+Targets are generated from assembled configurations (so they are reachable) and must be
+reached to 1e-10 with the closures to 1e-12 from perturbed starts, on every seeded trial,
+on the hard-class robots of tests/stress_robots.py, the hexapod and Cassie. Independent
+checks: the hexapod's closed-form inverse kinematics, targets whose closest reachable
+placement is known in closed form (out of a planar mechanism's plane, a rotation a delta
+cannot make, two weighted targets for one point), a stationarity test written here with
+an SVD null space, and the two routes (ProxSuite QP, null-space least squares) against
+each other where the solution is unique.
+"""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import scipy.linalg
+
+import stress_robots
+from conftest import random_pose
+from hexapod_pin.errors import AssemblyError, InputError
+from hexapod_pin.loaders import robots
+
+# robot -> (end-effector frame, placement target (True) or position target (False))
+EFFECTORS = {
+    "delta_weld": ("platform_center", False),
+    "delta_massless": ("platform_center", False),
+    "five_bar_stiff": ("pin", False),
+    "five_bar_massless": ("pin", False),
+    "ladder_mixed": ("bar_6_tip", False),
+    "ladder_massless": ("bar_4_tip", True),
+    "planar_ladder_weld": ("bar_5_tip", True),
+}
+TRIALS = 4
+
+
+def _placement(clm, q, frame):
+    data = clm.model.createData()
+    pin.framesForwardKinematics(clm.model, data, q)
+    return pin.SE3(data.oMf[clm.frame_id(frame)])
+
+
+def _perturbed(clm, q, rng, scale):
+    return pin.integrate(clm.model, q, scale * rng.uniform(-1, 1, clm.nv))
+
+
+@pytest.fixture(scope="module", params=sorted(EFFECTORS))
+def stress(request):
+    return stress_robots.build(request.param)
+
+
+@pytest.mark.parametrize("method", ["qp", "lstsq"])
+def test_targets_from_assembled_configurations_are_reached(stress, method):
+    clm = stress.clm
+    frame, full = EFFECTORS[stress.name]
+    rng = np.random.default_rng(7)
+    for _ in range(TRIALS):
+        q_goal, _ = stress.sample(rng)
+        goal = _placement(clm, q_goal, frame)
+        start, _ = stress.sample(rng)
+        target = goal if full else goal.translation
+        # the samples wrap some joints past their +-3.2 rad limits: limits off here
+        res = clm.frame_inverse_kinematics(frame, target, _perturbed(clm, start, rng, 0.02),
+                                           position_only=not full, method=method,
+                                           limits=False)
+        assert res.reachable, (stress.name, res.target_residual)
+        assert res.target_residual <= 1e-10 and res.closure_residual <= 1e-12
+        # independent of the result's own numbers
+        assert np.max(np.abs(clm.residual(res.q))) <= 1e-12
+        reached = _placement(clm, res.q, frame)
+        if full:
+            assert np.max(np.abs(pin.log6(goal.actInv(reached)).vector)) <= 1e-10
+        else:
+            assert np.max(np.abs(reached.translation - goal.translation)) <= 1e-10
+        assert res.iterations <= 25
+
+
+def test_hexapod_platform_matches_the_closed_form(robot, rng):
+    """Every random pose: the generic route places the platform and its carriages equal the
+    hexapod's closed-form inverse kinematics; both routes give the same configuration."""
+    clm = robot.model
+    home = robot.home_configuration
+    for _ in range(5):
+        pose = random_pose(robot, rng)
+        rot = pin.rpy.rpyToMatrix(*pose[3:])
+        target = pin.SE3(rot, pose[:3])
+        out = {}
+        for method in ("qp", "lstsq"):
+            res = clm.frame_inverse_kinematics("platform", target, _perturbed(clm, home, rng, 0.01),
+                                               method=method)
+            assert res.reachable and res.target_residual <= 1e-10
+            assert res.closure_residual <= 1e-12
+            np.testing.assert_allclose(res.q[robot.indices.carriage_q],
+                                       robot.inverse_kinematics(pose), atol=1e-10)
+            out[method] = res.q
+        np.testing.assert_allclose(out["qp"], out["lstsq"], atol=1e-10)
+
+
+def test_routes_agree_on_the_delta(rng):
+    delta = stress_robots.build("delta_weld")
+    for _ in range(3):
+        q_goal, _ = delta.sample(rng)
+        goal = _placement(delta.clm, q_goal, "platform_center").translation
+        start = _perturbed(delta.clm, q_goal, rng, 0.05)
+        a = delta.clm.frame_inverse_kinematics("platform_center", goal, start, position_only=True)
+        b = delta.clm.frame_inverse_kinematics("platform_center", goal, start, position_only=True,
+                                               method="lstsq")
+        np.testing.assert_allclose(a.q, b.q, atol=1e-10)
+
+
+def test_cassie_both_feet_with_the_leg_loops(rng):
+    cassie = robots.cassie(root="fixed")
+    q0 = pin.neutral(cassie.model)
+    for side in ("left", "right"):
+        q0[cassie.joint_q_index(f"{side}-pitch-op")] = 0.3
+        q0[cassie.joint_q_index(f"{side}-foot-op")] = -0.4
+    springs = [f"{side}-{j}" for side in ("left", "right")
+               for j in ("knee-shin-joint", "tarsus-spring-joint")]
+    spring_v = [cassie.joint_v_index(name) for name in springs]
+    q_home = cassie.assemble(q0, fixed=np.r_[cassie.actuated_v, spring_v]).q
+    feet = ["left-foot", "right-foot"]
+    for _ in range(3):
+        q_goal = q_home.copy()
+        # with rigid springs the achilles loop holds the knee: move the other motors
+        moved = [j for j in cassie.actuated_joints if "knee" not in j]
+        q_goal[[cassie.joint_q_index(j) for j in moved]] += rng.uniform(-0.1, 0.1, len(moved))
+        q_goal = cassie.assemble(q_goal, fixed=np.r_[cassie.actuated_v, spring_v]).q
+        targets = [_placement(cassie, q_goal, f) for f in feet]
+        # the foot motors of this start sit outside the SDF's ranges: limits off
+        res = cassie.frame_inverse_kinematics(feet, targets, q_home, fixed=springs,
+                                              weights=[1.0, 2.0], limits=False)
+        assert res.reachable and res.target_residual <= 1e-10
+        assert res.closure_residual <= 1e-12
+        np.testing.assert_array_equal(res.q[[cassie.joint_q_index(s) for s in springs]],
+                                      q_home[[cassie.joint_q_index(s) for s in springs]])
+
+
+# ----------------------------------------------------------------- unreachable targets
+def test_out_of_plane_target_gives_the_projection_flagged():
+    """The five-bar moves in the x-z plane: the closest reachable point of a target off the
+    plane is its projection, and it is flagged unreachable."""
+    five = stress_robots.build("five_bar_stiff")
+    rng = np.random.default_rng(3)
+    q_goal, _ = five.sample(rng)
+    goal = _placement(five.clm, q_goal, "pin").translation
+    target = goal + np.array([0.0, 0.05, 0.0])
+    for method in ("qp", "lstsq"):
+        res = five.clm.frame_inverse_kinematics("pin", target, five.sample(rng)[0],
+                                                position_only=True, method=method, limits=False)
+        assert not res.reachable and res.closure_residual <= 1e-12
+        np.testing.assert_allclose(res.placements[0].translation, goal, atol=1e-10)
+        assert res.target_residual == pytest.approx(0.05, abs=1e-10)
+
+
+def test_rotation_a_delta_cannot_make_reaches_the_position():
+    delta = stress_robots.build("delta_weld")
+    rng = np.random.default_rng(4)
+    q_goal, _ = delta.sample(rng)
+    goal = _placement(delta.clm, q_goal, "platform_center")
+    tilted = pin.SE3(goal.rotation @ pin.rpy.rpyToMatrix(0.1, -0.05, 0.0), goal.translation)
+    res = delta.clm.frame_inverse_kinematics("platform_center", tilted,
+                                             _perturbed(delta.clm, q_goal, rng, 0.05))
+    assert not res.reachable and res.closure_residual <= 1e-12
+    np.testing.assert_allclose(res.placements[0].translation, goal.translation, atol=1e-10)
+    np.testing.assert_allclose(res.placements[0].rotation, goal.rotation, atol=1e-10)
+    # stationarity, computed here: the task gradient has no component along the closures
+    clm, q = delta.clm, res.q
+    null = scipy.linalg.null_space(clm.constraint_jacobian(q))
+    data = clm.model.createData()
+    pin.computeJointJacobians(clm.model, data, q)
+    pin.updateFramePlacements(clm.model, data)
+    fid = clm.frame_id("platform_center")
+    rel = tilted.actInv(data.oMf[fid])
+    jac = pin.Jlog6(rel) @ pin.getFrameJacobian(clm.model, data, fid, pin.ReferenceFrame.LOCAL)
+    assert np.max(np.abs(null.T @ jac.T @ pin.log6(rel).vector)) <= 1e-10
+
+
+def test_two_weighted_targets_for_one_point_meet_at_the_weighted_mean():
+    """The five-bar's weld holds its two closure anchors together: targets p1 (weight 1) and
+    p2 (weight 3) for them give the point (p1 + 3 p2) / 4, flagged unreachable."""
+    five = stress_robots.build("five_bar_stiff")
+    rng = np.random.default_rng(5)
+    q_goal, _ = five.sample(rng)
+    anchor = five.clm.closures[0].name
+    frames = [f"{anchor}/anchor1", f"{anchor}/anchor2"]
+    p0 = _placement(five.clm, q_goal, frames[0]).translation
+    p1, p2 = p0 + [0.01, 0.0, 0.0], p0 + [0.0, 0.0, 0.02]
+    res = five.clm.frame_inverse_kinematics(frames, [p1, p2], q_goal, position_only=True,
+                                            weights=[1.0, 3.0], limits=False)
+    assert not res.reachable and res.closure_residual <= 1e-12
+    for placement in res.placements:
+        np.testing.assert_allclose(placement.translation, (p1 + 3 * p2) / 4, atol=1e-10)
+
+
+def test_joint_limits_stop_the_step_and_flag_the_target():
+    """A delta target that needs motor_0 past a limit placed just beyond the start: with
+    limits the motor stops at the limit (unreachable, closures held); without, reached."""
+    delta = stress_robots.build("delta_weld")
+    clm = delta.clm
+    rng = np.random.default_rng(6)
+    q_start, _ = delta.sample(rng)
+    iq = clm.joint_q_index("motor_0")
+    q_goal = q_start.copy()
+    q_goal[iq] += 0.1
+    q_goal = clm.assemble(q_goal).q
+    goal = _placement(clm, q_goal, "platform_center").translation
+    saved = clm.model.upperPositionLimit.copy()
+    try:
+        upper = saved.copy()
+        upper[iq] = q_start[iq] + 0.05
+        clm.model.upperPositionLimit = upper
+        res = clm.frame_inverse_kinematics("platform_center", goal, q_start, position_only=True)
+        free = clm.frame_inverse_kinematics("platform_center", goal, q_start, position_only=True,
+                                            limits=False)
+    finally:
+        clm.model.upperPositionLimit = saved
+    assert not res.reachable and res.closure_residual <= 1e-12
+    assert res.q[iq] == pytest.approx(q_start[iq] + 0.05, abs=1e-9)
+    assert free.reachable and free.target_residual <= 1e-10
+
+
+# ------------------------------------------------------------------------- errors
+def test_closures_that_cannot_hold_raise():
+    five = stress_robots.build("five_bar_stiff")
+    q = five.clm.neutral()
+    q[five.clm.joint_q_index("mot1")] = np.pi       # motors pointing away from each other
+    q[five.clm.joint_q_index("mot2")] = 0.0
+    with pytest.raises(AssemblyError):
+        five.clm.frame_inverse_kinematics("pin", [0.0, 0.0, -0.3], q, position_only=True,
+                                          fixed=["mot1", "mot2"])
+
+
+def test_input_errors():
+    delta = stress_robots.build("delta_weld")
+    clm = delta.clm
+    q, _ = delta.sample(np.random.default_rng(0))
+    target = _placement(clm, q, "platform_center")
+    with pytest.raises(InputError):
+        clm.frame_inverse_kinematics("no_such_frame", target, q)
+    with pytest.raises(InputError):
+        clm.frame_inverse_kinematics("platform_center", np.zeros(2), q, position_only=True)
+    with pytest.raises(InputError):
+        clm.frame_inverse_kinematics("platform_center", np.eye(4) * 2, q)
+    with pytest.raises(InputError):
+        clm.frame_inverse_kinematics("platform_center", target, q, method="newton")
+    with pytest.raises(InputError):
+        clm.frame_inverse_kinematics("platform_center", target, q, weights=-1.0)
+    with pytest.raises(InputError):
+        clm.frame_inverse_kinematics("platform_center", target, q, fixed=["no_such_joint"])
+    with pytest.raises(InputError):
+        clm.frame_inverse_kinematics(["platform_center"], [target, target], q)
+    with pytest.raises(InputError):
+        clm.frame_inverse_kinematics("platform_center", target, q[:-1])
