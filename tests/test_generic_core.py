@@ -168,3 +168,54 @@ def test_pinocchio_route_reports_its_fallback_on_massless_links():
     tau[robot.clm.actuated_v] = 1.0
     acc, _ = dyn.pinocchio_call(q, v, tau, False)
     assert acc is None                          # the raw call is refused, not returned
+
+
+# ------------------------------------------------------------------------- MuJoCo export
+def test_mujoco_export_has_the_same_mass_matrix_and_inverse_dynamics(stress):
+    """MuJoCo's own M and mj_inverse (without the equalities), projected on the null space
+    of MuJoCo's own constraint Jacobian, give back our actuator forces."""
+    mujoco = pytest.importorskip("mujoco")
+    from hexapod_pin.core.mujoco_export import to_mujoco
+
+    clm = stress.clm
+    model = to_mujoco(clm)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(6)
+    selection = np.zeros((clm.nv, clm.n_actuated))
+    selection[clm.actuated_v, np.arange(clm.n_actuated)] = 1.0
+    for _ in range(2):
+        q, v = stress.sample(rng)
+        tau = _tau(clm, rng)
+        a_ref, _ = reference_forward(clm, q, v, tau)
+        inv = inverse_dynamics_tree(clm, q, v, a_ref, method="kkt")
+        model.opt.disableflags = 0
+        data.qpos[:], data.qvel[:] = q, v
+        mujoco.mj_forward(model, data)
+        assert np.max(np.abs(data.efc_pos)) < 1e-12            # closures hold at q
+        mass = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, mass)
+        mass_ref = reference_terms(clm, q, v)[0]
+        assert np.max(np.abs(mass - mass_ref)) <= 1e-8 * np.max(np.abs(mass_ref))
+        jac = data.efc_J.reshape(data.nefc, model.nv).copy()
+        _, sv, vt = np.linalg.svd(jac)
+        basis = vt[int(np.sum(sv > 1e-10 * sv[0])):].T
+        model.opt.disableflags = int(mujoco.mjtDisableBit.mjDSBL_EQUALITY)
+        data.qacc[:] = a_ref
+        mujoco.mj_inverse(model, data)
+        u_mj, *_ = np.linalg.lstsq(basis.T @ selection, basis.T @ data.qfrc_inverse,
+                                   rcond=None)
+        scale = np.max(np.abs(inv.actuator_forces))
+        assert np.max(np.abs(u_mj - inv.actuator_forces)) <= 1e-8 * scale
+
+
+def test_mujoco_export_needs_mujoco(monkeypatch):
+    import sys
+
+    from hexapod_pin.core.mujoco_export import closed_loop_mjcf, to_mujoco
+    from hexapod_pin.errors import MissingDependencyError
+
+    clm = stress_robots.build("ladder_mixed").clm
+    assert "<connect" in closed_loop_mjcf(clm)
+    monkeypatch.setitem(sys.modules, "mujoco", None)
+    with pytest.raises(MissingDependencyError):
+        to_mujoco(clm)

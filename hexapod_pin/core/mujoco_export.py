@@ -1,0 +1,186 @@
+"""MuJoCo export of any closed-loop model: the same tree as MJCF, closures as equalities.
+
+:func:`closed_loop_mjcf` writes the MJCF text of a
+:class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`; :func:`to_mujoco` compiles it
+(``mujoco`` is optional: the ``bench`` / ``test`` extras install it).
+
+Conventions of the export:
+
+* one ``<body>`` per Pinocchio joint, nested as the tree, at the joint's placement in its
+  parent (``model.jointPlacements``), named after the joint; bodies fixed to a joint are
+  already merged into its inertia by Pinocchio (``model.inertias``: mass, centre of mass
+  and the inertia about it in the joint frame, written as ``<inertial fullinertia>``);
+* 1-DoF joints only (revolute / prismatic about a frame axis or an unaligned axis), whose
+  MuJoCo ``qpos`` / ``qvel`` equal Pinocchio's ``q`` / ``v`` entry by entry (same order:
+  Pinocchio's joints are in depth-first order, and the bodies are written in that order);
+  other joint types raise :class:`~hexapod_pin.errors.InputError`;
+* every closure anchor is a ``<site>`` (``<closure>__anchor1`` / ``__anchor2``) on its
+  body; a point closure becomes ``<connect site1 site2>``, a weld ``<weld site1 site2>``
+  (site frames kept coincident), both with the stiffest impedance MuJoCo allows
+  (``solimp = 0.9999 0.9999 0.001 0.5 2``) and ``solref = (2 timestep, 1)``;
+* contacts are disabled; no damping, armature, friction or joint limits; gravity is
+  Pinocchio's ``model.gravity``;
+* a body without mass or inertia (MuJoCo refuses them on moving bodies, below
+  ``mjMINVAL``) gets ``tiny_inertia`` (kg and kg m^2; default 1e-12);
+* one ``<motor>`` (gear 1, unlimited) per actuated joint, in ``clm.actuated_joints``
+  order: ``ctrl`` is the actuator force ``u`` of
+  :func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree`.
+
+MuJoCo's equality constraints are soft (regularised); its forward dynamics therefore
+differs from the rigid one by the regulariser (relative ~1e-4 of the smallest
+eigenvalue of ``J M^-1 J^T``). The mass matrix and the inverse dynamics reduced to the
+actuators (``mj_inverse`` without equalities, projected on the null space of MuJoCo's
+constraint Jacobian) are exact and agree with this library's to rounding.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import InputError, MissingDependencyError
+from .closed_loop import ClosedLoopModel
+
+#: inertia (kg, kg m^2) given to bodies that have none (MuJoCo needs > mjMINVAL = 1e-15)
+TINY_INERTIA = 1e-12
+#: impedance pinned at mujoco.mjMAXIMP (0.9999): the stiffest soft constraint
+STIFF_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+
+_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
+
+
+def _f(x: float) -> str:
+    return repr(float(x))
+
+
+def _vec(values) -> str:
+    return " ".join(_f(v) for v in values)
+
+
+def _pose(placement: pin.SE3) -> str:
+    quat = pin.Quaternion(placement.rotation)             # (x, y, z, w)
+    return (f'pos="{_vec(placement.translation)}" '
+            f'quat="{_vec((quat.w, quat.x, quat.y, quat.z))}"')
+
+
+def _site_name(frame_name: str) -> str:
+    return frame_name.replace("/", "__")
+
+
+def _joint_xml(jmodel, name: str) -> str:
+    short = jmodel.shortname()
+    if short.startswith("JointModelR") and short[-1] in _AXES and len(short) == 12:
+        kind, axis = "hinge", _AXES[short[-1]]
+    elif short.startswith("JointModelP") and short[-1] in _AXES and len(short) == 12:
+        kind, axis = "slide", _AXES[short[-1]]
+    elif short == "JointModelRevoluteUnaligned":
+        kind, axis = "hinge", tuple(jmodel.axis)
+    elif short == "JointModelPrismaticUnaligned":
+        kind, axis = "slide", tuple(jmodel.axis)
+    else:
+        raise InputError("clm", short, f"joint {name!r}: the MuJoCo export supports 1-DoF "
+                                       "revolute and prismatic joints only")
+    return f'<joint name="{name}" type="{kind}" axis="{_vec(axis)}"/>'
+
+
+def _inertial_xml(inertia: pin.Inertia, tiny: float) -> str:
+    mass = float(inertia.mass)
+    rot = np.asarray(inertia.inertia)
+    if mass <= tiny and np.max(np.abs(rot)) <= tiny:
+        return (f'<inertial pos="0 0 0" mass="{_f(tiny)}" '
+                f'diaginertia="{_f(tiny)} {_f(tiny)} {_f(tiny)}"/>')
+    full = (rot[0, 0], rot[1, 1], rot[2, 2], rot[0, 1], rot[0, 2], rot[1, 2])
+    return (f'<inertial pos="{_vec(inertia.lever)}" mass="{_f(max(mass, tiny))}" '
+            f'fullinertia="{_vec(full)}"/>')
+
+
+def closed_loop_mjcf(clm: ClosedLoopModel, timestep: float = 1e-3,
+                     tiny_inertia: float = TINY_INERTIA,
+                     solimp: tuple[float, ...] = STIFF_SOLIMP,
+                     solref: tuple[float, float] | None = None) -> str:
+    """MJCF text of ``clm`` (conventions in the module docstring).
+
+    Args:
+        clm: the closed-loop model.
+        timestep: MuJoCo time step (s).
+        tiny_inertia: mass (kg) and inertia (kg m^2) of bodies that have none.
+        solimp: impedance of the closure equalities.
+        solref: ``(timeconst, dampratio)`` of the closures; default ``(2 timestep, 1)``.
+
+    Returns:
+        The MJCF document (str).
+
+    Raises:
+        InputError: a joint type the export does not support, or a non-positive
+            ``timestep`` / ``tiny_inertia``.
+    """
+    if not isinstance(clm, ClosedLoopModel):
+        raise InputError("clm", clm, "expected a ClosedLoopModel")
+    if not timestep > 0.0:
+        raise InputError("timestep", timestep, "must be positive")
+    if not tiny_inertia > 0.0:
+        raise InputError("tiny_inertia", tiny_inertia, "must be positive")
+    if solref is None:
+        solref = (2.0 * timestep, 1.0)
+    model = clm.model
+    sites: dict[int, list[str]] = {}
+    for closure in clm.closures:
+        for tag in ("anchor1", "anchor2"):
+            frame = model.frames[model.getFrameId(f"{closure.name}/{tag}")]
+            sites.setdefault(frame.parentJoint, []).append(
+                f'<site name="{_site_name(frame.name)}" {_pose(frame.placement)}/>')
+    children: dict[int, list[int]] = {}
+    for jid in range(1, model.njoints):
+        children.setdefault(model.parents[jid], []).append(jid)
+
+    def body(jid: int, indent: str) -> list[str]:
+        name = model.names[jid]
+        lines = [f'{indent}<body name="{name}" {_pose(model.jointPlacements[jid])}>',
+                 f"{indent}  {_joint_xml(model.joints[jid], name)}",
+                 f"{indent}  {_inertial_xml(model.inertias[jid], tiny_inertia)}"]
+        lines += [f"{indent}  {site}" for site in sites.get(jid, [])]
+        for child in children.get(jid, []):
+            lines += body(child, indent + "  ")
+        lines.append(f"{indent}</body>")
+        return lines
+
+    gravity = np.asarray(model.gravity.linear)
+    lines = [
+        f'<mujoco model="{clm.name}">',
+        '  <compiler angle="radian" autolimits="true" inertiafromgeom="false" '
+        'balanceinertia="false"/>',
+        f'  <option timestep="{_f(timestep)}" gravity="{_vec(gravity)}" integrator="Euler" '
+        'solver="Newton" tolerance="1e-15" iterations="100" jacobian="dense">'
+        '<flag contact="disable"/></option>',
+        '  <default><joint damping="0" armature="0" frictionloss="0" limited="false"/>',
+        f'    <equality solref="{_vec(solref)}" solimp="{_vec(solimp)}"/>',
+        '    <motor ctrllimited="false" forcelimited="false" gear="1"/></default>',
+        '  <worldbody>',
+    ]
+    lines += [f"    {site}" for site in sites.get(0, [])]
+    for child in children.get(0, []):
+        lines += body(child, "    ")
+    lines += ["  </worldbody>", "  <equality>"]
+    for closure in clm.closures:
+        kind = "connect" if closure.type == "point" else "weld"
+        lines.append(f'    <{kind} name="{closure.name}" '
+                     f'site1="{_site_name(closure.name + "/anchor1")}" '
+                     f'site2="{_site_name(closure.name + "/anchor2")}"/>')
+    lines += ["  </equality>", "  <actuator>"]
+    lines += [f'    <motor name="{j}" joint="{j}"/>' for j in clm.actuated_joints]
+    lines += ["  </actuator>", "</mujoco>"]
+    return "\n".join(lines) + "\n"
+
+
+def to_mujoco(clm: ClosedLoopModel, **options):
+    """Compile :func:`closed_loop_mjcf` into a ``mujoco.MjModel`` (same options).
+
+    Raises:
+        MissingDependencyError: ``mujoco`` is not installed (extra ``bench``).
+        InputError: see :func:`closed_loop_mjcf`.
+    """
+    try:
+        import mujoco
+    except ImportError:
+        raise MissingDependencyError("mujoco", "bench") from None
+    return mujoco.MjModel.from_xml_string(closed_loop_mjcf(clm, **options))
