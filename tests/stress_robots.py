@@ -100,14 +100,14 @@ def ladder_urdf(loops: int, bar_masses, coupler_masses, spacing: float = 0.3,
         mb = bar_masses[j]
         it_b, ia_b = rod(mb, bar_length)
         lines += [
-            f'  <joint name="bar_{j}" type="revolute"><parent link="world"/>'
+            (f'  <joint name="bar_{j}" type="revolute"><parent link="world"/>'
             f'<child link="bar_{j}"/><origin xyz="{_f(j * spacing)} 0 0"/><axis xyz="0 1 0"/>'
-            '<limit lower="-3.2" upper="3.2" effort="100" velocity="100"/></joint>',
-            f'  <link name="bar_{j}"><inertial><origin xyz="0 0 {_f(bar_length / 2)}"/>'
+            '<limit lower="-3.2" upper="3.2" effort="100" velocity="100"/></joint>'),
+            (f'  <link name="bar_{j}"><inertial><origin xyz="0 0 {_f(bar_length / 2)}"/>'
             f'<mass value="{_f(mb)}"/><inertia ixx="{_f(it_b)}" ixy="0" ixz="0" '
-            f'iyy="{_f(it_b)}" iyz="0" izz="{_f(ia_b)}"/></inertial></link>',
-            f'  <joint name="bar_{j}_tip_mount" type="fixed"><parent link="bar_{j}"/>'
-            f'<child link="bar_{j}_tip"/><origin xyz="0 0 {_f(bar_length)}"/></joint>',
+            f'iyy="{_f(it_b)}" iyz="0" izz="{_f(ia_b)}"/></inertial></link>'),
+            (f'  <joint name="bar_{j}_tip_mount" type="fixed"><parent link="bar_{j}"/>'
+            f'<child link="bar_{j}_tip"/><origin xyz="0 0 {_f(bar_length)}"/></joint>'),
             f'  <link name="bar_{j}_tip"/>',
         ]
         if j == loops:
@@ -115,18 +115,18 @@ def ladder_urdf(loops: int, bar_masses, coupler_masses, spacing: float = 0.3,
         mc = coupler_masses[j]
         it_c, ia_c = rod(mc, spacing)
         lines += [
-            f'  <joint name="coupler_{j}_a" type="revolute"><parent link="bar_{j}"/>'
+            (f'  <joint name="coupler_{j}_a" type="revolute"><parent link="bar_{j}"/>'
             f'<child link="cross_{j}"/><origin xyz="0 0 {_f(bar_length)}"/><axis xyz="0 1 0"/>'
-            '<limit lower="-3.2" upper="3.2" effort="0" velocity="100"/></joint>',
+            '<limit lower="-3.2" upper="3.2" effort="0" velocity="100"/></joint>'),
             f'  <link name="cross_{j}"/>',
-            f'  <joint name="coupler_{j}_b" type="revolute"><parent link="cross_{j}"/>'
+            (f'  <joint name="coupler_{j}_b" type="revolute"><parent link="cross_{j}"/>'
             f'<child link="coupler_{j}"/><origin xyz="0 0 0"/><axis xyz="0 0 1"/>'
-            '<limit lower="-3.2" upper="3.2" effort="0" velocity="100"/></joint>',
-            f'  <link name="coupler_{j}"><inertial><origin xyz="{_f(spacing / 2)} 0 0"/>'
+            '<limit lower="-3.2" upper="3.2" effort="0" velocity="100"/></joint>'),
+            (f'  <link name="coupler_{j}"><inertial><origin xyz="{_f(spacing / 2)} 0 0"/>'
             f'<mass value="{_f(mc)}"/><inertia ixx="{_f(ia_c)}" ixy="0" ixz="0" '
-            f'iyy="{_f(it_c)}" iyz="0" izz="{_f(it_c)}"/></inertial></link>',
-            f'  <joint name="coupler_{j}_tip_mount" type="fixed"><parent link="coupler_{j}"/>'
-            f'<child link="coupler_{j}_tip"/><origin xyz="{_f(spacing)} 0 0"/></joint>',
+            f'iyy="{_f(it_c)}" iyz="0" izz="{_f(it_c)}"/></inertial></link>'),
+            (f'  <joint name="coupler_{j}_tip_mount" type="fixed"><parent link="coupler_{j}"/>'
+            f'<child link="coupler_{j}_tip"/><origin xyz="{_f(spacing)} 0 0"/></joint>'),
             f'  <link name="coupler_{j}_tip"/>',
         ]
     lines.append('</robot>')
@@ -157,8 +157,8 @@ def planar_ladder_urdf(loops: int, masses) -> str:
     for j in range(loops + 1):
         lines += [hinge(f"bar_{j}", "world", f"bar_{j}", f"{_f(j * spacing)} 0 0"),
                   link(f"bar_{j}", masses[k % len(masses)], f"0 0 {_f(length / 2)}", length),
-                  f'  <joint name="bar_{j}_tip_mount" type="fixed"><parent link="bar_{j}"/>'
-                  f'<child link="bar_{j}_tip"/><origin xyz="0 0 {_f(length)}"/></joint>',
+                  (f'  <joint name="bar_{j}_tip_mount" type="fixed"><parent link="bar_{j}"/>'
+                  f'<child link="bar_{j}_tip"/><origin xyz="0 0 {_f(length)}"/></joint>'),
                   f'  <link name="bar_{j}_tip"/>']
         k += 1
         if j == loops:

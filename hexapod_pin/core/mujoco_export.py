@@ -147,11 +147,11 @@ def closed_loop_mjcf(clm: ClosedLoopModel, timestep: float = 1e-3,
     gravity = np.asarray(model.gravity.linear)
     lines = [
         f'<mujoco model="{clm.name}">',
-        '  <compiler angle="radian" autolimits="true" inertiafromgeom="false" '
-        'balanceinertia="false"/>',
-        f'  <option timestep="{_f(timestep)}" gravity="{_vec(gravity)}" integrator="Euler" '
+        ('  <compiler angle="radian" autolimits="true" inertiafromgeom="false" '
+        'balanceinertia="false"/>'),
+        (f'  <option timestep="{_f(timestep)}" gravity="{_vec(gravity)}" integrator="Euler" '
         'solver="Newton" tolerance="1e-15" iterations="100" jacobian="dense">'
-        '<flag contact="disable"/></option>',
+        '<flag contact="disable"/></option>'),
         '  <default><joint damping="0" armature="0" frictionloss="0" limited="false"/>',
         f'    <equality solref="{_vec(solref)}" solimp="{_vec(solimp)}"/>',
         '    <motor ctrllimited="false" forcelimited="false" gear="1"/></default>',
