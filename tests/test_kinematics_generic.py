@@ -175,3 +175,196 @@ def test_four_bar_velocity_and_frame_jacobian_match_finite_differences(four_bar)
                 + pin.difference(four_bar.model, q0, _assembled(four_bar, 0.5 - h, q0))) / h ** 2
 
     np.testing.assert_allclose(acc, (4 * second(1e-3) - second(2e-3)) / 3, atol=1e-7)
+
+
+# -- every robot class: velocity maps, frame Jacobians and projections by SVD ----------------
+import scipy.linalg  # noqa: E402
+
+import stress_robots  # noqa: E402
+from hexapod_pin.core.dynamics import forward_dynamics_tree  # noqa: E402
+from hexapod_pin.errors import InconsistentMotionError, SingularityError  # noqa: E402
+
+STRESS = ["five_bar_stiff", "five_bar_massless", "delta_weld", "delta_massless",
+          "ladder_mixed", "ladder_massless", "planar_ladder_weld"]
+EFFECTOR = {"five_bar_stiff": "pin", "five_bar_massless": "pin",
+            "delta_weld": "platform_center", "delta_massless": "platform_center",
+            "ladder_mixed": "bar_6_tip", "ladder_massless": "bar_4_tip",
+            "planar_ladder_weld": "bar_5_tip"}
+
+
+def svd_velocity_map(jac, actuated, passive):
+    """Reference written here: the closures' null space N by SVD, then among the motions
+    ``N z`` with the actuated part ``e_j`` the one whose passive part has least norm."""
+    null = scipy.linalg.null_space(jac, rcond=1e-10)
+    na, np_ = null[actuated], null[passive]
+    z0 = np.linalg.pinv(na) @ np.eye(len(actuated))           # any z with N_a z = I
+    assert np.max(np.abs(na @ z0 - np.eye(len(actuated)))) < 1e-10   # consistent
+    free = scipy.linalg.null_space(na, rcond=1e-10)            # z left free by the actuators
+    if free.size:
+        w = -np.linalg.pinv(np_ @ free) @ (np_ @ z0)
+        z0 = z0 + free @ w
+    return null @ z0
+
+
+@pytest.fixture(scope="module", params=STRESS)
+def stress(request):
+    return stress_robots.build(request.param)
+
+
+def test_velocity_map_and_frame_jacobian_match_an_svd_null_space(stress):
+    clm = stress.clm
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        q, v = stress.sample(rng)
+        ref = svd_velocity_map(clm.constraint_jacobian(q), clm.actuated_v, clm.passive_v)
+        scale = max(1.0, np.max(np.abs(ref)))
+        maps = {m: clm.actuated_velocity_map(q, method=m) for m in ("lstsq", "qp")}
+        for gmap in maps.values():
+            np.testing.assert_allclose(gmap, ref, atol=1e-10 * scale)
+        np.testing.assert_allclose(maps["qp"], maps["lstsq"], atol=1e-10 * scale)
+        qdot = rng.normal(size=clm.n_actuated)
+        for method in ("lstsq", "qp"):
+            np.testing.assert_allclose(clm.velocity_from_actuated(q, qdot, method=method),
+                                       ref @ qdot, atol=1e-10 * scale * max(1, np.abs(qdot).max()))
+        data = clm.model.createData()
+        pin.computeJointJacobians(clm.model, data, q)
+        fid = clm.frame_id(EFFECTOR[stress.name])
+        jac_ref = pin.getFrameJacobian(clm.model, data, fid, LWA) @ ref
+        for method in ("lstsq", "qp"):
+            np.testing.assert_allclose(
+                clm.frame_jacobian_from_actuated(q, EFFECTOR[stress.name], method=method),
+                jac_ref, atol=1e-10 * scale)
+
+
+def test_acceleration_map_on_both_routes(stress):
+    """``J_c a = -gamma`` with the actuated part given; the passive part of least norm:
+    the SVD reference is the particular solution plus the null-space correction."""
+    clm = stress.clm
+    rng = np.random.default_rng(12)
+    q, v = stress.sample(rng)
+    jac, gamma = clm.constraint_jacobian(q), clm.constraint_drift(q, v)
+    qdd = rng.normal(size=clm.n_actuated)
+    p, a = clm.passive_v, clm.actuated_v
+    ref = np.zeros(clm.nv)
+    ref[a] = qdd
+    ref[p] = np.linalg.pinv(jac[:, p], rcond=1e-10) @ (-gamma - jac[:, a] @ qdd)
+    scale = max(1.0, np.max(np.abs(ref)))
+    for method in ("lstsq", "qp"):
+        acc = clm.acceleration_from_actuated(q, v, qdd, method=method)
+        np.testing.assert_allclose(acc, ref, atol=1e-10 * scale)
+        assert np.max(np.abs(jac @ acc + gamma)) <= 1e-10 * scale
+
+
+def test_projections_match_closed_forms(stress):
+    """Euclidean: ``N N^T v``; mass metric: ``N (N^T M N)^-1 N^T M v`` (N by SVD); and the
+    mass-metric projection of the free acceleration is the constrained forward dynamics
+    (Gauss's principle), computed by the KKT route of core/dynamics."""
+    clm = stress.clm
+    rng = np.random.default_rng(13)
+    q, v = stress.sample(rng)
+    null = scipy.linalg.null_space(clm.constraint_jacobian(q), rcond=1e-10)
+    raw = rng.normal(size=clm.nv)
+    for method in ("lstsq", "qp"):
+        np.testing.assert_allclose(clm.project_velocity(q, raw, "euclidean", method),
+                                   null @ null.T @ raw, atol=1e-10)
+    mass = pin.crba(clm.model, clm.model.createData(), q)
+    mass = np.triu(mass) + np.triu(mass, 1).T
+    if np.linalg.eigvalsh(mass)[0] <= 1e-12 * np.abs(mass).max():
+        with pytest.raises(SingularityError):
+            clm.project_velocity(q, raw)
+        return
+    reduced = null.T @ mass @ null
+    ref = null @ np.linalg.solve(reduced, null.T @ mass @ raw)
+    scale = max(1.0, np.abs(ref).max())
+    for method in ("lstsq", "qp"):
+        np.testing.assert_allclose(clm.project_velocity(q, raw, "mass", method), ref,
+                                   atol=1e-9 * scale)
+    u = rng.normal(size=clm.n_actuated)
+    tau = np.zeros(clm.nv)
+    tau[clm.actuated_v] = u
+    data = clm.model.createData()
+    free_acc = np.linalg.solve(mass, tau - pin.nle(clm.model, data, q, v))
+    fd = forward_dynamics_tree(clm, q, v, u, method="kkt").a
+    scale = max(1.0, np.abs(fd).max())
+    for method in ("lstsq", "qp"):
+        np.testing.assert_allclose(clm.project_acceleration(q, v, free_acc, "mass", method), fd,
+                                   atol=1e-8 * scale)
+
+
+# -- a rod spinning about its own axis between two ball joints ------------------------------
+def _revolute(name, parent, child, axis, xyz="0 0 0"):
+    return (f'<joint name="{name}" type="revolute"><parent link="{parent}"/>'
+            f'<child link="{child}"/><origin xyz="{xyz}"/><axis xyz="{axis}"/>{LIMIT}</joint>'
+            f'<link name="{child}">{INERTIAL}</link>')
+
+
+# a carriage sliding along y (actuated) holds a rod by a ball joint (three revolute joints);
+# the rod's far end is held by a second ball on a passive carriage sliding along z
+ROD = f"""<?xml version="1.0"?>
+<robot name="slider_rod">
+  <link name="world"/>
+  <joint name="slider" type="prismatic">
+    <parent link="world"/><child link="carriage"/><axis xyz="0 1 0"/>{LIMIT}
+  </joint>
+  <link name="carriage">{INERTIAL}</link>
+  {_revolute("ball_x", "carriage", "ball_x_link", "1 0 0")}
+  {_revolute("ball_y", "ball_x_link", "ball_y_link", "0 1 0")}
+  {_revolute("ball_z", "ball_y_link", "rod", "0 0 1")}
+  <joint name="rod_tip_mount" type="fixed">
+    <parent link="rod"/><child link="rod_tip"/><origin xyz="0.5 0 0"/>
+  </joint>
+  <link name="rod_tip"/>
+  <joint name="far_slider" type="prismatic">
+    <parent link="world"/><child link="far_carriage"/><origin xyz="0.4 0 0"/>
+    <axis xyz="0 0 1"/>{LIMIT}
+  </joint>
+  <link name="far_carriage">{INERTIAL}</link>
+</robot>
+"""
+ROD_LOOPS = """
+closures:
+  - {name: far_ball, type: point, frame1: rod_tip, frame2: far_carriage}
+actuated: [slider]
+"""
+
+
+def test_rod_spin_gets_the_minimum_norm_and_matches_svd():
+    """The rod between two ball joints can spin about its own axis: the passive motion is
+    not unique; the map returns the least-norm one (the SVD reference), and moving the
+    slider is still exact."""
+    clm = ClosedLoopModel(build_model(ROD, "slider_rod"), parse_loops(ROD_LOOPS), name="rod")
+    q = clm.assemble(np.array([0.1, 0.1, 0.2, -0.3, 0.2])).q
+    assert clm.mobility(q) == 2 and clm.n_actuated == 1
+    ref = svd_velocity_map(clm.constraint_jacobian(q), clm.actuated_v, clm.passive_v)
+    for method in ("lstsq", "qp"):
+        np.testing.assert_allclose(clm.actuated_velocity_map(q, method), ref, atol=1e-10)
+    # the tip point's Jacobian does not depend on the spin: finite differences of assemblies
+    h = 1e-6
+    tips = []
+    for dq in (-h, h):
+        qq = q.copy()
+        qq[clm.joint_q_index("slider")] += dq
+        qq = clm.assemble(qq).q
+        data = clm.model.createData()
+        pin.framesForwardKinematics(clm.model, data, qq)
+        tips.append(data.oMf[clm.frame_id("rod_tip")].translation.copy())
+    jac = clm.frame_jacobian_from_actuated(q, "rod_tip")
+    np.testing.assert_allclose(jac[:3, 0], (tips[1] - tips[0]) / (2 * h), atol=1e-7)
+
+
+def test_inconsistent_actuated_velocities_raise(four_bar):
+    """The four-bar with crank AND rocker actuated (mobility 1): a consistent pair passes,
+    any other pair raises InconsistentMotionError (a SolverError) on both routes."""
+    both = ClosedLoopModel(build_model(FOUR_BAR, "four_bar"),
+                           parse_loops(FOUR_BAR_LOOPS.replace("[crank]", "[crank, rocker]")),
+                           name="four_bar_2")
+    q = both.assemble([0.5, 0.4, 1.8], fixed=[0], tol=1e-15).q
+    v = both.complete_velocity(q, [0], [1.0])
+    rocker_rate = v[both.joint_v_index("rocker")]
+    for method in ("lstsq", "qp"):
+        np.testing.assert_allclose(both.velocity_from_actuated(q, [1.0, rocker_rate], method), v,
+                                   atol=1e-12)
+        with pytest.raises(InconsistentMotionError):
+            both.velocity_from_actuated(q, [1.0, rocker_rate + 0.1], method)
+    with pytest.raises(hp.SolverError):
+        both.actuated_velocity_map(q)
