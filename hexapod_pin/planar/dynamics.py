@@ -185,9 +185,7 @@ class PlanarDynamics:
                 moment about the platform origin; default zero.
             branch: IK branch, default all ``+1``.
             method: "kkt" (default): that square system solved in closed form
-                (:func:`kernels.solve_inverse`); at a type-II singularity, where its
-                platform 3x3 is singular, the dense least-squares solve of
-                :func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree`. "qp": ProxSuite
+                (:func:`kernels.solve_inverse`). "qp": ProxSuite
                 through :func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree`, with
                 the bounds as constraints. Both agree to round-off when no bound is
                 active.
@@ -202,7 +200,9 @@ class PlanarDynamics:
         Raises:
             InputError: a malformed input or method.
             UnreachablePoseError: the pose cannot be reached.
-            SingularityError: a link perpendicular to its rail.
+            SingularityError: a link perpendicular to its rail (type I), or a type-II
+                singularity, where the actuator forces are not determined (a least-squares
+                answer would not produce the motion).
             ActuatorSaturationError: the motion needs more than the bound (carries the
                 needed forces; no clipped answer).
         """
@@ -221,7 +221,7 @@ class PlanarDynamics:
             ws.geo, ws.idx, pose_a, twist_a, twist_dot_a,
             ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None,
             ws.signs(branch), q, v, a, tau, closure, ws.buf, ws.info)
-        if status in (kernels.NONFINITE, kernels.UNREACHABLE, kernels.TYPE_I):
+        if status in (kernels.NONFINITE, kernels.UNREACHABLE, kernels.TYPE_I, kernels.TYPE_II):
             ws.raise_for(status, inputs)
         bounds = self.bounds(bounded)
         wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
@@ -247,8 +247,7 @@ class PlanarDynamics:
 
         Balances gravity (``-g`` along y, every body) and the ``wrench`` ``(fx, fy, mz)``
         applied ON the platform (N, N m, moment about its origin): the closed-form
-        inverse dynamics at zero twist and twist_dot (the least-squares tree route at a
-        type-II singularity).
+        inverse dynamics at zero twist and twist_dot.
 
         Raises:
             InputError, UnreachablePoseError, SingularityError, ActuatorSaturationError:
@@ -264,12 +263,9 @@ class PlanarDynamics:
             ws.geo, ws.idx, pose_a, ws.zero3, ws.zero3,
             ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None,
             ws.signs(branch), q, v, a, tau, closure, ws.buf, ws.info)
-        if status in (kernels.NONFINITE, kernels.UNREACHABLE, kernels.TYPE_I):
+        if status != kernels.OK:
             ws.raise_for(status, ((pose, "pose"), (wrench, "wrench")))
         bounds = self.bounds(bounded)
-        if status != kernels.OK:
-            tau = inverse_dynamics_tree(self.model, q, v, a, self.tau_ext(wrench_a),
-                                        bounds=bounds, method="kkt").actuator_forces.copy()
         self.check_bounds(tau, bounds)
         return tau
 
