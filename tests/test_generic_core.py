@@ -219,3 +219,62 @@ def test_mujoco_export_needs_mujoco(monkeypatch):
     monkeypatch.setitem(sys.modules, "mujoco", None)
     with pytest.raises(MissingDependencyError):
         to_mujoco(clm)
+
+
+# ----------------------------------------------------------------------------- batches
+def test_batches_equal_single_calls():
+    from hexapod_pin.core.tree_batch import forward_dynamics_tree_batch, inverse_dynamics_tree_batch
+
+    robot = stress_robots.build("planar_ladder_weld")
+    clm = robot.clm
+    rng = np.random.default_rng(7)
+    states = [robot.sample(rng) for _ in range(5)]
+    q = np.array([s[0] for s in states])
+    v = np.array([s[1] for s in states])
+    u = rng.normal(size=(5, clm.n_actuated))
+    for method in FORWARD_METHODS:
+        batch = forward_dynamics_tree_batch(clm, q, v, u, method=method)
+        for i in range(5):
+            single = forward_dynamics_tree(clm, q[i], v[i], u[i], method=method)
+            np.testing.assert_array_equal(batch.a[i], single.a)
+            np.testing.assert_allclose(batch.multipliers[i], single.multipliers, rtol=0,
+                                       atol=1e-12 * np.max(np.abs(single.multipliers)))
+    acc = forward_dynamics_tree_batch(clm, q, v, u, method="kkt").a
+    for method in INVERSE_METHODS:
+        inv = inverse_dynamics_tree_batch(clm, q, v, acc, method=method, threads=2)
+        for i in range(5):
+            single = inverse_dynamics_tree(clm, q[i], v[i], acc[i], method=method)
+            np.testing.assert_allclose(inv.actuator_forces[i], single.actuator_forces,
+                                       rtol=1e-12, atol=0)
+            assert_close(inv.actuator_forces[i], u[i], "batch u")
+    from hexapod_pin.errors import BatchActuatorSaturationError
+
+    bound = 0.5 * np.abs(u[3]).max()
+    if np.all(np.abs(u[:3]) < bound):
+        with pytest.raises(BatchActuatorSaturationError) as info:
+            inverse_dynamics_tree_batch(clm, q, v, acc, bounds=bound)
+        assert info.value.index == 3
+    bad = acc.copy()
+    bad[2] += 1.0
+    with pytest.raises(SolverError, match="state 2"):
+        inverse_dynamics_tree_batch(clm, q, v, bad, method="kkt")
+
+
+# -------------------------------------------------------------------------- simulation
+@pytest.mark.parametrize("name", ["ladder_mixed", "planar_ladder_weld", "five_bar_massless"])
+@pytest.mark.parametrize("integrator", ["rk4", "semi_implicit_euler"])
+def test_generic_step_keeps_the_closures(name, integrator):
+    """Steps of the tree integrator keep every closure (position and velocity) to 1e-9."""
+    from hexapod_pin.core.simulation import ClosedLoopIntegrator
+
+    robot = stress_robots.build(name)
+    clm = robot.clm
+    q, v = robot.sample(np.random.default_rng(8))
+    sim = ClosedLoopIntegrator(clm, integrator=integrator)
+    tau = np.zeros(clm.nv)
+    for _ in range(20):
+        q, v, residual = sim.step(q, v, tau, 1e-4)
+        assert residual <= 1e-9
+        assert np.max(np.abs(clm.residual(q))) <= 1e-9
+        assert np.max(np.abs(clm.constraint_jacobian(q) @ v)) <= 1e-9 * max(
+            1.0, np.max(np.abs(v)))

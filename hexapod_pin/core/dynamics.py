@@ -51,8 +51,8 @@ import scipy.optimize
 
 from ..errors import ActuatorSaturationError, InputError, SolverError
 from .checks import as_array, max_abs
-from .compiled import all_finite, jit
 from .closed_loop import RANK_RTOL, ClosedLoopModel
+from .compiled import all_finite, jit
 
 FORWARD_METHODS = ("pinocchio", "qp", "kkt")
 INVERSE_METHODS = ("qp", "kkt")
@@ -225,6 +225,7 @@ class ClosedLoopDynamics:
         self._qps: dict = {}
         self._aux_data = self.model.createData()   # lazy multiplier conversions
         self._res_out = np.empty(2)
+        self._pools: dict[int, pin.ModelPool] = {}
         self._no_rows = (np.zeros((0, self.nv)), np.zeros(0))
         self._kkt = np.zeros((self.nv + self.n_rows, self.nv + self.n_rows))
         self._id_matrix = np.zeros((self.nv, self.n_act + self.n_rows))
@@ -630,18 +631,30 @@ class ClosedLoopDynamics:
         v = self.clm.check_v(v)
         a = self.clm.check_v(a, "a")
         tau_ext = self._zero_v if tau_ext is None else self.clm.check_v(tau_ext, "tau_ext")
-        bounds = self._check_bounds(bounds)
+        bounds = self.check_bounds(bounds)
         if method not in INVERSE_METHODS:
             raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
         return self.inverse_unchecked(q, v, a, tau_ext, bounds, method)
 
     def inverse_unchecked(self, q, v, a, tau_ext, bounds, method) -> TreeInverseDynamics:
         """:meth:`inverse` without the input checks (``bounds`` None or (n_act,) array)."""
-        rank = self.closure_rank(q)
         rhs = pin.rnea(self.model, self.data, q, v, a) - tau_ext
+        return self.inverse_from_force(q, v, a, rhs, bounds, method)
+
+    def inverse_from_force(self, q, v, a, rhs, bounds, method) -> TreeInverseDynamics:
+        """Inverse dynamics given ``rhs = M a + h - tau_ext`` (nv,) (e.g. from a pooled
+        ``rneaInParallel``); no input checks."""
+        rank = self.closure_rank(q)
         jac = self.constraint_jacobian(q)
         self._check_motion(q, v, a, jac)
         return self._inverse_solve(jac, rhs, bounds, method, rank)
+
+    def model_pool(self, threads: int) -> pin.ModelPool:
+        """A ``pin.ModelPool`` of this model with ``threads`` datas (cached)."""
+        pool = self._pools.get(threads)
+        if pool is None:
+            pool = self._pools[threads] = pin.ModelPool(self.model, threads)
+        return pool
 
     def _check_motion(self, q, v, a, jac) -> None:
         """Raise SolverError when ``a`` does not keep the closures (``J_c a != -gamma``):
@@ -656,7 +669,8 @@ class ClosedLoopDynamics:
                               f"closure equation J_c a = -gamma missed by {miss / scale:.3e} "
                               "(relative): the acceleration does not keep the closures")
 
-    def _check_bounds(self, bounds) -> np.ndarray | None:
+    def check_bounds(self, bounds) -> np.ndarray | None:
+        """Actuator bounds as an (n_act,) array (None: unbounded); raises InputError."""
         if bounds is None:
             return None
         if isinstance(bounds, (int, float)) and not isinstance(bounds, bool):

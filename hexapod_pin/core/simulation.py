@@ -25,9 +25,9 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
+from ..errors import AssemblyError, InputError
 from .closed_loop import ClosedLoopModel
 from .dynamics import FORWARD_METHODS, dynamics_of
-from ..errors import InputError
 
 #: closure residual above which a step is projected back onto the closures (m)
 PROJECTION_TOL = 1e-10
@@ -92,7 +92,7 @@ class ClosedLoopIntegrator:
                 vec_v == list(range(vec_v[0], vec_v[0] + len(vec_v))):
             self._vec_slices = (slice(vec_q[0], vec_q[0] + len(vec_q)),
                                 slice(vec_v[0], vec_v[0] + len(vec_v)))
-        self._fast = None
+        self._redundant: bool | None = None
 
     # -- kinematics of the configuration vector -------------------------------------------
     def qdot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -122,30 +122,24 @@ class ClosedLoopIntegrator:
     # -- dynamics ---------------------------------------------------------------------------
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                      checked: bool = True) -> np.ndarray:
-        """Tree acceleration (nv,) for the generalised force ``tau`` (nv,).
+        """Tree acceleration (nv,) for the generalised force ``tau`` (nv,), verified.
 
-        ``checked=False`` skips the per-call failure check of the direct Pinocchio call
-        (the caller checks its final result and retries checked).
+        Every answer satisfies the equation of motion and the closures at acceleration
+        level to :data:`~hexapod_pin.core.dynamics.RESIDUAL_RTOL` (relative) or the
+        route raises :class:`~hexapod_pin.errors.SolverError`. The "pinocchio" method
+        runs one verified ``pin.constraintDynamics`` call and falls back to the exact
+        KKT route when it is refused. ``checked`` is kept for callers; every call is
+        checked.
         """
         dyn = self.dyn
         if self.method == "pinocchio":
-            fast = self._fast
-            if fast is None:
-                fast = self._fast = self._fast_call(q)
-            if fast:
-                acc = pin.constraintDynamics(*fast[0], q, v, tau, *fast[1])
-                if not checked or math.isfinite(acc.sum()):
-                    return acc.copy()
-            return dyn.pinocchio_acceleration(q, v, tau)
-        return dyn.forward(q, v, tau, self.method).a
-
-    def _fast_call(self, q: np.ndarray):
-        """Bound arguments of ``pin.constraintDynamics`` when the closures are not
-        redundant (else ``()``: the generic route handles redundancy)."""
-        dyn = self.dyn
-        if dyn.closure_rank(q) < dyn.n_rows:
-            return ()
-        return dyn.pinocchio_arguments()
+            redundant = self._redundant
+            if redundant is None:
+                redundant = self._redundant = dyn.closure_rank(q) < dyn.n_rows
+            acc, _ = dyn.pinocchio_call(q, v, tau, redundant)
+            if acc is not None:
+                return acc.copy()
+        return dyn.forward_unchecked(q, v, tau, self.method).a
 
     def step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
              projection_tol: float = PROJECTION_TOL):
@@ -157,19 +151,17 @@ class ClosedLoopIntegrator:
             AssemblyError: the projection does not converge.
         """
         if self.integrator == "rk4":
-            q_new, v_new = self._rk4(q, v, tau, dt, checked=False)
-            if not math.isfinite(v_new.sum()):
-                q_new, v_new = self._rk4(q, v, tau, dt, checked=True)
+            q_new, v_new = self._rk4(q, v, tau, dt)
         else:
             v_new = v + dt * self.acceleration(q, v, tau)
             q_new = pin.integrate(self.clm.model, q, dt * v_new)
         return self.project(q_new, v_new, projection_tol)
 
-    def _rk4(self, q, v, tau, dt, checked: bool):
+    def _rk4(self, q, v, tau, dt):
         qdot, normalise = self.qdot, self._normalise
 
         def acc(qs, vs):
-            return self.acceleration(qs, vs, tau, checked)
+            return self.acceleration(qs, vs, tau)
 
         half = 0.5 * dt
         a1 = acc(q, v)
@@ -210,8 +202,6 @@ class ClosedLoopIntegrator:
         Raises:
             AssemblyError: the residual stays above ``trigger`` after ``max_iter`` steps.
         """
-        from ..errors import AssemblyError
-
         err = self.residual(q)
         if err <= trigger:
             return q, v, err

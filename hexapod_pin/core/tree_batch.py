@@ -1,0 +1,179 @@
+"""Batches of the generic tree dynamics: forward and inverse dynamics over N states.
+
+Same equations, routes, verification and conventions as
+:func:`~hexapod_pin.core.dynamics.forward_dynamics_tree` and
+:func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree`; states along the first axis.
+The inputs are checked once for the whole batch; every state is then solved and verified
+like a single call. Inverse dynamics evaluates ``M a + h`` of all states with Pinocchio's
+pooled ``rneaInParallel`` (OpenMP over a ``pin.ModelPool``). Pinocchio 4.1 has no pooled
+constrained forward dynamics (only ``abaInParallel``, unconstrained), so forward dynamics
+runs ``pin.constraintDynamics`` state after state on the calling thread.
+
+Errors name the first failing state: :class:`~hexapod_pin.errors.SolverError` (detail
+prefixed by ``state i``), :class:`~hexapod_pin.errors.BatchActuatorSaturationError`.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import ActuatorSaturationError, BatchActuatorSaturationError, InputError, SolverError
+from .checks import as_array
+from .closed_loop import ClosedLoopModel
+from .dynamics import FORWARD_METHODS, INVERSE_METHODS, TreeForwardDynamics, dynamics_of
+
+
+@dataclass(frozen=True)
+class TreeForwardDynamicsBatch:
+    """Result of :func:`forward_dynamics_tree_batch`.
+
+    Attributes:
+        a: tree accelerations (N, nv).
+        results: the per-state :class:`~hexapod_pin.core.dynamics.TreeForwardDynamics`
+            (status, iterations, rank; multipliers converted on access).
+    """
+
+    a: np.ndarray
+    results: tuple[TreeForwardDynamics, ...]
+
+    @property
+    def multipliers(self) -> np.ndarray:
+        """Closure multipliers (N, n_rows), conventions of the single call."""
+        return np.array([r.multipliers for r in self.results]).reshape(len(self.results), -1)
+
+    @property
+    def statuses(self) -> tuple[str, ...]:
+        """Per-state status strings."""
+        return tuple(r.status for r in self.results)
+
+
+@dataclass(frozen=True)
+class TreeInverseDynamicsBatch:
+    """Result of :func:`inverse_dynamics_tree_batch`.
+
+    Attributes:
+        actuator_forces: ``u`` (N, n_act) (N or N m), ``clm.actuated_joints`` order.
+        multipliers: closure multipliers (N, n_rows).
+        residual: per-state max-abs equation-of-motion residual (N,) (N, N m).
+        statuses: per-state status strings.
+    """
+
+    actuator_forces: np.ndarray
+    multipliers: np.ndarray
+    residual: np.ndarray
+    statuses: tuple[str, ...]
+
+
+def _states(clm: ClosedLoopModel, q, v, third, third_size: int, name: str):
+    q = as_array(q, (clm.nq,), "q", batch=True)
+    v = as_array(v, (clm.nv,), "v", batch=True)
+    third = as_array(third, (third_size,), name, batch=True)
+    if not q.shape[0] == v.shape[0] == third.shape[0]:
+        raise InputError("q, v, " + name, (q.shape, v.shape, third.shape),
+                         "the batches must have the same number of states")
+    return q, v, third
+
+
+def _tau_ext(clm: ClosedLoopModel, tau_ext, n: int) -> np.ndarray:
+    if tau_ext is None:
+        return np.zeros((n, clm.nv))
+    arr = np.asarray(tau_ext, dtype=float)
+    if arr.shape == (clm.nv,):
+        arr = np.broadcast_to(arr, (n, clm.nv))
+    return as_array(arr, (clm.nv,), "tau_ext", batch=True)
+
+
+def _state_error(index: int, exc: SolverError) -> SolverError:
+    return SolverError(exc.solver, exc.status, f"state {index}: {exc}")
+
+
+def forward_dynamics_tree_batch(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=None,
+                                method: str = "pinocchio") -> TreeForwardDynamicsBatch:
+    """:func:`~hexapod_pin.core.dynamics.forward_dynamics_tree` over N states.
+
+    Args:
+        clm: the closed-loop model.
+        q: configurations (N, nq); v: velocities (N, nv), closure-consistent.
+        actuator_forces: ``u`` (N, n_act) (N or N m).
+        tau_ext: generalised external forces (N, nv) or (nv,) for every state; default 0.
+        method: "pinocchio", "qp" or "kkt" (see the single call).
+
+    Returns:
+        :class:`TreeForwardDynamicsBatch`.
+
+    Raises:
+        InputError: bad shapes, NaN / inf, different batch sizes, unknown method.
+        SolverError: a state failed its verification (``state i`` in the message).
+    """
+    if method not in FORWARD_METHODS:
+        raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
+    dyn = dynamics_of(clm)
+    q, v, u = _states(clm, q, v, actuator_forces, clm.n_actuated, "actuator_forces")
+    n = q.shape[0]
+    tau = _tau_ext(clm, tau_ext, n).copy()
+    tau[:, clm.actuated_v] += u
+    acc = np.empty((n, clm.nv))
+    results = []
+    for i in range(n):
+        try:
+            res = dyn.forward_unchecked(q[i], v[i], tau[i], method)
+        except SolverError as exc:
+            raise _state_error(i, exc) from None
+        acc[i] = res.a
+        results.append(res)
+    return TreeForwardDynamicsBatch(acc, tuple(results))
+
+
+def inverse_dynamics_tree_batch(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=None,
+                                method: str = "qp",
+                                threads: int | None = None) -> TreeInverseDynamicsBatch:
+    """:func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree` over N states.
+
+    Args:
+        clm: the closed-loop model.
+        q, v, a: configurations (N, nq), velocities and accelerations (N, nv), keeping
+            the closures.
+        tau_ext: generalised external forces (N, nv) or (nv,); default zero.
+        bounds: ``abs(u) <= bounds`` for every state (scalar or (n_act,)); None: none.
+        method: "qp" or "kkt".
+        threads: OpenMP threads of ``pin.rneaInParallel``; default ``os.cpu_count()``.
+
+    Returns:
+        :class:`TreeInverseDynamicsBatch`.
+
+    Raises:
+        InputError: bad shapes, NaN / inf, different batch sizes, bad bounds or method.
+        BatchActuatorSaturationError: a state needs ``abs(u) > bounds`` (``index``).
+        SolverError: a state failed (``state i`` in the message), e.g. a motion that
+            does not keep the closures.
+    """
+    if method not in INVERSE_METHODS:
+        raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
+    dyn = dynamics_of(clm)
+    q, v, a = _states(clm, q, v, a, clm.nv, "a")
+    n = q.shape[0]
+    ext = _tau_ext(clm, tau_ext, n)
+    limits = dyn.check_bounds(bounds)
+    threads = max(1, int(threads or os.cpu_count() or 1))
+    pool = dyn.model_pool(threads)
+    force = pin.rneaInParallel(threads, pool, np.asfortranarray(q.T), np.asfortranarray(v.T),
+                               np.asfortranarray(a.T))
+    rhs = np.asarray(force).T - ext
+    u = np.empty((n, clm.n_actuated))
+    lam = np.empty((n, clm.n_rows))
+    residual = np.empty(n)
+    statuses = []
+    for i in range(n):
+        try:
+            res = dyn.inverse_from_force(q[i], v[i], a[i], rhs[i], limits, method)
+        except ActuatorSaturationError as exc:
+            raise BatchActuatorSaturationError(i, exc.needed, exc.limit) from None
+        except SolverError as exc:
+            raise _state_error(i, exc) from None
+        u[i], lam[i], residual[i] = res.actuator_forces, res.multipliers, res.residual
+        statuses.append(res.status)
+    return TreeInverseDynamicsBatch(u, lam, residual, tuple(statuses))
