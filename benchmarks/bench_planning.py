@@ -287,7 +287,7 @@ def main(argv=None) -> int:
           f"{os.cpu_count()} CPUs, numpy {np.__version__}")
     kept = bench_speed(robots, sizes, repeats)
     bench_optimality(robots, 300 if args.smoke else 1000)
-    bad = bench_random(robots, 4 if args.smoke else args.paths, 200 if args.smoke else 500,
+    bad = bench_random(robots, 4 if args.smoke else args.paths, 200 if args.smoke else 1000,
                        2 if args.smoke else 20)
     bench_toppra(kept, sizes[:1] if args.smoke else (100, 1000), repeats)
     print("\nOK" if not bad else "\nFAILED: a path failed or overshot its limits by > 0.5 %")

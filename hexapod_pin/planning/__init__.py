@@ -12,9 +12,11 @@ their coefficients along a path), :mod:`.solver` (compiled TOPP-RA),
 (:func:`check_feasibility`, :class:`FeasibilityReport`).
 """
 
+from .feasibility import FeasibilityReport, Violation, check_feasibility
 from .limits import Limits, Payload
-from .path import GeometricPath, PathSamples
+from .path import GeometricPath, PathSamples, read_waypoints
 from .trajectory import PhaseProfile, TimedTrajectory, time_optimal
 
-__all__ = ["GeometricPath", "Limits", "PathSamples", "Payload", "PhaseProfile",
-           "TimedTrajectory", "time_optimal"]
+__all__ = ["FeasibilityReport", "GeometricPath", "Limits", "PathSamples", "Payload",
+           "PhaseProfile", "TimedTrajectory", "Violation", "check_feasibility",
+           "read_waypoints", "time_optimal"]
