@@ -9,6 +9,7 @@ dynamic and static, against time.
 Usage::
 
     python examples/planar_statics.py [OUTPUT.png]
+    python examples/planar_statics.py --help
 
 The plot goes to OUTPUT.png, or to a file in a fresh temporary folder; its path is
 printed last. Needs matplotlib (the ``plot`` extra).
@@ -16,6 +17,7 @@ printed last. Needs matplotlib (the ``plot`` extra).
 
 from __future__ import annotations
 
+import argparse
 import sys
 import tempfile
 from pathlib import Path
@@ -38,7 +40,20 @@ def trajectory(t: np.ndarray, radius: float = 0.02, period: float = 1.0,
     return pose, twist, twist_dot
 
 
+def parse_arguments(argv: list[str]) -> argparse.Namespace:
+    """The command line: an optional output image (``--help`` prints the usage)."""
+    parser = argparse.ArgumentParser(
+        prog="planar_statics.py",
+        description="Statics of the planar 3-PRR at a few poses, and its actuator forces "
+                    "along a trajectory plotted to an image (needs matplotlib).")
+    parser.add_argument("output", nargs="?", type=Path, default=None,
+                        help="image to write (.png, .svg, .pdf); default: a file in a "
+                             "fresh temporary folder")
+    return parser.parse_args(argv)
+
+
 def main(argv: list[str]) -> int:
+    args = parse_arguments(argv)
     robot = Planar3PRR.default()
     g = robot.geometry
     print(f"planar 3-PRR: rail_radius {g.rail_radius} m, platform_radius {g.platform_radius} m, "
@@ -70,7 +85,7 @@ def main(argv: list[str]) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    out = Path(argv[0]) if argv else Path(tempfile.mkdtemp(prefix="planar_")) / "forces.png"
+    out = args.output or Path(tempfile.mkdtemp(prefix="planar_")) / "forces.png"
     fig, ax = plt.subplots(figsize=(7, 4))
     for k, colour in enumerate(("C0", "C1", "C2")):
         ax.plot(times, dynamic[:, k], color=colour, label=f"slider {k}")

@@ -29,6 +29,7 @@ Files are written atomically (:func:`hexapod_pin.files.write_text_atomic`).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 import os
@@ -40,9 +41,11 @@ from typing import NamedTuple
 import numpy as np
 
 from .core.pose import euler_rates_matrix
+from .core.robot_api import INVERSE_DYNAMICS_METHODS
 from .errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
 from .files import write_text_atomic
 from .hexapod import simulation
+from .hexapod.fast import FastTrajectory, simulate_fast
 
 #: column names of a motion CSV file
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -55,6 +58,12 @@ MOTION_SUFFIXES = (".csv", ".json")
 
 #: the controllers of :func:`simulate_circle` and their default time steps (s)
 DEFAULT_DT = {"pid": 2.5e-4, "computed-torque": 1e-3, "none": 1e-3}
+#: the simulators of :func:`simulate_circle`: "fast" the compiled one
+#: (:func:`hexapod_pin.hexapod.fast.simulate_fast`: PID or no control), "python" the
+#: Pinocchio tree route (:func:`hexapod_pin.hexapod.simulation.simulate`: every controller)
+ENGINES = ("auto", "fast", "python")
+#: largest tracking error (m) of a run holding home (radius 0) that still counts as tracking
+HOLD_TOLERANCE = 0.005
 
 
 @dataclass(frozen=True)
@@ -87,18 +96,23 @@ class Motion:
         return self.t
 
     @classmethod
-    def from_trajectory(cls, trajectory: simulation.Trajectory) -> "Motion":
+    def from_trajectory(cls, trajectory: simulation.Trajectory | FastTrajectory) -> "Motion":
         """The samples of a simulation result: times, poses, twists, actuator
-        positions and forces, closure residual (its max abs per sample)."""
-        residual = np.asarray(trajectory.closure_residual, dtype=float)
-        if residual.ndim == 2:
-            residual = np.max(np.abs(residual), axis=1)
+        positions and forces, closure residual (its max abs per sample; None for a
+        :class:`~hexapod_pin.hexapod.fast.FastTrajectory`, which integrates in platform
+        coordinates where the closures hold by construction)."""
+        residual = getattr(trajectory, "closure_residual", None)
+        if residual is not None:
+            residual = np.asarray(residual, dtype=float)
+            if residual.ndim == 2:
+                residual = np.max(np.abs(residual), axis=1)
+            residual = np.abs(residual)
         return cls(np.asarray(trajectory.times, dtype=float),
                    np.asarray(trajectory.poses, dtype=float),
                    twists=np.asarray(trajectory.twists, dtype=float),
                    q=np.asarray(trajectory.q, dtype=float),
                    actuator_forces=np.asarray(trajectory.actuator_forces, dtype=float),
-                   closure_residual=np.abs(residual))
+                   closure_residual=residual)
 
 
 class Rates(NamedTuple):
@@ -289,10 +303,13 @@ def circle_reference(robot, radius: float, period: float):
     for ``radius > 0``; the home pose at rest for ``radius == 0``.
 
     Raises:
-        InputError: a negative or non-finite radius, a non-positive period.
+        InputError: a negative or non-finite radius (named ``radius``), a non-positive or
+            non-finite period (named ``period``).
     """
-    if not (np.isfinite(radius) and radius >= 0 and np.isfinite(period) and period > 0):
-        raise InputError("radius", radius, "need radius >= 0 (m) and period > 0 (s)")
+    if not (np.isfinite(radius) and radius >= 0):
+        raise InputError("radius", radius, "need a finite radius >= 0 (m)")
+    if not (np.isfinite(period) and period > 0):
+        raise InputError("period", period, "need a finite period > 0 (s)")
     if radius > 0:
         return simulation.CircleTrajectory(robot.home_pose, radius, period)
     rest = simulation.PlatformReference(robot.home_pose, np.zeros(6), np.zeros(6))
@@ -321,32 +338,59 @@ def circle_motion(robot, radius: float, period: float, duration: float | None = 
                   np.array([s.twist_dot for s in samples]))
 
 
-# -- dynamics along a motion ------------------------------------------------------------
-def inverse_dynamics_along(robot, motion: Motion, method: str = "qp",
+# -- kinematics and dynamics along a motion ----------------------------------------------
+def actuators_along(robot, motion: Motion, check_limits: bool = False) -> np.ndarray:
+    """Actuator positions (N, n_act) of the motion's poses, by ``robot.inverse_kinematics``
+    (home branch), or ``motion.q`` when the motion has them.
+
+    Raises:
+        MotionSampleError: a pose out of reach (or beyond the strokes with
+            ``check_limits``); it names the row and time and carries the library error.
+    """
+    if motion.q is not None:
+        return motion.q
+    out = []
+    for n, pose in enumerate(motion.poses):
+        try:
+            out.append(robot.inverse_kinematics(pose, check_limits=check_limits))
+        except HexapodPinError as exc:
+            raise MotionSampleError(n, float(motion.t[n]), exc) from exc
+    return np.array(out)
+
+
+def inverse_dynamics_along(robot, motion: Motion, method: str = INVERSE_DYNAMICS_METHODS[0],
                            progress: Callable[[int, int], None] | None = None
                            ) -> MotionForces:
     """Actuator and closure forces along a motion, by ``robot.inverse_dynamics`` per sample.
 
-    The twists and their derivatives are those of :func:`motion_rates`; the wrench of
-    each sample is ``motion.wrenches[n]`` when given. Bounds on the actuator forces as
-    the robot's default.
+    Every pose is checked to be within reach first (``robot.inverse_kinematics``), so a
+    pose out of reach is reported at its own row (the finite-difference rates of its
+    neighbours would otherwise fail first). The twists and their derivatives are those
+    of :func:`motion_rates`; the wrench of each sample is ``motion.wrenches[n]`` when
+    given. Bounds on the actuator forces as the robot's default.
 
     Args:
         robot: a robot with ``inverse_dynamics(pose, twist, twist_dot, wrench=, method=)``
-            (a :class:`hexapod_pin.Hexapod`).
+            (a :class:`hexapod_pin.Hexapod` or :class:`hexapod_pin.Planar3PRR`).
         motion: the samples.
-        method: passed to ``robot.inverse_dynamics`` ("qp" or "kkt" for the hexapod).
+        method: one of :data:`hexapod_pin.core.robot_api.INVERSE_DYNAMICS_METHODS`
+            ("kkt", the default, or "qp").
         progress: called as ``progress(samples_done, samples_total)`` after each sample.
 
     Returns:
         :class:`MotionForces`.
 
     Raises:
+        InputError: an unknown method (before any sample is computed).
         DescriptionError: too few samples to differentiate the poses.
         MotionSampleError: a sample fails; it names the row and time, and carries the
             library error (e.g. :class:`UnreachablePoseError`,
             :class:`ActuatorSaturationError`).
     """
+    if method not in INVERSE_DYNAMICS_METHODS:
+        raise InputError("method", method,
+                         f"expected one of {', '.join(INVERSE_DYNAMICS_METHODS)}")
+    actuators_along(robot, dataclasses.replace(motion, q=None))
     twists, twist_dots = motion_rates(motion)
     total = len(motion.t)
     taus, closures = [], []
@@ -364,10 +408,46 @@ def inverse_dynamics_along(robot, motion: Motion, method: str = "qp",
     return MotionForces(np.array(taus), np.array(closures))
 
 
+# -- simulation tracking a circle --------------------------------------------------------
+@dataclass(frozen=True)
+class CircleRun:
+    """Result of :func:`simulate_circle`.
+
+    Attributes:
+        trajectory: the simulator's result
+            (:class:`~hexapod_pin.hexapod.simulation.Trajectory` with ``engine="python"``,
+            :class:`~hexapod_pin.hexapod.fast.FastTrajectory` with ``engine="fast"``).
+        reference_poses: (n, 6) the reference pose at each sample (m, rad).
+        tracking_error: largest distance (m) between the platform origin and its
+            reference position; None without control (``controller="none"``).
+        tolerance: the tracking error (m) above which the run counts as lost: the
+            radius of the circle (:data:`HOLD_TOLERANCE` when holding home).
+        status: the simulator's status ("completed", "stroke_limit", "carriage_gap",
+            "failed"), or "tracking_lost" when a run that completed tracked worse than
+            ``tolerance``.
+        message: what happened (empty when the run completed and tracked).
+        controller: "pid", "computed-torque" or "none". engine: "fast" or "python".
+    """
+
+    trajectory: simulation.Trajectory | FastTrajectory
+    reference_poses: np.ndarray
+    tracking_error: float | None
+    tolerance: float
+    status: str
+    message: str
+    controller: str
+    engine: str
+
+    @property
+    def ok(self) -> bool:
+        """Whether the run completed and tracked its reference."""
+        return self.status == "completed"
+
+
 def simulate_circle(robot, duration: float, dt: float | None = None, controller: str = "pid",
                     radius: float = 0.02, period: float = 2.0,
-                    progress: Callable[[int, int], None] | None = None
-                    ) -> simulation.Trajectory:
+                    progress: Callable[[int, int], None] | None = None,
+                    engine: str = "auto") -> CircleRun:
     """Simulate the hexapod tracking :func:`circle_reference` (a circle about home).
 
     Controllers: ``"pid"``, the joint-space PID with the Quanser gains
@@ -376,41 +456,69 @@ def simulate_circle(robot, duration: float, dt: float | None = None, controller:
     (:class:`~hexapod_pin.hexapod.simulation.ComputedTorqueController`, 1 ms);
     ``"none"``: no actuator force, the platform starts at rest at home and falls.
 
+    A run that completes with a tracking error above the circle's radius (e.g. a PID
+    step too long for its gains, forces pinned at their bound) gets the status
+    ``"tracking_lost"``, never ``"completed"``.
+
     Args:
         robot: a :class:`hexapod_pin.Hexapod`.
         duration: simulated time (s).
         dt: step (s); default :data:`DEFAULT_DT` of the controller.
         controller: ``"pid"``, ``"computed-torque"`` or ``"none"``.
         radius, period: the circle (m, s); radius 0 holds home.
-        progress: passed to :func:`hexapod_pin.hexapod.simulation.simulate`.
+        progress: passed to :func:`hexapod_pin.hexapod.simulation.simulate` (the python
+            engine; the compiled loop reports nothing until it ends).
+        engine: ``"fast"``: the compiled simulator
+            (:func:`hexapod_pin.hexapod.fast.simulate_fast`, RK4 in platform coordinates,
+            hundreds of times real time; PID or no control); ``"python"``: the Pinocchio
+            tree route (:func:`hexapod_pin.hexapod.simulation.simulate`, every
+            controller); ``"auto"`` (default): fast unless the controller is
+            computed torque.
 
     Returns:
-        :class:`hexapod_pin.hexapod.simulation.Trajectory` (its ``status`` says whether
-        the run completed or stopped at a stroke limit).
+        :class:`CircleRun`.
 
     Raises:
-        InputError: an unknown controller, ``dt`` not in ``(0, duration]``, a bad circle.
+        InputError: an unknown controller or engine, computed torque on the fast engine,
+            ``dt`` not in ``(0, duration]``, a bad circle.
     """
     if controller not in DEFAULT_DT:
         raise InputError("controller", controller, f"expected one of {', '.join(DEFAULT_DT)}")
+    if engine not in ENGINES:
+        raise InputError("engine", engine, f"expected one of {', '.join(ENGINES)}")
+    if engine == "auto":
+        engine = "python" if controller == "computed-torque" else "fast"
+    if engine == "fast" and controller == "computed-torque":
+        raise InputError("engine", engine, "the compiled simulator runs the PID or no "
+                                           "control; computed torque needs engine 'python'")
+    if not (np.isfinite(duration) and duration > 0):
+        raise InputError("duration", duration, "need a finite duration > 0 (s)")
     dt = DEFAULT_DT[controller] if dt is None else float(dt)
-    if not (np.isfinite(duration) and duration > 0 and np.isfinite(dt) and 0 < dt <= duration):
+    if not (np.isfinite(dt) and 0 < dt <= duration):
         raise InputError("dt", dt, f"need 0 < dt <= duration (duration {duration})")
     reference = circle_reference(robot, radius, period)
-    if controller == "none":
-        return simulation.simulate(robot, duration, dt, pose0=robot.home_pose,
+    if engine == "fast":
+        if controller == "none":
+            traj = simulate_fast(robot, duration, dt, pose0=robot.home_pose, twist0=np.zeros(6))
+        else:
+            traj = simulate_fast(robot, duration, dt, reference=reference)
+    elif controller == "none":
+        traj = simulation.simulate(robot, duration, dt, pose0=robot.home_pose,
                                    twist0=np.zeros(6), progress=progress)
-    make = (simulation.PIDController if controller == "pid"
-            else simulation.ComputedTorqueController)
-    return simulation.simulate(robot, duration, dt, controller=make(robot, reference),
-                               reference=reference, progress=progress)
-
-
-def tracking_error(trajectory: simulation.Trajectory) -> float | None:
-    """Largest distance (m) between the platform origin and its reference position over
-    a simulation; None when no reference was recorded."""
-    reference = np.asarray(trajectory.reference_poses, dtype=float)
-    poses = np.asarray(trajectory.poses, dtype=float)
-    if reference.size == 0 or reference.shape != poses.shape:
-        return None
-    return float(np.max(np.linalg.norm(poses[:, :3] - reference[:, :3], axis=1)))
+    else:
+        make = (simulation.PIDController if controller == "pid"
+                else simulation.ComputedTorqueController)
+        traj = simulation.simulate(robot, duration, dt, controller=make(robot, reference),
+                                   reference=reference, progress=progress)
+    references = np.array([reference(float(t)).pose for t in traj.times])
+    tolerance = float(radius) if radius > 0 else HOLD_TOLERANCE
+    error = None if controller == "none" else float(np.max(np.linalg.norm(
+        np.asarray(traj.poses)[:, :3] - references[:, :3], axis=1)))
+    status, message = str(traj.status), str(traj.message)
+    if status == "completed" and error is not None and error > tolerance:
+        status = "tracking_lost"
+        saturated = float(np.mean(np.asarray(traj.saturated, dtype=bool)))
+        message = (f"max tracking error {error:.4g} m exceeds {tolerance:.4g} m (the circle's "
+                   f"radius); commands at their bound in {100 * saturated:.0f}% of the "
+                   f"samples; a shorter step (dt = {dt:g} s) may help")
+    return CircleRun(traj, references, error, tolerance, status, message, controller, engine)

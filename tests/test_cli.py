@@ -20,6 +20,7 @@ import hexapod_pin as hp
 from hexapod_pin import files
 from hexapod_pin import motion as motions
 from hexapod_pin.cli import app, common
+from hexapod_pin.viz import workspace_plots
 from hexapod_pin.viz.workspace_plots import CONDITION_LABEL
 
 RUN = CliRunner()
@@ -167,8 +168,9 @@ def test_jacobian_matches_finite_differences(robot):
     # the one condition number of the library, printed under its label
     assert out["condition_number"] == pytest.approx(robot.singularity(pose).condition_number,
                                                     rel=1e-12)
-    text = " ".join(invoke("jacobian", *pose).stdout.split())
-    assert f"{CONDITION_LABEL}: {out['condition_number']:.6g}" in text
+    lines = invoke("jacobian", *pose).stdout.splitlines()     # a table row: label | value
+    assert any(CONDITION_LABEL in line and f" {out['condition_number']:.6g} " in line
+               for line in lines)
 
 
 def test_fk_inverts_ik(robot):
@@ -186,7 +188,11 @@ def test_modes_of_home_q_and_their_html(tmp_path, robot):
     for pose in modes:     # every mode puts the carriages at home q
         np.testing.assert_allclose(independent_ik_any_branch(robot.geometry, pose),
                                    robot.home_q, atol=1e-8)
-    assert count(html) == 8 * (25 + 6)
+    assert count(html) == 8 * (25 + 6) + 8              # 8 copies and their 8 labels
+    labels = [c for c in decode_commands(html.read_text())
+              if c["type"] == "set_object" and "/labels/" in c["path"]]
+    assert [c["object"]["textures"][0]["text"] for c in labels] == [
+        f"{n}: z = {pose[2]:+.3f} m" for n, pose in enumerate(modes)]
 
 
 def independent_ik_any_branch(geometry, pose):
@@ -348,3 +354,142 @@ def test_progress_bars_show_in_a_terminal_and_quiet_silences_them(tmp_path, monk
     loud = invoke("view", "-o", tmp_path / "v.html")
     assert "wrote" in loud.stderr
     assert invoke("view", "-o", tmp_path / "v.html", "-q").stderr == ""
+
+
+# -- the first hour of a new user: messages, errors, version, export -----------------------
+NO_ASSEMBLY_Q = [-0.3, 0.3, 0.25, 0.3, -0.3, -0.25]   # within the strokes, no assembly mode
+
+
+def test_brackets_in_messages_survive(monkeypatch, tmp_path):
+    line = one_line_error(invoke("statics", 0, 0, 0, 0, 0, 0), "singular")
+    assert "[e_i, (r_k x e_i) / platform_radius]" in line
+
+    def no_matplotlib(*args, **kwargs):
+        raise hp.errors.MissingDependencyError("matplotlib", "plot")
+
+    monkeypatch.setattr(workspace_plots, "figure_class", no_matplotlib)
+    line = one_line_error(invoke("plot", "conditioning", "-o", tmp_path / "c.png"),
+                          "matplotlib")
+    assert 'pip install "hexapod-pin[plot]"' in line
+
+
+def test_json_errors_are_json_on_stdout():
+    for args, kind in ((("ik", 0, 0, 9, 0, 0, 0), "UnreachablePoseError"),
+                       (("simulate", "--duration", "abc"), "BadParameter"),
+                       (("fk", *NO_ASSEMBLY_Q), "AssemblyError")):
+        result = invoke(*args, "--json")
+        assert result.exit_code == 1 and result.stderr == "", result.output
+        error = json.loads(result.stdout)["error"]
+        assert error["type"] == kind and "Traceback" not in result.output
+        assert error["message"]
+
+
+BAD_VALUES = [
+    ("simulate", "--duration", "abc"), ("simulate", "--dt", "x"), ("simulate", "--dt", "-1"),
+    ("simulate", "--period", "0"), ("simulate", "--radius", "-1"),
+    ("simulate", "--controller", "lqr"), ("simulate", "--engine", "gpu"),
+    ("simulate", "--engine", "fast", "--controller", "computed-torque"),
+    ("view", "--fps", "fast"), ("view", "--circle", "nan"), ("view", "--layout", "x", "--modes"),
+    ("plot", "workspace", "--resolution", "1.5"), ("plot", "workspace", "--z", "5"),
+    ("plot", "workspace", "--rpy", "1,2"), ("modes", "--layout", "x", "--html", "m.html"),
+    ("ik", "a", "b", "c", "d", "e", "f"), ("jacobian", 0, 0, 0), ("statics", "--wrench", "1,2"),
+    ("fk", *NO_ASSEMBLY_Q), ("modes", *NO_ASSEMBLY_Q), ("view", "--modes", *NO_ASSEMBLY_Q),
+    ("urdf", "--robot", "delta"), ("urdf", "-o", "x.txt"), ("demo", "--set", "leg_length=x"),
+]
+
+
+@pytest.mark.parametrize("args", BAD_VALUES, ids=lambda a: " ".join(map(str, a)))
+def test_no_traceback_for_any_bad_value(args, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    one_line_error(invoke(*args))
+
+
+def test_usage_errors_are_one_line_with_exit_code_2():
+    result = invoke("simulate", "--no-such-option")
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and "--no-such-option" in lines[0]
+    assert "hexapod-pin simulate --help" in lines[0] or "simulate --help" in lines[0]
+
+
+def test_version_and_help_without_type_noise():
+    result = invoke("--version")
+    assert result.exit_code == 0 and result.stdout.strip() == f"hexapod-pin {hp.__version__}"
+    for command in ("view", "simulate", "demo"):
+        text = invoke(command, "--help").stdout
+        assert "--geometry" in text and "--set" in text and "<bool>" not in text, command
+
+
+def test_piped_output_is_not_wrapped_at_80_columns():
+    text = invoke("jacobian").stdout
+    assert max(len(line) for line in text.splitlines()) > 80
+    # each measure on one line with its meaning; the singular values of J printed once
+    assert any("type II: sigma_min(A_hat)" in line and "platform moves" in line
+               for line in text.splitlines())
+    assert text.count("singular values of J") == 1
+    assert "[e_i, (r_i x e_i) / length]" in text
+
+
+def test_commands_agree_when_no_configuration_exists(tmp_path, robot):
+    for command in (("fk",), ("modes",), ("view", "--modes", "-o", tmp_path / "m.html")):
+        one_line_error(invoke(*command, *NO_ASSEMBLY_Q), "assembly")
+    assert not (tmp_path / "m.html").exists()
+    # fk refuses carriage positions beyond the strokes, as ik refuses their pose
+    pose = robot.home_pose + np.array([0.0, 0.0, -0.15, 0.0, 0.0, 0.0])
+    one_line_error(invoke("ik", *pose), "stroke")
+    q = ok_json("ik", *pose, "--no-limits")["q"]
+    one_line_error(invoke("fk", *q), "stroke")
+    np.testing.assert_allclose(ok_json("fk", *q, "--no-limits")["pose"], pose, atol=1e-9)
+    one_line_error(invoke("plot", "workspace", "--z", 5, "-o", tmp_path / "w.png"),
+                   "no platform position", "reachable")
+    assert not (tmp_path / "w.png").exists()
+
+
+def test_motion_file_errors_point_at_the_right_row(tmp_path, robot):
+    t = np.linspace(0.0, 0.4, 5)
+    poses = np.tile(robot.home_pose, (5, 1))
+    poses[1, 2] = 1.0                                       # unreachable at row 1
+    path = write_csv(tmp_path / "far.csv", t, poses)
+    one_line_error(invoke("id", path), "row 1 ", "unreachable")
+    one_line_error(invoke("plot", "trajectory", path, "-o", tmp_path / "t.png"), "row 1 ")
+    ok = write_csv(tmp_path / "ok.csv", t, np.tile(robot.home_pose, (5, 1)))
+    line = one_line_error(invoke("id", ok, "--method", "foo"), "method", "kkt")
+    assert "row" not in line
+
+
+def test_simulate_fast_by_default_and_tracking_loss_is_a_failure():
+    out = ok_json("simulate", "--duration", 0.2, "--radius", 0.01, "--period", 0.5)
+    assert out["engine"] == "fast" and out["status"] == "completed"
+    assert out["max_tracking_error_m"] < 1e-3 and out["samples"] == 801
+    slow = ok_json("simulate", "--duration", 0.05, "--engine", "python")
+    assert slow["engine"] == "python" and slow["status"] == "completed"
+    lost = invoke("simulate", "--duration", 1, "--dt", 0.01)
+    assert lost.exit_code == 1 and "tracking_lost" in lost.stdout
+    assert "completed" not in lost.stdout
+    summary = ok_json("simulate", "--duration", 1, "--dt", 0.01)
+    assert summary["status"] == "tracking_lost"
+    assert summary["max_tracking_error_m"] > summary["tracking_tolerance_m"] == 0.02
+
+
+def test_urdf_export_of_both_robots(tmp_path):
+    import pinocchio as pin
+
+    path = tmp_path / "hexapod.urdf"
+    out = ok_json("urdf", "--set", "leg_length=0.5", "-o", path)
+    assert out["out"] == str(path)
+    robot = hp.Hexapod(hp.HexapodGeometry(leg_length=0.5))
+    assert path.read_text() == robot.urdf() == robot.model.urdf_xml
+    tree = pin.buildModelFromXML(path.read_text())
+    # independent of the library: the leg tip sits leg_length along the leg's z axis
+    tip = tree.frames[tree.getFrameId("leg_0_tip")].placement.translation
+    np.testing.assert_allclose(np.abs(tip), [0.0, 0.0, 0.5], atol=1e-12)
+    planar = tmp_path / "planar.urdf"
+    ok_json("urdf", "--robot", "planar", "-o", planar)
+    assert planar.read_text() == hp.Planar3PRR.default().urdf()
+    assert invoke("urdf").stdout.lstrip().startswith("<?xml")
+
+
+def test_demo_takes_the_common_geometry_options():
+    out = ok_json("demo", "--set", "leg_length=0.5", "--no-html")
+    expected = hp.HexapodGeometry(leg_length=0.5).home_pose
+    np.testing.assert_allclose(out["home_pose"], expected, atol=1e-12)

@@ -137,19 +137,66 @@ def test_inverse_dynamics_error_names_the_failing_row(robot):
 
 
 def test_simulate_circle_result_as_a_motion(robot, tmp_path):
-    traj = motions.simulate_circle(robot, 0.05, controller="computed-torque", radius=0.01,
-                                   period=0.5)
+    run = motions.simulate_circle(robot, 0.05, controller="computed-torque", radius=0.01,
+                                  period=0.5)
+    traj = run.trajectory
     m = motions.Motion.from_trajectory(traj)
-    assert traj.status == "completed" and len(m.t) == 51
+    assert run.engine == "python" and run.status == "completed" and run.ok and len(m.t) == 51
     np.testing.assert_array_equal(m.q, traj.q)
     reference = motions.circle_reference(robot, 0.01, 0.5)
     worst = max(np.linalg.norm(p[:3] - reference(ti).pose[:3]) for ti, p in zip(m.t, m.poses))
-    assert motions.tracking_error(traj) == pytest.approx(worst, rel=1e-12)
+    assert run.tracking_error == pytest.approx(worst, rel=1e-12)
     assert worst < 1e-3
     back = motions.read_motion(motions.write_motion(tmp_path / "sim.csv", m))
     np.testing.assert_array_equal(back.actuator_forces, m.actuator_forces)
     with pytest.raises(hp.InputError, match="controller"):
         motions.simulate_circle(robot, 0.05, controller="lqr")
+    with pytest.raises(hp.InputError, match="engine"):
+        motions.simulate_circle(robot, 0.05, controller="computed-torque", engine="fast")
+
+
+def test_fast_and_python_engines_agree_on_the_pid_circle(robot):
+    fast = motions.simulate_circle(robot, 0.1, controller="pid", radius=0.01, period=0.5)
+    slow = motions.simulate_circle(robot, 0.1, controller="pid", radius=0.01, period=0.5,
+                                   engine="python")
+    assert fast.engine == "fast" and slow.engine == "python"
+    assert fast.ok and slow.ok
+    np.testing.assert_allclose(fast.trajectory.times, slow.trajectory.times, atol=1e-12)
+    # two integrators of the same dynamics (platform coordinates / tree + projection)
+    np.testing.assert_allclose(fast.trajectory.poses, slow.trajectory.poses, atol=1e-6)
+    assert motions.Motion.from_trajectory(fast.trajectory).closure_residual is None
+
+
+def test_a_run_tracking_worse_than_the_circle_is_not_a_success(robot):
+    run = motions.simulate_circle(robot, 1.0, dt=0.01, controller="pid", radius=0.02,
+                                  period=2.0)
+    reference = motions.circle_reference(robot, 0.02, 2.0)
+    worst = max(np.linalg.norm(p[:3] - reference(t).pose[:3])
+                for t, p in zip(run.trajectory.times, run.trajectory.poses))
+    assert worst > 0.02                          # the PID at 100 Hz loses the circle
+    assert run.tracking_error == pytest.approx(worst, rel=1e-12)
+    assert run.trajectory.status == "completed"  # the integration itself went through
+    assert run.status == "tracking_lost" and not run.ok and "0.02 m" in run.message
+
+
+def test_circle_errors_name_the_bad_argument(robot):
+    with pytest.raises(hp.InputError, match="period"):
+        motions.circle_reference(robot, 0.02, 0.0)
+    with pytest.raises(hp.InputError, match="radius"):
+        motions.circle_reference(robot, -0.02, 1.0)
+
+
+def test_an_unreachable_pose_is_reported_at_its_own_row(robot):
+    t = np.linspace(0.0, 0.4, 5)
+    poses = np.tile(robot.home_pose, (5, 1))
+    poses[1, 2] = 1.0       # out of reach at row 1; its neighbours' rates blow up first
+    with pytest.raises(hp.errors.MotionSampleError, match=r"row 1 ") as err:
+        motions.inverse_dynamics_along(robot, motions.Motion(t, poses))
+    assert isinstance(err.value.error, hp.UnreachablePoseError)
+    with pytest.raises(hp.errors.MotionSampleError, match=r"row 1 "):
+        motions.actuators_along(robot, motions.Motion(t, poses))
+    with pytest.raises(hp.InputError, match="method"):     # checked before any row
+        motions.inverse_dynamics_along(robot, motions.Motion(t, poses), method="foo")
 
 
 # -- geometry files and atomic writes --------------------------------------------------------

@@ -7,7 +7,7 @@ from hexapod_pin.viz import workspace_plots
 from hexapod_pin.hexapod import sweeps
 from hexapod_pin.viz import scenes as viz
 from hexapod_pin.hexapod import workspace as ws
-from hexapod_pin.errors import InputError
+from hexapod_pin.errors import InputError, MissingDependencyError
 
 from test_visualize import needs_chromium, render
 
@@ -15,9 +15,9 @@ from test_visualize import needs_chromium, render
 def test_colormap_orders_low_to_high():
     colors = viz.colormap([0.0, 0.5, 1.0, np.inf])
     assert colors.shape == (4, 3)
-    np.testing.assert_allclose(colors[0], viz._COLORMAP[0])
-    np.testing.assert_allclose(colors[2], viz._COLORMAP[-1])
-    np.testing.assert_allclose(colors[3], viz._COLORMAP[-1])
+    np.testing.assert_allclose(colors[0], viz.COLORMAP[0])
+    np.testing.assert_allclose(colors[2], viz.COLORMAP[-1])
+    np.testing.assert_allclose(colors[3], viz.COLORMAP[-1])
     # brightness (sum of RGB) increases along viridis
     assert colors[0].sum() < colors[1].sum() < colors[2].sum()
 
@@ -33,8 +33,8 @@ def test_workspace_cloud_holds_every_point_with_its_colour(robot):
     position = np.frombuffer(attrs["position"]["array"].data, dtype=np.float32).reshape(-1, 3)
     np.testing.assert_allclose(position, pts, atol=1e-7)
     color = np.frombuffer(attrs["color"]["array"].data, dtype=np.float32).reshape(-1, 3)
-    np.testing.assert_allclose(color[np.argmin(cond)], viz._COLORMAP[0], atol=1e-6)
-    np.testing.assert_allclose(color[np.argmax(cond)], viz._COLORMAP[-1], atol=1e-6)
+    np.testing.assert_allclose(color[np.argmin(cond)], viz.COLORMAP[0], atol=1e-6)
+    np.testing.assert_allclose(color[np.argmax(cond)], viz.COLORMAP[-1], atol=1e-6)
     with pytest.raises(InputError):
         viz.workspace_scene(robot, pts, cond[:-1])
     with pytest.raises(InputError):
@@ -79,3 +79,65 @@ def test_design_sweep_heat_map(tmp_path):
     assert np.ma.count_masked(mesh) == 2 or np.isnan(np.ma.filled(mesh, np.nan)).sum() == 2
     with pytest.raises(InputError):
         workspace_plots.plot_design_sweep(table, "rail_radius", "nope")
+
+
+def test_point_cloud_has_a_colour_bar_and_no_empty_caption_box(robot):
+    values = np.array([1.0, 2.0, 3.0])
+    scene = viz.workspace_scene(robot, robot.home_pose[:3] + np.zeros((3, 3)), values,
+                                value_label="log10 cond(J)")
+    assert scene.colorbar == (1.0, 3.0, "log10 cond(J)")
+    page = scene.html()
+    assert 'id="hexapod-pin-colorbar"' in page and "log10 cond(J)" in page
+    assert '<div id="hexapod-pin-caption"></div>' in page       # empty: hidden by CSS
+    assert "#hexapod-pin-caption:empty { display: none; }" in page
+    assert "3 points, coloured by log10 cond(J)" in page
+
+
+def test_force_arrows_come_with_their_length_scale(robot):
+    pose = robot.home_pose
+    rest = robot.inverse_dynamics(pose, np.zeros(6), np.zeros(6))
+    scene = viz.pose_scene(robot, robot.home_configuration,
+                           actuator_forces=rest.actuator_forces,
+                           closure_forces=rest.closure_forces)
+    # the largest force is drawn DEFAULT_ARROW_LENGTH long
+    biggest = max(np.abs(rest.actuator_forces).max(),
+                  np.linalg.norm(rest.closure_forces, axis=1).max())
+    per_decimetre = 0.1 * biggest / viz.DEFAULT_ARROW_LENGTH
+    assert f"arrow length: 0.1 m = {per_decimetre:.4g} N" in " ".join(scene.legend)
+    assert 'id="hexapod-pin-legend"' in scene.html()
+    assert viz.pose_scene(robot, robot.home_configuration).legend == []
+
+
+def test_scenes_show_inline_in_jupyter(robot):
+    scene = viz.pose_scene(robot, robot.home_configuration, caption="a <b> & c")
+    inline = scene._repr_html_()
+    assert inline.startswith("<iframe") and 'srcdoc="' in inline
+    assert "&lt;!DOCTYPE html&gt;" in inline and "<!DOCTYPE" not in inline
+
+
+def test_design_sweep_axes_have_units_and_readable_numbers(tmp_path):
+    import pandas as pd
+
+    table = pd.DataFrame({"rail_radius": [0.3, 0.3, 0.4, 0.4],
+                          "leg_length": [0.4, 0.5, 0.4, 0.5],
+                          "reachable_volume": [0.0, 1.0, 2.0, 3.0]})
+    fig = workspace_plots.plot_design_sweep(table, "rail_radius", "leg_length")
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "rail_radius (m)" and ax.get_ylabel() == "leg_length (m)"
+    assert fig.axes[1].get_ylabel() == "reachable_volume (m³)"
+    colours = {t.get_text(): t.get_color() for t in ax.texts}
+    assert colours["0"] == "white" and colours["3"] == "black"   # viridis: dark to yellow
+
+
+def test_design_sweep_is_serial_below_the_dask_size_and_hints_the_extra(monkeypatch):
+    def no_dask(*args, **kwargs):
+        raise AssertionError("a small sweep must not start Dask")
+
+    monkeypatch.setattr(sweeps, "_dask_rows", no_dask)
+    designs = sweeps.design_grid(rail_radius=[0.33, 0.37])
+    settings = sweeps.SweepSettings(n_samples=200, payload_samples=5)
+    assert len(designs) < sweeps.DASK_MIN_DESIGNS
+    assert len(sweeps.design_sweep(designs, settings)) == 2
+    monkeypatch.setitem(__import__("sys").modules, "pandas", None)
+    with pytest.raises(MissingDependencyError, match=r'pip install "hexapod-pin\[sweep\]"'):
+        sweeps.design_sweep(designs, settings)

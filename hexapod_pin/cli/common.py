@@ -1,6 +1,13 @@
 """What every command shares: the common options, reading numbers and poses from the
-command line, turning library errors into one-line messages, and the output helpers
-(JSON, tables, notes and progress bars on stderr).
+command line, turning library and usage errors into one-line messages (a JSON object
+with ``--json``), and the output helpers (JSON, tables, notes and progress bars on
+stderr).
+
+Exit codes: 0 success; 1 an error of the library or of the input (a value that is not a
+number, an unreachable pose, a malformed file, ...); 2 a usage error (an unknown
+option, a missing argument). Every error is one line on stderr, ``error: <message>``,
+or with ``--json`` one JSON object on stdout, ``{"error": {"type": ..., "message":
+...}}``; never a traceback.
 """
 
 from __future__ import annotations
@@ -9,6 +16,7 @@ import contextlib
 import dataclasses
 import functools
 import json
+import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Annotated
@@ -26,6 +34,8 @@ from rich.progress import (
     TimeElapsedColumn,
 )
 from rich.table import Table
+from rich.text import Text
+from typer.core import TyperCommand, TyperGroup
 
 from ..errors import HexapodPinError, InputError
 from ..files import load_geometry
@@ -34,7 +44,23 @@ from ..motion import POSE_NAMES
 
 #: lets "-0.1" through as a value (commands taking numbers)
 NUMBERS = {"ignore_unknown_options": True}
-console = Console()
+#: width of tables and lines written to a pipe or a file (a terminal uses its own width)
+PIPE_WIDTH = 240
+
+
+class OutputConsole:
+    """Rich output on stdout: the terminal's width in a terminal, :data:`PIPE_WIDTH`
+    columns when piped (so piped lines are not wrapped at 80 columns)."""
+
+    def print(self, *objects, **kwargs) -> None:
+        """``rich.console.Console.print`` on the current ``sys.stdout``."""
+        out = Console()
+        if not out.is_terminal:
+            out = Console(width=PIPE_WIDTH)
+        out.print(*objects, **kwargs)
+
+
+console = OutputConsole()
 
 
 class CommandError(HexapodPinError):
@@ -59,27 +85,103 @@ def robot_of(geometry_file: Path | None, overrides: list[str] | None) -> Hexapod
 
 
 # -- errors ---------------------------------------------------------------------------------
-def fail(exc: Exception) -> None:
-    """Print ``error: <message>`` on one line of stderr and exit with code 1."""
-    text = " ".join(str(exc).split())
+def report_error(message: str, kind: str, as_json: bool = False) -> None:
+    """Write one error: ``error: <message>`` on one line of stderr, or with ``as_json``
+    the object ``{"error": {"type": kind, "message": message}}`` on one line of stdout.
+
+    The message is printed as it is (brackets and all: no rich markup is read in it)."""
+    text = " ".join(str(message).split())
+    if as_json:
+        typer.echo(json.dumps({"error": {"type": kind, "message": text}}))
+        return
     Console(stderr=True).print(f"[bold red]error:[/] {escape(text)}", highlight=False,
                                markup=True, soft_wrap=True)
+
+
+def fail(exc: Exception, as_json: bool = False) -> None:
+    """Report ``exc`` (:func:`report_error`) and exit with code 1."""
+    report_error(str(exc), type(exc).__name__, as_json)
     raise typer.Exit(code=1)
 
 
 def guard(func: Callable) -> Callable:
-    """Turn library and file errors into a one-line message and exit code 1."""
+    """Turn library and file errors into a one-line message (JSON with the command's
+    ``as_json`` argument) and exit code 1."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
+        as_json = bool(kwargs.get("as_json", False))
         try:
             return func(*args, **kwargs)
         except HexapodPinError as exc:
-            fail(exc)
+            fail(exc, as_json)
         except OSError as exc:
-            fail(CommandError(f"{exc.strerror or exc}: {exc.filename or ''}".strip(": ")))
+            fail(CommandError(f"{exc.strerror or exc}: {exc.filename or ''}".strip(": ")),
+                 as_json)
 
     return wrapper
+
+
+def flags_without_type(params: list) -> list:
+    """The parameters of a command, with boolean flags shown in ``--help`` without the
+    ``<bool>`` type column (a flag takes no value)."""
+    for param in params:
+        if getattr(param, "is_flag", False) and param.metavar is None:
+            param.metavar = ""
+    return params
+
+
+def is_usage_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is a usage error of the command-line parser (click's
+    ``ClickException`` family, vendored by recent typer versions): it has
+    ``format_message()`` and an integer ``exit_code``."""
+    return (callable(getattr(exc, "format_message", None))
+            and isinstance(getattr(exc, "exit_code", None), int))
+
+
+class Command(TyperCommand):
+    """A command whose ``--help`` shows no value type after its flags."""
+
+    def get_params(self, ctx: typer.Context) -> list:
+        return flags_without_type(super().get_params(ctx))
+
+
+class Group(TyperGroup):
+    """The ``hexapod-pin`` group: usage errors as one line (or JSON), never a box.
+
+    A value that cannot be converted (``--duration abc``) exits with code 1 like any bad
+    input; other usage errors (unknown option, missing argument) exit with code 2.
+    """
+
+    def get_params(self, ctx: typer.Context) -> list:
+        return flags_without_type(super().get_params(ctx))
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
+             **extra):
+        argv = list(sys.argv[1:] if args is None else args)
+        if not standalone_mode:
+            return super().main(args=argv, prog_name=prog_name, complete_var=complete_var,
+                                standalone_mode=False, **extra)
+        as_json = "--json" in argv
+        try:
+            code = super().main(args=argv, prog_name=prog_name, complete_var=complete_var,
+                                standalone_mode=False, **extra)
+        except typer.Abort:
+            report_error("aborted", "Abort", as_json)
+            sys.exit(1)
+        except Exception as exc:
+            if not is_usage_error(exc):
+                raise
+            ctx = getattr(exc, "ctx", None)
+            if type(exc).__name__ == "NoArgsIsHelpError":     # bare command: its help
+                typer.echo(ctx.get_help() if ctx is not None else exc.format_message())
+                sys.exit(0)
+            message = exc.format_message()
+            if ctx is not None:
+                message += f" (see '{ctx.command_path} --help')"
+            report_error(message, type(exc).__name__, as_json)
+            sys.exit(1 if isinstance(exc, typer.BadParameter) else 2)
+        sys.exit(code if isinstance(code, int) else 0)
 
 
 # -- parsing --------------------------------------------------------------------------------
@@ -213,5 +315,5 @@ def quantity_table(title: str, rows: dict[str, str]) -> Table:
     table.add_column("quantity")
     table.add_column("value", justify="right")
     for key, value in rows.items():
-        table.add_row(key, value)
+        table.add_row(Text(key), Text(value))     # Text: brackets in messages kept
     return table

@@ -10,10 +10,20 @@ import numpy as np
 import typer
 
 from .. import motion as motions
-from ..hexapod.geometry import HexapodGeometry
-from ..hexapod.robot import Hexapod
 from ..viz import scenes
-from .common import AsJson, Quiet, console, emit_json, fmt, guard, progress_bar, quantity_table
+from .common import (
+    AsJson,
+    GeometryFile,
+    Quiet,
+    SetFields,
+    console,
+    emit_json,
+    fmt,
+    guard,
+    progress_bar,
+    quantity_table,
+    robot_of,
+)
 
 #: the tilted pose of the IK / FK round trip: home plus this offset (m, rad)
 ROUND_TRIP_OFFSET = np.array([0.01, -0.015, -0.02, 0.04, -0.03, 0.08])
@@ -21,24 +31,24 @@ ROUND_TRIP_OFFSET = np.array([0.01, -0.015, -0.02, 0.04, -0.03, 0.08])
 
 @guard
 def demo(as_json: AsJson = False,
-         leg_length: Annotated[float | None, typer.Option(help="override leg_length (m)")] = None,
          html: Annotated[Path | None, typer.Option(
              help="HTML file of the home pose (default: in the temp folder)")] = None,
          no_html: Annotated[bool, typer.Option("--no-html", help="write no HTML")] = False,
-         quiet: Quiet = False) -> None:
+         quiet: Quiet = False, geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """The main job in one command: home pose, IK/FK round trip, statics, a short
-    simulation, and an HTML view of the home pose."""
+    simulation, and an HTML view of the home pose (`--geometry`, `--set`: another
+    design)."""
     quiet = quiet or as_json
-    geometry = HexapodGeometry() if leg_length is None else HexapodGeometry(leg_length=leg_length)
-    robot = Hexapod(geometry)
+    robot = robot_of(geometry, set_)
     q = robot.home_configuration
     pose = robot.home_pose + ROUND_TRIP_OFFSET
     q_tilted = robot.inverse_kinematics(pose)
     back = robot.forward_kinematics(q_tilted)
     tau = robot.static_forces(robot.home_pose)
     with progress_bar(quiet, "simulating 0.5 s"):
-        traj = motions.simulate_circle(robot, duration=0.5, dt=1e-3,
-                                       controller="computed-torque", radius=0.01, period=0.5)
+        run = motions.simulate_circle(robot, duration=0.5, dt=1e-3,
+                                      controller="computed-torque", radius=0.01, period=0.5)
+    traj = run.trajectory
     result = {
         "home_pose": robot.home_pose,
         "home_q": robot.home_q,
@@ -50,9 +60,9 @@ def demo(as_json: AsJson = False,
                        "error": float(np.max(np.abs(back - pose)))},
         "statics": {"pose": robot.home_pose, "actuator_forces": tau},
         "simulation": {"controller": "computed-torque", "duration_s": float(traj.times[-1]),
-                       "samples": len(traj.times), "status": str(traj.status),
+                       "samples": len(traj.times), "status": run.status,
                        "max_closure_residual_m": float(np.max(np.abs(traj.closure_residual))),
-                       "max_tracking_error_m": motions.tracking_error(traj),
+                       "max_tracking_error_m": run.tracking_error,
                        "max_abs_actuator_force_n": float(np.max(np.abs(traj.actuator_forces)))},
         "html": None,
     }

@@ -57,7 +57,9 @@ def inverse_dynamics(motion_file: Annotated[Path, typer.Argument(
                          help="motion file (.csv / .json; format: see above)")],
                      out: Annotated[Path | None, typer.Option(
                          help="write the motion with the forces (.csv / .json)")] = None,
-                     method: Annotated[str, typer.Option(help="qp or kkt")] = "qp",
+                     method: Annotated[str, typer.Option(
+                         help="kkt (the square system solved exactly) or qp (ProxSuite, "
+                              "certifying the force bounds)")] = "kkt",
                      as_json: AsJson = False, quiet: Quiet = False,
                      geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Inverse dynamics along a motion file: actuator forces (N) at every sample.
@@ -99,6 +101,9 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
              controller: Annotated[str, typer.Option(
                  help="pid (Quanser gains), computed-torque, or none (no actuator force)")
              ] = "pid",
+             engine: Annotated[str, typer.Option(
+                 help="fast (compiled, PID or none), python (Pinocchio tree route, every "
+                      "controller), auto (fast unless computed-torque)")] = "auto",
              radius: Annotated[float, typer.Option(
                  help="radius of the reference circle of the platform about home (m)")] = 0.02,
              period: Annotated[float, typer.Option(help="period of the circle (s)")] = 2.0,
@@ -110,16 +115,25 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
                  help="write a figure (.png / .svg / .pdf) of q, forces, residual")] = None,
              as_json: AsJson = False, quiet: Quiet = False,
              geometry: GeometryFile = None, set_: SetFields = None) -> None:
-    """Simulate the closed-loop dynamics tracking a circle of the platform about home."""
+    """Simulate the closed-loop dynamics tracking a circle of the platform about home.
+
+    Exit code 1 unless the run completed and tracked the circle (status `completed`):
+    a stop at a stroke limit, a failure, or a tracking error above the circle's radius
+    (status `tracking_lost`, e.g. a step too long for the PID gains) are failures.
+    With `--json` the summary is printed with exit code 0 and its `status` says what
+    happened.
+    """
     quiet = quiet or as_json
     robot = robot_of(geometry, set_)
     check_suffix("out", out, motions.MOTION_SUFFIXES)
     check_suffix("html", html, (".html", ".htm"))
     check_suffix("plot", plot, plotting.IMAGE_SUFFIXES)
-    steps = round(duration / (dt or motions.DEFAULT_DT.get(controller, 1e-3)))
+    steps = round(duration / (dt or motions.DEFAULT_DT.get(controller, 1e-3))) \
+        if np.isfinite(duration) and duration > 0 else 1
     with progress_bar(quiet, f"simulating {duration:g} s", total=max(steps, 1)) as progress:
-        traj = motions.simulate_circle(robot, duration, dt, controller, radius, period,
-                                       progress)
+        run = motions.simulate_circle(robot, duration, dt, controller, radius, period,
+                                      progress, engine=engine)
+    traj = run.trajectory
     motion = motions.Motion.from_trajectory(traj)
     if out is not None:
         motions.write_motion(out, motion)
@@ -129,17 +143,20 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
             hexapod_scenes.write_simulation_html(
                 html, robot, traj,
                 caption=f"simulation: {controller} control, circle r = {radius:g} m, "
-                        f"{motion.t[-1]:g} s ({traj.status})")
+                        f"{motion.t[-1]:g} s ({run.status})")
         note(quiet, f"wrote {html}")
     if plot is not None:
         plotting.plot_simulation(traj, path=plot, title=f"simulation, {controller} control")
         note(quiet, f"wrote {plot}")
-    summary = {"status": str(traj.status), "message": str(traj.message),
+    residual = motion.closure_residual
+    summary = {"status": run.status, "message": run.message, "engine": run.engine,
                "duration_s": float(motion.t[-1] - motion.t[0]), "samples": len(motion.t),
                "wall_time_s": float(traj.wall_time),
-               "max_tracking_error_m": motions.tracking_error(traj),
+               "max_tracking_error_m": run.tracking_error,
+               "tracking_tolerance_m": run.tolerance,
                "max_abs_actuator_force_n": float(np.max(np.abs(motion.actuator_forces))),
-               "max_closure_residual_m": float(np.max(motion.closure_residual)),
+               "saturated_fraction": float(np.mean(traj.saturated)),
+               "max_closure_residual_m": None if residual is None else float(np.max(residual)),
                "out": out, "html": html, "plot": plot}
     if as_json:
         emit_json(summary)
@@ -148,5 +165,5 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
         f"simulation: {controller} control, circle r = {radius:g} m",
         {key: f"{value:.4g}" if isinstance(value, float) else str(value)
          for key, value in summary.items() if value not in (None, "")}))
-    if traj.status != "completed":
+    if not run.ok:
         raise typer.Exit(code=1)

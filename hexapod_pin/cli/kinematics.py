@@ -8,6 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 from rich.table import Table
+from rich.text import Text
 
 from ..errors import InputError
 from ..viz import hexapod_scenes, scenes
@@ -34,27 +35,47 @@ from .common import (
     robot_of,
 )
 
-#: what the fields of ``Hexapod.singularity`` are, printed next to their values
+#: what the fields of ``Hexapod.singularity`` are: (label with unit, meaning)
 SINGULARITY_LABELS = {
-    "jacobian_singular_values": "singular values of J, J unscaled (m and rad columns)",
-    "condition_number": CONDITION_LABEL,
-    "type_one": "type-I distance: smallest |cos| between a leg and its rail "
-                "(0 at a type-I singularity)",
-    "type_one_actuator": "carriage attaining the type-I distance",
-    "type_one_carriage": "carriage attaining the type-I distance",
-    "type_two": "type-II distance: smallest singular value of A_hat "
-                "(0 at a type-II singularity)",
-    "type_two_singular_values": "singular values of A_hat = [e_i, (r_i x e_i) / length]",
-    "characteristic_length": "length dividing the angular columns of A_hat (m)",
+    "jacobian_singular_values": ("singular values of J", "J unscaled (m and rad columns)"),
+    "condition_number": (CONDITION_LABEL, "sigma_max / sigma_min of J; inf at type I"),
+    "type_one": ("type I: min |cos(leg, rail)|",
+                 "0 at a type-I singularity (a leg perpendicular to its rail: J unbounded)"),
+    "type_one_actuator": ("type I: carriage", "the carriage attaining the type-I measure"),
+    "type_two": ("type II: sigma_min(A_hat)",
+                 "0 at a type-II singularity (the platform moves with the carriages locked)"),
+    "type_two_singular_values": ("singular values of A_hat",
+                                 "A_hat = [e_i, (r_i x e_i) / length], rows per leg"),
+    "characteristic_length": ("length (m)", "divides the angular columns of A_hat"),
 }
+
+
+#: ``--no-limits``: carriage positions beyond the strokes / gaps accepted
+NoLimits = Annotated[bool, typer.Option("--no-limits", help="do not check strokes / gaps")]
+
+
+def assembly_modes_of(robot, carriages: np.ndarray, check_limits: bool = True) -> list:
+    """Every assembly mode (poses) of carriage positions; what ``fk``, ``modes`` and
+    ``view --modes`` agree on.
+
+    Raises:
+        StrokeLimitError: with ``check_limits``, carriages beyond a stroke or gap limit
+            (as ``ik`` rejects their poses).
+        AssemblyError: no assembly mode exists (the reason of ``forward_kinematics``).
+    """
+    if check_limits:
+        robot.check_stroke(carriages)
+    poses = list(robot.assembly_modes(carriages))
+    if not poses:
+        poses = [robot.forward_kinematics(carriages)]      # raises AssemblyError: why none
+    return poses
 
 
 @guard
 def ik(pose: Values = None,
        branch: Annotated[str | None, typer.Option(
            help="six signs choosing each carriage's root, e.g. -+-+-+ (default: home)")] = None,
-       no_limits: Annotated[bool, typer.Option("--no-limits",
-                                               help="do not check strokes / gaps")] = False,
+       no_limits: NoLimits = False,
        degrees: Degrees = False, as_json: AsJson = False,
        geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Carriage positions q (m) for a platform pose: x y z roll pitch yaw."""
@@ -88,12 +109,18 @@ def parse_branch(text: str | None) -> np.ndarray | None:
 def fk(q: Values = None,
        guess: Annotated[str | None, typer.Option(
            help="starting pose 'x,y,z,roll,pitch,yaw' (default home)")] = None,
+       no_limits: NoLimits = False,
        degrees: Degrees = False, as_json: AsJson = False,
        geometry: GeometryFile = None, set_: SetFields = None) -> None:
-    """Platform pose for carriage positions q0..q5 (m) (Newton from a guess)."""
+    """Platform pose for carriage positions q0..q5 (m) (Newton from a guess).
+
+    Carriage positions beyond the strokes or gaps are rejected as `ik` rejects their
+    poses (`--no-limits` accepts them); no assembly is an error, as in `modes`."""
     robot = robot_of(geometry, set_)
     carriages = parse_numbers(q, 6, "q", "q0 .. q5")
     start = None if guess is None else pose_in([guess], degrees, "guess")
+    if not no_limits:
+        robot.check_stroke(carriages)
     pose = robot.forward_kinematics(carriages, guess=start)
     if as_json:
         emit_json({"q": carriages, "pose": pose_out(pose, degrees)})
@@ -105,15 +132,19 @@ def fk(q: Values = None,
 def modes(q: Values = None,
           html: Annotated[Path | None, typer.Option(help="also write an HTML view")] = None,
           layout: Annotated[str, typer.Option(help="grid, row or sequence (HTML)")] = "grid",
+          no_limits: NoLimits = False,
           degrees: Degrees = False, as_json: AsJson = False, quiet: Quiet = False,
           geometry: GeometryFile = None, set_: SetFields = None) -> None:
-    """Every assembly mode (platform pose) for carriage positions q0..q5 (m); default home q."""
+    """Every assembly mode (platform pose) for carriage positions q0..q5 (m); default home q.
+
+    No assembly mode is an error (exit code 1), as in `fk`; carriage positions beyond
+    the strokes or gaps too, unless `--no-limits`."""
     quiet = quiet or as_json
     robot = robot_of(geometry, set_)
     carriages = robot.home_q if not q else parse_numbers(q, 6, "q", "q0 .. q5")
     with progress_bar(quiet, "solving the assembly modes"):
-        poses = list(robot.assembly_modes(carriages))
-    if html is not None and poses:
+        poses = assembly_modes_of(robot, carriages, not no_limits)
+    if html is not None:
         with progress_bar(quiet, "writing HTML"):
             write_modes(html, robot, carriages, poses, layout)
         note(quiet, f"wrote {html}")
@@ -129,15 +160,17 @@ def write_modes(path: Path, robot, carriages: np.ndarray, poses: list, layout: s
     qs = hexapod_scenes.hexapod_configurations(robot, poses, [carriages] * len(poses))
     return scenes.write_modes_html(path, robot, qs, layout=layout,
                                    labels=[f"z = {p[2]:+.3f} m" for p in poses],
-                                   caption=f"{len(poses)} assembly modes")
+                                   caption=f"{len(poses)} assembly modes (numbered as in "
+                                           f"'hexapod-pin modes')")
 
 
 @guard
 def jacobian(pose: Values = None, degrees: Degrees = False, as_json: AsJson = False,
              geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Workspace Jacobian J (qdot = J twist, twist = (v, w) in world axes) at a pose,
-    with the singularity measures of ``Hexapod.singularity`` (J unscaled: columns in
-    m/s and rad/s)."""
+    with the singularity measures of `Hexapod.singularity`, each printed once with what
+    it means (J unscaled: columns in m/s and rad/s). Type I: a leg perpendicular to its
+    rail (J unbounded); type II: the platform can move with the carriages locked."""
     robot = robot_of(geometry, set_)
     p = pose_in(pose, degrees) if pose else robot.home_pose
     jac = robot.jacobian(p)
@@ -150,11 +183,20 @@ def jacobian(pose: Values = None, degrees: Degrees = False, as_json: AsJson = Fa
         emit_json(payload)
         return
     console.print(jacobian_table(jac))
-    for key, value in payload["singularity"].items():
+    console.print(singularity_table(payload["singularity"]))
+
+
+def singularity_table(measures: dict) -> Table:
+    """The singularity measures as a table: measure, value, what it means."""
+    table = Table(title="singularity measures (Hexapod.singularity)")
+    for name in ("measure", "value", "meaning"):
+        table.add_column(name, justify="right" if name == "value" else "left")
+    for key, value in measures.items():
+        label, meaning = SINGULARITY_LABELS.get(key, (key, ""))
         shown = fmt(value, ".4g") if isinstance(value, list) else (
             f"{value:.6g}" if isinstance(value, float) else str(value))
-        console.print(f"{SINGULARITY_LABELS.get(key, key)}: {shown}", highlight=False,
-                      markup=False)
+        table.add_row(Text(label), Text(shown), Text(meaning))   # Text: brackets kept
+    return table
 
 
 def jacobian_table(jac: np.ndarray) -> Table:

@@ -29,39 +29,56 @@ Every measure printed is the library's and says what it is: the condition number
 ``cond(J)`` of the unscaled workspace Jacobian (columns m/s and rad/s), as
 ``Hexapod.singularity`` and ``hexapod_pin.hexapod.workspace.evaluate`` report it.
 
-Errors of the library or of the input end the command with a one-line message
-on stderr and exit code 1 (usage errors: exit code 2).
+Errors of the library or of the input (a value that is not a number included) end the
+command with a one-line message on stderr and exit code 1; other usage errors (an
+unknown option, a missing argument) with a one-line message and exit code 2. With
+``--json`` the error is a JSON object on stdout instead (:mod:`.common`).
+
+``hexapod-pin --version`` prints the package version.
 """
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import typer
 
-from . import demo, dynamics, kinematics, planning, views
-from .common import NUMBERS
+from .. import __version__
+from . import demo, dynamics, export, kinematics, planning, views
+from .common import NUMBERS, Command, Group
 
 app = typer.Typer(help="Kinematics and dynamics of the rail-driven hexapod.", no_args_is_help=True,
                   pretty_exceptions_enable=False, add_completion=False,
-                  rich_markup_mode="markdown")
+                  rich_markup_mode="markdown", cls=Group)
+
+
+def print_version(value: bool) -> None:
+    """``--version``: print ``hexapod-pin <version>`` and exit."""
+    if value:
+        typer.echo(f"hexapod-pin {__version__}")
+        raise typer.Exit()
 
 
 @app.callback()
-def _root() -> None:
+def root(version: Annotated[bool, typer.Option(
+        "--version", help="print the version and exit", callback=print_version,
+        is_eager=True)] = False) -> None:
     """hexapod_pin command line (see each command's --help)."""
 
 
-app.command()(demo.demo)
-app.command(context_settings=NUMBERS)(kinematics.ik)
-app.command(context_settings=NUMBERS)(kinematics.fk)
-app.command(context_settings=NUMBERS)(kinematics.modes)
-app.command(context_settings=NUMBERS)(kinematics.jacobian)
-app.command(context_settings=NUMBERS)(dynamics.statics)
-app.command("id")(dynamics.inverse_dynamics)
-app.command()(dynamics.simulate)
-app.command(context_settings=NUMBERS)(views.view)
-app.command()(views.plot)
-app.command()(planning.retime)
-app.command()(planning.check)
+app.command(cls=Command)(demo.demo)
+app.command(cls=Command, context_settings=NUMBERS)(kinematics.ik)
+app.command(cls=Command, context_settings=NUMBERS)(kinematics.fk)
+app.command(cls=Command, context_settings=NUMBERS)(kinematics.modes)
+app.command(cls=Command, context_settings=NUMBERS)(kinematics.jacobian)
+app.command(cls=Command, context_settings=NUMBERS)(dynamics.statics)
+app.command("id", cls=Command)(dynamics.inverse_dynamics)
+app.command(cls=Command)(dynamics.simulate)
+app.command(cls=Command, context_settings=NUMBERS)(views.view)
+app.command(cls=Command)(views.plot)
+app.command(cls=Command)(export.urdf)
+app.command(cls=Command)(planning.retime)
+app.command(cls=Command)(planning.check)
 
 
 def main() -> None:  # pragma: no cover - console entry point

@@ -30,7 +30,7 @@ from .common import (
     progress_bar,
     robot_of,
 )
-from .kinematics import write_modes
+from .kinematics import NoLimits, assembly_modes_of, write_modes
 
 PLOT_KINDS = ("trajectory", "residual", "conditioning", "workspace")
 
@@ -54,6 +54,7 @@ def view(values: Values = None,
              "--forces", help="draw actuator forces (statics, or inverse dynamics along "
                               "a motion) and closure forces")] = False,
          fps: Annotated[float, typer.Option(help="key frames per second")] = 30.0,
+         no_limits: NoLimits = False,
          degrees: Degrees = False, as_json: AsJson = False, quiet: Quiet = False,
          geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Write a self-contained HTML view (meshcat): a pose (default home), the pose of
@@ -73,12 +74,14 @@ def view(values: Values = None,
     elif all_modes:
         q = robot.home_q if not values else parse_numbers(values, 6, "q", "q0 .. q5")
         with progress_bar(quiet, "solving the assembly modes"):
-            poses = list(robot.assembly_modes(q))
+            poses = assembly_modes_of(robot, q, not no_limits)
             write_modes(out, robot, q, poses, layout)
         kind, detail = "modes", {"modes": [pose_out(p, degrees) for p in poses]}
     else:
         if carriages:
             q = parse_numbers(values, 6, "q", "q0 .. q5")
+            if not no_limits:
+                robot.check_stroke(q)
             pose = robot.forward_kinematics(q)
         else:
             pose = pose_in(values, degrees) if values else robot.home_pose
@@ -189,9 +192,7 @@ def _plot_trajectory(out: Path, robot, motion: motions.Motion, forces: bool, qui
                      title: str) -> None:
     """Carriage positions (from the file, else inverse kinematics of the poses) and
     actuator forces (from the file, else inverse dynamics with ``forces``)."""
-    q = motion.q
-    if q is None:
-        q = np.array([robot.inverse_kinematics(p, check_limits=False) for p in motion.poses])
+    q = motions.actuators_along(robot, motion)       # a pose out of reach names its row
     tau = motion.actuator_forces
     if tau is None and forces:
         with progress_bar(quiet, "inverse dynamics", total=len(motion.t)) as progress:

@@ -6,7 +6,10 @@ cluster by default, or the scheduler address of a real one). The two give
 identical tables: the per-design function is the same and deterministic.
 
 Needs the ``sweep`` extra (``pip install hexapod-pin[sweep]``: dask[distributed],
-pandas).
+pandas). Below :data:`DASK_MIN_DESIGNS` designs the sweep runs serially by default
+(starting a local cluster costs seconds, more than it saves). A local Dask cluster
+starts worker processes that re-import the calling script: in a script, call
+:func:`design_sweep` under ``if __name__ == "__main__":``.
 """
 
 from __future__ import annotations
@@ -17,8 +20,12 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import HexapodPinError, InputError
+from ..errors import HexapodPinError, InputError, MissingDependencyError
 from .geometry import HexapodGeometry
+
+#: fewest designs for which ``use_dask=None`` starts a local Dask cluster (a local
+#: cluster costs a few seconds to start; a design of the default settings ~0.1 s)
+DASK_MIN_DESIGNS = 100
 
 #: columns of the summary table, in order (besides the swept parameters)
 SUMMARY_COLUMNS = (
@@ -126,7 +133,7 @@ def evaluate_design(params: Mapping[str, float], settings: SweepSettings,
 
 def design_sweep(designs: Sequence[Mapping[str, float]], settings: SweepSettings | None = None,
                  base: HexapodGeometry | None = None, scheduler: str | None = None,
-                 use_dask: bool = True, n_workers: int = 2,
+                 use_dask: bool | None = None, n_workers: int = 2,
                  progress: Callable[[int, int], None] | None = None):
     """Evaluate many designs and return a pandas DataFrame, one row per design.
 
@@ -136,21 +143,34 @@ def design_sweep(designs: Sequence[Mapping[str, float]], settings: SweepSettings
         base: geometry the designs modify (default the default geometry).
         scheduler: address of a running Dask scheduler (``"tcp://host:8786"``);
             None starts a local cluster of ``n_workers`` processes (and closes it).
-        use_dask: False evaluates serially in this process (same results).
+        use_dask: False evaluates serially in this process (same results); True on Dask;
+            None (default): on Dask when a ``scheduler`` is given or there are at least
+            :data:`DASK_MIN_DESIGNS` designs, serially otherwise.
         n_workers: local-cluster worker processes (one thread each).
         progress: called as ``progress(done, total)`` after each design.
 
     Returns:
         DataFrame with the swept parameters then :data:`SUMMARY_COLUMNS`, in the
         order of ``designs``.
+
+    Raises:
+        MissingDependencyError: pandas (or dask, on Dask) is not installed (the
+            ``sweep`` extra).
+        InputError: no designs; a local cluster that cannot start (in a script: call
+            this under ``if __name__ == "__main__":``).
     """
-    import pandas as pd
+    try:
+        import pandas as pd
+    except ImportError:
+        raise MissingDependencyError("pandas", "sweep") from None
 
     settings = settings or SweepSettings()
     designs = [dict(d) for d in designs]
     if not designs:
         raise InputError("designs", designs, "needs at least one design")
     total = len(designs)
+    if use_dask is None:
+        use_dask = scheduler is not None or total >= DASK_MIN_DESIGNS
     rows: list[dict | None] = [None] * total
     if not use_dask:
         for i, params in enumerate(designs):
@@ -167,14 +187,23 @@ def design_sweep(designs: Sequence[Mapping[str, float]], settings: SweepSettings
 
 
 def _dask_rows(designs, settings, base, scheduler, n_workers, progress):
-    from dask.distributed import Client, LocalCluster, as_completed
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise MissingDependencyError("dask[distributed]", "sweep") from None
 
     cluster = None
     if scheduler is None:
         if int(n_workers) != n_workers or n_workers < 1:
             raise InputError("n_workers", n_workers, "must be a positive integer")
-        cluster = LocalCluster(n_workers=int(n_workers), threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+        try:
+            cluster = LocalCluster(n_workers=int(n_workers), threads_per_worker=1,
+                                   processes=True, dashboard_address=None)
+        except Exception as exc:       # dask raises plain exceptions when a worker dies
+            raise InputError("use_dask", True, (
+                f"a local Dask cluster could not start ({type(exc).__name__}: {exc}); its "
+                "worker processes re-import the calling script: call design_sweep under "
+                "'if __name__ == \"__main__\":', or pass use_dask=False")) from exc
     client = Client(cluster if cluster is not None else scheduler)
     try:
         futures = [client.submit(evaluate_design, params, settings, base, pure=False)

@@ -302,10 +302,15 @@ def arrow_scale(efforts: list[np.ndarray], force_scale: float | None) -> float:
 
 def draw_overlays(scene: Scene, visual: RobotVisual, q: np.ndarray, root: str, size: float,
                   actuator_forces=None, closure_forces=None, frames=None,
-                  force_scale: float | None = None, triad_length: float | None = None) -> None:
+                  force_scale: float | None = None,
+                  triad_length: float | None = None) -> float | None:
     """Actuator and closure force arrows and frame triads of configuration ``q`` under
     ``root`` (see :func:`actuator_arrows`, :func:`closure_arrows`); ``size`` (m) sets the
-    arrow thickness and the default triad length (a sixth of it)."""
+    arrow thickness and the default triad length (a sixth of it).
+
+    Returns:
+        the arrow length per unit effort (m/N) used, None when no arrow was drawn.
+    """
     radius = 0.006 * size
     act = [] if actuator_forces is None else actuator_arrows(visual, q, actuator_forces)
     clo = [] if closure_forces is None else closure_arrows(visual, q, closure_forces)
@@ -326,5 +331,20 @@ def draw_overlays(scene: Scene, visual: RobotVisual, q: np.ndarray, root: str, s
             placement = data.oMf[frame_id(visual.model, name)]
             draw_triad(scene, f"{root}/frames/{safe_name(name)}", placement, length,
                         radius)
+    return scale if act or clo else None
+
+
+def force_legend(scale: float | None, actuators: bool, closures: bool) -> list[str]:
+    """Legend lines of the force arrows: their colours and their length scale."""
+    if scale is None:
+        return []
+    lines = []
+    if actuators:
+        lines.append("magenta arrows: actuator forces, along the actuator axis "
+                     "(violet: torques, about it)")
+    if closures:
+        lines.append("teal arrows: closure forces on the platform (world axes)")
+    lines.append(f"arrow length: 0.1 m = {0.1 / scale:.4g} N (N m for torques)")
+    return lines
 
 

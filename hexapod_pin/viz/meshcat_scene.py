@@ -25,6 +25,7 @@ import html as html_lib
 import json
 import math
 import os
+import uuid
 import warnings
 from pathlib import Path
 
@@ -44,6 +45,12 @@ CAMERA_FOV_DEG = 40.0
 CAMERA_DIRECTION = (1.0, -1.35, 0.95)
 #: meshcat path of the scene root
 ROOT = "/meshcat"
+#: a short perceptually ordered colour map (viridis samples), low -> high: the colours of
+#: point clouds (:func:`hexapod_pin.viz.scenes.colormap`) and of the colour bar
+COLORMAP = np.array([[0.267, 0.005, 0.329], [0.283, 0.141, 0.458], [0.254, 0.265, 0.530],
+                     [0.207, 0.372, 0.553], [0.164, 0.471, 0.558], [0.128, 0.567, 0.551],
+                     [0.135, 0.659, 0.518], [0.267, 0.749, 0.441], [0.478, 0.821, 0.318],
+                     [0.741, 0.873, 0.150], [0.993, 0.906, 0.144]])
 #: three.js InterpolateDiscrete: hold each key until the next
 DISCRETE_INTERPOLATION = 2300
 
@@ -72,7 +79,11 @@ class Scene:
     Attributes:
         camera_target, camera_position: where the camera looks and stands,
             world axes (m) (set by the scene functions to frame the robot).
-        caption: text in the page's lower-left corner.
+        caption: text in the page's lower-left corner (no box when empty).
+        legend: lines of text in the page's upper-left corner (what the colours and
+            arrows mean, the arrow length scale); none when empty.
+        colorbar: ``(low, high, label)``: a colour bar of :data:`COLORMAP` from
+            ``low`` to ``high`` with its label, in the upper-right corner; None: none.
         title: the page title.
         hide_controls: start with meshcat's control panel closed (animations
             open it, to show the play controls).
@@ -85,6 +96,8 @@ class Scene:
         self.camera_target = np.zeros(3)
         self.camera_position = np.array([3.0, 0.0, 1.0])
         self.caption = ""
+        self.legend: list[str] = []
+        self.colorbar: tuple[float, float, str] | None = None
         self.title = "hexapod_pin"
         self.hide_controls = True
         self.seek_time: float | None = None
@@ -135,11 +148,37 @@ class Scene:
             seek=json.dumps(None if self.seek_time is None else float(self.seek_time)))
         return _PAGE.format(title=html_lib.escape(self.title),
                             caption=html_lib.escape(self.caption),
+                            overlays=self._overlays_html(),
                             viewer_js=_assets_js(), script=script)
+
+    def _overlays_html(self) -> str:
+        parts = []
+        if self.legend:
+            lines = "<br>".join(html_lib.escape(str(line)) for line in self.legend)
+            parts.append(f'<div id="hexapod-pin-legend">{lines}</div>')
+        if self.colorbar is not None:
+            low, high, label = self.colorbar
+            stops = ", ".join(f"rgb({round(255 * r)}, {round(255 * g)}, {round(255 * b)})"
+                              for r, g, b in COLORMAP)
+            parts.append(
+                f'<div id="hexapod-pin-colorbar"><div>{html_lib.escape(str(label))}</div>'
+                f'<div style="display: flex; align-items: stretch; gap: 6px;">'
+                f'<div style="width: 16px; height: 160px; '
+                f'background: linear-gradient(to top, {stops});"></div>'
+                f'<div style="display: flex; flex-direction: column; '
+                f'justify-content: space-between;"><span>{float(high):.4g}</span>'
+                f'<span>{float(low):.4g}</span></div></div></div>')
+        return "\n".join(parts)
 
     def write(self, path: str | os.PathLike) -> Path:
         """Write :meth:`html` to ``path`` atomically; returns the path."""
         return write_text_atomic(path, self.html())
+
+    def _repr_html_(self) -> str:
+        """The scene inline in Jupyter: the page in an ``iframe`` (``srcdoc``, no server,
+        no file), 100 % wide and 480 px high."""
+        return ('<iframe style="width: 100%; height: 480px; border: 0;" '
+                f'srcdoc="{html_lib.escape(self.html(), quote=True)}"></iframe>')
 
 
 def _three(vec) -> list[float]:
@@ -158,11 +197,17 @@ body {{ margin: 0; }}
 #meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }}
 #hexapod-pin-caption {{ position: absolute; left: 8px; bottom: 8px; padding: 2px 6px;
   font: 13px sans-serif; color: #222; background: rgba(255, 255, 255, 0.75); }}
+#hexapod-pin-caption:empty {{ display: none; }}
+#hexapod-pin-legend {{ position: absolute; left: 8px; top: 8px; padding: 2px 6px;
+  font: 13px sans-serif; color: #222; background: rgba(255, 255, 255, 0.75); }}
+#hexapod-pin-colorbar {{ position: absolute; right: 260px; top: 8px; padding: 4px 6px;
+  font: 13px sans-serif; color: #222; background: rgba(255, 255, 255, 0.75); }}
 </style>
 </head>
 <body>
 <div id="meshcat-pane"></div>
 <div id="hexapod-pin-caption">{caption}</div>
+{overlays}
 <div id="hexapod-pin-status" hidden></div>
 <script>
 {viewer_js}
@@ -412,6 +457,20 @@ def points_extent(points: list[np.ndarray]) -> float:
     pts = np.asarray(points, dtype=float).reshape(-1, 3)
     return float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
 
+
+
+def text_object(text: str, width: float, height: float, font_size: int = 64) -> dict:
+    """A lowered meshcat sign of ``width`` x ``height`` (m) showing ``text`` (meshcat's
+    canvas text texture): a thin box in its local x-y plane, readable from +z."""
+    mg = _meshcat()
+    material = mg.MeshBasicMaterial(color=0xFFFFFF, transparent=True)
+    lowered = mg.Mesh(mg.Box([float(width), float(height), 1e-4]), material).lower()
+    texture = str(uuid.uuid4())
+    lowered["textures"] = [{"uuid": texture, "type": "_text", "text": str(text),
+                            "font_size": int(font_size), "font_face": "sans-serif"}]
+    lowered["materials"][0]["map"] = texture
+    lowered["materials"][0]["side"] = 0     # front faces only: no mirrored text behind
+    return lowered
 
 
 def point_cloud_object(points: np.ndarray, colors: np.ndarray, size: float) -> dict:

@@ -44,12 +44,13 @@ from ..core.checks import as_array
 from ..errors import InputError
 from .drawing import (DEFAULT_ARROW_LENGTH, RobotVisual, actuator_arrows, arrow_scale,
                       check_configuration, closure_arrows, default_frames, draw_overlays,
-                      draw_robot, draw_triad, frame_id, geometry_placements, robot_visual,
-                      safe_name)
-from .meshcat_scene import (ROOT, Scene, animation_clip, arrow_matrix, box_corners, decompose,
-                            frame_camera, point_cloud_object, points_extent)
+                      draw_robot, draw_triad, force_legend, frame_id, geometry_placements,
+                      robot_visual, safe_name)
+from .meshcat_scene import (COLORMAP, ROOT, Scene, animation_clip, arrow_matrix, box_corners,
+                            decompose, frame_camera, point_cloud_object, points_extent,
+                            text_object)
 
-__all__ = ["DEFAULT_ARROW_LENGTH", "RobotVisual", "Scene", "check_times", "colormap",
+__all__ = ["COLORMAP", "DEFAULT_ARROW_LENGTH", "RobotVisual", "Scene", "check_times", "colormap",
            "keyframes", "modes_scene", "pose_scene", "robot_visual", "trajectory_scene",
            "workspace_scene", "write_modes_html", "write_pose_html", "write_trajectory_html",
            "write_workspace_html"]
@@ -89,8 +90,9 @@ def pose_scene(robot, q, *, actuator_forces=None, closure_forces=None,
     root = f"{ROOT}/{visual.name}"
     drawn = draw_robot(scene, visual, q, root)
     size = points_extent(drawn.points)
-    draw_overlays(scene, visual, q, root, size, actuator_forces, closure_forces, frames,
-                   force_scale, triad_length)
+    scale = draw_overlays(scene, visual, q, root, size, actuator_forces, closure_forces,
+                          frames, force_scale, triad_length)
+    scene.legend = force_legend(scale, actuator_forces is not None, closure_forces is not None)
     frame_camera(scene, drawn.points)
     return scene
 
@@ -110,7 +112,8 @@ def modes_scene(robot, configurations, *, layout: str = "grid", spacing: float |
             an animation stepping through the configurations, one per second,
             with meshcat's time slider as a mode selector).
         spacing: distance between copies (m); default 1.4 x the largest copy.
-        labels: one text per configuration, listed in the caption.
+        labels: one text per configuration, listed in the caption; side by side, each
+            copy also carries ``"<index>: <label>"`` above it (facing the camera).
         frames: frames drawn as triads (default the platform).
 
     Raises:
@@ -127,17 +130,21 @@ def modes_scene(robot, configurations, *, layout: str = "grid", spacing: float |
         scene = trajectory_scene(visual, times, qs, frames=frames, fps=None,
                                  caption=caption, discrete=True)
     else:
-        scene = _side_by_side(visual, qs, layout, spacing, frames)
+        scene = _side_by_side(visual, qs, layout, spacing, frames, labels)
         scene.caption = caption
     if labels is not None:
         where = ("at t = " if layout == "sequence" else "")
         listed = "; ".join(f"{where}{i}{' s' if where else ''}: {text}"
                            for i, text in enumerate(labels))
         scene.caption = (caption + " | " if caption else "") + listed
+        scene.legend = ([f"one copy per configuration, numbered 0 .. {len(qs) - 1} left to "
+                         f"right, then row by row; the number and label float above each"]
+                        if layout != "sequence" else
+                        ["the time slider steps through the configurations, one per second"])
     return scene
 
 
-def _side_by_side(visual, qs, layout, spacing, frames) -> Scene:
+def _side_by_side(visual, qs, layout, spacing, frames, labels=None) -> Scene:
     scene = Scene()
     extents = []
     for q in qs:
@@ -162,7 +169,30 @@ def _side_by_side(visual, qs, layout, spacing, frames) -> Scene:
                 draw_triad(scene, f"{root}/frames/{safe_name(name)}",
                             data.oMf[frame_id(visual.model, name)], size / 6, 0.006 * size)
     frame_camera(scene, points)
+    if labels is not None:
+        _label_copies(scene, visual, qs, labels, step, per_row)
     return scene
+
+
+def _label_copies(scene: Scene, visual, qs, labels, step: float, per_row: int) -> None:
+    """A text plane ``"<index>: <label>"`` above each copy, standing up and turned
+    towards the camera (so the caption's list can be matched to the copies)."""
+    for index, (q, label) in enumerate(zip(qs, labels)):
+        row, col = divmod(index, per_row)
+        offset = np.array([col * step, -row * step, 0.0])
+        pts = np.array([p.translation for p in geometry_placements(visual, q)]) + offset
+        anchor = np.array([*pts[:, :2].mean(axis=0), pts[:, 2].max() + 0.25 * step])
+        towards = scene.camera_position - anchor
+        towards[2] = 0.0
+        norm = float(np.linalg.norm(towards))
+        d = towards / norm if norm > 1e-9 else np.array([1.0, 0.0, 0.0])
+        up = np.array([0.0, 0.0, 1.0])
+        mat = np.eye(4)
+        mat[:3, :3] = np.column_stack([np.cross(up, d), up, d])
+        mat[:3, 3] = anchor
+        path = f"{ROOT}/labels/{index}"
+        scene.set_object(path, text_object(f"{index}: {label}", 0.8 * step, 0.8 * step))
+        scene.set_transform(path, mat)
 
 
 def _configurations(visual: RobotVisual, configurations) -> np.ndarray:
@@ -235,10 +265,12 @@ def trajectory_scene(robot, times, configurations, *, actuator_forces=None,
             tracks[path]["quaternion"].append(quat)
             points.extend(box_corners(placement, half))
     size = points_extent(drawn.points)
+    scale = _animate_overlays(tracks, visual, qs, act, clo, frames, root, force_scale)
     draw_overlays(scene, visual, qs[0], root, size,
-                   None if act is None else act[0], None if clo is None else clo[0],
-                   frames, force_scale, None)
-    _animate_overlays(tracks, visual, qs, act, clo, frames, root, force_scale)
+                  None if act is None else act[0], None if clo is None else clo[0],
+                  frames, scale, None)
+    if act is not None or clo is not None:
+        scene.legend = force_legend(scale, act is not None, clo is not None)
     clips = [animation_clip(path, t, props, discrete) for path, props in tracks.items()
              if _moves(props)]
     scene.set_animation(clips, play=True, loop=loop)
@@ -287,7 +319,9 @@ def keyframes(t: np.ndarray, fps: float | None) -> np.ndarray:
     return np.unique(np.append(idx, len(t) - 1))
 
 
-def _animate_overlays(tracks, visual, qs, act, clo, frames, root, force_scale) -> None:
+def _animate_overlays(tracks, visual, qs, act, clo, frames, root, force_scale) -> float:
+    """Fill ``tracks`` with the arrows and triads along the motion; returns the arrow
+    length per unit effort (m/N) shared by every frame."""
     efforts = []
     act_series = None if act is None else [actuator_arrows(visual, q, a)
                                            for q, a in zip(qs, act)]
@@ -321,6 +355,7 @@ def _animate_overlays(tracks, visual, qs, act, clo, frames, root, force_scale) -
                                           {"position": [], "quaternion": []})
                 props["position"].append(pos)
                 props["quaternion"].append(quat)
+    return scale
 
 
 def _moves(props: dict[str, list]) -> bool:
@@ -344,13 +379,6 @@ def write_trajectory_html(path, robot, times, configurations, **options) -> Path
 
 
 # -- workspace point clouds -----------------------------------------------------------------
-#: a short perceptually ordered colour map (viridis samples), low -> high
-_COLORMAP = np.array([[0.267, 0.005, 0.329], [0.283, 0.141, 0.458], [0.254, 0.265, 0.530],
-                      [0.207, 0.372, 0.553], [0.164, 0.471, 0.558], [0.128, 0.567, 0.551],
-                      [0.135, 0.659, 0.518], [0.267, 0.749, 0.441], [0.478, 0.821, 0.318],
-                      [0.741, 0.873, 0.150], [0.993, 0.906, 0.144]])
-
-
 def colormap(values, low: float | None = None, high: float | None = None) -> np.ndarray:
     """RGB colours (N, 3) in [0, 1] for ``values`` (N,), linear between ``low`` and ``high``
     (default their finite min / max); non-finite values get the top colour."""
@@ -360,13 +388,14 @@ def colormap(values, low: float | None = None, high: float | None = None) -> np.
     hi = float(values[finite].max()) if high is None and finite.any() else float(high or 1.0)
     span = hi - lo if hi > lo else 1.0
     t = np.clip(np.where(finite, (values - lo) / span, 1.0), 0.0, 1.0)
-    grid = np.linspace(0.0, 1.0, len(_COLORMAP))
-    return np.stack([np.interp(t, grid, _COLORMAP[:, c]) for c in range(3)], axis=1)
+    grid = np.linspace(0.0, 1.0, len(COLORMAP))
+    return np.stack([np.interp(t, grid, COLORMAP[:, c]) for c in range(3)], axis=1)
 
 
 def workspace_scene(robot, positions, values=None, *, q=None, point_size: float = 0.008,
                     low: float | None = None, high: float | None = None,
-                    robot_opacity: float = 0.3, caption: str = "", urdf=None) -> Scene:
+                    robot_opacity: float = 0.3, caption: str = "", urdf=None,
+                    value_label: str = "value") -> Scene:
     """The robot with a cloud of workspace points, coloured by a value per point.
 
     Args:
@@ -381,6 +410,8 @@ def workspace_scene(robot, positions, values=None, *, q=None, point_size: float 
         low, high: colour-map limits; default the finite min / max of ``values``.
         robot_opacity: opacity of the robot (0..1], so the cloud inside it shows.
         caption, urdf: as in :func:`pose_scene`.
+        value_label: what ``values`` are, with their unit (e.g. ``"log10 cond(J)"``),
+            shown above the colour bar (drawn when ``values`` are given).
 
     Raises:
         InputError: wrong shapes, NaN positions, or a non-positive point size.
@@ -388,6 +419,7 @@ def workspace_scene(robot, positions, values=None, *, q=None, point_size: float 
     visual = robot_visual(robot, urdf)
     pts = as_array(positions, (int(np.shape(positions)[0]) if np.ndim(positions) == 2
                                  else -1, 3), "positions")
+    colorbar = None
     if values is None:
         colors = np.tile([0.13, 0.57, 0.55], (pts.shape[0], 1))
     else:
@@ -395,6 +427,10 @@ def workspace_scene(robot, positions, values=None, *, q=None, point_size: float 
         if vals.shape != (pts.shape[0],):
             raise InputError("values", values, f"expected shape ({pts.shape[0]},)")
         colors = colormap(vals, low, high)
+        finite = vals[np.isfinite(vals)]
+        lo = float(low) if low is not None else (float(finite.min()) if finite.size else 0.0)
+        hi = float(high) if high is not None else (float(finite.max()) if finite.size else 1.0)
+        colorbar = (lo, hi, value_label)
     if not (math.isfinite(point_size) and point_size > 0):
         raise InputError("point_size", point_size, "must be finite and > 0 (m)")
     if not (0.0 < robot_opacity <= 1.0):
@@ -405,6 +441,9 @@ def workspace_scene(robot, positions, values=None, *, q=None, point_size: float 
     q = check_configuration(visual, q)
     scene = Scene()
     scene.caption = caption
+    scene.colorbar = colorbar
+    scene.legend = [f"{pts.shape[0]} points" + ("" if colorbar is None else
+                                                 f", coloured by {value_label}")]
     root = f"{ROOT}/{visual.name}"
     drawn = draw_robot(scene, visual, q, root, opacity=robot_opacity)
     scene.set_object(f"{ROOT}/workspace", point_cloud_object(pts, colors, point_size))

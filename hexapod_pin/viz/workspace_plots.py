@@ -167,7 +167,7 @@ def workspace_slice(robot, z: float | None = None, orientation: Sequence[float] 
         resolution: samples per side (>= 2).
 
     Raises:
-        InputError: bad numbers.
+        InputError: bad numbers, or no reachable position on the slice (nothing to draw).
     """
     g = robot.geometry
     z = g.home_height if z is None else float(z)
@@ -185,6 +185,10 @@ def workspace_slice(robot, z: float | None = None, orientation: Sequence[float] 
     xs = np.linspace(-width, width, int(resolution))
     m = workspace.evaluate(robot, _slice_poses(xs, z, rpy), singularity=False, statics=False)
     status = _status(m.reachable, m.within_stroke).reshape(len(xs), len(xs))
+    if not np.any(m.reachable):
+        raise InputError("z", z, f"no platform position of this slice is reachable "
+                                 f"(orientation {np.round(rpy, 4).tolist()} rad, square "
+                                 f"half width {width:g} m; home height {g.home_height:.4g} m)")
     cond = np.where(status == REACHABLE, m.condition_number.reshape(status.shape), np.nan)
     return WorkspaceSlice(xs, xs.copy(), z, rpy, status, cond)
 
@@ -292,6 +296,23 @@ def plot_force_capability_slice(robot, direction=None, *, z: float | None = None
     return finish_figure(fig, path)
 
 
+#: units of the geometry fields and of the design-sweep summary columns (axis labels)
+COLUMN_UNITS = {
+    "rail_radius": "m", "platform_radius": "m", "leg_length": "m", "carriage_home": "m",
+    "rail_half_length": "m", "carriage_min_gap": "m", "carriage_mass": "kg", "leg_mass": "kg",
+    "platform_mass": "kg", "gravity": "m/s²", "max_actuator_force": "N", "home_height": "m",
+    "reachable_volume": "m³", "reachable_volume_se": "m³", "well_conditioned_volume": "m³",
+    "well_conditioned_volume_se": "m³", "median_condition": "cond(J), J unscaled",
+    "median_payload_kg": "kg", "min_payload_kg": "kg",
+}
+
+
+def column_label(name: str) -> str:
+    """An axis label: the column's name with its unit (:data:`COLUMN_UNITS`)."""
+    unit = COLUMN_UNITS.get(name)
+    return f"{name} ({unit})" if unit else name
+
+
 def plot_design_sweep(table, x: str, y: str, value: str = "reachable_volume", *, path=None,
                       title: str = ""):
     """Heat map of one summary column of a design sweep over two swept parameters.
@@ -321,13 +342,15 @@ def plot_design_sweep(table, x: str, y: str, value: str = "reachable_volume", *,
     fig = figure_class()(figsize=(6.4, 5.0))
     ax = fig.subplots()
     shown = ax.pcolormesh(_edges(xs), _edges(ys), grid, cmap="viridis", shading="flat")
-    fig.colorbar(shown, ax=ax).set_label(value)
+    fig.colorbar(shown, ax=ax).set_label(column_label(value))
     for (j, i), cell in np.ndenumerate(grid):
         if np.isfinite(cell):
+            red, green, blue, _ = shown.cmap(shown.norm(cell))
+            light = 0.299 * red + 0.587 * green + 0.114 * blue > 0.5
             ax.text(xs[i], ys[j], f"{cell:.3g}", ha="center", va="center", fontsize=7,
-                    color="white")
-    ax.set_xlabel(x)
-    ax.set_ylabel(y)
+                    color="black" if light else "white")
+    ax.set_xlabel(column_label(x))
+    ax.set_ylabel(column_label(y))
     ax.set_title(title or f"design sweep: {value}")
     return finish_figure(fig, path)
 
