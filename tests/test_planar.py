@@ -892,3 +892,34 @@ def test_branches_reach_the_dynamics(planar):
     np.testing.assert_allclose(planar.forward_dynamics(pose, twist, res.actuator_forces,
                                                        branch=branch).twist_dot,
                                twist_dot, atol=1e-9)
+
+
+def test_one_type_two_predicate_for_single_and_batch_routes(planar):
+    """Walking toward a type-II pose, the single-state and batch routes raise exactly where
+    ``singularity().type_two`` (sigma_min(A_hat), core.measures) falls below TYPE_II_TOL:
+    the one type-II test of every robot."""
+    from hexapod_pin.core.measures import TYPE_II_TOL
+    from hexapod_pin.errors import SingularityError
+
+    theta = _type_two_theta(planar)
+    zero = np.zeros(3)
+    seen = set()
+    for step in 10.0 ** -np.arange(1, 17):
+        pose = np.array([0.0, 0.0, theta + step])
+        measure = planar.singularity(pose).type_two
+        if abs(math.log10(max(measure, 1e-300) / TYPE_II_TOL)) < 1.0:
+            continue                      # within round-off of the threshold: not decisive
+        singular = measure < TYPE_II_TOL
+        seen.add(singular)
+        routes = (lambda: planar.static_forces(pose, bounded=False),
+                  lambda: planar.inverse_dynamics(pose, zero, zero, bounded=False),
+                  lambda: planar.static_forces_batch(pose[None], bounded=False),
+                  lambda: planar.inverse_dynamics_batch(pose[None], zero[None], zero[None],
+                                                        bounded=False))
+        for route in routes:
+            if singular:
+                with pytest.raises(SingularityError, match="type II"):
+                    route()
+            else:
+                route()
+    assert seen == {True, False}

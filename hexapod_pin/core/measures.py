@@ -13,6 +13,10 @@ import numpy as np
 
 from .results import SingularityMeasures
 
+#: a pose is type-II singular for every route of every robot when
+#: ``sigma_min(A_hat) < TYPE_II_TOL`` (``A_hat``: :func:`closure_matrix_hat`)
+TYPE_II_TOL = 1e-12
+
 
 def condition_number(singular_values: np.ndarray | None) -> float:
     """``sigma_max / sigma_min`` from singular values in descending order (last axis).

@@ -62,6 +62,7 @@ import numpy as np
 
 from ..core.compiled import all_finite, jit_inline
 from ..core.compiled import jit_fast as jit
+from ..core.measures import TYPE_II_TOL
 from ..core.pose import quaternion_rpy, rotation_quat, rotation_rpy, rpy_of
 from ..errors import (BatchSingularityError, BatchUnreachablePoseError, HexapodPinError,
                       SingularityError, UnreachablePoseError)
@@ -78,10 +79,6 @@ TYPE_I_TOL = 1e-7
 #: ``1 - cos(leg, rail)^2`` below which a leg lies along its rail (the universal joint is
 #: in gimbal lock: the leg's spin and the tree angles are undefined)
 GIMBAL_TOL = 1e-10
-#: smallest singular value of ``A_hat`` below which a pose is type-II singular (the
-#: platform moves with the carriages locked; ``A_hat`` is dimensionless, its largest
-#: singular value of order 1)
-TYPE_II_TOL = 1e-12
 #: relative slack of the actuator bounds
 BOUND_RTOL = 1e-9
 

@@ -56,6 +56,7 @@ import numpy as np
 from ..core.batching import CHUNK, n_chunks, prange_jit
 from ..core.compiled import all_finite, jit
 from ..core.layouts import rail_angles
+from ..core.measures import TYPE_II_TOL
 from .geometry import N_ACTUATORS, PlanarGeometry
 
 #: status codes
@@ -63,9 +64,6 @@ OK, NONFINITE, UNREACHABLE, TYPE_I, TYPE_II, RESIDUAL = 0, -1, 1, 2, 3, 4
 
 #: a link closer than this to perpendicular to its rail (``|n.u| / L``) is type-I singular
 TYPE_I_TOL = 1e-9
-#: the inverse dynamics and statics call a state type-II singular when the Hadamard ratio
-#: ``|det| / prod |column|`` of their 3x3 platform system is below this
-TYPE_II_HADAMARD = 1e-6
 #: relative residual above which a closed-form solve is refused
 RESIDUAL_RTOL = 1e-9
 
@@ -76,9 +74,9 @@ GEO_SIZE = 29
 S, NX, NY, RX, RY, NU, J0, J1, J2, SD, PD, SDD, PDD = range(13)
 LEG_COLS = 13
 # info vector: shortfalls (3), unreachable flags (3), worst |n.u| / L, max |s|, residual,
-# Hadamard ratio of the type-II system
+# sigma_min(A_hat) of the type-II test
 INFO_SIZE = 10
-X_WORST, X_SMAX, X_RES, X_HADAMARD = 6, 7, 8, 9
+X_WORST, X_SMAX, X_RES, X_TYPE_TWO = 6, 7, 8, 9
 # index vector: platform chain (3), sliders (3), links (3), first closure row of each loop
 I_PLAT, I_SLIDER, I_LINK, I_ROW = 0, 3, 6, 9
 IDX_SIZE = 12
@@ -343,12 +341,38 @@ def solve3(m00, m01, m02, m10, m11, m12, m20, m21, m22, f0, f1, f2, out):
 
 
 @jit
+def type_two_sigma(geo, buf):
+    """The type-II test's value for the legs in ``buf``: ``sigma_min(A_hat)``, ``A_hat`` rows
+    ``[e_k, (r_k x e_k) / R]`` (:func:`hexapod_pin.core.measures.closure_matrix_hat`, ``R``
+    the platform radius). The lower bound ``|det| / (|A_hat|_F^2 / 2) <= sigma_min`` is
+    returned when it clears :data:`TYPE_II_TOL` (the state is then certainly regular);
+    below it, the exact ``sigma_min`` from the SVD."""
+    inv_len, inv_rad = 1.0 / geo[_G_LEN], 1.0 / geo[_G_RP]
+    a = np.empty((N_ACTUATORS, 3))
+    for k in range(N_ACTUATORS):
+        leg = buf[k]
+        a[k, 0], a[k, 1] = leg[NX] * inv_len, leg[NY] * inv_len
+        a[k, 2] = (leg[RX] * leg[NY] - leg[RY] * leg[NX]) * inv_len * inv_rad
+    det = (a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1])
+           - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
+           + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]))
+    frob2 = 0.0
+    for k in range(N_ACTUATORS):
+        for c in range(3):
+            frob2 += a[k, c] * a[k, c]
+    if frob2 > 0.0 and abs(det) / (0.5 * frob2) >= TYPE_II_TOL:
+        return abs(det) / (0.5 * frob2)
+    return np.linalg.svd(a)[1][-1]
+
+
+@jit
 def solve_inverse(geo, buf, force, wrench, has_wrench, tau, closure, info):
     """Actuator forces ``tau`` (3,) and closure forces (3, 2) from the tree rows
     ``f = S^T tau + J_c^T lambda + tau_ext`` (module docstring; ``closure = -lambda``).
 
-    Returns OK, NONFINITE (the wrench), TYPE_II (Hadamard ratio of the platform 3x3
-    below TYPE_II_HADAMARD, in ``info[X_HADAMARD]``) or RESIDUAL (a row misses by more
+    Returns OK, NONFINITE (the wrench), TYPE_II (``sigma_min(A_hat)`` below
+    :data:`~hexapod_pin.core.measures.TYPE_II_TOL`, in ``info[X_TYPE_TWO]``: the one
+    type-II test of every robot) or RESIDUAL (a row misses by more
     than RESIDUAL_RTOL relative; the max-abs residual in ``info[X_RES]``).
     """
     if has_wrench and not all_finite(wrench):
@@ -369,8 +393,9 @@ def solve_inverse(geo, buf, force, wrench, has_wrench, tau, closure, info):
                       l0[RX] * l0[NY] - l0[RY] * l0[NX],
                       l1[RX] * l1[NY] - l1[RY] * l1[NX],
                       l2[RX] * l2[NY] - l2[RY] * l2[NX], px, py, pth, mu)
-    info[X_HADAMARD] = hadamard
-    if not hadamard >= TYPE_II_HADAMARD:
+    sigma = type_two_sigma(geo, buf) if hadamard > 0.0 else 0.0
+    info[X_TYPE_TWO] = sigma
+    if not sigma >= TYPE_II_TOL:
         return TYPE_II
     res, sum_x, sum_y, sum_m = 0.0, 0.0, 0.0, 0.0
     scale = max(1.0, abs(fx), abs(fy), abs(fth))

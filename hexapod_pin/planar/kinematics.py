@@ -121,8 +121,9 @@ class PlanarWorkspace:
         if status == kernels.TYPE_I:
             what, value = _TYPE_I_WHAT, info[kernels.X_WORST]
         elif status == kernels.TYPE_II:
-            what = "platform closure matrix (type II singularity; Hadamard ratio)"
-            value = info[kernels.X_HADAMARD]
+            what = ("leg matrix A_hat = [e_k, (r_k x e_k) / platform_radius] (type II "
+                    "singularity; sigma_min(A_hat))")
+            value = info[kernels.X_TYPE_TWO]
         else:
             what = "closed-form closure system (ill-conditioned: residual)"
             value = info[kernels.X_RES]
