@@ -13,6 +13,9 @@ import numpy as np
 
 from .results import SingularityMeasures
 
+#: a pose is type-I singular for every route of every robot when the smallest ``|cos|``
+#: between a chain's last link and its actuator direction is below this
+TYPE_I_TOL = 1e-7
 #: a pose is type-II singular for every route of every robot when
 #: ``sigma_min(A_hat) < TYPE_II_TOL`` (``A_hat``: :func:`closure_matrix_hat`)
 TYPE_II_TOL = 1e-12

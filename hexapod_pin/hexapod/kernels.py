@@ -62,7 +62,7 @@ import numpy as np
 
 from ..core.compiled import all_finite, jit_inline
 from ..core.compiled import jit_fast as jit
-from ..core.measures import TYPE_II_TOL
+from ..core.measures import TYPE_I_TOL, TYPE_II_TOL
 from ..core.pose import quaternion_rpy, rotation_quat, rotation_rpy, rpy_of
 from ..errors import (BatchSingularityError, BatchUnreachablePoseError, HexapodPinError,
                       SingularityError, UnreachablePoseError)
@@ -71,11 +71,6 @@ from ..errors import (BatchSingularityError, BatchUnreachablePoseError, HexapodP
 HOME_BRANCH = np.array([-1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
 #: rail of each carriage
 RAIL_OF = np.array([0, 0, 1, 1, 2, 2])
-#: ``|cos(leg, rail)|`` below which a leg counts as perpendicular to its rail (type I).
-#: Near that singularity the cosine comes from ``sqrt(disc)`` of the IK quadratic, whose
-#: rounding (~1e-16 L^2) limits it to about ``sqrt(eps) ~ 1.5e-8``: smaller values cannot
-#: be told from 0, so the threshold sits above that noise (J entries ~ 1e7 there).
-TYPE_I_TOL = 1e-7
 #: ``1 - cos(leg, rail)^2`` below which a leg lies along its rail (the universal joint is
 #: in gimbal lock: the leg's spin and the tree angles are undefined)
 GIMBAL_TOL = 1e-10

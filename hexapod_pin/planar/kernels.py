@@ -56,14 +56,12 @@ import numpy as np
 from ..core.batching import CHUNK, n_chunks, prange_jit
 from ..core.compiled import all_finite, jit
 from ..core.layouts import rail_angles
-from ..core.measures import TYPE_II_TOL
+from ..core.measures import TYPE_I_TOL, TYPE_II_TOL
 from .geometry import N_ACTUATORS, PlanarGeometry
 
 #: status codes
 OK, NONFINITE, UNREACHABLE, TYPE_I, TYPE_II, RESIDUAL = 0, -1, 1, 2, 3, 4
 
-#: a link closer than this to perpendicular to its rail (``|n.u| / L``) is type-I singular
-TYPE_I_TOL = 1e-9
 #: relative residual above which a closed-form solve is refused
 RESIDUAL_RTOL = 1e-9
 
