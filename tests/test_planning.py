@@ -426,6 +426,15 @@ def test_cli_retime_and_check(tmp_path):
     done = runner.invoke(app, ["check", str(out), "--max-force", "50", "--json"])
     assert done.exit_code == 1
     assert json.loads(done.stdout)["feasible"] is False
+    # resampled between the grid points: within the 0.5 % of the planner's guarantee
+    resampled = tmp_path / "resampled.json"
+    done = runner.invoke(app, ["retime", str(src), "--out", str(resampled), "--grid", "400",
+                               "--rate", "300", "--max-velocity", "0.5", "--json"])
+    assert done.exit_code == 0, done.output
+    done = runner.invoke(app, ["check", str(resampled), "--max-velocity", "0.5",
+                               "--tolerance", "0.005", "--json"])
+    assert done.exit_code == 0, done.output
+    assert json.loads(done.stdout)["slow_down"] <= 1.005
 
 
 def test_plots(planned, tmp_path):

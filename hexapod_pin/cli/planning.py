@@ -137,7 +137,12 @@ def check(motion_file: Annotated[Path, typer.Argument(
           max_linear_speed: MaxLinear = float("inf"),
           max_angular_speed: MaxAngular = float("inf"),
           payload_mass: PayloadMass = 0.0, payload_wrench: PayloadWrench = None,
-          no_strokes: NoStrokes = False, as_json: AsJson = False,
+          no_strokes: NoStrokes = False,
+          tolerance: Annotated[float, typer.Option(
+              help="relative excess over a bound still called feasible (a retimed motion "
+                   "resampled between its grid points may exceed by a fraction of a "
+                   "percent)")] = 1e-9,
+          as_json: AsJson = False,
           geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Margins of a timed motion against the limits: the worst sample, and the smallest
     uniform slow-down factor that makes it feasible (< 1: it could run faster). Exit code
@@ -146,7 +151,8 @@ def check(motion_file: Annotated[Path, typer.Argument(
     limits = _limits(max_force, max_velocity, max_acceleration, max_linear_speed,
                      max_angular_speed, no_strokes)
     report = check_feasibility(robot, motion_file, limits=limits,
-                               payload=_payload(payload_mass, payload_wrench))
+                               payload=_payload(payload_mass, payload_wrench),
+                               tolerance=tolerance)
     largest = {key: float(np.max(report.values[key] / report.bounds[key]))
                for key in report.values if np.any(np.isfinite(report.bounds[key]))}
     summary = {"feasible": report.feasible, "samples": len(report.t),

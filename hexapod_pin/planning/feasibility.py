@@ -55,7 +55,7 @@ class FeasibilityReport:
     """Margins of a timed motion against its limits.
 
     Attributes:
-        feasible: every limit holds at every sample (to 1e-9 relative).
+        feasible: every limit holds at every sample (to the relative ``tolerance``).
         t: (N,) the sample times (s).
         values: limit name -> (N, c) absolute values (N, m/s, m/s^2, m/s, rad/s).
         bounds: limit name -> (c,) bounds (``inf``: none).
@@ -132,7 +132,8 @@ def motion_arrays(robot, motion) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
 
 
 def check_feasibility(robot, motion, *, limits: Limits | None = None,
-                      payload: Payload | None = None) -> FeasibilityReport:
+                      payload: Payload | None = None,
+                      tolerance: float = 1e-9) -> FeasibilityReport:
     """Margins of a timed motion against the limits (see the module docstring).
 
     Args:
@@ -140,6 +141,9 @@ def check_feasibility(robot, motion, *, limits: Limits | None = None,
         motion: see :func:`motion_arrays`; a motion's own ``wrenches`` act on the
             platform on top of the payload (constant in the slow-down).
         limits: :class:`Limits` (default: the robot's force bound); payload: :class:`Payload`.
+        tolerance: relative excess still called feasible (``value <= bound (1 +
+            tolerance)``); a time-optimal motion resampled between its grid points exceeds
+            its bounds by a fraction of a percent that shrinks with the grid step.
 
     Returns:
         :class:`FeasibilityReport`.
@@ -151,6 +155,8 @@ def check_feasibility(robot, motion, *, limits: Limits | None = None,
     limits = Limits() if limits is None else limits
     payload = Payload() if payload is None else payload
     payload.check(robot.pose_dim)
+    if not (np.isfinite(tolerance) and tolerance >= 0):
+        raise InputError("tolerance", tolerance, "must be finite and >= 0")
     t, poses, twists, twist_dots, extra = motion_arrays(robot, motion)
     n, dim = len(t), robot.pose_dim
     lin = 3 if dim == 6 else 2
@@ -184,7 +190,7 @@ def check_feasibility(robot, motion, *, limits: Limits | None = None,
         else np.ones(n, dtype=bool)
     margins = {key: limit_of[key] - values[key] for key in values}
     feasible = bool(np.all(within)) and all(
-        np.all(values[key] <= limit_of[key] * (1 + 1e-9)) for key in values)
+        np.all(values[key] <= limit_of[key] * (1 + tolerance)) for key in values)
     return FeasibilityReport(feasible, t, values, limit_of, margins, within,
                              _worst(t, values, limit_of, within),
                              _slow_down(forces, static, values, limit_of, within))
