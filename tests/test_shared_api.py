@@ -237,8 +237,10 @@ def test_result_types_and_fields(robot):
     assert robot.static_forces(pose, wrench).shape == (n,)
     assert robot.jacobian_derivative(pose, twist).shape == (n, dim)
     der = robot.inverse_dynamics_derivatives(pose, twist, twist_dot, wrench)
-    for field in ("d_pose", "d_twist", "d_twist_dot", "d_wrench"):
+    assert type(der) is shared.InverseDynamicsDerivatives
+    for field in ("d_pose", "d_world", "d_twist", "d_twist_dot", "d_wrench"):
         assert getattr(der, field).shape == (n, dim), field
+    np.testing.assert_allclose(der.actuator_forces, res.actuator_forces, rtol=0, atol=1e-9)
     modes = robot.assembly_modes(robot.inverse_kinematics(pose))
     assert isinstance(modes, np.ndarray) and modes.ndim == 2 and modes.shape[1] == dim
     poses = np.array([s[0] for s in states(robot, 3, 2)])

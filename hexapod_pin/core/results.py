@@ -311,3 +311,32 @@ class JacobianBatch:
     regular: np.ndarray
     within_stroke: np.ndarray
     ok: np.ndarray
+
+
+@dataclass(frozen=True)
+class InverseDynamicsDerivatives:
+    """Derivatives of the inverse-dynamics actuator forces (no bounds applied), from
+    ``robot.inverse_dynamics_derivatives(pose, twist, twist_dot, wrench)``.
+
+    Rows: actuator ``i`` (its force along its positive direction, N). Every derivative
+    holds the other arguments fixed; twist, twist_dot and wrench are held in world axes.
+
+    Attributes:
+        actuator_forces: ``tau`` (n_act,) at the point (N).
+        d_pose: ``d tau / d pose`` (n_act, dim) in the robot's pose coordinates (N/m, N/rad).
+        d_world: ``d tau / d (dp, dtheta)`` (n_act, dim): ``dp`` (m) the displacement of the
+            platform origin and ``dtheta`` (rad) the rotation vector, in world axes. In the
+            plane the rotation angle is the pose's own, so ``d_world = d_pose``; in space
+            ``d_pose = d_world @ blockdiag(I, E(rpy))`` (``E``:
+            :func:`~hexapod_pin.core.pose.euler_rates_matrix`).
+        d_twist: ``d tau / d twist`` (n_act, dim) (N s/m, N s/rad).
+        d_twist_dot: ``d tau / d twist_dot`` (n_act, dim) (kg, kg m): ``J^-T M_x``.
+        d_wrench: ``d tau / d wrench`` (n_act, dim) (1, 1/m): ``-J^-T``.
+    """
+
+    actuator_forces: np.ndarray
+    d_pose: np.ndarray
+    d_world: np.ndarray
+    d_twist: np.ndarray
+    d_twist_dot: np.ndarray
+    d_wrench: np.ndarray

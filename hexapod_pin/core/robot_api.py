@@ -36,7 +36,8 @@ import numpy as np
 
 from .closed_loop import ClosedLoopModel
 from .results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
-                      Energies, ForwardDynamicsResult, InverseDynamicsResult,
+                      Energies, ForwardDynamicsResult, InverseDynamicsDerivatives,
+                      InverseDynamicsResult,
                       InverseKinematicsBatch, JacobianBatch, ReducedDynamics,
                       SingularityMeasures)
 
@@ -143,7 +144,8 @@ class ParallelRobot(Protocol):
     def energies(self, pose, twist, branch=None) -> Energies:
         """Kinetic, potential and total energy of every body."""
 
-    def inverse_dynamics_derivatives(self, pose, twist, twist_dot, wrench=None) -> Any:
+    def inverse_dynamics_derivatives(self, pose, twist, twist_dot,
+                                     wrench=None) -> InverseDynamicsDerivatives:
         """Derivatives of the actuator forces w.r.t. pose, twist, twist_dot and wrench."""
 
     # -- batches -------------------------------------------------------------------------

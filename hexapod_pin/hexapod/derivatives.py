@@ -49,7 +49,6 @@ is shared between calls: not thread-safe, like the rest of the dynamics.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -57,38 +56,11 @@ from scipy.linalg.lapack import dgesv
 
 from ..core.checks import as_array, vec6
 from ..core.pose import euler_rates_matrix
+from ..core.results import InverseDynamicsDerivatives
 from ..errors import HexapodPinError, SolverError
 from . import kernels
 
-__all__ = ["AnalyticDerivatives", "DerivativesWorkspace", "analytic_derivatives"]
-
-
-@dataclass(frozen=True)
-class AnalyticDerivatives:
-    """Analytic derivatives of the inverse-dynamics actuator forces (no bounds applied).
-
-    Rows: carriage ``i`` (force on carriage ``i`` along ``+u_k``, N). Every derivative
-    holds the other arguments fixed; twist, twist_dot and wrench are held in world axes.
-    The field names match :class:`~hexapod_pin.hexapod.dynamics.InverseDynamicsDerivatives`.
-
-    Attributes:
-        actuator_forces: ``tau`` (6,) at the point (N).
-        d_pose: ``d tau / d pose`` (6, 6), pose = (x, y, z, roll, pitch, yaw)
-            (N/m, N/rad).
-        d_world: ``d tau / d (dp, dtheta)`` (6, 6): ``dp`` (m) the displacement of the
-            platform origin and ``dtheta`` (rad) the rotation vector, both in world axes
-            (``R -> exp([dtheta]) R``); ``d_pose = d_world @ blockdiag(I, E(rpy))``.
-        d_twist: ``d tau / d twist`` (6, 6), twist = (v, w) world (N s/m, N s/rad).
-        d_twist_dot: ``d tau / d twist_dot`` (6, 6) (kg, kg m): ``J^-T M_x``.
-        d_wrench: ``d tau / d wrench`` (6, 6) (dimensionless, 1/m): ``-J^-T``.
-    """
-
-    actuator_forces: np.ndarray
-    d_pose: np.ndarray
-    d_world: np.ndarray
-    d_twist: np.ndarray
-    d_twist_dot: np.ndarray
-    d_wrench: np.ndarray
+__all__ = ["DerivativesWorkspace", "analytic_derivatives"]
 
 
 class DerivativesWorkspace:
@@ -161,7 +133,7 @@ class DerivativesWorkspace:
 
 
 def analytic_derivatives(ws: DerivativesWorkspace, pose, twist, twist_dot,
-                         wrench=None) -> AnalyticDerivatives:
+                         wrench=None) -> InverseDynamicsDerivatives:
     """Analytic derivatives of the hexapod's inverse-dynamics actuator forces.
 
     The forces are those of ``robot.inverse_dynamics(pose, twist, twist_dot, wrench,
@@ -179,7 +151,7 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose, twist, twist_dot,
             moment about the platform origin (N, N m), (6,); default zero.
 
     Returns:
-        :class:`AnalyticDerivatives` (``actuator_forces``, ``d_pose``, ``d_world``,
+        :class:`InverseDynamicsDerivatives` (``actuator_forces``, ``d_pose``, ``d_world``,
         ``d_twist``, ``d_twist_dot``, ``d_wrench``; each derivative (6, 6), row i =
         carriage i).
 
@@ -261,7 +233,7 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose, twist, twist_dot,
     neg = -sol
     d_pose = neg[:, 0:6].copy()
     d_pose[:, 3:] = neg[:, 3:6] @ euler_rates_matrix(np.array(pose[3:]))
-    return AnalyticDerivatives(tau, d_pose, neg[:, 0:6], neg[:, 6:12],
+    return InverseDynamicsDerivatives(tau, d_pose, neg[:, 0:6], neg[:, 6:12],
                                sol[:, 18:24], neg[:, 12:18])
 
 

@@ -24,11 +24,11 @@ from ..core.checks import as_array, max_abs, owned_copy
 from ..core.closed_loop import ClosedLoopModel
 from ..core.compiled import all_finite
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
-                            Energies, ForwardDynamicsResult, InverseDynamicsResult,
-                            ReducedDynamics)
+                            Energies, ForwardDynamicsResult, InverseDynamicsDerivatives,
+                            InverseDynamicsResult, ReducedDynamics)
 from ..core.dynamics import (INVERSE_METHODS, QP_SOLVED, QP_STATUS, RESIDUAL_RTOL,
                              ClosedLoopDynamics, dynamics_of)
-from .derivatives import AnalyticDerivatives, DerivativesWorkspace, analytic_derivatives
+from .derivatives import DerivativesWorkspace, analytic_derivatives
 from .kinematics import check_branch
 from ..errors import (
     ActuatorSaturationError,
@@ -142,9 +142,6 @@ class _LazyTreeMultipliers:
         return tips[ws.leg_of_closure].reshape(-1)
 
 
-#: result of :meth:`HexapodDynamics.inverse_dynamics_derivatives` (one class with
-#: :class:`hexapod_pin.hexapod.derivatives.AnalyticDerivatives`)
-InverseDynamicsDerivatives = AnalyticDerivatives
 
 
 @dataclass
@@ -702,7 +699,7 @@ class HexapodDynamics:
             pose, twist, twist_dot, wrench: as in :meth:`inverse_dynamics`.
 
         Returns:
-            :class:`~hexapod_pin.hexapod.derivatives.AnalyticDerivatives` (``actuator_forces``,
+            :class:`~hexapod_pin.core.results.InverseDynamicsDerivatives` (``actuator_forces``,
             ``d_pose``, ``d_world``, ``d_twist``, ``d_twist_dot``, ``d_wrench``).
 
         Raises:

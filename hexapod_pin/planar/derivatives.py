@@ -30,11 +30,11 @@ differences of the inverse dynamics.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
+from ..core.results import InverseDynamicsDerivatives
 from ..errors import SingularityError
 from .dynamics import PlanarDynamics
 from .geometry import N_ACTUATORS
@@ -42,28 +42,6 @@ from .geometry import N_ACTUATORS
 #: the square system ``[S^T A^T]`` is called singular (type II) below this reciprocal
 #: condition number
 _RCOND = 1e-12
-
-
-@dataclass(frozen=True)
-class InverseDynamicsDerivatives:
-    """Derivatives of the inverse-dynamics actuator forces (no bounds applied).
-
-    Rows: actuator k (force on slider k along ``+u_k``, N); every derivative holds the
-    other arguments fixed (twist, twist_dot and wrench in world axes).
-
-    Attributes:
-        actuator_forces: ``tau`` (3,) at the point (N).
-        d_pose: ``d tau / d (x, y, theta)`` (3, 3) (N/m, N/rad).
-        d_twist: ``d tau / d (vx, vy, omega)`` (3, 3) (N s/m, N s/rad).
-        d_twist_dot: ``d tau / d twist_dot`` (3, 3) (kg, kg m).
-        d_wrench: ``d tau / d (fx, fy, mz)`` (3, 3) (1, 1/m).
-    """
-
-    actuator_forces: np.ndarray
-    d_pose: np.ndarray
-    d_twist: np.ndarray
-    d_twist_dot: np.ndarray
-    d_wrench: np.ndarray
 
 
 def inverse_dynamics_derivatives(dynamics: PlanarDynamics, pose, twist, twist_dot,
@@ -140,5 +118,6 @@ def inverse_dynamics_derivatives(dynamics: PlanarDynamics, pose, twist, twist_do
     ext = np.zeros((ws.nv, 3))
     ext[idx.platform, np.arange(3)] = -1.0
     d_wrench = np.linalg.solve(square, ext)[:N_ACTUATORS]
-    return InverseDynamicsDerivatives(res.actuator_forces.copy(), d_pose, d_twist,
-                                      d_twist_dot, d_wrench)
+    # in the plane the world tangent (dx, dy, dtheta) is the pose's own coordinates
+    return InverseDynamicsDerivatives(res.actuator_forces.copy(), d_pose, d_pose.copy(),
+                                      d_twist, d_twist_dot, d_wrench)

@@ -24,11 +24,12 @@ from functools import cached_property
 import numpy as np
 
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
-                            Energies, ForwardDynamicsResult, InverseDynamicsResult,
+                            Energies, ForwardDynamicsResult, InverseDynamicsDerivatives,
+                            InverseDynamicsResult,
                             InverseKinematicsBatch, JacobianBatch, ReducedDynamics,
                             SingularityMeasures)
 from .assembly_modes import AssemblyPolynomial, PlanarAssembly
-from .derivatives import InverseDynamicsDerivatives, inverse_dynamics_derivatives
+from .derivatives import inverse_dynamics_derivatives
 from .dynamics import PlanarDynamics
 from .geometry import N_ACTUATORS, PlanarGeometry, planar_model
 from .kinematics import PlanarKinematics, PlanarWorkspace
