@@ -250,3 +250,22 @@ def test_input_errors():
         clm.frame_inverse_kinematics(["platform_center"], [target, target], q)
     with pytest.raises(InputError):
         clm.frame_inverse_kinematics("platform_center", target, q[:-1])
+
+
+# ------------------------------------------------------------------------- examples
+@pytest.mark.parametrize("script, expected", [
+    ("delta_end_effector.py", "reachable=True"),
+    ("cassie_foot_placement.py", "both feet placed: reachable=True"),
+    ("hexapod_platform_generic_ik.py", "generic route: reachable=True"),
+])
+def test_example_runs(script, expected, capsys):
+    import runpy
+    from pathlib import Path
+
+    runpy.run_path(str(Path(__file__).resolve().parent.parent / "examples" / script),
+                   run_name="__main__")
+    out = capsys.readouterr().out
+    assert expected in out
+    if script == "hexapod_platform_generic_ik.py":
+        line = next(l for l in out.splitlines() if l.startswith("largest difference"))
+        assert float(line.split()[2]) <= 1e-10

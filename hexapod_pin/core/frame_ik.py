@@ -11,10 +11,15 @@ a quadratic program per step, solved by ProxSuite, over the tangent step ``dv`` 
                dv[fixed] = 0                    (coordinates held)
 
 with ``e`` the stacked task errors, ``J_t`` their Jacobians, ``W`` the weights and the
-Levenberg-Marquardt damping ``lambda = damping |e|_W^2`` (vanishing at a solution, so the
+Levenberg-Marquardt damping ``lambda = mu |e|_W^2`` (vanishing at a solution, so the
 iteration converges quadratically there). The step is applied with ``pin.integrate`` and
 the loops closed again by :meth:`ClosedLoopModel.assemble` (each iterate keeps the
-closures to ``closure_tol``), halved while it does not decrease ``|e|_W``.
+closures to ``closure_tol``); it is kept when ``|e|_W^2`` falls by a fair part of what
+the linear model predicts, ``mu`` raised tenfold otherwise (and lowered, down to
+``damping``, after good steps): a trust region in the Levenberg-Marquardt manner. The
+iteration stops at a least-squares stationary point (flagged unreachable) when the step
+at the base damping vanishes (``STEP_TOL``) or no damping up to ``MU_MAX`` gives a
+decrease.
 
 Task errors (Pinocchio conventions, frames' placements ``oMf`` in world):
 
@@ -49,6 +54,12 @@ IK_METHODS = ("qp", "lstsq")
 DAMPING = 1e-3
 #: floor of lambda (keeps the step unique when the task leaves directions free)
 DAMPING_FLOOR = 1e-12
+#: a step is kept when it achieves this fraction of the decrease its linear model predicts
+ACCEPT_RATIO = 1e-4
+#: past this damping factor no step is tried any more (the start is stationary)
+MU_MAX = 1e12
+#: an undamped step below this (max-abs, m / rad) marks a stationary point
+STEP_TOL = 1e-12
 _QP_EPS = 1e-12
 
 
@@ -149,24 +160,40 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
     err, jac_t, jac_c, res_c = _linearise(clm, tasks, q)
     weight = np.concatenate([t.weight for t in tasks])
     cost = float(err @ (weight * err))
+    mu = damping
     for iteration in range(max_iter + 1):
         if float(np.max(np.abs(err))) <= tol:
             return _result(clm, tasks, q, True, iteration, closure_tol)
         if iteration == max_iter:
             break
-        lam = max(damping * cost, DAMPING_FLOOR)
-        step = np.zeros(clm.nv)
-        step[free] = _step(jac_t[:, free], err, weight, jac_c[:, free], res_c, lam, method,
-                           box, q)
-        accepted = _line_search(clm, tasks, q, step, fixed_v, closure_tol, weight, cost, box)
-        if accepted is None:      # no decrease along a descent step: stationary
-            return _result(clm, tasks, q, False, iteration, closure_tol)
-        q_new, cost_new = accepted
-        stalled = cost - cost_new <= 1e-14 * cost
-        q, cost = q_new, cost_new
+        accepted = None
+        while accepted is None:
+            lam = max(mu * cost, DAMPING_FLOOR)
+            step = np.zeros(clm.nv)
+            step[free] = _step(jac_t[:, free], err, weight, jac_c[:, free], res_c, lam, method,
+                               box, q)
+            if mu == damping and float(np.max(np.abs(step))) <= STEP_TOL:
+                # the least-squares step vanishes: a stationary point of |e|_W^2
+                return _result(clm, tasks, q, False, iteration, closure_tol)
+            model = err + jac_t @ step
+            predicted = cost - float(model @ (weight * model))
+            trial = _retract(clm, pin.integrate(clm.model, q, step), fixed_v, closure_tol, box)
+            if trial is not None:
+                trial_err = _errors(clm, tasks, trial)
+                trial_cost = float(trial_err @ (weight * trial_err))
+                ratio = (cost - trial_cost) / predicted if predicted > 0 else -1.0
+                if np.isfinite(trial_cost) and ratio > ACCEPT_RATIO:
+                    accepted = trial, trial_cost
+                    if ratio > 0.75:
+                        mu = max(mu / 10.0, damping)
+                    elif ratio < 0.25:
+                        mu *= 10.0
+                    break
+            if mu > MU_MAX:
+                return _result(clm, tasks, q, False, iteration, closure_tol)
+            mu = max(mu, 1e-12) * 10.0
+        q, cost = accepted
         err, jac_t, jac_c, res_c = _linearise(clm, tasks, q)
-        if stalled and float(np.max(np.abs(err))) > tol:
-            return _result(clm, tasks, q, False, iteration + 1, closure_tol)
     raise SolverError("frame_inverse_kinematics", "max_iter",
                       f"task error {float(np.max(np.abs(err))):.3e} after {max_iter} steps")
 
@@ -295,6 +322,10 @@ def _step(jac_t, err, weight, jac_c, res_c, lam, method, box, q) -> np.ndarray:
     qp = proxsuite.proxqp.dense.QP(n, rows.size, n_in)
     qp.settings.eps_abs = _QP_EPS
     qp.settings.eps_rel = 0.0
+    # the Hessian is only positive on the closures' null space: no infeasibility verdicts
+    # from the (loose by default) certificates; success is judged from the status
+    qp.settings.eps_dual_inf = 1e-30
+    qp.settings.eps_primal_inf = 1e-30
     qp.settings.verbose = False
     scale = max(1.0, float(np.max(np.abs(hess))))
     qp.init(hess / scale, grad / (scale * s), a_mat, b, c_mat, low, up)
@@ -306,21 +337,6 @@ def _step(jac_t, err, weight, jac_c, res_c, lam, method, box, q) -> np.ndarray:
     if not np.all(np.isfinite(step)):
         raise SolverError("proxsuite.proxqp.dense", "non-finite", "frame IK step")
     return step
-
-
-def _line_search(clm, tasks, q, step, fixed_v, closure_tol, weight, cost, box):
-    """First of ``q + 2^-k step`` (loops closed again) that lowers ``|e|_W^2``, or None."""
-    alpha = 1.0
-    for _ in range(30):
-        trial = _retract(clm, pin.integrate(clm.model, q, alpha * step), fixed_v, closure_tol,
-                         box)
-        if trial is not None:
-            err = _errors(clm, tasks, trial)
-            trial_cost = float(err @ (weight * err))
-            if np.isfinite(trial_cost) and trial_cost < cost:
-                return trial, trial_cost
-        alpha *= 0.5
-    return None
 
 
 def _retract(clm, q, fixed_v, closure_tol, box):
