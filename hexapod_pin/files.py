@@ -22,6 +22,7 @@ import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -66,7 +67,7 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
 
 def load_geometry(path: str | os.PathLike | None = None,
                   overrides: Sequence[str] | None = None,
-                  geometry_type: type = HexapodGeometry):
+                  geometry_type: type = HexapodGeometry) -> Any:
     """A geometry from its defaults, a geometry file and ``FIELD=VALUE`` overrides.
 
     Args:
@@ -143,7 +144,7 @@ def _tuple_fields(geometry_type: type) -> dict[str, int]:
             if isinstance(f.default, tuple)}
 
 
-def _override_value(key: str, text: str, length: int | None):
+def _override_value(key: str, text: str, length: int | None) -> float | tuple[float, ...]:
     parts = text.replace(",", " ").split()
     try:
         values = tuple(float(p) for p in parts)

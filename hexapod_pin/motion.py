@@ -41,11 +41,12 @@ from typing import NamedTuple
 import numpy as np
 
 from .core.pose import euler_rates_matrix
-from .core.robot_api import INVERSE_DYNAMICS_METHODS
+from .core.robot_api import INVERSE_DYNAMICS_METHODS, ParallelRobot
 from .errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
 from .files import write_text_atomic
 from .hexapod import simulation
 from .hexapod.fast import FastTrajectory, simulate_fast
+from .hexapod.robot import Hexapod
 
 #: column names of a motion CSV file
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -246,7 +247,8 @@ def _motion_from_json(path: Path) -> Motion:
     return _checked_motion(path, t, poses, residual=residual, **arrays)
 
 
-def _checked_motion(path, t, poses, residual=None, **arrays) -> Motion:
+def _checked_motion(path: Path, t: np.ndarray, poses: np.ndarray,
+                    residual: np.ndarray | None = None, **arrays: np.ndarray | None) -> Motion:
     n = len(t) if t.ndim == 1 else 0
     if n == 0:
         raise DescriptionError(str(path), "t must be a non-empty list of times", "t")
@@ -262,8 +264,9 @@ def _checked_motion(path, t, poses, residual=None, **arrays) -> Motion:
         if residual.shape != (n,):
             raise DescriptionError(str(path), f"closure_residual must have {n} values",
                                    "closure_residual")
-    for key, value in list(checks.items()) + [("t", t), ("closure_residual", residual)]:
-        if value is not None and not np.all(np.isfinite(value)):
+    finite: dict[str, np.ndarray | None] = {**checks, "t": t, "closure_residual": residual}
+    for key, item in finite.items():
+        if item is not None and not np.all(np.isfinite(item)):
             raise DescriptionError(str(path), "contains NaN or inf", key)
     return Motion(t, poses, closure_residual=residual, **arrays)
 
@@ -295,7 +298,8 @@ def motion_rates(motion: Motion) -> Rates:
     return Rates(twists, twist_dots)
 
 
-def circle_reference(robot, radius: float, period: float):
+def circle_reference(robot: Hexapod, radius: float,
+                     period: float) -> simulation.ReferenceTrajectory:
     """The reference of :func:`circle_motion` and :func:`simulate_circle`: a callable
     ``t -> PlatformReference``.
 
@@ -316,7 +320,7 @@ def circle_reference(robot, radius: float, period: float):
     return lambda t: rest
 
 
-def circle_motion(robot, radius: float, period: float, duration: float | None = None,
+def circle_motion(robot: Hexapod, radius: float, period: float, duration: float | None = None,
                   rate: float = 200.0) -> Motion:
     """A horizontal circle of the platform origin about home, sampled at ``rate`` (Hz).
 
@@ -339,7 +343,7 @@ def circle_motion(robot, radius: float, period: float, duration: float | None = 
 
 
 # -- kinematics and dynamics along a motion ----------------------------------------------
-def actuators_along(robot, motion: Motion, check_limits: bool = False) -> np.ndarray:
+def actuators_along(robot: ParallelRobot, motion: Motion, check_limits: bool = False) -> np.ndarray:
     """Actuator positions (N, n_act) of the motion's poses, by ``robot.inverse_kinematics``
     (home branch), or ``motion.q`` when the motion has them.
 
@@ -358,7 +362,7 @@ def actuators_along(robot, motion: Motion, check_limits: bool = False) -> np.nda
     return np.array(out)
 
 
-def inverse_dynamics_along(robot, motion: Motion, method: str = INVERSE_DYNAMICS_METHODS[0],
+def inverse_dynamics_along(robot: ParallelRobot, motion: Motion, method: str = INVERSE_DYNAMICS_METHODS[0],
                            progress: Callable[[int, int], None] | None = None
                            ) -> MotionForces:
     """Actuator and closure forces along a motion, by ``robot.inverse_dynamics`` per sample.
@@ -444,7 +448,7 @@ class CircleRun:
         return self.status == "completed"
 
 
-def simulate_circle(robot, duration: float, dt: float | None = None, controller: str = "pid",
+def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None, controller: str = "pid",
                     radius: float = 0.02, period: float = 2.0,
                     progress: Callable[[int, int], None] | None = None,
                     engine: str = "auto") -> CircleRun:
@@ -497,6 +501,7 @@ def simulate_circle(robot, duration: float, dt: float | None = None, controller:
     if not (np.isfinite(dt) and 0 < dt <= duration):
         raise InputError("dt", dt, f"need 0 < dt <= duration (duration {duration})")
     reference = circle_reference(robot, radius, period)
+    traj: simulation.Trajectory | FastTrajectory
     if engine == "fast":
         if controller == "none":
             traj = simulate_fast(robot, duration, dt, pose0=robot.home_pose, twist0=np.zeros(6))

@@ -215,7 +215,14 @@ def test_modes_side_by_side_offsets_and_mirror(robot):
     np.testing.assert_allclose(qs[:, robot.indices.carriage_q], [robot.home_q] * 2,
                                atol=1e-12)
     scene = viz.modes_scene(robot, qs, spacing=1.5, labels=["up", "down"])
-    assert scene.count("set_object") == 2 * (N_VISUALS + 6)
+    assert scene.count("set_object") == 2 * (N_VISUALS + 6) + 2     # and the 2 labels
+    texts = [c["object"]["textures"][0]["text"] for c in scene.commands
+             if c["type"] == "set_object" and c["path"].startswith("/meshcat/labels/")]
+    assert texts == ["0: up", "1: down"]
+    # each label floats above its copy: the second one is offset by the spacing in x
+    first, second = (matrix_of(scene.commands, f"/meshcat/labels/{i}")[:3, 3] for i in (0, 1))
+    np.testing.assert_allclose((second - first)[:2], [1.5, 0.0], atol=1e-9)
+    assert first[2] > robot.geometry.home_height and second[2] > 0.0
     offset = matrix_of(scene.commands, "/meshcat/hexapod_1")[:3, 3]
     np.testing.assert_allclose(offset, [1.5, 0.0, 0.0])
     platform = world_matrix(scene.commands, "/meshcat/hexapod_1/platform_0")[:3, 3]

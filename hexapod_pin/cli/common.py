@@ -17,12 +17,13 @@ import dataclasses
 import functools
 import json
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import numpy as np
 import typer
+from numpy.typing import ArrayLike
 from rich.console import Console
 from rich.markup import escape
 from rich.progress import (
@@ -52,7 +53,7 @@ class OutputConsole:
     """Rich output on stdout: the terminal's width in a terminal, :data:`PIPE_WIDTH`
     columns when piped (so piped lines are not wrapped at 80 columns)."""
 
-    def print(self, *objects, **kwargs) -> None:
+    def print(self, *objects: Any, **kwargs: Any) -> None:
         """``rich.console.Console.print`` on the current ``sys.stdout``."""
         out = Console()
         if not out.is_terminal:
@@ -109,7 +110,7 @@ def guard(func: Callable) -> Callable:
     ``as_json`` argument) and exit code 1."""
 
     @functools.wraps(func)
-    def wrapper(*args, **kwargs):
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
         as_json = bool(kwargs.get("as_json", False))
         try:
             return func(*args, **kwargs)
@@ -142,7 +143,7 @@ def is_usage_error(exc: BaseException) -> bool:
 class Command(TyperCommand):
     """A command whose ``--help`` shows no value type after its flags."""
 
-    def get_params(self, ctx: typer.Context) -> list:
+    def get_params(self, ctx: Any) -> list:
         return flags_without_type(super().get_params(ctx))
 
 
@@ -153,18 +154,21 @@ class Group(TyperGroup):
     input; other usage errors (unknown option, missing argument) exit with code 2.
     """
 
-    def get_params(self, ctx: typer.Context) -> list:
+    def get_params(self, ctx: Any) -> list:
         return flags_without_type(super().get_params(ctx))
 
-    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
-             **extra):
+    def main(self, args: Sequence[str] | None = None, prog_name: str | None = None,
+             complete_var: str | None = None, standalone_mode: bool = True,
+             windows_expand_args: bool = True, **extra: Any) -> Any:
         argv = list(sys.argv[1:] if args is None else args)
         if not standalone_mode:
             return super().main(args=argv, prog_name=prog_name, complete_var=complete_var,
+                                windows_expand_args=windows_expand_args,
                                 standalone_mode=False, **extra)
         as_json = "--json" in argv
         try:
             code = super().main(args=argv, prog_name=prog_name, complete_var=complete_var,
+                                windows_expand_args=windows_expand_args,
                                 standalone_mode=False, **extra)
         except typer.Abort:
             report_error("aborted", "Abort", as_json)
@@ -173,10 +177,10 @@ class Group(TyperGroup):
             if not is_usage_error(exc):
                 raise
             ctx = getattr(exc, "ctx", None)
+            message = str(getattr(exc, "format_message")())
             if type(exc).__name__ == "NoArgsIsHelpError":     # bare command: its help
-                typer.echo(ctx.get_help() if ctx is not None else exc.format_message())
+                typer.echo(ctx.get_help() if ctx is not None else message)
                 sys.exit(0)
-            message = exc.format_message()
             if ctx is not None:
                 message += f" (see '{ctx.command_path} --help')"
             report_error(message, type(exc).__name__, as_json)
@@ -185,7 +189,7 @@ class Group(TyperGroup):
 
 
 # -- parsing --------------------------------------------------------------------------------
-def parse_numbers(tokens, count: int | None, name: str, meaning: str = "") -> np.ndarray:
+def parse_numbers(tokens: Sequence[str] | None, count: int | None, name: str, meaning: str = "") -> np.ndarray:
     """Floats from tokens like ``["0", "-0.1"]`` or ``["0,-0.1"]``; exactly ``count``.
 
     Raises:
@@ -201,13 +205,13 @@ def parse_numbers(tokens, count: int | None, name: str, meaning: str = "") -> np
     if count is not None and len(values) != count:
         what = f" ({meaning})" if meaning else ""
         raise InputError(name, parts, f"expected {count} values{what}, got {len(values)}")
-    values = np.array(values, dtype=float)
-    if not np.all(np.isfinite(values)):
+    array = np.array(values, dtype=float)
+    if not np.all(np.isfinite(array)):
         raise InputError(name, parts, "contains NaN or inf")
-    return values
+    return array
 
 
-def pose_in(tokens, degrees: bool, name: str = "pose") -> np.ndarray:
+def pose_in(tokens: Sequence[str] | None, degrees: bool, name: str = "pose") -> np.ndarray:
     """A pose (6,) from the command line (angles in degrees with ``degrees``) in m, rad."""
     pose = parse_numbers(tokens, 6, name, "x y z roll pitch yaw")
     if degrees:
@@ -215,7 +219,7 @@ def pose_in(tokens, degrees: bool, name: str = "pose") -> np.ndarray:
     return pose
 
 
-def pose_out(pose, degrees: bool) -> list[float]:
+def pose_out(pose: ArrayLike, degrees: bool) -> list[float]:
     """A pose as plain floats for output (angles in degrees with ``degrees``)."""
     pose = np.array(pose, dtype=float)
     if degrees:
@@ -230,13 +234,13 @@ def check_suffix(name: str, path: Path | None, suffixes: tuple[str, ...]) -> Non
 
 
 # -- output ---------------------------------------------------------------------------------
-def emit_json(payload) -> None:
+def emit_json(payload: Any) -> None:
     """Write ``payload`` as one line of JSON on stdout (arrays, numpy scalars, paths and
     dataclasses converted)."""
     typer.echo(json.dumps(plain(payload)))
 
 
-def plain(obj):
+def plain(obj: Any) -> Any:
     """A dataclass / array / scalar / path as JSON-friendly values (floats and lists)."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         return {f.name: plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)
@@ -254,7 +258,7 @@ def plain(obj):
     return obj
 
 
-def fmt(values, spec: str = "+.6f") -> str:
+def fmt(values: ArrayLike, spec: str = "+.6f") -> str:
     """Numbers formatted with ``spec``, separated by spaces."""
     return " ".join(format(float(v), spec) for v in np.ravel(values))
 
@@ -285,7 +289,7 @@ def progress_bar(quiet: bool, label: str, total: int | None = None) -> Iterator[
         yield lambda done=0, total=None: bar.update(task, completed=done)
 
 
-def pose_table(title: str, poses, degrees: bool) -> Table:
+def pose_table(title: str, poses: Sequence[np.ndarray] | np.ndarray, degrees: bool) -> Table:
     """A table of poses, one row each, with units in the column names."""
     unit = "deg" if degrees else "rad"
     table = Table(title=title)

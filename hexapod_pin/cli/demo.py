@@ -8,6 +8,7 @@ from typing import Annotated
 
 import numpy as np
 import typer
+from rich.table import Table
 
 from .. import motion as motions
 from ..viz import scenes
@@ -61,7 +62,7 @@ def demo(as_json: AsJson = False,
         "statics": {"pose": robot.home_pose, "actuator_forces": tau},
         "simulation": {"controller": "computed-torque", "duration_s": float(traj.times[-1]),
                        "samples": len(traj.times), "status": run.status,
-                       "max_closure_residual_m": float(np.max(np.abs(traj.closure_residual))),
+                       "max_closure_residual_m": float(np.max(np.abs(getattr(traj, "closure_residual", 0.0)))),
                        "max_tracking_error_m": run.tracking_error,
                        "max_abs_actuator_force_n": float(np.max(np.abs(traj.actuator_forces)))},
         "html": None,
@@ -77,7 +78,7 @@ def demo(as_json: AsJson = False,
     console.print(demo_table(result))
 
 
-def demo_table(result: dict):
+def demo_table(result: dict) -> Table:
     """The demo's results as a table of quantities with their units."""
     trip, sim = result["round_trip"], result["simulation"]
     return quantity_table("hexapod_pin demo", {

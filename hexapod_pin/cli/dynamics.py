@@ -154,7 +154,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
                "wall_time_s": float(traj.wall_time),
                "max_tracking_error_m": run.tracking_error,
                "tracking_tolerance_m": run.tolerance,
-               "max_abs_actuator_force_n": float(np.max(np.abs(motion.actuator_forces))),
+               "max_abs_actuator_force_n": float(np.max(np.abs(traj.actuator_forces))),
                "saturated_fraction": float(np.mean(traj.saturated)),
                "max_closure_residual_m": None if residual is None else float(np.max(residual)),
                "out": out, "html": html, "plot": plot}

@@ -11,6 +11,7 @@ from rich.table import Table
 from rich.text import Text
 
 from ..errors import InputError
+from ..hexapod.robot import Hexapod
 from ..viz import hexapod_scenes, scenes
 from ..viz.workspace_plots import CONDITION_LABEL
 from .common import (
@@ -54,7 +55,7 @@ SINGULARITY_LABELS = {
 NoLimits = Annotated[bool, typer.Option("--no-limits", help="do not check strokes / gaps")]
 
 
-def assembly_modes_of(robot, carriages: np.ndarray, check_limits: bool = True) -> list:
+def assembly_modes_of(robot: Hexapod, carriages: np.ndarray, check_limits: bool = True) -> list:
     """Every assembly mode (poses) of carriage positions; what ``fk``, ``modes`` and
     ``view --modes`` agree on.
 
@@ -155,7 +156,7 @@ def modes(q: Values = None,
     console.print(pose_table(f"{len(poses)} assembly modes", poses, degrees))
 
 
-def write_modes(path: Path, robot, carriages: np.ndarray, poses: list, layout: str) -> Path:
+def write_modes(path: Path, robot: Hexapod, carriages: np.ndarray, poses: list, layout: str) -> Path:
     """The HTML page of the assembly modes ``poses`` of carriage positions ``carriages``."""
     qs = hexapod_scenes.hexapod_configurations(robot, poses, [carriages] * len(poses))
     return scenes.write_modes_html(path, robot, qs, layout=layout,

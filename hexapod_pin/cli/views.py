@@ -11,6 +11,7 @@ import typer
 
 from .. import motion as motions
 from ..errors import InputError
+from ..hexapod.robot import Hexapod
 from ..viz import hexapod_scenes, plotting, scenes, workspace_plots
 from .common import (
     AsJson,
@@ -67,7 +68,7 @@ def view(values: Values = None,
         raise InputError("view", values, "give one of: values, --trajectory, --circle")
     if trajectory is not None or circle is not None:
         motion = (motions.read_motion(trajectory) if trajectory is not None
-                  else motions.circle_motion(robot, circle, period))
+                  else motions.circle_motion(robot, float(circle or 0.0), period))
         label = trajectory or f"circle r = {circle:g} m"
         detail = _view_motion(out, robot, motion, forces, fps, quiet, label)
         kind = "trajectory"
@@ -93,8 +94,8 @@ def view(values: Values = None,
         emit_json({"html": out, "kind": kind, **detail})
 
 
-def _view_motion(out: Path, robot, motion: motions.Motion, forces: bool, fps: float,
-                 quiet: bool, label) -> dict:
+def _view_motion(out: Path, robot: Hexapod, motion: motions.Motion, forces: bool, fps: float,
+                 quiet: bool, label: object) -> dict:
     """The animation of a motion; with ``forces``, the actuator forces of the motion
     file, or those of inverse dynamics (with the closure forces) when it has none."""
     tau = closures = None
@@ -112,7 +113,7 @@ def _view_motion(out: Path, robot, motion: motions.Motion, forces: bool, fps: fl
     return {"samples": len(motion.t), "duration_s": span}
 
 
-def _view_pose(out: Path, robot, pose: np.ndarray, q: np.ndarray, forces: bool) -> None:
+def _view_pose(out: Path, robot: Hexapod, pose: np.ndarray, q: np.ndarray, forces: bool) -> None:
     """One pose on the branch of carriage positions ``q``; with ``forces``, the actuator
     and closure forces holding it at rest (inverse dynamics at zero twist)."""
     tau = closures = None
@@ -154,10 +155,10 @@ def plot(kind: Annotated[str, typer.Argument(
     check_suffix("out", out, plotting.IMAGE_SUFFIXES)
     if kind in ("trajectory", "residual") and motion_file is None:
         raise InputError("motion_file", None, f"plot {kind} needs a motion file")
-    if kind == "trajectory":
+    if kind == "trajectory" and motion_file is not None:
         _plot_trajectory(out, robot, motions.read_motion(motion_file), forces, quiet,
                          str(motion_file))
-    elif kind == "residual":
+    elif kind == "residual" and motion_file is not None:
         motion = motions.read_motion(motion_file)
         if motion.closure_residual is None:
             raise InputError("motion_file", str(motion_file),
@@ -175,7 +176,7 @@ def plot(kind: Annotated[str, typer.Argument(
             workspace_plots.plot_conditioning(robot, poses, zs, path=out,
                                               s_label="height z (m)")
     else:
-        orientation = (0.0, 0.0, 0.0) if rpy is None else parse_numbers(
+        orientation = np.zeros(3) if rpy is None else parse_numbers(
             [rpy], 3, "rpy", "roll pitch yaw")
         if degrees:
             orientation = np.radians(orientation)
@@ -188,7 +189,7 @@ def plot(kind: Annotated[str, typer.Argument(
         emit_json({"figure": out, "kind": kind})
 
 
-def _plot_trajectory(out: Path, robot, motion: motions.Motion, forces: bool, quiet: bool,
+def _plot_trajectory(out: Path, robot: Hexapod, motion: motions.Motion, forces: bool, quiet: bool,
                      title: str) -> None:
     """Carriage positions (from the file, else inverse kinematics of the poses) and
     actuator forces (from the file, else inverse dynamics with ``forces``)."""

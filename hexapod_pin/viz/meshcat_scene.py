@@ -28,6 +28,7 @@ import os
 import uuid
 import warnings
 from pathlib import Path
+from typing import Any
 
 import coal
 import numpy as np
@@ -419,7 +420,7 @@ def animation_clip(path: str, times: np.ndarray, props: dict[str, list],
     ``discrete`` holds each key until the next (no interpolation)."""
     tracks = []
     for prop, values in props.items():
-        track = {"name": "." + prop, "type": _JSTYPE[prop],
+        track: dict[str, Any] = {"name": "." + prop, "type": _JSTYPE[prop],
                  "keys": [{"time": float(t), "value": v} for t, v in zip(times, values)]}
         if discrete:
             track["interpolation"] = DISCRETE_INTERPOLATION

@@ -322,17 +322,19 @@ def keyframes(t: np.ndarray, fps: float | None) -> np.ndarray:
 def _animate_overlays(tracks, visual, qs, act, clo, frames, root, force_scale) -> float:
     """Fill ``tracks`` with the arrows and triads along the motion; returns the arrow
     length per unit effort (m/N) shared by every frame."""
-    efforts = []
-    act_series = None if act is None else [actuator_arrows(visual, q, a)
-                                           for q, a in zip(qs, act)]
-    clo_series = None if clo is None else [closure_arrows(visual, q, c)
-                                           for q, c in zip(qs, clo)]
-    for series in (act_series or []):
-        efforts.extend(v for _, v, _ in series)
-    for series in (clo_series or []):
-        efforts.extend(v for _, v in series)
+    efforts: list[np.ndarray] = []
+    act_series: list[list] | None = None if act is None else [
+        actuator_arrows(visual, q, a) for q, a in zip(qs, act)]
+    clo_series: list[list] | None = None if clo is None else [
+        closure_arrows(visual, q, c) for q, c in zip(qs, clo)]
+    for act_frame in (act_series or []):
+        efforts.extend(arrow[1] for arrow in act_frame)
+    for clo_frame in (clo_series or []):
+        efforts.extend(arrow[1] for arrow in clo_frame)
     scale = arrow_scale(efforts, force_scale)
-    for label, series in (("actuator", act_series), ("closure", clo_series)):
+    named: tuple[tuple[str, list[list] | None], ...] = (("actuator", act_series),
+                                                        ("closure", clo_series))
+    for label, series in named:
         if series is None:
             continue
         for frame in series:

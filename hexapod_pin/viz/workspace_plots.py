@@ -154,7 +154,8 @@ class WorkspaceSlice:
         return float(np.mean(self.status == REACHABLE))
 
 
-def workspace_slice(robot, z: float | None = None, orientation: Sequence[float] = (0, 0, 0),
+def workspace_slice(robot, z: float | None = None,
+                    orientation: Sequence[float] | np.ndarray = (0, 0, 0),
                     half_width: float | None = None, resolution: int = 61) -> WorkspaceSlice:
     """Sample the reachable platform positions on a horizontal plane (home branch).
 
