@@ -41,7 +41,6 @@ from __future__ import annotations
 import math
 import weakref
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -137,10 +136,14 @@ class TreeForwardDynamics:
     )
 
     def __init__(self, a, multipliers, method, status, iterations, rank, constraint_residual):
-        for name, value in (("a", a), ("_multipliers", multipliers), ("method", method),
-                            ("status", status), ("iterations", iterations), ("rank", rank),
-                            ("constraint_residual", constraint_residual)):
-            object.__setattr__(self, name, value)
+        put = object.__setattr__
+        put(self, "a", a)
+        put(self, "_multipliers", multipliers)
+        put(self, "method", method)
+        put(self, "status", status)
+        put(self, "iterations", iterations)
+        put(self, "rank", rank)
+        put(self, "constraint_residual", constraint_residual)
 
     @property
     def multipliers(self) -> np.ndarray:
@@ -160,15 +163,15 @@ class TreeForwardDynamics:
                 f"constraint_residual={self.constraint_residual!r})")
 
 
-@dataclass(frozen=True)
 class TreeInverseDynamics:
-    """Result of :func:`inverse_dynamics_tree`.
+    """Result of :func:`inverse_dynamics_tree` (immutable).
 
     Attributes:
         actuator_forces: ``u`` (n_act,), generalised forces of the actuated joints
             (N for prismatic, N m for revolute), in ``clm.actuated_joints`` order.
         multipliers: closure multipliers (n_rows,), same convention as
-            :class:`TreeForwardDynamics` (minimum-norm when redundant).
+            :class:`TreeForwardDynamics` (minimum-norm when redundant); converted from
+            Pinocchio's LOCAL rows on first access.
         residual: max-abs of ``M a + h - tau_ext - S^T u - J_c^T multipliers`` (N, N m),
             verified below :data:`RESIDUAL_RTOL` relative to the data.
         method: "qp" or "kkt".
@@ -176,12 +179,34 @@ class TreeInverseDynamics:
         iterations: solver iterations (0 for a direct solve).
     """
 
-    actuator_forces: np.ndarray
-    multipliers: np.ndarray
-    residual: float
-    method: str
-    status: str
-    iterations: int
+    __slots__ = ("actuator_forces", "_multipliers", "residual", "method", "status",
+                 "iterations")
+
+    def __init__(self, actuator_forces, multipliers, residual, method, status, iterations):
+        put = object.__setattr__
+        put(self, "actuator_forces", actuator_forces)
+        put(self, "_multipliers", multipliers)
+        put(self, "residual", residual)
+        put(self, "method", method)
+        put(self, "status", status)
+        put(self, "iterations", iterations)
+
+    @property
+    def multipliers(self) -> np.ndarray:
+        value = self._multipliers
+        if callable(value):
+            value = value()
+            object.__setattr__(self, "_multipliers", value)
+        return value
+
+    def __setattr__(self, name, value):
+        raise AttributeError(f"TreeInverseDynamics is immutable (cannot set {name!r})")
+
+    def __repr__(self) -> str:
+        return (f"TreeInverseDynamics(actuator_forces={self.actuator_forces!r}, "
+                f"multipliers={self.multipliers!r}, residual={self.residual!r}, "
+                f"method={self.method!r}, status={self.status!r}, "
+                f"iterations={self.iterations})")
 
 
 # --------------------------------------------------------------------------------------
@@ -381,6 +406,8 @@ class ClosedLoopDynamics:
         self._prox_exact = pin.ProximalSettings(1e-13, 0.0, 1)
         self._prox_redundant = pin.ProximalSettings(1e-13, _PIN_PROX_MU, _PIN_PROX_ITERS)
         self._prox_deep = pin.ProximalSettings(1e-14, _PIN_PROX_MU, _PIN_PROX_DEEP_ITERS)
+        #: one cheap proximal pass: only the constraint terms of the call are used
+        self._prox_probe = pin.ProximalSettings(1e-13, _PIN_PROX_MU, 1)
         self._cd_list = list(self.pin_datas)
         self._all_points = all(c[0] for c in self.closure_frames)
         self._pin_ready = True
@@ -638,16 +665,46 @@ class ClosedLoopDynamics:
 
     def inverse_unchecked(self, q, v, a, tau_ext, bounds, method) -> TreeInverseDynamics:
         """:meth:`inverse` without the input checks (``bounds`` None or (n_act,) array)."""
-        rhs = pin.rnea(self.model, self.data, q, v, a) - tau_ext
-        return self.inverse_from_force(q, v, a, rhs, bounds, method)
+        force = pin.rnea(self.model, self.data, q, v, a)
+        return self.inverse_from_force(q, v, a, force, tau_ext, bounds, method)
 
-    def inverse_from_force(self, q, v, a, rhs, bounds, method) -> TreeInverseDynamics:
-        """Inverse dynamics given ``rhs = M a + h - tau_ext`` (nv,) (e.g. from a pooled
-        ``rneaInParallel``); no input checks."""
+    def inverse_from_force(self, q, v, a, force, tau_ext, bounds, method
+                           ) -> TreeInverseDynamics:
+        """Inverse dynamics given ``force = M a + h`` (nv,) (e.g. from a pooled
+        ``rneaInParallel``); no input checks.
+
+        Works in Pinocchio's LOCAL constraint rows: one ``pin.constraintDynamics`` call
+        with ``tau = force`` evaluates ``J_pin`` and the drift (its acceleration is not
+        used), ``a`` is checked against ``J_pin a = -drift`` (raises SolverError when it
+        breaks the closures), ``[S J_pin^T] (u, lambda_pin) = force - tau_ext`` is solved
+        and verified, and ``lambda_pin`` is converted to our rows on access (``u`` and
+        the minimum norm do not depend on the row convention: the rows differ by
+        rotations, and by ``Jlog6 = I`` for a weld at an assembled configuration).
+        """
         rank = self.closure_rank(q)
-        jac = self.constraint_jacobian(q)
-        self._check_motion(q, v, a, jac)
-        return self._inverse_solve(jac, rhs, bounds, method, rank)
+        rhs = force - tau_ext
+        if self.n_rows:
+            if not self._pin_ready:
+                self._init_pinocchio()
+            pin.constraintDynamics(self.model, self.data, q, v, force, self.pin_models,
+                                   self.pin_datas, self._prox_probe)
+            jac = pin.getConstraintsJacobian(self.model, self.data, self.pin_models,
+                                             self.pin_datas)
+            drift = self.data.primal_rhs_contact[:self.n_rows]
+            drift *= -1.0
+            miss = closure_residual(jac, a, drift)
+            if not miss <= _MOTION_RTOL:
+                raise SolverError("closed-loop inverse dynamics", "inconsistent motion",
+                                  f"closure equation J_c a = -gamma missed by {miss:.3e} "
+                                  "(relative): the acceleration does not keep the closures")
+        else:
+            jac = self._no_rows[0]
+        res = self._inverse_solve(jac, rhs, bounds, method, rank)
+        if self.n_rows:
+            res = TreeInverseDynamics(res.actuator_forces,
+                                      self._lazy_rows(q, res.multipliers), res.residual,
+                                      res.method, res.status, res.iterations)
+        return res
 
     def model_pool(self, threads: int) -> pin.ModelPool:
         """A ``pin.ModelPool`` of this model with ``threads`` datas (cached)."""
@@ -655,19 +712,6 @@ class ClosedLoopDynamics:
         if pool is None:
             pool = self._pools[threads] = pin.ModelPool(self.model, threads)
         return pool
-
-    def _check_motion(self, q, v, a, jac) -> None:
-        """Raise SolverError when ``a`` does not keep the closures (``J_c a != -gamma``):
-        no actuator force can produce it."""
-        if not self.n_rows:
-            return
-        gamma = self.constraint_drift(q, v)
-        miss = max_abs(jac @ a + gamma)
-        scale = max(max_abs(jac) * max_abs(a), max_abs(gamma), _TINY)
-        if not miss <= _MOTION_RTOL * scale:
-            raise SolverError("closed-loop inverse dynamics", "inconsistent motion",
-                              f"closure equation J_c a = -gamma missed by {miss / scale:.3e} "
-                              "(relative): the acceleration does not keep the closures")
 
     def check_bounds(self, bounds) -> np.ndarray | None:
         """Actuator bounds as an (n_act,) array (None: unbounded); raises InputError."""
@@ -977,7 +1021,20 @@ def forward_residuals(mass, bias, tau, jac, drift, acc, lam, out):
         elif r > eom_num:
             eom_num = r
         eom_den = max(eom_den, abs(m_a), abs(rest), abs(force))
-    con_num = 0.0
+    out[0] = eom_num / eom_den
+    out[1] = closure_residual(jac, acc, drift)
+    return out[0], out[1]
+
+
+@jit
+def closure_residual(jac, acc, drift) -> float:
+    """Relative residual of ``J a + drift = 0``: ``max|J a + drift|`` over the larger of
+    ``max|J| max|a|`` and ``max|drift|`` (0 without rows, inf when not finite)."""
+    nv = acc.shape[0]
+    nr = jac.shape[0]
+    if nr == 0:
+        return 0.0
+    num = 0.0
     jmax = 0.0
     dmax = 0.0
     amax = 0.0
@@ -990,13 +1047,11 @@ def forward_residuals(mass, bias, tau, jac, drift, acc, lam, out):
             jmax = max(jmax, abs(jac[k, j]))
         r = abs(j_a + drift[k])
         if not math.isfinite(r):
-            con_num = math.inf
-        elif r > con_num:
-            con_num = r
+            num = math.inf
+        elif r > num:
+            num = r
         dmax = max(dmax, abs(drift[k]))
-    out[0] = eom_num / eom_den
-    out[1] = con_num / max(jmax * amax, dmax, 1e-300) if nr else 0.0
-    return out[0], out[1]
+    return num / max(jmax * amax, dmax, 1e-300)
 
 
 class _LazyMinNorm:

@@ -68,6 +68,10 @@ class TreeInverseDynamicsBatch:
     statuses: tuple[str, ...]
 
 
+#: batches with fewer states evaluate ``rneaInParallel`` on one thread
+PARALLEL_MIN = 4096
+
+
 def _states(clm: ClosedLoopModel, q, v, third, third_size: int, name: str):
     q = as_array(q, (clm.nq,), "q", batch=True)
     v = as_array(v, (clm.nv,), "v", batch=True)
@@ -140,7 +144,9 @@ def inverse_dynamics_tree_batch(clm: ClosedLoopModel, q, v, a, tau_ext=None, bou
         tau_ext: generalised external forces (N, nv) or (nv,); default zero.
         bounds: ``abs(u) <= bounds`` for every state (scalar or (n_act,)); None: none.
         method: "qp" or "kkt".
-        threads: OpenMP threads of ``pin.rneaInParallel``; default ``os.cpu_count()``.
+        threads: OpenMP threads of ``pin.rneaInParallel``; default one below
+            :data:`PARALLEL_MIN` states (waking OpenMP threads costs more than it saves
+            there), else ``os.cpu_count()``.
 
     Returns:
         :class:`TreeInverseDynamicsBatch`.
@@ -158,18 +164,20 @@ def inverse_dynamics_tree_batch(clm: ClosedLoopModel, q, v, a, tau_ext=None, bou
     n = q.shape[0]
     ext = _tau_ext(clm, tau_ext, n)
     limits = dyn.check_bounds(bounds)
-    threads = max(1, int(threads or os.cpu_count() or 1))
+    if threads is None:
+        threads = 1 if n < PARALLEL_MIN else (os.cpu_count() or 1)
+    threads = max(1, int(threads))
     pool = dyn.model_pool(threads)
     force = pin.rneaInParallel(threads, pool, np.asfortranarray(q.T), np.asfortranarray(v.T),
                                np.asfortranarray(a.T))
-    rhs = np.asarray(force).T - ext
+    force = np.asarray(force).T
     u = np.empty((n, clm.n_actuated))
     lam = np.empty((n, clm.n_rows))
     residual = np.empty(n)
     statuses = []
     for i in range(n):
         try:
-            res = dyn.inverse_from_force(q[i], v[i], a[i], rhs[i], limits, method)
+            res = dyn.inverse_from_force(q[i], v[i], a[i], force[i], ext[i], limits, method)
         except ActuatorSaturationError as exc:
             raise BatchActuatorSaturationError(i, exc.needed, exc.limit) from None
         except SolverError as exc:

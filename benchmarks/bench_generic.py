@@ -1,0 +1,356 @@
+"""Generic closed-loop core: every route on every robot class, against raw Pinocchio,
+MuJoCo (the exported model) and an independent null-space reference.
+
+For each robot (upstream-style parallel robots of tests/data, the hard classes of
+tests/stress_robots.py, Cassie, Solo-12, the ladder with 1 / 16 / 64 loops) and a few
+closure-consistent states:
+
+* forward dynamics, routes "pinocchio", "kkt", "qp": us per call; the raw
+  ``pin.constraintDynamics`` with the same constraint models (mu = 0, one iteration; for
+  redundant rows mu = 1e-6, 5 iterations, i.e. what a user would call); MuJoCo's
+  ``mj_forward`` on :func:`hexapod_pin.core.mujoco_export.to_mujoco`'s model;
+* inverse dynamics, routes "kkt", "qp" (bounded at 10x the needed forces): us per call;
+  raw ``pin.rnea`` + ``computeJointJacobians`` + ``getConstraintsJacobian`` + a least-squares
+  solve of ``[S J^T] x = rhs``;
+* agreement: max relative error of ``a`` (forward) and ``u`` (inverse) against a null-space
+  reference computed here with numpy's SVD; failures: states where a route raised.
+
+Batches (N = 64): per-state cost of ``forward_dynamics_tree_batch`` /
+``inverse_dynamics_tree_batch`` against a loop of single calls. Simulation: one step of
+the tree integrator (semi-implicit Euler and RK4) against ``mj_step`` on Cassie.
+
+Run ``python benchmarks/bench_generic.py`` (``--smoke``: two robots, short samples; a
+test runs it). Prints a Markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))
+
+import ladder  # noqa: E402
+import stress_robots  # noqa: E402
+
+from hexapod_pin.core.dynamics import (  # noqa: E402
+    dynamics_of, forward_dynamics_tree, inverse_dynamics_tree)
+from hexapod_pin.core.simulation import ClosedLoopIntegrator  # noqa: E402
+from hexapod_pin.core.tree_batch import (  # noqa: E402
+    forward_dynamics_tree_batch, inverse_dynamics_tree_batch)
+from hexapod_pin.errors import HexapodPinError, InputError  # noqa: E402
+from hexapod_pin.loaders import robots  # noqa: E402
+from hexapod_pin.loaders.parallel_robots import load_parallel_robot  # noqa: E402
+
+try:
+    import mujoco
+
+    from hexapod_pin.core.mujoco_export import to_mujoco
+except ImportError:  # pragma: no cover - the bench extra installs it
+    mujoco = None
+
+SAMPLE = {"seconds": 0.05}
+
+
+def timing(fn) -> float:
+    """Seconds per call: the minimum over 5 samples of at least SAMPLE seconds each."""
+    fn()
+    t0 = time.perf_counter()
+    fn()
+    k = max(1, int(SAMPLE["seconds"] / max(time.perf_counter() - t0, 1e-9)))
+    best = np.inf
+    for _ in range(5):
+        t0 = time.perf_counter()
+        for _ in range(k):
+            fn()
+        best = min(best, (time.perf_counter() - t0) / k)
+    return best
+
+
+# ----------------------------------------------------------------------------- robots
+def _cassie():
+    clm = robots.cassie()
+    rng = np.random.default_rng(7)
+
+    def sample(rng):
+        dq = np.zeros(clm.nv)
+        dq[clm.actuated_v] = 0.1 * rng.normal(size=clm.n_actuated)
+        q = clm.assemble(pin.integrate(clm.model, pin.neutral(clm.model), dq)).q
+        return q, _null_velocity(clm, q, rng)
+    del rng
+    return "cassie", clm, sample
+
+
+def _solo():
+    clm = robots.solo12()
+
+    def sample(rng):
+        q = robots.solo12_stand(clm, [0.01, -0.005, 0.20] + 0.01 * rng.normal(size=3),
+                                0.05 * rng.normal(size=3)).q
+        return q, _null_velocity(clm, q, rng)
+    return "solo12", clm, sample
+
+
+def _ladder(loops):
+    lad = ladder.Ladder(loops)
+    clm = ladder.ladder_model(lad)
+
+    def sample(rng):
+        q = ladder.configuration(clm, lad, rng.uniform(-0.8, 0.8))
+        return q, _null_velocity(clm, q, rng)
+    return f"ladder_{loops}", clm, sample
+
+
+def _parallel(folder):
+    clm = load_parallel_robot(HERE.parent / "tests" / "data" / "parallel" / folder)
+    robot = stress_robots.build({"five_bar_6d": "five_bar_stiff", "delta": "delta_weld"}[folder])
+    home = robot.clm  # same tree, other masses: reuse its sampler's assembly from home
+
+    def sample(rng):
+        q, _ = robot.sample(rng)
+        return q, _null_velocity(clm, q, rng)
+    del home
+    return folder, clm, sample
+
+
+def _stress(name):
+    robot = stress_robots.build(name)
+    return name, robot.clm, robot.sample
+
+
+def _null_velocity(clm, q, rng):
+    _, sv, vt = np.linalg.svd(clm.constraint_jacobian(q))
+    basis = vt[int(np.sum(sv > 1e-10 * sv[0])):].T
+    return 0.5 * basis @ rng.normal(size=basis.shape[1])
+
+
+def robot_list(smoke: bool):
+    if smoke:
+        return [_parallel("five_bar_6d"), _ladder(1)]
+    return [_parallel("five_bar_6d"), _parallel("delta"), _stress("five_bar_stiff"),
+            _stress("delta_massless"), _stress("planar_ladder_weld"), _stress("ladder_mixed"),
+            _cassie(), _solo(), _ladder(1), _ladder(16), _ladder(64)]
+
+
+# -------------------------------------------------------------------------- reference
+def reference(clm, q, v, tau):
+    """(a, J_c, M, h) of the null-space method, numpy SVD."""
+    data = clm.model.createData()
+    mass = pin.crba(clm.model, data, q)
+    mass = np.triu(mass) + np.triu(mass, 1).T
+    bias = pin.nonLinearEffects(clm.model, data, q, v)
+    jac, gamma = clm.constraint_jacobian(q), clm.constraint_drift(q, v)
+    _, sv, vt = np.linalg.svd(jac)
+    r = int(np.sum(sv > 1e-10 * sv[0]))
+    a_p = np.linalg.pinv(jac, rcond=1e-10) @ -gamma
+    basis = vt[r:].T
+    z = np.linalg.solve(basis.T @ mass @ basis, basis.T @ (tau - bias - mass @ a_p))
+    return a_p + basis @ z
+
+
+def rel(x, ref):
+    return float(np.max(np.abs(x - ref)) / max(np.max(np.abs(ref)), 1e-300))
+
+
+# ------------------------------------------------------------------------------- rows
+def bench_robot(name, clm, sample, n_states: int):
+    rng = np.random.default_rng(0)
+    states = []
+    for _ in range(n_states):
+        q, v = sample(rng)
+        u = rng.normal(size=clm.n_actuated)
+        tau = np.zeros(clm.nv)
+        tau[clm.actuated_v] = u
+        states.append((q, v, u, tau, reference(clm, q, v, tau)))
+    dyn = dynamics_of(clm)
+    rank = clm.rank(states[0][0]).rank
+    redundant = rank < clm.n_rows
+    model, data = pin.Model(clm.model), None
+    data = model.createData()
+    cms, cds = clm.pinocchio_constraints()
+    pin.initConstraintDynamics(model, data, cms, cds)
+    prox = pin.ProximalSettings(1e-13, 1e-6 if redundant else 0.0, 5 if redundant else 1)
+    cyc = {"k": 0}
+
+    def nxt():
+        cyc["k"] = (cyc["k"] + 1) % n_states
+        return states[cyc["k"]]
+
+    raw_fd = timing(lambda: pin.constraintDynamics(model, data, *nxt()[:2], states[cyc["k"]][3],
+                                                   cms, cds, prox))
+    mj = None
+    if mujoco is not None:
+        try:
+            mjm = to_mujoco(clm)
+            mjd = mujoco.MjData(mjm)
+
+            def mj_fwd():
+                s = nxt()
+                mjd.qpos[:], mjd.qvel[:], mjd.ctrl[:] = s[0], s[1], s[2]
+                mujoco.mj_forward(mjm, mjd)
+            mj = timing(mj_fwd)
+        except InputError:
+            mj = None
+    rows = []
+    for method in ("pinocchio", "kkt", "qp"):
+        fails, err = 0, 0.0
+        for q, v, u, _, a_ref in states:
+            try:
+                res = forward_dynamics_tree(clm, q, v, u, method=method)
+                err = max(err, rel(res.a, a_ref))
+            except HexapodPinError:
+                fails += 1
+
+        def call(method=method):
+            s = nxt()
+            try:
+                forward_dynamics_tree(clm, s[0], s[1], s[2], method=method)
+            except HexapodPinError:
+                pass
+        t = timing(call)
+        rows.append((name, clm.nv, f"{clm.n_rows}/{rank}", f"FD {method}", t, raw_fd, mj, err,
+                     fails, n_states))
+    # inverse dynamics
+    sel = np.zeros((clm.nv, clm.n_actuated))
+    sel[clm.actuated_v, np.arange(clm.n_actuated)] = 1.0
+
+    def raw_id():
+        q, v, _, _, a = nxt()
+        rhs = pin.rnea(model, data, q, v, a)
+        pin.computeJointJacobians(model, data, q)
+        jac = pin.getConstraintsJacobian(model, data, cms, cds)
+        np.linalg.lstsq(np.hstack([sel, jac.T]), rhs, rcond=None)
+    raw_inv = timing(raw_id)
+    for method, bounded in (("kkt", False), ("qp", True)):
+        fails, err = 0, 0.0
+        for q, v, u, _, a_ref in states:
+            try:
+                res = inverse_dynamics_tree(clm, q, v, a_ref, method=method,
+                                            bounds=10 * np.abs(u).max() if bounded else None)
+                err = max(err, rel(res.actuator_forces, u))
+            except HexapodPinError:
+                fails += 1
+
+        def call(method=method, bounded=bounded):
+            q, v, u, _, a = nxt()
+            try:
+                inverse_dynamics_tree(clm, q, v, a, method=method,
+                                      bounds=10 * np.abs(u).max() if bounded else None)
+            except HexapodPinError:
+                pass
+        t = timing(call)
+        rows.append((name, clm.nv, f"{clm.n_rows}/{rank}",
+                     f"ID {method}" + (" (bounded)" if bounded else ""), t, raw_inv, None, err,
+                     fails, n_states))
+    return rows, states, dyn
+
+
+def bench_batch(name, clm, states, n: int = 64):
+    q = np.array([states[i % len(states)][0] for i in range(n)])
+    v = np.array([states[i % len(states)][1] for i in range(n)])
+    u = np.array([states[i % len(states)][2] for i in range(n)])
+    a = np.array([states[i % len(states)][4] for i in range(n)])
+    t_fb = timing(lambda: forward_dynamics_tree_batch(clm, q, v, u)) / n
+    t_fl = timing(lambda: [forward_dynamics_tree(clm, q[i], v[i], u[i]) for i in range(n)]) / n
+    t_ib = timing(lambda: inverse_dynamics_tree_batch(clm, q, v, a, method="kkt")) / n
+    t_il = timing(lambda: [inverse_dynamics_tree(clm, q[i], v[i], a[i], method="kkt")
+                           for i in range(n)]) / n
+    return name, n, t_fb, t_fl, t_ib, t_il
+
+
+def bench_step(name, clm, states, dt: float = 1e-3):
+    out = {}
+    q0, v0 = states[0][0], states[0][1]
+    tau = np.zeros(clm.nv)
+    for integ in ("semi_implicit_euler", "rk4"):
+        sim = ClosedLoopIntegrator(clm, integrator=integ)
+        st = {"q": q0.copy(), "v": v0.copy(), "res": 0.0}
+
+        def step(sim=sim, st=st):
+            st["q"], st["v"], r = sim.step(st["q"], st["v"], tau, dt)
+            st["res"] = max(st["res"], r)
+        out[integ] = (timing(step), st["res"])
+    if mujoco is not None:
+        mjm = to_mujoco(clm, timestep=dt)
+        mjd = mujoco.MjData(mjm)
+        mjd.qpos[:], mjd.qvel[:] = q0, v0
+        out["mj_step"] = (timing(lambda: mujoco.mj_step(mjm, mjd)), float("nan"))
+    return name, out
+
+
+# ------------------------------------------------------------------------------ report
+def machine() -> str:
+    versions = ", ".join(f"{p} {metadata.version(p)}" for p in
+                         ("pin", "proxsuite", "numpy", "numba", "mujoco")
+                         if _has(p))
+    return (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+            f"Python {platform.python_version()}, {versions}, "
+            f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
+
+
+def _has(package: str) -> bool:
+    try:
+        metadata.version(package)
+        return True
+    except metadata.PackageNotFoundError:
+        return False
+
+
+def _us(x):
+    return "-" if x is None else f"{1e6 * x:.1f}"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--smoke", action="store_true", help="two robots, short samples")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        SAMPLE["seconds"] = 0.002
+    n_states = 2 if args.smoke else 5
+    print(f"machine: {machine()}\n")
+    print("| robot | nv | rows/rank | route | us/call | raw Pinocchio us | ratio | "
+          "mj_forward us | ratio to mj | max rel. error vs null-space | failed |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    kept = []
+    for name, clm, sample in robot_list(args.smoke):
+        rows, states, _ = bench_robot(name, clm, sample, n_states)
+        kept.append((name, clm, states))
+        for (rname, nv, rr, route, t, raw, mj, err, fails, n) in rows:
+            ratio_mj = "-" if mj is None or not route.startswith("FD") else f"{t / mj:.2f}"
+            print(f"| {rname} | {nv} | {rr} | {route} | {_us(t)} | {_us(raw)} | "
+                  f"{t / raw:.2f} | {_us(mj) if route.startswith('FD') else '-'} | {ratio_mj} | "
+                  f"{err:.1e} | {fails}/{n} |")
+    print("\n| robot | N | FD batch us/state | FD loop us/state | ID batch us/state | "
+          "ID loop us/state |")
+    print("|---|---|---|---|---|---|")
+    for name, clm, states in kept[-2:] if args.smoke else kept:
+        if name not in ("cassie", "ladder_16", "planar_ladder_weld", "ladder_1", "five_bar_6d"):
+            continue
+        _, n, fb, fl, ib, il = bench_batch(name, clm, states, 8 if args.smoke else 64)
+        print(f"| {name} | {n} | {_us(fb)} | {_us(fl)} | {_us(ib)} | {_us(il)} |")
+    print("\n| robot | semi-implicit Euler us/step | RK4 us/step | mj_step us | "
+          "max closure residual |")
+    print("|---|---|---|---|---|")
+    for name, clm, states in kept:
+        if name not in ("cassie", "ladder_1"):
+            continue
+        _, out = bench_step(name, clm, states)
+        mj = out.get("mj_step", (None, 0.0))[0]
+        res = max(out["semi_implicit_euler"][1], out["rk4"][1])
+        print(f"| {name} | {_us(out['semi_implicit_euler'][0])} | {_us(out['rk4'][0])} | "
+              f"{_us(mj)} | {res:.1e} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
