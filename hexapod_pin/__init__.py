@@ -5,16 +5,34 @@ The rail-driven 6-DoF hexapod is the first and best-supported robot::
     import hexapod_pin
     robot = hexapod_pin.Hexapod.default()
     q = robot.configuration(robot.home_pose)      # Pinocchio q, every closure holds
+
+Layout: :mod:`hexapod_pin.core` (any tree + loop closures: description, closed-loop model,
+dynamics, simulation, the shared robot API and result types), :mod:`hexapod_pin.loaders`
+(robots and formats from elsewhere), :mod:`hexapod_pin.hexapod` and
+:mod:`hexapod_pin.planar` (the two robots, one compiled closed form each),
+:mod:`hexapod_pin.viz` (meshcat scenes, figures), :mod:`hexapod_pin.cli` (the command line).
+The names below are the public entry points; every robot implements
+:class:`~hexapod_pin.core.robot_api.ParallelRobot` and returns the result types of
+:mod:`hexapod_pin.core.results`.
 """
 
 from .core.closed_loop import AssemblyResult, ClosedLoopModel, RankInfo
-from .core.description import ClosureSpec, LoopsSpec, expand_xacro, load_loops, parse_loops, urdf_dir
-from .errors import (ActuatorSaturationError, AssemblyError, DescriptionError, GeometryError,
-                     HexapodPinError, InputError, SingularityError, SolverError,
-                     StrokeLimitError, UnreachablePoseError)
+from .core.description import (ClosureSpec, LoopsSpec, expand_xacro, load_loops, parse_loops,
+                               urdf_dir)
+from .core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
+                           Energies, ForwardDynamicsResult, InverseDynamicsDerivatives,
+                           InverseDynamicsResult, InverseKinematicsBatch, JacobianBatch,
+                           ReducedDynamics, SingularityMeasures)
+from .core.robot_api import ParallelRobot
+from .errors import (ActuatorSaturationError, AssemblyError, BatchActuatorSaturationError,
+                     BatchSingularityError, BatchUnreachablePoseError, DescriptionError,
+                     GeometryError, HexapodPinError, InputError, MissingDependencyError,
+                     MotionSampleError, SingularityError, SolverError, StrokeLimitError,
+                     UnreachablePoseError)
 from .hexapod.geometry import HexapodGeometry
+from .hexapod.kinematics import LegMotion
 from .hexapod.robot import Hexapod
-from .hexapod.kinematics import InverseKinematicsBatch, JacobianBatch, LegMotion, SingularityMeasures
+from .loaders import robots
 from .loaders.parallel_robots import load_parallel_robot
 from .planar.assembly_modes import AssemblyPolynomial
 from .planar.geometry import PlanarGeometry
@@ -23,15 +41,19 @@ from .planar.robot import Planar3PRR
 __version__ = "0.1.0"
 
 __all__ = [
-    "ActuatorSaturationError", "AssemblyError", "AssemblyResult", "ClosedLoopModel",
-    "ClosureSpec", "DescriptionError", "GeometryError", "Hexapod", "HexapodGeometry",
-    "HexapodPinError", "InputError", "LoopsSpec", "RankInfo", "SingularityError",
-    "SolverError", "StrokeLimitError", "UnreachablePoseError", "expand_xacro", "load_loops",
-    "parse_loops", "urdf_dir", "AssemblyPolynomial", "Planar3PRR",
-    "PlanarGeometry", "load_parallel_robot", "derivatives", "robots", "sdf",
-    "workspace", "InverseKinematicsBatch", "JacobianBatch", "LegMotion", "SingularityMeasures",
+    # robots
+    "Hexapod", "HexapodGeometry", "LegMotion", "Planar3PRR", "PlanarGeometry",
+    "AssemblyPolynomial", "ParallelRobot", "load_parallel_robot", "robots",
+    # the generic core
+    "ClosedLoopModel", "AssemblyResult", "RankInfo", "ClosureSpec", "LoopsSpec",
+    "expand_xacro", "load_loops", "parse_loops", "urdf_dir",
+    # results shared by every robot
+    "InverseDynamicsResult", "ForwardDynamicsResult", "ReducedDynamics", "Energies",
+    "SingularityMeasures", "InverseDynamicsDerivatives", "InverseKinematicsBatch",
+    "JacobianBatch", "BatchInverseDynamics", "BatchForwardDynamics", "BatchReducedDynamics",
+    # errors
+    "HexapodPinError", "ActuatorSaturationError", "AssemblyError", "DescriptionError",
+    "GeometryError", "InputError", "SingularityError", "SolverError", "StrokeLimitError",
+    "UnreachablePoseError", "BatchActuatorSaturationError", "BatchSingularityError",
+    "BatchUnreachablePoseError", "MotionSampleError", "MissingDependencyError",
 ]
-from .hexapod import derivatives
-from .loaders import robots
-from .loaders import sdf
-from .hexapod import workspace  # noqa: E402  (submodules as attributes)
