@@ -179,8 +179,14 @@ class TreeInverseDynamics:
         iterations: solver iterations (0 for a direct solve).
     """
 
-    __slots__ = ("actuator_forces", "_multipliers", "residual", "method", "status",
-                 "iterations")
+    __slots__ = (
+        "_multipliers",
+        "actuator_forces",
+        "iterations",
+        "method",
+        "residual",
+        "status",
+    )
 
     def __init__(self, actuator_forces, multipliers, residual, method, status, iterations):
         put = object.__setattr__
@@ -654,10 +660,10 @@ class ClosedLoopDynamics:
     def inverse(self, q, v, a, tau_ext=None, bounds=None,
                 method: str = "qp") -> TreeInverseDynamics:
         """Closed-loop inverse dynamics; see :func:`inverse_dynamics_tree`."""
-        q = self.clm.check_q(q)
-        v = self.clm.check_v(v)
-        a = self.clm.check_v(a, "a")
-        tau_ext = self._zero_v if tau_ext is None else self.clm.check_v(tau_ext, "tau_ext")
+        q = _vector(q, self.model.nq, "q")
+        v = _vector(v, self.nv, "v")
+        a = _vector(a, self.nv, "a")
+        tau_ext = self._zero_v if tau_ext is None else _vector(tau_ext, self.nv, "tau_ext")
         bounds = self.check_bounds(bounds)
         if method not in INVERSE_METHODS:
             raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
@@ -746,22 +752,19 @@ class ClosedLoopDynamics:
     def _verify_inverse(self, mat, sol, rhs, route: str) -> float:
         """Max-abs residual of ``S^T u + J_c^T lambda = M a + h - tau_ext``; SolverError when
         it exceeds :data:`RESIDUAL_RTOL` relative to the data."""
-        prod = mat @ sol
-        res = max_abs(prod - rhs)
-        scale = max(max_abs(rhs), max_abs(mat) * max_abs(sol), _TINY)
-        if not res <= RESIDUAL_RTOL * scale:
+        out = self._res_out
+        linear_residual(mat, sol, rhs, out)
+        if not out[1] <= RESIDUAL_RTOL:
             raise SolverError(route, "unverified", "equation of motion S^T u + J_c^T lambda = "
-                              f"M a + h - tau_ext missed by {res / scale:.3e} (relative)")
-        return res
+                              f"M a + h - tau_ext missed by {out[1]:.3e} (relative)")
+        return float(out[0])
 
     def _inverse_kkt(self, mat, rhs, rank, jac):
         if mat.shape[0] == mat.shape[1] and rank == self.n_rows:
-            # square system: the passive rows give the multipliers, the actuated rows u
-            act, passive = self.clm.actuated_v, self.clm.passive_v
+            # square system: one compiled LU solve, checked
+            sol = np.empty(mat.shape[1])
             try:
-                lam = np.linalg.solve(jac[:, passive].T, rhs[passive])
-                sol = np.concatenate([rhs[act] - jac[:, act].T @ lam, lam])
-                if _small(mat @ sol - rhs, rhs):
+                if square_solve(mat, rhs, sol, self._res_out) <= RESIDUAL_RTOL:
                     return sol, "solved"
             except np.linalg.LinAlgError:
                 pass
@@ -1027,6 +1030,41 @@ def forward_residuals(mass, bias, tau, jac, drift, acc, lam, out):
 
 
 @jit
+def linear_residual(mat, x, rhs, out):
+    """``out = (max|mat x - rhs|, that over max(max|rhs|, max|mat| max|x|))`` (inf when not
+    finite)."""
+    n, m = mat.shape
+    num = 0.0
+    mmax = 0.0
+    xmax = 0.0
+    bmax = 0.0
+    for j in range(m):
+        xmax = max(xmax, abs(x[j]))
+    for i in range(n):
+        acc = 0.0
+        for j in range(m):
+            acc += mat[i, j] * x[j]
+            mmax = max(mmax, abs(mat[i, j]))
+        r = abs(acc - rhs[i])
+        if not math.isfinite(r):
+            num = math.inf
+        elif r > num:
+            num = r
+        bmax = max(bmax, abs(rhs[i]))
+    out[0] = num
+    out[1] = num / max(bmax, mmax * xmax, 1e-300)
+    return out[1]
+
+
+@jit
+def square_solve(mat, rhs, x, out):
+    """``x = mat^-1 rhs`` (LU; raises numpy's LinAlgError when singular); returns the
+    relative residual of :func:`linear_residual`."""
+    x[:] = np.linalg.solve(mat, rhs)
+    return linear_residual(mat, x, rhs, out)
+
+
+@jit
 def closure_residual(jac, acc, drift) -> float:
     """Relative residual of ``J a + drift = 0``: ``max|J a + drift|`` over the larger of
     ``max|J| max|a|`` and ``max|drift|`` (0 without rows, inf when not finite)."""
@@ -1065,8 +1103,3 @@ class _LazyMinNorm:
         mass = np.triu(self.mass) + np.triu(self.mass, 1).T
         sol, *_ = np.linalg.lstsq(self.jac.T, mass @ self.acc + self.rest, rcond=None)
         return sol
-
-
-def _small(residual: np.ndarray, rhs: np.ndarray, rtol: float = RESIDUAL_RTOL) -> bool:
-    scale = max(1.0, max_abs(rhs))
-    return bool(np.all(np.isfinite(residual)) and max_abs(residual) <= rtol * scale)
