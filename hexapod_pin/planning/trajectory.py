@@ -135,7 +135,8 @@ def time_optimal(robot, waypoints, *, limits: Limits | None = None,
 
     Args:
         robot: a robot with the shared API (:class:`hexapod_pin.Hexapod`,
-            :class:`hexapod_pin.Planar3PRR`).
+            :class:`hexapod_pin.Planar3PRR`), on its home inverse-kinematics branch (that
+            of its batch routes).
         waypoints: (K, dim) poses (m, rad), K >= 2; the path is C2 through them
             (:mod:`hexapod_pin.planning.path`).
         limits: :class:`Limits`; default: the robot's actuator force bound only.
