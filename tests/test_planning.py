@@ -483,3 +483,19 @@ def test_solver_agrees_with_toppra_on_the_same_rows(robots, case):
                                    gridpoints=traj.s, solver_wrapper="seidel")
     _, s_dot, _ = algo.compute_parameterization(0, 0)
     np.testing.assert_allclose(traj.s_dot, s_dot, atol=1e-6 * np.max(s_dot))
+
+
+def test_given_start_and_end_path_speeds(robots):
+    robot = robots["planar"]
+    limits = Limits(actuator_force=30.0)
+    rest = time_optimal(robot, _planar_path(robot), limits=limits, grid_points=GRID)
+    moving = time_optimal(robot, _planar_path(robot), limits=limits, grid_points=GRID,
+                          start_speed=0.05, end_speed=0.08)
+    assert moving.s_dot[0] == pytest.approx(0.05, rel=1e-9)
+    assert moving.s_dot[-1] == pytest.approx(0.08, rel=1e-9)
+    assert moving.duration < rest.duration
+    np.testing.assert_allclose(np.linalg.norm(moving.twists[0]),
+                               0.05 * np.linalg.norm(moving.path.sample([0.0]).tangents[0]))
+    ratios = _reference_values(robot, limits, Payload(), moving.poses, moving.twists,
+                               moving.twist_dots)
+    assert np.max(ratios) <= 1 + 1e-6
