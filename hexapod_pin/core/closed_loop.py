@@ -433,7 +433,7 @@ class ClosedLoopModel:
         """
         jac = self.constraint_jacobian(q)
         return complete(jac, np.zeros((self.n_rows, self.n_actuated)), self.actuated_v,
-                        np.eye(self.n_actuated), method, "velocity map")
+                        np.eye(self.n_actuated), method, "velocity map", free=self.passive_v)
 
     def velocity_from_actuated(self, q, qdot_act, method: str = "lstsq") -> np.ndarray:
         """Tree velocity (nv,) keeping every closure, given the actuated velocities.
@@ -442,7 +442,8 @@ class ClosedLoopModel:
         problem and routes of :meth:`actuated_velocity_map`, solved once.
         """
         qdot_act = as_array(qdot_act, (self.n_actuated,), "qdot_act")
-        return self.complete_velocity(q, self.actuated_v, qdot_act, method)
+        return complete(self.constraint_jacobian(q), np.zeros(self.n_rows), self.actuated_v,
+                        qdot_act, method, "velocity", free=self.passive_v)
 
     def acceleration_from_actuated(self, q, v, qddot_act, method: str = "lstsq") -> np.ndarray:
         """Tree acceleration (nv,) keeping every closure, given the actuated accelerations.
@@ -452,7 +453,9 @@ class ClosedLoopModel:
         must itself keep the closures.
         """
         qddot_act = as_array(qddot_act, (self.n_actuated,), "qddot_act")
-        return self.complete_acceleration(q, v, self.actuated_v, qddot_act, method)
+        gamma = self.constraint_drift(q, v)
+        return complete(self.constraint_jacobian(q), -gamma, self.actuated_v, qddot_act, method,
+                        "acceleration", free=self.passive_v)
 
     def frame_jacobian_from_actuated(self, q, frame: str | int,
                                      reference: pin.ReferenceFrame =

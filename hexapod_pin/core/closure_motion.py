@@ -13,8 +13,9 @@ agree to 1e-10 (tested against an SVD null-space computation written in the test
   given one in the metric ``|x - x0|_W`` (``W`` symmetric positive definite; the mass
   matrix makes it the kinetic-energy metric, the physical one: Gauss's principle).
 
-Routes: ``"lstsq"`` (the direct one: LAPACK's SVD least squares, ``numpy.linalg.lstsq``;
-or a Cholesky factor of ``W`` then least squares) and ``"qp"`` (ProxSuite's dense
+Routes: ``"lstsq"`` (the direct one: a Householder QR where the unknowns are determined,
+LAPACK's SVD least squares ``numpy.linalg.lstsq`` where they are not; for a projection a
+Cholesky factor of ``W`` first) and ``"qp"`` (ProxSuite's dense
 proximal QP on the independent rows of ``J_c``, chosen by a column-pivoted QR, because
 redundant equality rows make the proximal iterations crawl). Every answer is checked
 (finite, constraint residual relative to the data) before it is returned.
@@ -30,6 +31,7 @@ import proxsuite
 import scipy.linalg
 
 from ..errors import InconsistentMotionError, InputError, SingularityError, SolverError
+from .compiled import jit
 
 METHODS = ("lstsq", "qp")
 #: a completion / projection is accepted when ``|J_c x - rhs|`` is below this, relative to
@@ -37,6 +39,9 @@ METHODS = ("lstsq", "qp")
 CONSISTENCY_RTOL = 1e-9
 #: relative singular-value threshold for the independent rows (as ClosedLoopModel.rank)
 ROW_RTOL = 1e-10
+#: the QR route of :func:`least_squares` is taken when no diagonal entry of R is below this
+#: fraction of the largest (else the SVD route gives the minimum-norm solution)
+FULL_RANK_RTOL = 1e-8
 #: ProxSuite's absolute accuracy on the (scaled) problems
 QP_EPS = 1e-13
 
@@ -65,7 +70,7 @@ def independent_rows(jac: np.ndarray, rtol: float = ROW_RTOL) -> np.ndarray:
 
 
 def complete(jac: np.ndarray, rhs: np.ndarray, known, values, method: str = "lstsq",
-             what: str = "motion") -> np.ndarray:
+             what: str = "motion", free: np.ndarray | None = None) -> np.ndarray:
     """Coordinates ``x`` with ``J_c x = rhs`` and ``x[known] = values``, least norm elsewhere.
 
     Args:
@@ -75,6 +80,8 @@ def complete(jac: np.ndarray, rhs: np.ndarray, known, values, method: str = "lst
         values: their values, shape (len(known),) or (len(known), k).
         method: "lstsq" or "qp" (see the module docstring).
         what: a label for error messages.
+        free: the complement of ``known``, sorted, when the caller has it (then
+            ``known`` is trusted: distinct indices in range).
 
     Returns:
         x, shape (n,) or (n, k).
@@ -88,8 +95,11 @@ def complete(jac: np.ndarray, rhs: np.ndarray, known, values, method: str = "lst
     check_method(method)
     n = jac.shape[1]
     known = np.asarray(known, dtype=int).reshape(-1)
-    if known.size and (known.min() < 0 or known.max() >= n or np.unique(known).size < known.size):
-        raise InputError("known", known, f"expected distinct indices in [0, {n})")
+    if free is None:
+        if known.size and (known.min() < 0 or known.max() >= n
+                           or np.unique(known).size < known.size):
+            raise InputError("known", known, f"expected distinct indices in [0, {n})")
+        free = np.setdiff1d(np.arange(n), known)
     rhs = np.asarray(rhs, dtype=float)
     values = np.asarray(values, dtype=float)
     single = rhs.ndim == 1
@@ -102,17 +112,20 @@ def complete(jac: np.ndarray, rhs: np.ndarray, known, values, method: str = "lst
         raise InputError("values", values, f"expected {known.size} values per problem")
     if not (np.all(np.isfinite(values2)) and np.all(np.isfinite(rhs2))):
         raise InputError("values", values, "NaN or inf")
-    free = np.setdiff1d(np.arange(n), known)
-    b = rhs2 - jac[:, known] @ values2
-    a_free = jac[:, free]
     if method == "lstsq":
-        sol = np.linalg.lstsq(a_free, b, rcond=None)[0] if free.size else np.zeros((0, b.shape[1]))
+        out, worst, miss = _complete_kernel(np.ascontiguousarray(jac), np.ascontiguousarray(rhs2),
+                                            known, free, np.ascontiguousarray(values2),
+                                            CONSISTENCY_RTOL)
+        if worst >= 0:
+            if not np.all(np.isfinite(out)):
+                raise SolverError("closure motion", "non-finite", f"{what} has NaN or inf")
+            raise InconsistentMotionError(what, miss)
     else:
-        sol = _min_norm_qp(a_free, b)
-    out = np.empty((n, b.shape[1]))
-    out[known] = values2
-    out[free] = sol
-    _verify(jac, out, rhs2, what)
+        b = rhs2 - jac[:, known] @ values2
+        out = np.empty((n, b.shape[1]))
+        out[known] = values2
+        out[free] = _min_norm_qp(jac[:, free], b)
+        _verify(jac, out, rhs2, what)
     return out[:, 0] if single else out
 
 
@@ -153,11 +166,11 @@ def project(jac: np.ndarray, rhs: np.ndarray, x0: np.ndarray, metric: np.ndarray
                                    float(sv[0])) from None
     if method == "lstsq":
         if chol is None:
-            step = np.linalg.lstsq(jac, miss, rcond=None)[0]
+            step = least_squares(jac, miss)
         else:
             # W = L L^T; with y = L^T d: min |y| s.t. J L^-T y = miss
             a_mat = scipy.linalg.solve_triangular(chol, jac.T, lower=True).T
-            y = np.linalg.lstsq(a_mat, miss, rcond=None)[0]
+            y = least_squares(a_mat, miss)
             step = scipy.linalg.solve_triangular(chol.T, y, lower=False)
     else:
         hess = np.eye(n) if metric is None else 0.5 * (metric + metric.T)
@@ -167,7 +180,68 @@ def project(jac: np.ndarray, rhs: np.ndarray, x0: np.ndarray, metric: np.ndarray
     return out
 
 
+def least_squares(a_mat: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Minimum-norm least-squares solution of ``a_mat x = rhs`` (rhs 1-D or 2-D).
+
+    A Householder QR when ``a_mat`` has full column rank (the usual case: the closures
+    determine the unknowns; its diagonal says so when no entry falls below
+    ``FULL_RANK_RTOL`` of the largest), otherwise LAPACK's SVD least squares.
+    """
+    rows, cols = a_mat.shape
+    if rows >= cols > 0:
+        q_mat, r_mat = np.linalg.qr(a_mat)
+        diag = np.abs(np.diagonal(r_mat))
+        if diag.min() > FULL_RANK_RTOL * diag.max():
+            return np.linalg.solve(r_mat, q_mat.T @ rhs)
+    return np.linalg.lstsq(a_mat, rhs, rcond=None)[0]
+
+
 # ------------------------------------------------------------------------------ helpers
+@jit
+def _complete_kernel(jac, rhs, known, free, values, rtol):
+    """The "lstsq" route of :func:`complete`, compiled: (x, worst column or -1, its miss).
+
+    Same algorithm as :func:`least_squares` (QR when the free columns have full rank, SVD
+    least squares with NumPy's default cut-off otherwise), then the check of
+    :func:`_verify` (a non-finite x reports column 0 with an infinite miss).
+    """
+    n, k = jac.shape[1], rhs.shape[1]
+    b = rhs - jac[:, known] @ values
+    a_free = np.ascontiguousarray(jac[:, free])
+    rows, cols = a_free.shape
+    sol = np.zeros((cols, k))
+    if cols > 0:
+        done = False
+        if rows >= cols:
+            q_mat, r_mat = np.linalg.qr(a_free)
+            dmin, dmax = np.inf, 0.0
+            for i in range(cols):
+                d = abs(r_mat[i, i])
+                dmin = min(dmin, d)
+                dmax = max(dmax, d)
+            if dmin > FULL_RANK_RTOL * dmax:
+                sol = np.linalg.solve(r_mat, np.ascontiguousarray(q_mat.T) @ b)
+                done = True
+        if not done:
+            sol = np.linalg.lstsq(a_free, b, rcond=max(rows, cols) * 2.220446049250313e-16)[0]
+    out = np.empty((n, k))
+    for i in range(known.shape[0]):
+        out[known[i], :] = values[i, :]
+    for i in range(cols):
+        out[free[i], :] = sol[i, :]
+    if not np.all(np.isfinite(out)):
+        return out, 0, np.inf
+    res = jac @ out - rhs
+    jmax = np.max(np.abs(jac)) if jac.size else 0.0
+    for col in range(k):
+        miss = np.max(np.abs(res[:, col])) if res.shape[0] else 0.0
+        scale = max(1.0, np.max(np.abs(rhs[:, col])) if rhs.shape[0] else 0.0,
+                    jmax * np.max(np.abs(out[:, col])))
+        if not miss <= rtol * scale:
+            return out, col, miss
+    return out, -1, 0.0
+
+
 def _verify(jac: np.ndarray, x: np.ndarray, rhs: np.ndarray, what: str) -> None:
     if not np.all(np.isfinite(x)):
         raise SolverError("closure motion", "non-finite", f"{what} has NaN or inf")
