@@ -25,6 +25,7 @@ by more than 0.5 % or a path fails. Timings are printed, never asserted.
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import sys
 import time
@@ -32,15 +33,19 @@ import time
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import hexapod_pin as hp  # noqa: E402
-from hexapod_pin.errors import HexapodPinError  # noqa: E402
-from hexapod_pin.planning import Limits, Payload, time_optimal  # noqa: E402
-from hexapod_pin.planning import limits as planning_limits  # noqa: E402
-from hexapod_pin.planning import solver  # noqa: E402
-from hexapod_pin.planning.feasibility import check_feasibility  # noqa: E402
-from hexapod_pin.planning.path import GeometricPath  # noqa: E402
+import hexapod_pin as hp
+from hexapod_pin.errors import HexapodPinError
+from hexapod_pin.planning import (
+    Limits,
+    Payload,
+    solver,
+    time_optimal,
+)
+from hexapod_pin.planning import limits as planning_limits
+from hexapod_pin.planning.feasibility import check_feasibility
+from hexapod_pin.planning.path import GeometricPath
 
 PLANAR_LIMITS = Limits(actuator_force=30.0)
 
@@ -162,7 +167,7 @@ def open_loop_error(robot, traj) -> float:
     lin = 3 if dim == 6 else 2
     grid = traj.phase_times()
     eps = 1e-12 * traj.duration
-    stages = np.concatenate([[a + eps, (a + b) / 2, b - eps] for a, b in zip(grid[:-1], grid[1:])])
+    stages = np.concatenate([[a + eps, (a + b) / 2, b - eps] for a, b in itertools.pairwise(grid)])
     forces = traj.sample(stages).actuator_forces.reshape(len(grid) - 1, 3, -1)
 
     def rates(state, force):
@@ -254,6 +259,37 @@ class _Rows:
         return RowsConstraint()
 
 
+def toppra_row(toppra, name, grid, data, repeats):
+    """One row of the solver table: own solver and toppra on the same rows."""
+    rows, steps, coeffs, samples = data
+    path = toppra.SplineInterpolator(samples.s, samples.poses)
+    constraint = _Rows(rows, coeffs.speed_bound)
+
+    def run_toppra():
+        algo = toppra.algorithm.TOPPRA([constraint], path, gridpoints=samples.s,
+                                       solver_wrapper="seidel")
+        return algo.compute_parameterization(0, 0)
+
+    t_toppra = median_ms(run_toppra, repeats)
+    _, sd, _ = run_toppra()
+    lo, hi, x, u = np.empty(grid), np.empty(grid), np.empty(grid), np.empty(grid - 1)
+
+    def run_own():
+        solver.backward_pass(rows, steps, coeffs.speed_bound, 0.0, lo, hi)
+        solver.forward_pass(rows, steps, lo, hi, 0.0, x, u)
+
+    t_own = median_ms(run_own, repeats)
+
+    def duration(speed):
+        return float(np.sum(2 * steps / np.maximum(speed[:-1] + speed[1:], 1e-300)))
+
+    single = robot_single(name)
+    t_callbacks = median_ms(lambda: [single(samples, k) for k in range(grid) for _ in range(3)],
+                            1)
+    return [name, grid, f"{t_own:.2f}", f"{t_toppra:.2f}", f"{duration(np.sqrt(x)) * 1e3:.3f}",
+            "failed" if sd is None else f"{duration(sd) * 1e3:.3f}", f"{t_callbacks:.1f}"]
+
+
 def bench_toppra(kept, sizes, repeats):
     try:
         import toppra
@@ -262,36 +298,8 @@ def bench_toppra(kept, sizes, repeats):
         return
     import logging
     logging.getLogger("toppra").setLevel(logging.ERROR)
-    rows_out = []
-    for (name, grid), (rows, steps, coeffs, samples) in kept.items():
-        if grid not in sizes:
-            continue
-        s = samples.s
-        path = toppra.SplineInterpolator(s, samples.poses)
-        constraint = _Rows(rows, coeffs.speed_bound)
-
-        def run_toppra():
-            algo = toppra.algorithm.TOPPRA([constraint], path, gridpoints=s,
-                                           solver_wrapper="seidel")
-            return algo.compute_parameterization(0, 0)
-
-        t_toppra = median_ms(run_toppra, repeats)
-        sdd, sd, _ = run_toppra()
-        lo, hi, x, u = np.empty(grid), np.empty(grid), np.empty(grid), np.empty(grid - 1)
-
-        def run_own():
-            solver.backward_pass(rows, steps, coeffs.speed_bound, 0.0, lo, hi)
-            solver.forward_pass(rows, steps, lo, hi, 0.0, x, u)
-
-        t_own = median_ms(run_own, repeats)
-        own_sd = np.sqrt(x)
-        dur = lambda v: float(np.sum(2 * steps / np.maximum(v[:-1] + v[1:], 1e-300)))  # noqa: E731
-        t_callbacks = median_ms(lambda: [robot_single(name)(samples, k)
-                                         for k in range(grid) for _ in range(3)], 1)
-        rows_out.append([name, grid, f"{t_own:.2f}", f"{t_toppra:.2f}",
-                         f"{dur(own_sd) * 1e3:.3f}",
-                         "failed" if sd is None else f"{dur(sd) * 1e3:.3f}",
-                         f"{t_callbacks:.1f}"])
+    rows_out = [toppra_row(toppra, name, grid, data, repeats)
+                for (name, grid), data in kept.items() if grid in sizes]
     table("Solver: own compiled TOPP-RA against toppra 0.6.10 on the same rows",
           ["robot", "grid points", "own (ms)", "toppra seidel (ms)", "own duration (ms)",
            "toppra duration (ms)", "toppra SecondOrderConstraint callbacks alone (ms)"],

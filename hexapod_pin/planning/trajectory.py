@@ -88,7 +88,7 @@ class TimedTrajectory:
         """``t[-1] - t[0]`` (s)."""
         return float(self.t[-1] - self.t[0])
 
-    def sample(self, times) -> "TimedTrajectory":
+    def sample(self, times) -> TimedTrajectory:
         """The same motion at the given times (s), each clipped to ``[0, duration]``.
 
         Between grid points the path acceleration is that of the segment (a time on a
@@ -111,7 +111,7 @@ class TimedTrajectory:
         return _assemble(self.robot, self.path, self.limits, self.payload, self.phase,
                          times, s, s_dot, u)
 
-    def resample(self, rate: float) -> "TimedTrajectory":
+    def resample(self, rate: float) -> TimedTrajectory:
         """:meth:`sample` at ``rate`` (Hz) from 0 to the duration (both ends included).
 
         Raises:
