@@ -105,16 +105,15 @@ class ClosureFrames(NamedTuple):
 # --------------------------------------------------------------------------------------
 # results
 # --------------------------------------------------------------------------------------
-class TreeForwardDynamics:
-    """Result of :func:`forward_dynamics_tree` (immutable).
+class TreeForwardDynamics(NamedTuple):
+    """Result of :func:`forward_dynamics_tree` (an immutable named tuple).
 
     Attributes:
         a: tree acceleration (nv,), Pinocchio convention (free-flyer part: derivative
             of the body-frame velocity).
-        multipliers: closure multipliers (n_rows,), ``M a + h = tau + J_c^T multipliers``,
-            rows as in :meth:`ClosedLoopModel.constraint_jacobian` (N for point rows,
-            world axes). Minimum-norm when the closures are redundant. Converted from
-            Pinocchio's LOCAL convention on first access (the "pinocchio" route).
+        raw_multipliers: the multipliers, or a zero-argument callable producing them
+            (Pinocchio's LOCAL multipliers converted on first access): read
+            :attr:`multipliers`.
         method: the route used ("pinocchio", "qp" or "kkt").
         status: "solved", or a note on how it was solved (redundant rows, fallback,
             a ProxSuite status other than solved whose residuals were verified).
@@ -125,53 +124,31 @@ class TreeForwardDynamics:
             equation in Pinocchio's LOCAL rows instead.
     """
 
-    __slots__ = (
-        "_multipliers",
-        "a",
-        "constraint_residual",
-        "iterations",
-        "method",
-        "rank",
-        "status",
-    )
-
-    def __init__(self, a, multipliers, method, status, iterations, rank, constraint_residual):
-        put = object.__setattr__
-        put(self, "a", a)
-        put(self, "_multipliers", multipliers)
-        put(self, "method", method)
-        put(self, "status", status)
-        put(self, "iterations", iterations)
-        put(self, "rank", rank)
-        put(self, "constraint_residual", constraint_residual)
+    a: np.ndarray
+    raw_multipliers: object
+    method: str
+    status: str
+    iterations: int
+    rank: int
+    constraint_residual: float
 
     @property
     def multipliers(self) -> np.ndarray:
-        value = self._multipliers
-        if callable(value):
-            value = value()
-            object.__setattr__(self, "_multipliers", value)
-        return value
-
-    def __setattr__(self, name, value):
-        raise AttributeError(f"TreeForwardDynamics is immutable (cannot set {name!r})")
-
-    def __repr__(self) -> str:
-        return (f"TreeForwardDynamics(a={self.a!r}, multipliers={self.multipliers!r}, "
-                f"method={self.method!r}, status={self.status!r}, "
-                f"iterations={self.iterations}, rank={self.rank}, "
-                f"constraint_residual={self.constraint_residual!r})")
+        """Closure multipliers (n_rows,), ``M a + h = tau + J_c^T multipliers``, rows as in
+        :meth:`ClosedLoopModel.constraint_jacobian` (N for point rows, world axes);
+        minimum-norm when the closures are redundant."""
+        value = self.raw_multipliers
+        return value() if callable(value) else value
 
 
-class TreeInverseDynamics:
-    """Result of :func:`inverse_dynamics_tree` (immutable).
+class TreeInverseDynamics(NamedTuple):
+    """Result of :func:`inverse_dynamics_tree` (an immutable named tuple).
 
     Attributes:
         actuator_forces: ``u`` (n_act,), generalised forces of the actuated joints
             (N for prismatic, N m for revolute), in ``clm.actuated_joints`` order.
-        multipliers: closure multipliers (n_rows,), same convention as
-            :class:`TreeForwardDynamics` (minimum-norm when redundant); converted from
-            Pinocchio's LOCAL rows on first access.
+        raw_multipliers: the multipliers or a callable producing them: read
+            :attr:`multipliers`.
         residual: max-abs of ``M a + h - tau_ext - S^T u - J_c^T multipliers`` (N, N m),
             verified below :data:`RESIDUAL_RTOL` relative to the data.
         method: "qp" or "kkt".
@@ -179,40 +156,33 @@ class TreeInverseDynamics:
         iterations: solver iterations (0 for a direct solve).
     """
 
-    __slots__ = (
-        "_multipliers",
-        "actuator_forces",
-        "iterations",
-        "method",
-        "residual",
-        "status",
-    )
-
-    def __init__(self, actuator_forces, multipliers, residual, method, status, iterations):
-        put = object.__setattr__
-        put(self, "actuator_forces", actuator_forces)
-        put(self, "_multipliers", multipliers)
-        put(self, "residual", residual)
-        put(self, "method", method)
-        put(self, "status", status)
-        put(self, "iterations", iterations)
+    actuator_forces: np.ndarray
+    raw_multipliers: object
+    residual: float
+    method: str
+    status: str
+    iterations: int
 
     @property
     def multipliers(self) -> np.ndarray:
-        value = self._multipliers
-        if callable(value):
-            value = value()
-            object.__setattr__(self, "_multipliers", value)
-        return value
+        """Closure multipliers (n_rows,), same convention as
+        :attr:`TreeForwardDynamics.multipliers` (minimum-norm when redundant)."""
+        value = self.raw_multipliers
+        return value() if callable(value) else value
 
-    def __setattr__(self, name, value):
-        raise AttributeError(f"TreeInverseDynamics is immutable (cannot set {name!r})")
 
-    def __repr__(self) -> str:
-        return (f"TreeInverseDynamics(actuator_forces={self.actuator_forces!r}, "
-                f"multipliers={self.multipliers!r}, residual={self.residual!r}, "
-                f"method={self.method!r}, status={self.status!r}, "
-                f"iterations={self.iterations})")
+class _Memo:
+    """A zero-argument callable evaluated once."""
+
+    __slots__ = ("fn", "value")
+
+    def __init__(self, fn):
+        self.fn, self.value = fn, None
+
+    def __call__(self):
+        if self.value is None:
+            self.value = self.fn()
+        return self.value
 
 
 # --------------------------------------------------------------------------------------
@@ -248,8 +218,9 @@ class ClosedLoopDynamics:
             f2 = self.model.getFrameId(f"{closure.name}/anchor2")
             self.closure_frames.append(ClosureFrames(closure.type == "point", rows, f1, f2,
                                                      cm.joint1_id, cm.joint2_id))
-        self._selection = np.zeros((self.nv, self.n_act))
-        self._selection[clm.actuated_v, np.arange(self.n_act)] = 1.0
+        #: actuation selection ``S^T`` (nv, n_act): ``tau = selection @ u``
+        self.selection = np.zeros((self.nv, self.n_act))
+        self.selection[clm.actuated_v, np.arange(self.n_act)] = 1.0
         self._zero_v = np.zeros(self.nv)
         self._lower = np.tril_indices(self.nv, -1)
         self._rank: int | None = None
@@ -260,7 +231,7 @@ class ClosedLoopDynamics:
         self._no_rows = (np.zeros((0, self.nv)), np.zeros(0))
         self._kkt = np.zeros((self.nv + self.n_rows, self.nv + self.n_rows))
         self._id_matrix = np.zeros((self.nv, self.n_act + self.n_rows))
-        self._id_matrix[:, :self.n_act] = self._selection
+        self._id_matrix[:, :self.n_act] = self.selection
         self._id_hess = np.diag(np.concatenate([np.ones(self.n_act),
                                                 np.full(self.n_rows, _LAMBDA_WEIGHT)]))
         self._id_box = np.zeros((self.n_act, self.n_act + self.n_rows))
@@ -387,7 +358,8 @@ class ClosedLoopDynamics:
         tau = _vector(tau, self.nv, "tau")
         if method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
-        return self.forward_unchecked(q, v, tau, method)
+        return _solve_checked(lambda: self.forward_unchecked(q, v, tau, method),
+                              ("q", q), ("v", v), ("tau", tau))
 
     def forward_unchecked(self, q, v, tau, method: str) -> TreeForwardDynamics:
         """:meth:`forward` without the input checks (contiguous float64 arrays of the right
@@ -416,6 +388,10 @@ class ClosedLoopDynamics:
         self._prox_probe = pin.ProximalSettings(1e-13, _PIN_PROX_MU, 1)
         self._cd_list = list(self.pin_datas)
         self._all_points = all(c[0] for c in self.closure_frames)
+        # live views of Pinocchio's data (eigenpy maps the Data members, allocated once)
+        data = self.data
+        self._v_mass, self._v_nle, self._v_lambda = data.M, data.nle, data.lambda_c
+        self._v_rhs = data.primal_rhs_contact[:self.n_rows]
         self._pin_ready = True
 
     def pinocchio_call(self, q, v, tau, redundant: bool):
@@ -444,16 +420,16 @@ class ClosedLoopDynamics:
         return None, prox
 
     def _pin_verified(self, acc, tau) -> bool:
-        data = self.data
         if self.n_rows:
-            jac = pin.getConstraintsJacobian(self.model, data, self.pin_models, self.pin_datas)
-            drift = data.primal_rhs_contact[:self.n_rows]
-            drift *= -1.0
+            jac = pin.getConstraintsJacobian(self.model, self.data, self.pin_models,
+                                             self.pin_datas)
+            drift = self._v_rhs
+            drift *= -1.0                  # Pinocchio's J a = primal_rhs (recomputed per call)
         else:
             jac, drift = self._no_rows
-        eom, con = forward_residuals(data.M, data.nle, tau, jac, drift, acc, data.lambda_c,
-                                     self._res_out)
-        self._pin_last = (data.M, jac, tau)
+        eom, con = forward_residuals(self._v_mass, self._v_nle, tau, jac, drift, acc,
+                                     self._v_lambda, self._res_out)
+        self._pin_last = (self._v_mass, jac, tau)
         return eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL
 
     def pinocchio_acceleration(self, q, v, tau) -> np.ndarray:
@@ -473,7 +449,7 @@ class ClosedLoopDynamics:
             lam = lam_pin() if callable(lam_pin) else lam_pin
             pin.framesForwardKinematics(self.model, self._aux_data, q)
             return self._pin_to_row_multipliers(lam, self._aux_data)
-        return convert
+        return _Memo(convert)
 
     def _pin_to_row_multipliers(self, lam_pin: np.ndarray, data) -> np.ndarray:
         """Convert Pinocchio's LOCAL contact forces into our row convention.
@@ -505,14 +481,14 @@ class ClosedLoopDynamics:
             if redundant:
                 status = (f"solved (redundant rows: proximal mu={_PIN_PROX_MU:g}, "
                           f"{prox.iter} iterations; minimum-norm multipliers)")
-            lam_pin = self.data.lambda_c.copy()
+            lam_pin = self._v_lambda.copy()
             if redundant:
                 # the proximal multipliers are minimum-norm only up to the conditioning of
                 # the regularised system: polish them by least squares on Pinocchio's own
                 # M, nle and J (rotations of ours: the minimum norm is the same)
                 mass, jac, tau_used = self._pin_last
                 lam_pin = _LazyMinNorm(jac.copy(), mass.copy(), acc.copy(),
-                                       self.data.nle - tau_used)
+                                       self._v_nle - tau_used)
             return TreeForwardDynamics(acc.copy(), self._lazy_rows(q, lam_pin), "pinocchio",
                                        status, int(prox.iter), rank, -1.0)
         # Pinocchio's factorisation cannot hold this problem (e.g. a zero pivot of M from a
@@ -667,7 +643,8 @@ class ClosedLoopDynamics:
         bounds = self.check_bounds(bounds)
         if method not in INVERSE_METHODS:
             raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
-        return self.inverse_unchecked(q, v, a, tau_ext, bounds, method)
+        return _solve_checked(lambda: self.inverse_unchecked(q, v, a, tau_ext, bounds, method),
+                              ("q", q), ("v", v), ("a", a), ("tau_ext", tau_ext))
 
     def inverse_unchecked(self, q, v, a, tau_ext, bounds, method) -> TreeInverseDynamics:
         """:meth:`inverse` without the input checks (``bounds`` None or (n_act,) array)."""
@@ -696,7 +673,7 @@ class ClosedLoopDynamics:
                                    self.pin_datas, self._prox_probe)
             jac = pin.getConstraintsJacobian(self.model, self.data, self.pin_models,
                                              self.pin_datas)
-            drift = self.data.primal_rhs_contact[:self.n_rows]
+            drift = self._v_rhs
             drift *= -1.0
             miss = closure_residual(jac, a, drift)
             if not miss <= _MOTION_RTOL:
@@ -707,9 +684,7 @@ class ClosedLoopDynamics:
             jac = self._no_rows[0]
         res = self._inverse_solve(jac, rhs, bounds, method, rank)
         if self.n_rows:
-            res = TreeInverseDynamics(res.actuator_forces,
-                                      self._lazy_rows(q, res.multipliers), res.residual,
-                                      res.method, res.status, res.iterations)
+            res = res._replace(raw_multipliers=self._lazy_rows(q, res.raw_multipliers))
         return res
 
     def model_pool(self, threads: int) -> pin.ModelPool:
@@ -943,12 +918,12 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=N
     u = _vector(actuator_forces, dyn.n_act, "actuator_forces")
     if method not in FORWARD_METHODS:
         raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
-    if tau_ext is None:
-        tau = np.zeros(dyn.nv)
-    else:
-        tau = _vector(tau_ext, dyn.nv, "tau_ext").copy()
-    tau[clm.actuated_v] += u
-    return dyn.forward_unchecked(q, v, tau, method)
+    tau = dyn.selection.dot(u)
+    if tau_ext is not None:
+        tau_ext = _vector(tau_ext, dyn.nv, "tau_ext")
+        tau += tau_ext
+    return _solve_checked(lambda: dyn.forward_unchecked(q, v, tau, method), ("q", q),
+                          ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
 
 
 def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=None,
@@ -988,12 +963,26 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=No
 # helpers
 # --------------------------------------------------------------------------------------
 def _vector(value, size: int, name: str) -> np.ndarray:
-    """``value`` when it is already a finite contiguous float64 (size,) array (the cheap
-    path), else :func:`~hexapod_pin.core.checks.as_array` (converts or raises InputError)."""
+    """``value`` when it is already a contiguous float64 (size,) array (the cheap path:
+    finiteness is left to the verified solve, see :func:`_solve_checked`), else
+    :func:`~hexapod_pin.core.checks.as_array` (converts or raises InputError)."""
     if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (size,) \
-            and value.flags.c_contiguous and all_finite(value):
+            and value.flags.c_contiguous:
         return value
     return as_array(value, (size,), name)
+
+
+def _solve_checked(solve, *inputs):
+    """``solve()``, re-validating the named ``inputs`` (pairs of name and array) when it
+    raises SolverError: a NaN / inf input gives InputError naming it (the solves run on
+    unchecked arrays and their verification rejects non-finite answers)."""
+    try:
+        return solve()
+    except SolverError:
+        for name, value in inputs:
+            if value is not None and not all_finite(value):
+                as_array(value, value.shape, name)
+        raise
 
 
 @jit
