@@ -74,9 +74,9 @@ def _joint_xml(jmodel, name: str) -> str:
     elif short.startswith("JointModelP") and short[-1] in _AXES and len(short) == 12:
         kind, axis = "slide", _AXES[short[-1]]
     elif short == "JointModelRevoluteUnaligned":
-        kind, axis = "hinge", tuple(jmodel.axis)
+        kind, axis = "hinge", tuple(jmodel.extract().axis)
     elif short == "JointModelPrismaticUnaligned":
-        kind, axis = "slide", tuple(jmodel.axis)
+        kind, axis = "slide", tuple(jmodel.extract().axis)
     else:
         raise InputError("clm", short, f"joint {name!r}: the MuJoCo export supports 1-DoF "
                                        "revolute and prismatic joints only")

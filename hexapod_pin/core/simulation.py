@@ -237,16 +237,14 @@ class ClosedLoopIntegrator:
 
 
 def _pinv_apply(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """``J^+ rhs`` (minimum norm) through ``J J^T``; least squares if that is singular."""
+    """``J^+ rhs`` (minimum norm): through ``J J^T`` when that solve reproduces ``rhs``
+    (full row rank), else by SVD least squares (rank-deficient or ill-conditioned ``J``)."""
     try:
         sol = jac.T @ np.linalg.solve(jac @ jac.T, rhs)
-        if np.isfinite(sol.sum()):
+        miss = np.max(np.abs(jac @ sol - rhs), initial=0.0)
+        if math.isfinite(miss) and miss <= 1e-12 * max(1.0, np.max(np.abs(rhs), initial=0.0)):
             return sol
     except np.linalg.LinAlgError:
         pass
     sol, *_ = np.linalg.lstsq(jac, rhs, rcond=None)
     return sol
-
-
-
-
