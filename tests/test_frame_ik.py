@@ -95,6 +95,22 @@ def test_hexapod_platform_matches_the_closed_form(robot, rng):
         np.testing.assert_allclose(out["qp"], out["lstsq"], atol=1e-10)
 
 
+def test_convergence_is_quadratic_near_the_solution(robot, rng):
+    """Once the task error is below 1e-4, each step squares it (up to a constant and the
+    rounding floor): the damping vanishes with the error."""
+    for _ in range(3):
+        pose = random_pose(robot, rng)
+        target = pin.SE3(pin.rpy.rpyToMatrix(*pose[3:]), pose[:3])
+        for method in ("qp", "lstsq"):
+            res = robot.model.frame_inverse_kinematics("platform", target,
+                                                       robot.home_configuration, method=method)
+            assert res.reachable and res.history[-1] == res.target_residual
+            pairs = [(a, b) for a, b in zip(res.history, res.history[1:]) if a < 1e-4]
+            assert pairs
+            for before, after in pairs:
+                assert after <= max(1e3 * before ** 2, 1e-13), res.history
+
+
 def test_routes_agree_on_the_delta(rng):
     delta = stress_robots.build("delta_weld")
     for _ in range(3):

@@ -97,6 +97,7 @@ class FrameIKResult:
         iterations: steps taken.
         errors: the stacked task errors at ``q`` (unweighted).
         placements: the frames' placements at ``q`` (world), in task order.
+        history: the max-abs task error at the start and after each step (m / rad).
     """
 
     q: np.ndarray
@@ -106,6 +107,7 @@ class FrameIKResult:
     iterations: int
     errors: np.ndarray
     placements: tuple[pin.SE3, ...]
+    history: tuple[float, ...]
 
 
 def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False, fixed=None,
@@ -161,9 +163,10 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
     weight = np.concatenate([t.weight for t in tasks])
     cost = float(err @ (weight * err))
     mu = damping
+    history = [float(np.max(np.abs(err)))]
     for iteration in range(max_iter + 1):
         if float(np.max(np.abs(err))) <= tol:
-            return _result(clm, tasks, q, True, iteration, closure_tol)
+            return _result(clm, tasks, q, True, history, closure_tol)
         if iteration == max_iter:
             break
         accepted = None
@@ -174,7 +177,7 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
                                box, q)
             if mu == damping and float(np.max(np.abs(step))) <= STEP_TOL:
                 # the least-squares step vanishes: a stationary point of |e|_W^2
-                return _result(clm, tasks, q, False, iteration, closure_tol)
+                return _result(clm, tasks, q, False, history, closure_tol)
             model = err + jac_t @ step
             predicted = cost - float(model @ (weight * model))
             trial = _retract(clm, pin.integrate(clm.model, q, step), fixed_v, closure_tol, box)
@@ -190,10 +193,11 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
                         mu *= 10.0
                     break
             if mu > MU_MAX:
-                return _result(clm, tasks, q, False, iteration, closure_tol)
+                return _result(clm, tasks, q, False, history, closure_tol)
             mu = max(mu, 1e-12) * 10.0
         q, cost = accepted
         err, jac_t, jac_c, res_c = _linearise(clm, tasks, q)
+        history.append(float(np.max(np.abs(err))))
     raise SolverError("frame_inverse_kinematics", "max_iter",
                       f"task error {float(np.max(np.abs(err))):.3e} after {max_iter} steps")
 
@@ -377,9 +381,10 @@ def _errors(clm, tasks, q) -> np.ndarray:
     return np.concatenate(out)
 
 
-def _result(clm, tasks, q, reachable: bool, iterations: int,
+def _result(clm, tasks, q, reachable: bool, history: list[float],
             closure_tol: float) -> FrameIKResult:
     """Verify the answer (finite, closures) and package it."""
+    iterations = len(history) - 1
     closure = float(np.max(np.abs(clm.residual(q)), initial=0.0))
     if not closure <= closure_tol:
         raise AssemblyError(f"closures not held at the answer (tolerance {closure_tol:g})",
@@ -389,5 +394,5 @@ def _result(clm, tasks, q, reachable: bool, iterations: int,
         raise SolverError("frame_inverse_kinematics", "non-finite", "NaN in the answer")
     placements = tuple(pin.SE3(clm.data.oMf[t.frame]) for t in tasks)
     return FrameIKResult(q.copy(), reachable, float(np.max(np.abs(err))), closure, iterations,
-                         err, placements)
+                         err, placements, tuple(history))
 
