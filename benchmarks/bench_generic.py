@@ -20,7 +20,8 @@ Batches (N = 64): per-state cost of ``forward_dynamics_tree_batch`` /
 the tree integrator (semi-implicit Euler and RK4) against ``mj_step`` on Cassie.
 
 Run ``python benchmarks/bench_generic.py`` (``--smoke``: two robots, short samples; a
-test runs it). Prints a Markdown table.
+test runs it). Prints Markdown tables; exits 1 when a route failed a solve or disagreed
+with the reference by more than ``AGREEMENT``.
 """
 
 from __future__ import annotations
@@ -60,6 +61,8 @@ except ImportError:  # pragma: no cover - the bench extra installs it
     mujoco = None
 
 SAMPLE = {"seconds": 0.05}
+#: largest relative error against the null-space reference before the run fails
+AGREEMENT = 1e-8
 
 
 def timing(fn) -> float:
@@ -324,10 +327,13 @@ def main(argv=None) -> int:
           "mj_forward us | ratio to mj | max rel. error vs null-space | failed |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     kept = []
+    bad = []
     for name, clm, sample in robot_list(args.smoke):
         rows, states, _ = bench_robot(name, clm, sample, n_states)
         kept.append((name, clm, states))
         for (rname, nv, rr, route, t, raw, mj, err, fails, n) in rows:
+            if fails or not err <= AGREEMENT:
+                bad.append(f"{rname} {route}: {fails} failed, error {err:.1e}")
             ratio_mj = "-" if mj is None or not route.startswith("FD") else f"{t / mj:.2f}"
             print(f"| {rname} | {nv} | {rr} | {route} | {_us(t)} | {_us(raw)} | "
                   f"{t / raw:.2f} | {_us(mj) if route.startswith('FD') else '-'} | {ratio_mj} | "
@@ -351,6 +357,9 @@ def main(argv=None) -> int:
         res = max(out["semi_implicit_euler"][1], out["rk4"][1])
         print(f"| {name} | {_us(out['semi_implicit_euler'][0])} | {_us(out['rk4'][0])} | "
               f"{_us(mj)} | {res:.1e} |")
+    if bad:
+        print("\nDISAGREEMENT OR FAILED SOLVES:\n" + "\n".join(bad))
+        return 1
     return 0
 
 
