@@ -368,3 +368,37 @@ def test_inconsistent_actuated_velocities_raise(four_bar):
             both.velocity_from_actuated(q, [1.0, rocker_rate + 0.1], method)
     with pytest.raises(hp.SolverError):
         both.actuated_velocity_map(q)
+
+
+def test_frame_acceleration_bias_matches_second_differences(four_bar):
+    """At a constant unit crank speed the coupler tip accelerates by d^2 p / d theta^2:
+    second differences of assembled configurations (Richardson), and the frame's
+    acceleration is ``K qdd + bias`` for any crank acceleration."""
+    q0 = _assembled(four_bar, 0.5, [0.5, 0.4, 1.8])
+    tip = four_bar.frame_id("coupler_tip")
+
+    def position(crank):
+        data = four_bar.model.createData()
+        pin.framesForwardKinematics(four_bar.model, data, _assembled(four_bar, crank, q0))
+        return data.oMf[tip].translation.copy()
+
+    def second(h):
+        return (position(0.5 + h) - 2 * position(0.5) + position(0.5 - h)) / h ** 2
+
+    v = four_bar.velocity_from_actuated(q0, [1.0])
+    bias = four_bar.acceleration_bias_from_actuated(q0, v, "coupler_tip")
+    np.testing.assert_allclose(bias[:3], (4 * second(1e-3) - second(2e-3)) / 3, atol=1e-7)
+    jac = four_bar.frame_jacobian_from_actuated(q0, "coupler_tip")
+    acc = four_bar.acceleration_from_actuated(q0, v, [2.5])
+    pin.forwardKinematics(four_bar.model, four_bar.data, q0, v, acc)
+    classical = pin.getFrameClassicalAcceleration(four_bar.model, four_bar.data, tip, LWA)
+    np.testing.assert_allclose(classical.vector, jac[:, 0] * 2.5 + bias, atol=1e-12)
+
+
+def test_hexapod_velocity_map_matches_an_svd_null_space(robot, rng):
+    model = robot.model
+    q = robot.configuration(random_pose(robot, rng))
+    ref = svd_velocity_map(model.constraint_jacobian(q), model.actuated_v, model.passive_v)
+    for method in ("lstsq", "qp"):
+        np.testing.assert_allclose(model.actuated_velocity_map(q, method), ref,
+                                   atol=1e-10 * max(1.0, np.abs(ref).max()))
