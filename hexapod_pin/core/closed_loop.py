@@ -17,6 +17,11 @@ Conventions:
   residual(q) + J_c dv + O(dv^2)``. A velocity ``v`` keeps the closures when
   ``J_c v = 0``; an acceleration ``a`` when ``J_c a + gamma = 0`` with the drift
   ``gamma`` from :meth:`ClosedLoopModel.constraint_drift`.
+
+Motion on the closures (velocity and acceleration maps, projections) is computed by
+:mod:`~hexapod_pin.core.closure_motion`, frame-target inverse kinematics by
+:mod:`~hexapod_pin.core.frame_ik`; the methods here are thin entry points. Freezing
+joints (a reduced model) is :func:`hexapod_pin.core.freeze.freeze_joints`.
 """
 
 from __future__ import annotations
