@@ -456,3 +456,18 @@ def test_browser_shows_every_mode(robot, tmp_path):
     assert int(status["meshes"]) == 2 * (N_VISUALS + 6)
     left, right = image[:, :400], image[:, 400:]
     assert colour_pixels(left, BLUE) > 1000 and colour_pixels(right, BLUE) > 1000
+
+
+def test_a_robot_without_visuals_is_a_clear_error(tmp_path):
+    urdf = tmp_path / "bare.urdf"
+    urdf.write_text('<?xml version="1.0"?><robot name="bare"><link name="base"/>'
+                    '<link name="arm"><inertial><mass value="1"/><inertia ixx="1e-3" ixy="0" '
+                    'ixz="0" iyy="1e-3" iyz="0" izz="1e-3"/></inertial></link>'
+                    '<joint name="j" type="revolute"><parent link="base"/><child link="arm"/>'
+                    '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/>'
+                    '</joint></robot>')
+    loops = tmp_path / "bare.loops.yaml"
+    loops.write_text("closures: []\nactuated: [j]\n")
+    model = hp.ClosedLoopModel.from_files(urdf, loops)
+    with pytest.raises(hp.InputError, match="no visual geometry"):
+        viz.pose_scene(model, np.zeros(model.nq))

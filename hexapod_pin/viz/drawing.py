@@ -167,7 +167,14 @@ def check_configuration(visual: RobotVisual, q, name: str = "q") -> np.ndarray:
 def draw_robot(scene: Scene, visual: RobotVisual, q: np.ndarray, root: str,
                offset=(0.0, 0.0, 0.0), opacity: float = 1.0) -> Drawn:
     """Draw the robot's visuals at configuration ``q`` under the node ``root``, shifted by
-    ``offset`` (m, world axes); ``opacity`` multiplies the URDF colours' alpha."""
+    ``offset`` (m, world axes); ``opacity`` multiplies the URDF colours' alpha.
+
+    Raises:
+        InputError: the robot has no visual geometry (no ``<visual>`` in its URDF).
+    """
+    if len(visual.visual_model.geometryObjects) == 0:
+        raise InputError("robot", visual.name, "has no visual geometry to draw: add "
+                                               "<visual> elements to its URDF links")
     offset = np.asarray(offset, dtype=float)
     scene.set_transform(root, _translation(offset))
     drawn = Drawn([], [], [])

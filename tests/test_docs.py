@@ -1,0 +1,141 @@
+"""The documentation as a new user meets it: the site builds strictly (a broken reference
+fails), every Python block of the README and of the docs runs, every ``hexapod-pin``
+command shown runs, the example notebook executes, the derivations page names tests that
+exist, and the typed modules pass mypy. Nothing is downloaded."""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+PAGES = sorted([ROOT / "README.md", *DOCS.rglob("*.md")])
+FENCE = re.compile(r"^```(\w+)[^\n]*\n(.*?)^```", re.MULTILINE | re.DOTALL)
+#: a first line that marks a block as not to be run (e.g. a partial snippet)
+NOT_RUN = "# not run"
+
+
+def blocks(page: Path, languages: tuple[str, ...]) -> list[str]:
+    """The fenced code blocks of a page in the given languages, in order."""
+    return [body for lang, body in FENCE.findall(page.read_text(encoding="utf-8"))
+            if lang in languages and not body.startswith(NOT_RUN)]
+
+
+def name(page: Path) -> str:
+    return str(page.relative_to(ROOT))
+
+
+PYTHON_PAGES = [p for p in PAGES if blocks(p, ("python",))]
+CLI_PAGES = [p for p in PAGES if any("hexapod-pin " in b for b in blocks(p, ("bash",)))]
+
+
+def test_every_page_is_in_the_navigation():
+    nav = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    for page in DOCS.rglob("*.md"):
+        assert str(page.relative_to(DOCS)) in nav, page
+
+
+def test_the_site_builds_strictly(tmp_path):
+    env = dict(os.environ, NO_MKDOCS_2_WARNING="1")
+    site = tmp_path / "site"
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f",
+                           str(ROOT / "mkdocs.yml"), "-d", str(site)], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=900, check=False)
+    assert done.returncode == 0, done.stderr[-4000:]
+    api = (site / "api" / "hexapod" / "index.html").read_text(encoding="utf-8")
+    assert "hexapod_pin.hexapod.kinematics.HexapodKinematics.leg_motion" in api
+    derivations = (site / "derivations" / "index.html").read_text(encoding="utf-8")
+    # the equation table links into the API reference
+    assert 'href="../api/hexapod/#hexapod_pin.hexapod.kinematics.HexapodKinematics.jacobian"' \
+        in derivations
+
+
+@pytest.mark.parametrize("page", PYTHON_PAGES, ids=name)
+def test_python_blocks_run(page, tmp_path, monkeypatch):
+    """The blocks of one page run in order in one namespace, in a scratch folder."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    namespace: dict = {"__name__": "__main__"}
+    for n, block in enumerate(blocks(page, ("python",))):
+        exec(compile(block, f"{name(page)} (block {n})", "exec"), namespace)  # noqa: S102
+
+
+def cli_lines(page: Path) -> list[list[str]]:
+    """``hexapod-pin ...`` lines of a page's bash blocks (comments dropped)."""
+    out = []
+    for block in blocks(page, ("bash",)):
+        for line in block.splitlines():
+            line = line.split(" #", 1)[0].strip()
+            if line.startswith("hexapod-pin "):
+                out.append(shlex.split(line)[1:])
+            elif "&& hexapod-pin " in line:
+                out.append(shlex.split(line.split("&& hexapod-pin ", 1)[1]))
+    return out
+
+
+@pytest.mark.parametrize("page", CLI_PAGES, ids=name)
+def test_cli_lines_run(page, tmp_path, monkeypatch):
+    """Every command shown succeeds (exit code 0), run in a scratch folder."""
+    from hexapod_pin.cli import app
+
+    monkeypatch.chdir(tmp_path)
+    runner = CliRunner()
+    for args in cli_lines(page):
+        result = runner.invoke(app, args)
+        assert result.exit_code == 0, (args, result.output[-2000:])
+
+
+def test_the_notebook_executes(tmp_path):
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    notebook = nbformat.read(ROOT / "examples" / "notebook.ipynb", as_version=4)
+    assert all(not cell.get("outputs") for cell in notebook.cells if cell.cell_type == "code")
+    client = nbclient.NotebookClient(notebook, timeout=600, kernel_name="python3",
+                                     resources={"metadata": {"path": str(tmp_path)}})
+    client.execute()
+    outputs = [o for cell in notebook.cells if cell.cell_type == "code" for o in cell.outputs]
+    assert not [o for o in outputs if o.output_type == "error"]
+    html = [o["data"]["text/html"] for o in outputs if "text/html" in o.get("data", {})]
+    assert html and html[0].startswith("<iframe") and "hexapodPinCommands" in html[0]
+    assert any("image/png" in o.get("data", {}) for o in outputs)
+
+
+def test_derivations_name_tests_that_exist():
+    text = (DOCS / "derivations.md").read_text(encoding="utf-8")
+    named = re.findall(r"`(tests/[\w/]+\.py)::(\w+)`", text)
+    assert len(named) >= 40
+    for path, test in named:
+        source = (ROOT / path).read_text(encoding="utf-8")
+        assert re.search(rf"^def {test}\(", source, re.MULTILINE), f"{path}::{test}"
+    covered = set()                   # every equation of the seed report has a row
+    for first, last in re.findall(r"^\| (\d+)(?:-(\d+))? \|", text, re.MULTILINE):
+        covered.update(range(int(first), int(last or first) + 1))
+    assert covered == set(range(1, 41))
+
+
+def test_readme_links_into_the_docs():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    links = re.findall(r"\]\((docs/[^)#]+)", readme)
+    assert len(links) >= 5
+    for link in links:
+        assert (ROOT / link).exists(), link
+    assert 'pip install -e ".[test]" && hexapod-pin demo' in readme
+    assert "python -m pytest -q" in readme
+
+
+def test_public_modules_type_check():
+    """mypy over the files of ``[tool.mypy]`` in pyproject.toml (the command line, motion
+    and geometry files with complete annotations)."""
+    pytest.importorskip("mypy")
+    done = subprocess.run([sys.executable, "-m", "mypy", "--cache-dir",
+                           str(ROOT / ".mypy_cache")], cwd=ROOT, capture_output=True,
+                          text=True, timeout=900, check=False)
+    assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
