@@ -173,19 +173,20 @@ def planar_ladder_urdf(loops: int, masses) -> str:
     return "\n".join(lines) + "\n"
 
 
-def ladder_loops(loops: int) -> str:
-    """Loops description of the ladder (point closures, bar_0 actuated)."""
+def ladder_loops(loops: int, actuated=("bar_0",)) -> str:
+    """Loops description of the ladder (point closures, ``actuated`` bars)."""
     lines = ["closures:"]
     lines += [f"  - {{name: rung_{j}, type: point, frame1: coupler_{j}_tip, "
               f"frame2: bar_{j + 1}_tip}}" for j in range(loops)]
-    lines.append("actuated: [bar_0]")
+    lines.append(f"actuated: [{', '.join(actuated)}]")
     return "\n".join(lines) + "\n"
 
 
-def ladder_model(loops: int, bar_masses, coupler_masses) -> ClosedLoopModel:
+def ladder_model(loops: int, bar_masses, coupler_masses, actuated=("bar_0",)
+                 ) -> ClosedLoopModel:
     """The ladder as a ClosedLoopModel (URDF text + loops text)."""
     urdf = ladder_urdf(loops, bar_masses, coupler_masses)
-    return ClosedLoopModel(build_model(urdf), parse_loops(ladder_loops(loops)),
+    return ClosedLoopModel(build_model(urdf), parse_loops(ladder_loops(loops, actuated)),
                            name=f"ladder_{loops}", urdf_xml=urdf)
 
 
@@ -226,7 +227,10 @@ def _ladder_sampler(clm: ClosedLoopModel, loops: int):
 
 # ------------------------------------------------------------------------ state sampling
 def _velocity(clm: ClosedLoopModel, q: np.ndarray, rng, speed: float = 1.0) -> np.ndarray:
-    return clm.complete_velocity(q, clm.actuated_v, speed * rng.normal(size=clm.n_actuated))
+    """A random velocity in the null space of J_c (numpy SVD)."""
+    _, sv, vt = np.linalg.svd(clm.constraint_jacobian(q))
+    basis = vt[int(np.sum(sv > 1e-10 * sv[0])):].T
+    return speed * basis @ rng.normal(size=basis.shape[1])
 
 
 def _assembly_sampler(clm: ClosedLoopModel, q_home: np.ndarray, spread: float):
@@ -281,11 +285,18 @@ def delta_massless() -> StressRobot:
     return StressRobot("delta_massless", clm, _assembly_sampler(clm, _delta_home(clm), 0.2))
 
 
-def ladder_mixed(loops: int = 6) -> StressRobot:
+def ladder_mixed(loops: int = 6, actuated=("bar_0",)) -> StressRobot:
     bars = [(1e2, 1e-3, 1.0, 1e-1, 1e1)[j % 5] for j in range(loops + 1)]
     couplers = [(1e-3, 1e1, 1e-2, 1e2, 1.0)[j % 5] for j in range(loops)]
-    clm = ladder_model(loops, bars, couplers)
+    clm = ladder_model(loops, bars, couplers, actuated)
     return StressRobot("ladder_mixed", clm, _ladder_sampler(clm, loops))
+
+
+def ladder_redundantly_actuated(loops: int = 6) -> StressRobot:
+    """:func:`ladder_mixed` with three actuated bars for one degree of freedom: the
+    actuator forces are not unique (the inverse-dynamics QP chooses them)."""
+    robot = ladder_mixed(loops, ("bar_0", "bar_2", "bar_5"))
+    return StressRobot("ladder_redundantly_actuated", robot.clm, robot.sample)
 
 
 def ladder_massless(loops: int = 4) -> StressRobot:

@@ -278,3 +278,35 @@ def test_generic_step_keeps_the_closures(name, integrator):
         assert np.max(np.abs(clm.residual(q))) <= 1e-9
         assert np.max(np.abs(clm.constraint_jacobian(q) @ v)) <= 1e-9 * max(
             1.0, np.max(np.abs(v)))
+
+
+# ------------------------------------------------------- inverse-dynamics QP, redundant u
+def test_inverse_qp_on_redundant_actuation_is_the_weighted_minimum():
+    """Three actuators for one degree of freedom: the QP picks ``min |u|^2 + w |lambda|^2``
+    (w = 1e-2) subject to the equation of motion; reference: the weighted minimum-norm
+    solution by numpy (bounds inactive), and with a bound that binds, a feasible point
+    with every |u| <= bound that still satisfies the equation of motion."""
+    robot = stress_robots.ladder_redundantly_actuated()
+    clm = robot.clm
+    rng = np.random.default_rng(9)
+    sel = np.zeros((clm.nv, clm.n_actuated))
+    sel[clm.actuated_v, np.arange(clm.n_actuated)] = 1.0
+    for _ in range(STATES):
+        q, v = robot.sample(rng)
+        tau = _tau(clm, rng)
+        a_ref, _ = reference_forward(clm, q, v, tau)
+        mass, bias, jac, _ = reference_terms(clm, q, v)
+        mat = np.hstack([sel, jac.T])
+        rhs = mass @ a_ref + bias
+        root_w = np.sqrt(np.concatenate([np.ones(clm.n_actuated), np.full(clm.n_rows, 1e-2)]))
+        x_ref = np.linalg.pinv(mat / root_w, rcond=1e-10) @ rhs / root_w
+        free = inverse_dynamics_tree(clm, q, v, a_ref, method="qp")
+        assert_close(free.actuator_forces, x_ref[:clm.n_actuated], "weighted minimum u")
+        bound = 0.9 * np.max(np.abs(free.actuator_forces))
+        try:
+            tight = inverse_dynamics_tree(clm, q, v, a_ref, method="qp", bounds=bound)
+        except ActuatorSaturationError:
+            continue
+        assert np.max(np.abs(tight.actuator_forces)) <= bound * (1 + 1e-9)
+        x = np.concatenate([tight.actuator_forces, tight.multipliers])
+        assert np.max(np.abs(mat @ x - rhs)) <= 1e-9 * np.max(np.abs(rhs))

@@ -228,6 +228,7 @@ class ClosedLoopDynamics:
         self._aux_data = self.model.createData()   # lazy multiplier conversions
         self._res_out = np.empty(2)
         self._pools: dict[int, pin.ModelPool] = {}
+        self._unique: bool | None = None
         self._no_rows = (np.zeros((0, self.nv)), np.zeros(0))
         self._kkt = np.zeros((self.nv + self.n_rows, self.nv + self.n_rows))
         self._id_matrix = np.zeros((self.nv, self.n_act + self.n_rows))
@@ -754,6 +755,13 @@ class ClosedLoopDynamics:
         ``|u| <= bounds``; warm-started from the direct (minimum-norm) solution."""
         n = self.n_act + self.n_rows
         direct, _ = self._inverse_kkt(mat, rhs, rank, jac)
+        if self._unique_forces(mat):
+            # u is determined by the equation and lambda is minimum-norm: the direct
+            # solution is the QP's minimiser when it keeps the bounds, and no point keeps
+            # them when it does not (an exact certificate, no iteration needed)
+            if bounds is None or np.all(np.abs(direct[:self.n_act]) <= bounds):
+                return direct, "solved", 0
+            raise ActuatorSaturationError(direct[:self.n_act].copy(), bounds)
         f_scale = max(max_abs(rhs), max_abs(direct), _TINY)
         norms = np.sqrt(np.einsum("ij,ij->i", mat, mat))
         dinv = 1.0 / np.maximum(norms, _TINY)
@@ -789,6 +797,16 @@ class ClosedLoopDynamics:
         if status != "solved":
             status = f"{status} (residuals verified)"
         return sol, status, int(info.iter)
+
+    def _unique_forces(self, mat) -> bool:
+        """Whether ``[S^T J_c^T] x = rhs`` determines ``u`` (no null direction of the matrix
+        moves ``u``); evaluated at the first call and assumed structural afterwards."""
+        if self._unique is None:
+            _, sv, vt = np.linalg.svd(mat)
+            tol = max(RANK_RTOL * sv[0], max(mat.shape) * _EPS) if sv.size else 0.0
+            null = vt[int(np.sum(sv > tol)):, :self.n_act]
+            self._unique = bool(null.size == 0 or max_abs(null) <= 1e-9)
+        return self._unique
 
     def _polish_inverse(self, mat, rhs, sol, bounds) -> np.ndarray:
         """Exact solution on the QP's active set: the actuators at a bound held there, the
