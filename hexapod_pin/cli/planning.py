@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Annotated
 
@@ -75,6 +76,10 @@ def retime(path_file: Annotated[Path, typer.Argument(
            max_angular_speed: MaxAngular = float("inf"),
            payload_mass: PayloadMass = 0.0, payload_wrench: PayloadWrench = None,
            no_strokes: NoStrokes = False,
+           margin: Annotated[float, typer.Option(
+               help="plan within (1 - margin) of every bound, so that the motion between "
+                    "grid points (and a resampled output) stays within the full bounds")
+           ] = 0.0,
            grid: Annotated[int, typer.Option(help="grid points along the path")] = 1000,
            rate: Annotated[float | None, typer.Option(
                help="resample the output at this rate (Hz); default the grid points",
@@ -94,8 +99,9 @@ def retime(path_file: Annotated[Path, typer.Argument(
     check_suffix("plot", plot, plotting.IMAGE_SUFFIXES)
     check_suffix("html", html, (".html", ".htm"))
     robot = robot_of(geometry, set_)
-    limits = _limits(max_force, max_velocity, max_acceleration, max_linear_speed,
-                     max_angular_speed, no_strokes)
+    limits = dataclasses.replace(_limits(max_force, max_velocity, max_acceleration,
+                                         max_linear_speed, max_angular_speed, no_strokes),
+                                 margin=margin)
     traj = time_optimal(robot, read_waypoints(path_file), limits=limits,
                         payload=_payload(payload_mass, payload_wrench), grid_points=grid)
     timed = traj if rate is None else traj.resample(rate)

@@ -179,8 +179,8 @@ def check_feasibility(robot, motion, *, limits: Limits | None = None,
               "linear_speed": np.linalg.norm(twists[:, :lin], axis=1)[:, None],
               "angular_speed": np.linalg.norm(twists[:, lin:], axis=1)[:, None]}
     limit_of = {"actuator_force": bounds["force"], "actuator_velocity": bounds["velocity"],
-                "linear_speed": np.array([limits.linear_speed], dtype=float),
-                "angular_speed": np.array([limits.angular_speed], dtype=float)}
+                "linear_speed": bounds["linear_speed"],
+                "angular_speed": bounds["angular_speed"]}
     if np.any(np.isfinite(bounds["acceleration"])):
         acc = robot.forward_dynamics_batch(poses, twists, forces,
                                            wrench(twist_dots)).actuator_accelerations

@@ -45,6 +45,10 @@ class Limits:
         angular_speed: norm of the platform's angular velocity (rad/s).
         strokes: reject a path that leaves the actuators' strokes (else only reachability
             is required).
+        margin: the planner keeps every bound times ``1 - margin`` (0 <= margin < 1), so
+            that the motion between its grid points, which may exceed the bounds it was
+            planned for by a fraction of a percent that shrinks with the grid step, stays
+            within the full bounds; :func:`check_feasibility` checks the full bounds.
     """
 
     actuator_force: float | tuple | None = None
@@ -53,13 +57,20 @@ class Limits:
     linear_speed: float = np.inf
     angular_speed: float = np.inf
     strokes: bool = True
+    margin: float = 0.0
 
-    def per_actuator(self, robot) -> dict[str, np.ndarray]:
-        """``{"force", "velocity", "acceleration"}`` -> (n_act,) bounds for ``robot``.
+    def per_actuator(self, robot, planning: bool = False) -> dict[str, np.ndarray]:
+        """``{"force", "velocity", "acceleration", "linear_speed", "angular_speed"}`` ->
+        bounds for ``robot``: (n_act,) for the actuators, (1,) for the platform speeds;
+        with ``planning``, each times ``1 - margin``.
 
         Raises:
-            InputError: a bound that is negative, NaN or of the wrong length.
+            InputError: a bound that is not positive or of the wrong length, a margin
+                outside [0, 1).
         """
+        if not (np.ndim(self.margin) == 0 and 0.0 <= float(self.margin) < 1.0):
+            raise InputError("margin", self.margin, "expected 0 <= margin < 1")
+        scale = 1.0 - float(self.margin) if planning else 1.0
         n = robot.n_actuators
         force = robot.geometry.max_actuator_force if self.actuator_force is None \
             else self.actuator_force
@@ -71,11 +82,12 @@ class Limits:
             if arr.shape != (n,) or np.any(np.isnan(arr)) or np.any(arr <= 0):
                 raise InputError(f"actuator_{name}", value,
                                  f"expected a positive bound or {n} positive bounds")
-            out[name] = arr.copy()
+            out[name] = arr * scale
         for name in ("linear_speed", "angular_speed"):
             value = getattr(self, name)
             if not (np.ndim(value) == 0 and float(value) > 0):
                 raise InputError(name, value, "expected a positive bound")
+            out[name] = np.array([float(value) * scale])
         return out
 
 
@@ -158,7 +170,7 @@ def path_coefficients(robot, samples: PathSamples, limits: Limits,
             ``limits.strokes``) or singular (it names the grid point).
     """
     n, dim = len(samples.s), robot.pose_dim
-    bounds = limits.per_actuator(robot)
+    bounds = limits.per_actuator(robot, planning=True)
     ik = robot.inverse_kinematics_batch(samples.poses)
     bad = ~(ik.ok if limits.strokes else ik.reachable)
     if np.any(bad):
@@ -195,8 +207,8 @@ def path_coefficients(robot, samples: PathSamples, limits: Limits,
     lin = 3 if dim == 6 else 2
     with np.errstate(divide="ignore"):
         ratios = [np.abs(velocity_ratio) / bounds["velocity"],
-                  np.linalg.norm(xi[:, :lin], axis=1)[:, None] / limits.linear_speed,
-                  np.linalg.norm(xi[:, lin:], axis=1)[:, None] / limits.angular_speed]
+                  np.linalg.norm(xi[:, :lin], axis=1)[:, None] / bounds["linear_speed"],
+                  np.linalg.norm(xi[:, lin:], axis=1)[:, None] / bounds["angular_speed"]]
         worst = np.max(np.hstack(ratios), axis=1)
         speed_bound = np.where(worst > 0, 1.0 / worst ** 2, np.inf)
     return PathCoefficients(samples, forces[n:2 * n] - c, forces[2 * n:] - c, c,
@@ -205,13 +217,13 @@ def path_coefficients(robot, samples: PathSamples, limits: Limits,
 
 def constraint_rows(coeffs: PathCoefficients, robot, limits: Limits) -> np.ndarray:
     """The limits as rows ``alpha s_ddot + beta s_dot^2 + gamma <= 0``, (N, m, 3), each
-    divided by its bound (dimensionless).
+    divided by its bound (dimensionless; the bounds times ``1 - limits.margin``).
 
     Raises:
         InfeasiblePathError: a grid point where the robot cannot hold the path's pose
             statically within its force limits (it names the point and the actuator).
     """
-    bounds = limits.per_actuator(robot)
+    bounds = limits.per_actuator(robot, planning=True)
     blocks = []
     force = bounds["force"]
     finite = np.flatnonzero(np.isfinite(force))
