@@ -46,6 +46,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 import proxsuite
+import scipy.linalg
 import scipy.optimize
 
 from ..errors import ActuatorSaturationError, InputError, SolverError
@@ -229,6 +230,8 @@ class ClosedLoopDynamics:
         self._res_out = np.empty(2)
         self._pools: dict[int, pin.ModelPool] = {}
         self._unique: bool | None = None
+        self._pin_singular = False       # M structurally singular: Pinocchio refused
+        self._rank_rechecked = False
         self._no_rows = (np.zeros((0, self.nv)), np.zeros(0))
         self._kkt = np.zeros((self.nv + self.n_rows, self.nv + self.n_rows))
         self._id_matrix = np.zeros((self.nv, self.n_act + self.n_rows))
@@ -407,11 +410,19 @@ class ClosedLoopDynamics:
         """
         if not self._pin_ready:
             self._init_pinocchio()
+        if self._pin_singular:
+            return None, self._prox_exact
         prox = self._prox_redundant if redundant else self._prox_exact
         acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
                                      self.pin_datas, prox)
         if self._pin_verified(acc, tau):
             return acc, prox
+        diag = np.diagonal(self._v_mass)
+        if np.min(diag) <= 1e-14 * max(np.max(diag), _TINY):
+            # a joint that moves no mass: Pinocchio's factorisation of M cannot hold this
+            # model at any state (structural); the exact routes answer from now on
+            self._pin_singular = True
+            return None, prox
         if redundant:
             prox = self._prox_deep
             acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
@@ -471,8 +482,9 @@ class ClosedLoopDynamics:
     def _forward_pinocchio(self, q, v, tau, rank) -> TreeForwardDynamics:
         redundant = rank < self.n_rows
         acc, prox = self.pinocchio_call(q, v, tau, redundant)
-        if acc is None and not redundant:
-            # a structural rank found too high at the first call: re-evaluate here
+        if acc is None and not redundant and not self._rank_rechecked:
+            # a structural rank found too high at the first call: re-evaluate once
+            self._rank_rechecked = True
             new_rank = self.closure_rank(q, force=True)
             if new_rank < rank:
                 rank, redundant = new_rank, True
@@ -599,26 +611,39 @@ class ClosedLoopDynamics:
         direct = self._forward_kkt(mass, bias, jac, gamma, tau, rank)
         rank = direct.rank
         nr = self.n_rows
+        rows = slice(None)
+        if rank < nr:
+            # the QP keeps independent rows only (a pivoted QR of J_c^T): same feasible set
+            # for a consistent drift, and the equality constraints get full row rank
+            _, _, piv = scipy.linalg.qr(jac.T, pivoting=True, mode="economic")
+            rows = np.sort(piv[:rank])
+        jac_q, gamma_q = jac[rows], gamma[rows]
+        n_eq = jac_q.shape[0]
         scale_m = max(max_abs(np.diag(mass)), _TINY)
-        if nr:
-            norms = np.sqrt(np.einsum("ij,ij->i", jac, jac))
+        if n_eq:
+            norms = np.sqrt(np.einsum("ij,ij->i", jac_q, jac_q))
             dinv = 1.0 / np.maximum(norms, _TINY)
-            jac_s = jac * dinv[:, None]
+            jac_s = jac_q * dinv[:, None]
             rho = scale_m
             hess = (mass + rho * (jac_s.T @ jac_s)) / scale_m
-            grad = (bias - tau + rho * (jac_s.T @ (gamma * dinv))) / scale_m
-            b = -gamma * dinv
+            grad = (bias - tau + rho * (jac_s.T @ (gamma_q * dinv))) / scale_m
+            b = -gamma_q * dinv
+            # multipliers of the kept rows giving the direct generalised force
+            lam_q, *_ = np.linalg.lstsq(jac_q.T, jac.T @ direct.multipliers, rcond=None)
         else:
-            jac_s, dinv, hess, grad, b = jac, np.ones(0), mass / scale_m, \
+            jac_s, dinv, hess, grad, b = jac_q, np.ones(0), mass / scale_m, \
                 (bias - tau) / scale_m, np.zeros(0)
+            lam_q = np.zeros(0)
         # ProxSuite: H x + g + A^T y = 0 with A = D J_c  =>  lambda = -scale_m D y
-        y0 = -direct.multipliers / (scale_m * dinv) if nr else np.zeros(0)
-        qp = self._qp_solve("fd", 0, (hess, grad, jac_s, b, None, None, None),
+        y0 = -lam_q / (scale_m * dinv) if n_eq else np.zeros(0)
+        qp = self._qp_solve(("fd", n_eq), 0, (hess, grad, jac_s, b, None, None, None),
                             warm=(direct.a, y0, None))
         info = qp.results.info
         status = QP_STATUS.get(info.status, str(info.status))
         acc = qp.results.x.copy()
-        lam = -qp.results.y * scale_m * dinv if nr else np.zeros(0)
+        lam = np.zeros(nr)
+        if n_eq:
+            lam[rows] = -qp.results.y * scale_m * dinv
         try:
             self.verify(mass, bias, tau, jac, gamma, acc, lam, "ProxSuite (forward dynamics QP)")
         except SolverError as exc:
