@@ -43,17 +43,15 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-import ladder  # noqa: E402
-import stress_robots  # noqa: E402
+import ladder
+import stress_robots
 
-from hexapod_pin.core.dynamics import (  # noqa: E402
-    dynamics_of, forward_dynamics_tree, inverse_dynamics_tree)
-from hexapod_pin.core.simulation import ClosedLoopIntegrator  # noqa: E402
-from hexapod_pin.core.tree_batch import (  # noqa: E402
-    forward_dynamics_tree_batch, inverse_dynamics_tree_batch)
-from hexapod_pin.errors import HexapodPinError, InputError  # noqa: E402
-from hexapod_pin.loaders import robots  # noqa: E402
-from hexapod_pin.loaders.parallel_robots import load_parallel_robot  # noqa: E402
+from hexapod_pin.core.dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.core.simulation import ClosedLoopIntegrator
+from hexapod_pin.core.tree_batch import forward_dynamics_tree_batch, inverse_dynamics_tree_batch
+from hexapod_pin.errors import HexapodPinError, InputError
+from hexapod_pin.loaders import robots
+from hexapod_pin.loaders.parallel_robots import load_parallel_robot
 
 try:
     import mujoco
