@@ -29,6 +29,7 @@ EFFECTORS = {
     "ladder_mixed": ("bar_6_tip", False),
     "ladder_massless": ("bar_4_tip", True),
     "planar_ladder_weld": ("bar_5_tip", True),
+    "ladder_long": ("bar_24_tip", False),
 }
 TRIALS = 4
 

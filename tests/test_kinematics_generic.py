@@ -185,11 +185,11 @@ from hexapod_pin.core.dynamics import forward_dynamics_tree  # noqa: E402
 from hexapod_pin.errors import InconsistentMotionError, SingularityError  # noqa: E402
 
 STRESS = ["five_bar_stiff", "five_bar_massless", "delta_weld", "delta_massless",
-          "ladder_mixed", "ladder_massless", "planar_ladder_weld"]
+          "ladder_mixed", "ladder_massless", "planar_ladder_weld", "ladder_long"]
 EFFECTOR = {"five_bar_stiff": "pin", "five_bar_massless": "pin",
             "delta_weld": "platform_center", "delta_massless": "platform_center",
             "ladder_mixed": "bar_6_tip", "ladder_massless": "bar_4_tip",
-            "planar_ladder_weld": "bar_5_tip"}
+            "planar_ladder_weld": "bar_5_tip", "ladder_long": "bar_24_tip"}
 
 
 def svd_velocity_map(jac, actuated, passive):
