@@ -23,9 +23,9 @@ import numpy as np
 from ..errors import HexapodPinError, InputError, MissingDependencyError
 from .geometry import HexapodGeometry
 
-#: fewest designs for which ``use_dask=None`` starts a local Dask cluster (a local
-#: cluster costs a few seconds to start; a design of the default settings ~0.1 s)
 DASK_MIN_DESIGNS = 100
+"""Fewest designs for which ``use_dask=None`` starts a local Dask cluster (a local cluster
+costs a few seconds to start; a design of the default settings ~0.1 s)."""
 
 #: columns of the summary table, in order (besides the swept parameters)
 SUMMARY_COLUMNS = (

@@ -27,9 +27,10 @@ from ..errors import InputError
 from ..hexapod import workspace
 from .plotting import checked_series, figure_class, finish_figure
 
-#: what every figure and command calls the condition number: that of
-#: ``hexapod_pin.hexapod.workspace.evaluate`` and ``Hexapod.singularity``
 CONDITION_LABEL = "condition number cond(J), J unscaled (m and rad columns)"
+"""What every figure and command calls the condition number: that of
+``hexapod_pin.hexapod.workspace.evaluate`` and ``Hexapod.singularity`` (one definition,
+:mod:`hexapod_pin.core.measures`)."""
 
 
 # -- conditioning along a path -----------------------------------------------------------------
