@@ -24,6 +24,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
+import scipy.linalg
 
 from ..errors import AssemblyError, InputError
 from .closed_loop import ClosedLoopModel
@@ -93,6 +94,7 @@ class ClosedLoopIntegrator:
             self._vec_slices = (slice(vec_q[0], vec_q[0] + len(vec_q)),
                                 slice(vec_v[0], vec_v[0] + len(vec_v)))
         self._redundant: bool | None = None
+        self._rows: np.ndarray | None = None     # independent closure rows (projection)
 
     # -- kinematics of the configuration vector -------------------------------------------
     def qdot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -195,8 +197,10 @@ class ClosedLoopIntegrator:
                 max_iter: int = 8):
         """Project ``(q, v)`` onto the closures when the residual exceeds ``trigger``.
 
-        Gauss-Newton steps ``q <- q (+) (-J_c^+ r)`` until the residual stops
-        decreasing tenfold or falls below ``1e-3 trigger``, then ``v <- v - J_c^+ J_c v``.
+        Gauss-Newton steps ``q <- q (+) (-J_c^+ r)`` on the independent closure rows (rows
+        dependent on the others, exactly or to 1e-8, are left out once and for all) until
+        the residual stops decreasing tenfold or falls below ``1e-3 trigger``, then
+        ``v <- v - J_c^+ J_c v`` on the same rows.
         Returns ``(q, v, residual)``; untouched when the residual is below ``trigger``.
 
         Raises:
@@ -207,22 +211,25 @@ class ClosedLoopIntegrator:
             return q, v, err
         dyn = self.dyn
         model = self.clm.model
-        for iteration in range(max_iter):
-            jac = dyn.constraint_jacobian(q)
+        rows = self._rows
+        for _ in range(max_iter):
+            jac = dyn.constraint_jacobian(q)          # also updates the frame placements
+            if rows is None:
+                rows = self._rows = _independent_rows(jac)
             res = self._residual_from_data()
             err = float(np.max(np.abs(res), initial=0.0))
             if not np.isfinite(err):
                 break
-            q_new = pin.integrate(model, q, -_pinv_apply(jac, res))
+            q_new = pin.integrate(model, q, -_pinv_apply(jac[rows], res[rows]))
             err_new = self.residual(q_new)
             if not err_new < err:
                 break
-            q, err = q_new, err_new
-            if err <= 1e-3 * trigger or err_new > 0.1 * err:
+            q, err, err_old = q_new, err_new, err
+            if err <= 1e-3 * trigger or err > 0.1 * err_old:
                 break
         if not (err <= trigger):
             raise AssemblyError("projection onto the closures failed", err, max_iter, q)
-        jac = dyn.constraint_jacobian(q)
+        jac = dyn.constraint_jacobian(q)[rows]
         v = v - _pinv_apply(jac, jac @ v)
         return q, v, err
 
@@ -234,6 +241,19 @@ class ClosedLoopIntegrator:
             out[rows] = (m1.translation - m2.translation if is_point
                          else pin.log6(m2.actInv(m1)).vector)
         return out
+
+
+def _independent_rows(jac: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
+    """Rows of ``jac`` kept by a column-pivoted QR of ``jac^T`` up to its numerical rank
+    (singular values above ``rtol`` times the largest): rows dependent on the others,
+    exactly or nearly (an SDF's angles rounded to five digits), are left out so that
+    ``J J^T`` stays well conditioned. Assumed structural (evaluated once)."""
+    if jac.shape[0] == 0:
+        return np.arange(0)
+    sv = np.linalg.svd(jac, compute_uv=False)
+    rank = int(np.sum(sv > rtol * sv[0]))
+    _, _, piv = scipy.linalg.qr(jac.T, pivoting=True, mode="economic")
+    return np.sort(piv[:rank])
 
 
 def _pinv_apply(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:

@@ -24,7 +24,8 @@ import pinocchio as pin
 from ..errors import ActuatorSaturationError, BatchActuatorSaturationError, InputError, SolverError
 from .checks import as_array
 from .closed_loop import ClosedLoopModel
-from .dynamics import FORWARD_METHODS, INVERSE_METHODS, TreeForwardDynamics, dynamics_of
+from .dynamics import (FORWARD_METHODS, INVERSE_METHODS, TreeForwardDynamics,
+                       TreeInverseDynamics, dynamics_of)
 
 
 @dataclass(frozen=True)
@@ -57,15 +58,24 @@ class TreeInverseDynamicsBatch:
 
     Attributes:
         actuator_forces: ``u`` (N, n_act) (N or N m), ``clm.actuated_joints`` order.
-        multipliers: closure multipliers (N, n_rows).
         residual: per-state max-abs equation-of-motion residual (N,) (N, N m).
-        statuses: per-state status strings.
+        results: the per-state :class:`~hexapod_pin.core.dynamics.TreeInverseDynamics`
+            (multipliers converted on access).
     """
 
     actuator_forces: np.ndarray
-    multipliers: np.ndarray
     residual: np.ndarray
-    statuses: tuple[str, ...]
+    results: tuple[TreeInverseDynamics, ...]
+
+    @property
+    def multipliers(self) -> np.ndarray:
+        """Closure multipliers (N, n_rows), conventions of the single call."""
+        return np.array([r.multipliers for r in self.results]).reshape(len(self.results), -1)
+
+    @property
+    def statuses(self) -> tuple[str, ...]:
+        """Per-state status strings."""
+        return tuple(r.status for r in self.results)
 
 
 #: batches with fewer states evaluate ``rneaInParallel`` on one thread
@@ -172,9 +182,8 @@ def inverse_dynamics_tree_batch(clm: ClosedLoopModel, q, v, a, tau_ext=None, bou
                                np.asfortranarray(a.T))
     force = np.asarray(force).T
     u = np.empty((n, clm.n_actuated))
-    lam = np.empty((n, clm.n_rows))
     residual = np.empty(n)
-    statuses = []
+    results = []
     for i in range(n):
         try:
             res = dyn.inverse_from_force(q[i], v[i], a[i], force[i], ext[i], limits, method)
@@ -182,6 +191,6 @@ def inverse_dynamics_tree_batch(clm: ClosedLoopModel, q, v, a, tau_ext=None, bou
             raise BatchActuatorSaturationError(i, exc.needed, exc.limit) from None
         except SolverError as exc:
             raise _state_error(i, exc) from None
-        u[i], lam[i], residual[i] = res.actuator_forces, res.multipliers, res.residual
-        statuses.append(res.status)
-    return TreeInverseDynamicsBatch(u, lam, residual, tuple(statuses))
+        u[i], residual[i] = res.actuator_forces, res.residual
+        results.append(res)
+    return TreeInverseDynamicsBatch(u, residual, tuple(results))
