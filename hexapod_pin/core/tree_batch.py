@@ -24,8 +24,13 @@ import pinocchio as pin
 from ..errors import ActuatorSaturationError, BatchActuatorSaturationError, InputError, SolverError
 from .checks import as_array
 from .closed_loop import ClosedLoopModel
-from .dynamics import (FORWARD_METHODS, INVERSE_METHODS, TreeForwardDynamics,
-                       TreeInverseDynamics, dynamics_of)
+from .dynamics import (
+    FORWARD_METHODS,
+    INVERSE_METHODS,
+    TreeForwardDynamics,
+    TreeInverseDynamics,
+    dynamics_of,
+)
 
 
 @dataclass(frozen=True)
