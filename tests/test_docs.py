@@ -139,3 +139,16 @@ def test_public_modules_type_check():
                            str(ROOT / ".mypy_cache")], cwd=ROOT, capture_output=True,
                           text=True, timeout=900, check=False)
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
+
+
+def test_sphinx_roles_become_links_or_code():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("griffe_roles", DOCS / "griffe_roles.py")
+    roles = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(roles)
+    text = (":class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`, :func:`pin.rnea`, "
+            ":meth:`hexapod_pin.Hexapod.jacobian`")
+    assert roles.rewrite(text) == ("[`ClosedLoopModel`][hexapod_pin.core.closed_loop."
+                                   "ClosedLoopModel], `pin.rnea`, [`hexapod_pin.Hexapod."
+                                   "jacobian`][hexapod_pin.Hexapod.jacobian]")

@@ -38,7 +38,7 @@ platform joints transmit, world axes.
 Code generation: the expressions are turned into numpy functions with
 ``sympy.lambdify`` (common-subexpression elimination on) at first use, and cached in the
 process (:func:`numeric_functions`); the geometry enters as arguments, so one
-generated set serves every :class:`~hexapod_pin.planar.PlanarGeometry`. sympy is imported
+generated set serves every :class:`~hexapod_pin.planar.geometry.PlanarGeometry`. sympy is imported
 lazily inside functions: it is a test/dev dependency, never needed by the runtime package.
 """
 

@@ -9,7 +9,7 @@ reachability, strokes and the condition number from
 :func:`hexapod_pin.hexapod.sweeps.design_sweep`. The condition number is the one the
 library reports everywhere, labelled :data:`CONDITION_LABEL`: ``sigma_max / sigma_min``
 of the workspace Jacobian ``J`` (``qdot = J @ twist``) with its columns in m/s and
-rad/s as :meth:`hexapod_pin.Hexapod.jacobian` returns it (no characteristic length).
+rad/s as :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.jacobian` returns it (no characteristic length).
 
 matplotlib is optional (the ``plot`` extra); see :mod:`hexapod_pin.viz.plotting` for how
 figures are made and saved. Lengths in m, angles in rad (titles in degrees).
@@ -40,9 +40,9 @@ class Conditioning:
     :func:`hexapod_pin.hexapod.workspace.evaluate` reports it.
 
     ``condition_number`` is :data:`CONDITION_LABEL`: ``sigma_max / sigma_min`` of ``J``
-    (``qdot = J @ twist``) as :meth:`hexapod_pin.Hexapod.jacobian` returns it, columns in
+    (``qdot = J @ twist``) as :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.jacobian` returns it, columns in
     m/s and rad/s, no characteristic length; the number
-    :meth:`hexapod_pin.Hexapod.singularity` and ``workspace.evaluate`` report.
+    :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.singularity` and ``workspace.evaluate`` report.
 
     Attributes:
         s: path parameter (N,) (as given, or the sample index).
