@@ -80,6 +80,25 @@ def timing(fn) -> float:
     return best
 
 
+def paired(fa, fb, samples: int = 9) -> tuple[float, float]:
+    """Seconds per call of ``fa`` and ``fb``, timed in alternating samples (both see the
+    same machine load), the minimum over ``samples`` each."""
+    k = []
+    for fn in (fa, fb):
+        fn()
+        t0 = time.perf_counter()
+        fn()
+        k.append(max(1, int(SAMPLE["seconds"] / max(time.perf_counter() - t0, 1e-9))))
+    best = [np.inf, np.inf]
+    for _ in range(samples):
+        for i, fn in enumerate((fa, fb)):
+            t0 = time.perf_counter()
+            for _ in range(k[i]):
+                fn()
+            best[i] = min(best[i], (time.perf_counter() - t0) / k[i])
+    return best[0], best[1]
+
+
 # ----------------------------------------------------------------------------- robots
 def _cassie():
     clm = robots.cassie()
@@ -189,8 +208,9 @@ def bench_robot(name, clm, sample, n_states: int):
         cyc["k"] = (cyc["k"] + 1) % n_states
         return states[cyc["k"]]
 
-    raw_fd = timing(lambda: pin.constraintDynamics(model, data, *nxt()[:2], states[cyc["k"]][3],
-                                                   cms, cds, prox))
+    def raw_fd():
+        s = nxt()
+        pin.constraintDynamics(model, data, s[0], s[1], s[3], cms, cds, prox)
     mj = None
     if mujoco is not None:
         try:
@@ -220,8 +240,8 @@ def bench_robot(name, clm, sample, n_states: int):
                 forward_dynamics_tree(clm, s[0], s[1], s[2], method=method)
             except HexapodPinError:
                 pass
-        t = timing(call)
-        rows.append((name, clm.nv, f"{clm.n_rows}/{rank}", f"FD {method}", t, raw_fd, mj, err,
+        t, raw = paired(call, raw_fd)
+        rows.append((name, clm.nv, f"{clm.n_rows}/{rank}", f"FD {method}", t, raw, mj, err,
                      fails, n_states))
     # inverse dynamics
     sel = np.zeros((clm.nv, clm.n_actuated))
@@ -233,7 +253,6 @@ def bench_robot(name, clm, sample, n_states: int):
         pin.computeJointJacobians(model, data, q)
         jac = pin.getConstraintsJacobian(model, data, cms, cds)
         np.linalg.lstsq(np.hstack([sel, jac.T]), rhs, rcond=None)
-    raw_inv = timing(raw_id)
     for method, bounded in (("kkt", False), ("qp", True)):
         fails, err = 0, 0.0
         for q, v, u, _, a_ref in states:
@@ -255,9 +274,9 @@ def bench_robot(name, clm, sample, n_states: int):
                                       bounds=10 * np.abs(u).max() if bounded else None)
             except HexapodPinError:
                 pass
-        t = timing(call)
+        t, raw = paired(call, raw_id)
         rows.append((name, clm.nv, f"{clm.n_rows}/{rank}",
-                     f"ID {method}" + (" (bounded)" if bounded else ""), t, raw_inv, None, err,
+                     f"ID {method}" + (" (bounded)" if bounded else ""), t, raw, None, err,
                      fails, n_states))
     return rows, states, dyn
 
