@@ -362,7 +362,8 @@ def actuators_along(robot: ParallelRobot, motion: Motion, check_limits: bool = F
     return np.array(out)
 
 
-def inverse_dynamics_along(robot: ParallelRobot, motion: Motion, method: str = INVERSE_DYNAMICS_METHODS[0],
+def inverse_dynamics_along(robot: ParallelRobot, motion: Motion,
+                           method: str = INVERSE_DYNAMICS_METHODS[0],
                            progress: Callable[[int, int], None] | None = None
                            ) -> MotionForces:
     """Actuator and closure forces along a motion, by ``robot.inverse_dynamics`` per sample.
@@ -448,7 +449,8 @@ class CircleRun:
         return self.status == "completed"
 
 
-def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None, controller: str = "pid",
+def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None,
+                    controller: str = "pid",
                     radius: float = 0.02, period: float = 2.0,
                     progress: Callable[[int, int], None] | None = None,
                     engine: str = "auto") -> CircleRun:

@@ -421,6 +421,10 @@ def test_version_and_help_without_type_noise():
 
 
 def test_piped_output_is_not_wrapped_at_80_columns():
+    out = ok_json("jacobian")        # JSON: each measure once too
+    assert "condition_number" not in out["singularity"]
+    assert "jacobian_singular_values" not in out["singularity"]
+    assert set(out["singularity"]) >= {"type_one", "type_two", "type_one_actuator"}
     text = invoke("jacobian").stdout
     assert max(len(line) for line in text.splitlines()) > 80
     # each measure on one line with its meaning; the singular values of J printed once

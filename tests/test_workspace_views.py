@@ -2,14 +2,13 @@
 
 import numpy as np
 import pytest
-
-from hexapod_pin.viz import workspace_plots
-from hexapod_pin.hexapod import sweeps
-from hexapod_pin.viz import scenes as viz
-from hexapod_pin.hexapod import workspace as ws
-from hexapod_pin.errors import InputError, MissingDependencyError
-
 from test_visualize import needs_chromium, render
+
+from hexapod_pin.errors import InputError, MissingDependencyError
+from hexapod_pin.hexapod import sweeps
+from hexapod_pin.hexapod import workspace as ws
+from hexapod_pin.viz import scenes as viz
+from hexapod_pin.viz import workspace_plots
 
 
 def test_colormap_orders_low_to_high():

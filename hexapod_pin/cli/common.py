@@ -189,7 +189,8 @@ class Group(TyperGroup):
 
 
 # -- parsing --------------------------------------------------------------------------------
-def parse_numbers(tokens: Sequence[str] | None, count: int | None, name: str, meaning: str = "") -> np.ndarray:
+def parse_numbers(tokens: Sequence[str] | None, count: int | None, name: str,
+                  meaning: str = "") -> np.ndarray:
     """Floats from tokens like ``["0", "-0.1"]`` or ``["0,-0.1"]``; exactly ``count``.
 
     Raises:

@@ -156,7 +156,8 @@ def modes(q: Values = None,
     console.print(pose_table(f"{len(poses)} assembly modes", poses, degrees))
 
 
-def write_modes(path: Path, robot: Hexapod, carriages: np.ndarray, poses: list, layout: str) -> Path:
+def write_modes(path: Path, robot: Hexapod, carriages: np.ndarray, poses: list,
+                layout: str) -> Path:
     """The HTML page of the assembly modes ``poses`` of carriage positions ``carriages``."""
     qs = hexapod_scenes.hexapod_configurations(robot, poses, [carriages] * len(poses))
     return scenes.write_modes_html(path, robot, qs, layout=layout,
@@ -175,16 +176,15 @@ def jacobian(pose: Values = None, degrees: Degrees = False, as_json: AsJson = Fa
     robot = robot_of(geometry, set_)
     p = pose_in(pose, degrees) if pose else robot.home_pose
     jac = robot.jacobian(p)
-    measures = robot.singularity(p)
-    payload = {"pose": pose_out(p, degrees), "jacobian": jac,
-               "singular_values": measures.jacobian_singular_values,
-               "condition_number": measures.condition_number,
-               "singularity": plain(measures)}
-    if as_json:
-        emit_json(payload)
+    measures = plain(robot.singularity(p))
+    if as_json:     # each measure once: J's singular values and cond(J) at the top level
+        emit_json({"pose": pose_out(p, degrees), "jacobian": jac,
+                   "singular_values": measures.pop("jacobian_singular_values"),
+                   "condition_number": measures.pop("condition_number"),
+                   "singularity": measures})
         return
     console.print(jacobian_table(jac))
-    console.print(singularity_table(payload["singularity"]))
+    console.print(singularity_table(measures))
 
 
 def singularity_table(measures: dict) -> Table:

@@ -23,9 +23,11 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..core.checks import as_array
 from ..core.closed_loop import ClosedLoopModel
@@ -62,7 +64,7 @@ class RobotVisual:
     name: str
 
 
-def robot_visual(robot, urdf: str | os.PathLike | None = None,
+def robot_visual(robot: Any, urdf: str | os.PathLike | None = None,
                  package_dirs: Sequence[str | os.PathLike] = ()) -> RobotVisual:
     """The model and visual geometry of a robot.
 
@@ -93,7 +95,7 @@ def robot_visual(robot, urdf: str | os.PathLike | None = None,
     return RobotVisual(model, visual, closed_loop, safe_name(name))
 
 
-def _models_of(robot) -> tuple[ClosedLoopModel | None, pin.Model]:
+def _models_of(robot: Any) -> tuple[ClosedLoopModel | None, pin.Model]:
     if isinstance(robot, ClosedLoopModel):
         return robot, robot.model
     inner = getattr(robot, "model", None)
@@ -105,7 +107,8 @@ def _models_of(robot) -> tuple[ClosedLoopModel | None, pin.Model]:
                                      "ClosedLoopModel as .model, or a pin.Model")
 
 
-def _urdf_text(robot, closed_loop: ClosedLoopModel | None, urdf) -> str:
+def _urdf_text(robot: Any, closed_loop: ClosedLoopModel | None,
+               urdf: str | os.PathLike | None) -> str:
     if urdf is not None:
         text = str(urdf)
         if text.lstrip().startswith("<"):
@@ -148,7 +151,7 @@ def geometry_placements(visual: RobotVisual, q: np.ndarray) -> list[pin.SE3]:
     return [gdata.oMg[i].copy() for i in range(visual.visual_model.ngeoms)]
 
 
-def check_configuration(visual: RobotVisual, q, name: str = "q") -> np.ndarray:
+def check_configuration(visual: RobotVisual, q: ArrayLike, name: str = "q") -> np.ndarray:
     """``q`` as a contiguous float array of size ``nq``.
 
     Raises:
@@ -165,7 +168,7 @@ def check_configuration(visual: RobotVisual, q, name: str = "q") -> np.ndarray:
 
 
 def draw_robot(scene: Scene, visual: RobotVisual, q: np.ndarray, root: str,
-               offset=(0.0, 0.0, 0.0), opacity: float = 1.0) -> Drawn:
+               offset: ArrayLike = (0.0, 0.0, 0.0), opacity: float = 1.0) -> Drawn:
     """Draw the robot's visuals at configuration ``q`` under the node ``root``, shifted by
     ``offset`` (m, world axes); ``opacity`` multiplies the URDF colours' alpha.
 
@@ -191,13 +194,14 @@ def draw_robot(scene: Scene, visual: RobotVisual, q: np.ndarray, root: str,
     return drawn
 
 
-def _translation(offset) -> np.ndarray:
+def _translation(offset: ArrayLike) -> np.ndarray:
     mat = np.eye(4)
     mat[:3, 3] = offset
     return mat
 
 
-def draw_arrow(scene: Scene, path: str, origin, vector, color: int, radius: float) -> None:
+def draw_arrow(scene: Scene, path: str, origin: ArrayLike, vector: ArrayLike, color: int,
+               radius: float) -> None:
     """An arrow from ``origin`` along ``vector`` (m, world axes), shaft radius ``radius``."""
     for sub, lowered in arrow_objects(color, radius):
         scene.set_object(f"{path}/{sub}", lowered)
@@ -233,7 +237,7 @@ def frame_id(model: pin.Model, name: str) -> int:
 
 
 def actuator_arrows(visual: RobotVisual, q: np.ndarray,
-                    actuator_forces) -> list[tuple[np.ndarray, np.ndarray, bool]]:
+                    actuator_forces: ArrayLike) -> list[tuple[np.ndarray, np.ndarray, bool]]:
     """Arrows (origin, vector, is_force) of actuator efforts, world axes.
 
     Each actuated joint's effort is drawn at its joint frame origin along the
@@ -267,7 +271,7 @@ def actuator_arrows(visual: RobotVisual, q: np.ndarray,
 
 
 def closure_arrows(visual: RobotVisual, q: np.ndarray,
-                   closure_forces) -> list[tuple[np.ndarray, np.ndarray]]:
+                   closure_forces: ArrayLike) -> list[tuple[np.ndarray, np.ndarray]]:
     """Arrows (origin, force) of closure forces at the second anchor of each closure.
 
     Args:
@@ -308,7 +312,8 @@ def arrow_scale(efforts: list[np.ndarray], force_scale: float | None) -> float:
 
 
 def draw_overlays(scene: Scene, visual: RobotVisual, q: np.ndarray, root: str, size: float,
-                  actuator_forces=None, closure_forces=None, frames=None,
+                  actuator_forces: ArrayLike | None = None,
+                  closure_forces: ArrayLike | None = None, frames: Sequence[str] | None = None,
                   force_scale: float | None = None,
                   triad_length: float | None = None) -> float | None:
     """Actuator and closure force arrows and frame triads of configuration ``q`` under

@@ -13,9 +13,12 @@ closure forces (N, world axes) of each leg on the platform; times in seconds.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..core.checks import as_array
 from ..errors import InputError
@@ -23,7 +26,8 @@ from .meshcat_scene import Scene
 from .scenes import check_times, keyframes, trajectory_scene
 
 
-def hexapod_configurations(robot, poses, carriages=None) -> np.ndarray:
+def hexapod_configurations(robot: Any, poses: ArrayLike,
+                           carriages: ArrayLike | None = None) -> np.ndarray:
     """Pinocchio configurations (N, nq) of the hexapod for platform poses (N, 6).
 
     Args:
@@ -55,8 +59,10 @@ def hexapod_configurations(robot, poses, carriages=None) -> np.ndarray:
     return np.array(out)
 
 
-def hexapod_trajectory_scene(robot, times, poses, *, carriages=None, actuator_forces=None,
-                             fps: float | None = 30.0, **options) -> Scene:
+def hexapod_trajectory_scene(robot: Any, times: ArrayLike, poses: ArrayLike, *,
+                             carriages: ArrayLike | None = None,
+                             actuator_forces: ArrayLike | None = None,
+                             fps: float | None = 30.0, **options: Any) -> Scene:
     """:func:`trajectory_scene` of the hexapod from platform poses.
 
     The samples are thinned to ``fps`` key frames first, then turned into
@@ -95,7 +101,7 @@ def hexapod_trajectory_scene(robot, times, poses, *, carriages=None, actuator_fo
                             closure_forces=closure_forces, fps=None, **options)
 
 
-def simulation_scene(robot, trajectory, *, forces: bool = True, **options) -> Scene:
+def simulation_scene(robot: Any, trajectory: Any, *, forces: bool = True, **options: Any) -> Scene:
     """Animation of a simulated hexapod motion
     (:class:`hexapod_pin.hexapod.simulation.Trajectory`, or any object with its attributes).
 
@@ -120,11 +126,13 @@ def simulation_scene(robot, trajectory, *, forces: bool = True, **options) -> Sc
                                     **options)
 
 
-def write_hexapod_trajectory_html(path, robot, times, poses, **options) -> Path:
+def write_hexapod_trajectory_html(path: str | os.PathLike, robot: Any, times: ArrayLike,
+                                  poses: ArrayLike, **options: Any) -> Path:
     """Write :func:`hexapod_trajectory_scene` (same arguments) to HTML; returns its path."""
     return hexapod_trajectory_scene(robot, times, poses, **options).write(path)
 
 
-def write_simulation_html(path, robot, trajectory, **options) -> Path:
+def write_simulation_html(path: str | os.PathLike, robot: Any, trajectory: Any,
+                          **options: Any) -> Path:
     """Write :func:`simulation_scene` (same arguments) to HTML; returns its path."""
     return simulation_scene(robot, trajectory, **options).write(path)

@@ -34,6 +34,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 import umsgpack
+from numpy.typing import ArrayLike
 
 from ..errors import DescriptionError
 from ..files import write_text_atomic
@@ -56,7 +57,7 @@ COLORMAP = np.array([[0.267, 0.005, 0.329], [0.283, 0.141, 0.458], [0.254, 0.265
 DISCRETE_INTERPOLATION = 2300
 
 
-def _meshcat():
+def _meshcat() -> Any:
     """meshcat's geometry module, imported on first use (not to hide a cycle): importing
     meshcat pulls in IPython and zmq, which ``import hexapod_pin`` should not pay."""
     with warnings.catch_warnings():  # meshcat's server module imports a deprecated zmq API
@@ -122,7 +123,7 @@ class Scene:
         self._commands.append({"type": "set_transform", "path": path,
                                "matrix": [float(v) for v in matrix.T.ravel()]})
 
-    def set_property(self, path: str, key: str, value) -> None:
+    def set_property(self, path: str, key: str, value: Any) -> None:
         """Record a ``set_property`` (e.g. ``visible``, ``position``)."""
         self._commands.append({"type": "set_property", "path": path, "property": key,
                                "value": value})
@@ -182,9 +183,9 @@ class Scene:
                 f'srcdoc="{html_lib.escape(self.html(), quote=True)}"></iframe>')
 
 
-def _three(vec) -> list[float]:
+def _three(vec: ArrayLike) -> list[float]:
     """World (z up) coordinates -> three.js scene coordinates of meshcat (y up)."""
-    x, y, z = (float(v) for v in vec)
+    x, y, z = (float(v) for v in np.asarray(vec, dtype=float).reshape(3))
     return [x, z, -y]
 
 
@@ -271,12 +272,12 @@ try {{
 
 
 # -- primitives -------------------------------------------------------------------------
-def _color_int(rgba) -> int:
-    r, g, b = (min(max(float(c), 0.0), 1.0) for c in rgba[:3])
+def _color_int(rgba: ArrayLike) -> int:
+    r, g, b = (min(max(float(c), 0.0), 1.0) for c in np.asarray(rgba, dtype=float)[:3])
     return (round(r * 255) << 16) | (round(g * 255) << 8) | round(b * 255)
 
 
-def _mesh(geometry, color: int, opacity: float = 1.0,
+def _mesh(geometry: Any, color: int, opacity: float = 1.0,
           intrinsic: np.ndarray | None = None) -> dict:
     """Lower a meshcat geometry + phong material, with a correct intrinsic transform."""
     mg = _meshcat()
@@ -306,7 +307,7 @@ def shape_objects(gobj: pin.GeometryObject, opacity: float = 1.0
     color, opacity = _color_int(gobj.meshColor), float(opacity) * float(gobj.meshColor[3])
     scale = np.diag(np.append(np.asarray(gobj.meshScale, dtype=float), 1.0))
 
-    def cyl(height, radius_top, radius_bottom, shift=0.0):
+    def cyl(height: float, radius_top: float, radius_bottom: float, shift: float = 0.0) -> dict:
         mat = _Y_TO_Z.copy()
         mat[2, 3] = shift
         return _mesh(mg.Cylinder(float(height), radiusTop=float(radius_top),
@@ -352,7 +353,7 @@ def shape_objects(gobj: pin.GeometryObject, opacity: float = 1.0
     return [("", _mesh(mg.Box(size), color, opacity, box))], _aabb_half(geom, scale)
 
 
-def _aabb(geom) -> tuple[np.ndarray, np.ndarray]:
+def _aabb(geom: Any) -> tuple[np.ndarray, np.ndarray]:
     try:
         geom.computeLocalAABB()
         box = geom.aabb_local
@@ -361,7 +362,7 @@ def _aabb(geom) -> tuple[np.ndarray, np.ndarray]:
         return -0.01 * np.ones(3), 0.01 * np.ones(3)
 
 
-def _aabb_half(geom, scale) -> np.ndarray:
+def _aabb_half(geom: Any, scale: ArrayLike) -> np.ndarray:
     lo, hi = _aabb(geom)
     return np.diag(scale)[:3] * np.maximum(np.abs(lo), np.abs(hi))
 
@@ -385,7 +386,7 @@ def arrow_objects(color: int, radius: float) -> list[tuple[str, dict]]:
                            color, 1.0, head))]
 
 
-def arrow_matrix(origin, vector) -> np.ndarray:
+def arrow_matrix(origin: ArrayLike, vector: ArrayLike) -> np.ndarray:
     """Transform taking the unit +y arrow to an arrow from ``origin`` along ``vector``."""
     vector = np.asarray(vector, dtype=float)
     length = float(np.linalg.norm(vector))

@@ -18,8 +18,10 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import InputError, MissingDependencyError
 
@@ -28,7 +30,7 @@ CARRIAGE_COLORS = ("#d95f02", "#fdae61", "#1b9e77", "#66c2a5", "#7570b3", "#b3b0
 IMAGE_SUFFIXES = (".png", ".svg", ".pdf")
 
 
-def figure_class():
+def figure_class() -> type:
     """``matplotlib.figure.Figure``.
 
     Raises:
@@ -43,7 +45,7 @@ def figure_class():
     return Figure
 
 
-def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> Path:
+def save_figure(fig: Any, path: str | os.PathLike, dpi: int = 120) -> Path:
     """Save a figure; the format follows the suffix (.png, .svg, .pdf).
 
     Raises:
@@ -63,7 +65,7 @@ def _metadata(path: Path) -> dict:
     return {"Date": None} if path.suffix.lower() in (".svg", ".pdf") else {}
 
 
-def finish_figure(fig, path) -> object:
+def finish_figure(fig: Any, path: str | os.PathLike | None) -> Any:
     """Lay the figure out tightly, save it when ``path`` is given, return it."""
     fig.tight_layout()
     if path is not None:
@@ -71,7 +73,7 @@ def finish_figure(fig, path) -> object:
     return fig
 
 
-def checked_series(value, name: str, n: int | None = None,
+def checked_series(value: Any, name: str, n: int | None = None,
                    width: int | None = None) -> np.ndarray:
     """``value`` as a finite float array of shape (n,) (``width`` None) or (n, width)
     (``width`` -1: any number of columns; a 1-D value becomes one column).
@@ -97,7 +99,9 @@ def checked_series(value, name: str, n: int | None = None,
 
 
 # -- along a trajectory ----------------------------------------------------------------------
-def plot_trajectory(times, q=None, actuator_forces=None, *, path=None, title: str = ""):
+def plot_trajectory(times: ArrayLike, q: ArrayLike | None = None,
+                    actuator_forces: ArrayLike | None = None, *,
+                    path: str | os.PathLike | None = None, title: str = "") -> Any:
     """Carriage positions and actuator forces against time.
 
     Args:
@@ -136,7 +140,8 @@ def plot_trajectory(times, q=None, actuator_forces=None, *, path=None, title: st
     return finish_figure(fig, path)
 
 
-def plot_closure_residual(times, residual, *, path=None, title: str = ""):
+def plot_closure_residual(times: ArrayLike, residual: ArrayLike, *,
+                          path: str | os.PathLike | None = None, title: str = "") -> Any:
     """Max-abs closure residual against time, on a log scale.
 
     Args:
@@ -162,7 +167,8 @@ def plot_closure_residual(times, residual, *, path=None, title: str = ""):
     return finish_figure(fig, path)
 
 
-def plot_simulation(trajectory, *, path=None, title: str = ""):
+def plot_simulation(trajectory: Any, *, path: str | os.PathLike | None = None,
+                    title: str = "") -> Any:
     """Carriage positions, actuator forces and closure residual of a simulation result.
 
     Reads ``times``, ``q``, ``actuator_forces`` and ``closure_residual`` from

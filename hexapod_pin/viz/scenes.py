@@ -34,21 +34,47 @@ Typical use::
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..core.checks import as_array
 from ..errors import InputError
-from .drawing import (DEFAULT_ARROW_LENGTH, RobotVisual, actuator_arrows, arrow_scale,
-                      check_configuration, closure_arrows, default_frames, draw_overlays,
-                      draw_robot, draw_triad, force_legend, frame_id, geometry_placements,
-                      robot_visual, safe_name)
-from .meshcat_scene import (COLORMAP, ROOT, Scene, animation_clip, arrow_matrix, box_corners,
-                            decompose, frame_camera, point_cloud_object, points_extent,
-                            text_object)
+from .drawing import (
+    DEFAULT_ARROW_LENGTH,
+    RobotVisual,
+    actuator_arrows,
+    arrow_scale,
+    check_configuration,
+    closure_arrows,
+    default_frames,
+    draw_overlays,
+    draw_robot,
+    draw_triad,
+    force_legend,
+    frame_id,
+    geometry_placements,
+    robot_visual,
+    safe_name,
+)
+from .meshcat_scene import (
+    COLORMAP,
+    ROOT,
+    Scene,
+    animation_clip,
+    arrow_matrix,
+    box_corners,
+    decompose,
+    frame_camera,
+    point_cloud_object,
+    points_extent,
+    text_object,
+)
 
 __all__ = ["COLORMAP", "DEFAULT_ARROW_LENGTH", "RobotVisual", "Scene", "check_times", "colormap",
            "keyframes", "modes_scene", "pose_scene", "robot_visual", "trajectory_scene",
@@ -57,10 +83,11 @@ __all__ = ["COLORMAP", "DEFAULT_ARROW_LENGTH", "RobotVisual", "Scene", "check_ti
 
 
 # -- public scenes ----------------------------------------------------------------------
-def pose_scene(robot, q, *, actuator_forces=None, closure_forces=None,
+def pose_scene(robot: Any, q: ArrayLike, *, actuator_forces: ArrayLike | None = None,
+               closure_forces: ArrayLike | None = None,
                frames: Sequence[str] | None = None, force_scale: float | None = None,
                triad_length: float | None = None, caption: str = "",
-               urdf=None) -> Scene:
+               urdf: str | os.PathLike | None = None) -> Scene:
     """A scene of the robot at one configuration, with optional overlays.
 
     Args:
@@ -99,9 +126,10 @@ def pose_scene(robot, q, *, actuator_forces=None, closure_forces=None,
 
 
 
-def modes_scene(robot, configurations, *, layout: str = "grid", spacing: float | None = None,
+def modes_scene(robot: Any, configurations: ArrayLike, *, layout: str = "grid",
+                spacing: float | None = None,
                 labels: Sequence[str] | None = None, frames: Sequence[str] | None = None,
-                urdf=None, caption: str = "") -> Scene:
+                urdf: str | os.PathLike | None = None, caption: str = "") -> Scene:
     """Several configurations of one robot (e.g. all assembly modes) in one scene.
 
     Args:
@@ -144,7 +172,8 @@ def modes_scene(robot, configurations, *, layout: str = "grid", spacing: float |
     return scene
 
 
-def _side_by_side(visual, qs, layout, spacing, frames, labels=None) -> Scene:
+def _side_by_side(visual: RobotVisual, qs: np.ndarray, layout: str, spacing: float | None,
+                  frames: Sequence[str] | None, labels: Sequence[str] | None = None) -> Scene:
     scene = Scene()
     extents = []
     for q in qs:
@@ -174,7 +203,8 @@ def _side_by_side(visual, qs, layout, spacing, frames, labels=None) -> Scene:
     return scene
 
 
-def _label_copies(scene: Scene, visual, qs, labels, step: float, per_row: int) -> None:
+def _label_copies(scene: Scene, visual: RobotVisual, qs: np.ndarray, labels: Sequence[str],
+                  step: float, per_row: int) -> None:
     """A text plane ``"<index>: <label>"`` above each copy, standing up and turned
     towards the camera (so the caption's list can be matched to the copies)."""
     for index, (q, label) in enumerate(zip(qs, labels)):
@@ -195,7 +225,7 @@ def _label_copies(scene: Scene, visual, qs, labels, step: float, per_row: int) -
         scene.set_transform(path, mat)
 
 
-def _configurations(visual: RobotVisual, configurations) -> np.ndarray:
+def _configurations(visual: RobotVisual, configurations: ArrayLike) -> np.ndarray:
     try:
         qs = np.asarray(configurations, dtype=float)
     except (TypeError, ValueError):
@@ -208,10 +238,11 @@ def _configurations(visual: RobotVisual, configurations) -> np.ndarray:
     return np.ascontiguousarray(qs)
 
 
-def trajectory_scene(robot, times, configurations, *, actuator_forces=None,
-                     closure_forces=None, frames: Sequence[str] | None = None,
+def trajectory_scene(robot: Any, times: ArrayLike, configurations: ArrayLike, *,
+                     actuator_forces: ArrayLike | None = None,
+                     closure_forces: ArrayLike | None = None, frames: Sequence[str] | None = None,
                      force_scale: float | None = None, fps: float | None = 30.0,
-                     caption: str = "", urdf=None, loop: bool = True,
+                     caption: str = "", urdf: str | os.PathLike | None = None, loop: bool = True,
                      discrete: bool = False) -> Scene:
     """A meshcat animation of the robot along a sampled motion (play controls in the page).
 
@@ -238,16 +269,17 @@ def trajectory_scene(robot, times, configurations, *, actuator_forces=None,
     """
     visual = robot_visual(robot, urdf)
     qs = _configurations(visual, configurations)
+    qs_all = qs
     t = check_times(times, len(qs))
     keep = keyframes(t, fps)
     t, qs = t[keep] - t[0], qs[keep]
     act = None if actuator_forces is None else as_array(
-        actuator_forces, (len(configurations), _n_act(visual, actuator_forces)),
+        actuator_forces, (len(qs_all), _n_act(visual, actuator_forces)),
         "actuator_forces")[keep]
     clo = None
     if closure_forces is not None:
         n_closures = 0 if visual.closed_loop is None else len(visual.closed_loop.closures)
-        clo = as_array(closure_forces, (len(configurations), n_closures, 3),
+        clo = as_array(closure_forces, (len(qs_all), n_closures, 3),
                        "closure_forces")[keep]
     scene = Scene()
     scene.caption = caption
@@ -278,13 +310,13 @@ def trajectory_scene(robot, times, configurations, *, actuator_forces=None,
     return scene
 
 
-def _n_act(visual: RobotVisual, value) -> int:
+def _n_act(visual: RobotVisual, value: Any) -> int:
     if visual.closed_loop is None:
         raise InputError("actuator_forces", value, "a bare tree has no actuated joints")
     return visual.closed_loop.n_actuated
 
 
-def check_times(times, n: int) -> np.ndarray:
+def check_times(times: ArrayLike, n: int) -> np.ndarray:
     """``times`` as a float array of ``n`` finite, strictly increasing values (s).
 
     Raises:
@@ -319,7 +351,9 @@ def keyframes(t: np.ndarray, fps: float | None) -> np.ndarray:
     return np.unique(np.append(idx, len(t) - 1))
 
 
-def _animate_overlays(tracks, visual, qs, act, clo, frames, root, force_scale) -> float:
+def _animate_overlays(tracks: dict, visual: RobotVisual, qs: np.ndarray, act: np.ndarray | None,
+                      clo: np.ndarray | None, frames: Sequence[str] | None, root: str,
+                      force_scale: float | None) -> float:
     """Fill ``tracks`` with the arrows and triads along the motion; returns the arrow
     length per unit effort (m/N) shared by every frame."""
     efforts: list[np.ndarray] = []
@@ -365,23 +399,25 @@ def _moves(props: dict[str, list]) -> bool:
 
 
 # -- files -------------------------------------------------------------------------------
-def write_pose_html(path, robot, q, **options) -> Path:
+def write_pose_html(path: str | os.PathLike, robot: Any, q: ArrayLike, **options: Any) -> Path:
     """Write :func:`pose_scene` (same arguments) to an HTML file; returns its path."""
     return pose_scene(robot, q, **options).write(path)
 
 
-def write_modes_html(path, robot, configurations, **options) -> Path:
+def write_modes_html(path: str | os.PathLike, robot: Any, configurations: ArrayLike,
+                     **options: Any) -> Path:
     """Write :func:`modes_scene` (same arguments) to an HTML file; returns its path."""
     return modes_scene(robot, configurations, **options).write(path)
 
 
-def write_trajectory_html(path, robot, times, configurations, **options) -> Path:
+def write_trajectory_html(path: str | os.PathLike, robot: Any, times: ArrayLike,
+                          configurations: ArrayLike, **options: Any) -> Path:
     """Write :func:`trajectory_scene` (same arguments) to an HTML file; returns its path."""
     return trajectory_scene(robot, times, configurations, **options).write(path)
 
 
 # -- workspace point clouds -----------------------------------------------------------------
-def colormap(values, low: float | None = None, high: float | None = None) -> np.ndarray:
+def colormap(values: ArrayLike, low: float | None = None, high: float | None = None) -> np.ndarray:
     """RGB colours (N, 3) in [0, 1] for ``values`` (N,), linear between ``low`` and ``high``
     (default their finite min / max); non-finite values get the top colour."""
     values = np.asarray(values, dtype=float)
@@ -394,9 +430,11 @@ def colormap(values, low: float | None = None, high: float | None = None) -> np.
     return np.stack([np.interp(t, grid, COLORMAP[:, c]) for c in range(3)], axis=1)
 
 
-def workspace_scene(robot, positions, values=None, *, q=None, point_size: float = 0.008,
+def workspace_scene(robot: Any, positions: ArrayLike, values: ArrayLike | None = None, *,
+                    q: ArrayLike | None = None, point_size: float = 0.008,
                     low: float | None = None, high: float | None = None,
-                    robot_opacity: float = 0.3, caption: str = "", urdf=None,
+                    robot_opacity: float = 0.3, caption: str = "",
+                    urdf: str | os.PathLike | None = None,
                     value_label: str = "value") -> Scene:
     """The robot with a cloud of workspace points, coloured by a value per point.
 
@@ -454,6 +492,7 @@ def workspace_scene(robot, positions, values=None, *, q=None, point_size: float 
     return scene
 
 
-def write_workspace_html(path, robot, positions, values=None, **options) -> Path:
+def write_workspace_html(path: str | os.PathLike, robot: Any, positions: ArrayLike,
+                         values: ArrayLike | None = None, **options: Any) -> Path:
     """Write :func:`workspace_scene` (same arguments) to HTML; returns its path."""
     return workspace_scene(robot, positions, values, **options).write(path)

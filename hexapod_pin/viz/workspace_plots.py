@@ -9,7 +9,8 @@ reachability, strokes and the condition number from
 :func:`hexapod_pin.hexapod.sweeps.design_sweep`. The condition number is the one the
 library reports everywhere, labelled :data:`CONDITION_LABEL`: ``sigma_max / sigma_min``
 of the workspace Jacobian ``J`` (``qdot = J @ twist``) with its columns in m/s and
-rad/s as :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.jacobian` returns it (no characteristic length).
+rad/s as :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.jacobian` returns it (no
+characteristic length).
 
 matplotlib is optional (the ``plot`` extra); see :mod:`hexapod_pin.viz.plotting` for how
 figures are made and saved. Lengths in m, angles in rad (titles in degrees).
@@ -17,10 +18,13 @@ figures are made and saved. Lengths in m, angles in rad (titles in degrees).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..core.checks import as_array
 from ..errors import InputError
@@ -40,9 +44,11 @@ class Conditioning:
     :func:`hexapod_pin.hexapod.workspace.evaluate` reports it.
 
     ``condition_number`` is :data:`CONDITION_LABEL`: ``sigma_max / sigma_min`` of ``J``
-    (``qdot = J @ twist``) as :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.jacobian` returns it, columns in
+    (``qdot = J @ twist``) as
+    :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.jacobian` returns it, columns in
     m/s and rad/s, no characteristic length; the number
-    :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.singularity` and ``workspace.evaluate`` report.
+    :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.singularity` and
+    ``workspace.evaluate`` report.
 
     Attributes:
         s: path parameter (N,) (as given, or the sample index).
@@ -65,7 +71,7 @@ class Conditioning:
     ok: np.ndarray
 
 
-def conditioning(robot, poses, s=None) -> Conditioning:
+def conditioning(robot: Any, poses: ArrayLike, s: ArrayLike | None = None) -> Conditioning:
     """Condition number of the hexapod's workspace Jacobian along poses (N, 6).
 
     Args:
@@ -85,8 +91,9 @@ def conditioning(robot, poses, s=None) -> Conditioning:
                         m.within_stroke, m.ok)
 
 
-def plot_conditioning(robot, poses, s=None, *, path=None, s_label: str = "path parameter",
-                      title: str = ""):
+def plot_conditioning(robot: Any, poses: ArrayLike, s: ArrayLike | None = None, *,
+                      path: str | os.PathLike | None = None, s_label: str = "path parameter",
+                      title: str = "") -> Any:
     """``cond(J)`` and its inverse along a path of poses (see :func:`conditioning`).
 
     Samples out of reach are shaded dark grey, those beyond a stroke limit light grey
@@ -113,7 +120,7 @@ def plot_conditioning(robot, poses, s=None, *, path=None, s_label: str = "path p
     return finish_figure(fig, path)
 
 
-def _runs(mask: np.ndarray, s: np.ndarray):
+def _runs(mask: np.ndarray, s: np.ndarray) -> list:
     """(start, end) of the runs of True in mask, in units of s."""
     edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
     return [(s[a], s[min(b, len(s)) - 1]) for a, b in zip(edges[::2], edges[1::2])]
@@ -155,7 +162,7 @@ class WorkspaceSlice:
         return float(np.mean(self.status == REACHABLE))
 
 
-def workspace_slice(robot, z: float | None = None,
+def workspace_slice(robot: Any, z: float | None = None,
                     orientation: Sequence[float] | np.ndarray = (0, 0, 0),
                     half_width: float | None = None, resolution: int = 61) -> WorkspaceSlice:
     """Sample the reachable platform positions on a horizontal plane (home branch).
@@ -207,7 +214,7 @@ def _status(reachable: np.ndarray, within_stroke: np.ndarray) -> np.ndarray:
     return np.where(~reachable, OUT_OF_REACH, np.where(within_stroke, REACHABLE, STROKE_LIMIT))
 
 
-def _auto_half_width(robot, z: float, rpy: np.ndarray) -> float:
+def _auto_half_width(robot: Any, z: float, rpy: np.ndarray) -> float:
     """Half width framing the reachable region: a coarse pass over the rail radius."""
     g = robot.geometry
     coarse = np.linspace(-g.rail_radius, g.rail_radius, 25)
@@ -220,7 +227,8 @@ def _auto_half_width(robot, z: float, rpy: np.ndarray) -> float:
     return float(min(1.25 * reach, g.rail_radius))
 
 
-def plot_workspace_slice(robot_or_slice, *, path=None, title: str = "", **slice_options):
+def plot_workspace_slice(robot_or_slice: Any, *, path: str | os.PathLike | None = None,
+                         title: str = "", **slice_options: Any) -> Any:
     """Map of a workspace slice: ``log10 cond(J)`` where reachable, grey where a stroke
     limit is hit, white where a leg cannot reach.
 
@@ -251,11 +259,13 @@ def plot_workspace_slice(robot_or_slice, *, path=None, title: str = "", **slice_
     return finish_figure(fig, path)
 
 
-# -- workspace analysis maps (hexapod_pin.hexapod.workspace, hexapod_pin.hexapod.sweeps) ----------------------
-def plot_force_capability_slice(robot, direction=None, *, z: float | None = None,
+# -- workspace analysis maps (hexapod_pin.hexapod.workspace, hexapod_pin.hexapod.sweeps) ------
+def plot_force_capability_slice(robot: Any, direction: ArrayLike | None = None, *,
+                                z: float | None = None,
                                 orientation: Sequence[float] = (0, 0, 0),
-                                half_width: float = 0.12, resolution: int = 81, path=None,
-                                title: str = "", label: str = "payload (kg)"):
+                                half_width: float = 0.12, resolution: int = 81,
+                                path: str | os.PathLike | None = None,
+                                title: str = "", label: str = "payload (kg)") -> Any:
     """Map of the largest payload the actuators hold, over a horizontal slice of positions.
 
     Args:
@@ -315,8 +325,9 @@ def column_label(name: str) -> str:
     return f"{name} ({unit})" if unit else name
 
 
-def plot_design_sweep(table, x: str, y: str, value: str = "reachable_volume", *, path=None,
-                      title: str = ""):
+def plot_design_sweep(table: Any, x: str, y: str, value: str = "reachable_volume", *,
+                      path: str | os.PathLike | None = None,
+                      title: str = "") -> Any:
     """Heat map of one summary column of a design sweep over two swept parameters.
 
     Args:
