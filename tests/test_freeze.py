@@ -115,6 +115,17 @@ def test_cassie_with_rigid_springs():
     _check_frozen_dynamics(frozen, q, np.random.default_rng(23))
 
 
+def test_solo12_free_flyer_base_with_joints_locked():
+    """Solo-12 standing (free-flyer base, feet held by point closures to the world): lock
+    one knee, then a knee and a hip; the base stays free, the mobility drops by one each."""
+    solo = robots.solo12()
+    q = robots.solo12_stand(solo, [0.0, 0.0, 0.25]).q
+    for lock, mobility in ((["FL_KFE"], 5), (["FL_KFE", "HR_HAA"], 4)):
+        frozen = freeze_joints(solo, lock, q)
+        assert frozen.model.mobility(frozen.reduced_configuration(q)) == mobility
+        _check_frozen_dynamics(frozen, q, np.random.default_rng(26))
+
+
 def test_a_loop_made_rigid_is_dropped_only_when_it_holds():
     five = stress_robots.build("five_bar_stiff")
     q, _ = five.sample(np.random.default_rng(24))
