@@ -31,9 +31,15 @@ configuration, the spatial force in anchor-1 axes). Pinocchio's own ``lambda_c``
 Redundant closures (rank-deficient ``J_c``): the accelerations and actuator forces
 stay unique and every route returns them; the multipliers are not unique and every
 route returns the minimum-norm ones. The rank of ``J_c`` is evaluated at the first
-call and assumed to be structural afterwards (re-evaluated whenever a route meets a
+call and assumed to be structural afterwards (re-evaluated once when a route meets a
 singular system).
 
+Verification: no route returns an answer it has not checked. Forward dynamics checks
+both equations above to :data:`RESIDUAL_RTOL` relative to the largest term of each
+(:func:`forward_residuals`); inverse dynamics checks that ``a`` keeps the closures
+(to 1e-8) and that ``S^T u + J_c^T lambda = M a + h - tau_ext`` (:func:`linear_residual`).
+A failed check raises :class:`~hexapod_pin.errors.SolverError` naming the equation and
+its relative residual, after the retries documented on each route.
 """
 
 from __future__ import annotations
@@ -941,19 +947,28 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=N
         actuator_forces: ``u`` (n_act,), generalised forces of the actuated joints in
             ``clm.actuated_joints`` order (N for prismatic, N m for revolute joints).
         tau_ext: generalised external force on the tree (nv,) (N, N m); default zero.
-        method: "pinocchio" (``pin.constraintDynamics``; when the closures are
-            redundant: proximal, mu = 1e-6, 5 iterations, and the multipliers polished
-            to minimum norm by least squares on Pinocchio's ``M``, ``nle``, ``J``), "qp" (Gauss principle, ``min 1/2 (a - a_free)^T M
-            (a - a_free)`` s.t. ``J_c a = -gamma``, ProxSuite dense, warm problem
-            reused), or "kkt" (numpy solve of the KKT system, least squares when
-            redundant).
+        method: "pinocchio" (``pin.constraintDynamics``, checked on Pinocchio's own
+            ``M``, ``nle``, constraint Jacobian and drift; when the closures are
+            redundant: proximal, mu = 1e-6, 5 iterations, continued up to 500 when not
+            converged, and the multipliers polished to minimum norm by least squares;
+            when Pinocchio's answer is refused, the "kkt" route answers and the status
+            says so), "qp" (Gauss principle ``min 1/2 (a - a_free)^T M (a - a_free)``
+            s.t. ``J_c a = -gamma`` as a ProxSuite dense QP: augmented Hessian
+            ``M + rho J_c^T J_c``, independent rows only, rows normalised, objective
+            scaled, warm-started from the "kkt" solution; success judged from the
+            verified residuals, the status reported as ProxSuite gives it), or "kkt"
+            (numpy solve of the KKT system; the exact null-space solve with
+            minimum-norm multipliers when the rows are redundant or the system
+            singular).
 
     Returns:
         :class:`TreeForwardDynamics`.
 
     Raises:
         InputError: bad shapes, NaN / inf, unknown method.
-        SolverError: the QP did not converge.
+        SolverError: the answer misses an equation (e.g. ``gamma`` outside the range of
+            ``J_c``, a mass matrix not positive on the closures' null space); the
+            message names the equation and its relative residual.
     """
     dyn = dynamics_of(clm)
     q = _vector(q, dyn.model.nq, "q")
@@ -983,21 +998,26 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=No
             conventions, consistent with the closures.
         tau_ext: generalised external force on the tree (nv,) (N, N m); default zero.
         bounds: ``abs(u) <= bounds`` (scalar or (n_act,), N or N m); None (or inf): none.
-        method: "qp" (ProxSuite dense QP: minimise ``1/2 |u|^2 + 1/2 w |lambda|^2``,
-            ``w = 1e-2`` (it only picks the minimum-norm multipliers of redundant
-            rows), subject to the equation of motion and the box bounds) or "kkt" (the
-            square linear system ``[S^T J_c^T] [u; lambda] = rhs``, least squares /
-            minimum norm when it is not square or singular). Both agree to 1e-10 when
-            no bound is active.
+        method: "qp" (minimise ``1/2 |u|^2 + 1/2 w |lambda|^2``, ``w = 1e-2``, subject
+            to the equation of motion and the box bounds: when the equation determines
+            ``u`` the direct minimum-norm solution is the minimiser (or proves the
+            bounds infeasible); otherwise a ProxSuite dense QP, scaled, warm-started
+            from the direct solution and polished on its active set) or "kkt" (the
+            linear system ``[S^T J_c^T] [u; lambda] = rhs``: one LU solve when square,
+            least squares / minimum norm otherwise). Both agree to 1e-10 when no bound
+            is active. Solved in Pinocchio's constraint rows (the multipliers are
+            converted to ours on access).
 
     Returns:
         :class:`TreeInverseDynamics`.
 
     Raises:
-        ActuatorSaturationError: the motion needs ``abs(u) > bounds``; carries the
-            needed (unbounded) forces. No clipped answer is ever returned.
+        ActuatorSaturationError: no ``abs(u) <= bounds`` meets the equation of motion
+            (certified by the structure or by box-constrained least squares); carries
+            the needed (unbounded, minimum-norm) forces. No clipped answer is returned.
         InputError: bad shapes, NaN / inf, non-positive bounds, unknown method.
-        SolverError: the QP failed for another reason.
+        SolverError: ``a`` does not keep the closures, or the answer misses the
+            equation of motion (the message names it and its relative residual).
     """
     return dynamics_of(clm).inverse(q, v, a, tau_ext, bounds, method)
 
