@@ -65,6 +65,8 @@ DEFAULT_DT = {"pid": 2.5e-4, "computed-torque": 1e-3, "none": 1e-3}
 ENGINES = ("auto", "fast", "python")
 #: largest tracking error (m) of a run holding home (radius 0) that still counts as tracking
 HOLD_TOLERANCE = 0.005
+#: most steps :func:`simulate_circle` takes (every step is recorded: memory grows with them)
+MAX_STEPS = 2_000_000
 
 
 @dataclass(frozen=True)
@@ -330,12 +332,14 @@ def circle_motion(robot: Hexapod, radius: float, period: float, duration: float 
     defaults to one period (s).
 
     Raises:
-        InputError: ``radius < 0``, or a non-positive period, duration or rate.
+        InputError: ``radius < 0``, or a non-positive period, duration or rate (each named).
     """
+    reference = circle_reference(robot, radius, period)        # checks radius and period
     duration = period if duration is None else duration
-    if not (np.isfinite(duration) and duration > 0 and np.isfinite(rate) and rate > 0):
-        raise InputError("duration", (duration, rate), "need duration > 0 (s) and rate > 0 (Hz)")
-    reference = circle_reference(robot, radius, period)
+    if not (np.isfinite(duration) and duration > 0):
+        raise InputError("duration", duration, "need a finite duration > 0 (s)")
+    if not (np.isfinite(rate) and rate > 0):
+        raise InputError("rate", rate, "need a finite rate > 0 (Hz)")
     t = np.linspace(0.0, duration, max(round(duration * rate) + 1, 3))
     samples = [reference(ti) for ti in t]
     return Motion(t, np.array([s.pose for s in samples]), np.array([s.twist for s in samples]),
@@ -486,7 +490,8 @@ def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None,
 
     Raises:
         InputError: an unknown controller or engine, computed torque on the fast engine,
-            ``dt`` not in ``(0, duration]``, a bad circle.
+            ``dt`` not in ``(0, duration]``, more than :data:`MAX_STEPS` steps, a bad
+            circle.
     """
     if controller not in DEFAULT_DT:
         raise InputError("controller", controller, f"expected one of {', '.join(DEFAULT_DT)}")
@@ -502,6 +507,10 @@ def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None,
     dt = DEFAULT_DT[controller] if dt is None else float(dt)
     if not (np.isfinite(dt) and 0 < dt <= duration):
         raise InputError("dt", dt, f"need 0 < dt <= duration (duration {duration})")
+    if duration / dt > MAX_STEPS:
+        raise InputError("duration", duration, f"{duration / dt:.3g} steps of dt = {dt:g} s: "
+                                               f"more than {MAX_STEPS}; shorten the run or "
+                                               f"lengthen the step")
     reference = circle_reference(robot, radius, period)
     traj: simulation.Trajectory | FastTrajectory
     if engine == "fast":

@@ -395,6 +395,8 @@ BAD_VALUES = [
     ("ik", "a", "b", "c", "d", "e", "f"), ("jacobian", 0, 0, 0), ("statics", "--wrench", "1,2"),
     ("fk", *NO_ASSEMBLY_Q), ("modes", *NO_ASSEMBLY_Q), ("view", "--modes", *NO_ASSEMBLY_Q),
     ("urdf", "--robot", "delta"), ("urdf", "-o", "x.txt"), ("demo", "--set", "leg_length=x"),
+    ("simulate", "--duration", "1e9"), ("simulate", "--dt", "1e-12"),
+    ("view", "--circle", "0.02", "--fps", "0"), ("view", "--circle", "0.02", "--period", "0"),
 ]
 
 
@@ -402,6 +404,12 @@ BAD_VALUES = [
 def test_no_traceback_for_any_bad_value(args, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     one_line_error(invoke(*args))
+
+
+def test_errors_name_the_bad_argument():
+    one_line_error(invoke("simulate", "--period", 0), "invalid period")
+    one_line_error(invoke("view", "--circle", 0.02, "--period", 0), "invalid period")
+    one_line_error(invoke("simulate", "--duration", "1e9"), "invalid duration", "steps")
 
 
 def test_usage_errors_are_one_line_with_exit_code_2():
