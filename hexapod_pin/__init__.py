@@ -26,7 +26,8 @@ from .core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchRedu
 from .core.robot_api import ParallelRobot
 from .errors import (ActuatorSaturationError, AssemblyError, BatchActuatorSaturationError,
                      BatchSingularityError, BatchUnreachablePoseError, DescriptionError,
-                     GeometryError, HexapodPinError, InputError, MissingDependencyError,
+                     GeometryError, HexapodPinError, InconsistentMotionError,
+                     InfeasiblePathError, InputError, MissingDependencyError,
                      MotionSampleError, SingularityError, SolverError, StrokeLimitError,
                      UnreachablePoseError)
 from .hexapod.geometry import HexapodGeometry
@@ -56,4 +57,5 @@ __all__ = [
     "GeometryError", "InputError", "SingularityError", "SolverError", "StrokeLimitError",
     "UnreachablePoseError", "BatchActuatorSaturationError", "BatchSingularityError",
     "BatchUnreachablePoseError", "MotionSampleError", "MissingDependencyError",
+    "InconsistentMotionError", "InfeasiblePathError",
 ]
