@@ -310,3 +310,8 @@ def test_inverse_qp_on_redundant_actuation_is_the_weighted_minimum():
         assert np.max(np.abs(tight.actuator_forces)) <= bound * (1 + 1e-9)
         x = np.concatenate([tight.actuator_forces, tight.multipliers])
         assert np.max(np.abs(mat @ x - rhs)) <= 1e-9 * np.max(np.abs(rhs))
+        # the kkt route cannot choose among the forces; it must not claim saturation
+        kkt_u = inverse_dynamics_tree(clm, q, v, a_ref, method="kkt").actuator_forces
+        if np.max(np.abs(kkt_u)) > bound:
+            with pytest.raises(SolverError, match="use method='qp'"):
+                inverse_dynamics_tree(clm, q, v, a_ref, method="kkt", bounds=bound)

@@ -751,7 +751,12 @@ class ClosedLoopDynamics:
             sol, status, iters = self._inverse_qp(mat, rhs, bounds, rank, jac)
         u = sol[:self.n_act]
         if bounds is not None and np.any(np.abs(u) > bounds * (1.0 + RESIDUAL_RTOL)):
-            raise ActuatorSaturationError(u, bounds)
+            if self._unique_forces(mat) or \
+                    self._bounds_infeasible(mat, rhs, bounds, sol) is not None:
+                raise ActuatorSaturationError(u.copy(), bounds)
+            raise SolverError(method, "bounds", "the minimum-norm actuator forces exceed the "
+                              "bounds but other forces within them meet the equation of "
+                              "motion (redundant actuation): use method='qp'")
         residual = self._verify_inverse(mat, sol, rhs, method)
         return TreeInverseDynamics(u.copy(), sol[self.n_act:].copy(), residual, method, status,
                                    iters)
