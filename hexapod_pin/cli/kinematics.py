@@ -169,10 +169,12 @@ def write_modes(path: Path, robot: Hexapod, carriages: np.ndarray, poses: list,
 @guard
 def jacobian(pose: Values = None, degrees: Degrees = False, as_json: AsJson = False,
              geometry: GeometryFile = None, set_: SetFields = None) -> None:
-    """Workspace Jacobian J (qdot = J twist, twist = (v, w) in world axes) at a pose,
-    with the singularity measures of `Hexapod.singularity`, each printed once with what
-    it means (J unscaled: columns in m/s and rad/s). Type I: a leg perpendicular to its
-    rail (J unbounded); type II: the platform can move with the carriages locked."""
+    """Workspace Jacobian J at a pose (default home) and its singularity measures.
+
+    J maps the twist to the carriage velocities: qdot = J twist, twist = (v, w) in world
+    axes, J unscaled (columns in m/s and rad/s). The measures of `Hexapod.singularity`
+    are printed once each with what they mean. Type I: a leg perpendicular to its rail
+    (J unbounded); type II: the platform can move with the carriages locked."""
     robot = robot_of(geometry, set_)
     p = pose_in(pose, degrees) if pose else robot.home_pose
     jac = robot.jacobian(p)

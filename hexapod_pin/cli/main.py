@@ -7,6 +7,7 @@ functions:
 * ``ik``, ``fk``, ``modes``, ``jacobian`` (:mod:`.kinematics`);
 * ``statics``, ``id``, ``simulate`` (:mod:`.dynamics`);
 * ``view``, ``plot`` (:mod:`.views`);
+* ``urdf`` (:mod:`.export`);
 * ``retime``, ``check`` (:mod:`.planning`).
 
 Common options (:mod:`.common`):
