@@ -380,6 +380,6 @@ def test_dynamics_on_another_ik_branch(robot):
     jac = robot.jacobian(pose, branch)
     np.testing.assert_allclose(jac.T @ res.actuator_forces, m_x @ twist_dot + h_x, rtol=0,
                                atol=1e-9)
-    kinetic = 0.5 * res.velocity @ robot.dynamics_part.tree_dynamics.mass_matrix(q) @ res.velocity
+    kinetic = 0.5 * res.velocity @ robot.dynamics.tree_dynamics.mass_matrix(q) @ res.velocity
     assert robot.energies(pose, twist, branch=branch).kinetic == pytest.approx(kinetic,
                                                                                 rel=1e-12)

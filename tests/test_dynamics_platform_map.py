@@ -140,7 +140,7 @@ def test_single_routes_match_the_generic_tree_solvers(any_robot, rng):
             np.testing.assert_allclose(fwd.tree_acceleration, fwd_tree.a, atol=1e-10)
             np.testing.assert_allclose(fwd.multipliers, fwd_tree.multipliers, atol=1e-9)
             np.testing.assert_allclose(fwd.twist_dot, twist_dot, atol=1e-10)
-        at_q = robot.dynamics_part.actuator_forces_at(q, twist, twist_dot, wrench)
+        at_q = robot.dynamics.actuator_forces_at(q, twist, twist_dot, wrench)
         np.testing.assert_allclose(at_q, tree.actuator_forces, atol=1e-10)
 
 

@@ -97,7 +97,7 @@ def test_forward_kinematics_converges_quadratically(robot, rng):
     the iterations with tol = 0, which makes the solver report its last error)."""
     pose = random_pose(robot, rng)
     q = robot.inverse_kinematics(pose)
-    system = am.circle_system(robot.kinematics_part.circles, q)
+    system = am.circle_system(robot.kinematics.circles, q)
     start = system.angles_of(robot.platform_points_world(pose + np.r_[0.01, -0.01, 0.01,
                                                                       0.05, 0.03, -0.04]))
     errors = []

@@ -131,7 +131,7 @@ def test_eliminant_is_a_trigonometric_polynomial_of_degree_eight(any_robot, rng)
     """The sampled eliminant has no energy above frequency 8 (the degree-16 bound), and it
     vanishes at the theta_0 of every assembly."""
     q = any_robot.inverse_kinematics(random_pose(any_robot, rng))
-    system = am.circle_system(any_robot.kinematics_part.circles, q)
+    system = am.circle_system(any_robot.kinematics.circles, q)
     coeffs, roots, aliasing = am.eliminant_roots(system)
     assert aliasing < 1e-12
     assert roots.shape == (16,)

@@ -45,6 +45,7 @@ its relative residual, after the retries documented on each route.
 from __future__ import annotations
 
 import math
+import threading
 import weakref
 from collections.abc import Mapping
 from typing import NamedTuple
@@ -919,17 +920,22 @@ class ClosedLoopDynamics:
         return out, tau.copy()
 
 
-_CACHE: weakref.WeakKeyDictionary[ClosedLoopModel, ClosedLoopDynamics] = \
-    weakref.WeakKeyDictionary()
+#: per thread: model -> its workspace (a workspace holds Pinocchio data and ProxSuite
+#: problems that every call mutates: one per thread makes the generic routes thread-safe)
+_PER_THREAD = threading.local()
 
 
 def dynamics_of(clm: ClosedLoopModel) -> ClosedLoopDynamics:
-    """The shared :class:`ClosedLoopDynamics` workspace of ``clm`` (created once)."""
+    """The :class:`ClosedLoopDynamics` workspace of ``clm`` for the calling thread (created
+    once per model and thread, dropped with the model)."""
+    cache = getattr(_PER_THREAD, "cache", None)
+    if cache is None:
+        cache = _PER_THREAD.cache = weakref.WeakKeyDictionary()
     try:
-        return _CACHE[clm]
+        return cache[clm]
     except KeyError:
         dyn = ClosedLoopDynamics(clm)
-        _CACHE[clm] = dyn
+        cache[clm] = dyn
         return dyn
     except TypeError:
         raise InputError("clm", clm, "expected a ClosedLoopModel") from None

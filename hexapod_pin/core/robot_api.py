@@ -166,12 +166,17 @@ class ParallelRobot(Protocol):
 
 
 class delegate:
-    """A facade method served by one of the facade's components (composition).
+    """A facade method served by one of the facade's components (composition), called under
+    the facade's lock.
 
-    ``inverse_dynamics = delegate("dynamics_part", HexapodDynamics.inverse_dynamics)`` in a
-    class body makes ``robot.inverse_dynamics`` the component's bound method itself (no
-    extra call layer), while ``Robot.inverse_dynamics`` is the component's function (its
-    docstring and signature for ``help`` and ``inspect``).
+    ``inverse_dynamics = delegate("dynamics", HexapodDynamics.inverse_dynamics)`` in a
+    class body makes ``robot.inverse_dynamics(...)`` call the component's method while
+    holding ``robot.lock`` (a ``threading.RLock``): a robot object is safe to use from
+    several threads at once, its calls taking turns (its Pinocchio data, compiled-kernel
+    scratch and ProxSuite problems are shared by its methods; the computations hold the
+    GIL, so threads could not run them side by side anyway). ``Robot.inverse_dynamics`` is
+    the component's function (its docstring and signature for ``help`` and ``inspect``);
+    the instance's wrapper is built on first access and kept on the instance.
 
     Args:
         attribute: name of the facade's attribute holding the component.
@@ -189,4 +194,15 @@ class delegate:
     def __get__(self, obj, objtype=None):
         if obj is None:
             return self.function
-        return getattr(getattr(obj, self.attribute), self.function.__name__)
+        bound = getattr(getattr(obj, self.attribute), self.function.__name__)
+        lock = obj.lock
+
+        def serialized(*args, **kwargs):
+            with lock:
+                return bound(*args, **kwargs)
+
+        serialized.__wrapped__ = bound
+        serialized.__doc__ = self.function.__doc__
+        serialized.__name__ = serialized.__qualname__ = self.name
+        obj.__dict__[self.name] = serialized     # later lookups skip this descriptor
+        return serialized

@@ -3,8 +3,8 @@
 Single states build the tree state in closed form (the kernels of
 :mod:`hexapod_pin.hexapod.kernels`) and need one or two Pinocchio calls
 (``rnea``, ``computeGeneralizedGravity``, ``crba`` or ``constraintDynamics``) and a 6x6
-solve; the ``*_batch`` methods use the vectorised closed form of
-:mod:`hexapod_pin.hexapod.batch` (the Newton-Euler kernels over N states). Generic tree dynamics: :mod:`hexapod_pin.core.dynamics`.
+solve; the ``*_batch`` methods run the Newton-Euler kernels over N states
+(:mod:`hexapod_pin.hexapod.batch`). Generic tree dynamics: :mod:`hexapod_pin.core.dynamics`.
 """
 
 from __future__ import annotations
@@ -12,6 +12,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
+
+import threading
 
 import numpy as np
 import pinocchio as pin
@@ -27,7 +29,7 @@ from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchRed
                             Energies, ForwardDynamicsResult, InverseDynamicsDerivatives,
                             InverseDynamicsResult, ReducedDynamics)
 from ..core.dynamics import (INVERSE_METHODS, QP_SOLVED, QP_STATUS, RESIDUAL_RTOL,
-                             ClosedLoopDynamics, dynamics_of)
+                             ClosedLoopDynamics)
 from .derivatives import DerivativesWorkspace, analytic_derivatives
 from .kinematics import check_branch
 from ..errors import (
@@ -85,14 +87,18 @@ class _InverseDetails:
         fext = None
         if self.wrench is not None:
             fext = {self.ws.platform_joint: pin.Force(self.tau_ext()[self.ws.ff_v])}
-        table, _ = self.ws.dyn.joint_wrenches(self.q, self.v, self.a, self.multipliers(), fext)
+        with self.ws.lock:                  # the robot's Pinocchio data
+            table, _ = self.ws.dyn.joint_wrenches(self.q, self.v, self.a, self.multipliers(),
+                                                  fext)
         return MappingProxyType(table)
 
     def residual(self) -> float:
         dyn = self.ws.dyn
         full = np.array(self.force) - self.tau_ext()
         full[dyn.clm.actuated_v] -= self.tau
-        full -= dyn.constraint_jacobian(self.q).T @ self.multipliers()
+        with self.ws.lock:                  # the robot's Pinocchio data
+            jac = dyn.constraint_jacobian(self.q)
+        full -= jac.T @ self.multipliers()
         return max_abs(full)
 
 
@@ -100,11 +106,11 @@ class _ForwardDetails:
     """Closure multipliers and forces of a forward-dynamics result, converted on first
     access (:class:`~hexapod_pin.core.results.ResultDetails`)."""
 
-    __slots__ = ("dyn", "leg_of_closure", "local", "q", "rows")
+    __slots__ = ("dyn", "leg_of_closure", "local", "lock", "q", "rows")
 
-    def __init__(self, dyn, q, leg_of_closure, local=None, rows=None):
+    def __init__(self, dyn, q, leg_of_closure, lock, local=None, rows=None):
         self.dyn, self.q, self.local, self.rows = dyn, q, local, rows
-        self.leg_of_closure = leg_of_closure
+        self.leg_of_closure, self.lock = leg_of_closure, lock
 
     def closure_forces(self) -> np.ndarray:
         out = np.empty((6, 3))
@@ -112,6 +118,10 @@ class _ForwardDetails:
         return out
 
     def multipliers(self) -> np.ndarray:
+        with self.lock:                     # the robot's Pinocchio data
+            return self._multipliers()
+
+    def _multipliers(self) -> np.ndarray:
         if isinstance(self.rows, _LazyTreeMultipliers):
             self.rows = self.rows()
         if self.rows is None:
@@ -153,6 +163,7 @@ class _HexapodWorkspace:
     bounds: np.ndarray | None
     platform_joint: int
     compiled: kernels.ClosedForm
+    lock: object
     q: np.ndarray = field(default_factory=lambda: np.empty(25))
     v: np.ndarray = field(default_factory=lambda: np.empty(24))
     a: np.ndarray = field(default_factory=lambda: np.empty(24))
@@ -194,9 +205,11 @@ class HexapodDynamics:
     """
 
     def __init__(self, geometry, model: ClosedLoopModel, indices,
-                 closed_form: kernels.ClosedForm):
+                 closed_form: kernels.ClosedForm, lock=None):
         self.geometry, self.model, self.indices = geometry, model, indices
         self.closed_form = closed_form
+        #: the robot's lock, held by the lazy parts of results (they use this workspace)
+        self.lock = threading.RLock() if lock is None else lock
         self._ws: _HexapodWorkspace | None = None
         self._derivatives: DerivativesWorkspace | None = None
 
@@ -218,7 +231,9 @@ class HexapodDynamics:
         gravity = np.array([0.0, 0.0, -self.geometry.gravity, 0.0, 0.0, 0.0])
         if not np.allclose(clm.model.gravity.vector, gravity, rtol=0.0, atol=0.0):
             clm.model.gravity = pin.Motion(gravity)
-        dyn = dynamics_of(clm)
+        # its own generic workspace (not dynamics_of's, shared with other callers of the
+        # generic routes): the robot's lock guards it
+        dyn = ClosedLoopDynamics(clm)
         idx = self.indices
         ff_v = np.arange(idx.platform_v.start, idx.platform_v.stop)
         free_v = np.setdiff1d(np.arange(clm.nv), ff_v)
@@ -234,7 +249,8 @@ class HexapodDynamics:
         limit = self.geometry.max_actuator_force
         bounds = None if not np.isfinite(limit) else np.full(6, limit)
         ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds,
-                               clm.model.getJointId("platform_joint"), self.closed_form)
+                               clm.model.getJointId("platform_joint"), self.closed_form,
+                               self.lock)
         home_q, _ = self.tree_state(self.geometry.home_pose, np.zeros(6), ws=ws)
         dyn.closure_rank(home_q)
         kernels.check_mass_structure(pin.crba(dyn.model, dyn.data, home_q))
@@ -524,9 +540,10 @@ class HexapodDynamics:
             if code != kernels.OK:
                 raise SolverError("null-space forward dynamics", "mass matrix not positive "
                                   "definite", f"M_x = {ws.work[24:30].tolist()}")
-            details = _ForwardDetails(dyn, q, ws.leg_of_closure, rows=_LazyTreeMultipliers(
+            lazy = _LazyTreeMultipliers(
                 ws, owned_copy(pose_a, pose), q, v, acc, owned_copy(tau_a, actuator_forces),
-                signs))
+                signs)
+            details = _ForwardDetails(dyn, q, ws.leg_of_closure, ws.lock, rows=lazy)
             return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                          "solved", 0, details)
         if not all_finite(tau_a) or (wrench_a is not None and not all_finite(wrench_a)):
@@ -541,12 +558,13 @@ class HexapodDynamics:
             acc, prox = dyn.pinocchio_call(q, v, tau, False)
         if acc is not None:
             acc = acc.copy()
-            details = _ForwardDetails(dyn, q, ws.leg_of_closure, local=dyn.data.lambda_c.copy())
+            details = _ForwardDetails(dyn, q, ws.leg_of_closure, ws.lock,
+                                      local=dyn.data.lambda_c.copy())
             status, iters = "solved", int(prox.iter)
         else:
             res = dyn.forward(q, v, tau, method)
             acc, status, iters = res.a, res.status, res.iterations
-            details = _ForwardDetails(dyn, q, ws.leg_of_closure, rows=res.multipliers)
+            details = _ForwardDetails(dyn, q, ws.leg_of_closure, ws.lock, rows=res.multipliers)
         kernels.twist_dot_of(s.rot, twist_a, acc[ws.ff_v], twist_dot)
         return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                      status, iters, details)

@@ -43,6 +43,7 @@ with ``robot.configuration(pose)``).
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import dataclass
 
@@ -305,9 +306,17 @@ class FastDynamics:
         self.robot = robot
         self.geo = K.pack_geometry(robot.geometry)
         self.signs = K.HOME_BRANCH.copy()
-        self._scratch = K.Scratch()
+        self._local = threading.local()       # one kernel scratch per thread
         bound = float(robot.geometry.max_actuator_force)
         self._bounds = np.full(6, bound) if math.isfinite(bound) else None
+
+    @property
+    def _scratch(self) -> K.Scratch:
+        """This thread's kernel scratch (the object is safe to share between threads)."""
+        scratch = getattr(self._local, "scratch", None)
+        if scratch is None:
+            scratch = self._local.scratch = K.Scratch()
+        return scratch
 
     def _fail(self, code: int, vectors: dict, tau=None):
         if code == SATURATED:

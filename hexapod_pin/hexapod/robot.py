@@ -9,6 +9,7 @@ dynamics) as methods. Conventions: see :mod:`hexapod_pin.hexapod.geometry` and
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -57,9 +58,9 @@ class Hexapod:
 
     It implements the shared API of every parallel robot
     (:class:`~hexapod_pin.core.robot_api.ParallelRobot`). The kinematics methods are those of
-    :class:`~hexapod_pin.hexapod.kinematics.HexapodKinematics` (``robot.kinematics_part``),
+    :class:`~hexapod_pin.hexapod.kinematics.HexapodKinematics` (``robot.kinematics``),
     the dynamics methods those of :class:`~hexapod_pin.hexapod.dynamics.HexapodDynamics`
-    (``robot.dynamics_part``); configurations of the tree are computed here.
+    (``robot.dynamics``); configurations of the tree are computed here.
 
     Args:
         geometry: design parameters; default :class:`HexapodGeometry` ().
@@ -90,43 +91,45 @@ class Hexapod:
         self.model.model.gravity = pin.Motion(np.array([0.0, 0.0, -self.geometry.gravity,
                                                         0.0, 0.0, 0.0]))
         self.indices = self._indices()
+        #: serialises the robot's calls (its components share scratch and Pinocchio data)
+        self.lock = threading.RLock()
         self.closed_form = kernels.ClosedForm(self.geometry, self.indices)
-        self.kinematics_part = HexapodKinematics(self.geometry)
-        self.dynamics_part = HexapodDynamics(self.geometry, self.model, self.indices,
-                                             self.closed_form)
+        self.kinematics = HexapodKinematics(self.geometry)
+        self.dynamics = HexapodDynamics(self.geometry, self.model, self.indices,
+                                             self.closed_form, self.lock)
 
     # -- kinematics (HexapodKinematics) ----------------------------------------------------
-    platform_points_world = delegate("kinematics_part", HexapodKinematics.platform_points_world)
-    inverse_kinematics = delegate("kinematics_part", HexapodKinematics.inverse_kinematics)
-    stroke_violations = delegate("kinematics_part", HexapodKinematics.stroke_violations)
-    check_stroke = delegate("kinematics_part", HexapodKinematics.check_stroke)
-    branch_of = delegate("kinematics_part", HexapodKinematics.branch_of)
-    inverse_kinematics_batch = delegate("kinematics_part",
+    platform_points_world = delegate("kinematics", HexapodKinematics.platform_points_world)
+    inverse_kinematics = delegate("kinematics", HexapodKinematics.inverse_kinematics)
+    stroke_violations = delegate("kinematics", HexapodKinematics.stroke_violations)
+    check_stroke = delegate("kinematics", HexapodKinematics.check_stroke)
+    branch_of = delegate("kinematics", HexapodKinematics.branch_of)
+    inverse_kinematics_batch = delegate("kinematics",
                                         HexapodKinematics.inverse_kinematics_batch)
-    jacobian_batch = delegate("kinematics_part", HexapodKinematics.jacobian_batch)
-    jacobian = delegate("kinematics_part", HexapodKinematics.jacobian)
-    twist_from_qdot = delegate("kinematics_part", HexapodKinematics.twist_from_qdot)
-    twist_from_actuator_velocities = delegate("kinematics_part",
+    jacobian_batch = delegate("kinematics", HexapodKinematics.jacobian_batch)
+    jacobian = delegate("kinematics", HexapodKinematics.jacobian)
+    twist_from_qdot = delegate("kinematics", HexapodKinematics.twist_from_qdot)
+    twist_from_actuator_velocities = delegate("kinematics",
                                               HexapodKinematics.twist_from_actuator_velocities)
-    jacobian_derivative = delegate("kinematics_part", HexapodKinematics.jacobian_derivative)
-    qddot = delegate("kinematics_part", HexapodKinematics.qddot)
-    leg_motion = delegate("kinematics_part", HexapodKinematics.leg_motion)
-    singularity = delegate("kinematics_part", HexapodKinematics.singularity)
-    forward_kinematics = delegate("kinematics_part", HexapodKinematics.forward_kinematics)
-    assembly_modes = delegate("kinematics_part", HexapodKinematics.assembly_modes)
+    jacobian_derivative = delegate("kinematics", HexapodKinematics.jacobian_derivative)
+    qddot = delegate("kinematics", HexapodKinematics.qddot)
+    leg_motion = delegate("kinematics", HexapodKinematics.leg_motion)
+    singularity = delegate("kinematics", HexapodKinematics.singularity)
+    forward_kinematics = delegate("kinematics", HexapodKinematics.forward_kinematics)
+    assembly_modes = delegate("kinematics", HexapodKinematics.assembly_modes)
 
     # -- dynamics (HexapodDynamics) --------------------------------------------------------
-    inverse_dynamics = delegate("dynamics_part", HexapodDynamics.inverse_dynamics)
-    forward_dynamics = delegate("dynamics_part", HexapodDynamics.forward_dynamics)
-    static_forces = delegate("dynamics_part", HexapodDynamics.static_forces)
-    reduced_dynamics = delegate("dynamics_part", HexapodDynamics.reduced_dynamics)
-    energies = delegate("dynamics_part", HexapodDynamics.energies)
-    tree_energies = delegate("dynamics_part", HexapodDynamics.tree_energies)
-    inverse_dynamics_batch = delegate("dynamics_part", HexapodDynamics.inverse_dynamics_batch)
-    forward_dynamics_batch = delegate("dynamics_part", HexapodDynamics.forward_dynamics_batch)
-    static_forces_batch = delegate("dynamics_part", HexapodDynamics.static_forces_batch)
-    reduced_dynamics_batch = delegate("dynamics_part", HexapodDynamics.reduced_dynamics_batch)
-    inverse_dynamics_derivatives = delegate("dynamics_part",
+    inverse_dynamics = delegate("dynamics", HexapodDynamics.inverse_dynamics)
+    forward_dynamics = delegate("dynamics", HexapodDynamics.forward_dynamics)
+    static_forces = delegate("dynamics", HexapodDynamics.static_forces)
+    reduced_dynamics = delegate("dynamics", HexapodDynamics.reduced_dynamics)
+    energies = delegate("dynamics", HexapodDynamics.energies)
+    tree_energies = delegate("dynamics", HexapodDynamics.tree_energies)
+    inverse_dynamics_batch = delegate("dynamics", HexapodDynamics.inverse_dynamics_batch)
+    forward_dynamics_batch = delegate("dynamics", HexapodDynamics.forward_dynamics_batch)
+    static_forces_batch = delegate("dynamics", HexapodDynamics.static_forces_batch)
+    reduced_dynamics_batch = delegate("dynamics", HexapodDynamics.reduced_dynamics_batch)
+    inverse_dynamics_derivatives = delegate("dynamics",
                                             HexapodDynamics.inverse_dynamics_derivatives)
 
     @classmethod
@@ -200,10 +203,12 @@ class Hexapod:
         cf = self.closed_form
         signs = cf.signs if branch is None else check_branch(branch)
         q = np.empty(self.model.nq)
-        code = kernels.tree_configuration_unchecked(cf.geo, signs, as_array(pose, (6,), "pose"),
-                                                    q, cf.scratch.rot, cf.scratch.wk)
-        if code != kernels.OK:
-            raise cf.error(code)
+        with self.lock:
+            code = kernels.tree_configuration_unchecked(cf.geo, signs,
+                                                        as_array(pose, (6,), "pose"), q,
+                                                        cf.scratch.rot, cf.scratch.wk)
+            if code != kernels.OK:
+                raise cf.error(code)
         err = cf.closure_residual(q)
         if not err <= CLOSED_FORM_TOL:
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)

@@ -193,8 +193,9 @@ class ComputedTorqueController:
         err = np.concatenate([ref.pose[:3] - state.pose[:3], pin.log3(rot_ref @ rot.T)])
         cmd = ref.twist_dot + self.kd * (ref.twist - state.twist) + self.kp * err
         # inverse dynamics at the simulated tree configuration itself (no IK round trip)
-        return self.robot.dynamics_part.actuator_forces_at(state.configuration, state.twist, cmd,
-                                              method=self.method)
+        with self.robot.lock:
+            return self.robot.dynamics.actuator_forces_at(state.configuration, state.twist,
+                                                          cmd, method=self.method)
 
 
 # --------------------------------------------------------------------------------------
@@ -334,11 +335,12 @@ def simulate(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist0=Non
     closed_form = robot.closed_form
     integ = ClosedLoopIntegrator(clm, method, integrator,
                                  residual=closed_form.closure_residual)
-    q_tree, v_tree = robot.dynamics_part.tree_state(pose0, twist0)
+    with robot.lock:
+        q_tree, v_tree = robot.dynamics.tree_state(pose0, twist0)
     q_tree = q_tree.copy()
     limit = geom.max_actuator_force
     act_v = clm.actuated_v
-    ff_q, ff_v = idx.platform_q, robot.dynamics_part.platform_velocity_indices
+    ff_q, ff_v = idx.platform_q, robot.dynamics.platform_velocity_indices
 
     n_steps = max(1, round(duration / dt))
     n_rec = n_steps // record_every + 1

@@ -201,7 +201,7 @@ def evaluate(robot, poses, payload=None, branch=None, threads: int = 1,
 
 
 def _chunk(robot, poses, signs, payload, singularity: bool, statics: bool):
-    geo = robot.kinematics_part.geo
+    geo = robot.kinematics.geo
     n = poses.shape[0]
     jb = batch.kinematics_batch(geo, poses, signs, with_jacobian=True)
     good = jb.ok & jb.within_stroke
@@ -310,7 +310,7 @@ def leg_reachable(robot, poses, branch=None) -> np.ndarray:
     for start in range(0, poses.shape[0], CHUNK):
         sl = slice(start, start + CHUNK)
         chunk_signs = signs[sl] if signs.shape[0] > 1 else signs
-        out[sl] = batch.leg_reachable_batch(robot.kinematics_part.geo, poses[sl], chunk_signs)
+        out[sl] = batch.leg_reachable_batch(robot.kinematics.geo, poses[sl], chunk_signs)
     return out
 
 

@@ -76,6 +76,7 @@ class PlanarAssembly:
     """The assembly (forward-kinematic) problem of one :class:`PlanarGeometry`."""
 
     def __init__(self, geometry: PlanarGeometry):
+        self.home_pose = geometry.home_pose
         self.length = geometry.link_length
         self.mids = geometry.rail_midpoints
         self.dirs = geometry.rail_directions
@@ -120,8 +121,9 @@ class PlanarAssembly:
             pose, res, jac, err = trial, trial_res, trial_jac, trial_err
         return pose, err, max_iter
 
-    def forward_kinematics(self, actuators, guess) -> np.ndarray:
-        """The pose (3,) that Newton reaches from ``guess`` (3,); see the module docstring.
+    def forward_kinematics(self, actuators, guess=None) -> np.ndarray:
+        """The pose (3,) of the assembly mode that Newton reaches from ``guess`` (3,)
+        (default: the home pose); see the module docstring.
 
         Raises:
             InputError: wrong shape or non-finite values.
@@ -129,7 +131,8 @@ class PlanarAssembly:
                 singular configuration); its ``q`` holds the last pose.
         """
         s = as_array(actuators, (N_ACTUATORS,), "actuators")
-        pose = as_array(guess, (3,), "guess").copy()
+        pose = (self.home_pose if guess is None
+                else as_array(guess, (3,), "guess")).copy()
         pose, err, iterations = self.newton(pose, s, NEWTON_TOL, NEWTON_MAX_ITER)
         if err > NEWTON_TOL:
             raise AssemblyError("forward kinematics did not converge", err, iterations, pose)

@@ -19,6 +19,7 @@ platform: ``-lambda_k`` in x and y.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping
 from types import MappingProxyType
 
@@ -27,7 +28,7 @@ import pinocchio as pin
 
 from ..core.checks import as_array, max_abs, owned_copy
 from ..core.closed_loop import ClosedLoopModel
-from ..core.dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
+from ..core.dynamics import ClosedLoopDynamics, forward_dynamics_tree, inverse_dynamics_tree
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                             ComputedDetails, Energies, ForwardDynamicsResult,
                             InverseDynamicsResult, ReducedDynamics)
@@ -59,11 +60,12 @@ class TreeDetails:
         residual: the route's residual, or None to evaluate it on Pinocchio.
     """
 
-    __slots__ = ("_closure", "_multipliers", "_residual", "dyn", "platform_joint", "state",
-                 "tau", "tau_ext", "wanted", "wrench", "ws")
+    __slots__ = ("_closure", "_multipliers", "_residual", "dyn", "lock", "platform_joint",
+                 "state", "tau", "tau_ext", "wanted", "wrench", "ws")
 
     def __init__(self, dyn, ws, state, tau, tau_ext, wrench, wanted, platform_joint,
-                 closure=None, multipliers=None, residual=None):
+                 closure=None, multipliers=None, residual=None, lock=None):
+        self.lock = threading.RLock() if lock is None else lock
         self.dyn, self.ws, self.state, self.tau, self.tau_ext = dyn, ws, state, tau, tau_ext
         self.wrench, self.wanted, self.platform_joint = wrench, wanted, platform_joint
         self._closure, self._multipliers, self._residual = closure, multipliers, residual
@@ -90,16 +92,19 @@ class TreeDetails:
             fext = {self.platform_joint: pin.Force(np.array([c * fx + s * fy,
                                                              -s * fx + c * fy, 0.0]),
                                                    np.array([0.0, 0.0, mz]))}
-        table, _ = self.dyn.joint_wrenches(q, v, a, self.multipliers(), fext)
+        with self.lock:                     # the robot's Pinocchio data
+            table, _ = self.dyn.joint_wrenches(q, v, a, self.multipliers(), fext)
         return MappingProxyType(table)
 
     def residual(self) -> float:
         if self._residual is None:
             q, v, a = self.state
             dyn = self.dyn
-            full = pin.rnea(dyn.model, dyn.data, q, v, a) - self.tau_ext
+            with self.lock:                 # the robot's Pinocchio data
+                full = pin.rnea(dyn.model, dyn.data, q, v, a) - self.tau_ext
+                jac = dyn.constraint_jacobian(q)
             full[dyn.clm.actuated_v] -= self.tau
-            full -= dyn.constraint_jacobian(q).T @ self.multipliers()
+            full -= jac.T @ self.multipliers()
             self._residual = max_abs(full)
         return float(self._residual)
 
@@ -127,9 +132,12 @@ class PlanarDynamics:
     """
 
     def __init__(self, geometry: PlanarGeometry, model: ClosedLoopModel,
-                 workspace: PlanarWorkspace):
+                 workspace: PlanarWorkspace, lock=None):
         self.geometry, self.model, self.ws = geometry, model, workspace
-        self.dyn = dynamics_of(model)
+        #: the robot's lock, held by the lazy parts of results (they use this workspace)
+        self.lock = threading.RLock() if lock is None else lock
+        # its own generic workspace (the robot's lock guards it)
+        self.dyn = ClosedLoopDynamics(model)
         self.data = model.model.createData()
         self.platform_joint = model.model.getJointId("platform_theta")
         limit = geometry.max_actuator_force
@@ -229,7 +237,8 @@ class PlanarDynamics:
         if method == "kkt" and status == kernels.OK:
             self.check_bounds(tau, bounds)
             details = TreeDetails(self.dyn, ws, (q, v, a), tau, tau_ext, wrench_kept,
-                                  joint_wrenches, self.platform_joint, closure=closure)
+                                  joint_wrenches, self.platform_joint, closure=closure,
+                                  lock=self.lock)
             return InverseDynamicsResult(tau, q, v, a, "kkt", STATUS_ID, 0, details)
         res = inverse_dynamics_tree(self.model, q, v, a, tau_ext, bounds=bounds,
                                     method=method)
@@ -238,7 +247,8 @@ class PlanarDynamics:
             raise SolverError("tree inverse dynamics", res.status, "non-finite forces")
         details = TreeDetails(self.dyn, ws, (q, v, a), tau, tau_ext, wrench_kept,
                               joint_wrenches, self.platform_joint,
-                              multipliers=res.multipliers.copy(), residual=res.residual)
+                              multipliers=res.multipliers.copy(), residual=res.residual,
+                              lock=self.lock)
         return InverseDynamicsResult(tau, q, v, a, method, res.status, res.iterations, details)
 
     def static_forces(self, pose, wrench=None, *, branch=None,
