@@ -14,10 +14,10 @@ from conftest import random_configuration, random_pose
 from hexapod_pin.core.closed_loop import ClosedLoopModel
 from hexapod_pin.hexapod.geometry import hexapod_urdf
 from hexapod_pin.core.description import build_model, parse_loops
-from hexapod_pin.hexapod.dynamics import ClosedLoopDynamics, dynamics_of
 from conftest import forward_dynamics_full_tau
 
-from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.core.dynamics import (ClosedLoopDynamics, dynamics_of, forward_dynamics_tree,
+                                       inverse_dynamics_tree)
 from hexapod_pin.errors import ActuatorSaturationError, InputError
 
 FD_METHODS = ("pinocchio", "qp", "kkt")
