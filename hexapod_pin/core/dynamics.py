@@ -234,6 +234,8 @@ class ClosedLoopDynamics:
         self._rank: int | None = None
         self._qps: dict = {}
         self._aux_data = self.model.createData()   # lazy multiplier conversions
+        #: a result may convert its multipliers on any thread: the conversions take turns
+        self._aux_lock = threading.Lock()
         self._res_out = np.empty(2)
         self._pools: dict[int, pin.ModelPool] = {}
         self._unique: bool | None = None
@@ -466,8 +468,9 @@ class ClosedLoopDynamics:
 
         def convert() -> np.ndarray:
             lam = lam_pin() if callable(lam_pin) else lam_pin
-            pin.framesForwardKinematics(self.model, self._aux_data, q)
-            return self._pin_to_row_multipliers(lam, self._aux_data)
+            with self._aux_lock:
+                pin.framesForwardKinematics(self.model, self._aux_data, q)
+                return self._pin_to_row_multipliers(lam, self._aux_data)
         return _Memo(convert)
 
     def _pin_to_row_multipliers(self, lam_pin: np.ndarray, data) -> np.ndarray:
