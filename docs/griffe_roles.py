@@ -10,8 +10,9 @@ this extension rewrites them before rendering:
 * any other target (a short name, a Pinocchio function) becomes inline code.
 
 It also gives a module attribute documented by ``#:`` comment lines just above it (the
-Sphinx convention of this code base) that comment as its docstring, so that the API
-reference shows it and references to it resolve.
+Sphinx convention of this code base) that comment as its docstring, and a facade's method
+bound with ``name = delegate("component", Class.method)`` a docstring pointing at that
+method, so that the API reference shows them and references to them resolve.
 
 Loaded from ``mkdocs.yml`` (``extensions: [docs/griffe_roles.py]``); not part of the package.
 """
@@ -23,6 +24,7 @@ from typing import Any
 
 from griffe import Attribute, Docstring, Extension, Object
 
+DELEGATE = re.compile(r"^delegate\(\s*['\"](\w+)['\"]\s*,\s*(\w+)\.(\w+)\s*\)$")
 ROLE = re.compile(r":(?:py:)?(?:class|func|meth|mod|attr|data|exc|obj|const):`(~?)([^`<>]+?)`")
 
 
@@ -51,13 +53,24 @@ def comment_docstring(attr: Attribute) -> str | None:
     return " ".join(found) if found else None
 
 
+def delegate_docstring(attr: Attribute) -> str | None:
+    """For ``name = delegate("component", Class.method)``: a line linking to the method."""
+    match = DELEGATE.match(str(attr.value or "").strip())
+    if match is None:
+        return None
+    component, cls, method = match.groups()
+    path = attr.module.imports.get(cls, f"{attr.module.path}.{cls}")
+    return (f"`{cls}.{method}` of the component `robot.{component}` (same arguments): "
+            f"see [`{cls}.{method}`][{path}.{method}].")
+
+
 class SphinxRoles(Extension):
     """Rewrite the Sphinx roles of every docstring and read ``#:`` attribute comments
     (see the module docstring)."""
 
     def on_instance(self, *, obj: Object, **kwargs: Any) -> None:
         if obj.docstring is None and isinstance(obj, Attribute):
-            text = comment_docstring(obj)
+            text = comment_docstring(obj) or delegate_docstring(obj)
             if text:
                 obj.docstring = Docstring(text, parent=obj)
         if obj.docstring is not None:
