@@ -179,6 +179,10 @@ class TreeInverseDynamics(NamedTuple):
         return value() if callable(value) else value
 
 
+#: status strings of the redundant-row Pinocchio route by iteration count
+_REDUNDANT_STATUS: dict[int, str] = {}
+
+
 class _Memo:
     """A zero-argument callable evaluated once."""
 
@@ -500,20 +504,23 @@ class ClosedLoopDynamics:
                 rank, redundant = new_rank, True
                 acc, prox = self.pinocchio_call(q, v, tau, True)
         if acc is not None:
-            status = "solved"
-            if redundant:
-                status = (f"solved (redundant rows: proximal mu={_PIN_PROX_MU:g}, "
-                          f"{prox.iter} iterations; minimum-norm multipliers)")
-            lam_pin = self._v_lambda.copy()
-            if redundant:
-                # the proximal multipliers are minimum-norm only up to the conditioning of
-                # the regularised system: polish them by least squares on Pinocchio's own
-                # M, nle and J (rotations of ours: the minimum norm is the same)
-                mass, jac, tau_used = self._pin_last
-                lam_pin = _LazyMinNorm(jac.copy(), mass.copy(), acc.copy(),
-                                       self._v_nle - tau_used)
-            return TreeForwardDynamics(acc.copy(), self._lazy_rows(q, lam_pin), "pinocchio",
-                                       status, int(prox.iter), rank, -1.0)
+            iters = prox.iter
+            acc = acc.copy()
+            if not redundant:
+                return TreeForwardDynamics(acc, self._lazy_rows(q, self._v_lambda.copy()),
+                                           "pinocchio", "solved", iters, rank, -1.0)
+            status = _REDUNDANT_STATUS.get(iters)
+            if status is None:
+                status = _REDUNDANT_STATUS[iters] = (
+                    f"solved (redundant rows: proximal mu={_PIN_PROX_MU:g}, {iters} "
+                    "iterations; minimum-norm multipliers)")
+            # the proximal multipliers are minimum-norm only up to the conditioning of the
+            # regularised system: polish them by least squares on Pinocchio's own M, nle
+            # and J (rotations of ours: the minimum norm is the same); J is a fresh array
+            mass, jac, tau_used = self._pin_last
+            lam_pin = _LazyMinNorm(jac, mass.copy(), acc.copy(), self._v_nle - tau_used)
+            return TreeForwardDynamics(acc, self._lazy_rows(q, lam_pin), "pinocchio", status,
+                                       iters, rank, -1.0)
         # Pinocchio's factorisation cannot hold this problem (e.g. a zero pivot of M from a
         # massless link): the exact KKT route answers, and the status says so
         mass, bias, jac, gamma = self._terms(q, v)
