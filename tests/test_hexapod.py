@@ -73,7 +73,7 @@ def test_cli_demo_reports_closed_home():
 
 
 def test_cli_bad_input_is_one_line_and_nonzero():
-    proc = subprocess.run([sys.executable, "-m", "hexapod_pin", "demo", "--leg-length", "-1"],
+    proc = subprocess.run([sys.executable, "-m", "hexapod_pin", "demo", "--set", "leg_length=-1"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 1
     assert "Traceback" not in proc.stderr
