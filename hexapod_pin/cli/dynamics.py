@@ -128,9 +128,12 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
     check_suffix("out", out, motions.MOTION_SUFFIXES)
     check_suffix("html", html, (".html", ".htm"))
     check_suffix("plot", plot, plotting.IMAGE_SUFFIXES)
+    compiled = engine == "fast" or (engine == "auto" and controller != "computed-torque")
     steps = round(duration / (dt or motions.DEFAULT_DT.get(controller, 1e-3))) \
-        if np.isfinite(duration) and duration > 0 else 1
-    with progress_bar(quiet, f"simulating {duration:g} s", total=max(steps, 1)) as progress:
+        if np.isfinite(duration) and duration > 0 and not compiled else None
+    # the compiled loop reports nothing until it ends: a spinner instead of a bar
+    with progress_bar(quiet, f"simulating {duration:g} s",
+                      total=None if steps is None else max(steps, 1)) as progress:
         run = motions.simulate_circle(robot, duration, dt, controller, radius, period,
                                       progress, engine=engine)
     traj = run.trajectory
