@@ -44,7 +44,7 @@ import pinocchio as pin
 import proxsuite
 
 import hexapod_pin as hp
-from hexapod_pin.hexapod.dynamics import dynamics_of
+from hexapod_pin.core.dynamics import dynamics_of
 from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.core.pose import rotation_from_rpy
 from hexapod_pin.hexapod.simulation import (

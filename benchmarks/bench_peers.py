@@ -582,7 +582,7 @@ def wrapper_cost(peers: HexapodPeers, repeats: int) -> str:
     r, raw, s = peers.robot, peers.raw, peers
     pool = min(64, peers.n_tree)
     peers.prepare_tree(pool)
-    dyn = r.dynamics if hasattr(r, "dynamics") else None
+    dyn = r.dynamics.tree_dynamics
     items = [
         ("raw Pinocchio calls only (Jacobian frames, drift frames, rnea)",
          lambda i: pr.pinocchio_calls_of_inverse(raw, *s.pin_state[i])),
@@ -595,7 +595,7 @@ def wrapper_cost(peers: HexapodPeers, repeats: int) -> str:
             ("ours inverse_dynamics kkt, joint_wrenches=False, bounded=False",
              lambda i: inv(s.poses[i], s.twists[i], s.twist_dots[i], s.wrenches[i],
                            method="kkt", joint_wrenches=False, bounded=False)),
-            ("ours inverse_dynamics (defaults: qp, bounded, joint wrenches)",
+            ("ours inverse_dynamics (defaults: kkt, bounded, joint wrenches)",
              lambda i: inv(s.poses[i], s.twists[i], s.twist_dots[i], s.wrenches[i])),
         ]
     items.append(("  part: ours Pinocchio call (one rnea on the tree state)",
