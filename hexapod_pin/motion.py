@@ -203,21 +203,29 @@ def write_motion(path: str | os.PathLike, motion: Motion) -> Path:
 
 
 def _motion_from_csv(path: Path) -> Motion:
-    lines = [ln for ln in path.read_text(encoding="utf-8").splitlines()
-             if ln.strip() and not ln.lstrip().startswith("#")]
-    if len(lines) < 2:
+    numbered = [(n, ln) for n, ln in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+                if ln.strip() and not ln.lstrip().startswith("#")]
+    if len(numbered) < 2:
         raise DescriptionError(str(path), "needs a header row and at least one data row")
-    rows = list(csv.reader(lines))
+    rows = list(csv.reader([ln for _, ln in numbered]))
     header = [h.strip() for h in rows[0]]
     missing = [c for c in ("t",) + POSE_NAMES if c not in header]
     if missing:
         raise DescriptionError(str(path), f"missing columns {missing} (header: {header})")
-    if any(len(row) != len(header) for row in rows[1:]):
-        raise DescriptionError(str(path), f"every row must have {len(header)} values")
-    try:
-        data = np.array([[float(v) for v in row] for row in rows[1:]], dtype=float)
-    except ValueError as exc:
-        raise DescriptionError(str(path), f"a value is not a number: {exc}") from None
+    values = []
+    for row_index, (row, (line, _)) in enumerate(zip(rows[1:], numbered[1:])):
+        where = f"row {row_index} (line {line})"        # rows count from 0, as in errors of ID
+        if len(row) != len(header):
+            raise DescriptionError(str(path), f"{where} has {len(row)} values; every row "
+                                              f"must have {len(header)} values (the header)")
+        try:
+            values.append([float(v) for v in row])
+        except ValueError:
+            column = next(h for h, v in zip(header, row) if not _is_number(v))
+            raise DescriptionError(str(path), f"{where}, column {column!r}: "
+                                              f"{row[header.index(column)].strip()!r} is not a "
+                                              f"number", column) from None
+    data = np.array(values, dtype=float)
     col = {name: data[:, i] for i, name in enumerate(header)}
     groups = {}
     for field, names in _CSV_GROUPS.items():
@@ -228,6 +236,14 @@ def _motion_from_csv(path: Path) -> Motion:
         groups[field] = np.stack([col[n] for n in names], axis=1) if present else None
     return _checked_motion(path, col["t"], np.stack([col[n] for n in POSE_NAMES], axis=1),
                            residual=col.get("residual"), **groups)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _motion_from_json(path: Path) -> Motion:

@@ -61,6 +61,13 @@ def test_malformed_motion_files_name_file_and_column(tmp_path):
     ragged.write_text("t,x,y,z,roll,pitch,yaw\n0,0,0,0,0,0\n")
     with pytest.raises(hp.DescriptionError, match="7 values"):
         motions.read_motion(ragged)
+    with pytest.raises(hp.DescriptionError, match=r"row 0 \(line 2\) has 6 values"):
+        motions.read_motion(ragged)
+    word = tmp_path / "w.csv"
+    word.write_text("# comment\nt,x,y,z,roll,pitch,yaw\n0,0,0,0.3,0,0,0\n\n1,0,0,abc,0,0,0\n")
+    with pytest.raises(hp.DescriptionError, match=r"row 1 \(line 5\), column 'z': 'abc'") as err:
+        motions.read_motion(word)
+    assert err.value.culprit == "z"
     nan = tmp_path / "n.json"
     nan.write_text(json.dumps({"t": [0, 1], "pose": [[0] * 6, [0] * 6],
                                "q": [[0] * 6, [float("nan")] * 6]}))
