@@ -152,3 +152,16 @@ def test_sphinx_roles_become_links_or_code():
     assert roles.rewrite(text) == ("[`ClosedLoopModel`][hexapod_pin.core.closed_loop."
                                    "ClosedLoopModel], `pin.rnea`, [`hexapod_pin.Hexapod."
                                    "jacobian`][hexapod_pin.Hexapod.jacobian]")
+
+
+def test_every_module_is_in_the_api_reference():
+    import pkgutil
+
+    import hexapod_pin
+
+    listed = set(re.findall(r"^::: (hexapod_pin[\w.]*)", "\n".join(
+        page.read_text(encoding="utf-8") for page in (DOCS / "api").glob("*.md")), re.MULTILINE))
+    modules = {"hexapod_pin"} | {
+        info.name for info in pkgutil.walk_packages(hexapod_pin.__path__, "hexapod_pin.")
+        if not info.name.endswith("__main__")}
+    assert modules - listed == set(), "add them to a page of docs/api"
