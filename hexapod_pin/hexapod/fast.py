@@ -43,7 +43,6 @@ with ``robot.configuration(pose)``).
 from __future__ import annotations
 
 import math
-import threading
 import time
 from dataclasses import dataclass
 
@@ -304,19 +303,16 @@ class FastDynamics:
 
     def __init__(self, robot):
         self.robot = robot
-        self.geo = K.pack_geometry(robot.geometry)
+        self.closed_form = robot.closed_form
+        self.geo = self.closed_form.geo
         self.signs = K.HOME_BRANCH.copy()
-        self._local = threading.local()       # one kernel scratch per thread
         bound = float(robot.geometry.max_actuator_force)
         self._bounds = np.full(6, bound) if math.isfinite(bound) else None
 
     @property
     def _scratch(self) -> K.Scratch:
         """This thread's kernel scratch (the object is safe to share between threads)."""
-        scratch = getattr(self._local, "scratch", None)
-        if scratch is None:
-            scratch = self._local.scratch = K.Scratch()
-        return scratch
+        return self.closed_form.scratch
 
     def _fail(self, code: int, vectors: dict, tau=None):
         if code == SATURATED:
@@ -404,11 +400,9 @@ class FastDynamics:
 
 
 def fast_dynamics(robot) -> FastDynamics:
-    """The :class:`FastDynamics` of a hexapod (built once, cached on the robot)."""
-    fd = robot.__dict__.get("_fast_dynamics")
-    if fd is None:
-        fd = robot.__dict__["_fast_dynamics"] = FastDynamics(robot)
-    return fd
+    """The :class:`FastDynamics` of a hexapod: a light view of the robot's compiled closed
+    form (``robot.closed_form``, which holds the packed geometry and the scratch)."""
+    return FastDynamics(robot)
 
 
 @dataclass(frozen=True)

@@ -57,6 +57,7 @@ allocate nothing and run inside ``prange`` loops and the simulator.
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
@@ -137,8 +138,9 @@ class Scratch:
 
 
 class ClosedForm:
-    """The closed form of one hexapod: its packed geometry, home branch and scratch (one
-    explicit cache object per robot; not thread-safe).
+    """The closed form of one hexapod: its packed geometry, home branch and kernel scratch
+    (one per thread): the one cache object of the robot's compiled closed form, shared by
+    its kinematics, dynamics and compiled fast path.
 
     Args:
         geometry: the :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry`.
@@ -154,7 +156,7 @@ class ClosedForm:
         self.geometry = geometry
         self.geo = pack_geometry(geometry)
         self.signs = HOME_BRANCH.copy()
-        self.scratch = Scratch()
+        self._local = threading.local()
         if indices is not None:
             legs3 = np.arange(18).reshape(6, 3)
             layout = [(indices.carriage_q, legs3[:, 0]), (indices.u_a_q, legs3[:, 1]),
@@ -166,6 +168,14 @@ class ClosedForm:
                 raise HexapodPinError("the hexapod kernels expect the joint order of "
                                       "urdf/hexapod.urdf.xacro: (carriage_i, u_i_a, u_i_b) "
                                       f"for i = 0..5, then platform_joint; got {indices}")
+
+    @property
+    def scratch(self) -> Scratch:
+        """The calling thread's kernel scratch (one per thread: the object may be shared)."""
+        scratch = getattr(self._local, "scratch", None)
+        if scratch is None:
+            scratch = self._local.scratch = Scratch()
+        return scratch
 
     def error(self, code: int) -> HexapodPinError:
         """:func:`error_of` for the state last computed in :attr:`scratch`."""

@@ -94,10 +94,10 @@ class HexapodKinematics:
     """The hexapod's kinematics: the component that :class:`~hexapod_pin.hexapod.robot.Hexapod`
     delegates its kinematics methods to.
 
-    Holds the packed geometry and the scratch of the kernels (not thread-safe).
-
     Args:
         geometry: the :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry`.
+        closed_form: the robot's :class:`~hexapod_pin.hexapod.kernels.ClosedForm` (its
+            packed geometry and per-thread scratch); default a new one.
 
     Attributes:
         geometry: the geometry. geo: its packed vector (:func:`kernels.pack_geometry`).
@@ -105,12 +105,16 @@ class HexapodKinematics:
             forward kinematics.
     """
 
-    def __init__(self, geometry):
+    def __init__(self, geometry, closed_form: K.ClosedForm | None = None):
         self.geometry = geometry
-        self.geo = K.pack_geometry(geometry)
+        self.closed_form = K.ClosedForm(geometry) if closed_form is None else closed_form
+        self.geo = self.closed_form.geo
         self.circles = am.CircleGeometry.from_geometry(geometry)
-        self._scratch = K.Scratch()
         self._home_list = geometry.home_pose.tolist()
+
+    @property
+    def _scratch(self) -> K.Scratch:
+        return self.closed_form.scratch
 
     # -- the kernels of one pose ------------------------------------------------------
     def _signs(self, branch) -> np.ndarray:

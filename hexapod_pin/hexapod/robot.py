@@ -94,7 +94,7 @@ class Hexapod:
         #: serialises the robot's calls (its components share scratch and Pinocchio data)
         self.lock = threading.RLock()
         self.closed_form = kernels.ClosedForm(self.geometry, self.indices)
-        self.kinematics = HexapodKinematics(self.geometry)
+        self.kinematics = HexapodKinematics(self.geometry, self.closed_form)
         self.dynamics = HexapodDynamics(self.geometry, self.model, self.indices,
                                              self.closed_form, self.lock)
 
