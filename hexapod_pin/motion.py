@@ -99,7 +99,7 @@ class Motion:
         return self.t
 
     @classmethod
-    def from_trajectory(cls, trajectory: simulation.Trajectory | FastTrajectory) -> "Motion":
+    def from_trajectory(cls, trajectory: simulation.Trajectory | FastTrajectory) -> Motion:
         """The samples of a simulation result: times, poses, twists, actuator
         positions and forces, closure residual (its max abs per sample; None for a
         :class:`~hexapod_pin.hexapod.fast.FastTrajectory`, which integrates in platform

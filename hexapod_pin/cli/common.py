@@ -177,7 +177,8 @@ class Group(TyperGroup):
             if not is_usage_error(exc):
                 raise
             ctx = getattr(exc, "ctx", None)
-            message = str(getattr(exc, "format_message")())
+            usage: Any = exc                # a click usage error (see is_usage_error)
+            message = str(usage.format_message())
             if type(exc).__name__ == "NoArgsIsHelpError":     # bare command: its help
                 typer.echo(ctx.get_help() if ctx is not None else message)
                 sys.exit(0)

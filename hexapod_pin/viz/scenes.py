@@ -165,8 +165,8 @@ def modes_scene(robot: Any, configurations: ArrayLike, *, layout: str = "grid",
         listed = "; ".join(f"{where}{i}{' s' if where else ''}: {text}"
                            for i, text in enumerate(labels))
         scene.caption = (caption + " | " if caption else "") + listed
-        scene.legend = ([f"one copy per configuration, numbered 0 .. {len(qs) - 1} left to "
-                         f"right, then row by row; the number and label float above each"]
+        scene.legend = ([(f"one copy per configuration, numbered 0 .. {len(qs) - 1} left to "
+                          "right, then row by row; the number and label float above each")]
                         if layout != "sequence" else
                         ["the time slider steps through the configurations, one per second"])
     return scene
