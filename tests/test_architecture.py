@@ -141,6 +141,29 @@ def test_no_private_name_crosses_a_module(module):
     assert not bad, f"{module} imports private names {bad}"
 
 
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_no_private_attribute_of_another_module(module):
+    """``workspace._estimate`` through ``from . import workspace`` is as private as importing
+    ``_estimate`` itself."""
+    modules = {}
+    for target, names, _ in _imports(module):
+        for name in names:
+            if f"{target}.{name}" in MODULES:
+                modules[name] = f"{target}.{name}"
+    tree = ast.parse(MODULES[module].read_text(encoding="utf-8"))
+    aliases = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            for alias in node.names:
+                if alias.name in modules:
+                    aliases[alias.asname or alias.name] = modules[alias.name]
+    bad = [(aliases[node.value.id], node.attr, node.lineno) for node in ast.walk(tree)
+           if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+           and node.value.id in aliases and node.attr.startswith("_")
+           and not node.attr.startswith("__")]
+    assert not bad, f"{module} uses private names of other modules {bad}"
+
+
 @pytest.mark.parametrize("module", sorted(m for m in MODULES if not m.startswith("hexapod_pin.cli")))
 def test_the_library_never_prints(module):
     tree = ast.parse(MODULES[module].read_text(encoding="utf-8"))

@@ -21,7 +21,9 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from ..errors import HexapodPinError, InputError, MissingDependencyError
+from . import workspace
 from .geometry import HexapodGeometry
+from .robot import Hexapod
 
 DASK_MIN_DESIGNS = 100
 """Fewest designs for which ``use_dask=None`` starts a local Dask cluster (a local cluster
@@ -94,9 +96,6 @@ def evaluate_design(params: Mapping[str, float], settings: SweepSettings,
     assembled) give ``valid=False`` with the message in ``error`` and empty
     (None) numeric fields instead of raising.
     """
-    from . import workspace
-    from .robot import Hexapod
-
     row: dict = dict(params)
     row.update({name: None for name in SUMMARY_COLUMNS})
     try:
@@ -113,9 +112,9 @@ def evaluate_design(params: Mapping[str, float], settings: SweepSettings,
                             np.broadcast_to(settings.orientation, unit.shape)], axis=1)
     measures = workspace.evaluate(robot, poses, singularity=False, statics=False)
     box = float(np.prod(2 * half))
-    reach = workspace._estimate(measures.ok, box)
+    reach = workspace.volume_estimate(measures.ok, box)
     good = measures.ok & (measures.condition_number <= settings.max_condition)
-    well = workspace._estimate(good, box)
+    well = workspace.volume_estimate(good, box)
     ok_idx = np.flatnonzero(measures.ok)
     row.update(valid=True, error="", home_height=robot.geometry.home_height,
                reachable_volume=reach.volume, reachable_volume_se=reach.std_error,

@@ -355,15 +355,25 @@ def volume(robot, n_samples: int, center, half_extent, orientation=(0.0, 0.0, 0.
         if legs.size == 0 or not np.all(np.isin(legs, np.arange(6))):
             raise InputError("legs", legs, "expected carriage indices in 0..5")
         inside = np.all(leg_reachable(robot, poses)[:, legs.astype(int)], axis=1)
-        return _estimate(inside, float(np.prod(2 * half)))
+        return volume_estimate(inside, float(np.prod(2 * half)))
     measures = evaluate(robot, poses, threads=threads, singularity=False, statics=False)
     inside = measures.ok
     if max_condition is not None:
         inside = inside & (measures.condition_number <= max_condition)
-    return _estimate(inside, float(np.prod(2 * half)))
+    return volume_estimate(inside, float(np.prod(2 * half)))
 
 
-def _estimate(inside: np.ndarray, box: float) -> VolumeEstimate:
+def volume_estimate(inside: np.ndarray, box: float) -> VolumeEstimate:
+    """Monte-Carlo volume of a region from uniform samples of a box.
+
+    Args:
+        inside: (N,) bool, which samples lie in the region.
+        box: the box's volume (m^3).
+
+    Returns:
+        :class:`VolumeEstimate`: ``box * p`` with the binomial standard error
+        ``box sqrt(p (1 - p) / N)``, ``p`` the fraction inside.
+    """
     n = inside.size
     p = float(np.count_nonzero(inside)) / n
     return VolumeEstimate(box * p, box * math.sqrt(p * (1 - p) / n), n, p, box)
