@@ -157,7 +157,8 @@ class SolverError(HexapodPinError, RuntimeError):
     def __init__(self, solver: str, status: str, detail: str = ""):
         self.solver = solver
         self.status = status
-        super().__init__(f"{solver} failed with status {status}" + (f": {detail}" if detail else ""))
+        super().__init__(f"{solver} failed with status {status}"
+                         + (f": {detail}" if detail else ""))
 
 
 class InconsistentMotionError(SolverError):

@@ -407,7 +407,8 @@ def fast_dynamics(robot) -> FastDynamics:
 
 @dataclass(frozen=True)
 class FastTrajectory:
-    """Result of :func:`simulate_fast` (a smaller :class:`~hexapod_pin.hexapod.simulation.Trajectory`).
+    """Result of :func:`simulate_fast` (a smaller
+    :class:`~hexapod_pin.hexapod.simulation.Trajectory`).
 
     Attributes:
         times: (n,) (s).
@@ -630,7 +631,8 @@ class FastStepper:
         """Set the platform state (pose (6,), m and rad; twist (6,), world axes) and the
         time to 0. Raises as the constructor."""
         pose, twist = as_array(pose, (6,), "pose"), as_array(twist, (6,), "twist")
-        fast_dynamics(self.robot).static_forces(pose, bounded=False)   # raises if unreachable / singular
+        # raises if unreachable / singular
+        fast_dynamics(self.robot).static_forces(pose, bounded=False)
         state = self._work[0][0]
         state[:3] = pose[:3]
         state[3:7] = _quaternion_wxyz(pose[3:])

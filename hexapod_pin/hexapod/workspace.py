@@ -126,7 +126,8 @@ def constant_orientation_grid(center, half_extent, n: int | tuple[int, int, int]
 
 
 def orientation_grid(position, max_angle: float, n: int) -> np.ndarray:
-    """Poses at one position with roll, pitch, yaw on an ``n^3`` grid in ``[-max_angle, max_angle]``."""
+    """Poses at one position with roll, pitch, yaw on an ``n^3`` grid in
+    ``[-max_angle, max_angle]``."""
     position = as_array(position, (3,), "position")
     if not (math.isfinite(max_angle) and max_angle > 0):
         raise InputError("max_angle", max_angle, "must be finite and > 0")

@@ -104,7 +104,8 @@ def package_dir() -> Path:
 
 
 def robot_file(relative: str) -> Path:
-    """A file under the example-robot-data robots folder, e.g. ``solo_description/robots/solo12.urdf``."""
+    """A file under the example-robot-data robots folder, e.g.
+    ``solo_description/robots/solo12.urdf``."""
     path = example_robot_data_dir() / relative
     if not path.is_file():
         raise RobotDataNotFoundError(relative, [path])
