@@ -502,3 +502,29 @@ def test_bounded_saturation_raises(robot):
     tight.static_forces(pose, heavy, bounded=False)
     with pytest.raises(BatchActuatorSaturationError):
         tight.static_forces_batch(np.array([pose]), np.array([heavy]))
+
+
+@pytest.mark.parametrize("kind", ["complex", "complex array", "bool", "text"])
+def test_non_real_inputs_are_refused_by_name(robot, kind):
+    """Complex numbers (their imaginary part would be dropped silently), booleans and text
+    are an InputError naming the argument, on every entry point of both robots."""
+    dim = robot.pose_dim
+    pose = robot.home_pose.copy()
+    bad = {"complex": list(pose[:-1]) + [complex(pose[-1], 1e-3)],
+           "complex array": pose + 1e-3j,
+           "bool": [True] * dim,
+           "text": ["0"] * dim}[kind]
+    zero = np.zeros(dim)
+    calls = {
+        "pose": (lambda: robot.inverse_kinematics(bad), lambda: robot.jacobian(bad),
+                 lambda: robot.static_forces(bad), lambda: robot.configuration(bad),
+                 lambda: robot.inverse_dynamics(bad, zero, zero)),
+        "twist": (lambda: robot.inverse_dynamics(pose, bad, zero),
+                  lambda: robot.reduced_dynamics(pose, bad)),
+        "poses": (lambda: robot.inverse_kinematics_batch(np.array([bad])),),
+    }
+    for name, funcs in calls.items():
+        for call in funcs:
+            with pytest.raises(hp.InputError) as err:
+                call()
+            assert err.value.name == name

@@ -24,13 +24,18 @@ def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False)
         batch: when True, accept ``(N,) + shape_tail``.
 
     Raises:
-        InputError: not numeric, wrong shape, or NaN / inf entries.
+        InputError: not real numbers (complex, bool, text), wrong shape, or NaN / inf
+            entries.
     """
     if type(value) is np.ndarray and value.dtype == np.float64 and value.flags.c_contiguous:
         arr = value                       # what np.ascontiguousarray would return
     else:
+        raw = np.asarray(value) if not isinstance(value, np.ndarray) else value
+        if raw.dtype.kind in "cbOSUV" and not (raw.dtype.kind == "O" and _all_real(raw)):
+            # complex (its imaginary part would be dropped), bool, text, bytes or objects
+            raise InputError(name, value, f"expected real numbers, got dtype {raw.dtype}")
         try:
-            arr = np.ascontiguousarray(value, dtype=float)
+            arr = np.ascontiguousarray(raw, dtype=float)
         except (TypeError, ValueError):
             raise InputError(name, value, "not numeric") from None
     expected = ("N",) + shape_tail if batch else shape_tail
@@ -44,17 +49,23 @@ def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False)
     return arr
 
 
-def vec6(value, name: str) -> np.ndarray:
-    """A C-contiguous float64 (6,) array, for the compiled kernels' fast path.
+def vector(value, size: int, name: str) -> np.ndarray:
+    """A C-contiguous float64 ``(size,)`` array, for the compiled kernels' fast path.
 
-    A float64 array of shape (6,) is passed through (copied only when not contiguous);
-    anything else goes through :func:`as_array`. Finiteness of a passed-through array is
-    NOT checked here: the kernels check it and the caller then re-validates with
-    :func:`as_array`, which raises the :class:`InputError`.
+    A float64 array of that shape is passed through (copied only when not contiguous);
+    anything else goes through :func:`as_array` (real, finite numbers of that shape, else
+    :class:`InputError`). Finiteness of a passed-through array is NOT checked here: the
+    kernels check it and the caller then re-validates with :func:`as_array`, which raises
+    the :class:`InputError`.
     """
-    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (6,):
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (size,):
         return value if value.flags.c_contiguous else np.ascontiguousarray(value)
-    return as_array(value, (6,), name)
+    return as_array(value, (size,), name)
+
+
+def vec6(value, name: str) -> np.ndarray:
+    """:func:`vector` of size 6 (a pose, twist or wrench in space)."""
+    return vector(value, 6, name)
 
 
 def check_signs(branch, home: np.ndarray, name: str = "branch") -> np.ndarray:
@@ -112,3 +123,9 @@ def owned_copy(checked: np.ndarray, given) -> np.ndarray:
     """``checked`` (an input after :func:`vec6`), copied when it is the caller's own
     array, so that results computed on first access cannot change with it."""
     return checked.copy() if checked is given else checked
+
+
+def _all_real(raw: np.ndarray) -> bool:
+    """Whether every element of an object array is a real number (not bool, not complex)."""
+    return all(isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
+               for x in raw.ravel())

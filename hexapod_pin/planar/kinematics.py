@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.checks import as_array
+from ..core.checks import as_array, vector
 from ..core.closed_loop import ClosedLoopModel
 from ..core.measures import singularity_measures
 from ..core.results import InverseKinematicsBatch, JacobianBatch, SingularityMeasures
@@ -30,23 +30,8 @@ _TYPE_I_WHAT = "inverse kinematic Jacobian (a link perpendicular to its rail)"
 
 
 def vec3(value, name: str) -> np.ndarray:
-    """A float64 (3,) array from an input, for the compiled kernels.
-
-    A contiguous, writeable float64 ndarray of shape (3,) is passed through; anything
-    else is copied to one and its shape checked, or sent to :func:`as_array`, which
-    raises the :class:`InputError`. Finiteness is checked by the kernels; when they
-    report a non-finite value the caller re-validates with :func:`as_array`.
-    """
-    if (type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (3,)
-            and value.flags.c_contiguous and value.flags.writeable):
-        return value            # (one array layout: one compiled specialisation)
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        arr = None
-    if arr is None or arr.shape != (3,):
-        return as_array(value, (3,), name)
-    return arr
+    """:func:`~hexapod_pin.core.checks.vector` of size 3 (a planar pose, twist or wrench)."""
+    return vector(value, 3, name)
 
 
 class PlanarWorkspace:
