@@ -183,10 +183,13 @@ class HexapodDynamics:
         model: the hexapod's :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`.
         indices: where the hexapod's coordinates sit in the tree (``HexapodIndices``).
         closed_form: the :class:`~hexapod_pin.hexapod.kernels.ClosedForm` of the same robot.
+        lock: the robot's lock (held by the facade's calls and by the lazy parts of
+            results); default a new one.
 
-    It keeps its per-robot workspace (Pinocchio data, compiled-map buffers, ProxSuite
+    It keeps its per-robot workspace (its own generic tree workspace, buffers, ProxSuite
     problems, the derivatives' workspace) as explicit attributes, built on first use.
- Conventions (see the README): pose ``(x, y, z, roll, pitch, yaw)``, twist
+
+    Conventions (see the README): pose ``(x, y, z, roll, pitch, yaw)``, twist
     ``(v, w)`` of the platform origin in world axes, ``twist_dot`` its plain time
     derivative, actuator force ``tau_i`` on carriage i along ``+u_k`` (N), wrench
     ``(f, m)`` applied on the platform by the environment, world axes, moment about the
@@ -194,7 +197,7 @@ class HexapodDynamics:
 
     Single states go through the Pinocchio tree. The tree state comes in closed form
     (the kernels of :mod:`~hexapod_pin.hexapod.kernels`): ``q`` from the inverse kinematics
-    (home branch) and the leg directions, ``v = G twist`` and ``a`` from the leg
+    (on the given branch) and the leg directions, ``v = G twist`` and ``a`` from the leg
     kinematics (they keep the closures by construction), the free-flyer part
     ``(R^T v, R^T w)`` and ``(R^T (vdot - w x v), R^T wdot)``; the wrench enters as the
     free-flyer generalised force ``(R^T f, R^T m)``. By virtual power the tree equation
