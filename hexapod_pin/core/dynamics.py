@@ -1139,30 +1139,11 @@ def square_solve(mat, rhs, x, out):
 
 @jit
 def closure_residual(jac, acc, drift) -> float:
-    """Relative residual of ``J a + drift = 0``: ``max|J a + drift|`` over the larger of
-    ``max|J| max|a|`` and ``max|drift|`` (0 without rows, inf when not finite)."""
-    nv = acc.shape[0]
-    nr = jac.shape[0]
-    if nr == 0:
-        return 0.0
-    num = 0.0
-    jmax = 0.0
-    dmax = 0.0
-    amax = 0.0
-    for j in range(nv):
-        amax = max(amax, abs(acc[j]))
-    for k in range(nr):
-        j_a = 0.0
-        for j in range(nv):
-            j_a += jac[k, j] * acc[j]
-            jmax = max(jmax, abs(jac[k, j]))
-        r = abs(j_a + drift[k])
-        if not math.isfinite(r):
-            num = math.inf
-        elif r > num:
-            num = r
-        dmax = max(dmax, abs(drift[k]))
-    return num / max(jmax * amax, dmax, 1e-300)
+    """Relative residual of ``J a + drift = 0``: :func:`linear_residual` of ``J a = -drift``
+    (``max|J a + drift|`` over the larger of ``max|J| max|a|`` and ``max|drift|``; 0 without
+    rows, inf when not finite)."""
+    out = np.empty(2)
+    return linear_residual(jac, acc, -drift, out)
 
 
 class _LazyMinNorm:
