@@ -33,18 +33,10 @@ from .dynamics import (
 )
 
 
-@dataclass(frozen=True)
-class TreeForwardDynamicsBatch:
-    """Result of :func:`forward_dynamics_tree_batch`.
+class _PerStateResults:
+    """What both batch results read from their per-state results (``self.results``)."""
 
-    Attributes:
-        a: tree accelerations (N, nv).
-        results: the per-state :class:`~hexapod_pin.core.dynamics.TreeForwardDynamics`
-            (status, iterations, rank; multipliers converted on access).
-    """
-
-    a: np.ndarray
-    results: tuple[TreeForwardDynamics, ...]
+    results: tuple
 
     @property
     def multipliers(self) -> np.ndarray:
@@ -58,7 +50,21 @@ class TreeForwardDynamicsBatch:
 
 
 @dataclass(frozen=True)
-class TreeInverseDynamicsBatch:
+class TreeForwardDynamicsBatch(_PerStateResults):
+    """Result of :func:`forward_dynamics_tree_batch`.
+
+    Attributes:
+        a: tree accelerations (N, nv).
+        results: the per-state :class:`~hexapod_pin.core.dynamics.TreeForwardDynamics`
+            (status, iterations, rank; multipliers converted on access).
+    """
+
+    a: np.ndarray
+    results: tuple[TreeForwardDynamics, ...]
+
+
+@dataclass(frozen=True)
+class TreeInverseDynamicsBatch(_PerStateResults):
     """Result of :func:`inverse_dynamics_tree_batch`.
 
     Attributes:
@@ -71,16 +77,6 @@ class TreeInverseDynamicsBatch:
     actuator_forces: np.ndarray
     residual: np.ndarray
     results: tuple[TreeInverseDynamics, ...]
-
-    @property
-    def multipliers(self) -> np.ndarray:
-        """Closure multipliers (N, n_rows), conventions of the single call."""
-        return np.array([r.multipliers for r in self.results]).reshape(len(self.results), -1)
-
-    @property
-    def statuses(self) -> tuple[str, ...]:
-        """Per-state status strings."""
-        return tuple(r.status for r in self.results)
 
 
 #: batches with fewer states evaluate ``rneaInParallel`` on one thread
