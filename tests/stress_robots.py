@@ -200,27 +200,21 @@ def planar_ladder_model(loops: int, masses) -> ClosedLoopModel:
                            urdf_xml=urdf)
 
 
-def _planar_ladder_sampler(clm: ClosedLoopModel, loops: int):
+def _ladder_sampler(clm: ClosedLoopModel, loops: int, against=("coupler_{j}_a",),
+                    along=()):
+    """Assembled states of a ladder of parallelograms: every bar at one angle theta, the
+    joints named by ``against`` at -theta and those named by ``along`` at +theta (``{j}`` the
+    loop), with a random closure-consistent velocity."""
     def sample(rng):
         theta = rng.uniform(-0.8, 0.8)
         q = clm.neutral()
         for j in range(loops + 1):
             q[clm.joint_q_index(f"bar_{j}")] = theta
         for j in range(loops):
-            q[clm.joint_q_index(f"coupler_{j}")] = -theta
-            q[clm.joint_q_index(f"pin_{j}")] = theta
-        return q, _velocity(clm, q, rng)
-    return sample
-
-
-def _ladder_sampler(clm: ClosedLoopModel, loops: int):
-    def sample(rng):
-        theta = rng.uniform(-0.8, 0.8)
-        q = clm.neutral()
-        for j in range(loops + 1):
-            q[clm.joint_q_index(f"bar_{j}")] = theta
-        for j in range(loops):
-            q[clm.joint_q_index(f"coupler_{j}_a")] = -theta
+            for name in against:
+                q[clm.joint_q_index(name.format(j=j))] = -theta
+            for name in along:
+                q[clm.joint_q_index(name.format(j=j))] = theta
         return q, _velocity(clm, q, rng)
     return sample
 
@@ -306,7 +300,7 @@ def ladder_massless(loops: int = 4) -> StressRobot:
 
 def planar_ladder_weld(loops: int = 5) -> StressRobot:
     clm = planar_ladder_model(loops, (1e2, 1e-3, 1.0, 1e-1, 1e1, 1e-2))
-    return StressRobot("planar_ladder_weld", clm, _planar_ladder_sampler(clm, loops))
+    return StressRobot("planar_ladder_weld", clm, _ladder_sampler(clm, loops, ("coupler_{j}",), ("pin_{j}",)))
 
 
 def ladder_long(loops: int = 24) -> StressRobot:
