@@ -540,7 +540,7 @@ def model_check(peers: HexapodPeers, n: int = 20) -> tuple[list[list[str]], dict
         pin.framesForwardKinematics(model, data, q)
         for k in range(6):
             tip = data.oMf[model.getFrameId(f"leg_{k}_tip")].translation
-            anchor = data.oMf[model.getFrameId(f"platform_anchor_{k // 2}")].translation
+            anchor = data.oMf[model.getFrameId(f"platform_anchor_{k}")].translation
             worst["sites"] = max(worst["sites"],
                                  np.abs(d.site_xpos[mj.tip_sites[k]] - tip).max(),
                                  np.abs(d.site_xpos[mj.anchor_sites[k]] - anchor).max())

@@ -30,7 +30,7 @@ from .errors import (ActuatorSaturationError, AssemblyError, BatchActuatorSatura
                      InfeasiblePathError, InputError, MissingDependencyError,
                      MotionSampleError, SingularityError, SolverError, StrokeLimitError,
                      UnreachablePoseError)
-from .hexapod.geometry import HexapodGeometry
+from .hexapod.geometry import ChainGeometry, HexapodGeometry
 from .hexapod.kinematics import LegMotion
 from .hexapod.robot import Hexapod
 from .loaders import robots
@@ -43,7 +43,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     # robots
-    "Hexapod", "HexapodGeometry", "LegMotion", "Planar3PRR", "PlanarGeometry",
+    "Hexapod", "HexapodGeometry", "ChainGeometry", "LegMotion", "Planar3PRR", "PlanarGeometry",
     "AssemblyPolynomial", "ParallelRobot", "load_parallel_robot", "robots",
     # the generic core
     "ClosedLoopModel", "AssemblyResult", "RankInfo", "ClosureSpec", "LoopsSpec",

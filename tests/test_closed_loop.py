@@ -71,7 +71,7 @@ def _weld_model(robot, q_ref):
     text = f"""closures:
   - {{name: w, type: weld, frame1: leg_0_tip, frame2: platform_anchor_0,
      offset2: {{xyz: {xyz}, rpy: {rpy}}}}}
-  - {{name: p, type: point, frame1: leg_3_tip, frame2: platform_anchor_1}}
+  - {{name: p, type: point, frame1: leg_3_tip, frame2: platform_anchor_3}}
 actuated: [carriage_0]
 """
     tree = build_model(hexapod_urdf(robot.geometry))
@@ -115,7 +115,7 @@ def test_redundant_closure_rows_are_detected(robot):
     """Closing leg 1 on leg 0's tip as well as on the platform adds 3 dependent rows."""
     text = (robot.model.closures and
             "closures:\n" + "".join(
-                f"  - {{name: tip_{i}, type: point, frame1: leg_{i}_tip, frame2: platform_anchor_{i // 2}}}\n"
+                f"  - {{name: tip_{i}, type: point, frame1: leg_{i}_tip, frame2: platform_anchor_{i}}}\n"
                 for i in range(6))
             + "  - {name: extra, type: point, frame1: leg_1_tip, frame2: leg_0_tip}\n"
             + "actuated: [carriage_0, carriage_1, carriage_2, carriage_3, carriage_4, carriage_5]\n")

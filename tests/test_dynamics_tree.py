@@ -51,7 +51,7 @@ def _redundant_model(robot):
     """The hexapod with leg 1's tip also closed on leg 0's tip: 21 rows, rank 18."""
     text = ("closures:\n" + "".join(
         f"  - {{name: tip_{i}, type: point, frame1: leg_{i}_tip, "
-        f"frame2: platform_anchor_{i // 2}}}\n" for i in range(6))
+        f"frame2: platform_anchor_{i}}}\n" for i in range(6))
         + "  - {name: extra, type: point, frame1: leg_1_tip, frame2: leg_0_tip}\n"
         + "actuated: [carriage_0, carriage_1, carriage_2, carriage_3, carriage_4, carriage_5]\n")
     return ClosedLoopModel(build_model(hexapod_urdf(robot.geometry)), parse_loops(text))
@@ -193,7 +193,7 @@ def test_weld_closure_routes_agree(robot, rng):
     text = f"""closures:
   - {{name: w, type: weld, frame1: leg_0_tip, frame2: platform_anchor_0,
      offset2: {{xyz: {rel.translation.tolist()}, rpy: {pin.rpy.matrixToRpy(rel.rotation).tolist()}}}}}
-  - {{name: p, type: point, frame1: leg_3_tip, frame2: platform_anchor_1}}
+  - {{name: p, type: point, frame1: leg_3_tip, frame2: platform_anchor_3}}
 actuated: [carriage_0, carriage_3]
 """
     weld = ClosedLoopModel(build_model(hexapod_urdf(robot.geometry)), parse_loops(text))

@@ -248,7 +248,7 @@ class HexapodDynamics:
         if sorted(leg_of_closure.tolist()) != list(range(6)) or any(
                 cl.type != "point" for cl in clm.closures):
             raise HexapodPinError("the hexapod's loops must be six point closures "
-                                  "leg_<i>_tip -> platform_anchor_<k>")
+                                  "leg_<i>_tip -> platform_anchor_<i>")
         limit = self.geometry.max_actuator_force
         bounds = None if not np.isfinite(limit) else np.full(6, limit)
         ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds,

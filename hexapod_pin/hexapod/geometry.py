@@ -1,15 +1,31 @@
-"""Design parameters of the rail-driven hexapod (SI units, validated).
+"""Design parameters of the rail-driven hexapod (SI units, validated), ideal or as built.
 
 The default numbers are documented placeholders: the dimensions of the real
 Quanser 6-DoF Hexapod are not public. Every number is a parameter.
 
-Conventions (world frame z up, rails in the plane z = 0):
+Ideal conventions (the drawing; world frame z up, rails in the plane z = 0):
 
 * rail k (k = 0, 1, 2) has its midpoint at ``m_k = rail_radius (cos a_k, sin a_k, 0)``
   with ``a_k = 90 deg + 120 deg k`` and its direction ``u_k = (-sin a_k, cos a_k, 0)``;
 * carriage i rides on rail ``k = i // 2`` at ``c_i = m_k + q_i u_k``;
 * the platform point of rail k is ``p_k = platform_radius (cos a_k, sin a_k, 0)``
   in the platform frame, whose origin is the platform's centre of mass.
+
+As-built conventions (:class:`ChainGeometry`, per chain ``i = 0..5``): the universal-joint
+centre of chain ``i`` moves on the straight line through ``line_points[i]`` (world, m)
+along the unit ``line_directions[i]``; at the actuator reading ``q_i`` (m) it sits at
+``c_i = line_points[i] + (q_i + sensor_offsets[i]) line_directions[i]``; leg ``i`` has the
+length ``leg_lengths[i]`` (m, joint centre to joint centre) and ends at its own platform
+joint ``platform_joints[i]`` (platform frame, m; the two legs of a pair need not meet).
+The ideal robot is ``line_points[i] = m_k``, ``line_directions[i] = u_k``, offsets 0,
+lengths ``leg_length`` and ``platform_joints[i] = p_k`` (``k = i // 2``), which is what
+``HexapodGeometry.chains = None`` means. The scalar fields (``rail_radius``, ...,
+``leg_length``) stay the nominal design: the stroke limits (``rail_half_length``,
+``carriage_min_gap``) apply to the readings ``q``, the type-II measure keeps the nominal
+``platform_radius`` as its length scale, and the masses and inertias are the nominal ones
+(each leg a uniform rod of its own length). An as-built home pose is the forward
+kinematics of ``home_q`` on the home branch, started from the ideal home pose
+(:func:`closure_pose`).
 """
 
 from __future__ import annotations
@@ -23,20 +39,215 @@ import numpy as np
 from ..core import layouts
 from ..core.checks import validate_scalars
 from ..core.description import expand_xacro, urdf_dir
+from ..core.pose import rotation_from_rpy, rpy_from_rotation
 from ..errors import GeometryError
 
 N_RAILS = 3
 N_CARRIAGES = 6
+#: the IK branch of the home pose: ``s_i = -sign(n_i . u_i)``, even carriages -1
+HOME_SIGNS = np.array([-1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
+#: the fields of :class:`ChainGeometry` in the order of :meth:`ChainGeometry.as_vector`,
+#: with their shapes
+CHAIN_FIELDS = (("line_points", (6, 3)), ("line_directions", (6, 3)),
+                ("sensor_offsets", (6,)), ("leg_lengths", (6,)),
+                ("platform_joints", (6, 3)))
+#: length of :meth:`ChainGeometry.as_vector` (18 + 18 + 6 + 6 + 18)
+CHAIN_VECTOR_SIZE = 66
+#: residual (m, relative to ``max(1, leg length)``) below which :func:`closure_pose` has
+#: converged
+CLOSURE_TOL = 1e-12
+
+
+def _frozen(value: np.ndarray) -> np.ndarray:
+    value.setflags(write=False)
+    return value
+
+
+@dataclass(frozen=True, eq=False)
+class ChainGeometry:
+    """Per-chain kinematic geometry of an as-built hexapod (SI units, validated).
+
+    Attributes:
+        line_points: (6, 3) a point of each chain's universal-joint line, world frame (m).
+        line_directions: (6, 3) unit direction of each line, world frame (normalised on
+            construction; the actuator force ``tau_i`` acts along it).
+        sensor_offsets: (6,) zero offset of each position sensor (m): the joint centre is
+            at ``line_points[i] + (q_i + sensor_offsets[i]) line_directions[i]``.
+        leg_lengths: (6,) universal-joint centre to platform-joint centre (m), > 0.
+        platform_joints: (6, 3) each leg's platform-joint centre, platform frame (m).
+
+    Arrays are stored as read-only float64 copies; equality and hashing compare values.
+
+    Raises:
+        GeometryError: a field of the wrong shape, non-finite, a zero direction or a
+            non-positive leg length, naming the field.
+    """
+
+    line_points: np.ndarray
+    line_directions: np.ndarray
+    sensor_offsets: np.ndarray
+    leg_lengths: np.ndarray
+    platform_joints: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name, shape in CHAIN_FIELDS:
+            raw = getattr(self, name)
+            try:
+                value = np.array(raw, dtype=float)
+            except (TypeError, ValueError):
+                raise GeometryError(name, raw, "must be an array of real numbers") from None
+            if np.iscomplexobj(np.asarray(raw)) or value.shape != shape:
+                raise GeometryError(name, raw, f"must be real with shape {shape}")
+            if not np.all(np.isfinite(value)):
+                raise GeometryError(name, raw, "must be finite")
+            object.__setattr__(self, name, value)
+        if np.any(self.leg_lengths <= 0.0):
+            raise GeometryError("leg_lengths", self.leg_lengths, "must be > 0")
+        dirs = self.line_directions
+        norms = np.linalg.norm(dirs, axis=1)
+        if np.any(norms < 1e-9):
+            raise GeometryError("line_directions", dirs,
+                                f"rows must be non-zero (norms {norms})")
+        for i in range(6):
+            if abs(norms[i] - 1.0) > 4 * np.finfo(float).eps:
+                dirs[i] = dirs[i] / norms[i]
+        for name, _ in CHAIN_FIELDS:
+            _frozen(getattr(self, name))
+
+    @classmethod
+    def ideal(cls, geometry: "HexapodGeometry") -> "ChainGeometry":
+        """The drawing of ``geometry``: line points ``m_k``, directions ``u_k``, offsets 0,
+        lengths ``leg_length``, platform joints ``p_k`` (``k = i // 2``)."""
+        k = np.arange(N_CARRIAGES) // 2
+        return cls(line_points=layouts.points_on_circle(geometry.rail_radius, 3)[k],
+                   line_directions=layouts.rail_directions(3)[k],
+                   sensor_offsets=np.zeros(N_CARRIAGES),
+                   leg_lengths=np.full(N_CARRIAGES, geometry.leg_length),
+                   platform_joints=layouts.points_on_circle(geometry.platform_radius, 3)[k])
+
+    def as_vector(self) -> np.ndarray:
+        """The five arrays flattened (row-major) and concatenated, shape
+        (CHAIN_VECTOR_SIZE,) = (66,): ``line_points`` [0:18], ``line_directions`` [18:36],
+        ``sensor_offsets`` [36:42], ``leg_lengths`` [42:48], ``platform_joints`` [48:66]."""
+        return np.concatenate([getattr(self, name).ravel() for name, _ in CHAIN_FIELDS])
+
+    @classmethod
+    def from_vector(cls, vec) -> "ChainGeometry":
+        """Inverse of :meth:`as_vector` (directions normalised, everything validated).
+
+        Raises:
+            GeometryError: ``vec`` not of shape (66,), or an invalid field.
+        """
+        vec = np.asarray(vec, dtype=float)
+        if vec.shape != (CHAIN_VECTOR_SIZE,):
+            raise GeometryError("chains", vec, f"vector must have shape ({CHAIN_VECTOR_SIZE},)")
+        parts, start = {}, 0
+        for name, shape in CHAIN_FIELDS:
+            size = int(np.prod(shape))
+            parts[name] = vec[start:start + size].reshape(shape)
+            start += size
+        return cls(**parts)
+
+    def as_dict(self) -> dict[str, list]:
+        """The five arrays as nested lists (for TOML/JSON files)."""
+        return {name: getattr(self, name).tolist() for name, _ in CHAIN_FIELDS}
+
+    def carriage_points(self, q) -> np.ndarray:
+        """Universal-joint centres ``c_i`` (6, 3), world frame (m), at readings ``q`` (6,)."""
+        q = np.asarray(q, dtype=float)
+        return self.line_points + (q + self.sensor_offsets)[:, None] * self.line_directions
+
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, ChainGeometry):
+            return NotImplemented
+        return all(np.array_equal(getattr(self, name), getattr(other, name))
+                   for name, _ in CHAIN_FIELDS)
+
+    def __hash__(self) -> int:
+        return hash(self.as_vector().tobytes())
+
+
+def closure_pose(chains: ChainGeometry, q, start, *, max_iter: int = 50) -> np.ndarray:
+    """Forward kinematics by Newton's method on the six closure equations
+    ``|t + R platform_joints[i] - c_i(q)| = leg_lengths[i]``, from the pose ``start``.
+
+    Args:
+        chains: the per-chain geometry.
+        q: (6,) actuator readings (m).
+        start: (6,) starting pose ``(x, y, z, roll, pitch, yaw)`` (m, rad); the solution
+            found is the one Newton's method reaches from it (the caller checks its
+            branch and assembly mode).
+        max_iter: Newton iterations at most.
+
+    Returns:
+        (6,) the pose, every leg within ``CLOSURE_TOL * max(1, leg length)`` m of its
+        length, or None when Newton's method did not converge or met a singular
+        Jacobian.
+    """
+    q = np.asarray(q, dtype=float)
+    pts = chains.carriage_points(q)
+    t = np.array(start[:3], dtype=float)
+    rot = rotation_from_rpy(np.asarray(start[3:], dtype=float))
+    tol = CLOSURE_TOL * max(1.0, float(np.max(chains.leg_lengths)))
+    for _ in range(max_iter + 1):
+        arms = chains.platform_joints @ rot.T
+        legs = t + arms - pts
+        norms = np.linalg.norm(legs, axis=1)
+        res = norms - chains.leg_lengths
+        if not np.all(np.isfinite(res)):
+            return None
+        if np.max(np.abs(res)) <= tol:
+            return np.concatenate([t, rpy_from_rotation(rot)])
+        unit = legs / norms[:, None]
+        jac = np.hstack([unit, np.cross(arms, unit)])
+        try:
+            step = np.linalg.solve(jac, -res)
+        except np.linalg.LinAlgError:
+            return None
+        t = t + step[:3]
+        w = step[3:]
+        angle = float(np.linalg.norm(w))
+        if angle > 0.0:
+            axis = w / angle
+            kx = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
+                           [-axis[1], axis[0], 0.0]])
+            rot = (np.eye(3) + math.sin(angle) * kx
+                   + (1.0 - math.cos(angle)) * kx @ kx) @ rot
+    return None
+
+
+def branch_of(chains: ChainGeometry, q, pose) -> np.ndarray:
+    """IK branch signs ``s_i = -sign(n_i . u_i)`` (6,) of an assembled pose (6,) at the
+    readings ``q`` (6,), ``n_i`` the leg from its joint centre to its platform joint."""
+    rot = rotation_from_rpy(np.asarray(pose[3:], dtype=float))
+    legs = (np.asarray(pose[:3], dtype=float) + chains.platform_joints @ rot.T
+            - chains.carriage_points(q))
+    return -np.sign(np.einsum("ij,ij->i", legs, chains.line_directions))
+
+
+def carriage_frames(chains: ChainGeometry) -> np.ndarray:
+    """Orthonormal carriage frames (6, 3, 3), columns ``(u, l, w)``: ``u`` the line
+    direction (the prismatic axis and the first universal-joint axis), ``l = normalize(z x
+    u)`` (``z`` the world's vertical) and ``w = u x l`` (for a horizontal ``u``, ``w = z``).
+    The carriage links of ``urdf/hexapod.urdf.xacro`` have these axes."""
+    u = chains.line_directions
+    z = np.array([0.0, 0.0, 1.0])
+    lat = np.cross(z, u)
+    norms = np.linalg.norm(lat, axis=1)
+    lat = np.where(np.abs(norms - 1.0)[:, None] <= 4 * np.finfo(float).eps, lat,
+                   lat / norms[:, None])
+    return np.stack([u, lat, np.cross(u, lat)], axis=2)
 
 
 @dataclass(frozen=True)
 class HexapodGeometry:
-    """Geometry, inertia and limits of the hexapod (SI units).
+    """Geometry, inertia and limits of the hexapod (SI units), ideal or as built.
 
     Attributes:
         rail_radius: distance from the world origin to each rail midpoint (m).
         platform_radius: distance from the platform origin to each spherical
-            joint, in the platform plane (m).
+            joint, in the platform plane (m); also the length scale of the type-II
+            measure, as built too.
         leg_length: length of each leg, universal joint to spherical joint (m).
         carriage_home: ``abs(q_i)`` at home (m): even carriages at
             ``-carriage_home``, odd ones at ``+carriage_home``.
@@ -49,10 +260,14 @@ class HexapodGeometry:
             its frame axes at its centre of mass (kg m^2), three values.
         gravity: magnitude of gravity, acting along -z (m/s^2).
         max_actuator_force: bound on ``abs(tau_i)`` (N); ``inf`` for none.
+        chains: the as-built per-chain geometry (:class:`ChainGeometry`), or None for
+            the ideal drawing (then :attr:`chain_geometry` is
+            ``ChainGeometry.ideal(self)``). It is absolute: :meth:`replace` of a scalar
+            keeps it as it is.
 
     Raises:
-        GeometryError: on a non-finite, non-positive or inconsistent value,
-            naming the field and the value.
+        GeometryError: on a non-finite, non-positive or inconsistent value, or an
+            as-built geometry whose home does not assemble, naming the field and the value.
     """
 
     rail_radius: float = 0.35
@@ -67,15 +282,19 @@ class HexapodGeometry:
     platform_inertia: tuple[float, float, float] = field(default=(0.004, 0.004, 0.008))
     gravity: float = 9.81
     max_actuator_force: float = 100.0
+    chains: ChainGeometry | None = None
 
     def __post_init__(self) -> None:
-        validate_scalars(self, skip=("platform_inertia",),
+        validate_scalars(self, skip=("platform_inertia", "chains"),
                          positive=("rail_radius", "platform_radius", "leg_length",
                                    "carriage_home", "rail_half_length", "carriage_mass",
                                    "leg_mass", "platform_mass", "max_actuator_force"),
                          non_negative=("carriage_min_gap", "gravity"))
+        if self.chains is not None and not isinstance(self.chains, ChainGeometry):
+            raise GeometryError("chains", self.chains, "must be a ChainGeometry or None")
         self._validate_inertia()
         self._validate_home()
+        object.__setattr__(self, "_home_pose", _frozen(self._assemble_home()))
 
     def _validate_inertia(self) -> None:
         try:
@@ -111,16 +330,74 @@ class HexapodGeometry:
                 "(rail_radius - platform_radius)^2 + carriage_home^2 = "
                 f"{self.leg_length ** 2 - self.home_height_squared:.6g}")
 
+    def _assemble_home(self) -> np.ndarray:
+        ideal = np.array([0.0, 0.0, math.sqrt(self.home_height_squared), 0.0, 0.0, 0.0])
+        if self.chains is None:
+            return ideal
+        chains = self.chains
+        frames = carriage_frames(chains)
+        if np.any(np.abs(frames[:, 2, 0]) > 1.0 - 1e-6):
+            raise GeometryError("chains.line_directions", chains.line_directions,
+                                "a line along the vertical has no carriage frame")
+        pose = closure_pose(chains, self.home_q, ideal)
+        if pose is None or not np.array_equal(branch_of(chains, self.home_q, pose),
+                                              HOME_SIGNS):
+            raise GeometryError("chains", chains,
+                                "home cannot be assembled: no pose on the home branch "
+                                "closes the six legs at home_q (Newton from the ideal home)")
+        return pose
+
+    @property
+    def chain_geometry(self) -> ChainGeometry:
+        """The explicit per-chain geometry: :attr:`chains`, or the ideal drawing."""
+        return ChainGeometry.ideal(self) if self.chains is None else self.chains
+
+    @property
+    def is_ideal(self) -> bool:
+        """True when :attr:`chains` is None (the drawing)."""
+        return self.chains is None
+
+    def with_chains(self, chains: ChainGeometry | None) -> "HexapodGeometry":
+        """A copy with the per-chain geometry ``chains`` (None: the ideal drawing)."""
+        return self.replace(chains=chains)
+
+    def as_built(self, **deviations) -> "HexapodGeometry":
+        """A copy whose chains are the ideal drawing plus ``deviations`` (m; any
+        :class:`ChainGeometry` field by name, an array of that field's shape; directions
+        renormalised).
+
+        Raises:
+            GeometryError: an unknown field, a deviation of the wrong shape, or an
+                invalid result.
+        """
+        ideal = ChainGeometry.ideal(self)
+        parts = {name: getattr(ideal, name) for name, _ in CHAIN_FIELDS}
+        shapes = dict(CHAIN_FIELDS)
+        for name, value in deviations.items():
+            if name not in shapes:
+                raise GeometryError(name, value, f"not a ChainGeometry field "
+                                                 f"({', '.join(shapes)})")
+            try:
+                delta = np.asarray(value, dtype=float)
+            except (TypeError, ValueError):
+                raise GeometryError(name, value, "must be an array of real numbers") from None
+            if delta.shape != shapes[name]:
+                raise GeometryError(name, value, f"deviation must have shape {shapes[name]}")
+            parts[name] = parts[name] + delta
+        return self.with_chains(ChainGeometry(**parts))
+
     @property
     def home_height_squared(self) -> float:
-        """Square of the home platform height (m^2); positive when home assembles."""
+        """Square of the ideal home platform height (m^2); positive when the ideal home
+        assembles."""
         radial = self.rail_radius - self.platform_radius
         return self.leg_length ** 2 - radial ** 2 - self.carriage_home ** 2
 
     @property
     def home_height(self) -> float:
-        """Height z of the platform origin at home (m), about 0.3565 for the defaults."""
-        return math.sqrt(self.home_height_squared)
+        """Height z of the platform origin at home (m), about 0.3565 for the defaults
+        (``home_pose[2]``)."""
+        return float(self._home_pose[2])
 
     @property
     def home_q(self) -> np.ndarray:
@@ -129,26 +406,34 @@ class HexapodGeometry:
 
     @property
     def home_pose(self) -> np.ndarray:
-        """Home pose ``(x, y, z, roll, pitch, yaw)`` (m, rad), shape (6,)."""
-        return np.array([0.0, 0.0, self.home_height, 0.0, 0.0, 0.0])
+        """Home pose ``(x, y, z, roll, pitch, yaw)`` (m, rad), shape (6,): the level
+        platform at the ideal home height, or, as built, the forward kinematics of
+        :attr:`home_q` on the home branch."""
+        return np.array(self._home_pose)
 
     @property
     def rail_midpoints(self) -> np.ndarray:
-        """Rail midpoints ``m_k`` in the world (m), shape (3, 3)."""
+        """Nominal rail midpoints ``m_k`` in the world (m), shape (3, 3) (the drawing; as
+        built, see :attr:`chain_geometry`)."""
         return layouts.points_on_circle(self.rail_radius, 3)
 
     @property
     def rail_directions(self) -> np.ndarray:
-        """Unit rail directions ``u_k`` in the world, shape (3, 3)."""
+        """Nominal unit rail directions ``u_k`` in the world, shape (3, 3) (the drawing)."""
         return layouts.rail_directions(3)
 
     @property
     def platform_points(self) -> np.ndarray:
-        """Spherical-joint points ``p_k`` in the platform frame (m), shape (3, 3)."""
+        """Nominal spherical-joint points ``p_k`` in the platform frame (m), shape (3, 3)
+        (the drawing)."""
         return layouts.points_on_circle(self.platform_radius, 3)
 
     def xacro_args(self) -> dict[str, str]:
-        """The xacro arguments of ``urdf/hexapod.urdf.xacro`` for this geometry."""
+        """The xacro arguments of ``urdf/hexapod.urdf.xacro`` for this geometry: the
+        scalars, and for an as-built geometry per chain ``i`` the carriage joint origin
+        ``carriage_<i>_xyz`` (``line_points[i] + sensor_offsets[i] line_directions[i]``)
+        and ``carriage_<i>_rpy`` (the frame of :func:`carriage_frames`), ``leg_<i>_length``
+        and ``anchor_<i>_xyz`` (the platform joint)."""
         ixx, iyy, izz = self.platform_inertia
         values = {
             "rail_radius": self.rail_radius,
@@ -164,7 +449,19 @@ class HexapodGeometry:
             "max_actuator_force": self.max_actuator_force
             if math.isfinite(self.max_actuator_force) else 1e30,
         }
-        return {k: repr(float(v)) for k, v in values.items()}
+        args = {k: repr(float(v)) for k, v in values.items()}
+        if self.chains is not None:
+            chains = self.chains
+            origins = chains.line_points + chains.sensor_offsets[:, None] \
+                * chains.line_directions
+            rpys = rpy_from_rotation(carriage_frames(chains))
+            for i in range(N_CARRIAGES):
+                args[f"carriage_{i}_xyz"] = " ".join(repr(float(v)) for v in origins[i])
+                args[f"carriage_{i}_rpy"] = " ".join(repr(float(v)) for v in rpys[i])
+                args[f"leg_{i}_length"] = repr(float(chains.leg_lengths[i]))
+                args[f"anchor_{i}_xyz"] = " ".join(repr(float(v))
+                                                   for v in chains.platform_joints[i])
+        return args
 
     def replace(self, **changes) -> "HexapodGeometry":
         """A copy with some fields changed (validated again)."""
