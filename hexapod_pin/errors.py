@@ -231,6 +231,26 @@ class MotionSampleError(HexapodPinError):
         super().__init__(f"row {index} (t = {time:g} s): {error}")
 
 
+class IdentifiabilityError(HexapodPinError, ValueError):
+    """Measurements cannot identify the parameters asked for (:mod:`hexapod_pin.calibration`):
+    too few of them, or too little variety (e.g. every pose at one orientation).
+
+    Attributes:
+        needed: how many independent parameter combinations were asked for.
+        rank: how many the data determine (the numerical rank of the scaled
+            identification Jacobian).
+        combinations: the combinations the data leave undetermined, in words.
+    """
+
+    def __init__(self, reason: str, needed: int, rank: int, combinations=()):
+        self.needed = int(needed)
+        self.rank = int(rank)
+        self.combinations = [str(c) for c in combinations]
+        detail = "; ".join(self.combinations)
+        super().__init__(f"{reason} (rank {self.rank} of {self.needed} needed)"
+                         + (f": undetermined {detail}" if detail else ""))
+
+
 class MissingDependencyError(HexapodPinError, ImportError):
     """An optional dependency is not installed.
 

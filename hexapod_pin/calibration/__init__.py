@@ -1,0 +1,29 @@
+"""Kinematic calibration of the as-built hexapod.
+
+* :func:`calibrate`: identify the per-chain geometry (lines, sensor zeros, leg lengths,
+  platform joints) and the instrument and target frames from measured poses or target
+  points and the actuator readings (:mod:`.identify`; the models in :mod:`.model`, the
+  parameters in :mod:`.parameters`);
+* identifiability: rank, singular values, the base parameter set and the combinations no
+  data can separate (:mod:`.identifiability`; :class:`~hexapod_pin.errors.IdentifiabilityError`
+  when the data cannot give what is asked);
+* :func:`select_poses`: measurement poses maximising an observability index
+  (:mod:`.selection`);
+* :func:`synthetic_measurements`: data of a perturbed robot (:mod:`.synthetic`);
+* measurement files (CSV) and the identified geometry file (:mod:`.files`);
+* figures (:mod:`.plots`, matplotlib optional).
+
+Units: m, rad; poses ``(x, y, z, roll, pitch, yaw)`` with ``R = Rz Ry Rx``.
+"""
+
+from ..errors import IdentifiabilityError
+from .identifiability import IdentifiabilityReport
+from .identify import (CalibrationResult, ModelErrors, ParameterEstimate, ResidualSummary,
+                       ValidationReport, calibrate)
+from .parameters import DEFAULT_IDENTIFY, GROUPS, NAMES, ParameterModel
+from .synthetic import SyntheticData, synthetic_measurements
+
+__all__ = ["CalibrationResult", "DEFAULT_IDENTIFY", "GROUPS", "IdentifiabilityError",
+           "IdentifiabilityReport", "ModelErrors", "NAMES", "ParameterEstimate",
+           "ParameterModel", "ResidualSummary", "SyntheticData", "ValidationReport",
+           "calibrate", "synthetic_measurements"]

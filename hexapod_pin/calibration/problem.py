@@ -1,0 +1,151 @@
+"""The identification problem: checked measurements, the residual function of either
+measurement model over the 66 parameters, and the reference poses of the structural
+identifiability test.
+
+Measurements (:class:`Measurements`): N actuator readings (N, 6) (m) with either the
+measured target poses (N, 6) in the instrument frame (m, rad), or the measured positions
+(N, M, 3) of ``M`` = 1..3 target points in the instrument frame (m) together with those
+points' coordinates (M, 3) in the target frame (m).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.checks import as_array
+from ..core.pose import rotation_from_rpy
+from ..errors import InputError
+from .model import PointModel, measured_poses, pose_residuals
+from .parameters import N_PARAMETERS, ParameterModel
+
+#: half-ranges of the reference poses about home: translation (fraction of the platform
+#: radius) and rotation (rad)
+REFERENCE_TRANSLATION = 0.25
+REFERENCE_ROTATION = 0.15
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """Checked measurements (see the module doc).
+
+    Attributes:
+        actuators: readings (N, 6) (m).
+        poses: measured target poses (N, 6) in the instrument frame, or None.
+        points: measured target points (N, M, 3) in the instrument frame, or None.
+        target_points: the points in the target frame (M, 3), or None.
+    """
+
+    actuators: np.ndarray
+    poses: np.ndarray | None = None
+    points: np.ndarray | None = None
+    target_points: np.ndarray | None = None
+
+    @property
+    def count(self) -> int:
+        """Number of measurements N."""
+        return int(self.actuators.shape[0])
+
+    @property
+    def kind(self) -> str:
+        """``"poses"`` or ``"points"``."""
+        return "poses" if self.poses is not None else "points"
+
+    @classmethod
+    def checked(cls, actuators, poses=None, points=None, target_points=None) -> "Measurements":
+        """Measurements from raw arrays.
+
+        Raises:
+            InputError: wrong shapes or non-finite values, both or neither of ``poses``
+                and ``points``, ``points`` without ``target_points`` (or with another
+                number of points), more than three points, a count differing between the
+                readings and the measurements, or no measurement.
+        """
+        q = as_array(actuators, (6,), "actuators", batch=True)
+        if q.shape[0] == 0:
+            raise InputError("actuators", actuators, "no measurement")
+        if (poses is None) == (points is None):
+            raise InputError("poses", poses, "give either poses or points (not both)")
+        if poses is not None:
+            poses = as_array(poses, (6,), "poses", batch=True)
+            if poses.shape[0] != q.shape[0]:
+                raise InputError("poses", poses.shape, f"{poses.shape[0]} poses for "
+                                 f"{q.shape[0]} actuator readings")
+            if target_points is not None:
+                raise InputError("target_points", target_points, "only with points")
+            return cls(q, poses=poses)
+        if target_points is None:
+            raise InputError("target_points", None, "points need the target points (M, 3)")
+        tp = as_array(target_points, (3,), "target_points", batch=True)
+        if not 1 <= tp.shape[0] <= 3:
+            raise InputError("target_points", tp.shape, "one to three points")
+        pts = np.asarray(points, dtype=float) if not isinstance(points, np.ndarray) else points
+        pts = as_array(pts.reshape(pts.shape[0], -1) if pts.ndim == 3 else pts,
+                       (3 * tp.shape[0],), "points", batch=True).reshape(-1, tp.shape[0], 3)
+        if pts.shape[0] != q.shape[0]:
+            raise InputError("points", pts.shape, f"{pts.shape[0]} measurements for "
+                             f"{q.shape[0]} actuator readings")
+        return cls(q, points=pts, target_points=tp)
+
+
+class Problem:
+    """Residuals and Jacobian of the measurements over the 66 parameters.
+
+    Args:
+        params: the parameter model; data: the measurements.
+        start_poses: for point measurements, world platform poses (N, 6) where the
+            forward kinematics starts (e.g. the nominal robot's forward kinematics).
+    """
+
+    def __init__(self, params: ParameterModel, data: Measurements,
+                 start_poses: np.ndarray | None = None):
+        self.params = params
+        self.data = data
+        self.points = None
+        if data.kind == "points":
+            self.points = PointModel(params, data.points, data.target_points, data.actuators,
+                                     start_poses)
+        self._theta: np.ndarray | None = None
+        self._value: tuple[np.ndarray, np.ndarray] | None = None
+
+    def evaluate(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual vector (rows,) (m) and Jacobian (rows, 66) at ``theta`` (the last
+        evaluation is kept: least squares asks for both at the same point)."""
+        if self._theta is not None and np.array_equal(theta, self._theta):
+            return self._value
+        if self.points is None:
+            res, jac = pose_residuals(self.params, theta, self.data.poses,
+                                      self.data.actuators)
+        else:
+            res, jac = self.points.residuals(theta)
+        self._theta, self._value = theta.copy(), (res.ravel(), jac)
+        return self._value
+
+
+def reference_poses(robot, count: int = 60, seed: int = 0) -> np.ndarray:
+    """World platform poses (n <= count, 6) spread about the robot's home pose, reachable
+    and within the strokes (translations up to ``REFERENCE_TRANSLATION * platform_radius``,
+    rotations up to ``REFERENCE_ROTATION`` rad, uniform, a fixed seed)."""
+    rng = np.random.default_rng(seed)
+    half = np.r_[np.full(3, REFERENCE_TRANSLATION * robot.geometry.platform_radius),
+                 np.full(3, REFERENCE_ROTATION)]
+    poses = robot.home_pose + rng.uniform(-1.0, 1.0, size=(count, 6)) * half
+    ok = robot.inverse_kinematics_batch(poses).ok
+    return poses[ok]
+
+
+def reference_measurements(robot, params: ParameterModel, kind: str,
+                           target_points: np.ndarray | None, count: int = 60):
+    """Exact measurements of the start model at :func:`reference_poses`, as the
+    measurement model ``kind`` sees them, and the world poses used."""
+    world = reference_poses(robot, count)
+    q = robot.inverse_kinematics_batch(world).actuator_positions
+    frames = params.frames(np.zeros(N_PARAMETERS))
+    rot = rotation_from_rpy(world[:, 3:])
+    if kind == "poses":
+        return Measurements(q, poses=measured_poses(rot, world[:, :3], frames)), world
+    model = PointModel(params, np.zeros((len(world),) + target_points.shape), target_points,
+                       q, world)
+    pred, _, _ = model.predicted(np.zeros(N_PARAMETERS), world)
+    return Measurements(q, points=pred, target_points=target_points), world
