@@ -20,15 +20,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 
 from ..core.pose import rotation_from_rpy
-from ..errors import InputError, SolverError, UnreachablePoseError
+from ..errors import AssemblyError, InputError, SolverError
 from ..hexapod.geometry import ChainGeometry, HexapodGeometry
 from ..hexapod.robot import Hexapod
 from . import identifiability as ident
 from .parameters import (DEFAULT_IDENTIFY, NAMES, N_PARAMETERS, PARAMETER_GROUPS, UNITS,
                          Frames, ParameterModel, parameter_indices)
-from .problem import Measurements, Problem, reference_measurements
+from .problem import DEFAULT_NOISE, Measurements, Problem, reference_measurements
 
 #: least-squares tolerances (scipy's ftol, xtol, gtol)
 TOLERANCE = 1e-15
@@ -61,16 +62,21 @@ class ResidualSummary:
 
     Attributes:
         rms: root mean square; max: largest absolute value; count: number of residuals.
+        normalized_rms: RMS of the residuals divided by their standard deviations under
+            the noise model (about 1 at the solution when the noise model is right).
     """
 
     rms: float
     max: float
     count: int
+    normalized_rms: float
 
     @classmethod
-    def of(cls, res: np.ndarray) -> "ResidualSummary":
-        """The summary of a residual vector."""
-        return cls(float(np.sqrt(np.mean(res ** 2))), float(np.max(np.abs(res))), res.size)
+    def of(cls, weighted: np.ndarray, weights: np.ndarray) -> "ResidualSummary":
+        """The summary of a weighted residual vector and its weights."""
+        res = weighted / weights
+        return cls(float(np.sqrt(np.mean(res ** 2))), float(np.max(np.abs(res))), res.size,
+                   float(np.sqrt(np.mean(weighted ** 2))))
 
 
 @dataclass(frozen=True)
@@ -78,27 +84,39 @@ class ModelErrors:
     """Errors of one model on validation measurements.
 
     Attributes:
-        actuator_errors: predicted minus measured readings (N, 6) (m): the inverse
-            kinematics of each measured pose (poses only; else None).
-        position_errors: distance (N,) (m) between the measured and the predicted target
+        actuator_errors: predicted minus measured readings (n_ik, 6) (m), the predicted
+            ones from the inverse kinematics of the measured pose (poses only; else None),
+            at the rows ``ik_rows`` the model reaches.
+        ik_rows: the measurement rows of ``actuator_errors`` (n_ik,) (poses only).
+        position_errors: distance (n_fk,) (m) between the measured and the predicted target
             origin (poses) or the largest distance over the target points (points), the
-            prediction being the forward kinematics of the readings.
-        rotation_errors: angle (N,) (rad) between measured and predicted target
+            prediction being the forward kinematics of the readings, at the rows
+            ``fk_rows`` where it assembles.
+        rotation_errors: angle (n_fk,) (rad) between measured and predicted target
             orientation (poses only; else None).
+        fk_rows: the measurement rows of ``position_errors`` (n_fk,).
+        count: number of measurements.
     """
 
     actuator_errors: np.ndarray | None
+    ik_rows: np.ndarray | None
     position_errors: np.ndarray
     rotation_errors: np.ndarray | None
+    fk_rows: np.ndarray
+    count: int
 
     def summary(self) -> dict[str, float]:
-        """RMS and maximum of each error (m, rad)."""
-        out = {}
+        """RMS and maximum of each error (m, rad), and how many rows each model could not
+        reach (``ik_failures``) or assemble (``fk_failures``)."""
+        out: dict[str, float] = {}
         for key, arr in (("actuator", self.actuator_errors), ("position", self.position_errors),
                          ("rotation", self.rotation_errors)):
-            if arr is not None:
+            if arr is not None and arr.size:
                 out[f"{key}_rms"] = float(np.sqrt(np.mean(arr ** 2)))
                 out[f"{key}_max"] = float(np.max(np.abs(arr)))
+        if self.ik_rows is not None:
+            out["ik_failures"] = self.count - self.ik_rows.size
+        out["fk_failures"] = self.count - self.fk_rows.size
         return out
 
 
@@ -187,8 +205,6 @@ class CalibrationResult:
 
         Raises:
             InputError: malformed measurements, or another kind than the calibration's.
-            UnreachablePoseError: a model cannot reach a measured pose.
-            AssemblyError: a forward kinematics fails.
         """
         data = Measurements.checked(actuators, poses, points, self.target_points
                                     if points is not None else None)
@@ -200,30 +216,30 @@ class CalibrationResult:
 
 
 def model_errors(robot: Hexapod, data: Measurements) -> ModelErrors:
-    """Errors of a robot commanded in the measurement frames on measurements ``data``."""
-    if data.kind == "poses":
-        batch = robot.inverse_kinematics_batch(data.poses)
-        bad = np.flatnonzero(~batch.reachable)
-        if bad.size:
-            try:
-                robot.inverse_kinematics(data.poses[bad[0]], check_limits=False)
-            except UnreachablePoseError as exc:
-                raise UnreachablePoseError(exc.carriages, exc.shortfall) from exc
-        predicted = np.array([robot.forward_kinematics(q, guess=p)
-                              for q, p in zip(data.actuators, data.poses)])
-        pos = np.linalg.norm(predicted[:, :3] - data.poses[:, :3], axis=1)
-        rel = (np.swapaxes(rotation_from_rpy(predicted[:, 3:]), 1, 2)
-               @ rotation_from_rpy(data.poses[:, 3:]))
-        cos = np.clip((np.trace(rel, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
-        return ModelErrors(batch.actuator_positions - data.actuators, pos, np.arccos(cos))
-    guess = robot.home_pose
-    dist = np.empty(data.count)
-    for k, q in enumerate(data.actuators):
-        pose = robot.forward_kinematics(q, guess=guess)
-        rot = rotation_from_rpy(pose[3:])
-        pred = pose[:3] + data.target_points @ rot.T
-        dist[k] = np.max(np.linalg.norm(pred - data.points[k], axis=1))
-    return ModelErrors(None, dist, None)
+    """Errors of a robot commanded in the measurement frames on measurements ``data``
+    (rows it cannot reach or assemble are left out and counted)."""
+    guesses = data.poses if data.kind == "poses" else np.tile(robot.home_pose, (data.count, 1))
+    fk_rows, predicted = [], []
+    for k, (q, guess) in enumerate(zip(data.actuators, guesses)):
+        try:
+            predicted.append(robot.forward_kinematics(q, guess=guess))
+        except AssemblyError:
+            continue
+        fk_rows.append(k)
+    rows = np.array(fk_rows, dtype=int)
+    pred = np.array(predicted).reshape(-1, 6)
+    rot = rotation_from_rpy(pred[:, 3:])
+    if data.kind == "points":
+        pts = pred[:, None, :3] + np.einsum("nab,mb->nma", rot, data.target_points)
+        dist = np.max(np.linalg.norm(pts - data.points[rows], axis=2), axis=1)
+        return ModelErrors(None, None, dist, None, rows, data.count)
+    batch = robot.inverse_kinematics_batch(data.poses)
+    ik_rows = np.flatnonzero(batch.reachable)
+    pos = np.linalg.norm(pred[:, :3] - data.poses[rows, :3], axis=1)
+    rel = np.swapaxes(rot, 1, 2) @ rotation_from_rpy(data.poses[rows, 3:])
+    angle = Rotation.from_matrix(rel).magnitude() if rows.size else np.empty(0)
+    return ModelErrors(batch.actuator_positions[ik_rows] - data.actuators[ik_rows], ik_rows,
+                       pos, angle, rows, data.count)
 
 
 def measurement_chains(chains: ChainGeometry, frames: Frames) -> ChainGeometry:
@@ -240,8 +256,9 @@ def measurement_chains(chains: ChainGeometry, frames: Frames) -> ChainGeometry:
 
 def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
               target_points=None, identify: Sequence[str] | str = DEFAULT_IDENTIFY,
-              instrument=None, target=None, rcond: float = ident.RCOND,
-              method: str = "lm", max_nfev: int = 200) -> CalibrationResult:
+              instrument=None, target=None, noise=DEFAULT_NOISE,
+              rcond: float = ident.RCOND, method: str = "lm",
+              max_nfev: int = 200) -> CalibrationResult:
     """Identify the as-built geometry of ``robot`` from measurements.
 
     Args:
@@ -258,6 +275,9 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
             default the world frame itself.
         target: guessed pose of the target frame in the platform frame (6,); default the
             platform frame.
+        noise: standard deviations of the measurement noise (target position m, target
+            orientation rad, readings m) that weight the residuals (see
+            :class:`~.problem.Problem`); only their ratios change the estimates.
         rcond: relative singular-value threshold of the rank tests.
         method: ``"lm"`` (Levenberg-Marquardt) or ``"trf"`` (trust region).
         max_nfev: function evaluations at most.
@@ -279,15 +299,9 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
     params = ParameterModel(robot.geometry.chain_geometry, instrument, target)
     columns = parameter_indices(identify)
     scales = params.scales
-    ref_data, ref_world = reference_measurements(robot, params, data.kind, data.target_points)
-    ref = Problem(params, ref_data, ref_world)
-    _, ref_jac = ref.evaluate(np.zeros(N_PARAMETERS))
-    ref_scaled = ref_jac * scales
-    base = ident.base_columns(ref_scaled, columns)
-    structural = ident.structural_text(ident.null_space(ref_scaled, columns, rcond), columns,
-                                       data.kind == "points")
+    base, structural = base_set(robot, params, columns, data.kind, data.target_points, rcond)
     starts = _world_of(robot, data) if data.kind == "points" else None
-    problem = Problem(params, data, starts)
+    problem = Problem(params, data, starts, noise)
     theta0 = np.zeros(N_PARAMETERS)
     res0, jac0 = problem.evaluate(theta0)
     base_sigma = ident.check_data(jac0 * scales, base, rcond, data.count, data.poses)
@@ -332,10 +346,23 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
         robot=Hexapod(robot.geometry.with_chains(measurement_chains(chains, frames))),
         geometry=geometry, chains=chains, instrument=inst, target=targ,
         parameters=tuple(estimates), covariance=cov,
-        residuals_before=ResidualSummary.of(res0), residuals_after=ResidualSummary.of(res),
+        residuals_before=ResidualSummary.of(res0, problem.weights),
+        residuals_after=ResidualSummary.of(res, problem.weights),
         identifiability=report, iterations=int(fit.nfev), status=int(fit.status),
         message=str(fit.message), measurement=data.kind, target_points=data.target_points,
         nominal_robot=Hexapod(robot.geometry.with_chains(nominal)))
+
+
+def base_set(robot: Hexapod, params: ParameterModel, columns: np.ndarray, kind: str,
+             target_points: np.ndarray | None, rcond: float) -> tuple[np.ndarray, list[str]]:
+    """The base set among ``columns`` and the structural combinations in words, judged on
+    the reference poses (:func:`~.problem.reference_measurements`) of the start model."""
+    ref_data, ref_world = reference_measurements(robot, params, kind, target_points)
+    _, ref_jac = Problem(params, ref_data, ref_world).evaluate(np.zeros(N_PARAMETERS))
+    ref_scaled = ref_jac * params.scales
+    base = ident.base_columns(ref_scaled, columns)
+    null = ident.null_space(ref_scaled, columns, rcond)
+    return base, ident.structural_text(null, columns, kind == "points")
 
 
 def _world_of(robot: Hexapod, data: Measurements) -> np.ndarray:

@@ -246,3 +246,27 @@ def measured_poses(rot: np.ndarray, trans: np.ndarray, frames) -> np.ndarray:
     t_wt = trans + rot @ frames.target_translation
     t_it = (t_wt - frames.instrument_translation) @ frames.instrument_rotation
     return np.concatenate([t_it, rpy_from_rotation(r_it)], axis=1)
+
+
+def closure_noise(params: ParameterModel, theta: np.ndarray, poses: np.ndarray, q: np.ndarray,
+                  noise: tuple[float, float, float]) -> np.ndarray:
+    """Standard deviation (N, 6) (m) of the pose model's residuals ``e`` caused by
+    measurement noise, to first order: isotropic noise of the measured target position
+    (``noise[0]``, m) and orientation (``noise[1]``, rad) and of the readings
+    (``noise[2]``, m)::
+
+        s_i^2 = sigma_q^2 (g_i . u_i)^2 + sigma_p^2 |g_i|^2
+                + sigma_r^2 |(P_i - t_target) x g_i|^2
+
+    with ``P_i`` the platform joint and ``t_target`` the target origin in the world (a
+    target rotation turns the platform about the target origin)."""
+    chains = params.chains(theta)
+    rot, trans = platform_from_measured(params, theta, poses)
+    lg = legs_at(chains, rot, trans, q)
+    target_origin = trans + rot @ params.frames(theta).target_translation
+    lever = trans[:, None, :] + lg.arms - target_origin[:, None, :]
+    sp, sr, sq = noise
+    var = (sq ** 2 * np.einsum("nia,ia->ni", lg.grad, chains.line_directions) ** 2
+           + sp ** 2 * np.einsum("nia,nia->ni", lg.grad, lg.grad)
+           + sr ** 2 * np.sum(np.cross(lever, lg.grad) ** 2, axis=2))
+    return np.sqrt(var)

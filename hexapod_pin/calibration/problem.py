@@ -17,13 +17,15 @@ import numpy as np
 from ..core.checks import as_array
 from ..core.pose import rotation_from_rpy
 from ..errors import InputError
-from .model import PointModel, measured_poses, pose_residuals
+from .model import PointModel, closure_noise, measured_poses, pose_residuals
 from .parameters import N_PARAMETERS, ParameterModel
 
 #: half-ranges of the reference poses about home: translation (fraction of the platform
 #: radius) and rotation (rad)
 REFERENCE_TRANSLATION = 0.25
 REFERENCE_ROTATION = 0.15
+#: smallest |cos(leg, line)| of a reference pose
+REFERENCE_MIN_COS = 0.2
 
 
 @dataclass(frozen=True)
@@ -89,29 +91,70 @@ class Measurements:
         return cls(q, points=pts, target_points=tp)
 
 
+#: default measurement noise (standard deviations): target position (m), target
+#: orientation (rad), actuator readings (m)
+DEFAULT_NOISE = (1e-5, 2e-5, 1e-6)
+
+
+def check_noise(noise) -> tuple[float, float, float]:
+    """``noise`` as three standard deviations (position m, rotation rad, readings m).
+
+    Raises:
+        InputError: not three finite numbers >= 0 with a positive position or reading one.
+    """
+    values = as_array(noise, (3,), "noise")
+    if np.any(values < 0.0) or not (values[0] > 0.0 or values[2] > 0.0):
+        raise InputError("noise", noise, "expected three standard deviations >= 0 "
+                         "(position m, rotation rad, readings m), position or readings > 0")
+    return float(values[0]), float(values[1]), float(values[2])
+
+
 class Problem:
-    """Residuals and Jacobian of the measurements over the 66 parameters.
+    """Weighted residuals and their Jacobian over the 66 parameters.
+
+    Pose measurements: each closure residual ``e_i`` is divided by its standard deviation
+    under the measurement noise (:func:`~.model.closure_noise`, evaluated once at the
+    start model so that the weights are constants), so that residuals of poses where a
+    pose error moves a reading much (legs nearly perpendicular to their lines) count
+    less. Point measurements: the point errors divided by the position noise.
 
     Args:
         params: the parameter model; data: the measurements.
         start_poses: for point measurements, world platform poses (N, 6) where the
             forward kinematics starts (e.g. the nominal robot's forward kinematics).
+        noise: standard deviations (position m, rotation rad, readings m); only their
+            ratios change the estimates.
+
+    Attributes:
+        weights: per residual (rows,), 1 / standard deviation (1/m).
     """
 
     def __init__(self, params: ParameterModel, data: Measurements,
-                 start_poses: np.ndarray | None = None):
+                 start_poses: np.ndarray | None = None, noise=DEFAULT_NOISE):
         self.params = params
         self.data = data
         self.points = None
+        noise = check_noise(noise)
         if data.kind == "points":
             self.points = PointModel(params, data.points, data.target_points, data.actuators,
                                      start_poses)
+            self.weights = np.full(data.points.size, 1.0 / max(noise[0], 1e-300))
+        else:
+            sigma = closure_noise(params, np.zeros(N_PARAMETERS), data.poses, data.actuators,
+                                  noise)
+            if not np.all(np.isfinite(sigma) & (sigma > 0.0)):
+                row = int(np.argwhere(~(np.isfinite(sigma) & (sigma > 0.0)))[0, 0])
+                raise InputError("poses", data.poses[row], f"measurement {row}: a leg of the "
+                                 "start model is perpendicular to its line there (or the "
+                                 "noise is zero)")
+            self.weights = 1.0 / sigma.ravel()
         self._theta: np.ndarray | None = None
         self._value: tuple[np.ndarray, np.ndarray] | None = None
 
     def evaluate(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Residual vector (rows,) (m) and Jacobian (rows, 66) at ``theta`` (the last
-        evaluation is kept: least squares asks for both at the same point)."""
+        """Weighted residual vector (rows,) (dimensionless: standard deviations) and its
+        Jacobian (rows, 66) at ``theta`` (the last evaluation is kept: least squares asks
+        for both at the same point)."""
         if self._theta is not None and np.array_equal(theta, self._theta):
             return self._value
         if self.points is None:
@@ -119,20 +162,32 @@ class Problem:
                                       self.data.actuators)
         else:
             res, jac = self.points.residuals(theta)
-        self._theta, self._value = theta.copy(), (res.ravel(), jac)
+        self._theta = theta.copy()
+        self._value = (res.ravel() * self.weights, jac * self.weights[:, None])
         return self._value
 
 
-def reference_poses(robot, count: int = 60, seed: int = 0) -> np.ndarray:
-    """World platform poses (n <= count, 6) spread about the robot's home pose, reachable
-    and within the strokes (translations up to ``REFERENCE_TRANSLATION * platform_radius``,
-    rotations up to ``REFERENCE_ROTATION`` rad, uniform, a fixed seed)."""
+def reference_poses(robot, count: int = 60, seed: int = 0, scale: float = 1.0) -> np.ndarray:
+    """World platform poses (n <= count, 6) spread about the robot's home pose: uniform
+    within ``scale * REFERENCE_TRANSLATION * platform_radius`` (m) and ``scale *
+    REFERENCE_ROTATION`` (rad) per coordinate (a fixed seed), kept when reachable, within
+    the strokes and with every leg at least ``acos(REFERENCE_MIN_COS)`` away from
+    perpendicular to its line (a pose error moves the readings at most ``1 /
+    REFERENCE_MIN_COS`` times as much)."""
     rng = np.random.default_rng(seed)
-    half = np.r_[np.full(3, REFERENCE_TRANSLATION * robot.geometry.platform_radius),
-                 np.full(3, REFERENCE_ROTATION)]
+    half = scale * np.r_[np.full(3, REFERENCE_TRANSLATION * robot.geometry.platform_radius),
+                         np.full(3, REFERENCE_ROTATION)]
     poses = robot.home_pose + rng.uniform(-1.0, 1.0, size=(count, 6)) * half
-    ok = robot.inverse_kinematics_batch(poses).ok
-    return poses[ok]
+    batch = robot.inverse_kinematics_batch(poses)
+    poses = poses[batch.ok]
+    chains = robot.geometry.chain_geometry
+    legs = (poses[:, None, :3] + np.einsum("nab,ib->nia", rotation_from_rpy(poses[:, 3:]),
+                                           chains.platform_joints)
+            - chains.line_points
+            - (batch.actuator_positions[batch.ok] + chains.sensor_offsets)[..., None]
+            * chains.line_directions)
+    cosine = np.abs(np.einsum("nia,ia->ni", legs, chains.line_directions)) / chains.leg_lengths
+    return poses[np.min(cosine, axis=1) >= REFERENCE_MIN_COS]
 
 
 def reference_measurements(robot, params: ParameterModel, kind: str,
