@@ -19,6 +19,7 @@ import stress_robots
 from conftest import random_pose
 from hexapod_pin.errors import AssemblyError, InputError
 from hexapod_pin.loaders import robots
+from hexapod_pin.loaders.parallel_robots import load_parallel_robot
 
 # robot -> (end-effector frame, placement target (True) or position target (False))
 EFFECTORS = {
@@ -233,6 +234,118 @@ def test_joint_limits_stop_the_step_and_flag_the_target():
     assert not res.reachable and res.closure_residual <= 1e-12
     assert res.q[iq] == pytest.approx(q_start[iq] + 0.05, abs=1e-9)
     assert free.reachable and free.target_residual <= 1e-10
+
+
+# ------------------------------------------------------- folded delta: reach or closest
+# The delta of tests/data/parallel/delta in its translating mode: base radius 0.2 m, upper
+# arms 0.25 m, forearms 0.5 m, platform radius 0.05 m, motor k at 120 k deg. Leg k can hold
+# the platform centre p iff the distance from its wrist point to the circle of its elbow
+# reaches the forearm length: with u = R_z(-phi_k) p + (r - R, 0, 0), rho = |(u_x, u_z)|,
+# |u|^2 + L1^2 - 2 L1 rho <= L2^2 <= |u|^2 + L1^2 + 2 L1 rho (written here, independent of
+# the library's kinematics).
+DELTA_DIR = stress_robots.DATA / "delta"
+DELTA_R, DELTA_L1, DELTA_L2, DELTA_r = 0.2, 0.25, 0.5, 0.05
+
+
+def delta_margins(p):
+    """Per leg, the signed slack (m^2) of the reach condition, shape ``p.shape[:-1] + (3,)``;
+    all >= 0: reachable."""
+    p = np.asarray(p, dtype=float)
+    out = []
+    for k in range(3):
+        phi = 2 * np.pi * k / 3
+        c, s = np.cos(phi), np.sin(phi)
+        ux = c * p[..., 0] + s * p[..., 1] + DELTA_r - DELTA_R
+        uy = -s * p[..., 0] + c * p[..., 1]
+        uz = p[..., 2]
+        rho = np.hypot(ux, uz)
+        base = ux ** 2 + uy ** 2 + uz ** 2 + DELTA_L1 ** 2
+        out.append(np.minimum(DELTA_L2 ** 2 - (base - 2 * DELTA_L1 * rho),
+                              base + 2 * DELTA_L1 * rho - DELTA_L2 ** 2))
+    return np.stack(out, axis=-1)
+
+
+def folded_delta_problems(delta, seed, n_starts, n_targets):
+    """Folded starts (elbows near pi: the platform high, at the top of the workspace) in the
+    translating mode, and targets 2 cm away in random directions."""
+    rng = np.random.default_rng(seed)
+    fid = delta.frame_id("platform_center")
+    data = delta.model.createData()
+    problems = []
+    while len(problems) < n_starts * n_targets:
+        q0 = delta.neutral()
+        motor, elbow, wrist = rng.uniform(0.6, 1.5), rng.uniform(2.0, 3.1), rng.uniform(-3.1, -2.5)
+        for k in range(3):
+            q0[delta.joint_q_index(f"motor_{k}")] = motor + rng.uniform(-0.2, 0.2)
+            q0[delta.joint_q_index(f"elbow_{k}_Y")] = elbow
+            q0[delta.joint_q_index(f"wrist_{k}_Y")] = wrist
+        try:
+            q = delta.assemble(q0).q
+        except AssemblyError:
+            continue
+        pin.framesForwardKinematics(delta.model, data, q)
+        if np.max(np.abs(data.oMf[fid].rotation - np.eye(3))) > 1e-9:
+            continue                                  # another assembly mode: tilted platform
+        centre = data.oMf[fid].translation.copy()
+        for _ in range(n_targets):
+            d = rng.normal(size=3)
+            problems.append((q, centre + 0.02 * d / np.linalg.norm(d)))
+    return problems
+
+
+def test_closed_form_reach_condition_holds_on_assembled_deltas():
+    """The test's reach condition is itself right: at assembled states each leg's wrist
+    lies at the forearm length from its elbow, and the slack is non-negative."""
+    delta = load_parallel_robot(DELTA_DIR)
+    fid = delta.frame_id("platform_center")
+    for q, _ in folded_delta_problems(delta, 11, 3, 1):
+        pin.framesForwardKinematics(delta.model, delta.data, q)
+        p = delta.data.oMf[fid].translation
+        assert np.all(delta_margins(p) >= -1e-12)
+        for k in range(3):
+            phi, th = 2 * np.pi * k / 3, q[delta.joint_q_index(f"motor_{k}")]
+            u = np.array([np.cos(phi) * p[0] + np.sin(phi) * p[1] + DELTA_r - DELTA_R,
+                          -np.sin(phi) * p[0] + np.cos(phi) * p[1], p[2]])
+            elbow = DELTA_L1 * np.array([np.cos(th), 0.0, -np.sin(th)])
+            assert np.linalg.norm(u - elbow) == pytest.approx(DELTA_L2, abs=1e-12)
+
+
+@pytest.mark.parametrize("method", ["qp", "lstsq"])
+def test_folded_delta_targets_are_reached_or_give_the_closest_placement(method):
+    """From folded starts, 2 cm targets: each reachable one (closed form) is reached to 1e-10
+    in few steps; each unreachable one gives, within a bounded number of steps, a placement
+    on the workspace boundary that no nearby reachable point beats (sampled with the closed
+    form), flagged unreachable. Never an error: the closures hold everywhere."""
+    delta = load_parallel_robot(DELTA_DIR)
+    rng = np.random.default_rng(0)
+    seen = {True: 0, False: 0}
+    for q, target in folded_delta_problems(delta, 2, 6, 6):
+        margin = float(np.min(delta_margins(target)))
+        if abs(margin) < 1e-4:
+            continue                                    # too close to the boundary to judge
+        res = delta.frame_inverse_kinematics("platform_center", target, q, position_only=True,
+                                             method=method)
+        assert res.closure_residual <= 1e-12
+        assert np.max(np.abs(delta.residual(res.q))) <= 1e-12
+        placed = res.placements[0]
+        assert np.max(np.abs(placed.rotation - np.eye(3))) <= 1e-9     # still translating
+        reachable = margin > 0
+        seen[reachable] += 1
+        assert res.reachable == reachable, (margin, res.target_residual, res.iterations)
+        if reachable:
+            assert res.target_residual <= 1e-10 and res.iterations <= 10
+            continue
+        assert res.iterations <= 40, res.history
+        p = placed.translation
+        slack = delta_margins(p)
+        assert np.all(slack >= -1e-10) and np.min(slack) <= 1e-8     # on the boundary
+        distance = np.linalg.norm(p - target)
+        assert distance == pytest.approx(np.linalg.norm(res.errors), abs=1e-12)
+        near = p + rng.uniform(-2e-3, 2e-3, (4000, 3))
+        inside = near[np.all(delta_margins(near) >= 0.0, axis=1)]
+        assert inside.size
+        assert np.min(np.linalg.norm(inside - target, axis=1)) >= distance - 1e-9
+    assert seen[True] >= 5 and seen[False] >= 5, seen
 
 
 # ------------------------------------------------------------------------- errors

@@ -13,13 +13,26 @@ a quadratic program per step, solved by ProxSuite, over the tangent step ``dv`` 
 with ``e`` the stacked task errors, ``J_t`` their Jacobians, ``W`` the weights and the
 Levenberg-Marquardt damping ``lambda = mu |e|_W^2`` (vanishing at a solution, so the
 iteration converges quadratically there). The step is applied with ``pin.integrate`` and
-the loops closed again by :meth:`ClosedLoopModel.assemble` (each iterate keeps the
+the loops closed again (chord Newton steps with the closure rows of the linearisation
+point, :meth:`ClosedLoopModel.assemble` where they do not contract; each iterate keeps the
 closures to ``closure_tol``); it is kept when ``|e|_W^2`` falls by a fair part of what
-the linear model predicts, ``mu`` raised tenfold otherwise (and lowered, down to
-``damping``, after good steps): a trust region in the Levenberg-Marquardt manner. The
-iteration stops at a least-squares stationary point (flagged unreachable) when the step
-at the base damping vanishes (``STEP_TOL``) or no damping up to ``MU_MAX`` gives a
-decrease.
+the linear model predicts, and ``mu`` follows the gain ratio continuously (Nielsen's
+rule: lowered, down to ``damping``, after good steps, doubled and doubled again after
+rejected ones): a trust region in the Levenberg-Marquardt manner.
+
+A target out of reach leaves a residual at the closest placement, where Gauss-Newton's
+model misses the curvature ``sum_i (W e)_i hess(e_i)`` (plus the closures' curvature
+weighted by their multipliers). Where the task Jacobian loses rank there (a delta leg
+folded flat at the edge of the workspace) that term is the whole Hessian along the
+folded direction and Gauss-Newton creeps; so after any step that does not halve
+``|e|_W^2`` the next one adds it, by forward differences of the Lagrangian's gradient
+along the closures' null space (Newton's method on the closed mechanism; dropped where
+it is not positive there). The iteration stops at a least-squares stationary point
+(flagged unreachable) when the task gradient along the closures vanishes
+(``GRAD_RTOL``), when the undamped step vanishes (``STEP_TOL``: the test used while a
+joint sits on a limit), when ``|e|_W^2`` stops moving above the noise of the closures
+(``STALL_STEPS`` steps each below ``STALL_RTOL``) or when no damping up to ``MU_MAX``
+gives a decrease.
 
 Task errors (Pinocchio conventions, frames' placements ``oMf`` in world):
 
@@ -31,8 +44,10 @@ Task errors (Pinocchio conventions, frames' placements ``oMf`` in world):
 A target out of reach gives the least-squares (weighted) closest placement, flagged
 ``reachable=False``; a model whose closures cannot be held raises AssemblyError.
 The direct route (``method="lstsq"``) solves the same step in the closures' null space
-with SVD least squares and ignores joint limits; both routes give the same iterates
-where no limit is active.
+(a pivoted QR of the closure rows) and ignores joint limits; both routes give the same
+iterates where no limit is active. Route "qp" takes that step too where ProxSuite stops
+at ``QP_MAX_ITER`` (an ill-conditioned step next to a singular placement) and no limit
+would be crossed.
 """
 
 from __future__ import annotations
@@ -43,11 +58,10 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 import proxsuite
-import scipy.linalg
 
 from ..errors import AssemblyError, InputError, SolverError
 from .checks import as_array
-from .closure_motion import independent_rows
+from .closure_motion import RowBasis, row_basis
 
 IK_METHODS = ("qp", "lstsq")
 #: damping factor of the Levenberg-Marquardt term ``lambda = DAMPING |e|_W^2``
@@ -60,7 +74,27 @@ ACCEPT_RATIO = 1e-4
 MU_MAX = 1e12
 #: an undamped step below this (max-abs, m / rad) marks a stationary point
 STEP_TOL = 1e-12
+#: stationary (closest reachable placement) when the task gradient along the closures is
+#: below this, relative to ``max|J_t| max|W e|``
+GRAD_RTOL = 1e-12
+#: stationary when this many accepted steps in a row each lower ``|e|_W^2`` by less than
+#: ``STALL_RTOL`` of its value (the noise of closures held to ``closure_tol``)
+STALL_STEPS = 3
+STALL_RTOL = 1e-10
+#: a step that leaves more than this fraction of ``|e|_W^2`` turns on the second-order term
+SLOW_RATIO = 0.5
+#: forward-difference step of that term (rad / m along unit null-space directions)
+CURVATURE_STEP = 1e-7
+#: smallest damping factor a rejected step raises (when ``damping`` is 0)
+MU_MIN = 1e-12
+#: chord Newton steps tried when closing the loops after a step, and the contraction each
+#: must achieve (else the full Newton of ``ClosedLoopModel.assemble`` takes over)
+CHORD_ITER = 8
+CHORD_CONTRACTION = 0.5
 _QP_EPS = 1e-12
+#: ProxSuite's cap on its outer and on its inner iterations per step (well-posed steps
+#: take fewer than 20 in all)
+QP_MAX_ITER = 100
 
 
 class FrameTask(NamedTuple):
@@ -133,20 +167,23 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
             least squares, limits ignored).
         tol: convergence threshold on the max-abs task error (m / rad).
         closure_tol: closure residual kept at every iterate (m / rad).
-        max_iter: iteration cap.
+        max_iter: iteration cap (accepted steps).
         limits: keep 1-DoF joints with finite position limits in their range (route
             "qp": bounds of each step, and joints put on their bound while the loops
             close); a joint that starts outside its range may not go further out.
         damping: Levenberg-Marquardt factor (see the module docstring).
 
     Returns:
-        :class:`FrameIKResult` (``reachable`` False: the closest reachable placement).
+        :class:`FrameIKResult` (``reachable`` False: the closest reachable placement, a
+        least-squares stationary point of the weighted task error).
 
     Raises:
         InputError: unknown frame or joint, bad target shape, non-positive weight, bad
             method or option.
         AssemblyError: the closures cannot be held from ``q0`` with ``fixed`` held.
-        SolverError: ProxSuite failed, or no convergence nor stationarity in ``max_iter``.
+        SolverError: ProxSuite failed on a step whose null-space fallback would cross a
+            joint limit, or neither convergence nor a stationary point within
+            ``max_iter`` steps.
     """
     if method not in IK_METHODS:
         raise InputError("method", method, f"expected one of {IK_METHODS}")
@@ -155,51 +192,60 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
                          "tol, closure_tol > 0, max_iter >= 1, damping >= 0 needed")
     tasks = _tasks(clm, frame, target, position_only, weights)
     fixed_v = _fixed_indices(clm, fixed)
-    free = np.setdiff1d(np.arange(clm.nv), fixed_v)
     start = clm.neutral() if q0 is None else clm.check_q(q0, "q0")
     q = clm.assemble(start, fixed=fixed_v, tol=closure_tol).q
-    box = _limits(clm, free, q) if (limits and method == "qp") else None
-    err, jac_t, jac_c, res_c = _linearise(clm, tasks, q)
-    weight = np.concatenate([t.weight for t in tasks])
-    cost = float(err @ (weight * err))
-    mu = damping
-    history = [float(np.max(np.abs(err)))]
+    problem = _Problem(clm, tasks, fixed_v, method, closure_tol, limits, q)
+    lin = problem.linearise(q, clm.residual(q))
+    cost = lin.cost
+    mu, growth, stalled, curvature = damping, 2.0, 0, None
+    history = [float(np.max(np.abs(lin.err)))]
     for iteration in range(max_iter + 1):
-        if float(np.max(np.abs(err))) <= tol:
+        if history[-1] <= tol:
             return _result(clm, tasks, q, True, history, closure_tol)
+        if problem.stationary(lin, q):
+            return _result(clm, tasks, q, False, history, closure_tol)
         if iteration == max_iter:
             break
         accepted = None
         while accepted is None:
             lam = max(mu * cost, DAMPING_FLOOR)
-            step = np.zeros(clm.nv)
-            step[free] = _step(jac_t[:, free], err, weight, jac_c[:, free], res_c, lam, method,
-                               box, q)
-            if mu == damping and float(np.max(np.abs(step))) <= STEP_TOL:
+            step = problem.step(lin, lam, q, curvature)
+            if mu <= damping and float(np.max(np.abs(step))) <= STEP_TOL:
                 # the least-squares step vanishes: a stationary point of |e|_W^2
                 return _result(clm, tasks, q, False, history, closure_tol)
-            model = err + jac_t @ step
-            predicted = cost - float(model @ (weight * model))
-            trial = _retract(clm, pin.integrate(clm.model, q, step), fixed_v, closure_tol, box)
+            model = lin.err + lin.jac_t @ step
+            predicted = cost - float(model @ (problem.weight * model))
+            trial = problem.retract(pin.integrate(clm.model, q, problem.full(step)), lin)
             if trial is not None:
-                trial_err = _errors(clm, tasks, trial)
-                trial_cost = float(trial_err @ (weight * trial_err))
+                trial_err = problem.errors(trial[0])
+                trial_cost = float(trial_err @ (problem.weight * trial_err))
                 ratio = (cost - trial_cost) / predicted if predicted > 0 else -1.0
                 if np.isfinite(trial_cost) and ratio > ACCEPT_RATIO:
-                    accepted = trial, trial_cost
-                    if ratio > 0.75:
-                        mu = max(mu / 10.0, damping)
-                    elif ratio < 0.25:
-                        mu *= 10.0
+                    accepted = trial
+                    # Nielsen's update: the damping follows the gain ratio continuously
+                    # (a fixed tenfold ladder can straddle the best damping for ever)
+                    mu = max(damping, mu * max(1.0 / 3.0, 1.0 - (2.0 * ratio - 1.0) ** 3))
+                    growth = 2.0
                     break
             if mu > MU_MAX:
                 return _result(clm, tasks, q, False, history, closure_tol)
-            mu = max(mu, 1e-12) * 10.0
-        q, cost = accepted
-        err, jac_t, jac_c, res_c = _linearise(clm, tasks, q)
-        history.append(float(np.max(np.abs(err))))
+            mu = max(mu, MU_MIN) * growth
+            growth *= 2.0
+        q = accepted[0]
+        lin = problem.linearise(q, accepted[1])
+        stalled = stalled + 1 if cost - lin.cost <= STALL_RTOL * cost else 0
+        # a step that did not halve |e|_W^2: Gauss-Newton's model misses the curvature
+        # (an out-of-reach target); the next steps add it (Newton's method)
+        slow = lin.cost > SLOW_RATIO * cost
+        cost = lin.cost
+        curvature = problem.curvature(lin, q) if slow else None
+        history.append(float(np.max(np.abs(lin.err))))
+        if stalled >= STALL_STEPS and history[-1] > tol:
+            # the cost no longer moves above the noise of closures held to closure_tol:
+            # a stationary point where the task Jacobian loses rank (a folded leg)
+            return _result(clm, tasks, q, False, history, closure_tol)
     raise SolverError("frame_inverse_kinematics", "max_iter",
-                      f"task error {float(np.max(np.abs(err))):.3e} after {max_iter} steps")
+                      f"task error {history[-1]:.3e} after {max_iter} steps")
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -278,107 +324,237 @@ def _limits(clm, free: np.ndarray, q: np.ndarray) -> JointBox | None:
     return JointBox(np.minimum(lo, q[qi]), np.maximum(hi, q[qi]), qi, pos, free[pos])
 
 
-def _linearise(clm, tasks: list[FrameTask], q: np.ndarray):
-    """Task errors (unweighted), task Jacobian, closure Jacobian and residual at ``q``."""
-    jac_c = clm.constraint_jacobian(q)          # leaves joint Jacobians and oMf of q
-    res_c = clm.residual(q)
-    errs, jacs = [], []
-    for task in tasks:
-        omf = clm.data.oMf[task.frame]
-        if task.position_only:
-            errs.append(omf.translation - task.target.translation)
-            jacs.append(pin.getFrameJacobian(clm.model, clm.data, task.frame,
-                                             pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3])
-        else:
-            rel = task.target.actInv(omf)
-            errs.append(pin.log6(rel).vector)
-            jacs.append(pin.Jlog6(rel) @ pin.getFrameJacobian(clm.model, clm.data, task.frame,
-                                                               pin.ReferenceFrame.LOCAL))
-    return np.concatenate(errs), np.vstack(jacs), jac_c, res_c
+class Linearisation(NamedTuple):
+    """The problem linearised at an iterate, on the free coordinates (n of them)."""
+
+    err: np.ndarray       # (m,) stacked task errors, unweighted
+    cost: float           # |err|_W^2
+    jac_t: np.ndarray     # (m, n) task Jacobian
+    jac_c: np.ndarray     # (r, n) the independent closure rows of J_c (basis.rows)
+    res_c: np.ndarray     # (r,) their residuals
+    basis: RowBasis       # bases of those rows (range, null space, right inverse)
 
 
-def _step(jac_t, err, weight, jac_c, res_c, lam, method, box, q) -> np.ndarray:
-    n = jac_t.shape[1]
-    hess = jac_t.T @ (weight[:, None] * jac_t) + lam * np.eye(n)
-    grad = jac_t.T @ (weight * err)
-    rows = independent_rows(jac_c)
-    if method == "lstsq":
-        null = scipy.linalg.null_space(jac_c[rows]) if rows.size else np.eye(n)
-        part = (np.linalg.lstsq(jac_c[rows], -res_c[rows], rcond=None)[0] if rows.size
-                else np.zeros(n))
+class _Problem:
+    """What one solve keeps between its steps: tasks, free coordinates, limits, a Pinocchio
+    data of its own for the task frames, the ProxSuite QP (updated, not rebuilt)."""
+
+    def __init__(self, clm, tasks, fixed_v, method, closure_tol, limits, q):
+        self.clm, self.tasks, self.method, self.closure_tol = clm, tasks, method, closure_tol
+        self.fixed_v = fixed_v
+        self.free = np.setdiff1d(np.arange(clm.nv), fixed_v)
+        self.box = _limits(clm, self.free, q) if (limits and method == "qp") else None
+        self.weight = np.concatenate([t.weight for t in tasks])
+        self.data = clm.model.createData()
+        self.qp = None
+
+    def full(self, step: np.ndarray) -> np.ndarray:
+        """A step on the free coordinates as a tangent vector (nv,)."""
+        out = np.zeros(self.clm.nv)
+        out[self.free] = step
+        return out
+
+    def errors(self, q: np.ndarray) -> np.ndarray:
+        """Stacked task errors at ``q`` (placements of ``q`` left in ``self.data``)."""
+        return _task_errors(self.clm.model, self.data, self.tasks, q)
+
+    def linearise(self, q: np.ndarray, res_c: np.ndarray) -> Linearisation:
+        """Errors and Jacobians at ``q`` (closure residual ``res_c`` already known)."""
+        jac_c = self.clm.constraint_jacobian(q)[:, self.free]
+        err, jac_t = self._task_jacobian(q)
+        basis = row_basis(jac_c)
+        return Linearisation(err, float(err @ (self.weight * err)), jac_t, jac_c[basis.rows],
+                             res_c[basis.rows], basis)
+
+    def _task_jacobian(self, q: np.ndarray):
+        """Task errors and their Jacobian on the free coordinates at ``q``."""
+        model, data = self.clm.model, self.data
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        errs, jacs = [], []
+        for task in self.tasks:
+            omf = data.oMf[task.frame]
+            if task.position_only:
+                errs.append(omf.translation - task.target.translation)
+                jacs.append(pin.getFrameJacobian(model, data, task.frame,
+                                                 pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3])
+            else:
+                rel = task.target.actInv(omf)
+                errs.append(pin.log6(rel).vector)
+                jacs.append(pin.Jlog6(rel) @ pin.getFrameJacobian(model, data, task.frame,
+                                                                   pin.ReferenceFrame.LOCAL))
+        return np.concatenate(errs), np.vstack(jacs)[:, self.free]
+
+    def curvature(self, lin: Linearisation, q: np.ndarray) -> np.ndarray | None:
+        """The second-order term Gauss-Newton leaves out, on the closures' null space.
+
+        ``Z R Z^T`` with ``R = Z^T (sum_i (W e)_i hess(e_i) + sum_k y_k hess(c_k)) Z``: the
+        curvature of the task errors and of the closures (multipliers ``y`` of the
+        least-squares step) along the null-space basis ``Z``, by forward differences of
+        the Lagrangian's gradient. It matters where the target is out of reach and the
+        task Jacobian loses rank at the closest placement (a leg folded flat): there
+        Gauss-Newton creeps. None where the reduced Hessian it gives is not positive
+        definite (then the damping alone rules).
+        """
+        null = lin.basis.null
+        if null.shape[1] == 0:
+            return None
+        w_err = self.weight * lin.err
+        grad = lin.jac_t.T @ w_err
+        mult = -lin.basis.pinv.T @ grad
+        base = grad + lin.jac_c.T @ mult
+        cols = []
+        for direction in null.T:
+            moved = pin.integrate(self.clm.model, q, self.full(CURVATURE_STEP * direction))
+            jac_c = self.clm.constraint_jacobian(moved)[:, self.free][lin.basis.rows]
+            _, jac_t = self._task_jacobian(moved)
+            cols.append((jac_t.T @ w_err + jac_c.T @ mult - base) / CURVATURE_STEP)
+        reduced = null.T @ np.array(cols).T
+        reduced = 0.5 * (reduced + reduced.T)
+        gauss_newton = null.T @ (lin.jac_t.T @ (self.weight[:, None] * lin.jac_t)) @ null
+        if not np.linalg.eigvalsh(gauss_newton + reduced)[0] > 0.0:
+            return None
+        return null @ reduced @ null.T
+
+    def stationary(self, lin: Linearisation, q: np.ndarray) -> bool:
+        """True at a least-squares stationary point: the task gradient has no component
+        along the closures (relative to ``max|J_t| max|W e|``). Not judged while a joint
+        sits on a limit (the vanishing undamped step decides there)."""
+        box = self.box
+        if box is not None and np.any((q[box.q_index] <= box.lower)
+                                      | (q[box.q_index] >= box.upper)):
+            return False
+        grad = lin.jac_t.T @ (self.weight * lin.err)
+        tangent = lin.basis.null.T @ grad
+        scale = float(np.max(np.abs(lin.jac_t), initial=0.0)
+                      * np.max(np.abs(self.weight * lin.err)))
+        return float(np.max(np.abs(tangent), initial=0.0)) <= GRAD_RTOL * scale
+
+    def step(self, lin: Linearisation, lam: float, q: np.ndarray,
+             curvature: np.ndarray | None = None) -> np.ndarray:
+        """The damped step on the free coordinates (the module docstring's QP), with the
+        second-order term of :meth:`curvature` added to the Hessian when given."""
+        n = self.free.size
+        weighted = self.weight[:, None] * lin.jac_t
+        hess = lin.jac_t.T @ weighted
+        if curvature is not None:
+            hess += curvature
+        hess[np.diag_indices(n)] += lam
+        grad = weighted.T @ lin.err
+        if self.method == "qp":
+            step = self._qp_step(lin, hess, grad, q)
+            if step is not None:
+                return step
+        step = self._null_space_step(lin, hess, grad)
+        if self.method == "qp" and self.box is not None and not self._inside(
+                pin.integrate(self.clm.model, q, self.full(step))):
+            raise SolverError("proxsuite.proxqp.dense", str(self.qp.results.info.status),
+                              "frame inverse kinematics step (a limit is active: no "
+                              "null-space fallback)")
+        return step
+
+    @staticmethod
+    def _null_space_step(lin: Linearisation, hess: np.ndarray, grad: np.ndarray) -> np.ndarray:
+        """The step of route "lstsq": closure rows solved with the least norm, the task
+        least squares on their null space (bounds ignored)."""
+        part = -lin.basis.pinv @ lin.res_c
+        null = lin.basis.null
         reduced = null.T @ hess @ null
         z = np.linalg.lstsq(reduced, -null.T @ (grad + hess @ part), rcond=None)[0]
         return part + null @ z
-    # unknowns scaled by the task error (y = dv / s): ProxSuite's absolute accuracy then
-    # acts relative to the step, which keeps the last Newton steps exact
-    s = max(float(np.max(np.abs(err))), 1e-300)
-    a_mat = jac_c[rows]
-    norms = np.linalg.norm(a_mat, axis=1)
-    a_mat = np.ascontiguousarray(a_mat / norms[:, None]) if rows.size else None
-    b = np.ascontiguousarray(-res_c[rows] / norms / s) if rows.size else None
-    n_in = 0 if box is None else box.position.size
-    c_mat = low = up = None
-    if n_in:
-        c_mat = np.zeros((n_in, n))
-        c_mat[np.arange(n_in), box.position] = 1.0
-        low = np.minimum(box.lower - q[box.q_index], 0.0) / s
-        up = np.maximum(box.upper - q[box.q_index], 0.0) / s
-    qp = proxsuite.proxqp.dense.QP(n, rows.size, n_in)
-    qp.settings.eps_abs = _QP_EPS
-    qp.settings.eps_rel = 0.0
-    # the Hessian is only positive on the closures' null space: no infeasibility verdicts
-    # from the (loose by default) certificates; success is judged from the status
-    qp.settings.eps_dual_inf = 1e-30
-    qp.settings.eps_primal_inf = 1e-30
-    qp.settings.verbose = False
-    scale = max(1.0, float(np.max(np.abs(hess))))
-    qp.init(hess / scale, grad / (scale * s), a_mat, b, c_mat, low, up)
-    qp.solve()
-    if qp.results.info.status != proxsuite.proxqp.PROXQP_SOLVED:
-        raise SolverError("proxsuite.proxqp.dense", str(qp.results.info.status),
-                          "frame inverse kinematics step")
-    step = s * np.array(qp.results.x)
-    if not np.all(np.isfinite(step)):
-        raise SolverError("proxsuite.proxqp.dense", "non-finite", "frame IK step")
-    return step
 
-
-def _retract(clm, q, fixed_v, closure_tol, box):
-    """Close the loops again from ``q`` (None if they cannot be closed).
-
-    With limits, a limited joint outside its range is put on the bound and held there
-    while the loops close (repeated while the closing pushes another one out).
-    """
-    hold = fixed_v
-    for _ in range(1 + (0 if box is None else box.position.size)):
-        if box is not None:
-            values = q[box.q_index]
-            out = (values < box.lower) | (values > box.upper)
-            if hold is not fixed_v and not out.any():
-                return q
-            q = q.copy()
-            q[box.q_index] = np.clip(values, box.lower, box.upper)
-            hold = np.union1d(hold, box.v_index[out])
-        try:
-            q = clm.assemble(q, fixed=hold, tol=closure_tol).q
-        except AssemblyError:
-            return None
-        if box is None:
-            return q
-    values = q[box.q_index]
-    return q if np.all((values >= box.lower) & (values <= box.upper)) else None
-
-
-def _errors(clm, tasks, q) -> np.ndarray:
-    pin.framesForwardKinematics(clm.model, clm.data, q)
-    out = []
-    for task in tasks:
-        omf = clm.data.oMf[task.frame]
-        if task.position_only:
-            out.append(omf.translation - task.target.translation)
+    def _qp_step(self, lin, hess, grad, q) -> np.ndarray | None:
+        """ProxSuite's step, or None where it stops at ``QP_MAX_ITER`` (an ill-conditioned
+        step near a singular placement, where its proximal iterations crawl)."""
+        # unknowns scaled by the task error (y = dv / s): ProxSuite's absolute accuracy then
+        # acts relative to the step, which keeps the last Newton steps exact
+        n, n_eq = self.free.size, lin.basis.rows.size
+        s = max(float(np.max(np.abs(lin.err))), 1e-300)
+        a_mat = b = None
+        if n_eq:
+            norms = np.sqrt(np.einsum("ij,ij->i", lin.jac_c, lin.jac_c))
+            a_mat = lin.jac_c / norms[:, None]
+            b = -lin.res_c / (norms * s)
+        box = self.box
+        n_in = 0 if box is None else box.position.size
+        c_mat = low = up = None
+        if n_in:
+            c_mat = np.zeros((n_in, n))
+            c_mat[np.arange(n_in), box.position] = 1.0
+            low = np.minimum(box.lower - q[box.q_index], 0.0) / s
+            up = np.maximum(box.upper - q[box.q_index], 0.0) / s
+        scale = max(1.0, float(np.max(np.abs(hess))))
+        qp = self.qp
+        if qp is None or qp.model.n_eq != n_eq:
+            qp = self.qp = proxsuite.proxqp.dense.QP(n, n_eq, n_in)
+            qp.settings.eps_abs = _QP_EPS
+            qp.settings.eps_rel = 0.0
+            # the Hessian is only positive on the closures' null space: no infeasibility
+            # verdicts from the (loose by default) certificates; success from the status
+            qp.settings.eps_dual_inf = 1e-30
+            qp.settings.eps_primal_inf = 1e-30
+            qp.settings.verbose = False
+            qp.settings.max_iter = QP_MAX_ITER
+            qp.settings.max_iter_in = QP_MAX_ITER
+            qp.init(hess / scale, grad / (scale * s), a_mat, b, c_mat, low, up)
         else:
-            out.append(pin.log6(task.target.actInv(omf)).vector)
-    return np.concatenate(out)
+            qp.update(hess / scale, grad / (scale * s), a_mat, b, c_mat, low, up)
+        qp.solve()
+        step = s * qp.results.x
+        if qp.results.info.status != proxsuite.proxqp.PROXQP_SOLVED or not np.all(
+                np.isfinite(step)):
+            return None
+        return step
+
+    def retract(self, q: np.ndarray, lin: Linearisation):
+        """Close the loops again from ``q`` (a step from the linearisation point):
+        ``(q, closure residual)``, or None if they cannot be closed.
+
+        A chord Newton iteration first (the right inverse of the linearisation point's
+        closure rows, the free coordinates moved by the least norm), the full Newton of
+        :meth:`ClosedLoopModel.assemble` where it does not contract. With limits, a
+        limited joint outside its range is put on the bound and held there while the
+        loops close (repeated while the closing pushes another one out).
+        """
+        clm, box = self.clm, self.box
+        if box is None or self._inside(q):
+            res = clm.residual(q)
+            err = float(np.max(np.abs(res), initial=0.0))
+            for _ in range(CHORD_ITER):
+                if err <= self.closure_tol:
+                    return (q, res) if box is None or self._inside(q) else self._held(q)
+                trial = pin.integrate(clm.model, q,
+                                      self.full(-lin.basis.pinv @ res[lin.basis.rows]))
+                trial_res = clm.residual(trial)
+                trial_err = float(np.max(np.abs(trial_res)))
+                if not trial_err <= CHORD_CONTRACTION * err:
+                    break
+                q, res, err = trial, trial_res, trial_err
+        return self._held(q)
+
+    def _inside(self, q: np.ndarray) -> bool:
+        values = q[self.box.q_index]
+        return bool(np.all((values >= self.box.lower) & (values <= self.box.upper)))
+
+    def _held(self, q: np.ndarray):
+        """Full Newton closing (limited joints out of range put on their bound and held)."""
+        clm, box, hold = self.clm, self.box, self.fixed_v
+        for _ in range(1 + (0 if box is None else box.position.size)):
+            if box is not None:
+                values = q[box.q_index]
+                out = (values < box.lower) | (values > box.upper)
+                if hold is not self.fixed_v and not out.any():
+                    return q, clm.residual(q)
+                q = q.copy()
+                q[box.q_index] = np.clip(values, box.lower, box.upper)
+                hold = np.union1d(hold, box.v_index[out])
+            try:
+                q = clm.assemble(q, fixed=hold, tol=self.closure_tol).q
+            except AssemblyError:
+                return None
+            if box is None:
+                return q, clm.residual(q)
+        return (q, clm.residual(q)) if self._inside(q) else None
 
 
 def _result(clm, tasks, q, reachable: bool, history: list[float],
@@ -389,10 +565,23 @@ def _result(clm, tasks, q, reachable: bool, history: list[float],
     if not closure <= closure_tol:
         raise AssemblyError(f"closures not held at the answer (tolerance {closure_tol:g})",
                             closure, iterations, q)
-    err = _errors(clm, tasks, q)
+    err = _task_errors(clm.model, clm.data, tasks, q)
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(err)) and np.isfinite(closure)):
         raise SolverError("frame_inverse_kinematics", "non-finite", "NaN in the answer")
     placements = tuple(pin.SE3(clm.data.oMf[t.frame]) for t in tasks)
     return FrameIKResult(q.copy(), reachable, float(np.max(np.abs(err))), closure, iterations,
                          err, placements, tuple(history))
 
+
+
+def _task_errors(model, data, tasks, q) -> np.ndarray:
+    """Stacked task errors at ``q`` (module docstring), frame placements left in ``data``."""
+    pin.framesForwardKinematics(model, data, q)
+    out = []
+    for task in tasks:
+        omf = data.oMf[task.frame]
+        if task.position_only:
+            out.append(omf.translation - task.target.translation)
+        else:
+            out.append(pin.log6(task.target.actInv(omf)).vector)
+    return np.concatenate(out)
