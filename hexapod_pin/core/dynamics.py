@@ -73,6 +73,7 @@ _MOTION_RTOL = 1e-8
 #: a floor for scales (avoids dividing by zero on all-zero data)
 _TINY = 1e-300
 _EPS = np.finfo(float).eps
+_F64 = np.dtype(np.float64)
 #: box-constrained least-squares miss (relative) above which bounds count as infeasible
 _INFEASIBLE_RTOL = 1e-6
 #: iteration cap of the tree QPs (redundant closure rows slow the proximal iterations down)
@@ -179,22 +180,11 @@ class TreeInverseDynamics(NamedTuple):
         return value() if callable(value) else value
 
 
+#: status of a least-squares / minimum-norm inverse solve, by "the rows are redundant"
+_ID_STATUS = {True: "solved (redundant rows: minimum-norm multipliers)",
+              False: "solved (least squares / minimum norm)"}
 #: status strings of the redundant-row Pinocchio route by iteration count
 _REDUNDANT_STATUS: dict[int, str] = {}
-
-
-class _Memo:
-    """A zero-argument callable evaluated once."""
-
-    __slots__ = ("fn", "value")
-
-    def __init__(self, fn):
-        self.fn, self.value = fn, None
-
-    def __call__(self):
-        if self.value is None:
-            self.value = self.fn()
-        return self.value
 
 
 # --------------------------------------------------------------------------------------
@@ -253,6 +243,17 @@ class ClosedLoopDynamics:
                                                 np.full(self.n_rows, _LAMBDA_WEIGHT)]))
         self._id_box = np.zeros((self.n_act, self.n_act + self.n_rows))
         self._id_box[:, :self.n_act] = np.eye(self.n_act)
+        # the fast path of forward_actuated: shapes, the actuated coordinates (a slice when
+        # contiguous), and the proximal settings of a verified Pinocchio solve (None until
+        # the first verified call, and again when Pinocchio's answers are refused)
+        self._shape_q, self._shape_v = (self.model.nq,), (self.nv,)
+        self._shape_u = (self.n_act,)
+        act = np.asarray(clm.actuated_v, dtype=int)
+        self._act_index = slice(int(act[0]), int(act[0]) + act.size) if act.size and \
+            np.array_equal(act, np.arange(act[0], act[0] + act.size)) else act
+        self._pin_fast = None
+        #: columns of [S^T J^T] kept by the reduced inverse solve (u, independent rows)
+        self._id_keep: np.ndarray | None = None
 
     # -- rank ----------------------------------------------------------------------------
     def closure_rank(self, q: np.ndarray, force: bool = False) -> int:
@@ -272,11 +273,13 @@ class ClosedLoopDynamics:
         """``J_c`` (n_rows, nv) at ``q`` (same as :meth:`ClosedLoopModel.constraint_jacobian`)."""
         pin.computeJointJacobians(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
-        return self._jacobian_from_data()
+        return self.jacobian_from(self.data)
 
-    def _jacobian_from_data(self) -> np.ndarray:
+    def jacobian_from(self, data: pin.Data) -> np.ndarray:
+        """``J_c`` (n_rows, nv) from ``data`` (a ``pin.Data`` of this model whose joint
+        Jacobians and frame placements are up to date)."""
         out = np.empty((self.n_rows, self.nv))
-        model, data = self.model, self.data
+        model = self.model
         lwa, loc = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ReferenceFrame.LOCAL
         for is_point, rows, f1, f2, _, _ in self.closure_frames:
             if is_point:
@@ -435,6 +438,7 @@ class ClosedLoopDynamics:
             # a joint that moves no mass: Pinocchio's factorisation of M cannot hold this
             # model at any state (structural); the exact routes answer from now on
             self._pin_singular = True
+            self._pin_fast = None
             return None, prox
         if redundant:
             prox = self._prox_deep
@@ -448,13 +452,11 @@ class ClosedLoopDynamics:
         if self.n_rows:
             jac = pin.getConstraintsJacobian(self.model, self.data, self.pin_models,
                                              self.pin_datas)
-            drift = self._v_rhs
-            drift *= -1.0                  # Pinocchio's J a = primal_rhs (recomputed per call)
+            target = self._v_rhs           # Pinocchio's J a = primal_rhs (recomputed per call)
         else:
-            jac, drift = self._no_rows
-        eom, con = forward_residuals(self._v_mass, self._v_nle, tau, jac, drift, acc,
-                                     self._v_lambda, self._res_out)
-        self._pin_last = (self._v_mass, jac, tau)
+            jac, target = self._no_rows
+        eom, con = kkt_residuals(self._v_mass, self._v_nle, tau, jac, target, acc,
+                                 self._v_lambda, self._res_out)
         return eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL
 
     def pinocchio_acceleration(self, q, v, tau) -> np.ndarray:
@@ -465,17 +467,6 @@ class ClosedLoopDynamics:
         if acc is None:
             return self._forward_pinocchio(q, v, tau, rank).a
         return acc.copy()
-
-    def _lazy_rows(self, q, lam_pin):
-        """A callable giving our row multipliers from Pinocchio's LOCAL ones at ``q``."""
-        q = q.copy()
-
-        def convert() -> np.ndarray:
-            lam = lam_pin() if callable(lam_pin) else lam_pin
-            with self._aux_lock:
-                pin.framesForwardKinematics(self.model, self._aux_data, q)
-                return self._pin_to_row_multipliers(lam, self._aux_data)
-        return _Memo(convert)
 
     def _pin_to_row_multipliers(self, lam_pin: np.ndarray, data) -> np.ndarray:
         """Convert Pinocchio's LOCAL contact forces into our row convention.
@@ -493,6 +484,66 @@ class ClosedLoopDynamics:
                 out[rows] = np.linalg.solve(jlog.T, lam_pin[rows])
         return out
 
+    def _pinocchio_result(self, q, v, tau, acc, iters, rank) -> TreeForwardDynamics:
+        """The result of a verified Pinocchio solve (``acc``: Pinocchio's buffer; ``tau``:
+        an array this call owns). The multipliers are computed on access: Pinocchio's
+        LOCAL ones converted to our rows, or, with redundant rows, the minimum-norm ones
+        (the proximal multipliers are minimum-norm only up to the conditioning of the
+        regularised system)."""
+        if rank == self.n_rows:
+            return TreeForwardDynamics(acc.copy(), _PinRows(self, q.copy(),
+                                                            self._v_lambda.copy()),
+                                       "pinocchio", "solved", iters, rank, -1.0)
+        status = _REDUNDANT_STATUS.get(iters)
+        if status is None:
+            status = _REDUNDANT_STATUS[iters] = (
+                f"solved (redundant rows: proximal mu={_PIN_PROX_MU:g}, {iters} "
+                "iterations; minimum-norm multipliers)")
+        acc = acc.copy()
+        return TreeForwardDynamics(acc, _MinNormRows(self, q.copy(), v.copy(), acc, tau),
+                                   "pinocchio", status, iters, rank, -1.0)
+
+    def forward_actuated(self, q, v, actuator_forces, tau_ext=None,
+                         method: str = "pinocchio") -> TreeForwardDynamics:
+        """:func:`forward_dynamics_tree` on this workspace (same arguments after ``clm``).
+
+        The "pinocchio" route of a model whose first call was verified takes a short
+        path: one fused input check (float64 arrays of the right shapes pass; anything
+        else goes through :func:`~hexapod_pin.core.checks.as_array`), one
+        ``pin.constraintDynamics`` call, its verification on Pinocchio's own ``M``,
+        ``nle``, constraint Jacobian and drift (one compiled kernel), and the result with
+        lazy multipliers. A call that fails the verification (or a non-finite input) takes
+        the full route, which retries, falls back or raises.
+        """
+        nd = np.ndarray
+        if not (type(q) is nd and type(v) is nd and q.dtype is _F64 and v.dtype is _F64
+                and q.shape == self._shape_q and v.shape == self._shape_v
+                and q.flags.c_contiguous and v.flags.c_contiguous):
+            q = _vector(q, self.model.nq, "q")
+            v = _vector(v, self.nv, "v")
+        u = actuator_forces
+        if not (type(u) is nd and u.dtype is _F64 and u.shape == self._shape_u):
+            u = _vector(u, self.n_act, "actuator_forces")
+        tau = np.zeros(self.nv)
+        tau[self._act_index] = u
+        if tau_ext is not None:
+            tau_ext = _vector(tau_ext, self.nv, "tau_ext")
+            tau += tau_ext
+        prox = self._pin_fast
+        if prox is not None and method == "pinocchio":
+            model, data, cms, cds = self.model, self.data, self.pin_models, self.pin_datas
+            acc = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
+            # checked on Pinocchio's own M, nle, J and drift (J a = primal_rhs)
+            eom, con = kkt_residuals(self._v_mass, self._v_nle, tau,
+                                     pin.getConstraintsJacobian(model, data, cms, cds),
+                                     self._v_rhs, acc, self._v_lambda, self._res_out)
+            if eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL:
+                return self._pinocchio_result(q, v, tau, acc, prox.iter, self._rank)
+        elif method not in FORWARD_METHODS:
+            raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
+        return _solve_checked(lambda: self.forward_unchecked(q, v, tau, method), ("q", q),
+                              ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
+
     def _forward_pinocchio(self, q, v, tau, rank) -> TreeForwardDynamics:
         redundant = rank < self.n_rows
         acc, prox = self.pinocchio_call(q, v, tau, redundant)
@@ -504,23 +555,9 @@ class ClosedLoopDynamics:
                 rank, redundant = new_rank, True
                 acc, prox = self.pinocchio_call(q, v, tau, True)
         if acc is not None:
-            iters = prox.iter
-            acc = acc.copy()
-            if not redundant:
-                return TreeForwardDynamics(acc, self._lazy_rows(q, self._v_lambda.copy()),
-                                           "pinocchio", "solved", iters, rank, -1.0)
-            status = _REDUNDANT_STATUS.get(iters)
-            if status is None:
-                status = _REDUNDANT_STATUS[iters] = (
-                    f"solved (redundant rows: proximal mu={_PIN_PROX_MU:g}, {iters} "
-                    "iterations; minimum-norm multipliers)")
-            # the proximal multipliers are minimum-norm only up to the conditioning of the
-            # regularised system: polish them by least squares on Pinocchio's own M, nle
-            # and J (rotations of ours: the minimum norm is the same); J is a fresh array
-            mass, jac, tau_used = self._pin_last
-            lam_pin = _LazyMinNorm(jac, mass.copy(), acc.copy(), self._v_nle - tau_used)
-            return TreeForwardDynamics(acc, self._lazy_rows(q, lam_pin), "pinocchio", status,
-                                       iters, rank, -1.0)
+            if self.n_rows:
+                self._pin_fast = self._prox_redundant if redundant else self._prox_exact
+            return self._pinocchio_result(q, v, tau, acc, prox.iter, rank)
         # Pinocchio's factorisation cannot hold this problem (e.g. a zero pivot of M from a
         # massless link): the exact KKT route answers, and the status says so
         mass, bias, jac, gamma = self._terms(q, v)
@@ -716,19 +753,15 @@ class ClosedLoopDynamics:
                                    self.pin_datas, self._prox_probe)
             jac = pin.getConstraintsJacobian(self.model, self.data, self.pin_models,
                                              self.pin_datas)
-            drift = self._v_rhs
-            drift *= -1.0
-            miss = closure_residual(jac, a, drift)
+            # Pinocchio's J a = primal_rhs (its drift with the sign flipped)
+            miss = linear_residual(jac, a, self._v_rhs, self._res_out)
             if not miss <= _MOTION_RTOL:
                 raise SolverError("closed-loop inverse dynamics", "inconsistent motion",
                                   f"closure equation J_c a = -gamma missed by {miss:.3e} "
                                   "(relative): the acceleration does not keep the closures")
         else:
             jac = self._no_rows[0]
-        res = self._inverse_solve(jac, rhs, bounds, method, rank)
-        if self.n_rows:
-            res = res._replace(raw_multipliers=self._lazy_rows(q, res.raw_multipliers))
-        return res
+        return self._inverse_solve(jac, rhs, bounds, method, rank, q)
 
     def model_pool(self, threads: int) -> pin.ModelPool:
         """A ``pin.ModelPool`` of this model with ``threads`` datas (cached)."""
@@ -752,14 +785,14 @@ class ClosedLoopDynamics:
                              f"expected a positive scalar or ({self.n_act},) positive values")
         return None if np.all(np.isinf(arr)) else arr
 
-    def _inverse_solve(self, jac, rhs, bounds, method, rank) -> TreeInverseDynamics:
+    def _inverse_solve(self, jac, rhs, bounds, method, rank, q) -> TreeInverseDynamics:
         mat = self._id_matrix
         mat[:, self.n_act:] = jac.T
         if method == "kkt":
-            sol, status = self._inverse_kkt(mat, rhs, rank, jac)
+            sol, status, reduced = self._inverse_kkt(mat, rhs, rank)
             iters = 0
         else:
-            sol, status, iters = self._inverse_qp(mat, rhs, bounds, rank, jac)
+            sol, status, iters, reduced = self._inverse_qp(mat, rhs, bounds, rank)
         u = sol[:self.n_act]
         if bounds is not None and np.any(np.abs(u) > bounds * (1.0 + RESIDUAL_RTOL)):
             if self._unique_forces(mat) or \
@@ -769,8 +802,12 @@ class ClosedLoopDynamics:
                               "bounds but other forces within them meet the equation of "
                               "motion (redundant actuation): use method='qp'")
         residual = self._verify_inverse(mat, sol, rhs, method)
-        return TreeInverseDynamics(u.copy(), sol[self.n_act:].copy(), residual, method, status,
-                                   iters)
+        lam = sol[self.n_act:].copy()
+        if self.n_rows:
+            # multipliers in our rows on access (minimum-norm ones from the generalised
+            # force J^T lambda when the solve kept the independent rows only)
+            lam = _PinRows(self, q.copy(), lam, jac.copy() if reduced else None)
+        return TreeInverseDynamics(u.copy(), lam, residual, method, status, iters)
 
     def _verify_inverse(self, mat, sol, rhs, route: str) -> float:
         """Max-abs residual of ``S^T u + J_c^T lambda = M a + h - tau_ext``; SolverError when
@@ -782,32 +819,57 @@ class ClosedLoopDynamics:
                               f"M a + h - tau_ext missed by {out[1]:.3e} (relative)")
         return float(out[0])
 
-    def _inverse_kkt(self, mat, rhs, rank, jac):
-        if mat.shape[0] == mat.shape[1] and rank == self.n_rows:
-            # square system: one compiled LU solve, checked
-            sol = np.empty(mat.shape[1])
-            try:
-                if square_solve(mat, rhs, sol, self._res_out) <= RESIDUAL_RTOL:
-                    return sol, "solved"
-            except np.linalg.LinAlgError:
-                pass
-        sol, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
-        if rank < self.n_rows:
-            return sol, "solved (redundant rows: minimum-norm multipliers)"
-        return sol, "solved (least squares / minimum norm)"
+    def _inverse_kkt(self, mat, rhs, rank):
+        """``[S^T J^T] x = rhs`` (``A x = rhs``), the minimum-norm solution; returns
+        ``(x, status, reduced)``.
 
-    def _inverse_qp(self, mat, rhs, bounds, rank, jac):
+        One compiled solve, chosen by the structure: LU when ``A`` is square and the rows
+        independent; ``x = A^T (A A^T)^-1 rhs`` when ``A`` is wide (Gram matrix); when the
+        rows are redundant and ``A`` determines ``u``, the least-squares solve of ``A``
+        restricted to ``u`` and the independent rows (normal equations; ``reduced``: the
+        multipliers then give the right generalised force but are made minimum-norm on
+        access). SVD least squares when none of them reproduces ``rhs`` to
+        :data:`RESIDUAL_RTOL` (rank-deficient or ill-conditioned ``A``). The caller
+        verifies the answer on the full system."""
+        nv, ncol = mat.shape
+        sol = np.empty(ncol)
+        out = self._res_out
+        redundant = rank < self.n_rows
+        try:
+            if not redundant and ncol == nv:
+                if square_solve(mat, rhs, sol, out) <= RESIDUAL_RTOL:
+                    return sol, "solved", False
+            elif redundant and self._unique_forces(mat):
+                keep = self._id_keep
+                if keep is None:
+                    rows = independent_rows(mat[:, self.n_act:].T)
+                    keep = self._id_keep = np.concatenate([np.arange(self.n_act),
+                                                           self.n_act + rows])
+                sub = np.ascontiguousarray(mat[:, keep])
+                part = np.empty(keep.size)
+                if normal_solve(sub, rhs, part, out) <= RESIDUAL_RTOL:
+                    sol[:] = 0.0
+                    sol[keep] = part
+                    return sol, _ID_STATUS[True], True
+            elif ncol > nv and minimum_norm_solve(mat, rhs, sol, out) <= RESIDUAL_RTOL:
+                return sol, _ID_STATUS[redundant], False
+        except np.linalg.LinAlgError:
+            pass
+        sol, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
+        return sol, _ID_STATUS[redundant], False
+
+    def _inverse_qp(self, mat, rhs, bounds, rank):
         """Bounded ID as a ProxSuite QP: ``min 1/2 |u|^2 + 1/2 w |lambda|^2`` s.t. the
         equation of motion (rows scaled by their norms, forces by their scale) and
         ``|u| <= bounds``; warm-started from the direct (minimum-norm) solution."""
         n = self.n_act + self.n_rows
-        direct, _ = self._inverse_kkt(mat, rhs, rank, jac)
+        direct, _, reduced = self._inverse_kkt(mat, rhs, rank)
         if self._unique_forces(mat):
             # u is determined by the equation and lambda is minimum-norm: the direct
             # solution is the QP's minimiser when it keeps the bounds, and no point keeps
             # them when it does not (an exact certificate, no iteration needed)
             if bounds is None or np.all(np.abs(direct[:self.n_act]) <= bounds):
-                return direct, "solved", 0
+                return direct, "solved", 0, reduced
             raise ActuatorSaturationError(direct[:self.n_act].copy(), bounds)
         f_scale = max(max_abs(rhs), max_abs(direct), _TINY)
         norms = np.sqrt(np.einsum("ij,ij->i", mat, mat))
@@ -843,7 +905,7 @@ class ClosedLoopDynamics:
                               f"{exc}; primal residual {info.pri_res:.3e}") from None
         if status != "solved":
             status = f"{status} (residuals verified)"
-        return sol, status, int(info.iter)
+        return sol, status, int(info.iter), False
 
     def _unique_forces(self, mat) -> bool:
         """Whether ``[S^T J_c^T] x = rhs`` determines ``u`` (no null direction of the matrix
@@ -991,18 +1053,7 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=N
             ``J_c``, a mass matrix not positive on the closures' null space); the
             message names the equation and its relative residual.
     """
-    dyn = dynamics_of(clm)
-    q = _vector(q, dyn.model.nq, "q")
-    v = _vector(v, dyn.nv, "v")
-    u = _vector(actuator_forces, dyn.n_act, "actuator_forces")
-    if method not in FORWARD_METHODS:
-        raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
-    tau = dyn.selection.dot(u)
-    if tau_ext is not None:
-        tau_ext = _vector(tau_ext, dyn.nv, "tau_ext")
-        tau += tau_ext
-    return _solve_checked(lambda: dyn.forward_unchecked(q, v, tau, method), ("q", q),
-                          ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
+    return dynamics_of(clm).forward_actuated(q, v, actuator_forces, tau_ext, method)
 
 
 def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=None,
@@ -1046,6 +1097,18 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=No
 # --------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------
+def independent_rows(jac: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
+    """Rows of ``jac`` kept by a column-pivoted QR of ``jac^T`` up to its numerical rank
+    (singular values above ``rtol`` times the largest), sorted: rows dependent on the
+    others, exactly or nearly, are left out so that the kept rows are well conditioned."""
+    if jac.shape[0] == 0:
+        return np.arange(0)
+    sv = np.linalg.svd(jac, compute_uv=False)
+    rank = int(np.sum(sv > rtol * sv[0]))
+    _, _, piv = scipy.linalg.qr(jac.T, pivoting=True, mode="economic")
+    return np.sort(piv[:rank])
+
+
 def _vector(value, size: int, name: str) -> np.ndarray:
     """``value`` when it is already a contiguous float64 (size,) array (the cheap path:
     finiteness is left to the verified solve, see :func:`_solve_checked`), else
@@ -1069,15 +1132,23 @@ def _solve_checked(solve, *inputs):
         raise
 
 
-@jit
 def forward_residuals(mass, bias, tau, jac, drift, acc, lam, out):
-    """Relative residuals of ``M a + h - tau - J^T lam = 0`` and ``J a + drift = 0``.
+    """Relative residuals of ``M a + h - tau - J^T lam = 0`` and ``J a + drift = 0``:
+    :func:`kkt_residuals` with the target ``-drift``. Returns ``(eom, closure)`` (also
+    written to ``out``)."""
+    return kkt_residuals(mass, bias, tau, jac, -drift, acc, lam, out)
 
-    Reads only the upper triangle of ``mass`` (Pinocchio's ``crba`` fills that one), so a
-    symmetric matrix or Pinocchio's half-filled ``data.M`` give the same result. The
-    first residual is relative to the largest of ``|M a|``, ``|h - tau|``, ``|J^T lam|``,
-    the second to ``max|J| max|a|`` and ``|drift|`` (max-abs norms). Non-finite data give
-    inf. Returns ``(eom, closure)`` (also written to ``out``).
+
+@jit
+def kkt_residuals(mass, bias, tau, jac, target, acc, lam, out):
+    """Relative residuals of ``M a + h - tau - J^T lam = 0`` and ``J a = target``.
+
+    Reads only the upper triangle of ``mass`` (Pinocchio's ``crba`` and
+    ``constraintDynamics`` fill that one), so a symmetric matrix or Pinocchio's
+    half-filled ``data.M`` give the same result. The first residual is relative to the
+    largest of ``|M a|``, ``|h - tau|``, ``|J^T lam|``, the second to ``max|J| max|a|``
+    and ``max|target|`` (max-abs norms; 0 without rows). Non-finite data give inf.
+    Returns ``(eom, closure)`` (also written to ``out``); allocates nothing.
     """
     nv = acc.shape[0]
     nr = jac.shape[0]
@@ -1085,8 +1156,10 @@ def forward_residuals(mass, bias, tau, jac, drift, acc, lam, out):
     eom_den = 1e-300
     for i in range(nv):
         m_a = 0.0
-        for j in range(nv):
-            m_a += (mass[i, j] if j >= i else mass[j, i]) * acc[j]
+        for j in range(i):
+            m_a += mass[j, i] * acc[j]
+        for j in range(i, nv):
+            m_a += mass[i, j] * acc[j]
         force = 0.0
         for k in range(nr):
             force += jac[k, i] * lam[k]
@@ -1097,8 +1170,25 @@ def forward_residuals(mass, bias, tau, jac, drift, acc, lam, out):
         elif r > eom_num:
             eom_num = r
         eom_den = max(eom_den, abs(m_a), abs(rest), abs(force))
+    con_num = 0.0
+    jmax = 0.0
+    amax = 0.0
+    tmax = 0.0
+    for j in range(nv):
+        amax = max(amax, abs(acc[j]))
+    for k in range(nr):
+        row = 0.0
+        for j in range(nv):
+            row += jac[k, j] * acc[j]
+            jmax = max(jmax, abs(jac[k, j]))
+        r = abs(row - target[k])
+        if not math.isfinite(r):
+            con_num = math.inf
+        elif r > con_num:
+            con_num = r
+        tmax = max(tmax, abs(target[k]))
     out[0] = eom_num / eom_den
-    out[1] = closure_residual(jac, acc, drift)
+    out[1] = con_num / max(tmax, jmax * amax, 1e-300)
     return out[0], out[1]
 
 
@@ -1138,22 +1228,71 @@ def square_solve(mat, rhs, x, out):
 
 
 @jit
-def closure_residual(jac, acc, drift) -> float:
-    """Relative residual of ``J a + drift = 0``: :func:`linear_residual` of ``J a = -drift``
-    (``max|J a + drift|`` over the larger of ``max|J| max|a|`` and ``max|drift|``; 0 without
-    rows, inf when not finite)."""
-    out = np.empty(2)
-    return linear_residual(jac, acc, -drift, out)
+def normal_solve(mat, rhs, x, out):
+    """``x = (mat^T mat)^-1 mat^T rhs``, the least-squares solution of a tall ``mat`` of full
+    column rank (LU of the normal matrix; raises numpy's LinAlgError when it is exactly
+    singular); returns the relative residual of :func:`linear_residual` (small only when
+    ``rhs`` is in the range of ``mat`` and the solve was accurate)."""
+    x[:] = np.linalg.solve(mat.T @ mat, mat.T @ rhs)
+    return linear_residual(mat, x, rhs, out)
 
 
-class _LazyMinNorm:
-    """Minimum-norm ``lambda`` with ``J^T lambda = M a + rest`` (``M``: upper triangle
-    filled, as Pinocchio's ``data.M``), computed when called."""
+@jit
+def minimum_norm_solve(mat, rhs, x, out):
+    """``x = mat^T (mat mat^T)^-1 rhs``, the minimum-norm solution of a wide ``mat`` of full
+    row rank (LU of the Gram matrix; raises numpy's LinAlgError when it is exactly
+    singular); returns the relative residual of :func:`linear_residual`, which exposes a
+    rank-deficient or ill-conditioned ``mat``."""
+    gram = mat @ mat.T
+    x[:] = mat.T @ np.linalg.solve(gram, rhs)
+    return linear_residual(mat, x, rhs, out)
 
-    def __init__(self, jac, mass, acc, rest):
-        self.jac, self.mass, self.acc, self.rest = jac, mass, acc, rest
+
+
+class _PinRows:
+    """Our row multipliers from Pinocchio's LOCAL ones ``lam_pin`` at ``q``, computed on the
+    first call (on the workspace's auxiliary data, under its lock: a result may be read
+    on any thread). With ``jac`` (Pinocchio's constraint Jacobian at ``q``), ``lam_pin``
+    is first replaced by the minimum-norm multipliers of the same generalised force,
+    ``(J^T)^+ J^T lam_pin`` (the rows differ from ours by rotations: the same minimum)."""
+
+    __slots__ = ("dyn", "jac", "lam_pin", "q", "value")
+
+    def __init__(self, dyn: ClosedLoopDynamics, q: np.ndarray, lam_pin: np.ndarray,
+                 jac: np.ndarray | None = None):
+        self.dyn, self.q, self.lam_pin, self.jac, self.value = dyn, q, lam_pin, jac, None
 
     def __call__(self) -> np.ndarray:
-        mass = np.triu(self.mass) + np.triu(self.mass, 1).T
-        sol, *_ = np.linalg.lstsq(self.jac.T, mass @ self.acc + self.rest, rcond=None)
-        return sol
+        if self.value is None:
+            dyn, lam = self.dyn, self.lam_pin
+            if self.jac is not None:
+                lam, *_ = np.linalg.lstsq(self.jac.T, self.jac.T @ lam, rcond=None)
+            with dyn._aux_lock:
+                pin.framesForwardKinematics(dyn.model, dyn._aux_data, self.q)
+                self.value = dyn._pin_to_row_multipliers(lam, dyn._aux_data)
+        return self.value
+
+
+class _MinNormRows:
+    """Minimum-norm multipliers in our rows, ``lambda = (J_c^T)^+ (M a + h - tau)`` at
+    ``(q, v)``, computed on the first call from a fresh ``crba`` / ``nonLinearEffects`` /
+    ``J_c`` on the workspace's auxiliary data (under its lock)."""
+
+    __slots__ = ("acc", "dyn", "q", "tau", "v", "value")
+
+    def __init__(self, dyn: ClosedLoopDynamics, q, v, acc, tau):
+        self.dyn, self.q, self.v, self.acc, self.tau, self.value = dyn, q, v, acc, tau, None
+
+    def __call__(self) -> np.ndarray:
+        if self.value is None:
+            dyn, q = self.dyn, self.q
+            model, aux = dyn.model, dyn._aux_data
+            with dyn._aux_lock:
+                mass = pin.crba(model, aux, q)
+                mass = np.triu(mass) + np.triu(mass, 1).T
+                force = mass @ self.acc + pin.nonLinearEffects(model, aux, q, self.v) - self.tau
+                pin.computeJointJacobians(model, aux, q)
+                pin.updateFramePlacements(model, aux)
+                jac = dyn.jacobian_from(aux)
+            self.value, *_ = np.linalg.lstsq(jac.T, force, rcond=None)
+        return self.value

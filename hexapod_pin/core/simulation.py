@@ -24,11 +24,10 @@ from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
-import scipy.linalg
 
 from ..errors import AssemblyError, InputError
 from .closed_loop import ClosedLoopModel
-from .dynamics import FORWARD_METHODS, dynamics_of
+from .dynamics import FORWARD_METHODS, dynamics_of, independent_rows
 
 #: closure residual above which a step is projected back onto the closures (m)
 PROJECTION_TOL = 1e-10
@@ -215,7 +214,7 @@ class ClosedLoopIntegrator:
         for _ in range(max_iter):
             jac = dyn.constraint_jacobian(q)          # also updates the frame placements
             if rows is None:
-                rows = self._rows = _independent_rows(jac)
+                rows = self._rows = independent_rows(jac)
             res = self._residual_from_data()
             err = float(np.max(np.abs(res), initial=0.0))
             if not np.isfinite(err):
@@ -241,19 +240,6 @@ class ClosedLoopIntegrator:
             out[rows] = (m1.translation - m2.translation if is_point
                          else pin.log6(m2.actInv(m1)).vector)
         return out
-
-
-def _independent_rows(jac: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
-    """Rows of ``jac`` kept by a column-pivoted QR of ``jac^T`` up to its numerical rank
-    (singular values above ``rtol`` times the largest): rows dependent on the others,
-    exactly or nearly (an SDF's angles rounded to five digits), are left out so that
-    ``J J^T`` stays well conditioned. Assumed structural (evaluated once)."""
-    if jac.shape[0] == 0:
-        return np.arange(0)
-    sv = np.linalg.svd(jac, compute_uv=False)
-    rank = int(np.sum(sv > rtol * sv[0]))
-    _, _, piv = scipy.linalg.qr(jac.T, pivoting=True, mode="economic")
-    return np.sort(piv[:rank])
 
 
 def _pinv_apply(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
