@@ -20,10 +20,15 @@ from ..errors import IdentifiabilityError
 from .identifiability import IdentifiabilityReport
 from .identify import (CalibrationResult, ModelErrors, ParameterEstimate, ResidualSummary,
                        ValidationReport, calibrate)
+from .measurements import read_measurements, write_measurements
 from .parameters import DEFAULT_IDENTIFY, GROUPS, NAMES, ParameterModel
+from .problem import Measurements
+from .selection import PoseSelection, select_measurements, select_poses
 from .synthetic import SyntheticData, synthetic_measurements
 
 __all__ = ["CalibrationResult", "DEFAULT_IDENTIFY", "GROUPS", "IdentifiabilityError",
-           "IdentifiabilityReport", "ModelErrors", "NAMES", "ParameterEstimate",
-           "ParameterModel", "ResidualSummary", "SyntheticData", "ValidationReport",
-           "calibrate", "synthetic_measurements"]
+           "IdentifiabilityReport", "Measurements", "ModelErrors", "NAMES",
+           "ParameterEstimate", "ParameterModel", "PoseSelection", "ResidualSummary",
+           "SyntheticData", "ValidationReport", "calibrate", "read_measurements",
+           "select_measurements", "select_poses", "synthetic_measurements",
+           "write_measurements"]

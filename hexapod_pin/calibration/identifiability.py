@@ -192,6 +192,7 @@ def check_data(scaled: np.ndarray, base: np.ndarray, rcond: float, n_measurement
 
 def null_space(scaled: np.ndarray, columns: Sequence[int], rcond: float) -> np.ndarray:
     """Orthonormal null space (len(columns), k) of the scaled columns."""
-    _, sigma, vt = np.linalg.svd(scaled[:, columns], full_matrices=True)
+    sub = scaled[:, columns]
+    _, sigma, vt = np.linalg.svd(sub, full_matrices=sub.shape[0] < sub.shape[1])
     rank = numerical_rank(sigma, rcond)
     return vt[rank:].T

@@ -8,7 +8,8 @@ functions:
 * ``statics``, ``id``, ``simulate`` (:mod:`.dynamics`);
 * ``view``, ``plot`` (:mod:`.views`);
 * ``urdf`` (:mod:`.export`);
-* ``retime``, ``check`` (:mod:`.planning`).
+* ``retime``, ``check`` (:mod:`.planning`);
+* ``calibrate`` (:mod:`.calibrate`).
 
 Common options (:mod:`.common`):
 
@@ -45,7 +46,7 @@ from typing import Annotated
 import typer
 
 from .. import __version__
-from . import demo, dynamics, export, kinematics, planning, views
+from . import calibrate, demo, dynamics, export, kinematics, planning, views
 from .common import NUMBERS, Command, Group
 
 app = typer.Typer(help="Kinematics and dynamics of the rail-driven hexapod.", no_args_is_help=True,
@@ -80,6 +81,7 @@ app.command(cls=Command)(views.plot)
 app.command(cls=Command)(export.urdf)
 app.command(cls=Command)(planning.retime)
 app.command(cls=Command)(planning.check)
+app.command(cls=Command, context_settings=NUMBERS)(calibrate.calibrate)
 
 
 def main() -> None:  # pragma: no cover - console entry point
