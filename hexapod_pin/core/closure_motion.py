@@ -31,7 +31,6 @@ from typing import NamedTuple
 import numpy as np
 import proxsuite
 import scipy.linalg
-from scipy.linalg.lapack import dgeqp3, dorgqr, dtrtri
 
 from ..errors import InconsistentMotionError, InputError, SingularityError, SolverError
 from .compiled import jit
@@ -64,8 +63,7 @@ def independent_rows(jac: np.ndarray, rtol: float = ROW_RTOL) -> np.ndarray:
     """
     if jac.shape[0] == 0 or jac.shape[1] == 0:
         return np.zeros(0, dtype=int)
-    _, piv, _, rank = _pivoted_qr(jac, rtol)
-    return np.sort(piv[:rank])
+    return np.sort(row_basis(jac, rtol).rows)
 
 
 class RowBasis(NamedTuple):
@@ -85,32 +83,87 @@ class RowBasis(NamedTuple):
 
 
 def row_basis(jac: np.ndarray, rtol: float = ROW_RTOL) -> RowBasis:
-    """:class:`RowBasis` of ``jac`` (the rows of :func:`independent_rows`, same ``rtol``)."""
-    n = jac.shape[1]
-    if jac.shape[0] == 0 or n == 0:
-        return RowBasis(np.zeros(0, dtype=int), np.zeros((n, 0)), np.eye(n), np.zeros((n, 0)))
-    qr_mat, piv, tau, rank = _pivoted_qr(jac, rtol)
-    square = np.zeros((n, n), order="F")
-    k = min(qr_mat.shape)
-    square[:, :k] = qr_mat[:, :k]
-    q_mat, _, info = dorgqr(square, tau[:k], overwrite_a=1)
-    r_inv, info_t = dtrtri(np.array(qr_mat[:rank, :rank], order="F"), lower=0)
-    r_inv = np.triu(r_inv)                     # dtrtri leaves the strict lower part as given
-    if info != 0 or info_t != 0:
-        raise SolverError("LAPACK dorgqr / dtrtri", str((info, info_t)), "closure row basis")
-    basis = q_mat[:, :rank]
-    return RowBasis(piv[:rank], basis, q_mat[:, rank:], basis @ r_inv.T)
+    """:class:`RowBasis` of ``jac`` (rows of :func:`independent_rows`, the same ``rtol``).
+
+    Householder QR of ``jac^T`` with column pivoting (largest remaining norm first, as
+    LAPACK's dgeqp3), compiled: ``jac[rows]^T = Q1 R11``, rank where a pivot falls to
+    ``rtol`` times the first.
+
+    Raises:
+        SolverError: non-finite entries in ``jac``.
+    """
+    jac = np.ascontiguousarray(jac, dtype=float)
+    rank, piv, q_mat, pinv = _basis_kernel(jac, rtol)
+    if rank < 0:
+        raise SolverError("closure row basis", "non-finite", "NaN or inf in the Jacobian")
+    return RowBasis(piv[:rank], q_mat[:, :rank], q_mat[:, rank:], pinv)
 
 
-def _pivoted_qr(jac: np.ndarray, rtol: float):
-    """LAPACK's dgeqp3 of ``jac^T`` directly (scipy.linalg.qr costs ten times the QR here):
-    (packed QR, pivots from 0, reflector factors, numerical rank)."""
-    qr_mat, piv, tau, _, info = dgeqp3(np.array(jac.T, order="F"), overwrite_a=1)
-    if info != 0:
-        raise SolverError("LAPACK dgeqp3", str(info), "independent rows of the closures")
-    diag = np.abs(np.diagonal(qr_mat))
-    rank = int(np.count_nonzero(diag > rtol * diag[0])) if diag.size and diag[0] > 0.0 else 0
-    return qr_mat, piv - 1, tau, rank
+@jit
+def _basis_kernel(jac, rtol):
+    """(rank or -1 when not finite, pivots, Q (n, n), right inverse (n, rank)) of
+    :func:`row_basis`."""
+    m_rows, n = jac.shape
+    a = np.ascontiguousarray(jac.T)                   # (n, m_rows): columns are the rows
+    piv = np.arange(m_rows)
+    steps = min(n, m_rows)
+    vecs = np.zeros((n, steps))
+    betas = np.zeros(steps)
+    q_mat = np.eye(n)
+    if not np.all(np.isfinite(a)):
+        return -1, piv, q_mat, np.zeros((n, 0))
+    rank, first = 0, 0.0
+    for j in range(steps):
+        best, where = -1.0, j
+        for c in range(j, m_rows):
+            norm2 = 0.0
+            for i in range(j, n):
+                norm2 += a[i, c] * a[i, c]
+            if norm2 > best:
+                best, where = norm2, c
+        if where != j:
+            for i in range(n):
+                a[i, j], a[i, where] = a[i, where], a[i, j]
+            piv[j], piv[where] = piv[where], piv[j]
+        size = np.sqrt(best)
+        if j == 0:
+            first = size
+        if not size > rtol * first or size == 0.0:
+            break
+        alpha = -size if a[j, j] >= 0.0 else size
+        v = a[j:, j].copy()
+        v[0] -= alpha
+        vnorm2 = 0.0
+        for i in range(v.shape[0]):
+            vnorm2 += v[i] * v[i]
+        beta = 2.0 / vnorm2 if vnorm2 > 0.0 else 0.0
+        for c in range(j, m_rows):
+            dot = 0.0
+            for i in range(v.shape[0]):
+                dot += v[i] * a[j + i, c]
+            dot *= beta
+            for i in range(v.shape[0]):
+                a[j + i, c] -= dot * v[i]
+        vecs[j:, j] = v
+        betas[j] = beta
+        rank += 1
+    for j in range(rank - 1, -1, -1):                 # Q = H_0 H_1 ... H_(rank-1)
+        for c in range(n):
+            dot = 0.0
+            for i in range(j, n):
+                dot += vecs[i, j] * q_mat[i, c]
+            dot *= betas[j]
+            for i in range(j, n):
+                q_mat[i, c] -= dot * vecs[i, j]
+    # right inverse Q1 R11^-T: each of its rows y solves y R11^T = (that row of Q1)
+    pinv = np.zeros((n, rank))
+    for row in range(n):
+        for k in range(rank - 1, -1, -1):
+            acc = q_mat[row, k]
+            for i in range(k + 1, rank):
+                acc -= a[k, i] * pinv[row, i]
+            pinv[row, k] = acc / a[k, k]
+    return rank, piv, q_mat, pinv
 
 
 def complete(jac: np.ndarray, rhs: np.ndarray, known, values, method: str = "lstsq",

@@ -62,6 +62,7 @@ import proxsuite
 from ..errors import AssemblyError, InputError, SolverError
 from .checks import as_array
 from .closure_motion import RowBasis, row_basis
+from .compiled import jit
 
 IK_METHODS = ("qp", "lstsq")
 #: damping factor of the Levenberg-Marquardt term ``lambda = DAMPING |e|_W^2``
@@ -92,6 +93,7 @@ MU_MIN = 1e-12
 CHORD_ITER = 8
 CHORD_CONTRACTION = 0.5
 _QP_EPS = 1e-12
+_LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 #: ProxSuite's cap on its outer and on its inner iterations per step (well-posed steps
 #: take fewer than 20 in all)
 QP_MAX_ITER = 100
@@ -192,17 +194,20 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
                          "tol, closure_tol > 0, max_iter >= 1, damping >= 0 needed")
     tasks = _tasks(clm, frame, target, position_only, weights)
     fixed_v = _fixed_indices(clm, fixed)
-    start = clm.neutral() if q0 is None else clm.check_q(q0, "q0")
-    q = clm.assemble(start, fixed=fixed_v, tol=closure_tol).q
+    q = clm.neutral() if q0 is None else clm.check_q(q0, "q0")
+    res_c = clm.residual(q)
+    if not np.max(np.abs(res_c), initial=0.0) <= closure_tol:
+        q = clm.assemble(q, fixed=fixed_v, tol=closure_tol).q
+        res_c = clm.residual(q)
     problem = _Problem(clm, tasks, fixed_v, method, closure_tol, limits, q)
-    lin = problem.linearise(q, clm.residual(q))
+    lin = problem.linearise(q, res_c)
     cost = lin.cost
-    mu, growth, stalled, curvature = damping, 2.0, 0, None
+    mu, growth, stalled, curvature, slow = damping, 2.0, 0, None, True
     history = [float(np.max(np.abs(lin.err)))]
     for iteration in range(max_iter + 1):
         if history[-1] <= tol:
             return _result(clm, tasks, q, True, history, closure_tol)
-        if problem.stationary(lin, q):
+        if slow and problem.stationary(lin, q):     # (fast steps are not near one)
             return _result(clm, tasks, q, False, history, closure_tol)
         if iteration == max_iter:
             break
@@ -280,8 +285,11 @@ def _placement(target, position_only: bool) -> pin.SE3:
     else:
         mat = as_array(target, (4, 4), "target")
     rot = mat[:3, :3]
-    if not (np.allclose(rot.T @ rot, np.eye(3), atol=1e-9) and np.linalg.det(rot) > 0
-            and np.allclose(mat[3], [0, 0, 0, 1])):
+    # np.allclose's test (atol 1e-9, rtol 1e-5 for the orthonormality; defaults for the
+    # last row), written out: allclose itself costs more than the rest of a step
+    eye = np.eye(3)
+    if not (np.all(np.abs(rot.T @ rot - eye) <= 1e-9 + 1e-5 * eye) and np.linalg.det(rot) > 0
+            and np.all(np.abs(mat[3] - _LAST_ROW) <= 1e-8 + 1e-5 * _LAST_ROW)):
         raise InputError("target", target, "not a rigid placement (rotation, last row)")
     return pin.SE3(rot, mat[:3, 3])
 
@@ -342,14 +350,23 @@ class _Problem:
     def __init__(self, clm, tasks, fixed_v, method, closure_tol, limits, q):
         self.clm, self.tasks, self.method, self.closure_tol = clm, tasks, method, closure_tol
         self.fixed_v = fixed_v
-        self.free = np.setdiff1d(np.arange(clm.nv), fixed_v)
+        keep = np.ones(clm.nv, dtype=bool)
+        keep[fixed_v] = False
+        self.free = np.flatnonzero(keep)
+        self.all_free = self.free.size == clm.nv
         self.box = _limits(clm, self.free, q) if (limits and method == "qp") else None
         self.weight = np.concatenate([t.weight for t in tasks])
         self.data = clm.model.createData()
-        self.qp = None
+        self.qp, self.qp_rows = None, -1
+        self.selection = None            # the rows of the limited joints (QP inequalities)
+        if self.box is not None:
+            self.selection = np.zeros((self.box.position.size, self.free.size))
+            self.selection[np.arange(self.box.position.size), self.box.position] = 1.0
 
     def full(self, step: np.ndarray) -> np.ndarray:
         """A step on the free coordinates as a tangent vector (nv,)."""
+        if self.all_free:
+            return step
         out = np.zeros(self.clm.nv)
         out[self.free] = step
         return out
@@ -360,7 +377,9 @@ class _Problem:
 
     def linearise(self, q: np.ndarray, res_c: np.ndarray) -> Linearisation:
         """Errors and Jacobians at ``q`` (closure residual ``res_c`` already known)."""
-        jac_c = self.clm.constraint_jacobian(q)[:, self.free]
+        jac_c = self.clm.constraint_jacobian(q)
+        if not self.all_free:
+            jac_c = jac_c[:, self.free]
         err, jac_t = self._task_jacobian(q)
         basis = row_basis(jac_c)
         return Linearisation(err, float(err @ (self.weight * err)), jac_t, jac_c[basis.rows],
@@ -383,7 +402,9 @@ class _Problem:
                 errs.append(pin.log6(rel).vector)
                 jacs.append(pin.Jlog6(rel) @ pin.getFrameJacobian(model, data, task.frame,
                                                                    pin.ReferenceFrame.LOCAL))
-        return np.concatenate(errs), np.vstack(jacs)[:, self.free]
+        jac_t = jacs[0] if len(jacs) == 1 else np.vstack(jacs)
+        return (errs[0] if len(errs) == 1 else np.concatenate(errs),
+                jac_t if self.all_free else jac_t[:, self.free])
 
     def curvature(self, lin: Linearisation, q: np.ndarray) -> np.ndarray | None:
         """The second-order term Gauss-Newton leaves out, on the closures' null space.
@@ -434,18 +455,14 @@ class _Problem:
              curvature: np.ndarray | None = None) -> np.ndarray:
         """The damped step on the free coordinates (the module docstring's QP), with the
         second-order term of :meth:`curvature` added to the Hessian when given."""
-        n = self.free.size
-        weighted = self.weight[:, None] * lin.jac_t
-        hess = lin.jac_t.T @ weighted
-        if curvature is not None:
-            hess += curvature
-        hess[np.diag_indices(n)] += lam
-        grad = weighted.T @ lin.err
+        hess, grad, a_mat, b, s, scale = _qp_data(
+            lin.jac_t, self.weight, lin.err, lam,
+            _NO_CURVATURE if curvature is None else curvature, lin.jac_c, lin.res_c)
         if self.method == "qp":
-            step = self._qp_step(lin, hess, grad, q)
+            step = self._qp_step(hess, grad, a_mat, b, s, q)
             if step is not None:
                 return step
-        step = self._null_space_step(lin, hess, grad)
+        step = self._null_space_step(lin, hess * scale, grad * (scale * s))
         if self.method == "qp" and self.box is not None and not self._inside(
                 pin.integrate(self.clm.model, q, self.full(step))):
             raise SolverError("proxsuite.proxqp.dense", str(self.qp.results.info.status),
@@ -463,29 +480,23 @@ class _Problem:
         z = np.linalg.lstsq(reduced, -null.T @ (grad + hess @ part), rcond=None)[0]
         return part + null @ z
 
-    def _qp_step(self, lin, hess, grad, q) -> np.ndarray | None:
-        """ProxSuite's step, or None where it stops at ``QP_MAX_ITER`` (an ill-conditioned
-        step near a singular placement, where its proximal iterations crawl)."""
-        # unknowns scaled by the task error (y = dv / s): ProxSuite's absolute accuracy then
-        # acts relative to the step, which keeps the last Newton steps exact
-        n, n_eq = self.free.size, lin.basis.rows.size
-        s = max(float(np.max(np.abs(lin.err))), 1e-300)
-        a_mat = b = None
-        if n_eq:
-            norms = np.sqrt(np.einsum("ij,ij->i", lin.jac_c, lin.jac_c))
-            a_mat = lin.jac_c / norms[:, None]
-            b = -lin.res_c / (norms * s)
+    def _qp_step(self, hess, grad, a_mat, b, s, q) -> np.ndarray | None:
+        """ProxSuite's step on the scaled data of :func:`_qp_data`, or None where it stops
+        at ``QP_MAX_ITER`` (an ill-conditioned step near a singular placement, where its
+        proximal iterations crawl)."""
+        n, n_eq = hess.shape[0], b.size
+        if not n_eq:
+            a_mat = b = None
         box = self.box
         n_in = 0 if box is None else box.position.size
         c_mat = low = up = None
         if n_in:
-            c_mat = np.zeros((n_in, n))
-            c_mat[np.arange(n_in), box.position] = 1.0
+            c_mat = self.selection
             low = np.minimum(box.lower - q[box.q_index], 0.0) / s
             up = np.maximum(box.upper - q[box.q_index], 0.0) / s
-        scale = max(1.0, float(np.max(np.abs(hess))))
         qp = self.qp
-        if qp is None or qp.model.n_eq != n_eq:
+        if qp is None or self.qp_rows != n_eq:
+            self.qp_rows = n_eq
             qp = self.qp = proxsuite.proxqp.dense.QP(n, n_eq, n_in)
             qp.settings.eps_abs = _QP_EPS
             qp.settings.eps_rel = 0.0
@@ -496,9 +507,9 @@ class _Problem:
             qp.settings.verbose = False
             qp.settings.max_iter = QP_MAX_ITER
             qp.settings.max_iter_in = QP_MAX_ITER
-            qp.init(hess / scale, grad / (scale * s), a_mat, b, c_mat, low, up)
+            qp.init(hess, grad, a_mat, b, c_mat, low, up)
         else:
-            qp.update(hess / scale, grad / (scale * s), a_mat, b, c_mat, low, up)
+            qp.update(hess, grad, a_mat, b, c_mat, low, up)
         qp.solve()
         step = s * qp.results.x
         if qp.results.info.status != proxsuite.proxqp.PROXQP_SOLVED or not np.all(
@@ -585,3 +596,36 @@ def _task_errors(model, data, tasks, q) -> np.ndarray:
         else:
             out.append(pin.log6(task.target.actInv(omf)).vector)
     return np.concatenate(out)
+
+
+_NO_CURVATURE = np.zeros((0, 0))
+
+
+@jit
+def _qp_data(jac_t, weight, err, lam, curvature, jac_c, res_c):
+    """The step's QP data, scaled: (H, g, A, b, s, scale) with ``H = (J_t^T W J_t [+ C]
+    + lam I) / scale``, ``g = J_t^T W e / (scale s)``, ``A`` the closure rows at unit norm,
+    ``b = -r_c / (|row| s)``, ``s = max|e|`` and ``scale = max(1, max|H|)``.
+
+    The unknowns are scaled by the task error (``y = dv / s``): ProxSuite's absolute
+    accuracy then acts relative to the step, which keeps the last Newton steps exact.
+    """
+    n = jac_t.shape[1]
+    weighted = np.empty_like(jac_t)
+    for i in range(jac_t.shape[0]):
+        weighted[i] = weight[i] * jac_t[i]
+    hess = jac_t.T @ weighted
+    if curvature.shape[0] == n:
+        hess += curvature
+    for i in range(n):
+        hess[i, i] += lam
+    grad = weighted.T @ err
+    s = max(np.max(np.abs(err)), 1e-300)
+    scale = max(1.0, np.max(np.abs(hess)))
+    a_mat = np.empty_like(jac_c)
+    b = np.empty(jac_c.shape[0])
+    for i in range(jac_c.shape[0]):
+        norm = np.sqrt(np.sum(jac_c[i] * jac_c[i]))
+        a_mat[i] = jac_c[i] / norm
+        b[i] = -res_c[i] / (norm * s)
+    return hess / scale, grad / (scale * s), a_mat, b, s, scale
