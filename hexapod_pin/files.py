@@ -5,7 +5,13 @@
   dataclass of numbers and tuples of numbers otherwise), at the top level or under a
   ``geometry`` table, e.g. ``leg_length = 0.5``; ``FIELD=VALUE`` overrides (the
   command line's ``--set``) are applied on top. Units are those of the dataclass
-  (SI: m, kg, N).
+  (SI: m, kg, N). An as-built hexapod adds a ``chains`` table (``[chains]`` in TOML,
+  under ``geometry`` when the fields are) with the five arrays of
+  :class:`~hexapod_pin.hexapod.geometry.ChainGeometry` (``line_points``,
+  ``line_directions``, ``platform_joints`` as six rows of three numbers,
+  ``sensor_offsets`` and ``leg_lengths`` as six numbers; m, world / platform frame).
+  :func:`save_geometry` writes such a file (every number as its shortest exact
+  decimal, so that loading it back gives the same geometry bit for bit).
 * :func:`write_text_atomic`: a file is replaced in one step (a temporary file in
   the same folder, then ``os.replace``), so a reader never sees half a file.
 
@@ -27,7 +33,7 @@ from typing import Any
 import yaml
 
 from .errors import DescriptionError, GeometryError, InputError
-from .hexapod.geometry import HexapodGeometry
+from .hexapod.geometry import CHAIN_FIELDS, ChainGeometry, HexapodGeometry
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -103,10 +109,84 @@ def load_geometry(path: str | os.PathLike | None = None,
     for key in tuple_fields:
         if isinstance(fields.get(key), list):
             fields[key] = tuple(fields[key])
+    if "chains" in fields and "chains" in known:
+        fields["chains"] = _chains_of(fields["chains"])
     try:
         return geometry_type(**fields)
     except TypeError as exc:  # e.g. a field given as a table
         raise GeometryError("geometry", fields, str(exc)) from None
+
+
+def _chains_of(table: Any) -> ChainGeometry:
+    """The :class:`ChainGeometry` of a file's ``chains`` table."""
+    names = [name for name, _ in CHAIN_FIELDS]
+    if not isinstance(table, dict):
+        raise GeometryError("chains", table, f"must be a table of {', '.join(names)}")
+    wrong = sorted(set(table) ^ set(names))
+    if wrong:
+        raise GeometryError("chains", sorted(table),
+                            f"needs exactly the arrays {', '.join(names)} (got or missing: "
+                            f"{', '.join(wrong)})")
+    return ChainGeometry(**{name: table[name] for name in names})
+
+
+def geometry_table(geometry: Any) -> dict:
+    """The fields of a geometry dataclass as a table of plain numbers, lists and (for an
+    as-built hexapod) the ``chains`` table of nested lists; ``chains = None`` is left out."""
+    table: dict = {}
+    for f in dataclasses.fields(geometry):
+        value = getattr(geometry, f.name)
+        if value is None:
+            continue
+        if isinstance(value, ChainGeometry):
+            table[f.name] = value.as_dict()
+        elif isinstance(value, tuple):
+            table[f.name] = [float(v) for v in value]
+        else:
+            table[f.name] = float(value)
+    return table
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return repr(float(value))
+
+
+def save_geometry(geometry: Any, path: str | os.PathLike) -> Path:
+    """Write a geometry file that :func:`load_geometry` reads back to an equal geometry.
+
+    Args:
+        geometry: a :class:`HexapodGeometry` (ideal or as built) or another geometry
+            dataclass of numbers and tuples of numbers.
+        path: the file; its suffix (.toml, .yaml, .yml, .json) chooses the format.
+
+    Returns:
+        the path.
+
+    Raises:
+        DescriptionError: another suffix.
+        InputError: the folder does not exist.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in GEOMETRY_SUFFIXES:
+        raise DescriptionError(str(path), "geometry file must be .toml, .yaml, .yml or .json")
+    table = geometry_table(geometry)
+    if suffix == ".json":
+        text = json.dumps({"geometry": table}, indent=2) + "\n"
+    elif suffix in (".yaml", ".yml"):
+        text = yaml.safe_dump({"geometry": table}, sort_keys=False)
+    else:
+        lines = ["[geometry]"]
+        lines += [f"{key} = {_toml_value(value)}" for key, value in table.items()
+                  if not isinstance(value, dict)]
+        for key, value in table.items():
+            if isinstance(value, dict):
+                lines += ["", f"[geometry.{key}]"]
+                lines += [f"{name} = {_toml_value(rows)}" for name, rows in value.items()]
+        text = "\n".join(lines) + "\n"
+    return write_text_atomic(path, text)
 
 
 def read_geometry_file(path: str | os.PathLike) -> dict:

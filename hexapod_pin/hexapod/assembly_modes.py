@@ -26,6 +26,13 @@ exactly one pose maps ``p_k`` to ``P_k`` (:func:`pose_from_points`). This module
 holds the Newton solver on ``theta`` used by ``forward_kinematics`` and the
 complete enumeration used by ``assembly_modes`` (see :func:`enumerate_assemblies`).
 
+An as-built robot (per-chain lines, lengths and platform joints,
+:class:`~hexapod_pin.hexapod.geometry.ChainGeometry`) has no such reduction: the two
+legs of a rail need not meet at one point. Its forward kinematics is Newton's method on
+the six closure equations (:func:`forward_as_built`) and its assembly modes are those of
+its ideal drawing followed to the as-built geometry by continuation
+(:func:`modes_as_built`).
+
 All lengths are in metres, angles in radians, world axes throughout.
 """
 
@@ -37,9 +44,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import AssemblyError
-from .geometry import HexapodGeometry
 from ..core.pose import rotation_rpy, rpy_of
+from ..errors import AssemblyError
+from .geometry import ChainGeometry, HexapodGeometry, closure_pose
 
 #: the three triangle equations, as (j, k) pairs of rails
 PAIRS = ((0, 1), (1, 2), (2, 0))
@@ -666,3 +673,70 @@ def _distinct(points: np.ndarray, tol: float) -> list[int]:
         if not chosen or np.min(dist[i, chosen]) > tol:
             chosen.append(i)
     return chosen
+
+
+# --------------------------------------------------------------------------------------
+# as-built robots: Newton on the six closure equations, continuation from the drawing
+# --------------------------------------------------------------------------------------
+#: geometry steps of the continuation from the ideal drawing to the as-built chains
+CONTINUATION_STEPS = 8
+
+
+def forward_as_built(chains: ChainGeometry, q, guess, max_iter: int = 50) -> np.ndarray:
+    """Forward kinematics of an as-built robot: Newton's method on the six closure
+    equations ``|t + R p_i - c_i(q)| = L_i`` (:func:`~hexapod_pin.hexapod.geometry.
+    closure_pose`) from ``guess`` (6,), converging to the assembly mode whose basin holds
+    it; every leg within ``CLOSURE_TOL max(1, L_i)`` m of its length.
+
+    Raises:
+        AssemblyError: no convergence within ``max_iter`` iterations or a singular
+            closure Jacobian (type II) on the way.
+    """
+    pose = closure_pose(chains, q, guess, max_iter=max_iter)
+    if pose is None:
+        raise AssemblyError("Newton's method on the six closure equations did not converge "
+                            "from the guess (no assembly nearby, or a type-II singularity)",
+                            float("nan"), max_iter)
+    return pose
+
+
+def modes_as_built(geometry: HexapodGeometry, q) -> list[np.ndarray]:
+    """The assembly modes of an as-built robot at readings ``q`` (6,), by continuation
+    from those of its ideal drawing.
+
+    The ideal robot's modes at the same readings come from the complete enumeration
+    (:func:`enumerate_assemblies`); each is followed along the straight line from the
+    drawing's :class:`~hexapod_pin.hexapod.geometry.ChainGeometry` vector to the as-built
+    one in ``CONTINUATION_STEPS`` steps (directions renormalised at each), Newton's
+    method on the six closure equations at each step; the modes that arrive are
+    verified by :func:`~hexapod_pin.hexapod.geometry.closure_pose`'s tolerance and
+    deduplicated. For deviations small against the distances between the modes
+    (millimetres on this robot) every mode is followed; a mode that meets a type-II
+    singularity on the way is lost (not replaced by a wrong pose).
+
+    Returns:
+        the distinct poses (6,) found, in no particular order.
+
+    Raises:
+        AssemblyError: the ideal readings are degenerate (see :func:`enumerate_assemblies`).
+    """
+    q = np.asarray(q, dtype=float)
+    cg = CircleGeometry.from_geometry(geometry)
+    system = circle_system(cg, q)
+    if system is None:
+        return []
+    start = ChainGeometry.ideal(geometry).as_vector()
+    stop = geometry.chain_geometry.as_vector()
+    steps = [ChainGeometry.from_vector(start + t * (stop - start))
+             for t in np.linspace(0.0, 1.0, CONTINUATION_STEPS + 1)[1:]]
+    found: list[np.ndarray] = []
+    for theta in enumerate_assemblies(system):
+        pose = np.array(pose_from_points_t(cg, system.points_t(*theta.tolist())))
+        for chains in steps:
+            pose = closure_pose(chains, q, pose)
+            if pose is None:
+                break
+        if pose is not None and not any(
+                np.max(np.abs(pose - other)) <= 1e-9 for other in found):
+            found.append(pose)
+    return found

@@ -127,8 +127,8 @@ def _closure_measures(geo, signs, poses, cosine, a_hat):
             K.leg_state(geo, signs[k if ss else 0], poses[k], rot, wk)
             small = np.inf
             for i in range(6):
-                small = min(small, abs(wk[K.NU, i]))
-            cosine[k] = small / geo[K.LEN]
+                small = min(small, abs(wk[K.NU, i]) / geo[K.BLOCK * i + K.LENI])
+            cosine[k] = small
             K.closure_matrix_hat(geo, wk, a_hat[k])
 
 

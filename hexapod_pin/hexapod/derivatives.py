@@ -59,6 +59,7 @@ from ..core.pose import euler_rates_matrix
 from ..core.results import InverseDynamicsDerivatives
 from ..errors import HexapodPinError, SolverError
 from . import kernels
+from .geometry import carriage_frames
 
 __all__ = ["DerivativesWorkspace", "analytic_derivatives"]
 
@@ -96,11 +97,11 @@ class DerivativesWorkspace:
         self.kin = model.createData()           # rnea
         pin.initConstraintDynamics(model, self.data, self.cms, self.cds)
         self.prox = pin.ProximalSettings(1e-14, 0.0, 1)
-        geo = geometry
-        self.length = float(geo.leg_length)
-        # per carriage: the rail direction u and l = z x u (the rails are horizontal)
-        self.axes = [(tuple(u), (-u[1], u[0], 0.0))
-                     for u in geo.rail_directions[kernels.RAIL_OF].tolist()]
+        chains = geometry.chain_geometry
+        self.lengths = chains.leg_lengths.tolist()
+        # per carriage: the frame (u, l, w) of the carriage (geometry.carriage_frames)
+        self.axes = [tuple(tuple(axis) for axis in frame.T.tolist())
+                     for frame in carriage_frames(chains)]
         # rows (dq | dv | dtau_tree) x columns (world tangent | twist | wrench | tau); the
         # zeros and the actuation block stay, the rest is overwritten at each call
         chain = np.zeros((3 * self.nv, 24))
@@ -255,19 +256,19 @@ def _leg_rates(ws: DerivativesWorkspace, wk, gmap, twist, vel):
         c.dn = c.D - (c.u) dq_i       for dn = D - dq_i u
         d qdot_i = (V.dn + n.dV - qdot_i u.dn) / (n.u),      c.dV = (c x w).dr
         c.d(dn/dt) = c.dV - (c.u) d qdot_i
-        X = n.z / L, Y = -n.l / L, rho^2 = X^2 + Y^2
-        adot = -(X (dn/dt).l + Y (dn/dt).z) / (L rho^2),   bdot = (dn/dt).u / (L rho)
+        X = n.w / L, Y = -n.l / L, rho^2 = X^2 + Y^2     ((u, l, w) the carriage frame)
+        adot = -(X (dn/dt).l + Y (dn/dt).w) / (L rho^2),   bdot = (dn/dt).u / (L rho)
 
     differentiated term by term.
     """
-    length = ws.length
-    inv_len = 1.0 / length
     wx, wy, wz = twist[3:]
     K = kernels
     dv_rows = []
     cols = wk[[K.NX, K.NY, K.NZ, K.RX, K.RY, K.RZ, K.NU, K.XA, K.YA, K.RHO2, K.DNX, K.DNY,
                K.DNZ]].T.tolist()
-    for i, ((ux, uy, uz), (lx, ly, lz)) in enumerate(ws.axes):
+    for i, ((ux, uy, uz), (lx, ly, lz), (kx, ky, kz)) in enumerate(ws.axes):
+        length = ws.lengths[i]
+        inv_len = 1.0 / length
         nx, ny, nz, rx, ry, rz, nu, big_x, big_y, rho2, ex, ey, ez = cols[i]   # ex: dn/dt
         rho = rho2 ** 0.5
         qdot, adot, bdot = vel[3 * i:3 * i + 3]
@@ -281,17 +282,19 @@ def _leg_rates(ws: DerivativesWorkspace, wk, gmap, twist, vel):
         aqz = (tz - tu * gcz - qdot * (uz - gcz)) / nu
         bqx, bqy, bqz = (ny * wz - nz * wy) / nu, (nz * wx - nx * wz) / nu, \
             (nx * wy - ny * wx) / nu
-        # dX (c = z / L), dY (c = -l / L), d rho^2
-        cu = uz
-        axx, axy, axz = -cu * gcx * inv_len, -cu * gcy * inv_len, (1.0 - cu * gcz) * inv_len
+        # dX (c = w / L, w = (kx, ky, kz) the frame's third axis), dY (c = -l / L), d rho^2
+        cu = kx * ux + ky * uy + kz * uz
+        axx, axy, axz = (kx - cu * gcx) * inv_len, (ky - cu * gcy) * inv_len, \
+            (kz - cu * gcz) * inv_len
         cu = lx * ux + ly * uy + lz * uz
         ayx, ayy, ayz = (cu * gcx - lx) * inv_len, (cu * gcy - ly) * inv_len, \
             (cu * gcz - lz) * inv_len
         arx, ary, arz = 2.0 * (big_x * axx + big_y * ayx), 2.0 * (big_x * axy + big_y * ayy), \
             2.0 * (big_x * axz + big_y * ayz)
-        # d adot: num = -X (dn/dt).l - Y (dn/dt).z, c = -(X l + Y z) on d(dn/dt)
-        ndl, ndz = ex * lx + ey * ly + ez * lz, ez
-        cx, cy, cz = -big_x * lx, -big_x * ly, -(big_x * lz + big_y)
+        # d adot: num = -X (dn/dt).l - Y (dn/dt).w, c = -(X l + Y w) on d(dn/dt)
+        ndl, ndz = ex * lx + ey * ly + ez * lz, ex * kx + ey * ky + ez * kz
+        cx, cy, cz = -(big_x * lx + big_y * kx), -(big_x * ly + big_y * ky), \
+            -(big_x * lz + big_y * kz)
         cu = cx * ux + cy * uy + cz * uz
         k_a, k_r = 1.0 / (length * rho2), adot / rho2
         aax = (-ndl * axx - ndz * ayx - cu * aqx) * k_a - k_r * arx

@@ -12,7 +12,9 @@ Conventions (those of the library): pose ``(x, y, z, roll, pitch, yaw)`` (m, rad
 ``R = Rz(yaw) Ry(pitch) Rx(roll)``; twist ``(v, w)`` of the platform origin, world axes;
 ``twist_dot`` its plain time derivative; ``tau_i`` the force on carriage i along ``+u_k``
 (N), carriage order; wrench ``(f, m)`` applied on the platform by the environment, world
-axes, moment about the platform origin (N, N m); home IK branch.
+axes, moment about the platform origin (N, N m); home IK branch. The kernels read the
+geometry per chain (:func:`~hexapod_pin.hexapod.kernels.pack_geometry`), so an as-built
+robot runs the same code as the ideal one.
 
 Simulation (:func:`simulate_fast`): state ``(p, Q, v, w)`` with ``Q`` the unit quaternion
 of ``R`` (no gimbal lock), ``dp/dt = v``, ``dQ/dt = 1/2 (0, w) (x) Q`` (world angular

@@ -236,7 +236,9 @@ def carriage_frames(chains: ChainGeometry) -> np.ndarray:
     norms = np.linalg.norm(lat, axis=1)
     lat = np.where(np.abs(norms - 1.0)[:, None] <= 4 * np.finfo(float).eps, lat,
                    lat / norms[:, None])
-    return np.stack([u, lat, np.cross(u, lat)], axis=2)
+    up = np.cross(u, lat)
+    up = up / np.linalg.norm(up, axis=1)[:, None]
+    return np.stack([u, lat, up], axis=2)
 
 
 @dataclass(frozen=True)

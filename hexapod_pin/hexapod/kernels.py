@@ -12,6 +12,18 @@ origin in world axes, ``twist_dot`` its plain time derivative; wrench ``(f, m)``
 ON the platform, world axes, moment about the platform origin (N, N m); actuator force
 ``tau_i`` on carriage ``i`` along ``+u_k`` (N); carriage ``i`` on rail ``k = i // 2``.
 
+Per-chain geometry (:func:`pack_geometry`). Every kernel reads the geometry per chain, so
+the ideal drawing and an as-built robot
+(:class:`~hexapod_pin.hexapod.geometry.ChainGeometry`) run the same code: chain ``i`` has
+the line point ``m_k := M_i = line_points[i] + sensor_offsets[i] u_i`` (the sensor
+offset folded in, so ``c_i = M_i + q_i u_i``), the direction ``u_k := u_i``, the carriage
+frame ``(u, l, w)`` with ``l = normalize(z x u)``, ``w = u x l`` (the frame of the
+URDF's carriage joint; ``w = z`` for a horizontal rail), the leg length ``L := L_i`` and
+the platform joint ``p_k := p_i`` (any point of the platform frame). Below, ``m_k, u_k,
+p_k, r_k, L`` are per chain. The type-II measure keeps the nominal ``platform_radius``
+as its length scale; the linear solves with ``A`` are scaled by the nominal
+``leg_length`` (``L_ref``), so that the ideal robot's arithmetic is unchanged.
+
 Legs (:func:`legs`). With ``r_k = R p_k`` and ``d_i = t + r_k - m_k``, carriage ``i`` sits
 at ``q_i = u.d + s_i sqrt(L^2 - |d|^2 + (u.d)^2)`` (branch sign ``s_i``), its leg is
 ``n_i = d_i - q_i u_k`` and ``J[i] = [n_i, r_k x n_i] / (n_i . u_k)`` (``qdot = J twist``).
@@ -20,9 +32,9 @@ Rates: ``dn/dt = v + w x r - qdot u``; carriage accelerations
 
 Tree state (:func:`tree_state`, the Pinocchio tree of ``urdf/hexapod.urdf.xacro``: per
 carriage a prismatic joint, a universal joint ``u_i_a`` about ``u_k`` then ``u_i_b``, and
-the platform's free-flyer). In the carriage frame ``(u, l, z)``, ``l = z x u``, the unit
-leg direction ``e = n / L = sin(b) u - sin(a) cos(b) l + cos(a) cos(b) z``, so
-``b = atan2(e.u, rho)``, ``a = atan2(-e.l, e.z)``, ``rho^2 = X^2 + Y^2`` with ``X = e.z``,
+the platform's free-flyer). In the carriage frame ``(u, l, w)``, the unit
+leg direction ``e = n / L = sin(b) u - sin(a) cos(b) l + cos(a) cos(b) w``, so
+``b = atan2(e.u, rho)``, ``a = atan2(-e.l, e.w)``, ``rho^2 = X^2 + Y^2`` with ``X = e.w``,
 ``Y = -e.l``; the rates differentiate those, the free-flyer gets ``(R^T v, R^T w)`` and
 ``(R^T (vdot - w x v), R^T wdot)``. ``v_tree = G twist`` (:func:`velocity_map`) and ``G^T``
 maps a tree generalised force to a platform wrench (:func:`project`).
@@ -30,8 +42,10 @@ maps a tree generalised force to a platform wrench (:func:`project`).
 Newton-Euler closed form (:func:`inverse_dynamics`, :func:`forward_dynamics`,
 :func:`static_forces`): carriage = point mass ``m_c``; leg = uniform rod ``m_l`` without
 axial inertia, dynamically equivalent to point masses ``m_l/6, 2 m_l/3, m_l/6`` at its
-ends and middle, i.e. end loads ``c_i = (m_c + m_l/3) qddot_i + (m_l/6) u.A_k`` on the
-carriage and ``F_i = (m_l/6) qddot_i u + (m_l/3) A_k + (0, 0, m_l g / 2)`` at the tip; the
+ends and middle, i.e. end loads ``c_i = (m_c + m_l/3) qddot_i + (m_l/6) u.A_k + (m_c +
+m_l/2) g u_z`` on the carriage (the last term, the weight along the rail, vanishes for a
+horizontal rail) and ``F_i = (m_l/6) qddot_i u + (m_l/3) A_k + (0, 0, m_l g / 2)`` at the
+tip; the
 rest of the leg force is axial, ``t_i n_i``. Platform (world axes, about its origin)::
 
     sum_i [F_i, r_k x F_i] + [m_p (vdot + g e_z), I_w wdot + w x I_w w] - wrench
@@ -39,10 +53,10 @@ rest of the leg force is axial, ``t_i n_i``. Platform (world axes, about its ori
 
 Forward dynamics solves the reduced equation ``M_x twist_dot = J^T tau + wrench - h_x``
 (``M_x`` symmetric positive definite, by Cholesky). The closure force of leg ``i`` ON
-the platform is ``t_i n_i - F_i``. Rails and platform points lie in the planes ``z = 0``
-of their frames (checked by :func:`pack_geometry`).
+the platform is ``t_i n_i - F_i``. Each leg is a uniform rod of its own length ``L_i``
+(the point-mass split above holds for any length).
 
-Measures: type I where ``|n.u| / L < TYPE_I_TOL`` (a leg perpendicular to its rail); the
+Measures: type I where ``|n.u| / L_i < TYPE_I_TOL`` (a leg perpendicular to its rail); the
 universal joint's gimbal lock where ``rho^2 < GIMBAL_TOL``; type II where the smallest
 singular value of ``A_hat`` (rows ``[e_i, (r_k x e_i) / platform_radius]``, the measure of
 :class:`~hexapod_pin.core.results.SingularityMeasures`) is below ``TYPE_II_TOL``: one test
@@ -67,9 +81,10 @@ from ..core.measures import TYPE_I_TOL, TYPE_II_TOL
 from ..core.pose import quaternion_rpy, rotation_quat, rotation_rpy, rpy_of
 from ..errors import (BatchSingularityError, BatchUnreachablePoseError, HexapodPinError,
                       SingularityError, UnreachablePoseError)
+from .geometry import HOME_SIGNS, carriage_frames
 
 #: the home IK branch: even carriages on the smaller root
-HOME_BRANCH = np.array([-1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
+HOME_BRANCH = HOME_SIGNS
 #: rail of each carriage
 RAIL_OF = np.array([0, 0, 1, 1, 2, 2])
 #: ``1 - cos(leg, rail)^2`` below which a leg lies along its rail (the universal joint is
@@ -81,12 +96,16 @@ BOUND_RTOL = 1e-9
 #: status codes of the kernels
 OK, UNREACHABLE, TYPE_I, GIMBAL, TYPE_II, NOT_PD, NONFINITE, STROKE, GAP, SATURATED = range(10)
 
-# -- packed geometry: per carriage i a block of 11 values at 11 i, then scalars --------
-MX, MY, MZ, UX, UY, UZ, LX, LY, PX, PY, PZ = range(11)
-BLOCK = 11
-(LEN, MC, ML, MP, IA, IB, IC, GRAV, TOL1, GIMB, TOL2, BOUND, HALF, GAP_MIN,
- RADIUS) = range(66, 81)
-GEO_SIZE = 81
+# -- packed geometry: per carriage i a block of BLOCK values at BLOCK i, then scalars ---
+# M (line point with the sensor offset folded in), the carriage frame (u, l, w), the
+# platform joint p, the leg length, L_ref / L_i and the type-I tolerance TYPE_I_TOL L_i
+(MX, MY, MZ, UX, UY, UZ, LX, LY, LZ, WX, WY, WZ, PX, PY, PZ, LENI, SCALE,
+ TOL1) = range(18)
+BLOCK = 18
+# LEN: the reference (nominal) leg length L_ref, the scale of the leg-matrix solves
+(LEN, MC, ML, MP, IA, IB, IC, GRAV, GIMB, TOL2, BOUND, HALF, GAP_MIN,
+ RADIUS) = range(6 * BLOCK, 6 * BLOCK + 14)
+GEO_SIZE = 6 * BLOCK + 14
 
 # -- rows of the per-leg work array wk (WK_ROWS, 6), carriage order ------------------------
 (RX, RY, RZ, NX, NY, NZ, NU, Q, DISC, INV, QD, DNX, DNY, DNZ, DN2, A0X, A0Y, A0Z, QDD0,
@@ -99,27 +118,25 @@ ZERO6 = np.zeros(6)
 
 def pack_geometry(geometry) -> np.ndarray:
     """The :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry` as the flat float64
-    vector (GEO_SIZE,) that every kernel reads.
-
-    Raises:
-        HexapodPinError: rails or platform points off the planes ``z = 0``.
-    """
+    vector (GEO_SIZE,) that every kernel reads: per chain its block (the joint-centre
+    line's point ``M_i = line_points[i] + sensor_offsets[i] u_i``, the carriage frame
+    ``(u, l, w)`` of :func:`~hexapod_pin.hexapod.geometry.carriage_frames`, the platform
+    joint, the leg length ``L_i``, ``L_ref / L_i`` and ``TYPE_I_TOL L_i``), then the
+    scalars (``L_ref`` the nominal ``leg_length``)."""
     g = geometry
-    mids, dirs, pts = g.rail_midpoints, g.rail_directions, g.platform_points
-    if np.any(mids[:, 2] != 0.0) or np.any(dirs[:, 2] != 0.0) or np.any(pts[:, 2] != 0.0):
-        raise HexapodPinError("the closed form needs rails and platform points in the "
-                              "planes z = 0 of their frames")
+    chains = g.chain_geometry
+    frames = carriage_frames(chains)
+    origins = chains.line_points + chains.sensor_offsets[:, None] * chains.line_directions
     out = np.zeros(GEO_SIZE)
     for i in range(6):
-        k = RAIL_OF[i]
-        (mx, my, mz), (ux, uy, uz), (px, py, pz) = mids[k], dirs[k], pts[k]
-        # l = z x u (the carriage frame's second axis)
-        out[BLOCK * i:BLOCK * (i + 1)] = (mx, my, mz, ux, uy, uz, -uy, ux, px, py, pz)
+        length = float(chains.leg_lengths[i])
+        out[BLOCK * i:BLOCK * (i + 1)] = (*origins[i], *frames[i].T.ravel(),
+                                          *chains.platform_joints[i], length,
+                                          g.leg_length / length, TYPE_I_TOL * length)
     ia, ib, ic = g.platform_inertia
     out[LEN:GEO_SIZE] = (g.leg_length, g.carriage_mass, g.leg_mass, g.platform_mass, ia, ib,
-                         ic, g.gravity, TYPE_I_TOL * g.leg_length, GIMBAL_TOL, TYPE_II_TOL,
-                         g.max_actuator_force, g.rail_half_length, g.carriage_min_gap,
-                         g.platform_radius)
+                         ic, g.gravity, GIMBAL_TOL, TYPE_II_TOL, g.max_actuator_force,
+                         g.rail_half_length, g.carriage_min_gap, g.platform_radius)
     return out
 
 
@@ -149,7 +166,7 @@ class ClosedForm:
             the platform's free-flyer (``q`` 25, ``v`` 24).
 
     Raises:
-        HexapodPinError: a tree of another layout, or rails off the plane ``z = 0``.
+        HexapodPinError: a tree of another layout.
     """
 
     def __init__(self, geometry, indices=None):
@@ -220,10 +237,10 @@ def legs(geo, x, y, z, rot, signs, wk):
     ``signs`` (6,). Fills rows RX..RZ (arms ``r_k``), NX..NZ (legs), NU (``n.u``), Q, DISC
     (the discriminant; a leg that cannot reach gets the nearest rail point, DISC < 0).
     Returns UNREACHABLE, TYPE_I, GIMBAL (the worst over the legs) or OK."""
-    length = geo[LEN]
     code = OK
     for i in range(6):
         b = BLOCK * i
+        length = geo[b + LENI]
         px, py, pz = geo[b + PX], geo[b + PY], geo[b + PZ]
         ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
         rx = rot[0] * px + rot[1] * py + rot[2] * pz
@@ -244,11 +261,12 @@ def legs(geo, x, y, z, rot, signs, wk):
         wk[RX, i], wk[RY, i], wk[RZ, i] = rx, ry, rz
         wk[NX, i], wk[NY, i], wk[NZ, i] = nx, ny, nz
         wk[NU, i], wk[Q, i] = nu, qi
-        if not abs(nu) >= geo[TOL1]:
+        if not abs(nu) >= geo[b + TOL1]:
             code = _worse(code, TYPE_I)
         else:
-            nl = nx * geo[b + LX] + ny * geo[b + LY]
-            if not (nz * nz + nl * nl) >= geo[GIMB] * length * length:
+            nl = nx * geo[b + LX] + ny * geo[b + LY] + nz * geo[b + LZ]
+            nw = nx * geo[b + WX] + ny * geo[b + WY] + nz * geo[b + WZ]
+            if not (nw * nw + nl * nl) >= geo[GIMB] * length * length:
                 code = _worse(code, GIMBAL)
     return code
 
@@ -382,9 +400,9 @@ def leg_motion(geo, wk, with_acc, out):
     imposes), centre-of-mass velocity ``qdot u + dn/2`` and, with ``with_acc``, the
     angular acceleration ``e x dde + dlam e + lam de`` and the centre-of-mass acceleration
     ``qddot u + ddn/2``. Returns GIMBAL where a leg lies along its rail, else OK."""
-    inv_len = 1.0 / geo[LEN]
     for i in range(6):
         b = BLOCK * i
+        inv_len = 1.0 / geo[b + LENI]
         ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
         nx, ny, nz, qi = wk[NX, i], wk[NY, i], wk[NZ, i], wk[Q, i]
         ex, ey, ez = nx * inv_len, ny * inv_len, nz * inv_len
@@ -446,10 +464,10 @@ def _lu_solve(lu, perm, vec, out):
 
 @jit_inline
 def closure_matrix_hat(geo, wk, out):
-    """``A_hat`` (6, 6), rows ``[e_i, (r_k x e_i) / platform_radius]``, ``e = n / L``."""
-    inv_len = 1.0 / geo[LEN]
-    inv_rad = inv_len / geo[RADIUS]
+    """``A_hat`` (6, 6), rows ``[e_i, (r_k x e_i) / platform_radius]``, ``e = n / L_i``."""
     for i in range(6):
+        inv_len = 1.0 / geo[BLOCK * i + LENI]
+        inv_rad = inv_len / geo[RADIUS]
         rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
         nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
         out[i, 0], out[i, 1], out[i, 2] = nx * inv_len, ny * inv_len, nz * inv_len
@@ -556,7 +574,8 @@ def factor_legs(geo, wk, mats):
 @jit_inline
 def solve_legs(geo, wk, mats, rhs):
     """Solve ``A^T t = rhs`` in place (``A`` rows ``[n_i, r_k x n_i]``) with the factors of
-    :func:`factor_legs` (``A^T = L D^-1 A_hat^T``, ``D = diag(1, 1, 1, 1/R, 1/R, 1/R)``)."""
+    :func:`factor_legs`: ``A = diag(L_i) A_hat D^-1``, ``D = diag(1, 1, 1, 1/R, 1/R,
+    1/R)``, so ``A_hat^T y = D rhs / L_ref`` and ``t_i = y_i L_ref / L_i``."""
     inv_len = 1.0 / geo[LEN]
     inv_rad = inv_len / geo[RADIUS]
     vec = wk[TMP]
@@ -564,6 +583,8 @@ def solve_legs(geo, wk, mats, rhs):
         vec[j] = rhs[j] * inv_len
         vec[3 + j] = rhs[3 + j] * inv_rad
     _lu_solve(mats[0], wk[PERM], vec, rhs)
+    for i in range(6):
+        rhs[i] *= geo[BLOCK * i + SCALE]
 
 
 # --------------------------------------------------------------------------------------
@@ -587,11 +608,12 @@ def end_loads(geo, wk):
     m_l = geo[ML]
     m_leg, m_side, mu = geo[MC] + m_l / 3.0, m_l / 6.0, m_l / 3.0
     half_weight = 0.5 * m_l * geo[GRAV]
+    rail_weight = (geo[MC] + 0.5 * m_l) * geo[GRAV]
     for i in range(6):
         b = BLOCK * i
         ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
         qdd, ax, ay, az = wk[QDD, i], wk[AX, i], wk[AY, i], wk[AZ, i]
-        wk[CC, i] = m_leg * qdd + m_side * (ux * ax + uy * ay + uz * az)
+        wk[CC, i] = m_leg * qdd + m_side * (ux * ax + uy * ay + uz * az) + rail_weight * uz
         side = m_side * qdd
         wk[FX, i] = side * ux + mu * ax
         wk[FY, i] = side * uy + mu * ay
@@ -716,6 +738,7 @@ def reduced_core(geo, rot, twist, wk, mass, bias, jac_t):
     m_l, m_p, g = geo[ML], geo[MP], geo[GRAV]
     mu = m_l / 3.0
     m_leg, m_side = geo[MC] + m_l / 3.0, m_l / 6.0
+    rail_weight = (geo[MC] + 0.5 * m_l) * g
     h0, h1, h2, h3, h4, h5 = 0.0, 0.0, m_p * g, 0.0, 0.0, 0.0
     m00 = m01 = m02 = m03 = m04 = m05 = m11 = m12 = m13 = m14 = m15 = 0.0
     m22 = m23 = m24 = m25 = m33 = m34 = m35 = m44 = m45 = m55 = 0.0
@@ -761,7 +784,7 @@ def reduced_core(geo, rot, twist, wk, mass, bias, jac_t):
         # bias: the end loads at the drift (twist_dot = 0): J^T c0 + [F0, r x F0]
         qdd0 = wk[QDD0, i]
         a0x, a0y, a0z = wk[A0X, i], wk[A0Y, i], wk[A0Z, i]
-        c0 = m_leg * qdd0 + m_side * (ux * a0x + uy * a0y + uz * a0z)
+        c0 = m_leg * qdd0 + m_side * (ux * a0x + uy * a0y + uz * a0z) + rail_weight * uz
         f0 = m_side * qdd0
         fx, fy, fz = f0 * ux + mu * a0x, f0 * uy + mu * a0y, f0 * uz + mu * a0z + 0.5 * m_l * g
         h0 += j0 * c0 + fx
@@ -903,13 +926,13 @@ def reduced_dynamics(geo, signs, pose, twist, mass, bias, jac, rot, wk, mats):
 # --------------------------------------------------------------------------------------
 @jit_inline
 def tree_angles(geo, wk):
-    """XA (``X = e.z``), YA (``Y = -e.l``), RHO2 (``X^2 + Y^2``), EU (``e.u``)."""
-    inv_len = 1.0 / geo[LEN]
+    """XA (``X = e.w``), YA (``Y = -e.l``), RHO2 (``X^2 + Y^2``), EU (``e.u``)."""
     for i in range(6):
         b = BLOCK * i
+        inv_len = 1.0 / geo[b + LENI]
         nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
-        big_x = nz * inv_len
-        big_y = -(nx * geo[b + LX] + ny * geo[b + LY]) * inv_len
+        big_x = (nx * geo[b + WX] + ny * geo[b + WY] + nz * geo[b + WZ]) * inv_len
+        big_y = -(nx * geo[b + LX] + ny * geo[b + LY] + nz * geo[b + LZ]) * inv_len
         wk[XA, i], wk[YA, i] = big_x, big_y
         wk[RHO2, i] = big_x * big_x + big_y * big_y
         wk[EU, i] = wk[NU, i] * inv_len
@@ -939,14 +962,17 @@ def _rotate_back(rot, x, y, z, out, at):
 @jit
 def tree_velocity(geo, rot, wk, twist, v):
     """Tree ``v`` (24,) of a twist (after :func:`rates` and :func:`tree_angles`)."""
-    inv_len = 1.0 / geo[LEN]
     for i in range(6):
         b = BLOCK * i
-        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
+        inv_len = 1.0 / geo[b + LENI]
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        lx, ly, lz = geo[b + LX], geo[b + LY], geo[b + LZ]
+        wx, wy, wz = geo[b + WX], geo[b + WY], geo[b + WZ]
         dx, dy, dz = wk[DNX, i], wk[DNY, i], wk[DNZ, i]
         big_x, big_y, rho2 = wk[XA, i], wk[YA, i], wk[RHO2, i]
         v[3 * i] = wk[QD, i]
-        v[3 * i + 1] = (big_x * -(dx * lx + dy * ly) - big_y * dz) * inv_len / rho2
+        v[3 * i + 1] = (big_x * -(dx * lx + dy * ly + dz * lz)
+                        - big_y * (dx * wx + dy * wy + dz * wz)) * inv_len / rho2
         v[3 * i + 2] = (dx * ux + dy * uy + dz * uz) * inv_len / math.sqrt(rho2)
     _rotate_back(rot, twist[0], twist[1], twist[2], v, 18)
     _rotate_back(rot, twist[3], twist[4], twist[5], v, 21)
@@ -956,18 +982,22 @@ def tree_velocity(geo, rot, wk, twist, v):
 def tree_acceleration(geo, rot, wk, twist, twist_dot, v, a):
     """Tree ``a`` (24,) of a ``twist_dot`` (after :func:`tree_velocity` and
     :func:`tip_accelerations`)."""
-    inv_len = 1.0 / geo[LEN]
     for i in range(6):
         b = BLOCK * i
-        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
+        inv_len = 1.0 / geo[b + LENI]
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        lx, ly, lz = geo[b + LX], geo[b + LY], geo[b + LZ]
+        wx, wy, wz = geo[b + WX], geo[b + WY], geo[b + WZ]
         dx, dy, dz = wk[DNX, i], wk[DNY, i], wk[DNZ, i]
         big_x, big_y, rho2 = wk[XA, i], wk[YA, i], wk[RHO2, i]
         qdd = wk[QDD, i]
         ddx, ddy, ddz = wk[AX, i] - qdd * ux, wk[AY, i] - qdd * uy, wk[AZ, i] - qdd * uz
         adot, bdot = v[3 * i + 1], v[3 * i + 2]
-        d_x, d_y = dz * inv_len, -(dx * lx + dy * ly) * inv_len
+        d_x = (dx * wx + dy * wy + dz * wz) * inv_len
+        d_y = -(dx * lx + dy * ly + dz * lz) * inv_len
         a[3 * i] = qdd
-        a[3 * i + 1] = ((big_x * -(ddx * lx + ddy * ly) - big_y * ddz) * inv_len / rho2
+        a[3 * i + 1] = ((big_x * -(ddx * lx + ddy * ly + ddz * lz)
+                         - big_y * (ddx * wx + ddy * wy + ddz * wz)) * inv_len / rho2
                         - 2.0 * adot * (big_x * d_x + big_y * d_y) / rho2)
         a[3 * i + 2] = ((ddx * ux + ddy * uy + ddz * uz) * inv_len
                         + wk[EU, i] * bdot * bdot) / math.sqrt(rho2)
@@ -1032,21 +1062,23 @@ def closure_residual(geo, q):
     qx, qy, qz, qw = q[21], q[22], q[23], q[24]
     rot = np.empty(9)
     rotation_quat(qw, qx, qy, qz, rot)
-    length = geo[LEN]
     worst = 0.0
     for i in range(6):
         b = BLOCK * i
+        length = geo[b + LENI]
         px, py, pz = geo[b + PX], geo[b + PY], geo[b + PZ]
         ax = q[18] + rot[0] * px + rot[1] * py + rot[2] * pz
         ay = q[19] + rot[3] * px + rot[4] * py + rot[5] * pz
         az = q[20] + rot[6] * px + rot[7] * py + rot[8] * pz
         qc, qa, qb = q[3 * i], q[3 * i + 1], q[3 * i + 2]
         sb, cb = math.sin(qb), math.cos(qb)
-        eu, el, ez = length * sb, -length * math.sin(qa) * cb, length * math.cos(qa) * cb
-        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
-        worst = max(worst, abs(geo[b + MX] + qc * ux + eu * ux + el * lx - ax),
-                    abs(geo[b + MY] + qc * uy + eu * uy + el * ly - ay),
-                    abs(geo[b + MZ] + qc * uz + eu * uz + ez - az))
+        eu, el, ew = length * sb, -length * math.sin(qa) * cb, length * math.cos(qa) * cb
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        lx, ly, lz = geo[b + LX], geo[b + LY], geo[b + LZ]
+        wx, wy, wz = geo[b + WX], geo[b + WY], geo[b + WZ]
+        worst = max(worst, abs(geo[b + MX] + qc * ux + eu * ux + el * lx + ew * wx - ax),
+                    abs(geo[b + MY] + qc * uy + eu * uy + el * ly + ew * wy - ay),
+                    abs(geo[b + MZ] + qc * uz + eu * uz + el * lz + ew * wz - az))
     return worst
 
 
@@ -1059,26 +1091,29 @@ def legs_from_tree(geo, q, pose, rot, wk):
     rotation_quat(q[24], q[21], q[22], q[23], rot)
     pose[0], pose[1], pose[2] = q[18], q[19], q[20]
     pose[3], pose[4], pose[5] = rpy_of(rot)
-    length = geo[LEN]
     code = OK
     for i in range(6):
         b = BLOCK * i
+        length = geo[b + LENI]
         px, py, pz = geo[b + PX], geo[b + PY], geo[b + PZ]
-        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        lx, ly, lz = geo[b + LX], geo[b + LY], geo[b + LZ]
+        wx, wy, wz = geo[b + WX], geo[b + WY], geo[b + WZ]
         qc, qa, qb = q[3 * i], q[3 * i + 1], q[3 * i + 2]
         sb, cb = math.sin(qb), math.cos(qb)
-        eu, el, ez = sb, -math.sin(qa) * cb, math.cos(qa) * cb
-        nx, ny, nz = length * (eu * ux + el * lx), length * (eu * uy + el * ly), \
-            length * (eu * uz + ez)
+        eu, el, ew = sb, -math.sin(qa) * cb, math.cos(qa) * cb
+        nx, ny, nz = length * (eu * ux + el * lx + ew * wx), \
+            length * (eu * uy + el * ly + ew * wy), length * (eu * uz + el * lz + ew * wz)
         nu = nx * ux + ny * uy + nz * uz
         wk[RX, i] = rot[0] * px + rot[1] * py + rot[2] * pz
         wk[RY, i] = rot[3] * px + rot[4] * py + rot[5] * pz
         wk[RZ, i] = rot[6] * px + rot[7] * py + rot[8] * pz
         wk[NX, i], wk[NY, i], wk[NZ, i], wk[NU, i], wk[Q, i], wk[DISC, i] = \
             nx, ny, nz, nu, qc, 0.0
-        if not abs(nu) >= geo[TOL1]:
+        if not abs(nu) >= geo[b + TOL1]:
             code = _worse(code, TYPE_I)
-        elif not (nz * nz + (nx * lx + ny * ly) ** 2) >= geo[GIMB] * length * length:
+        elif not ((nx * wx + ny * wy + nz * wz) ** 2 + (nx * lx + ny * ly + nz * lz) ** 2
+                  >= geo[GIMB] * length * length):
             code = _worse(code, GIMBAL)
     tree_angles(geo, wk)
     return code
@@ -1087,15 +1122,17 @@ def legs_from_tree(geo, q, pose, rot, wk):
 @jit
 def velocity_map(geo, rot, wk, out):
     """``G`` (24, 6) with ``v_tree = G twist`` (after :func:`tree_angles`): leg rows
-    ``[g, r_k x g]`` with ``g_carriage = n / (n.u)``, ``g_a = -(X l + Y z) / (L rho^2)``,
+    ``[g, r_k x g]`` with ``g_carriage = n / (n.u)``, ``g_a = -(X l + Y w) / (L rho^2)``,
     ``g_b = (u - n / (n.u)) / (L rho)``; free-flyer rows ``blockdiag(R^T, R^T)``."""
-    inv_len = 1.0 / geo[LEN]
     for i in range(24):
         for j in range(6):
             out[i, j] = 0.0
     for i in range(6):
         b = BLOCK * i
-        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
+        inv_len = 1.0 / geo[b + LENI]
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        lx, ly, lz = geo[b + LX], geo[b + LY], geo[b + LZ]
+        wx, wy, wz = geo[b + WX], geo[b + WY], geo[b + WZ]
         rx, ry, rz = wk[RX, i], wk[RY, i], wk[RZ, i]
         nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
         big_x, big_y, rho2 = wk[XA, i], wk[YA, i], wk[RHO2, i]
@@ -1106,7 +1143,9 @@ def velocity_map(geo, rot, wk, out):
             if row == 0:
                 gx, gy, gz = nx * inv_nu, ny * inv_nu, nz * inv_nu
             elif row == 1:
-                gx, gy, gz = ca * big_x * lx, ca * big_x * ly, ca * big_y
+                gx = ca * big_x * lx + ca * big_y * wx
+                gy = ca * big_x * ly + ca * big_y * wy
+                gz = ca * big_x * lz + ca * big_y * wz
             else:
                 gx, gy, gz = (ux - nx * inv_nu) * cb, (uy - ny * inv_nu) * cb, \
                     (uz - nz * inv_nu) * cb
@@ -1123,22 +1162,24 @@ def velocity_map(geo, rot, wk, out):
 def project(geo, rot, wk, force, wrench, has_wrench, out):
     """``out = G^T force - wrench`` (6,): the platform wrench (world axes, about the
     platform origin) equivalent by virtual power to a tree generalised force (24,)."""
-    inv_len = 1.0 / geo[LEN]
     for j in range(6):
         out[j] = 0.0
     for i in range(6):
         b = BLOCK * i
-        ux, uy, uz, lx, ly = geo[b + UX], geo[b + UY], geo[b + UZ], geo[b + LX], geo[b + LY]
+        inv_len = 1.0 / geo[b + LENI]
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        lx, ly, lz = geo[b + LX], geo[b + LY], geo[b + LZ]
+        wx, wy, wz = geo[b + WX], geo[b + WY], geo[b + WZ]
         nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
         big_x, big_y, rho2 = wk[XA, i], wk[YA, i], wk[RHO2, i]
         f_c, f_a, f_b = force[3 * i], force[3 * i + 1], force[3 * i + 2]
         f_b *= inv_len / math.sqrt(rho2)
         f_a *= -inv_len / rho2
         coef = (f_c - f_b) / wk[NU, i]
-        f_ax = f_a * big_x
-        gx = coef * nx + f_b * ux + f_ax * lx
-        gy = coef * ny + f_b * uy + f_ax * ly
-        gz = coef * nz + f_b * uz + f_a * big_y
+        f_ax, f_ay = f_a * big_x, f_a * big_y
+        gx = coef * nx + f_b * ux + f_ax * lx + f_ay * wx
+        gy = coef * ny + f_b * uy + f_ax * ly + f_ay * wy
+        gz = coef * nz + f_b * uz + f_ax * lz + f_ay * wz
         add_point_force(out, wk[RX, i], wk[RY, i], wk[RZ, i], gx, gy, gz)
     a0, a1, a2, b0, b1, b2 = force[18], force[19], force[20], force[21], force[22], force[23]
     out[0] += rot[0] * a0 + rot[1] * a1 + rot[2] * a2
@@ -1170,11 +1211,11 @@ def solve_forces(geo, wk, mats, rhs, tau, multipliers, jac_t):
     for r in range(6):
         for c in range(6):
             jac_t[r, c] = mats[1][c, r]
-    # J = diag(1/nu) L A_hat D^-1 and A_hat = U^T L_f^T P: J y = -tau is
+    # J = diag(L_i / nu_i) A_hat D^-1 and A_hat = U^T L_f^T P: J y = -tau is
     # U^T w = -nu tau / L, L_f^T x = w, z = P^T x, y = D z
     lu, perm, w = mats[0], wk[PERM], wk[TMP]
-    inv_len = 1.0 / geo[LEN]
     for row in range(6):
+        inv_len = 1.0 / geo[BLOCK * row + LENI]
         acc = -tau[row] * wk[NU, row] * inv_len
         for j in range(row):
             acc -= lu[j, row] * w[j]
@@ -1195,15 +1236,19 @@ def solve_forces(geo, wk, mats, rhs, tau, multipliers, jac_t):
 def leg_forces(geo, wk, force, tau, out):
     """Force (6, 3) of the platform ON each leg tip, world axes (after
     :func:`tree_angles`): leg i's tree rows ``[u, u x n, b x n]^T lambda_i = (force_c -
-    tau_i, force_a, force_b)`` (``b = (X l + Y z) / rho``, the second universal axis) by
+    tau_i, force_a, force_b)`` (``b = (X l + Y w) / rho``, the second universal axis) by
     Cramer's rule."""
     for i in range(6):
         bl = BLOCK * i
-        ux, uy, uz, lx, ly = geo[bl + UX], geo[bl + UY], geo[bl + UZ], geo[bl + LX], \
-            geo[bl + LY]
+        ux, uy, uz = geo[bl + UX], geo[bl + UY], geo[bl + UZ]
+        lx, ly, lz = geo[bl + LX], geo[bl + LY], geo[bl + LZ]
+        wx, wy, wz = geo[bl + WX], geo[bl + WY], geo[bl + WZ]
         nx, ny, nz = wk[NX, i], wk[NY, i], wk[NZ, i]
         rho = math.sqrt(wk[RHO2, i])
-        bx, by, bz = wk[XA, i] * lx / rho, wk[XA, i] * ly / rho, wk[YA, i] / rho
+        big_x, big_y = wk[XA, i], wk[YA, i]
+        bx = (big_x * lx + big_y * wx) / rho
+        by = (big_x * ly + big_y * wy) / rho
+        bz = (big_x * lz + big_y * wz) / rho
         c2x, c2y, c2z = uy * nz - uz * ny, uz * nx - ux * nz, ux * ny - uy * nx
         c3x, c3y, c3z = by * nz - bz * ny, bz * nx - bx * nz, bx * ny - by * nx
         y1, y2, y3 = force[3 * i] - tau[i], force[3 * i + 1], force[3 * i + 2]
@@ -1337,20 +1382,20 @@ def error_of(code: int, geo: np.ndarray, wk: np.ndarray, scratch: np.ndarray | N
     error (inputs are validated before the kernels run).
     """
     prefix = "" if index is None else f"state {index}: "
-    length = float(geo[LEN])
+    length = geo[LENI:6 * BLOCK:BLOCK]
     if code == UNREACHABLE:
         bad = np.flatnonzero(~(wk[DISC] >= 0.0))
-        short = np.sqrt(length * length - wk[DISC, bad]) - length
+        short = np.sqrt(length[bad] * length[bad] - wk[DISC, bad]) - length[bad]
         if index is None:
             return UnreachablePoseError(bad, short)
         return BatchUnreachablePoseError(index, bad, short)
     if code == TYPE_I:
-        worst = int(np.argmin(np.abs(wk[NU])))
+        worst = int(np.argmin(np.abs(wk[NU, :6]) / length))
         what = (f"workspace Jacobian: type-I singularity, the leg of carriage {worst} is "
                 "perpendicular to its rail (|cos|)")
-        value = abs(wk[NU, worst]) / length
+        value = abs(wk[NU, worst]) / length[worst]
     elif code == GIMBAL:
-        cosine2 = (wk[NU] / length) ** 2
+        cosine2 = (wk[NU, :6] / length) ** 2
         worst = int(np.argmax(cosine2))
         what = (f"leg of carriage {worst} lies along its rail (universal joint in gimbal "
                 "lock; 1 - cos^2)")

@@ -2,7 +2,11 @@
 
 Carriage i rides on rail ``k = i // 2``; it sits at ``c_i = m_k + q_i u_k`` and its
 leg reaches the platform point ``P_k = t + R p_k`` (world). The leg vector is
-``n_i = P_k - c_i`` and the loop closes when ``|n_i| = leg_length``.
+``n_i = P_k - c_i`` and the loop closes when ``|n_i| = leg_length``. As built
+(:class:`~hexapod_pin.hexapod.geometry.ChainGeometry`) every chain has its own line
+``M_i + q_i u_i`` (``M_i`` the line point with the sensor offset folded in), length
+``L_i`` and platform joint ``p_i``: read ``m_k, u_k, p_k, leg_length`` as ``M_i, u_i,
+p_i, L_i`` below.
 
 Inverse kinematics is the quadratic along the rail
 ``q_i = u_k . d_i + s_i sqrt(leg_length^2 - |d_i - (u_k . d_i) u_k|^2)``,
@@ -20,7 +24,8 @@ Every formula is written once, in the compiled kernels of
 :mod:`hexapod_pin.hexapod.kernels` (single states) and :mod:`hexapod_pin.hexapod.batch`
 (N states); this module validates the inputs, runs them and raises the library's
 exceptions. Forward kinematics and the assembly modes use the three-circle formulation of
-:mod:`hexapod_pin.hexapod.assembly_modes`; the singularity measures are those of
+:mod:`hexapod_pin.hexapod.assembly_modes` (as built: Newton on the six closure equations,
+and continuation of the drawing's modes); the singularity measures are those of
 :mod:`hexapod_pin.core.measures`.
 
 Units: m, rad, s; every vector in world axes unless stated.
@@ -36,7 +41,7 @@ import numpy as np
 from ..core.checks import as_array, check_signs, vec6
 from ..core.measures import singularity_measures
 from ..core.results import InverseKinematicsBatch, JacobianBatch, SingularityMeasures
-from ..errors import AssemblyError, InputError, StrokeLimitError
+from ..errors import AssemblyError, GeometryError, InputError, StrokeLimitError
 from . import assembly_modes as am
 from . import batch
 from . import kernels as K
@@ -102,7 +107,8 @@ class HexapodKinematics:
     Attributes:
         geometry: the geometry. geo: its packed vector (:func:`kernels.pack_geometry`).
         circles: the :class:`~hexapod_pin.hexapod.assembly_modes.CircleGeometry` of the
-            forward kinematics.
+            forward kinematics (of the drawing for an as-built geometry).
+        chains: the per-chain geometry (``geometry.chain_geometry``).
     """
 
     def __init__(self, geometry, closed_form: K.ClosedForm | None = None):
@@ -110,6 +116,7 @@ class HexapodKinematics:
         self.closed_form = K.ClosedForm(geometry) if closed_form is None else closed_form
         self.geo = self.closed_form.geo
         self.circles = am.CircleGeometry.from_geometry(geometry)
+        self.chains = geometry.chain_geometry
         self._home_list = geometry.home_pose.tolist()
 
     @property
@@ -147,10 +154,23 @@ class HexapodKinematics:
         return wk
 
     def platform_points_world(self, pose) -> np.ndarray:
-        """World positions ``P_k`` of the three spherical joints (m), shape (3, 3)."""
+        """World positions ``P_k`` of the three spherical joints (m), shape (3, 3), of the
+        ideal geometry (a pair's two legs meet at one point).
+
+        Raises:
+            InputError: bad shape or values.
+            GeometryError: an as-built geometry (use :meth:`platform_joints_world`).
+        """
+        if not self.geometry.is_ideal:
+            raise GeometryError("chains", "as built", "the two legs of a pair need not meet "
+                                "at one point: use platform_joints_world")
+        return self.platform_joints_world(pose)[0::2]
+
+    def platform_joints_world(self, pose) -> np.ndarray:
+        """World positions ``t + R p_i`` of the six legs' platform joints (m), shape (6, 3)."""
         pose = as_array(pose, (6,), "pose")
         wk = self._legs(pose, None, refuse=())
-        return pose[:3] + wk[[K.RX, K.RY, K.RZ]][:, 0::2].T
+        return pose[:3] + wk[[K.RX, K.RY, K.RZ]].T
 
     # -- inverse kinematics -----------------------------------------------------------
     def inverse_kinematics(self, pose, branch: Sequence[float] | None = None,
@@ -214,10 +234,9 @@ class HexapodKinematics:
         q = as_array(q, (6,), "q")
         wk = self._legs(as_array(pose, (6,), "pose"), None, refuse=())
         # home-branch legs: d = n + q_home u, u . d = q_home - s_home sqrt(disc)
-        dirs = self.geometry.rail_directions[RAIL_OF]
-        shift = (wk[K.Q] - q)[:, None] * dirs
+        shift = (wk[K.Q] - q)[:, None] * self.chains.line_directions
         rel = wk[[K.NX, K.NY, K.NZ]].T + shift
-        err = np.abs(np.linalg.norm(rel, axis=1) - self.geometry.leg_length)
+        err = np.abs(np.linalg.norm(rel, axis=1) - self.chains.leg_lengths)
         if not np.max(err) <= 1e-9:
             raise InputError("q", q, f"does not assemble at the pose (leg length errors {err})")
         along = wk[K.Q] - HOME_BRANCH * np.sqrt(np.maximum(wk[K.DISC], 0.0))
@@ -396,7 +415,7 @@ class HexapodKinematics:
             UnreachablePoseError: the pose cannot be reached.
         """
         wk = self._legs(pose, branch, refuse=(K.UNREACHABLE,))
-        cosines = np.abs(wk[K.NU]) / self.geometry.leg_length
+        cosines = np.abs(wk[K.NU]) / self.chains.leg_lengths
         a_hat = np.empty((6, 6))
         K.closure_matrix_hat(self.geo, wk, a_hat)
         jac = None
@@ -423,7 +442,10 @@ class HexapodKinematics:
 
         Newton converges to the assembly mode whose basin holds ``guess``; to
         follow a motion, pass the previous pose. :meth:`assembly_modes` lists all.
-        Stroke limits are not checked.
+        Stroke limits are not checked. As built (no three-circle reduction) it is Newton's
+        method on the six closure equations
+        (:func:`~hexapod_pin.hexapod.assembly_modes.forward_as_built`, leg errors below
+        1e-12 m, scaled as above).
 
         Args:
             actuators: carriage positions (6,) (m).
@@ -442,6 +464,8 @@ class HexapodKinematics:
         """
         q = as_array(actuators, (6,), "actuators").tolist()
         guess = self._home_list if guess is None else as_array(guess, (6,), "guess").tolist()
+        if not self.geometry.is_ideal:
+            return am.forward_as_built(self.chains, q, guess, max_iter=FK_MAX_ITER)
         cg = self.circles
         system = am.circle_system(cg, q)
         if system is None:
@@ -474,7 +498,10 @@ class HexapodKinematics:
         exhaustively by closed-form circle intersections, polished by Newton and
         deduplicated. Each assembly is verified on the six leg-length equations
         (1e-12 m). For the default geometry at home there are 8 (4 above the rail
-        plane and their mirror images).
+        plane and their mirror images). As built, the drawing's modes at the same readings
+        are followed to the as-built geometry by continuation
+        (:func:`~hexapod_pin.hexapod.assembly_modes.modes_as_built`: complete for
+        deviations small against the distances between modes).
 
         An assembly is a platform pose; the universal-joint angles follow from it
         (each up to the joint's own ``(a, b) ~ (a + pi, pi - b)`` ambiguity, which
@@ -495,6 +522,10 @@ class HexapodKinematics:
                 ``2 leg_length`` apart, or the eliminant vanishes identically).
         """
         q = as_array(actuators, (6,), "actuators")
+        if not self.geometry.is_ideal:
+            poses = am.modes_as_built(self.geometry, q)
+            poses.sort(key=lambda p: (-p[2], tuple(p)))
+            return np.array(poses).reshape(-1, 6)
         cg = self.circles
         system = am.circle_system(cg, q)
         if system is None:

@@ -100,6 +100,7 @@ class Hexapod:
 
     # -- kinematics (HexapodKinematics) ----------------------------------------------------
     platform_points_world = delegate("kinematics", HexapodKinematics.platform_points_world)
+    platform_joints_world = delegate("kinematics", HexapodKinematics.platform_joints_world)
     inverse_kinematics = delegate("kinematics", HexapodKinematics.inverse_kinematics)
     stroke_violations = delegate("kinematics", HexapodKinematics.stroke_violations)
     check_stroke = delegate("kinematics", HexapodKinematics.check_stroke)

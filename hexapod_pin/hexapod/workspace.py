@@ -20,7 +20,9 @@ Measures per pose (definitions shared with :meth:`Hexapod.singularity`):
   power, ``J^T tau = -(w_payload + w_gravity)`` where ``w_gravity`` is the
   weight of the platform at its origin plus half the weight of each leg at its
   tip (a uniform leg's centre of mass moves at the mean velocity of its ends;
-  the carriages move horizontally and their weight does no work).
+  the carriages of the ideal robot move horizontally and their weight does no work;
+  on an as-built robot's tilted lines the weight along the line is carried too).
+  The closed-form kernels compute it, for the ideal and as-built geometries alike.
 
 Force capability (:func:`force_capability`) is an exact closed form of the
 one-dimensional linear program ``max s`` s.t. ``|tau0 + s tau1| <= tau_max``.
