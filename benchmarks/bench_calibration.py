@@ -23,9 +23,9 @@ import time
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # before numpy: see benchmarks/README.md
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import hexapod_pin as hp  # noqa: E402
+import hexapod_pin as hp
 from hexapod_pin.calibration import calibrate, plots, select_poses, synthetic_measurements
 from hexapod_pin.calibration.identify import measurement_chains
 from hexapod_pin.calibration.problem import reference_poses
@@ -33,7 +33,7 @@ from hexapod_pin.calibration.selection import candidate_blocks, observability
 from hexapod_pin.calibration.synthetic import frames_of
 from hexapod_pin.errors import IdentifiabilityError
 
-NOISE = dict(position_noise=1e-5, rotation_noise=2e-5)
+NOISE = {"position_noise": 1e-5, "rotation_noise": 2e-5}
 INSTRUMENT = np.array([2e-3, -1e-3, 1.5e-3, 1e-3, -2e-3, 1.5e-3])
 
 
@@ -104,7 +104,7 @@ def evaluate(nominal, true, poses, held, seed):
     except IdentifiabilityError:
         return 0.0, np.inf, np.inf, np.inf
     s = result.validate(held.poses, held.actuators).identified.summary()
-    blocks, ok = candidate_blocks(nominal, poses)
+    blocks, _ = candidate_blocks(nominal, poses)
     return (observability(blocks)[0], s["position_rms"] * 1e6, s["rotation_rms"] * 1e6,
             s["actuator_rms"] * 1e6)
 

@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 import hexapod_pin as hp
-from hexapod_pin.calibration import (IdentifiabilityError, calibrate, synthetic_measurements)
+from hexapod_pin.calibration import IdentifiabilityError, calibrate, plots, synthetic_measurements
 from hexapod_pin.calibration import model as cm
 from hexapod_pin.calibration.measurements import read_measurements, write_measurements
 from hexapod_pin.calibration.parameters import N_PARAMETERS, NAMES, ParameterModel
@@ -335,3 +335,11 @@ def test_cli_calibrate_round_trip(tmp_path, nominal, exact):
     err = CliRunner().invoke(app, ["calibrate", str(few), "--json"])
     assert err.exit_code == 1
     assert json.loads(err.stdout)["error"]["type"] == "IdentifiabilityError"
+
+
+def test_validation_figure(tmp_path, nominal, truth, exact):
+    pytest.importorskip("matplotlib")
+    result = calibrate(nominal, exact.poses[:40], exact.actuators[:40])
+    report = result.validate(exact.poses[40:], exact.actuators[40:])
+    fig = plots.plot_validation_errors(report, path=tmp_path / "v.png")
+    assert len(fig.axes) == 3 and (tmp_path / "v.png").stat().st_size > 0

@@ -18,17 +18,24 @@ Units: m, rad; poses ``(x, y, z, roll, pitch, yaw)`` with ``R = Rz Ry Rx``.
 
 from ..errors import IdentifiabilityError
 from .identifiability import IdentifiabilityReport
-from .identify import (CalibrationResult, ModelErrors, ParameterEstimate, ResidualSummary,
-                       ValidationReport, calibrate)
+from .identify import (
+    CalibrationResult,
+    ModelErrors,
+    ParameterEstimate,
+    ResidualSummary,
+    ValidationReport,
+    calibrate,
+)
 from .measurements import read_measurements, write_measurements
 from .parameters import DEFAULT_IDENTIFY, GROUPS, NAMES, ParameterModel
-from .problem import Measurements
+from .problem import Measurements, reference_poses
 from .selection import PoseSelection, select_measurements, select_poses
 from .synthetic import SyntheticData, synthetic_measurements
 
-__all__ = ["CalibrationResult", "DEFAULT_IDENTIFY", "GROUPS", "IdentifiabilityError",
-           "IdentifiabilityReport", "Measurements", "ModelErrors", "NAMES",
-           "ParameterEstimate", "ParameterModel", "PoseSelection", "ResidualSummary",
-           "SyntheticData", "ValidationReport", "calibrate", "read_measurements",
-           "select_measurements", "select_poses", "synthetic_measurements",
-           "write_measurements"]
+__all__ = [
+    "DEFAULT_IDENTIFY", "GROUPS", "NAMES", "CalibrationResult", "IdentifiabilityError",
+    "IdentifiabilityReport", "Measurements", "ModelErrors", "ParameterEstimate",
+    "ParameterModel", "PoseSelection", "ResidualSummary", "SyntheticData", "ValidationReport",
+    "calibrate", "read_measurements", "reference_poses", "select_measurements",
+    "select_poses", "synthetic_measurements", "write_measurements",
+]

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -27,8 +28,16 @@ from ..errors import AssemblyError, InputError, SolverError
 from ..hexapod.geometry import ChainGeometry, HexapodGeometry
 from ..hexapod.robot import Hexapod
 from . import identifiability as ident
-from .parameters import (DEFAULT_IDENTIFY, NAMES, N_PARAMETERS, PARAMETER_GROUPS, UNITS,
-                         Frames, ParameterModel, parameter_indices)
+from .parameters import (
+    DEFAULT_IDENTIFY,
+    N_PARAMETERS,
+    NAMES,
+    PARAMETER_GROUPS,
+    UNITS,
+    Frames,
+    ParameterModel,
+    parameter_indices,
+)
 from .problem import DEFAULT_NOISE, Measurements, Problem, reference_measurements
 
 #: least-squares tolerances (scipy's ftol, xtol, gtol)
@@ -72,7 +81,7 @@ class ResidualSummary:
     normalized_rms: float
 
     @classmethod
-    def of(cls, weighted: np.ndarray, weights: np.ndarray) -> "ResidualSummary":
+    def of(cls, weighted: np.ndarray, weights: np.ndarray) -> ResidualSummary:
         """The summary of a weighted residual vector and its weights."""
         res = weighted / weights
         return cls(float(np.sqrt(np.mean(res ** 2))), float(np.max(np.abs(res))), res.size,
@@ -157,10 +166,12 @@ class CalibrationResult:
             (m, rad).
         residuals_before, residuals_after: :class:`ResidualSummary` at the start and at
             the solution.
-        identifiability: the :class:`~hexapod_pin.calibration.identifiability.IdentifiabilityReport`.
+        identifiability: what the data identify
+            (:class:`~hexapod_pin.calibration.identifiability.IdentifiabilityReport`).
         iterations: function evaluations of the least squares; status, message: scipy's.
         measurement: ``"poses"`` or ``"points"``; target_points: (M, 3) or None.
-        nominal_robot: the start model commanded in the measurement frames (as ``robot``).
+        nominal_geometry: the start model in the measurement frames (the geometry of
+            :attr:`nominal_robot`).
     """
 
     robot: Hexapod
@@ -178,7 +189,13 @@ class CalibrationResult:
     message: str
     measurement: str
     target_points: np.ndarray | None = None
-    nominal_robot: Hexapod | None = field(default=None, repr=False)
+    nominal_geometry: HexapodGeometry | None = field(default=None, repr=False)
+
+    @cached_property
+    def nominal_robot(self) -> Hexapod:
+        """The start model commanded in the measurement frames (as :attr:`robot`), built
+        on first use."""
+        return Hexapod(self.nominal_geometry)
 
     def estimates(self) -> dict[str, float]:
         """Deviation of every requested parameter by name (m, rad)."""
@@ -350,7 +367,7 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
         residuals_after=ResidualSummary.of(res, problem.weights),
         identifiability=report, iterations=int(fit.nfev), status=int(fit.status),
         message=str(fit.message), measurement=data.kind, target_points=data.target_points,
-        nominal_robot=Hexapod(robot.geometry.with_chains(nominal)))
+        nominal_geometry=robot.geometry.with_chains(nominal))
 
 
 def base_set(robot: Hexapod, params: ParameterModel, columns: np.ndarray, kind: str,

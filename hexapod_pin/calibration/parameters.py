@@ -61,7 +61,7 @@ CHAIN_GROUPS = {"line_points": (0, 1), "line_directions": (2, 3), "sensor_offset
                 "leg_lengths": (5,), "platform_joints": (6, 7, 8)}
 #: every group name :func:`parameter_indices` accepts; "chains" is all five chain groups
 GROUPS = (*CHAIN_GROUPS, "instrument", "target")
-#: what :func:`hexapod_pin.calibration.calibrate` identifies by default
+#: what :func:`hexapod_pin.calibration.identify.calibrate` identifies by default
 DEFAULT_IDENTIFY = ("chains", "instrument", "target")
 #: scale of a length (m) and of an angle (rad) parameter
 LENGTH_SCALE = 1e-3

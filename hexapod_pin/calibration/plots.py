@@ -26,7 +26,7 @@ def plot_validation_errors(report: ValidationReport, *, path=None, title: str = 
     rotation errors (urad), on logarithmic bins.
 
     Args:
-        report: :meth:`~hexapod_pin.calibration.CalibrationResult.validate`'s report.
+        report: :meth:`~hexapod_pin.calibration.identify.CalibrationResult.validate`'s report.
         path: where to save the figure (optional); title: figure title.
 
     Returns:

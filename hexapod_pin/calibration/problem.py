@@ -55,7 +55,7 @@ class Measurements:
         return "poses" if self.poses is not None else "points"
 
     @classmethod
-    def checked(cls, actuators, poses=None, points=None, target_points=None) -> "Measurements":
+    def checked(cls, actuators, poses=None, points=None, target_points=None) -> Measurements:
         """Measurements from raw arrays.
 
         Raises:

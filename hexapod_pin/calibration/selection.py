@@ -124,7 +124,7 @@ def select_poses(robot: Hexapod, candidates, n: int, *, criterion: str = "O1",
         n: poses to choose.
         criterion: ``"O1"`` or ``"D"``; method: ``"greedy"`` or ``"exchange"``.
         identify, instrument, target, target_points: as in
-            :func:`~hexapod_pin.calibration.calibrate` (the parameters to identify and the
+            :func:`~hexapod_pin.calibration.identify.calibrate` (the parameters to identify and the
             measurement model).
         max_rounds: exchange passes at most.
 

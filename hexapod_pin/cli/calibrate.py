@@ -90,8 +90,8 @@ def calibrate(measurements: Annotated[Path, typer.Argument(
         [parse_numbers([p], 3, "target-point", "x y z") for p in target_point])
     data = read_measurements(measurements, points, degrees)
     groups = tuple(g.strip() for g in identify.split(",") if g.strip())
-    guess = dict(instrument=_pose_option(instrument, "instrument", degrees),
-                 target=_pose_option(target, "target", degrees))
+    guess = {"instrument": _pose_option(instrument, "instrument", degrees),
+             "target": _pose_option(target, "target", degrees)}
     rows = np.arange(data.count)
     held = None
     if select_poses is not None:
