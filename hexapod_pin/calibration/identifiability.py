@@ -141,10 +141,10 @@ def structural_text(null: np.ndarray, columns: np.ndarray, points: bool) -> list
             out.append(f"{k} combination(s): the target frame trades with a rigid motion of "
                        "the six platform joints; the target frame is held at its guess")
         else:
-            out.append(f"{k} combination(s): the target frame's pose is seen only through "
-                       "the measured points (their rotation about the line or point through "
-                       "them is not seen, and with the platform joints identified the frame "
-                       "trades with a rigid motion of the joints); held at its guess")
+            out.append(f"{k} combination(s): the target frame is seen only through the "
+                       "measured points: with the platform joints identified it trades with "
+                       "a rigid motion of the joints, and with fewer than three points its "
+                       "rotation about the point(s) is not seen; held at its guess")
     if null.shape[1] > counted:
         out.extend(f"undetermined by any data of this model: {combination_text(v, columns)}"
                    for v in _rest(null, groups))
