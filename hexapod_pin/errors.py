@@ -7,9 +7,11 @@ message.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 
 class HexapodPinError(Exception):
@@ -91,7 +93,7 @@ class UnreachablePoseError(HexapodPinError, ValueError):
             from the platform point to the rail line minus ``leg_length``.
     """
 
-    def __init__(self, carriages, shortfall):
+    def __init__(self, carriages: Iterable[int], shortfall: Iterable[float]):
         self.carriages = [int(c) for c in carriages]
         self.shortfall = [float(s) for s in shortfall]
         parts = ", ".join(f"carriage {c} short by {s:.6g} m"
@@ -107,7 +109,7 @@ class StrokeLimitError(HexapodPinError, ValueError):
         violations: human-readable list of the violated limits.
     """
 
-    def __init__(self, q, violations):
+    def __init__(self, q: npt.ArrayLike, violations: Iterable[str]):
         self.q = np.array(q, dtype=float, copy=True)
         self.violations = list(violations)
         super().__init__("stroke limits violated: " + "; ".join(self.violations))
@@ -135,7 +137,7 @@ class ActuatorSaturationError(HexapodPinError, RuntimeError):
         limit: the bound (N).
     """
 
-    def __init__(self, needed, limit):
+    def __init__(self, needed: npt.ArrayLike, limit: npt.ArrayLike):
         self.needed = np.array(needed, dtype=float, copy=True)
         self.limit = np.array(limit, dtype=float, copy=True)
         over = np.flatnonzero(np.abs(self.needed) > self.limit)
@@ -191,7 +193,7 @@ class BatchActuatorSaturationError(ActuatorSaturationError):
         needed, limit: as in :class:`ActuatorSaturationError`, for that state.
     """
 
-    def __init__(self, index: int, needed, limit):
+    def __init__(self, index: int, needed: npt.ArrayLike, limit: npt.ArrayLike):
         self.index = int(index)
         super().__init__(needed, limit)
         self.args = (f"state {self.index}: {self.args[0]}",)
@@ -200,7 +202,7 @@ class BatchActuatorSaturationError(ActuatorSaturationError):
 class BatchUnreachablePoseError(UnreachablePoseError):
     """A pose of a batch cannot be reached (``index``: the first such state)."""
 
-    def __init__(self, index: int, actuators, shortfall):
+    def __init__(self, index: int, actuators: Iterable[int], shortfall: Iterable[float]):
         self.index = int(index)
         super().__init__(actuators, shortfall)
         self.args = (f"state {self.index}: {self.args[0]}",)
@@ -259,8 +261,9 @@ class InfeasiblePathError(HexapodPinError, ValueError):
         value, limit: the offending value and its bound (units of the limit), or None.
     """
 
-    def __init__(self, index: int, s: float, pose, reason: str, actuator: int | None = None,
-                 value: float | None = None, limit: float | None = None):
+    def __init__(self, index: int, s: float, pose: npt.ArrayLike, reason: str,
+                 actuator: int | None = None, value: float | None = None,
+                 limit: float | None = None):
         self.index = int(index)
         self.s = float(s)
         self.pose = np.array(pose, dtype=float, copy=True)

@@ -27,6 +27,7 @@ the tree coordinates, ``rhs`` in the closure-row units.
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 import proxsuite
 import scipy.linalg
 
@@ -69,8 +70,9 @@ def independent_rows(jac: np.ndarray, rtol: float = ROW_RTOL) -> np.ndarray:
     return np.sort(piv[:rank])
 
 
-def complete(jac: np.ndarray, rhs: np.ndarray, known, values, method: str = "lstsq",
-             what: str = "motion", free: np.ndarray | None = None) -> np.ndarray:
+def complete(jac: np.ndarray, rhs: np.ndarray, known: npt.ArrayLike, values: npt.ArrayLike,
+             method: str = "lstsq", what: str = "motion",
+             free: np.ndarray | None = None) -> np.ndarray:
     """Coordinates ``x`` with ``J_c x = rhs`` and ``x[known] = values``, least norm elsewhere.
 
     Args:

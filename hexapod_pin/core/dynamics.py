@@ -47,10 +47,11 @@ from __future__ import annotations
 import math
 import threading
 import weakref
-from collections.abc import Mapping
-from typing import NamedTuple
+from collections.abc import Callable, Mapping
+from typing import Any, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 import proxsuite
 import scipy.linalg
@@ -133,7 +134,7 @@ class TreeForwardDynamics(NamedTuple):
     """
 
     a: np.ndarray
-    raw_multipliers: object
+    raw_multipliers: np.ndarray | Callable[[], np.ndarray]
     method: str
     status: str
     iterations: int
@@ -165,7 +166,7 @@ class TreeInverseDynamics(NamedTuple):
     """
 
     actuator_forces: np.ndarray
-    raw_multipliers: object
+    raw_multipliers: np.ndarray | Callable[[], np.ndarray]
     residual: float
     method: str
     status: str
@@ -211,7 +212,7 @@ class ClosedLoopDynamics:
         clm: the closed-loop model.
     """
 
-    def __init__(self, clm: ClosedLoopModel):
+    def __init__(self, clm: ClosedLoopModel) -> None:
         if not isinstance(clm, ClosedLoopModel):
             raise InputError("clm", clm, "expected a ClosedLoopModel")
         self.clm = clm
@@ -335,7 +336,9 @@ class ClosedLoopDynamics:
         return out
 
     # -- verification -----------------------------------------------------------------------
-    def verify(self, mass, bias, tau, jac, drift, acc, lam, route: str) -> tuple[float, float]:
+    def verify(self, mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
+               jac: np.ndarray, drift: np.ndarray, acc: np.ndarray, lam: np.ndarray,
+               route: str) -> tuple[float, float]:
         """Relative residuals of the two equations a forward solution must satisfy.
 
         ``M a + h - tau - J^T lam`` relative to the largest of ``|M a|``, ``|h - tau|``,
@@ -368,7 +371,8 @@ class ClosedLoopDynamics:
         return mass, bias, jac, gamma
 
     # -- forward dynamics -----------------------------------------------------------------
-    def forward(self, q, v, tau, method: str = "pinocchio") -> TreeForwardDynamics:
+    def forward(self, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike,
+                method: str = "pinocchio") -> TreeForwardDynamics:
         """Constrained forward dynamics; see :func:`forward_dynamics_tree`."""
         q = _vector(q, self.model.nq, "q")
         v = _vector(v, self.nv, "v")
@@ -378,7 +382,8 @@ class ClosedLoopDynamics:
         return _solve_checked(lambda: self.forward_unchecked(q, v, tau, method),
                               ("q", q), ("v", v), ("tau", tau))
 
-    def forward_unchecked(self, q, v, tau, method: str) -> TreeForwardDynamics:
+    def forward_unchecked(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
+                          method: str) -> TreeForwardDynamics:
         """:meth:`forward` without the input checks (contiguous float64 arrays of the right
         sizes, a known method); for batch drivers and integrators."""
         rank = self.closure_rank(q)
@@ -411,7 +416,8 @@ class ClosedLoopDynamics:
         self._v_rhs = data.primal_rhs_contact[:self.n_rows]
         self._pin_ready = True
 
-    def pinocchio_call(self, q, v, tau, redundant: bool):
+    def pinocchio_call(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
+                       redundant: bool) -> tuple[np.ndarray | None, Any]:
         """One verified ``pin.constraintDynamics`` call; returns (a or None, prox).
 
         ``a`` is Pinocchio's own buffer (copy it before the next call); Pinocchio's LOCAL
@@ -457,7 +463,8 @@ class ClosedLoopDynamics:
         self._pin_last = (self._v_mass, jac, tau)
         return eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL
 
-    def pinocchio_acceleration(self, q, v, tau) -> np.ndarray:
+    def pinocchio_acceleration(self, q: np.ndarray, v: np.ndarray,
+                               tau: np.ndarray) -> np.ndarray:
         """Tree acceleration (nv,) only (no multipliers), verified; for integrators; no
         input checks."""
         rank = self.closure_rank(q)
@@ -628,7 +635,7 @@ class ClosedLoopDynamics:
         direct = self._forward_kkt(mass, bias, jac, gamma, tau, rank)
         rank = direct.rank
         nr = self.n_rows
-        rows = slice(None)
+        rows: slice | np.ndarray = slice(None)
         if rank < nr:
             # the QP keeps independent rows only (a pivoted QR of J_c^T): same feasible set
             # for a consistent drift, and the equality constraints get full row rank
@@ -676,7 +683,8 @@ class ClosedLoopDynamics:
                                    max_abs(jac @ acc + gamma))
 
     # -- inverse dynamics -------------------------------------------------------------------
-    def inverse(self, q, v, a, tau_ext=None, bounds=None,
+    def inverse(self, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike,
+                tau_ext: npt.ArrayLike | None = None, bounds: npt.ArrayLike | None = None,
                 method: str = "qp") -> TreeInverseDynamics:
         """Closed-loop inverse dynamics; see :func:`inverse_dynamics_tree`."""
         q = _vector(q, self.model.nq, "q")
@@ -689,13 +697,16 @@ class ClosedLoopDynamics:
         return _solve_checked(lambda: self.inverse_unchecked(q, v, a, tau_ext, bounds, method),
                               ("q", q), ("v", v), ("a", a), ("tau_ext", tau_ext))
 
-    def inverse_unchecked(self, q, v, a, tau_ext, bounds, method) -> TreeInverseDynamics:
+    def inverse_unchecked(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                          tau_ext: np.ndarray, bounds: np.ndarray | None,
+                          method: str) -> TreeInverseDynamics:
         """:meth:`inverse` without the input checks (``bounds`` None or (n_act,) array)."""
         force = pin.rnea(self.model, self.data, q, v, a)
         return self.inverse_from_force(q, v, a, force, tau_ext, bounds, method)
 
-    def inverse_from_force(self, q, v, a, force, tau_ext, bounds, method
-                           ) -> TreeInverseDynamics:
+    def inverse_from_force(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                           force: np.ndarray, tau_ext: np.ndarray, bounds: np.ndarray | None,
+                           method: str) -> TreeInverseDynamics:
         """Inverse dynamics given ``force = M a + h`` (nv,) (e.g. from a pooled
         ``rneaInParallel``); no input checks.
 
@@ -737,7 +748,7 @@ class ClosedLoopDynamics:
             pool = self._pools[threads] = pin.ModelPool(self.model, threads)
         return pool
 
-    def check_bounds(self, bounds) -> np.ndarray | None:
+    def check_bounds(self, bounds: npt.ArrayLike | None) -> np.ndarray | None:
         """Actuator bounds as an (n_act,) array (None: unbounded); raises InputError."""
         if bounds is None:
             return None
@@ -892,7 +903,8 @@ class ClosedLoopDynamics:
         return None
 
     # -- joint reaction wrenches ------------------------------------------------------------
-    def joint_wrenches(self, q, v, a, multipliers, fext: Mapping[int, pin.Force] | None = None
+    def joint_wrenches(self, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike,
+                       multipliers: np.ndarray, fext: Mapping[int, pin.Force] | None = None
                        ) -> tuple[dict[str, np.ndarray], np.ndarray]:
         """Spatial force transmitted by every joint of the tree.
 
@@ -951,7 +963,8 @@ def dynamics_of(clm: ClosedLoopModel) -> ClosedLoopDynamics:
         raise InputError("clm", clm, "expected a ClosedLoopModel") from None
 
 
-def forward_dynamics_tree(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=None,
+def forward_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
+                          actuator_forces: npt.ArrayLike, tau_ext: npt.ArrayLike | None = None,
                           method: str = "pinocchio") -> TreeForwardDynamics:
     """Constrained forward dynamics of a closed-loop mechanism on its tree.
 
@@ -1005,7 +1018,9 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=N
                           ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
 
 
-def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=None,
+def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
+                          a: npt.ArrayLike, tau_ext: npt.ArrayLike | None = None,
+                          bounds: npt.ArrayLike | None = None,
                           method: str = "qp") -> TreeInverseDynamics:
     """Closed-loop inverse dynamics: actuator forces that produce a tree motion.
 
@@ -1070,7 +1085,9 @@ def _solve_checked(solve, *inputs):
 
 
 @jit
-def forward_residuals(mass, bias, tau, jac, drift, acc, lam, out):
+def forward_residuals(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: np.ndarray,
+                      drift: np.ndarray, acc: np.ndarray, lam: np.ndarray,
+                      out: np.ndarray) -> tuple[float, float]:
     """Relative residuals of ``M a + h - tau - J^T lam = 0`` and ``J a + drift = 0``.
 
     Reads only the upper triangle of ``mass`` (Pinocchio's ``crba`` fills that one), so a
@@ -1103,7 +1120,7 @@ def forward_residuals(mass, bias, tau, jac, drift, acc, lam, out):
 
 
 @jit
-def linear_residual(mat, x, rhs, out):
+def linear_residual(mat: np.ndarray, x: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> float:
     """``out = (max|mat x - rhs|, that over max(max|rhs|, max|mat| max|x|))`` (inf when not
     finite)."""
     n, m = mat.shape
@@ -1130,7 +1147,7 @@ def linear_residual(mat, x, rhs, out):
 
 
 @jit
-def square_solve(mat, rhs, x, out):
+def square_solve(mat: np.ndarray, rhs: np.ndarray, x: np.ndarray, out: np.ndarray) -> float:
     """``x = mat^-1 rhs`` (LU; raises numpy's LinAlgError when singular); returns the
     relative residual of :func:`linear_residual`."""
     x[:] = np.linalg.solve(mat, rhs)
@@ -1138,7 +1155,7 @@ def square_solve(mat, rhs, x, out):
 
 
 @jit
-def closure_residual(jac, acc, drift) -> float:
+def closure_residual(jac: np.ndarray, acc: np.ndarray, drift: np.ndarray) -> float:
     """Relative residual of ``J a + drift = 0``: :func:`linear_residual` of ``J a = -drift``
     (``max|J a + drift|`` over the larger of ``max|J| max|a|`` and ``max|drift|``; 0 without
     rows, inf when not finite)."""

@@ -30,14 +30,19 @@ import numpy as np
 _NO_WRENCHES: Mapping[str, np.ndarray] = MappingProxyType({})
 
 
-class ResultDetails(Protocol):
-    """What a result computes on first access (each called at most once per result)."""
+class ForwardDetails(Protocol):
+    """What a forward-dynamics result computes on first access (each called at most once)."""
 
     def multipliers(self) -> np.ndarray:
         """Closure multipliers of the tree rows (n_rows,), see :mod:`hexapod_pin.core.dynamics`."""
 
     def closure_forces(self) -> np.ndarray:
         """Force of each chain ON the platform, (n_chains, d), world axes (N)."""
+
+
+class ResultDetails(ForwardDetails, Protocol):
+    """What an inverse-dynamics result computes on first access (each called at most once
+    per result): the parts of :class:`ForwardDetails`, and the following."""
 
     def joint_wrenches(self) -> Mapping[str, np.ndarray]:
         """Joint name -> (6,) spatial force transmitted by that joint (empty if not asked)."""
@@ -134,7 +139,7 @@ class ForwardDynamicsResult:
     method: str
     status: str
     iterations: int
-    _details: ResultDetails = field(repr=False)
+    _details: ForwardDetails = field(repr=False)
 
     @cached_property
     def closure_forces(self) -> np.ndarray:

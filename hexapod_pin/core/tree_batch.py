@@ -19,6 +19,7 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import ActuatorSaturationError, BatchActuatorSaturationError, InputError, SolverError
@@ -106,7 +107,9 @@ def _state_error(index: int, exc: SolverError) -> SolverError:
     return SolverError(exc.solver, exc.status, f"state {index}: {exc}")
 
 
-def forward_dynamics_tree_batch(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=None,
+def forward_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarray,
+                                actuator_forces: np.ndarray,
+                                tau_ext: np.ndarray | None = None,
                                 method: str = "pinocchio") -> TreeForwardDynamicsBatch:
     """:func:`~hexapod_pin.core.dynamics.forward_dynamics_tree` over N states.
 
@@ -143,8 +146,9 @@ def forward_dynamics_tree_batch(clm: ClosedLoopModel, q, v, actuator_forces, tau
     return TreeForwardDynamicsBatch(acc, tuple(results))
 
 
-def inverse_dynamics_tree_batch(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=None,
-                                method: str = "qp",
+def inverse_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarray,
+                                a: np.ndarray, tau_ext: np.ndarray | None = None,
+                                bounds: np.ndarray | None = None, method: str = "qp",
                                 threads: int | None = None) -> TreeInverseDynamicsBatch:
     """:func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree` over N states.
 

@@ -10,10 +10,12 @@ dynamics) as methods. Conventions: see :mod:`hexapod_pin.hexapod.geometry` and
 from __future__ import annotations
 
 import threading
+from typing import cast
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..core.checks import as_array
@@ -79,7 +81,7 @@ class Hexapod:
     pose_dim = 6
     n_actuators = 6
 
-    def __init__(self, geometry: HexapodGeometry | None = None):
+    def __init__(self, geometry: HexapodGeometry | None = None) -> None:
         self.geometry = HexapodGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, HexapodGeometry):
             raise TypeError(f"geometry must be a HexapodGeometry, got {type(geometry).__name__}")
@@ -143,7 +145,7 @@ class Hexapod:
     def urdf(self) -> str:
         """The URDF text of the tree (the xacro expanded with this geometry; the loops are
         in ``urdf/hexapod.loops.yaml``): ``robot.model.urdf_xml``."""
-        return self.model.urdf_xml
+        return cast(str, self.model.urdf_xml)    # the model is built from URDF text
 
     def _indices(self) -> HexapodIndices:
         m = self.model
@@ -178,7 +180,7 @@ class Hexapod:
         return self.configuration(self.home_pose)
 
     # -- pose <-> tree configuration -----------------------------------------------------
-    def configuration(self, pose, branch=None) -> np.ndarray:
+    def configuration(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
         """Pinocchio configuration of the tree for a platform pose (closed form).
 
         Carriages from the inverse kinematics (stroke limits not checked),
@@ -214,17 +216,17 @@ class Hexapod:
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
         return q
 
-    def pose_from_configuration(self, q) -> np.ndarray:
+    def pose_from_configuration(self, q: npt.ArrayLike) -> np.ndarray:
         """Platform pose (6,) read from a Pinocchio configuration (nq,)."""
         q = self.model.check_q(q)
         ff = q[self.indices.platform_q]
         rot = pin.Quaternion(ff[6], ff[3], ff[4], ff[5]).normalized().toRotationMatrix()
         return np.concatenate([ff[:3], rpy_from_rotation(rot)])
 
-    def carriage_positions(self, q) -> np.ndarray:
+    def carriage_positions(self, q: npt.ArrayLike) -> np.ndarray:
         """Carriage positions (6,) read from a Pinocchio configuration (nq,)."""
         return self.model.check_q(q)[self.indices.carriage_q].copy()
 
-    def actuator_positions(self, q) -> np.ndarray:
+    def actuator_positions(self, q: npt.ArrayLike) -> np.ndarray:
         """Actuator (carriage) positions (6,) (m) read from a Pinocchio configuration (nq,)."""
         return self.carriage_positions(q)

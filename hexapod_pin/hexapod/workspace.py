@@ -34,14 +34,17 @@ from __future__ import annotations
 import math
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.checks import as_array
 from ..core.measures import condition_number
 from ..errors import InputError
 from . import batch
 from . import kernels as K
+from .robot import Hexapod
 
 #: poses processed per chunk (bounds the temporary memory to ~100 MB)
 CHUNK = 65_536
@@ -98,8 +101,9 @@ class VolumeEstimate:
     box_volume: float
 
 
-def constant_orientation_grid(center, half_extent, n: int | tuple[int, int, int],
-                              orientation=(0.0, 0.0, 0.0)) -> np.ndarray:
+def constant_orientation_grid(center: npt.ArrayLike, half_extent: npt.ArrayLike,
+                              n: int | tuple[int, int, int],
+                              orientation: npt.ArrayLike = (0.0, 0.0, 0.0)) -> np.ndarray:
     """Poses on a regular 3-D grid of positions with one orientation.
 
     Args:
@@ -115,7 +119,7 @@ def constant_orientation_grid(center, half_extent, n: int | tuple[int, int, int]
     half = as_array(half_extent, (3,), "half_extent")
     if np.any(half <= 0):
         raise InputError("half_extent", half_extent, "must be > 0")
-    counts = (n, n, n) if np.isscalar(n) else tuple(n)
+    counts: tuple[Any, ...] = (n, n, n) if np.isscalar(n) else tuple(n)  # type: ignore[arg-type]
     if len(counts) != 3 or any(int(c) != c or c < 1 for c in counts):
         raise InputError("n", n, "expected a positive integer or three of them")
     axes = [np.linspace(c - h, c + h, int(m)) if m > 1 else np.array([c])
@@ -125,7 +129,7 @@ def constant_orientation_grid(center, half_extent, n: int | tuple[int, int, int]
     return np.concatenate([grid, rpy], axis=1)
 
 
-def orientation_grid(position, max_angle: float, n: int) -> np.ndarray:
+def orientation_grid(position: npt.ArrayLike, max_angle: float, n: int) -> np.ndarray:
     """Poses at one position with roll, pitch, yaw on an ``n^3`` grid in
     ``[-max_angle, max_angle]``."""
     position = as_array(position, (3,), "position")
@@ -138,8 +142,9 @@ def orientation_grid(position, max_angle: float, n: int) -> np.ndarray:
     return np.concatenate([np.broadcast_to(position, rpy.shape), rpy], axis=1)
 
 
-def evaluate(robot, poses, payload=None, branch=None, threads: int = 1,
-             singularity: bool = True, statics: bool = True) -> WorkspaceMeasures:
+def evaluate(robot: Hexapod, poses: npt.ArrayLike, payload: npt.ArrayLike | None = None,
+             branch: npt.ArrayLike | None = None, threads: int = 1, singularity: bool = True,
+             statics: bool = True) -> WorkspaceMeasures:
     """Reachability, conditioning, singularity distances and statics of many poses.
 
     Args:
@@ -253,7 +258,8 @@ class ForceCapability:
     ok: np.ndarray
 
 
-def force_capability(robot, poses, direction, branch=None, threads: int = 1) -> ForceCapability:
+def force_capability(robot: Hexapod, poses: npt.ArrayLike, direction: npt.ArrayLike,
+                     branch: npt.ArrayLike | None = None, threads: int = 1) -> ForceCapability:
     """Largest payload along a wrench direction that the actuators can hold, per pose.
 
     Solves, per pose, the linear program ``max s`` s.t. ``|tau0 + s tau1|_i <=
@@ -295,7 +301,8 @@ def force_capability(robot, poses, direction, branch=None, threads: int = 1) -> 
                            feasible0, base.ok)
 
 
-def sample_poses(rng, n: int, low, high) -> np.ndarray:
+def sample_poses(rng: np.random.Generator, n: int, low: npt.ArrayLike,
+                 high: npt.ArrayLike) -> np.ndarray:
     """Uniform random poses in the box ``low <= pose <= high`` (each (6,)), shape (n, 6)."""
     low, high = as_array(low, (6,), "low"), as_array(high, (6,), "high")
     if np.any(high < low):
@@ -303,7 +310,8 @@ def sample_poses(rng, n: int, low, high) -> np.ndarray:
     return rng.uniform(low, high, size=(int(n), 6))
 
 
-def leg_reachable(robot, poses, branch=None) -> np.ndarray:
+def leg_reachable(robot: Hexapod, poses: npt.ArrayLike,
+                  branch: npt.ArrayLike | None = None) -> np.ndarray:
     """Per-leg reach masks (N, 6): leg i can reach its platform point (strokes ignored)."""
     poses = as_array(poses, (6,), "poses", batch=True)
     out = np.empty((poses.shape[0], 6), dtype=bool)
@@ -315,9 +323,9 @@ def leg_reachable(robot, poses, branch=None) -> np.ndarray:
     return out
 
 
-def volume(robot, n_samples: int, center, half_extent, orientation=(0.0, 0.0, 0.0),
-           max_condition: float | None = None, seed: int = 0, threads: int = 1,
-           legs=None) -> VolumeEstimate:
+def volume(robot: Hexapod, n_samples: int, center: npt.ArrayLike, half_extent: npt.ArrayLike,
+           orientation: npt.ArrayLike = (0.0, 0.0, 0.0), max_condition: float | None = None,
+           seed: int = 0, threads: int = 1, legs: npt.ArrayLike | None = None) -> VolumeEstimate:
     """Monte-Carlo volume of the constant-orientation workspace inside a box.
 
     A position counts when the pose is ``ok`` (reachable, within the strokes,

@@ -19,7 +19,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
+from ..core.robot_api import ParallelRobot
 from ..errors import InfeasiblePathError, InputError
 from . import solver
 from .limits import Limits, Payload, constraint_rows, path_coefficients
@@ -79,7 +81,7 @@ class TimedTrajectory:
     s_ddot: np.ndarray
     path: GeometricPath
     phase: PhaseProfile
-    robot: object
+    robot: ParallelRobot
     limits: Limits
     payload: Payload
 
@@ -88,7 +90,7 @@ class TimedTrajectory:
         """``t[-1] - t[0]`` (s)."""
         return float(self.t[-1] - self.t[0])
 
-    def sample(self, times) -> TimedTrajectory:
+    def sample(self, times: npt.ArrayLike) -> TimedTrajectory:
         """The same motion at the given times (s), each clipped to ``[0, duration]``.
 
         Between grid points the path acceleration is that of the segment (a time on a
@@ -127,7 +129,7 @@ class TimedTrajectory:
         return _grid_times(self.phase)
 
 
-def time_optimal(robot, waypoints, *, limits: Limits | None = None,
+def time_optimal(robot: ParallelRobot, waypoints: npt.ArrayLike, *, limits: Limits | None = None,
                  payload: Payload | None = None, start_speed: float = 0.0,
                  end_speed: float = 0.0, grid_points: int = DEFAULT_GRID_POINTS,
                  rotation_length: float | None = None) -> TimedTrajectory:
