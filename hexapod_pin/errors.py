@@ -190,7 +190,8 @@ class BatchActuatorSaturationError(ActuatorSaturationError):
 
     Attributes:
         index: index of the first offending state.
-        needed, limit: as in :class:`ActuatorSaturationError`, for that state.
+        needed: as in :class:`ActuatorSaturationError`, for that state.
+        limit: as in :class:`ActuatorSaturationError`.
     """
 
     def __init__(self, index: int, needed: npt.ArrayLike, limit: npt.ArrayLike):
@@ -258,7 +259,8 @@ class InfeasiblePathError(HexapodPinError, ValueError):
             limits, a stroke left, an unreachable pose, a singularity, an end speed that
             cannot be reached, ...).
         actuator: the actuator at fault, or None.
-        value, limit: the offending value and its bound (units of the limit), or None.
+        value: the offending value (units of the limit), or None.
+        limit: its bound, or None.
     """
 
     def __init__(self, index: int, s: float, pose: npt.ArrayLike, reason: str,

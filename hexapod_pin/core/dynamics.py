@@ -916,7 +916,9 @@ class ClosedLoopDynamics:
         force (the actuator force for an actuated joint, ~0 for a passive one).
 
         Args:
-            q, v, a: tree configuration, velocity and acceleration.
+            q: tree configuration (nq,).
+            v: tree velocity (nv,).
+            a: tree acceleration (nv,).
             multipliers: closure multipliers (n_rows,) as returned by the routes.
             fext: extra external forces by joint id, each a ``pin.Force`` in that
                 joint's LOCAL frame (e.g. a load on a floating body).
@@ -1030,8 +1032,9 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
 
     Args:
         clm: the closed-loop model.
-        q, v, a: tree configuration (nq,), velocity and acceleration (nv,), Pinocchio
-            conventions, consistent with the closures.
+        q: tree configuration (nq,), Pinocchio conventions, closures assembled.
+        v: tree velocity (nv,), consistent with the closures.
+        a: tree acceleration (nv,), consistent with the closures.
         tau_ext: generalised external force on the tree (nv,) (N, N m); default zero.
         bounds: ``abs(u) <= bounds`` (scalar or (n_act,), N or N m); None (or inf): none.
         method: "qp" (minimise ``1/2 |u|^2 + 1/2 w |lambda|^2``, ``w = 1e-2``, subject

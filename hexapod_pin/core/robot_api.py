@@ -72,7 +72,8 @@ class ParallelRobot(Protocol):
         model: the :class:`ClosedLoopModel` (Pinocchio tree + loop closures).
         pose_dim: 6 in space, 3 in the plane.
         n_actuators: number of actuated joints.
-        home_pose: (dim,) the home pose; home_actuators: (n_act,) its actuator positions;
+        home_pose: (dim,) the home pose.
+        home_actuators: (n_act,) its actuator positions.
         home_configuration: (nq,) the tree configuration at home.
     """
 

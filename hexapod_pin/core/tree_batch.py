@@ -115,7 +115,8 @@ def forward_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarr
 
     Args:
         clm: the closed-loop model.
-        q: configurations (N, nq); v: velocities (N, nv), closure-consistent.
+        q: configurations (N, nq), closures assembled.
+        v: velocities (N, nv), keeping the closures.
         actuator_forces: ``u`` (N, n_act) (N or N m).
         tau_ext: generalised external forces (N, nv) or (nv,) for every state; default 0.
         method: "pinocchio", "qp" or "kkt" (see the single call).
@@ -154,8 +155,9 @@ def inverse_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarr
 
     Args:
         clm: the closed-loop model.
-        q, v, a: configurations (N, nq), velocities and accelerations (N, nv), keeping
-            the closures.
+        q: configurations (N, nq), closures assembled.
+        v: velocities (N, nv), keeping the closures.
+        a: accelerations (N, nv), keeping the closures.
         tau_ext: generalised external forces (N, nv) or (nv,); default zero.
         bounds: ``abs(u) <= bounds`` for every state (scalar or (n_act,)); None: none.
         method: "qp" or "kkt".

@@ -67,8 +67,10 @@ class CircleGeometry:
     """Per-geometry constants of the three-circle formulation (world axes, m).
 
     Attributes:
-        mids, dirs: rail midpoints ``m_k`` and unit directions ``u_k``, shape (3, 3).
-        axis1, axis2: the in-plane unit axes ``b1_k``, ``b2_k`` of each rail's circle, (3, 3).
+        mids: rail midpoints ``m_k``, shape (3, 3).
+        dirs: rail unit directions ``u_k``, shape (3, 3).
+        axis1: the first in-plane unit axis ``b1_k`` of each rail's circle, (3, 3).
+        axis2: the second in-plane unit axis ``b2_k`` of each rail's circle, (3, 3).
         leg_length: ``L`` (m).
         sides: ``s_jk`` for the pairs of :data:`PAIRS`, shape (3,).
         platform_points: ``p_k`` in the platform frame, shape (3, 3).

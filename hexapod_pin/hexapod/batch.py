@@ -202,9 +202,10 @@ def inverse_dynamics_batch(geo, poses, twists, twist_dots, wrenches=None, bounde
     """Inverse dynamics of N states (validated (N, 6) arrays; ``wrenches`` may be None).
 
     Raises:
-        BatchUnreachablePoseError: a pose out of reach.
-        BatchSingularityError: a singular state (type I, gimbal lock, type II).
-        BatchActuatorSaturationError (with ``bounded``): for the first such state.
+        BatchUnreachablePoseError: a pose out of reach (the first such state).
+        BatchSingularityError: a singular state (type I, gimbal lock, type II; the first).
+        BatchActuatorSaturationError: with ``bounded``, forces beyond the bound (the first
+            such state).
     """
     signs = K.HOME_BRANCH[None] if signs is None else signs
     n = poses.shape[0]

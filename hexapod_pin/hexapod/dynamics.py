@@ -661,8 +661,9 @@ class HexapodDynamics:
         of the Pinocchio tree route of :meth:`inverse_dynamics`; they agree to round-off).
 
         Args:
-            poses, twists, twist_dots: (N, 6) each, conventions as in
-                :meth:`inverse_dynamics`.
+            poses: (N, 6), conventions as in :meth:`inverse_dynamics`.
+            twists: (N, 6), conventions as in :meth:`inverse_dynamics`.
+            twist_dots: (N, 6), conventions as in :meth:`inverse_dynamics`.
             wrenches: (N, 6) or None.
             bounded: raise :class:`BatchActuatorSaturationError` (an
                 :class:`ActuatorSaturationError`) for the first state beyond the bounds.
@@ -691,7 +692,8 @@ class HexapodDynamics:
         (:mod:`hexapod_pin.hexapod.batch`).
 
         Args:
-            poses, twists: (N, 6) each (m, rad; m/s, rad/s, world axes).
+            poses: (N, 6) (m, rad).
+            twists: (N, 6) (m/s, rad/s, world axes).
             actuator_forces: (N, 6) (N).
             wrenches: (N, 6) or None.
 
@@ -750,7 +752,10 @@ class HexapodDynamics:
         also gives the derivative along a world-frame tangent ``(dp, dtheta)``.
 
         Args:
-            pose, twist, twist_dot, wrench: as in :meth:`inverse_dynamics`.
+            pose: as in :meth:`inverse_dynamics`.
+            twist: as in :meth:`inverse_dynamics`.
+            twist_dot: as in :meth:`inverse_dynamics`.
+            wrench: as in :meth:`inverse_dynamics`.
 
         Returns:
             :class:`~hexapod_pin.core.results.InverseDynamicsDerivatives` (``actuator_forces``,

@@ -497,8 +497,10 @@ def simulate_fast(robot: Hexapod, duration: float, dt: float = 1e-3, *,
     Args:
         robot: the :class:`~hexapod_pin.Hexapod`.
         duration: simulated time (s). dt: step and control period (s).
-        pose0, twist0: initial platform state (default: home at rest; with a
-            ``reference``, its first sample).
+        pose0: initial platform pose (default: home; with a ``reference``, its first
+            sample).
+        twist0: initial platform twist (default: at rest; with a ``reference``, its first
+            sample).
         actuator_forces: constant (6,) forces (N) without a reference; default zero.
         wrench: constant ``(f, m)`` on the platform (world axes, about its origin), held
             in world axes (:func:`~hexapod_pin.hexapod.simulation.simulate` holds it in platform
@@ -614,7 +616,8 @@ class FastStepper:
     Args:
         robot: the :class:`~hexapod_pin.Hexapod`.
         dt: the step (s).
-        pose0, twist0: initial platform state (default: home at rest).
+        pose0: initial platform pose (default: home).
+        twist0: initial platform twist (default: at rest).
         integrator: "semi_implicit_euler" (default, one evaluation per step), "rk2" or
             "rk4" (see :func:`simulate_fast`).
         check_limits: stop at the stroke limits / carriage gap (checked after each step).

@@ -38,9 +38,12 @@ class HexapodIndices:
     """Where the hexapod's coordinates sit in Pinocchio's ``q`` and ``v``.
 
     Attributes:
-        carriage_q, carriage_v: carriage i's prismatic coordinate, shape (6,).
-        u_a_q, u_a_v: first universal-joint angle (about the rail), shape (6,).
-        u_b_q, u_b_v: second universal-joint angle, shape (6,).
+        carriage_q: carriage i's prismatic coordinate in q, shape (6,).
+        carriage_v: the same in v, shape (6,).
+        u_a_q: first universal-joint angle (about the rail) in q, shape (6,).
+        u_a_v: the same in v, shape (6,).
+        u_b_q: second universal-joint angle in q, shape (6,).
+        u_b_v: the same in v, shape (6,).
         platform_q: slice of the free-flyer (position, quaternion x y z w) in q.
         platform_v: slice of the free-flyer velocity (body frame) in v.
     """
@@ -71,7 +74,8 @@ class Hexapod:
         geometry: the :class:`HexapodGeometry`.
         model: the :class:`ClosedLoopModel` (tree + closures) built from the geometry.
         indices: where the hexapod's coordinates sit in the tree (:class:`HexapodIndices`).
-        pose_dim, n_actuators: 6 and 6.
+        pose_dim: 6.
+        n_actuators: 6.
 
     Example:
         >>> robot = Hexapod.default()

@@ -99,7 +99,8 @@ class SimState:
         twist: platform twist ``(v, w)``, world axes (6,).
         q: carriage positions (6,) (m).
         qdot: carriage velocities (6,) (m/s).
-        configuration, velocity: the tree state (Pinocchio conventions).
+        configuration: the tree configuration (nq,) (Pinocchio conventions).
+        velocity: the tree velocity (nv,).
     """
 
     t: float
@@ -286,8 +287,10 @@ def simulate(robot: Hexapod, duration: float, dt: float = 1e-3, *,
         robot: the :class:`Hexapod`.
         duration: simulated time (s).
         dt: step and control period (s).
-        pose0, twist0: initial platform state (default: home at rest; with a
-            ``reference``, its state at t = 0).
+        pose0: initial platform pose (default: home; with a ``reference``, its pose at
+            t = 0).
+        twist0: initial platform twist (default: at rest; with a ``reference``, its twist
+            at t = 0).
         actuator_forces: used without a controller: (6,) constant, or a callable
             ``t -> (6,)`` (N); default zero (unactuated).
         controller: callable ``(SimState, dt) -> (6,)`` forces (N), called once per

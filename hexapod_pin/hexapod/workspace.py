@@ -58,7 +58,10 @@ class WorkspaceMeasures:
         poses: the poses (N, 6).
         q: carriage positions (N, 6) (m) on the requested branch (finite even where
             a leg cannot reach: the nearest rail point).
-        reachable, within_stroke, regular, ok: boolean masks (see module doc).
+        reachable: boolean mask (see the module doc).
+        within_stroke: boolean mask (see the module doc).
+        regular: boolean mask (see the module doc).
+        ok: boolean mask (see the module doc).
         condition_number: 2-norm condition number of ``J`` where ``ok``; inf elsewhere
             (poses the robot cannot take are not analysed further).
         sigma_min: smallest singular value of ``J`` where ``ok``, 0 elsewhere.
@@ -274,7 +277,8 @@ def force_capability(robot: Hexapod, poses: npt.ArrayLike, direction: npt.ArrayL
         direction: payload wrench direction (6,), e.g. ``(0, 0, -m g, 0, 0, 0)``
             for a mass m at the origin (then ``scale`` is in units of m). Any
             scale: the result scales inversely.
-        branch, threads: as in :func:`evaluate`.
+        branch: as in :func:`evaluate`.
+        threads: as in :func:`evaluate`.
 
     Raises:
         InputError: malformed inputs or a zero direction.
@@ -339,7 +343,8 @@ def volume(robot: Hexapod, n_samples: int, center: npt.ArrayLike, half_extent: n
     Args:
         robot: a Hexapod.
         n_samples: number of uniform samples (>= 1).
-        center, half_extent: the box (3,) each (m).
+        center: the box's centre (3,) (m).
+        half_extent: the box's half side lengths (3,) (m).
         orientation: roll, pitch, yaw (rad).
         max_condition: optional threshold on the condition number.
         seed: random seed (the estimate is reproducible).

@@ -116,14 +116,21 @@ class SdfJoint:
     """A joint of the SDF.
 
     Attributes:
-        name, type, parent, child: as written (``parent`` may be ``"world"``).
+        name: as written.
+        type: as written.
+        parent: as written (may be ``"world"``).
+        child: as written.
         pose: the joint frame in the model frame at the zero configuration.
         axis: unit axis in the joint frame (revolute / prismatic / universal 1st).
         axis2: unit second axis of a universal joint, in the joint frame.
-        lower, upper: position limits (rad or m; +-inf when absent).
-        effort, velocity: limits (N m or N, rad/s or m/s; inf when absent or < 0).
-        damping, friction: viscous damping and Coulomb friction.
-        spring_reference, spring_stiffness: joint spring (rad or m; N m/rad or N/m).
+        lower: lower position limit (rad or m; -inf when absent).
+        upper: upper position limit (rad or m; +inf when absent).
+        effort: effort limit (N m or N; inf when absent or < 0).
+        velocity: velocity limit (rad/s or m/s; inf when absent or < 0).
+        damping: viscous damping.
+        friction: Coulomb friction.
+        spring_reference: joint spring rest position (rad or m).
+        spring_stiffness: joint spring stiffness (N m/rad or N/m).
     """
 
     name: str
@@ -732,7 +739,9 @@ def closed_loop_from_sdf(path_or_sdf: str | os.PathLike[str] | SdfModel,
     Args:
         path_or_sdf: an SDF file path or a parsed :class:`SdfModel`.
         actuated: names of the actuated (1-DoF) joints.
-        root_joint, root_link, cut: see :func:`build_tree`.
+        root_joint: see :func:`build_tree`.
+        root_link: see :func:`build_tree`.
+        cut: see :func:`build_tree`.
 
     Raises:
         DescriptionError: see :func:`parse_sdf`, :func:`build_tree` and
@@ -759,7 +768,8 @@ def sdf_to_urdf(sdf: SdfModel, root_link: str | None = None,
 
     Args:
         sdf: the parsed model (fixed root: the URDF has no root joint).
-        root_link, cut: see :func:`build_tree`.
+        root_link: see :func:`build_tree`.
+        cut: see :func:`build_tree`.
         mesh_resolver: callable ``uri -> filename`` for mesh visuals (default:
             :func:`resolve_uri`, which keeps the URI when it cannot resolve it).
 

@@ -55,8 +55,10 @@ class TreeDetails:
         dyn: the tree's :class:`~hexapod_pin.core.dynamics.ClosedLoopDynamics`.
         ws: the robot's workspace.
         state: ``(q, v, a)`` the tree state.
-        tau: actuator forces (3,); tau_ext: the wrench on the tree (nv,).
-        wrench: the wrench (3,) or None; wanted: whether joint wrenches were asked for.
+        tau: actuator forces (3,).
+        tau_ext: the wrench on the tree (nv,).
+        wrench: the wrench (3,) or None.
+        wanted: whether joint wrenches were asked for.
         closure: (3, 2) closure forces, or None to read them from ``multipliers``.
         multipliers: (n_rows,) multipliers, or None to build them from ``closure``.
         residual: the route's residual, or None to evaluate it on Pinocchio.
@@ -132,7 +134,8 @@ class PlanarDynamics:
     """The dynamics of one planar 3-PRR (see the module docstring).
 
     Args:
-        geometry: the robot's geometry; model: its :class:`ClosedLoopModel`;
+        geometry: the robot's geometry.
+        model: its :class:`ClosedLoopModel`.
         workspace: its :class:`~hexapod_pin.planar.kinematics.PlanarWorkspace`.
     """
 
@@ -428,7 +431,10 @@ class PlanarDynamics:
         kernel over the states in parallel.
 
         Args:
-            poses, twists, twist_dots: (N, 3) each; wrenches: (N, 3) or None.
+            poses: (N, 3).
+            twists: (N, 3).
+            twist_dots: (N, 3).
+            wrenches: (N, 3) or None.
             bounded: raise for the first state beyond ``geometry.max_actuator_force``.
 
         Raises:

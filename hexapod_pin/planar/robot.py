@@ -42,9 +42,12 @@ class Planar3PRR:
         geometry: design parameters; default :class:`PlanarGeometry` ().
 
     Attributes:
-        geometry, model (the :class:`ClosedLoopModel`), indices (where the sliders, links
-        and platform chain sit in ``q`` and ``v``), kinematics, assembly, dynamics (the
-        components the methods delegate to).
+        geometry: the :class:`PlanarGeometry`.
+        model: the :class:`ClosedLoopModel`.
+        indices: where the sliders, links and platform chain sit in ``q`` and ``v``.
+        kinematics: the :class:`PlanarKinematics` component.
+        assembly: the :class:`PlanarAssembly` component.
+        dynamics: the :class:`PlanarDynamics` component.
 
     Example:
         >>> robot = Planar3PRR.default()

@@ -70,14 +70,20 @@ class PlanarEquations:
     """The symbolic model (sympy objects).
 
     Attributes:
-        q, qdot: the generalised coordinates and velocities (9 symbols each).
+        q: the generalised coordinates (9 symbols).
+        qdot: the generalised velocities (9 symbols).
         parameters: geometry symbols, in :data:`PARAMETER_NAMES` order.
-        tau: the three actuator forces; wrench: ``(fx, fy, mz)``.
+        tau: the three actuator forces.
+        wrench: ``(fx, fy, mz)``.
         constraints: ``Phi(q)`` (6 x 1), position level.
         constraint_jacobian: ``A = dPhi/dq`` (6 x 9).
         constraint_drift: ``Adot qdot`` (6 x 1).
-        kinetic_energy, potential_energy, lagrangian: ``T``, ``V``, ``T - V``.
-        mass_matrix: ``M`` (9 x 9); coriolis: ``C`` (9 x 1); gravity: ``G`` (9 x 1).
+        kinetic_energy: ``T``.
+        potential_energy: ``V``.
+        lagrangian: ``T - V``.
+        mass_matrix: ``M`` (9 x 9).
+        coriolis: ``C`` (9 x 1).
+        gravity: ``G`` (9 x 1).
         generalized_force: ``Q`` (9 x 1), linear in ``tau`` and the wrench.
     """
 

@@ -40,10 +40,13 @@ class Violation:
     Attributes:
         limit: "actuator_force", "actuator_velocity", "actuator_acceleration",
             "linear_speed", "angular_speed" or "stroke".
-        index: the sample (0-based); time: its time (s).
+        index: the sample (0-based).
+        time: its time (s).
         component: the actuator (or 0 for the platform speeds).
-        value: the absolute value there; bound: the limit; excess: ``value - bound``
-            (> 0: violated; for "stroke" 1.0 when the stroke is left).
+        value: the absolute value there.
+        bound: the limit.
+        excess: ``value - bound`` (> 0: violated; for "stroke" 1.0 when the stroke is
+            left).
     """
 
     limit: str
@@ -145,7 +148,8 @@ def check_feasibility(robot: ParallelRobot, motion: MotionSource, *, limits: Lim
         robot: a robot with the shared API.
         motion: see :func:`motion_arrays`; a motion's own ``wrenches`` act on the
             platform on top of the payload (constant in the slow-down).
-        limits: :class:`Limits` (default: the robot's force bound); payload: :class:`Payload`.
+        limits: :class:`Limits` (default: the robot's force bound).
+        payload: :class:`Payload` (default: none).
         tolerance: relative excess still called feasible (``value <= bound (1 +
             tolerance)``); a time-optimal motion resampled between its grid points exceeds
             its bounds by a fraction of a percent that shrinks with the grid step.

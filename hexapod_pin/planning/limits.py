@@ -142,7 +142,9 @@ class PathCoefficients:
 
     Attributes:
         samples: the :class:`PathSamples` (N points).
-        force_a, force_b, force_c: (N, n_act), ``tau = a s_ddot + b s_dot^2 + c`` (N).
+        force_a: (N, n_act) ``a`` of ``tau = a s_ddot + b s_dot^2 + c`` (N).
+        force_b: (N, n_act) ``b`` (N).
+        force_c: (N, n_act) ``c`` (N).
         velocity_ratio: (N, n_act) ``q' = J xi``: actuator velocities per unit path speed.
         acceleration_b: (N, n_act) ``q''`` (None unless accelerations are limited).
         actuator_positions: (N, n_act) (m or rad).

@@ -63,10 +63,14 @@ class TimedTrajectory:
         actuator_forces: (N, n_act) (N or N m), the payload included.
         actuator_velocities: (N, n_act) (m/s or rad/s).
         actuator_positions: (N, n_act) (m or rad).
-        s, s_dot, s_ddot: (N,) path parameter (m), speed (m/s), acceleration (m/s^2).
+        s: (N,) path parameter (m).
+        s_dot: (N,) path speed (m/s).
+        s_ddot: (N,) path acceleration (m/s^2).
         path: the :class:`GeometricPath`.
         phase: the :class:`PhaseProfile` of the solution (grid points).
-        robot, limits, payload: what it was planned for.
+        robot: the robot it was planned for.
+        limits: the limits it was planned with.
+        payload: the payload it was planned with.
     """
 
     t: np.ndarray
@@ -143,7 +147,8 @@ def time_optimal(robot: ParallelRobot, waypoints: npt.ArrayLike, *, limits: Limi
             (:mod:`hexapod_pin.planning.path`).
         limits: :class:`Limits`; default: the robot's actuator force bound only.
         payload: :class:`Payload` carried by the platform; default none.
-        start_speed, end_speed: path speeds ``s_dot`` (m/s) at the ends; default rest.
+        start_speed: path speed ``s_dot`` (m/s) at the start; default rest.
+        end_speed: path speed ``s_dot`` (m/s) at the end; default rest.
         grid_points: number of grid points N of the path parameter (>= 3).
         rotation_length: length (m) weighting rotations in the path parameter; default
             the robot's characteristic length (its platform radius).

@@ -29,7 +29,8 @@ def plot_forces_against_limits(trajectory: TimedTrajectory, *,
 
     Args:
         trajectory: a :class:`hexapod_pin.planning.TimedTrajectory`.
-        path: where to save the figure (optional); title: figure title.
+        path: where to save the figure (optional).
+        title: figure title.
 
     Returns:
         the ``matplotlib.figure.Figure``.
@@ -68,7 +69,8 @@ def plot_phase_plane(trajectory: TimedTrajectory, *, path: str | os.PathLike[str
 
     Args:
         trajectory: a :class:`hexapod_pin.planning.TimedTrajectory`.
-        path: where to save the figure (optional); title: figure title.
+        path: where to save the figure (optional).
+        title: figure title.
 
     Returns:
         the ``matplotlib.figure.Figure``.
