@@ -10,9 +10,10 @@ this extension rewrites them before rendering:
 * any other target (a short name, a Pinocchio function) becomes inline code.
 
 It also gives a module attribute documented by ``#:`` comment lines just above it (the
-Sphinx convention of this code base) that comment as its docstring, and a facade's method
-bound with ``name = delegate("component", Class.method)`` a docstring pointing at that
-method, so that the API reference shows them and references to them resolve.
+Sphinx convention of this code base) that comment as its docstring, and shows a facade's
+method bound with ``name = delegate("component", Class.method)`` as a method with that
+method's signature (parameters, annotations, result) and docstring, after a line linking to
+it: what ``inspect.signature`` and ``help`` show of ``robot.name`` at run time.
 
 Loaded from ``mkdocs.yml`` (``extensions: [docs/griffe_roles.py]``); not part of the package.
 """
@@ -22,7 +23,8 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from griffe import Attribute, Docstring, Extension, Object
+from griffe import (Attribute, Class, Docstring, Extension, Function, Module, Object,
+                    Parameter, Parameters)
 
 DELEGATE = re.compile(r"^delegate\(\s*['\"](\w+)['\"]\s*,\s*(\w+)\.(\w+)\s*\)$")
 ROLE = re.compile(r":(?:py:)?(?:class|func|meth|mod|attr|data|exc|obj|const):`(~?)([^`<>]+?)`")
@@ -64,6 +66,43 @@ def delegate_docstring(attr: Attribute) -> str | None:
             f"see [`{cls}.{method}`][{path}.{method}].")
 
 
+def delegated_function(attr: Attribute, package: Module) -> Function | None:
+    """The facade method ``attr`` (``name = delegate(...)``) as a function with the
+    component's signature and docstring; None for any other attribute."""
+    match = DELEGATE.match(str(attr.value or "").strip())
+    if match is None:
+        return None
+    component, cls, method = match.groups()
+    path = f"{attr.module.imports.get(cls, f'{attr.module.path}.{cls}')}.{method}"
+    target = package[path.split(".", 1)[1]] if path.startswith(package.path + ".") else None
+    if not isinstance(target, Function):
+        return None
+    parameters = Parameters(*[Parameter(p.name, annotation=p.annotation, kind=p.kind,
+                                        default=p.default)
+                              for p in target.parameters if p.name != "self"])
+    function = Function(attr.name, lineno=attr.lineno, endlineno=attr.endlineno,
+                        parameters=parameters, returns=target.returns)
+    source = target.docstring or Docstring("", parent=target)
+    function.docstring = Docstring(
+        f"Served by [`{cls}.{method}`][{path}] of the component `robot.{component}`, "
+        f"under the robot's lock.\n\n{source.value}", parent=function, parser=source.parser,
+        parser_options=source.parser_options)
+    return function
+
+
+def classes(module: Module) -> list[Class]:
+    """Every class of a package, its submodules included (not aliases)."""
+    found: list[Class] = []
+    for member in module.members.values():
+        if member.is_alias:
+            continue
+        if isinstance(member, Class):
+            found.append(member)
+        elif isinstance(member, Module):
+            found += classes(member)
+    return found
+
+
 class SphinxRoles(Extension):
     """Rewrite the Sphinx roles of every docstring and read ``#:`` attribute comments
     (see the module docstring)."""
@@ -75,3 +114,11 @@ class SphinxRoles(Extension):
                 obj.docstring = Docstring(text, parent=obj)
         if obj.docstring is not None:
             obj.docstring.value = rewrite(obj.docstring.value)
+
+    def on_package(self, *, pkg: Module, **kwargs: Any) -> None:
+        for cls in classes(pkg):
+            for name, member in list(cls.members.items()):
+                if isinstance(member, Attribute):
+                    function = delegated_function(member, pkg)
+                    if function is not None:
+                        cls.set_member(name, function)

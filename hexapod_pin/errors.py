@@ -7,9 +7,11 @@ message.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 
 class HexapodPinError(Exception):
@@ -91,7 +93,7 @@ class UnreachablePoseError(HexapodPinError, ValueError):
             from the platform point to the rail line minus ``leg_length``.
     """
 
-    def __init__(self, carriages, shortfall):
+    def __init__(self, carriages: Iterable[int], shortfall: Iterable[float]):
         self.carriages = [int(c) for c in carriages]
         self.shortfall = [float(s) for s in shortfall]
         parts = ", ".join(f"carriage {c} short by {s:.6g} m"
@@ -107,7 +109,7 @@ class StrokeLimitError(HexapodPinError, ValueError):
         violations: human-readable list of the violated limits.
     """
 
-    def __init__(self, q, violations):
+    def __init__(self, q: npt.ArrayLike, violations: Iterable[str]):
         self.q = np.array(q, dtype=float, copy=True)
         self.violations = list(violations)
         super().__init__("stroke limits violated: " + "; ".join(self.violations))
@@ -135,7 +137,7 @@ class ActuatorSaturationError(HexapodPinError, RuntimeError):
         limit: the bound (N).
     """
 
-    def __init__(self, needed, limit):
+    def __init__(self, needed: npt.ArrayLike, limit: npt.ArrayLike):
         self.needed = np.array(needed, dtype=float, copy=True)
         self.limit = np.array(limit, dtype=float, copy=True)
         over = np.flatnonzero(np.abs(self.needed) > self.limit)
@@ -188,10 +190,11 @@ class BatchActuatorSaturationError(ActuatorSaturationError):
 
     Attributes:
         index: index of the first offending state.
-        needed, limit: as in :class:`ActuatorSaturationError`, for that state.
+        needed: as in :class:`ActuatorSaturationError`, for that state.
+        limit: as in :class:`ActuatorSaturationError`.
     """
 
-    def __init__(self, index: int, needed, limit):
+    def __init__(self, index: int, needed: npt.ArrayLike, limit: npt.ArrayLike):
         self.index = int(index)
         super().__init__(needed, limit)
         self.args = (f"state {self.index}: {self.args[0]}",)
@@ -200,7 +203,7 @@ class BatchActuatorSaturationError(ActuatorSaturationError):
 class BatchUnreachablePoseError(UnreachablePoseError):
     """A pose of a batch cannot be reached (``index``: the first such state)."""
 
-    def __init__(self, index: int, actuators, shortfall):
+    def __init__(self, index: int, actuators: Iterable[int], shortfall: Iterable[float]):
         self.index = int(index)
         super().__init__(actuators, shortfall)
         self.args = (f"state {self.index}: {self.args[0]}",)
@@ -276,11 +279,13 @@ class InfeasiblePathError(HexapodPinError, ValueError):
             limits, a stroke left, an unreachable pose, a singularity, an end speed that
             cannot be reached, ...).
         actuator: the actuator at fault, or None.
-        value, limit: the offending value and its bound (units of the limit), or None.
+        value: the offending value (units of the limit), or None.
+        limit: its bound, or None.
     """
 
-    def __init__(self, index: int, s: float, pose, reason: str, actuator: int | None = None,
-                 value: float | None = None, limit: float | None = None):
+    def __init__(self, index: int, s: float, pose: npt.ArrayLike, reason: str,
+                 actuator: int | None = None, value: float | None = None,
+                 limit: float | None = None):
         self.index = int(index)
         self.s = float(s)
         self.pose = np.array(pose, dtype=float, copy=True)

@@ -491,7 +491,8 @@ def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None,
         duration: simulated time (s).
         dt: step (s); default :data:`DEFAULT_DT` of the controller.
         controller: ``"pid"``, ``"computed-torque"`` or ``"none"``.
-        radius, period: the circle (m, s); radius 0 holds home.
+        radius: the circle's radius (m); 0 holds home.
+        period: the circle's period (s).
         progress: passed to :func:`hexapod_pin.hexapod.simulation.simulate` (the python
             engine; the compiled loop reports nothing until it ends).
         engine: ``"fast"``: the compiled simulator

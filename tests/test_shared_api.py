@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import re
+import typing
 
 import numpy as np
 import pinocchio as pin
@@ -188,6 +189,23 @@ def test_every_shared_name_with_the_protocol_signature(robot):
             want = [(p.name, p.kind, p.default) for p in theirs.parameters.values()]
             assert got == want, f"{type(robot).__name__}.{name}{mine} != protocol {theirs}"
     assert INVERSE_DYNAMICS_METHODS[0] == "kkt" and FORWARD_DYNAMICS_METHODS[0] == "nullspace"
+
+
+def test_shared_methods_show_the_protocol_annotations(robot):
+    """``inspect.signature`` / ``help`` of a robot's method (a facade method delegated to a
+    component included) show the protocol's parameter and result annotations, and
+    ``typing.get_type_hints`` resolves them."""
+    for name in SHARED_NAMES:
+        spec = inspect.getattr_static(ParallelRobot, name, None)
+        if not inspect.isfunction(spec):
+            continue
+        theirs = inspect.signature(getattr(ParallelRobot, name))
+        mine = inspect.signature(getattr(robot, name))          # bound: no ``self``
+        want = [(p.name, p.annotation) for p in theirs.parameters.values() if p.name != "self"]
+        assert [(p.name, p.annotation) for p in mine.parameters.values()] == want, name
+        assert mine.return_annotation == theirs.return_annotation, name
+        hints = typing.get_type_hints(getattr(robot, name))
+        assert set(hints) == {p.name for p in mine.parameters.values()} | {"return"}, name
 
 
 def test_attributes_and_home(robot):

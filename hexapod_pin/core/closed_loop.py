@@ -28,9 +28,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 import scipy.linalg
 
@@ -103,7 +104,7 @@ class ClosedLoopModel:
     """
 
     def __init__(self, model: pin.Model, loops: LoopsSpec, name: str = "closed-loop model",
-                 urdf_xml: str | None = None):
+                 urdf_xml: str | None = None) -> None:
         self.name = name
         #: the URDF text the tree was built from, when known (drawing uses its visuals)
         self.urdf_xml = urdf_xml
@@ -215,15 +216,15 @@ class ClosedLoopModel:
         return pin.neutral(self.model)
 
     # -- input checks -------------------------------------------------------------
-    def check_q(self, q, name: str = "q") -> np.ndarray:
+    def check_q(self, q: npt.ArrayLike, name: str = "q") -> np.ndarray:
         """``q`` as a contiguous float64 array of size ``nq``; raises InputError."""
         return as_array(q, (self.model.nq,), name)
 
-    def check_v(self, v, name: str = "v") -> np.ndarray:
+    def check_v(self, v: npt.ArrayLike, name: str = "v") -> np.ndarray:
         """``v`` as a contiguous float64 array of size ``nv``; raises InputError."""
         return as_array(v, (self.model.nv,), name)
 
-    def pinocchio_constraints(self):
+    def pinocchio_constraints(self) -> tuple[list[Any], list[Any]]:
         """Fresh Pinocchio vectors ``(StdVec_RigidConstraintModel, StdVec_RigidConstraintData)``
         of the closures, for ``pin.initConstraintDynamics`` / ``pin.constraintDynamics``
         (each caller keeps its own: the data vectors hold per-call results)."""
@@ -239,7 +240,7 @@ class ClosedLoopModel:
     def _update_placements(self, q: np.ndarray) -> None:
         pin.framesForwardKinematics(self.model, self.data, q)
 
-    def residual(self, q) -> np.ndarray:
+    def residual(self, q: npt.ArrayLike) -> np.ndarray:
         """Closure residual at ``q``, shape (n_rows,) (m for points, m/rad for welds)."""
         q = self.check_q(q)
         self._update_placements(q)
@@ -255,7 +256,7 @@ class ClosedLoopModel:
                 out[rows] = pin.log6(m2.actInv(m1)).vector
         return out
 
-    def constraint_jacobian(self, q) -> np.ndarray:
+    def constraint_jacobian(self, q: npt.ArrayLike) -> np.ndarray:
         """Constraint Jacobian ``J_c`` at ``q``, shape (n_rows, nv).
 
         Derivative of :meth:`residual` along ``pin.integrate`` (see module doc).
@@ -280,7 +281,7 @@ class ClosedLoopModel:
                 out[rows] = pin.Jlog6(m21) @ (j1 - m21.inverse().action @ j2)
         return out
 
-    def constraint_drift(self, q, v) -> np.ndarray:
+    def constraint_drift(self, q: npt.ArrayLike, v: npt.ArrayLike) -> np.ndarray:
         """Drift ``gamma = dJ_c/dt v`` (n_rows,): accelerations satisfy ``J_c a = -gamma``.
 
         For a point closure it is the difference of the classical accelerations
@@ -311,7 +312,7 @@ class ClosedLoopModel:
                 out[rows] = pin.Jlog6(m21) @ rel.vector
         return out
 
-    def rank(self, q, tol: float | None = None) -> RankInfo:
+    def rank(self, q: npt.ArrayLike, tol: float | None = None) -> RankInfo:
         """Numerical rank of ``J_c`` at ``q`` and which rows are redundant.
 
         Args:
@@ -333,12 +334,12 @@ class ClosedLoopModel:
         redundant = np.sort(piv[rank:])
         return RankInfo(rank, self.n_rows, redundant, independent, sv, float(tol))
 
-    def mobility(self, q) -> int:
+    def mobility(self, q: npt.ArrayLike) -> int:
         """Degrees of freedom of the closed mechanism at ``q``: ``nv - rank(J_c)``."""
         return self.model.nv - self.rank(q).rank
 
     # -- assembly -------------------------------------------------------------------
-    def assemble(self, q0, fixed: Sequence[int] | None = None, tol: float = 1e-12,
+    def assemble(self, q0: npt.ArrayLike, fixed: npt.ArrayLike | None = None, tol: float = 1e-12,
                  max_iter: int = 50) -> AssemblyResult:
         """Close every loop by Gauss-Newton, holding some velocity coordinates fixed.
 
@@ -392,7 +393,7 @@ class ClosedLoopModel:
                             max_iter, q)
 
     # -- motion on the closures (closure_motion.py) -------------------------------------
-    def complete_velocity(self, q, known: Sequence[int], values,
+    def complete_velocity(self, q: npt.ArrayLike, known: npt.ArrayLike, values: npt.ArrayLike,
                           method: str = "lstsq") -> np.ndarray:
         """Tree velocity (nv,) keeping every closure, given some of its coordinates.
 
@@ -406,8 +407,8 @@ class ClosedLoopModel:
         jac = self.constraint_jacobian(q)
         return complete(jac, np.zeros(self.n_rows), known, values, method, "velocity")
 
-    def complete_acceleration(self, q, v, known: Sequence[int], values,
-                              method: str = "lstsq") -> np.ndarray:
+    def complete_acceleration(self, q: npt.ArrayLike, v: npt.ArrayLike, known: npt.ArrayLike,
+                              values: npt.ArrayLike, method: str = "lstsq") -> np.ndarray:
         """Tree acceleration (nv,) keeping every closure, given some of its coordinates.
 
         Solves ``J_c a = -gamma(q, v)`` with ``a[known] = values`` (least norm elsewhere);
@@ -417,7 +418,7 @@ class ClosedLoopModel:
         jac = self.constraint_jacobian(q)
         return complete(jac, -gamma, known, values, method, "acceleration")
 
-    def actuated_velocity_map(self, q, method: str = "lstsq") -> np.ndarray:
+    def actuated_velocity_map(self, q: npt.ArrayLike, method: str = "lstsq") -> np.ndarray:
         """Linear map ``G`` (nv, n_actuated) from actuated to tree velocities: ``v = G qdot_act``.
 
         Column j is the tree velocity keeping every closure (``J_c v = 0``) when actuated
@@ -440,7 +441,8 @@ class ClosedLoopModel:
         return complete(jac, np.zeros((self.n_rows, self.n_actuated)), self.actuated_v,
                         np.eye(self.n_actuated), method, "velocity map", free=self.passive_v)
 
-    def velocity_from_actuated(self, q, qdot_act, method: str = "lstsq") -> np.ndarray:
+    def velocity_from_actuated(self, q: npt.ArrayLike, qdot_act: npt.ArrayLike,
+                               method: str = "lstsq") -> np.ndarray:
         """Tree velocity (nv,) keeping every closure, given the actuated velocities.
 
         ``qdot_act`` (n_actuated,) in ``actuated_joints`` order (m/s or rad/s); the
@@ -450,7 +452,8 @@ class ClosedLoopModel:
         return complete(self.constraint_jacobian(q), np.zeros(self.n_rows), self.actuated_v,
                         qdot_act, method, "velocity", free=self.passive_v)
 
-    def acceleration_from_actuated(self, q, v, qddot_act, method: str = "lstsq") -> np.ndarray:
+    def acceleration_from_actuated(self, q: npt.ArrayLike, v: npt.ArrayLike,
+                                   qddot_act: npt.ArrayLike, method: str = "lstsq") -> np.ndarray:
         """Tree acceleration (nv,) keeping every closure, given the actuated accelerations.
 
         Solves ``J_c a = -gamma(q, v)`` (drift of :meth:`constraint_drift`) with
@@ -462,7 +465,7 @@ class ClosedLoopModel:
         return complete(self.constraint_jacobian(q), -gamma, self.actuated_v, qddot_act, method,
                         "acceleration", free=self.passive_v)
 
-    def frame_jacobian_from_actuated(self, q, frame: str | int,
+    def frame_jacobian_from_actuated(self, q: npt.ArrayLike, frame: str | int,
                                      reference: pin.ReferenceFrame =
                                      pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
                                      method: str = "lstsq") -> np.ndarray:
@@ -490,7 +493,7 @@ class ClosedLoopModel:
         # constraint_jacobian left the joint Jacobians of q in self.data
         return pin.getFrameJacobian(self.model, self.data, fid, reference) @ gmap
 
-    def acceleration_bias_from_actuated(self, q, v, frame: str | int,
+    def acceleration_bias_from_actuated(self, q: npt.ArrayLike, v: npt.ArrayLike, frame: str | int,
                                         method: str = "lstsq") -> np.ndarray:
         """Frame acceleration at zero actuated acceleration (6,): ``dK/dt qdot_act``.
 
@@ -505,7 +508,8 @@ class ClosedLoopModel:
         return pin.getFrameClassicalAcceleration(
             self.model, self.data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED).vector
 
-    def project_velocity(self, q, v, metric: str = "mass", method: str = "lstsq") -> np.ndarray:
+    def project_velocity(self, q: npt.ArrayLike, v: npt.ArrayLike, metric: str = "mass",
+                         method: str = "lstsq") -> np.ndarray:
         """The closure-consistent velocity (``J_c v' = 0``) closest to ``v`` (nv,).
 
         Args:
@@ -525,8 +529,8 @@ class ClosedLoopModel:
         return project(self.constraint_jacobian(q), np.zeros(self.n_rows), v, weight, method,
                        "projected velocity")
 
-    def project_acceleration(self, q, v, a, metric: str = "mass",
-                             method: str = "lstsq") -> np.ndarray:
+    def project_acceleration(self, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike,
+                             metric: str = "mass", method: str = "lstsq") -> np.ndarray:
         """The closure-consistent acceleration (``J_c a' = -gamma(q, v)``) closest to ``a``.
 
         ``v`` must keep the closures (project it first). With the mass metric this is
@@ -547,8 +551,11 @@ class ClosedLoopModel:
         raise InputError("metric", metric, "expected 'mass' or 'euclidean'")
 
     # -- frame-target inverse kinematics (frame_ik.py) ------------------------------------
-    def frame_inverse_kinematics(self, frame, target, q0=None, *, position_only=False,
-                                 fixed=None, weights=None, **options) -> FrameIKResult:
+    def frame_inverse_kinematics(self, frame: str, target: npt.ArrayLike,
+                                 q0: npt.ArrayLike | None = None, *, position_only: bool = False,
+                                 fixed: Sequence[str | int] | None = None,
+                                 weights: npt.ArrayLike | None = None,
+                                 **options: Any) -> FrameIKResult:
         """Place one or several frames at targets with every closure held.
 
         See :func:`~hexapod_pin.core.frame_ik.frame_inverse_kinematics` (this method

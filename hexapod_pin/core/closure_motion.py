@@ -29,6 +29,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 import proxsuite
 import scipy.linalg
 
@@ -166,8 +167,9 @@ def _basis_kernel(jac, rtol):
     return rank, piv, q_mat, pinv
 
 
-def complete(jac: np.ndarray, rhs: np.ndarray, known, values, method: str = "lstsq",
-             what: str = "motion", free: np.ndarray | None = None) -> np.ndarray:
+def complete(jac: np.ndarray, rhs: np.ndarray, known: npt.ArrayLike, values: npt.ArrayLike,
+             method: str = "lstsq", what: str = "motion",
+             free: np.ndarray | None = None) -> np.ndarray:
     """Coordinates ``x`` with ``J_c x = rhs`` and ``x[known] = values``, least norm elsewhere.
 
     Args:

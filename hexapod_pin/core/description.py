@@ -180,7 +180,8 @@ def check_inertia(mass: float, inertia: np.ndarray, source: str, where: str) -> 
             symmetric, positive semi-definite, its principal moments satisfying the
             triangle inequality ``I1 + I2 >= I3``, all to ``INERTIA_RTOL`` relative to its
             largest entry.
-        source, where: the description and the element, for the error message.
+        source: the description, for the error message.
+        where: the element, for the error message.
 
     Raises:
         DescriptionError: naming the source, the element and the violated condition.

@@ -47,10 +47,11 @@ from __future__ import annotations
 import math
 import threading
 import weakref
-from collections.abc import Mapping
-from typing import NamedTuple
+from collections.abc import Callable, Mapping
+from typing import Any, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 import proxsuite
 import scipy.linalg
@@ -134,7 +135,7 @@ class TreeForwardDynamics(NamedTuple):
     """
 
     a: np.ndarray
-    raw_multipliers: object
+    raw_multipliers: np.ndarray | Callable[[], np.ndarray]
     method: str
     status: str
     iterations: int
@@ -166,7 +167,7 @@ class TreeInverseDynamics(NamedTuple):
     """
 
     actuator_forces: np.ndarray
-    raw_multipliers: object
+    raw_multipliers: np.ndarray | Callable[[], np.ndarray]
     residual: float
     method: str
     status: str
@@ -201,7 +202,7 @@ class ClosedLoopDynamics:
         clm: the closed-loop model.
     """
 
-    def __init__(self, clm: ClosedLoopModel):
+    def __init__(self, clm: ClosedLoopModel) -> None:
         if not isinstance(clm, ClosedLoopModel):
             raise InputError("clm", clm, "expected a ClosedLoopModel")
         self.clm = clm
@@ -338,7 +339,9 @@ class ClosedLoopDynamics:
         return out
 
     # -- verification -----------------------------------------------------------------------
-    def verify(self, mass, bias, tau, jac, drift, acc, lam, route: str) -> tuple[float, float]:
+    def verify(self, mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
+               jac: np.ndarray, drift: np.ndarray, acc: np.ndarray, lam: np.ndarray,
+               route: str) -> tuple[float, float]:
         """Relative residuals of the two equations a forward solution must satisfy.
 
         ``M a + h - tau - J^T lam`` relative to the largest of ``|M a|``, ``|h - tau|``,
@@ -371,7 +374,8 @@ class ClosedLoopDynamics:
         return mass, bias, jac, gamma
 
     # -- forward dynamics -----------------------------------------------------------------
-    def forward(self, q, v, tau, method: str = "pinocchio") -> TreeForwardDynamics:
+    def forward(self, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike,
+                method: str = "pinocchio") -> TreeForwardDynamics:
         """Constrained forward dynamics; see :func:`forward_dynamics_tree`."""
         q = _vector(q, self.model.nq, "q")
         v = _vector(v, self.nv, "v")
@@ -381,7 +385,8 @@ class ClosedLoopDynamics:
         return _solve_checked(lambda: self.forward_unchecked(q, v, tau, method),
                               ("q", q), ("v", v), ("tau", tau))
 
-    def forward_unchecked(self, q, v, tau, method: str) -> TreeForwardDynamics:
+    def forward_unchecked(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
+                          method: str) -> TreeForwardDynamics:
         """:meth:`forward` without the input checks (contiguous float64 arrays of the right
         sizes, a known method); for batch drivers and integrators."""
         rank = self.closure_rank(q)
@@ -414,7 +419,8 @@ class ClosedLoopDynamics:
         self._v_rhs = data.primal_rhs_contact[:self.n_rows]
         self._pin_ready = True
 
-    def pinocchio_call(self, q, v, tau, redundant: bool):
+    def pinocchio_call(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
+                       redundant: bool) -> tuple[np.ndarray | None, Any]:
         """One verified ``pin.constraintDynamics`` call; returns (a or None, prox).
 
         ``a`` is Pinocchio's own buffer (copy it before the next call); Pinocchio's LOCAL
@@ -459,7 +465,8 @@ class ClosedLoopDynamics:
                                  self._v_lambda, self._res_out)
         return eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL
 
-    def pinocchio_acceleration(self, q, v, tau) -> np.ndarray:
+    def pinocchio_acceleration(self, q: np.ndarray, v: np.ndarray,
+                               tau: np.ndarray) -> np.ndarray:
         """Tree acceleration (nv,) only (no multipliers), verified; for integrators; no
         input checks."""
         rank = self.closure_rank(q)
@@ -665,7 +672,7 @@ class ClosedLoopDynamics:
         direct = self._forward_kkt(mass, bias, jac, gamma, tau, rank)
         rank = direct.rank
         nr = self.n_rows
-        rows = slice(None)
+        rows: slice | np.ndarray = slice(None)
         if rank < nr:
             # the QP keeps independent rows only (a pivoted QR of J_c^T): same feasible set
             # for a consistent drift, and the equality constraints get full row rank
@@ -713,7 +720,8 @@ class ClosedLoopDynamics:
                                    max_abs(jac @ acc + gamma))
 
     # -- inverse dynamics -------------------------------------------------------------------
-    def inverse(self, q, v, a, tau_ext=None, bounds=None,
+    def inverse(self, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike,
+                tau_ext: npt.ArrayLike | None = None, bounds: npt.ArrayLike | None = None,
                 method: str = "qp") -> TreeInverseDynamics:
         """Closed-loop inverse dynamics; see :func:`inverse_dynamics_tree`."""
         q = _vector(q, self.model.nq, "q")
@@ -726,13 +734,16 @@ class ClosedLoopDynamics:
         return _solve_checked(lambda: self.inverse_unchecked(q, v, a, tau_ext, bounds, method),
                               ("q", q), ("v", v), ("a", a), ("tau_ext", tau_ext))
 
-    def inverse_unchecked(self, q, v, a, tau_ext, bounds, method) -> TreeInverseDynamics:
+    def inverse_unchecked(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                          tau_ext: np.ndarray, bounds: np.ndarray | None,
+                          method: str) -> TreeInverseDynamics:
         """:meth:`inverse` without the input checks (``bounds`` None or (n_act,) array)."""
         force = pin.rnea(self.model, self.data, q, v, a)
         return self.inverse_from_force(q, v, a, force, tau_ext, bounds, method)
 
-    def inverse_from_force(self, q, v, a, force, tau_ext, bounds, method
-                           ) -> TreeInverseDynamics:
+    def inverse_from_force(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                           force: np.ndarray, tau_ext: np.ndarray, bounds: np.ndarray | None,
+                           method: str) -> TreeInverseDynamics:
         """Inverse dynamics given ``force = M a + h`` (nv,) (e.g. from a pooled
         ``rneaInParallel``); no input checks.
 
@@ -770,7 +781,7 @@ class ClosedLoopDynamics:
             pool = self._pools[threads] = pin.ModelPool(self.model, threads)
         return pool
 
-    def check_bounds(self, bounds) -> np.ndarray | None:
+    def check_bounds(self, bounds: npt.ArrayLike | None) -> np.ndarray | None:
         """Actuator bounds as an (n_act,) array (None: unbounded); raises InputError."""
         if bounds is None:
             return None
@@ -954,7 +965,8 @@ class ClosedLoopDynamics:
         return None
 
     # -- joint reaction wrenches ------------------------------------------------------------
-    def joint_wrenches(self, q, v, a, multipliers, fext: Mapping[int, pin.Force] | None = None
+    def joint_wrenches(self, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike,
+                       multipliers: np.ndarray, fext: Mapping[int, pin.Force] | None = None
                        ) -> tuple[dict[str, np.ndarray], np.ndarray]:
         """Spatial force transmitted by every joint of the tree.
 
@@ -966,7 +978,9 @@ class ClosedLoopDynamics:
         force (the actuator force for an actuated joint, ~0 for a passive one).
 
         Args:
-            q, v, a: tree configuration, velocity and acceleration.
+            q: tree configuration (nq,).
+            v: tree velocity (nv,).
+            a: tree acceleration (nv,).
             multipliers: closure multipliers (n_rows,) as returned by the routes.
             fext: extra external forces by joint id, each a ``pin.Force`` in that
                 joint's LOCAL frame (e.g. a load on a floating body).
@@ -1013,7 +1027,8 @@ def dynamics_of(clm: ClosedLoopModel) -> ClosedLoopDynamics:
         raise InputError("clm", clm, "expected a ClosedLoopModel") from None
 
 
-def forward_dynamics_tree(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=None,
+def forward_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
+                          actuator_forces: npt.ArrayLike, tau_ext: npt.ArrayLike | None = None,
                           method: str = "pinocchio") -> TreeForwardDynamics:
     """Constrained forward dynamics of a closed-loop mechanism on its tree.
 
@@ -1056,7 +1071,9 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=N
     return dynamics_of(clm).forward_actuated(q, v, actuator_forces, tau_ext, method)
 
 
-def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=None,
+def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
+                          a: npt.ArrayLike, tau_ext: npt.ArrayLike | None = None,
+                          bounds: npt.ArrayLike | None = None,
                           method: str = "qp") -> TreeInverseDynamics:
     """Closed-loop inverse dynamics: actuator forces that produce a tree motion.
 
@@ -1066,8 +1083,9 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=No
 
     Args:
         clm: the closed-loop model.
-        q, v, a: tree configuration (nq,), velocity and acceleration (nv,), Pinocchio
-            conventions, consistent with the closures.
+        q: tree configuration (nq,), Pinocchio conventions, closures assembled.
+        v: tree velocity (nv,), consistent with the closures.
+        a: tree acceleration (nv,), consistent with the closures.
         tau_ext: generalised external force on the tree (nv,) (N, N m); default zero.
         bounds: ``abs(u) <= bounds`` (scalar or (n_act,), N or N m); None (or inf): none.
         method: "qp" (minimise ``1/2 |u|^2 + 1/2 w |lambda|^2``, ``w = 1e-2``, subject
@@ -1132,7 +1150,9 @@ def _solve_checked(solve, *inputs):
         raise
 
 
-def forward_residuals(mass, bias, tau, jac, drift, acc, lam, out):
+def forward_residuals(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: np.ndarray,
+                      drift: np.ndarray, acc: np.ndarray, lam: np.ndarray,
+                      out: np.ndarray) -> tuple[float, float]:
     """Relative residuals of ``M a + h - tau - J^T lam = 0`` and ``J a + drift = 0``:
     :func:`kkt_residuals` with the target ``-drift``. Returns ``(eom, closure)`` (also
     written to ``out``)."""
@@ -1140,7 +1160,9 @@ def forward_residuals(mass, bias, tau, jac, drift, acc, lam, out):
 
 
 @jit
-def kkt_residuals(mass, bias, tau, jac, target, acc, lam, out):
+def kkt_residuals(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: np.ndarray,
+                  target: np.ndarray, acc: np.ndarray, lam: np.ndarray,
+                  out: np.ndarray) -> tuple[float, float]:
     """Relative residuals of ``M a + h - tau - J^T lam = 0`` and ``J a = target``.
 
     Reads only the upper triangle of ``mass`` (Pinocchio's ``crba`` and
@@ -1193,7 +1215,7 @@ def kkt_residuals(mass, bias, tau, jac, target, acc, lam, out):
 
 
 @jit
-def linear_residual(mat, x, rhs, out):
+def linear_residual(mat: np.ndarray, x: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> float:
     """``out = (max|mat x - rhs|, that over max(max|rhs|, max|mat| max|x|))`` (inf when not
     finite)."""
     n, m = mat.shape
@@ -1220,7 +1242,7 @@ def linear_residual(mat, x, rhs, out):
 
 
 @jit
-def square_solve(mat, rhs, x, out):
+def square_solve(mat: np.ndarray, rhs: np.ndarray, x: np.ndarray, out: np.ndarray) -> float:
     """``x = mat^-1 rhs`` (LU; raises numpy's LinAlgError when singular); returns the
     relative residual of :func:`linear_residual`."""
     x[:] = np.linalg.solve(mat, rhs)
@@ -1228,7 +1250,7 @@ def square_solve(mat, rhs, x, out):
 
 
 @jit
-def normal_solve(mat, rhs, x, out):
+def normal_solve(mat: np.ndarray, rhs: np.ndarray, x: np.ndarray, out: np.ndarray) -> float:
     """``x = (mat^T mat)^-1 mat^T rhs``, the least-squares solution of a tall ``mat`` of full
     column rank (LU of the normal matrix; raises numpy's LinAlgError when it is exactly
     singular); returns the relative residual of :func:`linear_residual` (small only when
@@ -1238,7 +1260,8 @@ def normal_solve(mat, rhs, x, out):
 
 
 @jit
-def minimum_norm_solve(mat, rhs, x, out):
+def minimum_norm_solve(mat: np.ndarray, rhs: np.ndarray, x: np.ndarray,
+                       out: np.ndarray) -> float:
     """``x = mat^T (mat mat^T)^-1 rhs``, the minimum-norm solution of a wide ``mat`` of full
     row rank (LU of the Gram matrix; raises numpy's LinAlgError when it is exactly
     singular); returns the relative residual of :func:`linear_residual`, which exposes a

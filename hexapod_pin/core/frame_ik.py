@@ -53,9 +53,11 @@ would be crossed.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from collections.abc import Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 import proxsuite
 
@@ -146,9 +148,11 @@ class FrameIKResult:
     history: tuple[float, ...]
 
 
-def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False, fixed=None,
-                             weights=None, method: str = "qp", tol: float = 1e-10,
-                             closure_tol: float = 1e-12, max_iter: int = 200,
+def frame_inverse_kinematics(clm: Any, frame: str, target: npt.ArrayLike,
+                             q0: npt.ArrayLike | None = None, *, position_only: bool = False,
+                             fixed: Sequence[str | int] | None = None,
+                             weights: npt.ArrayLike | None = None, method: str = "qp",
+                             tol: float = 1e-10, closure_tol: float = 1e-12, max_iter: int = 200,
                              limits: bool = True, damping: float = DAMPING) -> FrameIKResult:
     """Configuration of ``clm`` that places ``frame`` at ``target`` with the closures held.
 
@@ -297,7 +301,7 @@ def _placement(target, position_only: bool) -> pin.SE3:
 def _fixed_indices(clm, fixed) -> np.ndarray:
     if fixed is None:
         return np.zeros(0, dtype=int)
-    out = []
+    out: list[int] = []
     for item in fixed:
         if isinstance(item, str):
             start = clm.joint_v_index(item)
@@ -317,7 +321,10 @@ def _limits(clm, free: np.ndarray, q: np.ndarray) -> JointBox | None:
     (it may come back, never go further out).
     """
     model = clm.model
-    lo, hi, qi, pos = [], [], [], []
+    lo: list[float] = []
+    hi: list[float] = []
+    qi: list[int] = []
+    pos: list[int] = []
     where = {int(v): k for k, v in enumerate(free)}
     for joint in model.joints[1:]:
         if joint.nq != 1 or joint.nv != 1 or joint.idx_v not in where:
@@ -325,11 +332,14 @@ def _limits(clm, free: np.ndarray, q: np.ndarray) -> JointBox | None:
         low = model.lowerPositionLimit[joint.idx_q]
         up = model.upperPositionLimit[joint.idx_q]
         if -1e10 < low < up < 1e10:
-            lo.append(low), hi.append(up), qi.append(joint.idx_q), pos.append(where[joint.idx_v])
+            lo.append(low)
+            hi.append(up)
+            qi.append(joint.idx_q)
+            pos.append(where[joint.idx_v])
     if not pos:
         return None
-    pos, qi = np.array(pos, dtype=int), np.array(qi, dtype=int)
-    return JointBox(np.minimum(lo, q[qi]), np.maximum(hi, q[qi]), qi, pos, free[pos])
+    pos_a, qi_a = np.array(pos, dtype=int), np.array(qi, dtype=int)
+    return JointBox(np.minimum(lo, q[qi_a]), np.maximum(hi, q[qi_a]), qi_a, pos_a, free[pos_a])
 
 
 class Linearisation(NamedTuple):

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import AssemblyError, InputError
@@ -55,30 +56,31 @@ class FrozenModel:
     v_index: np.ndarray
     dropped_closures: tuple[str, ...]
 
-    def full_configuration(self, q_reduced) -> np.ndarray:
+    def full_configuration(self, q_reduced: npt.ArrayLike) -> np.ndarray:
         """Full configuration (nq of ``full``): reduced values, locked joints at their values."""
         q_reduced = self.model.check_q(q_reduced, "q_reduced")
         out = self.q_locked.copy()
         out[self.q_index] = q_reduced
         return out
 
-    def reduced_configuration(self, q) -> np.ndarray:
+    def reduced_configuration(self, q: npt.ArrayLike) -> np.ndarray:
         """Reduced configuration (nq of ``model``) of a full one (locked entries ignored)."""
         return self.full.check_q(q)[self.q_index].copy()
 
-    def full_velocity(self, v_reduced) -> np.ndarray:
+    def full_velocity(self, v_reduced: npt.ArrayLike) -> np.ndarray:
         """Full velocity or acceleration (nv of ``full``): zero on the locked joints."""
         v_reduced = self.model.check_v(v_reduced, "v_reduced")
         out = np.zeros(self.full.nv)
         out[self.v_index] = v_reduced
         return out
 
-    def reduced_velocity(self, v) -> np.ndarray:
+    def reduced_velocity(self, v: npt.ArrayLike) -> np.ndarray:
         """Reduced velocity or acceleration of a full one (locked entries dropped)."""
         return self.full.check_v(v)[self.v_index].copy()
 
 
-def freeze_joints(clm: ClosedLoopModel, joints: Sequence[str], q_locked) -> FrozenModel:
+def freeze_joints(clm: ClosedLoopModel, joints: Sequence[str],
+                  q_locked: npt.ArrayLike) -> FrozenModel:
     """Lock ``joints`` of ``clm`` at their values in ``q_locked``.
 
     Args:
@@ -124,7 +126,8 @@ def freeze_joints(clm: ClosedLoopModel, joints: Sequence[str], q_locked) -> Froz
     loops = LoopsSpec(tuple(kept), tuple(j for j in clm.actuated_joints if j not in names))
     reduced = ClosedLoopModel(reduced_tree, loops, name=f"{clm.name} (frozen: {', '.join(names)})",
                               urdf_xml=None)
-    q_index, v_index = [], []
+    q_index: list[int] = []
+    v_index: list[int] = []
     for jname in reduced.model.names[1:]:
         full = clm.model.joints[clm.model.getJointId(jname)]
         q_index.extend(range(full.idx_q, full.idx_q + full.nq))

@@ -35,6 +35,8 @@ constraint Jacobian) are exact and agree with this library's to rounding.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pinocchio as pin
 
@@ -172,7 +174,7 @@ def closed_loop_mjcf(clm: ClosedLoopModel, timestep: float = 1e-3,
     return "\n".join(lines) + "\n"
 
 
-def to_mujoco(clm: ClosedLoopModel, **options):
+def to_mujoco(clm: ClosedLoopModel, **options: Any) -> Any:
     """Compile :func:`closed_loop_mjcf` into a ``mujoco.MjModel`` (same options).
 
     Raises:

@@ -30,14 +30,19 @@ import numpy as np
 _NO_WRENCHES: Mapping[str, np.ndarray] = MappingProxyType({})
 
 
-class ResultDetails(Protocol):
-    """What a result computes on first access (each called at most once per result)."""
+class ForwardDetails(Protocol):
+    """What a forward-dynamics result computes on first access (each called at most once)."""
 
     def multipliers(self) -> np.ndarray:
         """Closure multipliers of the tree rows (n_rows,), see :mod:`hexapod_pin.core.dynamics`."""
 
     def closure_forces(self) -> np.ndarray:
         """Force of each chain ON the platform, (n_chains, d), world axes (N)."""
+
+
+class ResultDetails(ForwardDetails, Protocol):
+    """What an inverse-dynamics result computes on first access (each called at most once
+    per result): the parts of :class:`ForwardDetails`, and the following."""
 
     def joint_wrenches(self) -> Mapping[str, np.ndarray]:
         """Joint name -> (6,) spatial force transmitted by that joint (empty if not asked)."""
@@ -75,9 +80,13 @@ class InverseDynamicsResult:
     Attributes:
         actuator_forces: (n_act,) force (N) or torque (N m) on each actuator along its
             positive direction.
-        configuration, velocity, acceleration: the tree state ``q`` (nq,), ``v``, ``a``
-            (nv,) that the platform motion maps to (Pinocchio conventions).
-        method, status, iterations: the route taken and its solver information.
+        configuration: the tree configuration ``q`` (nq,) of the pose (Pinocchio
+            conventions).
+        velocity: the tree velocity ``v`` (nv,) of the twist.
+        acceleration: the tree acceleration ``a`` (nv,) of the twist derivative.
+        method: the route taken.
+        status: the solver's status.
+        iterations: the solver's iterations (0 for a direct solve).
         closure_forces: (n_chains, d) force each chain exerts ON the platform at its
             platform joint, world axes (N) (computed on first access).
         multipliers: closure multipliers of the tree rows (n_rows,) (first access).
@@ -122,7 +131,9 @@ class ForwardDynamicsResult:
         twist_dot: time derivative of the platform twist, world axes (m/s^2, rad/s^2).
         actuator_accelerations: (n_act,) second derivative of the actuator coordinates.
         tree_acceleration: the tree acceleration ``a`` (nv,), Pinocchio conventions.
-        method, status, iterations: the route taken and its solver information.
+        method: the route taken.
+        status: the solver's status.
+        iterations: the solver's iterations (0 for a direct solve).
         closure_forces: (n_chains, d) force each chain exerts ON the platform, world axes
             (N) (computed on first access).
         multipliers: closure multipliers of the tree rows (n_rows,) (first access).
@@ -134,7 +145,7 @@ class ForwardDynamicsResult:
     method: str
     status: str
     iterations: int
-    _details: ResultDetails = field(repr=False)
+    _details: ForwardDetails = field(repr=False)
 
     @cached_property
     def closure_forces(self) -> np.ndarray:

@@ -30,9 +30,12 @@ Conventions (robot-neutral; each robot's README section gives its numbers):
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
+from collections.abc import Callable
+from typing import Any, Concatenate, Generic, ParamSpec, Protocol, TypeVar, overload, \
+    runtime_checkable
 
 import numpy as np
+import numpy.typing as npt
 
 from .closed_loop import ClosedLoopModel
 from .results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
@@ -69,7 +72,8 @@ class ParallelRobot(Protocol):
         model: the :class:`ClosedLoopModel` (Pinocchio tree + loop closures).
         pose_dim: 6 in space, 3 in the plane.
         n_actuators: number of actuated joints.
-        home_pose: (dim,) the home pose; home_actuators: (n_act,) its actuator positions;
+        home_pose: (dim,) the home pose.
+        home_actuators: (n_act,) its actuator positions.
         home_configuration: (nq,) the tree configuration at home.
     """
 
@@ -92,80 +96,103 @@ class ParallelRobot(Protocol):
     def home_configuration(self) -> np.ndarray: ...
 
     # -- configurations ----------------------------------------------------------------
-    def configuration(self, pose, branch=None) -> np.ndarray:
+    def configuration(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None
+                      ) -> np.ndarray:
         """Pinocchio ``q`` (nq,) of the tree for a pose, every closure held to 1e-12."""
 
-    def pose_from_configuration(self, q) -> np.ndarray:
+    def pose_from_configuration(self, q: npt.ArrayLike) -> np.ndarray:
         """The platform pose (dim,) read from a tree configuration (nq,)."""
 
-    def actuator_positions(self, q) -> np.ndarray:
+    def actuator_positions(self, q: npt.ArrayLike) -> np.ndarray:
         """The actuator positions (n_act,) read from a tree configuration (nq,)."""
 
     # -- kinematics ----------------------------------------------------------------------
-    def inverse_kinematics(self, pose, branch=None, check_limits: bool = True) -> np.ndarray:
+    def inverse_kinematics(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None,
+                           check_limits: bool = True) -> np.ndarray:
         """Actuator positions (n_act,) of a pose (closed form)."""
 
-    def forward_kinematics(self, actuators, guess=None) -> np.ndarray:
+    def forward_kinematics(self, actuators: npt.ArrayLike,
+                           guess: npt.ArrayLike | None = None) -> np.ndarray:
         """The pose (dim,) of the assembly mode nearest ``guess`` (default: home)."""
 
-    def assembly_modes(self, actuators) -> np.ndarray:
+    def assembly_modes(self, actuators: npt.ArrayLike) -> np.ndarray:
         """Every real assembly mode, shape (n_modes, dim) (n_modes may be 0)."""
 
-    def jacobian(self, pose, branch=None) -> np.ndarray:
+    def jacobian(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
         """``J`` (n_act, dim) with ``actuator velocities = J @ twist``."""
 
-    def twist_from_actuator_velocities(self, pose, actuator_velocities,
-                                       branch=None) -> np.ndarray:
+    def twist_from_actuator_velocities(self, pose: npt.ArrayLike,
+                                       actuator_velocities: npt.ArrayLike,
+                                       branch: npt.ArrayLike | None = None) -> np.ndarray:
         """The twist (dim,) that gives the actuator velocities (``J^-1``)."""
 
-    def jacobian_derivative(self, pose, twist, branch=None) -> np.ndarray:
+    def jacobian_derivative(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                            branch: npt.ArrayLike | None = None) -> np.ndarray:
         """``dJ/dt`` (n_act, dim) along the motion."""
 
-    def singularity(self, pose, branch=None) -> SingularityMeasures:
+    def singularity(self, pose: npt.ArrayLike,
+                    branch: npt.ArrayLike | None = None) -> SingularityMeasures:
         """Distances to type-I and type-II singularities (never raises at one)."""
 
     # -- dynamics ------------------------------------------------------------------------
-    def inverse_dynamics(self, pose, twist, twist_dot, wrench=None, *, branch=None,
-                         method: str = "kkt", bounded: bool = True,
+    def inverse_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
+                         branch: npt.ArrayLike | None = None, method: str = "kkt",
+                         bounded: bool = True,
                          joint_wrenches: bool = True) -> InverseDynamicsResult:
         """Actuator forces that produce a platform motion."""
 
-    def forward_dynamics(self, pose, twist, actuator_forces, wrench=None, *, branch=None,
+    def forward_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         actuator_forces: npt.ArrayLike, wrench: npt.ArrayLike | None = None,
+                         *, branch: npt.ArrayLike | None = None,
                          method: str = "nullspace") -> ForwardDynamicsResult:
         """Platform acceleration produced by actuator forces."""
 
-    def static_forces(self, pose, wrench=None, *, branch=None,
-                      bounded: bool = True) -> np.ndarray:
+    def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
+                      branch: npt.ArrayLike | None = None, bounded: bool = True) -> np.ndarray:
         """Actuator forces (n_act,) holding the platform at rest against gravity + wrench."""
 
-    def reduced_dynamics(self, pose, twist, branch=None) -> ReducedDynamics:
+    def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         branch: npt.ArrayLike | None = None) -> ReducedDynamics:
         """``J^T tau + wrench = M_x twist_dot + h_x``."""
 
-    def energies(self, pose, twist, branch=None) -> Energies:
+    def energies(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                 branch: npt.ArrayLike | None = None) -> Energies:
         """Kinetic, potential and total energy of every body."""
 
-    def inverse_dynamics_derivatives(self, pose, twist, twist_dot,
-                                     wrench=None) -> InverseDynamicsDerivatives:
+    def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                                     twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None
+                                     ) -> InverseDynamicsDerivatives:
         """Derivatives of the actuator forces w.r.t. pose, twist, twist_dot and wrench."""
 
     # -- batches -------------------------------------------------------------------------
-    def inverse_kinematics_batch(self, poses, branch=None) -> InverseKinematicsBatch: ...
+    def inverse_kinematics_batch(self, poses: npt.ArrayLike, branch: npt.ArrayLike | None = None
+                                 ) -> InverseKinematicsBatch: ...
 
-    def jacobian_batch(self, poses, branch=None) -> JacobianBatch: ...
+    def jacobian_batch(self, poses: npt.ArrayLike,
+                       branch: npt.ArrayLike | None = None) -> JacobianBatch: ...
 
-    def inverse_dynamics_batch(self, poses, twists, twist_dots, wrenches=None, *,
-                               bounded: bool = True) -> BatchInverseDynamics: ...
+    def inverse_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                               twist_dots: npt.ArrayLike, wrenches: npt.ArrayLike | None = None,
+                               *, bounded: bool = True) -> BatchInverseDynamics: ...
 
-    def forward_dynamics_batch(self, poses, twists, actuator_forces,
-                               wrenches=None) -> BatchForwardDynamics: ...
+    def forward_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                               actuator_forces: npt.ArrayLike,
+                               wrenches: npt.ArrayLike | None = None) -> BatchForwardDynamics: ...
 
-    def static_forces_batch(self, poses, wrenches=None, *,
+    def static_forces_batch(self, poses: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
                             bounded: bool = True) -> np.ndarray: ...
 
-    def reduced_dynamics_batch(self, poses, twists) -> BatchReducedDynamics: ...
+    def reduced_dynamics_batch(self, poses: npt.ArrayLike,
+                               twists: npt.ArrayLike) -> BatchReducedDynamics: ...
 
 
-class delegate:
+#: the parameters (after ``self``) and the result of a delegated method
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+class delegate(Generic[P, R]):
     """A facade method served by one of the facade's components (composition), called under
     the facade's lock.
 
@@ -178,31 +205,50 @@ class delegate:
     the component's function (its docstring and signature for ``help`` and ``inspect``);
     the instance's wrapper is built on first access and kept on the instance.
 
+    Typing: the descriptor is generic in the component method's parameters ``P`` (after
+    ``self``) and result ``R``, and its ``__get__`` is overloaded, so a type checker sees
+    ``Robot.method`` as the component's function and ``robot.method`` as ``Callable[P, R]``:
+    the facade's calls are checked against the component's annotations with no stub file
+    to keep in step. At run time ``inspect.signature(robot.method)`` follows
+    ``__wrapped__`` to the component's bound method (its annotations, without ``self``),
+    and ``typing.get_type_hints`` reads the copied ``__annotations__``.
+
     Args:
         attribute: name of the facade's attribute holding the component.
         function: the component class's function to serve.
     """
 
-    def __init__(self, attribute: str, function):
+    def __init__(self, attribute: str, function: Callable[Concatenate[Any, P], R]) -> None:
         self.attribute = attribute
         self.function = function
         self.__doc__ = function.__doc__
 
-    def __set_name__(self, owner, name: str) -> None:
+    def __set_name__(self, owner: type, name: str) -> None:
         self.name = name
 
-    def __get__(self, obj, objtype=None):
+    @overload
+    def __get__(self, obj: None, objtype: type | None = None
+                ) -> Callable[Concatenate[Any, P], R]: ...
+
+    @overload
+    def __get__(self, obj: object, objtype: type | None = None) -> Callable[P, R]: ...
+
+    def __get__(self, obj: object | None, objtype: type | None = None
+                ) -> Callable[Concatenate[Any, P], R] | Callable[P, R]:
         if obj is None:
             return self.function
         bound = getattr(getattr(obj, self.attribute), self.function.__name__)
-        lock = obj.lock
+        lock = getattr(obj, "lock")
 
-        def serialized(*args, **kwargs):
+        def serialized(*args: P.args, **kwargs: P.kwargs) -> R:
             with lock:
                 return bound(*args, **kwargs)
 
-        serialized.__wrapped__ = bound
+        serialized.__wrapped__ = bound    # type: ignore[attr-defined]
         serialized.__doc__ = self.function.__doc__
         serialized.__name__ = serialized.__qualname__ = self.name
+        serialized.__annotations__ = {key: value for key, value
+                                      in getattr(self.function, "__annotations__", {}).items()
+                                      if key != "self"}
         obj.__dict__[self.name] = serialized     # later lookups skip this descriptor
         return serialized

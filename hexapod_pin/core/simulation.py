@@ -59,8 +59,8 @@ class ClosedLoopIntegrator:
         InputError: an unsupported joint type, method or integrator.
     """
 
-    def __init__(self, clm: ClosedLoopModel, method: str = "pinocchio",
-                 integrator: str = "rk4", residual: Callable[[np.ndarray], float] | None = None):
+    def __init__(self, clm: ClosedLoopModel, method: str = "pinocchio", integrator: str = "rk4",
+                 residual: Callable[[np.ndarray], float] | None = None) -> None:
         if method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
         if integrator not in INTEGRATORS:
@@ -143,7 +143,7 @@ class ClosedLoopIntegrator:
         return dyn.forward_unchecked(q, v, tau, self.method).a
 
     def step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
-             projection_tol: float = PROJECTION_TOL):
+             projection_tol: float = PROJECTION_TOL) -> tuple[np.ndarray, np.ndarray, float]:
         """One step of length ``dt`` (s) with ``tau`` (nv,) held; returns ``(q, v, residual)``.
 
         ``residual`` is the max-abs closure residual after the projection (m).
@@ -193,7 +193,7 @@ class ClosedLoopIntegrator:
         return float(np.max(np.abs(self._residual_from_data()), initial=0.0))
 
     def project(self, q: np.ndarray, v: np.ndarray, trigger: float = PROJECTION_TOL,
-                max_iter: int = 8):
+                max_iter: int = 8) -> tuple[np.ndarray, np.ndarray, float]:
         """Project ``(q, v)`` onto the closures when the residual exceeds ``trigger``.
 
         Gauss-Newton steps ``q <- q (+) (-J_c^+ r)`` on the independent closure rows (rows

@@ -19,6 +19,7 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import ActuatorSaturationError, BatchActuatorSaturationError, InputError, SolverError
@@ -106,13 +107,16 @@ def _state_error(index: int, exc: SolverError) -> SolverError:
     return SolverError(exc.solver, exc.status, f"state {index}: {exc}")
 
 
-def forward_dynamics_tree_batch(clm: ClosedLoopModel, q, v, actuator_forces, tau_ext=None,
+def forward_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarray,
+                                actuator_forces: np.ndarray,
+                                tau_ext: np.ndarray | None = None,
                                 method: str = "pinocchio") -> TreeForwardDynamicsBatch:
     """:func:`~hexapod_pin.core.dynamics.forward_dynamics_tree` over N states.
 
     Args:
         clm: the closed-loop model.
-        q: configurations (N, nq); v: velocities (N, nv), closure-consistent.
+        q: configurations (N, nq), closures assembled.
+        v: velocities (N, nv), keeping the closures.
         actuator_forces: ``u`` (N, n_act) (N or N m).
         tau_ext: generalised external forces (N, nv) or (nv,) for every state; default 0.
         method: "pinocchio", "qp" or "kkt" (see the single call).
@@ -143,15 +147,17 @@ def forward_dynamics_tree_batch(clm: ClosedLoopModel, q, v, actuator_forces, tau
     return TreeForwardDynamicsBatch(acc, tuple(results))
 
 
-def inverse_dynamics_tree_batch(clm: ClosedLoopModel, q, v, a, tau_ext=None, bounds=None,
-                                method: str = "qp",
+def inverse_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarray,
+                                a: np.ndarray, tau_ext: np.ndarray | None = None,
+                                bounds: np.ndarray | None = None, method: str = "qp",
                                 threads: int | None = None) -> TreeInverseDynamicsBatch:
     """:func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree` over N states.
 
     Args:
         clm: the closed-loop model.
-        q, v, a: configurations (N, nq), velocities and accelerations (N, nv), keeping
-            the closures.
+        q: configurations (N, nq), closures assembled.
+        v: velocities (N, nv), keeping the closures.
+        a: accelerations (N, nv), keeping the closures.
         tau_ext: generalised external forces (N, nv) or (nv,); default zero.
         bounds: ``abs(u) <= bounds`` for every state (scalar or (n_act,)); None: none.
         method: "qp" or "kkt".

@@ -39,10 +39,12 @@ All lengths are in metres, angles in radians, world axes throughout.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.pose import rotation_rpy, rpy_of
 from ..errors import AssemblyError
@@ -72,8 +74,10 @@ class CircleGeometry:
     """Per-geometry constants of the three-circle formulation (world axes, m).
 
     Attributes:
-        mids, dirs: rail midpoints ``m_k`` and unit directions ``u_k``, shape (3, 3).
-        axis1, axis2: the in-plane unit axes ``b1_k``, ``b2_k`` of each rail's circle, (3, 3).
+        mids: rail midpoints ``m_k``, shape (3, 3).
+        dirs: rail unit directions ``u_k``, shape (3, 3).
+        axis1: the first in-plane unit axis ``b1_k`` of each rail's circle, (3, 3).
+        axis2: the second in-plane unit axis ``b2_k`` of each rail's circle, (3, 3).
         leg_length: ``L`` (m).
         sides: ``s_jk`` for the pairs of :data:`PAIRS`, shape (3,).
         platform_points: ``p_k`` in the platform frame, shape (3, 3).
@@ -167,16 +171,16 @@ class CircleSystem(NamedTuple):
         """Platform triangle sides ``s_jk`` (3,) (m), in the order of :data:`PAIRS`."""
         return self.circle_geometry.sides
 
-    def coefficient_arrays(self):
+    def coefficient_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``K`` (3,), ``a`` (3, 2), ``b`` (3, 2), ``Q`` (3, 2, 2) as numpy arrays."""
         c = np.array(self.coeffs)
         return c[:, 0], c[:, 1:3], c[:, 3:5], c[:, 5:].reshape(3, 2, 2)
 
-    def points(self, theta) -> np.ndarray:
+    def points(self, theta: Sequence[float]) -> np.ndarray:
         """Platform points ``P_k(theta_k)`` (3, 3) (m) for angles ``theta`` (3,) (rad)."""
         return np.array(self.points_t(*(float(t) for t in theta)))
 
-    def points_t(self, t0: float, t1: float, t2: float):
+    def points_t(self, t0: float, t1: float, t2: float) -> list[tuple[float, float, float]]:
         """:meth:`points` in plain floats: three 3-tuples."""
         cg = self.circle_geometry
         out = []
@@ -187,11 +191,11 @@ class CircleSystem(NamedTuple):
                         cz + c * b1[2] + s * b2[2]))
         return out
 
-    def angles_of(self, points) -> np.ndarray:
+    def angles_of(self, points: npt.ArrayLike) -> np.ndarray:
         """Circle angles (3,) of the points nearest to ``points`` (3, 3) on each circle."""
         return np.array(self.angles_of_t(np.asarray(points, dtype=float).tolist()))
 
-    def angles_of_t(self, points):
+    def angles_of_t(self, points: Sequence[Sequence[float]]) -> list[float]:
         """:meth:`angles_of` in plain floats (a list of three angles)."""
         cg = self.circle_geometry
         out = []
@@ -202,7 +206,7 @@ class CircleSystem(NamedTuple):
                                   dx * b1[0] + dy * b1[1] + dz * b1[2]))
         return out
 
-    def residual(self, theta) -> np.ndarray:
+    def residual(self, theta: Sequence[float]) -> np.ndarray:
         """The three triangle equations ``E_jk`` (m^2) at ``theta`` (3,)."""
         return np.array(_residual_and_jacobian(self.coeffs, *(float(t) for t in theta))[0])
 
@@ -219,7 +223,7 @@ def triangle_frame(points: np.ndarray) -> np.ndarray:
     return np.stack([e1, np.cross(e3, e1), e3], axis=1)
 
 
-def circle_system(cg: CircleGeometry, q) -> CircleSystem | None:
+def circle_system(cg: CircleGeometry, q: Sequence[float] | np.ndarray) -> CircleSystem | None:
     """The circles of the platform points for carriage positions ``q`` (6,) (m).
 
     Plain-float arithmetic (this is on the forward-kinematics hot path).
@@ -339,7 +343,7 @@ class CircleNewtonResult:
     iterations: int
 
 
-def newton_circles(system: CircleSystem, theta0, max_iter: int = 50,
+def newton_circles(system: CircleSystem, theta0: Sequence[float], max_iter: int = 50,
                    tol: float = INNER_TOL) -> CircleNewtonResult:
     """Newton's method on the three triangle equations, from ``theta0`` (3 floats).
 
@@ -379,7 +383,8 @@ def newton_circles(system: CircleSystem, theta0, max_iter: int = 50,
     raise AssemblyError(f"no convergence to {tol:g} m in {max_iter} iterations", err, max_iter)
 
 
-def pose_from_points(cg: CircleGeometry, points: np.ndarray):
+def pose_from_points(cg: CircleGeometry,
+                     points: np.ndarray) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """Platform position ``t`` (3,) and rotation ``R`` (3, 3) mapping ``p_k`` to ``points``.
 
     ``R = F_world F_platform^T`` with the triangle frames of :func:`triangle_frame`,
@@ -391,7 +396,7 @@ def pose_from_points(cg: CircleGeometry, points: np.ndarray):
     return points.mean(axis=0) - rot @ cg.platform_centroid, rot
 
 
-def pose_from_points_t(cg: CircleGeometry, points) -> list[float]:
+def pose_from_points_t(cg: CircleGeometry, points: Sequence[Sequence[float]]) -> list[float]:
     """:func:`pose_from_points` in plain floats, returning the pose (6 floats, m and rad).
 
     The rotation is converted with the same formulas as
@@ -416,7 +421,8 @@ def pose_from_points_t(cg: CircleGeometry, points) -> list[float]:
     return t + list(rpy_of(np.array(rot).reshape(9)))
 
 
-def platform_points_t(cg: CircleGeometry, pose):
+def platform_points_t(cg: CircleGeometry,
+                      pose: Sequence[float]) -> list[tuple[float, float, float]]:
     """World platform points ``t + R p_k`` (three 3-tuples) of a pose (6 floats)."""
     x, y, z, roll, pitch, yaw = pose
     buf = np.empty(9)
@@ -427,7 +433,7 @@ def platform_points_t(cg: CircleGeometry, pose):
              z + r[6] * px + r[7] * py + r[8] * pz) for px, py, pz in cg.points_t]
 
 
-def leg_length_error(cg: CircleGeometry, pose, q) -> float:
+def leg_length_error(cg: CircleGeometry, pose: Sequence[float], q: Sequence[float]) -> float:
     """Largest ``| |P_k - c_i| - L |`` over the six legs (m) for a pose and ``q`` (floats)."""
     pts = platform_points_t(cg, pose)
     worst = 0.0
@@ -506,7 +512,7 @@ def sylvester_matrices(system: CircleSystem, theta0: np.ndarray) -> np.ndarray:
     return syl
 
 
-def eliminant_roots(system: CircleSystem):
+def eliminant_roots(system: CircleSystem) -> tuple[np.ndarray, np.ndarray, float]:
     """Fourier coefficients of ``D`` and the roots of ``z^8 D`` (degree-16 polynomial).
 
     Returns:

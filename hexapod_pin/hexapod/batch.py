@@ -202,8 +202,10 @@ def inverse_dynamics_batch(geo, poses, twists, twist_dots, wrenches=None, bounde
     """Inverse dynamics of N states (validated (N, 6) arrays; ``wrenches`` may be None).
 
     Raises:
-        BatchUnreachablePoseError, BatchSingularityError (type I, gimbal lock, type II),
-        BatchActuatorSaturationError (with ``bounded``): for the first such state.
+        BatchUnreachablePoseError: a pose out of reach (the first such state).
+        BatchSingularityError: a singular state (type I, gimbal lock, type II; the first).
+        BatchActuatorSaturationError: with ``bounded``, forces beyond the bound (the first
+            such state).
     """
     signs = K.HOME_BRANCH[None] if signs is None else signs
     n = poses.shape[0]
@@ -219,7 +221,10 @@ def static_forces_batch(geo, poses, wrenches=None, bounded=True, signs=None) -> 
     """Actuator forces (N, 6) holding N poses at rest (validated arrays).
 
     Raises:
-        BatchUnreachablePoseError, BatchSingularityError, BatchActuatorSaturationError.
+        BatchUnreachablePoseError: a pose out of reach.
+        BatchSingularityError: a singular state.
+        BatchActuatorSaturationError: with ``bounded``, forces beyond
+            ``geometry.max_actuator_force``.
     """
     signs = K.HOME_BRANCH[None] if signs is None else signs
     tau, codes = static_forces_codes(geo, poses, wrenches, bounded, signs)
@@ -251,7 +256,8 @@ def forward_dynamics_batch(geo, poses, twists, forces, wrenches=None,
     """Forward dynamics of N states (validated arrays).
 
     Raises:
-        BatchUnreachablePoseError, BatchSingularityError (type I, gimbal lock).
+        BatchUnreachablePoseError: a pose out of reach.
+        BatchSingularityError: a singular state (type I, gimbal lock).
     """
     signs = K.HOME_BRANCH[None] if signs is None else signs
     n = poses.shape[0]
@@ -267,7 +273,8 @@ def reduced_dynamics_batch(geo, poses, twists, signs=None) -> BatchReducedDynami
     """``M_x`` (N, 6, 6), ``h_x`` (N, 6) and ``J`` (N, 6, 6) of N states.
 
     Raises:
-        BatchUnreachablePoseError, BatchSingularityError (type I, gimbal lock).
+        BatchUnreachablePoseError: a pose out of reach.
+        BatchSingularityError: a singular state (type I, gimbal lock).
     """
     signs = K.HOME_BRANCH[None] if signs is None else signs
     n = poses.shape[0]

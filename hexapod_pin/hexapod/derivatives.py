@@ -49,8 +49,11 @@ is shared between calls: not thread-safe, like the rest of the dynamics.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 from scipy.linalg.lapack import dgesv
 
@@ -59,7 +62,8 @@ from ..core.pose import euler_rates_matrix
 from ..core.results import InverseDynamicsDerivatives
 from ..errors import HexapodPinError, SolverError
 from . import kernels
-from .geometry import carriage_frames
+from ..core.closed_loop import ClosedLoopModel
+from .geometry import HexapodGeometry, carriage_frames
 
 __all__ = ["DerivativesWorkspace", "analytic_derivatives"]
 
@@ -79,7 +83,8 @@ class DerivativesWorkspace:
     ``i = 0..5``, then the platform's free-flyer at 18..23; six point closures.
     """
 
-    def __init__(self, clm, closed_form, indices, geometry):
+    def __init__(self, clm: ClosedLoopModel, closed_form: kernels.ClosedForm,
+                 indices: Any, geometry: HexapodGeometry) -> None:
         model = clm.model
         self.model = model
         self.closed_form = closed_form
@@ -125,7 +130,7 @@ class DerivativesWorkspace:
         self.eye6 = np.eye(6)
 
     @staticmethod
-    def rot6(rot) -> np.ndarray:
+    def rot6(rot: Sequence[float]) -> np.ndarray:
         """``blockdiag(R, R)`` (6, 6) from the 9 row-major floats of ``R``."""
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
         return np.array(((r00, r01, r02, 0.0, 0.0, 0.0), (r10, r11, r12, 0.0, 0.0, 0.0),
@@ -133,8 +138,9 @@ class DerivativesWorkspace:
                          (0.0, 0.0, 0.0, r10, r11, r12), (0.0, 0.0, 0.0, r20, r21, r22)))
 
 
-def analytic_derivatives(ws: DerivativesWorkspace, pose, twist, twist_dot,
-                         wrench=None) -> InverseDynamicsDerivatives:
+def analytic_derivatives(ws: DerivativesWorkspace, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         twist_dot: npt.ArrayLike,
+                         wrench: npt.ArrayLike | None = None) -> InverseDynamicsDerivatives:
     """Analytic derivatives of the hexapod's inverse-dynamics actuator forces.
 
     The forces are those of ``robot.inverse_dynamics(pose, twist, twist_dot, wrench,
@@ -189,7 +195,7 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose, twist, twist_dot,
     rot = scr.rot.tolist()
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
     fx, fy, fz, mx, my, mz = wrench
-    tau_tree = []
+    tau_tree: list[float] = []
     for t in tau:
         tau_tree += (t, 0.0, 0.0)              # the carriages, then the free flyer (R^T f, R^T m)
     tau_tree += (r00 * fx + r10 * fy + r20 * fz, r01 * fx + r11 * fy + r21 * fz,

@@ -12,10 +12,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from typing import Any
 
 import threading
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 import proxsuite
 
@@ -40,6 +42,7 @@ from ..errors import (
 )
 from ..core.pose import rotation_from_rpy
 from ..core.checks import vec6 as _vec6
+from .geometry import HexapodGeometry
 
 #: the hexapod's forward-dynamics routes: the tree routes and the null-space one
 HEXAPOD_FORWARD_METHODS = ("pinocchio", "nullspace", "qp", "kkt")
@@ -207,8 +210,8 @@ class HexapodDynamics:
     independent of ``pin.rnea``; the tests check that both agree to 1e-10.
     """
 
-    def __init__(self, geometry, model: ClosedLoopModel, indices,
-                 closed_form: kernels.ClosedForm, lock=None):
+    def __init__(self, geometry: HexapodGeometry, model: ClosedLoopModel, indices: Any,
+                 closed_form: kernels.ClosedForm, lock: threading.RLock | None = None) -> None:
         self.geometry, self.model, self.indices = geometry, model, indices
         self.closed_form = closed_form
         #: the robot's lock, held by the lazy parts of results (they use this workspace)
@@ -260,12 +263,16 @@ class HexapodDynamics:
         self._ws = ws
         return ws
 
-    def tree_state(self, pose, twist, branch=None, ws=None) -> tuple[np.ndarray, np.ndarray]:
+    def tree_state(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                   branch: npt.ArrayLike | None = None,
+                   ws: _HexapodWorkspace | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Tree configuration ``q`` (nq,) and velocity ``v`` (nv,) (Pinocchio conventions) of
         a platform pose and twist (6,) each, on ``branch`` (default home), in closed form.
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError (type I, gimbal lock).
+            InputError: bad shape, non-finite or non-real values.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: at a singular configuration (type I, gimbal lock).
         """
         ck = (self._workspace() if ws is None else ws).compiled
         signs = ck.signs if branch is None else check_branch(branch)
@@ -279,8 +286,10 @@ class HexapodDynamics:
         return q, v
 
     # -- inverse dynamics --------------------------------------------------------------
-    def inverse_dynamics(self, pose, twist, twist_dot, wrench=None, *, branch=None,
-                         method: str = "kkt", bounded: bool = True,
+    def inverse_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
+                         wrench: npt.ArrayLike | None = None, *,
+                         branch: npt.ArrayLike | None = None, method: str = "kkt",
+                         bounded: bool = True,
                          joint_wrenches: bool = True) -> InverseDynamicsResult:
         """Actuator forces that produce a platform motion (closed-loop inverse dynamics).
 
@@ -412,8 +421,8 @@ class HexapodDynamics:
         status = "solved"
         return sol, status, int(info.iter)
 
-    def actuator_forces_at(self, q, twist, twist_dot, wrench=None,
-                           method: str = "kkt") -> np.ndarray:
+    def actuator_forces_at(self, q: npt.ArrayLike, twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
+                           wrench: npt.ArrayLike | None = None, method: str = "kkt") -> np.ndarray:
         """Unbounded inverse-dynamics actuator forces (6,) (N) at an assembled tree
         configuration ``q`` (nq,), for a platform ``twist`` and ``twist_dot`` (6,) and a
         ``wrench`` (6,) as in :meth:`inverse_dynamics` (no checks beyond the
@@ -432,8 +441,8 @@ class HexapodDynamics:
         force = pin.rnea(dyn.model, dyn.data, q, v, a)
         return self._solve_tree(ws, force, wrench_a, method, None)[0]
 
-    def static_forces(self, pose, wrench=None, *, branch=None,
-                      bounded: bool = True) -> np.ndarray:
+    def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
+                      branch: npt.ArrayLike | None = None, bounded: bool = True) -> np.ndarray:
         """Actuator forces holding the platform at rest at ``pose`` under gravity and a wrench.
 
         ``J^T tau = G^T g(q) - wrench`` with ``g(q)`` the tree's generalised gravity
@@ -450,7 +459,11 @@ class HexapodDynamics:
             tau (6,) (N), force on carriage i along ``+u_k``.
 
         Raises:
-            ActuatorSaturationError, UnreachablePoseError, SingularityError, InputError.
+            ActuatorSaturationError: with ``bounded``, a motion needing forces beyond
+                ``geometry.max_actuator_force``.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: at a singular configuration.
+            InputError: bad shape, non-finite or non-real values.
         """
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
@@ -485,7 +498,9 @@ class HexapodDynamics:
         raise ck.error(code)
 
     # -- forward dynamics ----------------------------------------------------------------
-    def forward_dynamics(self, pose, twist, actuator_forces, wrench=None, *, branch=None,
+    def forward_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         actuator_forces: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
+                         branch: npt.ArrayLike | None = None,
                          method: str = "nullspace") -> ForwardDynamicsResult:
         """Platform acceleration produced by actuator forces (constrained forward dynamics).
 
@@ -509,7 +524,10 @@ class HexapodDynamics:
             :class:`ForwardDynamicsResult`.
 
         Raises:
-            UnreachablePoseError, SingularityError, InputError, SolverError.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: at a singular configuration.
+            InputError: bad shape, non-finite or non-real values.
+            SolverError: a solve that does not verify.
         """
         if method not in HEXAPOD_FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {HEXAPOD_FORWARD_METHODS}")
@@ -573,7 +591,8 @@ class HexapodDynamics:
                                      status, iters, details)
 
     # -- reduced (null-space) dynamics ------------------------------------------------------
-    def reduced_dynamics(self, pose, twist, branch=None) -> ReducedDynamics:
+    def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         branch: npt.ArrayLike | None = None) -> ReducedDynamics:
         """Dynamics in platform coordinates (null-space / independent-coordinate method).
 
         With ``T`` (nv, 6) the map ``v = T twist`` that keeps the closures
@@ -611,7 +630,8 @@ class HexapodDynamics:
         return ReducedDynamics(m_x, h_x, vmap[self.indices.carriage_v].copy(), vmap)
 
     # -- energies ----------------------------------------------------------------------------
-    def energies(self, pose, twist, branch=None) -> Energies:
+    def energies(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                 branch: npt.ArrayLike | None = None) -> Energies:
         """Kinetic and potential energy of the whole mechanism (J).
 
         Potential: ``sum m_b g z_b`` over every body's centre of mass (zero at z = 0).
@@ -623,7 +643,7 @@ class HexapodDynamics:
         q, v = self.tree_state(pose, twist, branch)
         return self.tree_energies(q, v)
 
-    def tree_energies(self, q, v) -> Energies:
+    def tree_energies(self, q: npt.ArrayLike, v: npt.ArrayLike) -> Energies:
         """:meth:`energies` from a tree state ``q`` (nq,), ``v`` (nv,) (Pinocchio conventions)."""
         dyn = self._workspace().dyn
         q, v = dyn.clm.check_q(q), dyn.clm.check_v(v)
@@ -632,7 +652,8 @@ class HexapodDynamics:
         return Energies(kin, pot, kin + pot)
 
     # -- batch ----------------------------------------------------------------------------
-    def inverse_dynamics_batch(self, poses, twists, twist_dots, wrenches=None, *,
+    def inverse_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                               twist_dots: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
                                bounded: bool = True) -> BatchInverseDynamics:
         """Inverse dynamics of N states at once (closed form, vectorised numpy).
 
@@ -640,8 +661,9 @@ class HexapodDynamics:
         of the Pinocchio tree route of :meth:`inverse_dynamics`; they agree to round-off).
 
         Args:
-            poses, twists, twist_dots: (N, 6) each, conventions as in
-                :meth:`inverse_dynamics`.
+            poses: (N, 6), conventions as in :meth:`inverse_dynamics`.
+            twists: (N, 6), conventions as in :meth:`inverse_dynamics`.
+            twist_dots: (N, 6), conventions as in :meth:`inverse_dynamics`.
             wrenches: (N, 6) or None.
             bounded: raise :class:`BatchActuatorSaturationError` (an
                 :class:`ActuatorSaturationError`) for the first state beyond the bounds.
@@ -651,24 +673,27 @@ class HexapodDynamics:
 
         Raises:
             InputError: bad shapes or NaN / inf, rows of different lengths.
-            BatchUnreachablePoseError, BatchSingularityError: for the first such state
-                (subclasses of :class:`UnreachablePoseError`, :class:`SingularityError`,
-                with its ``index``).
+            BatchUnreachablePoseError: a pose out of reach, the first such state (a subclass
+                of :class:`UnreachablePoseError`, with its ``index``).
+            BatchSingularityError: a singular state, the first such state (a subclass of
+                :class:`SingularityError`, with its ``index``).
         """
         poses, twists, twist_dots, wrenches, _ = check_batch(poses, twists, twist_dots,
                                                              wrenches)
         return batch.inverse_dynamics_batch(self.closed_form.geo, poses, twists, twist_dots,
                                             wrenches, bounded)
 
-    def forward_dynamics_batch(self, poses, twists, actuator_forces,
-                               wrenches=None) -> BatchForwardDynamics:
+    def forward_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                               actuator_forces: npt.ArrayLike,
+                               wrenches: npt.ArrayLike | None = None) -> BatchForwardDynamics:
         """Forward dynamics of N states at once (closed form, vectorised numpy).
 
         Solves the reduced equation ``M_x twist_dot = J^T tau + wrench - h_x`` per state
         (:mod:`hexapod_pin.hexapod.batch`).
 
         Args:
-            poses, twists: (N, 6) each (m, rad; m/s, rad/s, world axes).
+            poses: (N, 6) (m, rad).
+            twists: (N, 6) (m/s, rad/s, world axes).
             actuator_forces: (N, 6) (N).
             wrenches: (N, 6) or None.
 
@@ -676,36 +701,46 @@ class HexapodDynamics:
             :class:`~hexapod_pin.core.results.BatchForwardDynamics`.
 
         Raises:
-            InputError, BatchUnreachablePoseError, BatchSingularityError.
+            InputError: bad shape, non-finite or non-real values.
+            BatchUnreachablePoseError: a pose out of reach.
+            BatchSingularityError: a singular state.
         """
         poses, twists, _, wrenches, forces = check_batch(poses, twists, None, wrenches,
                                                          actuator_forces)
         return batch.forward_dynamics_batch(self.closed_form.geo, poses, twists, forces,
                                             wrenches)
 
-    def static_forces_batch(self, poses, wrenches=None, *, bounded: bool = True) -> np.ndarray:
+    def static_forces_batch(self, poses: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
+                            bounded: bool = True) -> np.ndarray:
         """:meth:`static_forces` of N poses at once (closed form): (N, 6) forces (N).
 
         Raises:
-            InputError, BatchUnreachablePoseError, BatchSingularityError,
-            BatchActuatorSaturationError (with ``bounded``).
+            InputError: bad shape, non-finite or non-real values.
+            BatchUnreachablePoseError: a pose out of reach.
+            BatchSingularityError: a singular state.
+            BatchActuatorSaturationError: with ``bounded``, forces beyond
+                ``geometry.max_actuator_force``.
         """
         poses, _, _, wrenches, _ = check_batch(poses, None, None, wrenches)
         return batch.static_forces_batch(self.closed_form.geo, poses, wrenches, bounded)
 
-    def reduced_dynamics_batch(self, poses, twists) -> BatchReducedDynamics:
+    def reduced_dynamics_batch(self, poses: npt.ArrayLike,
+                               twists: npt.ArrayLike) -> BatchReducedDynamics:
         """:meth:`reduced_dynamics` of N states at once (closed form): ``M_x`` (N, 6, 6),
         ``h_x`` (N, 6), ``J`` (N, 6, 6).
 
         Raises:
-            InputError, BatchUnreachablePoseError, BatchSingularityError.
+            InputError: bad shape, non-finite or non-real values.
+            BatchUnreachablePoseError: a pose out of reach.
+            BatchSingularityError: a singular state.
         """
         poses, twists, _, _, _ = check_batch(poses, twists)
         return batch.reduced_dynamics_batch(self.closed_form.geo, poses, twists)
 
     # -- derivatives ------------------------------------------------------------------------
-    def inverse_dynamics_derivatives(self, pose, twist, twist_dot,
-                                     wrench=None) -> InverseDynamicsDerivatives:
+    def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                                     twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None
+                                     ) -> InverseDynamicsDerivatives:
         """Derivatives of the inverse-dynamics actuator forces (no bounds applied), analytic.
 
         The implicit-function theorem on Pinocchio's constrained forward-dynamics
@@ -717,14 +752,20 @@ class HexapodDynamics:
         also gives the derivative along a world-frame tangent ``(dp, dtheta)``.
 
         Args:
-            pose, twist, twist_dot, wrench: as in :meth:`inverse_dynamics`.
+            pose: as in :meth:`inverse_dynamics`.
+            twist: as in :meth:`inverse_dynamics`.
+            twist_dot: as in :meth:`inverse_dynamics`.
+            wrench: as in :meth:`inverse_dynamics`.
 
         Returns:
             :class:`~hexapod_pin.core.results.InverseDynamicsDerivatives` (``actuator_forces``,
             ``d_pose``, ``d_world``, ``d_twist``, ``d_twist_dot``, ``d_wrench``).
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError, SolverError.
+            InputError: bad shape, non-finite or non-real values.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: at a singular configuration.
+            SolverError: a solve that does not verify.
         """
         if self._derivatives is None:
             self._derivatives = DerivativesWorkspace(self.model, self.closed_form,

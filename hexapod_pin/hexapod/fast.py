@@ -49,6 +49,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.checks import as_array
 from ..core.compiled import all_finite
@@ -59,7 +60,8 @@ from ..core.compiled import jit_fast as jit
 from ..core.pose import quaternion_rpy, rotation_quat, rpy_of
 from .kernels import (GAP, GIMBAL, NONFINITE, NOT_PD, OK, SATURATED, STROKE, TYPE_I, TYPE_II,
                       UNREACHABLE)
-from .simulation import Trajectory, check_run_arguments
+from .robot import Hexapod
+from .simulation import ReferenceTrajectory, Trajectory, check_run_arguments
 
 __all__ = ["FastDynamics", "FastStepper", "FastTrajectory", "fast_dynamics", "simulate_fast"]
 
@@ -179,9 +181,12 @@ def _euler_update(state, acc, dt):
 
 
 @jit_lean
-def simulate_kernel(geo, n_steps, dt, record_every, integrator, mode, forces_in, wrench,
-                    setpoints, bad_row, bad_code, gains, saturation, check_limits, work,
-                    record, last_forces):
+def simulate_kernel(geo: np.ndarray, n_steps: int, dt: float, record_every: int, integrator: int,
+                    mode: int, forces_in: np.ndarray, wrench: np.ndarray, setpoints: np.ndarray,
+                    bad_row: int, bad_code: int, gains: np.ndarray, saturation: int,
+                    check_limits: bool, work: tuple[np.ndarray, ...],
+                    record: tuple[np.ndarray, ...],
+                    last_forces: np.ndarray) -> tuple[int, int, int]:
     """Integration loop; returns ``(code, step, n_recorded)``.
 
     ``integrator``: RK4, SEMI_IMPLICIT_EULER or RK2. ``mode`` 0: constant forces, 1: PID
@@ -303,7 +308,7 @@ class FastDynamics:
         robot: the :class:`~hexapod_pin.Hexapod`.
     """
 
-    def __init__(self, robot):
+    def __init__(self, robot: Hexapod) -> None:
         self.robot = robot
         self.closed_form = robot.closed_form
         self.geo = self.closed_form.geo
@@ -318,14 +323,14 @@ class FastDynamics:
 
     def _fail(self, code: int, vectors: dict, tau=None):
         if code == SATURATED:
-            raise ActuatorSaturationError(tau, self._bounds)
+            raise ActuatorSaturationError(tau, self._bounds)  # type: ignore[arg-type]
         if code == NONFINITE:
             for name, value in vectors.items():
                 as_array(value, (6,), name)
         raise K.error_of(code, self.geo, self._scratch.wk, self._scratch.mats[1])
 
-    def inverse_dynamics(self, pose, twist, twist_dot, wrench=None,
-                         bounded: bool = True) -> np.ndarray:
+    def inverse_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
+                         wrench: npt.ArrayLike | None = None, bounded: bool = True) -> np.ndarray:
         """Actuator forces producing a platform motion (closed-loop inverse dynamics).
 
         As :meth:`Hexapod.inverse_dynamics` with ``method="kkt"``.
@@ -341,7 +346,11 @@ class FastDynamics:
             tau (6,) (N), force on carriage i along ``+u_k``.
 
         Raises:
-            ActuatorSaturationError, UnreachablePoseError, SingularityError, InputError.
+            ActuatorSaturationError: with ``bounded``, a motion needing forces beyond
+                ``geometry.max_actuator_force``.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: at a singular configuration.
+            InputError: bad shape, non-finite or non-real values.
         """
         pose, twist, twist_dot = _vec6(pose, "pose"), _vec6(twist, "twist"), \
             _vec6(twist_dot, "twist_dot")
@@ -354,7 +363,9 @@ class FastDynamics:
                               "wrench": wrench}, tau)
         return tau
 
-    def forward_dynamics(self, pose, twist, actuator_forces, wrench=None) -> np.ndarray:
+    def forward_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         actuator_forces: npt.ArrayLike,
+                         wrench: npt.ArrayLike | None = None) -> np.ndarray:
         """Platform acceleration produced by actuator forces (constrained forward dynamics).
 
         As :meth:`Hexapod.forward_dynamics` (``twist_dot`` only; for the carriage
@@ -368,11 +379,15 @@ class FastDynamics:
             twist_dot (6,) (m/s^2, rad/s^2), world axes.
 
         Raises:
-            UnreachablePoseError, SingularityError, InputError.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: at a singular configuration.
+            InputError: bad shape, non-finite or non-real values.
         """
         return self.forward_dynamics_full(pose, twist, actuator_forces, wrench)[0]
 
-    def forward_dynamics_full(self, pose, twist, actuator_forces, wrench=None):
+    def forward_dynamics_full(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                              actuator_forces: npt.ArrayLike, wrench: npt.ArrayLike | None = None
+                              ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """:meth:`forward_dynamics` returning ``(twist_dot, actuator_accelerations)``,
         each (6,)."""
         pose, twist = _vec6(pose, "pose"), _vec6(twist, "twist")
@@ -386,7 +401,8 @@ class FastDynamics:
                               "wrench": wrench})
         return twist_dot, qddot
 
-    def static_forces(self, pose, wrench=None, bounded: bool = True) -> np.ndarray:
+    def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None,
+                      bounded: bool = True) -> np.ndarray:
         """Actuator forces (6,) (N) holding the platform at rest at ``pose``.
 
         As :meth:`Hexapod.static_forces`. Raises the same exceptions.
@@ -401,7 +417,7 @@ class FastDynamics:
         return tau
 
 
-def fast_dynamics(robot) -> FastDynamics:
+def fast_dynamics(robot: Hexapod) -> FastDynamics:
     """The :class:`FastDynamics` of a hexapod: a light view of the robot's compiled closed
     form (``robot.closed_form``, which holds the packed geometry and the scratch)."""
     return FastDynamics(robot)
@@ -448,7 +464,7 @@ class FastTrajectory:
     def real_time_factor(self) -> float:
         """Simulated time divided by wall time (that of
         :attr:`hexapod_pin.hexapod.simulation.Trajectory.real_time_factor`, shared)."""
-        return Trajectory.real_time_factor.fget(self)
+        return Trajectory.real_time_factor.fget(self)  # type: ignore[attr-defined]
 
 
 def _sample_reference(reference, n_steps: int, dt: float):
@@ -471,19 +487,22 @@ def _sample_reference(reference, n_steps: int, dt: float):
     return np.ascontiguousarray(poses), np.ascontiguousarray(twists)
 
 
-def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist0=None,
-                  actuator_forces=None, wrench=None, reference=None, kp: float = 30000.0,
+def simulate_fast(robot: Hexapod, duration: float, dt: float = 1e-3, *,
+                  pose0: npt.ArrayLike | None = None, twist0: npt.ArrayLike | None = None,
+                  actuator_forces: npt.ArrayLike | None = None, wrench: npt.ArrayLike | None = None,
+                  reference: ReferenceTrajectory | None = None, kp: float = 30000.0,
                   ki: float = 40000.0, kd: float = 3000.0, feedforward: bool = False,
-                  check_limits: bool = True, on_limit: str = "stop",
-                  saturation: str = "clip", record_every: int = 1,
-                  integrator: str = "rk4") -> FastTrajectory:
+                  check_limits: bool = True, on_limit: str = "stop", saturation: str = "clip",
+                  record_every: int = 1, integrator: str = "rk4") -> FastTrajectory:
     """Integrate the hexapod's dynamics in compiled code (in platform coordinates).
 
     Args:
         robot: the :class:`~hexapod_pin.Hexapod`.
         duration: simulated time (s). dt: step and control period (s).
-        pose0, twist0: initial platform state (default: home at rest; with a
-            ``reference``, its first sample).
+        pose0: initial platform pose (default: home; with a ``reference``, its first
+            sample).
+        twist0: initial platform twist (default: at rest; with a ``reference``, its first
+            sample).
         actuator_forces: constant (6,) forces (N) without a reference; default zero.
         wrench: constant ``(f, m)`` on the platform (world axes, about its origin), held
             in world axes (:func:`~hexapod_pin.hexapod.simulation.simulate` holds it in platform
@@ -511,8 +530,10 @@ def simulate_fast(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist
         status "failed" and the reference route's message.
 
     Raises:
-        InputError, StrokeLimitError (``on_limit="raise"``), ActuatorSaturationError
-        (``saturation="raise"``).
+        InputError: bad shape, non-finite or non-real values.
+        StrokeLimitError: an actuator beyond its stroke (``on_limit="raise"``).
+        ActuatorSaturationError: with ``saturation="raise"``, a command beyond
+            ``geometry.max_actuator_force``.
     """
     record_every = check_run_arguments(duration, dt, on_limit, saturation, record_every)
     modes = {"clip": 0, "raise": 1, "ignore": 2}
@@ -597,7 +618,8 @@ class FastStepper:
     Args:
         robot: the :class:`~hexapod_pin.Hexapod`.
         dt: the step (s).
-        pose0, twist0: initial platform state (default: home at rest).
+        pose0: initial platform pose (default: home).
+        twist0: initial platform twist (default: at rest).
         integrator: "semi_implicit_euler" (default, one evaluation per step), "rk2" or
             "rk4" (see :func:`simulate_fast`).
         check_limits: stop at the stroke limits / carriage gap (checked after each step).
@@ -609,8 +631,9 @@ class FastStepper:
     Not thread-safe (the state and scratch arrays are reused).
     """
 
-    def __init__(self, robot, dt: float = 1e-3, *, pose0=None, twist0=None,
-                 integrator: str = "semi_implicit_euler", check_limits: bool = True):
+    def __init__(self, robot: Hexapod, dt: float = 1e-3, *, pose0: npt.ArrayLike | None = None,
+                 twist0: npt.ArrayLike | None = None, integrator: str = "semi_implicit_euler",
+                 check_limits: bool = True) -> None:
         if not (np.isfinite(dt) and dt > 0):
             raise InputError("dt", dt, "must be a positive number")
         if integrator not in INTEGRATORS:
@@ -629,7 +652,7 @@ class FastStepper:
         self.reset(robot.home_pose if pose0 is None else pose0,
                    np.zeros(6) if twist0 is None else twist0)
 
-    def reset(self, pose, twist) -> None:
+    def reset(self, pose: npt.ArrayLike, twist: npt.ArrayLike) -> None:
         """Set the platform state (pose (6,), m and rad; twist (6,), world axes) and the
         time to 0. Raises as the constructor."""
         pose, twist = as_array(pose, (6,), "pose"), as_array(twist, (6,), "twist")
@@ -641,7 +664,7 @@ class FastStepper:
         state[7:] = twist
         self.time = 0.0
 
-    def step(self, actuator_forces, wrench=None) -> None:
+    def step(self, actuator_forces: npt.ArrayLike, wrench: npt.ArrayLike | None = None) -> None:
         """Advance one ``dt`` with the forces (6,) (N) and the wrench (6,) on the platform
         (world axes, about its origin; default zero) held over the step.
 
@@ -649,8 +672,12 @@ class FastStepper:
             InputError: non-finite or badly shaped forces / wrench.
             StrokeLimitError: the step ends beyond a stroke limit or the carriage gap
                 (with ``check_limits``); the state is that end state.
-            SingularityError, UnreachablePoseError, HexapodPinError: the step failed (the
-                state is left at the start of the step).
+            SingularityError: the step met a singular configuration (the state is left at the
+                start of the step).
+            UnreachablePoseError: the step left the reachable poses (the state is left at the
+                start of the step).
+            HexapodPinError: any other failure of the step (the state is left at the start of
+                the step).
         """
         forces = _vec6(actuator_forces, "actuator_forces")
         wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")

@@ -33,10 +33,10 @@ Units: m, rad, s; every vector in world axes unless stated.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.checks import as_array, check_signs, vec6
 from ..core.measures import singularity_measures
@@ -45,6 +45,7 @@ from ..errors import AssemblyError, GeometryError, InputError, StrokeLimitError
 from . import assembly_modes as am
 from . import batch
 from . import kernels as K
+from .geometry import HexapodGeometry
 from .kernels import GIMBAL_TOL, HOME_BRANCH, RAIL_OF, TYPE_I_TOL, TYPE_II_TOL  # noqa: F401
 
 __all__ = ["HexapodKinematics", "LegMotion", "check_branch"]
@@ -53,7 +54,7 @@ __all__ = ["HexapodKinematics", "LegMotion", "check_branch"]
 FK_MAX_ITER = 50
 
 
-def check_branch(branch) -> np.ndarray:
+def check_branch(branch: npt.ArrayLike) -> np.ndarray:
     """Validate a branch (six values, each +1 or -1); ``None`` -> the home branch."""
     return check_signs(branch, HOME_BRANCH)
 
@@ -111,7 +112,7 @@ class HexapodKinematics:
         chains: the per-chain geometry (``geometry.chain_geometry``).
     """
 
-    def __init__(self, geometry, closed_form: K.ClosedForm | None = None):
+    def __init__(self, geometry: HexapodGeometry, closed_form: K.ClosedForm | None = None) -> None:
         self.geometry = geometry
         self.closed_form = K.ClosedForm(geometry) if closed_form is None else closed_form
         self.geo = self.closed_form.geo
@@ -153,7 +154,7 @@ class HexapodKinematics:
             K.tip_accelerations(wk, twist_dot)
         return wk
 
-    def platform_points_world(self, pose) -> np.ndarray:
+    def platform_points_world(self, pose: npt.ArrayLike) -> np.ndarray:
         """World positions ``P_k`` of the three spherical joints (m), shape (3, 3), of the
         ideal geometry (a pair's two legs meet at one point).
 
@@ -166,14 +167,14 @@ class HexapodKinematics:
                                 "at one point: use platform_joints_world")
         return self.platform_joints_world(pose)[0::2]
 
-    def platform_joints_world(self, pose) -> np.ndarray:
+    def platform_joints_world(self, pose: npt.ArrayLike) -> np.ndarray:
         """World positions ``t + R p_i`` of the six legs' platform joints (m), shape (6, 3)."""
         pose = as_array(pose, (6,), "pose")
         wk = self._legs(pose, None, refuse=())
         return pose[:3] + wk[[K.RX, K.RY, K.RZ]].T
 
     # -- inverse kinematics -----------------------------------------------------------
-    def inverse_kinematics(self, pose, branch: Sequence[float] | None = None,
+    def inverse_kinematics(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None,
                            check_limits: bool = True) -> np.ndarray:
         """Carriage positions for a platform pose (closed form).
 
@@ -200,7 +201,7 @@ class HexapodKinematics:
             self.check_stroke(q)
         return q
 
-    def stroke_violations(self, q) -> list[str]:
+    def stroke_violations(self, q: npt.ArrayLike) -> list[str]:
         """Human-readable stroke and gap violations of carriage positions ``q`` (6,)."""
         g = self.geometry
         q = as_array(q, (6,), "q")
@@ -214,13 +215,13 @@ class HexapodKinematics:
                            f"(gap {gap:.6g} < carriage_min_gap={g.carriage_min_gap:g})")
         return out
 
-    def check_stroke(self, q) -> None:
+    def check_stroke(self, q: npt.ArrayLike) -> None:
         """Raise :class:`StrokeLimitError` when ``q`` violates a stroke or gap limit."""
         violations = self.stroke_violations(q)
         if violations:
             raise StrokeLimitError(q, violations)
 
-    def branch_of(self, pose, q) -> np.ndarray:
+    def branch_of(self, pose: npt.ArrayLike, q: npt.ArrayLike) -> np.ndarray:
         """The branch (six signs) on which ``q`` solves the inverse kinematics of ``pose``.
 
         ``s_i = sign(q_i - u_k . d_i)``, so that
@@ -243,7 +244,8 @@ class HexapodKinematics:
         return np.where(q - along >= 0.0, 1.0, -1.0)
 
     # -- batch ------------------------------------------------------------------------------
-    def inverse_kinematics_batch(self, poses, branch=None) -> InverseKinematicsBatch:
+    def inverse_kinematics_batch(self, poses: npt.ArrayLike,
+                                 branch: npt.ArrayLike | None = None) -> InverseKinematicsBatch:
         """Inverse kinematics of many poses at once, with masks instead of exceptions.
 
         Args:
@@ -262,7 +264,8 @@ class HexapodKinematics:
         signs = batch.batch_signs(branch, poses.shape[0])
         return batch.kinematics_batch(self.geo, poses, signs, with_jacobian=False)
 
-    def jacobian_batch(self, poses, branch=None) -> JacobianBatch:
+    def jacobian_batch(self, poses: npt.ArrayLike,
+                       branch: npt.ArrayLike | None = None) -> JacobianBatch:
         """Inverse kinematics and workspace Jacobians of many poses.
 
         Args:
@@ -282,7 +285,7 @@ class HexapodKinematics:
         return batch.kinematics_batch(self.geo, poses, signs, with_jacobian=True)
 
     # -- velocity level ---------------------------------------------------------------
-    def jacobian(self, pose, branch: Sequence[float] | None = None) -> np.ndarray:
+    def jacobian(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
         """Workspace Jacobian ``J`` (6, 6) with ``qdot = J @ twist``.
 
         Rows in carriage order, ``J[i] = [n_i, r_k x n_i] / (n_i . u_k)``; columns
@@ -300,8 +303,9 @@ class HexapodKinematics:
         K.jacobian(self._legs(pose, branch), out)
         return out
 
-    def twist_from_actuator_velocities(self, pose, actuator_velocities,
-                                       branch: Sequence[float] | None = None) -> np.ndarray:
+    def twist_from_actuator_velocities(self, pose: npt.ArrayLike,
+                                       actuator_velocities: npt.ArrayLike,
+                                       branch: npt.ArrayLike | None = None) -> np.ndarray:
         """Platform twist (6,) from carriage velocities (6,): solves ``J @ twist = qdot``.
 
         Twist ``(v, w)``: velocity of the platform origin and angular velocity,
@@ -322,11 +326,13 @@ class HexapodKinematics:
             raise K.error_of(code, self.geo, wk, self._scratch.mats[1])
         return np.linalg.solve(jac, qdot)
 
-    def twist_from_qdot(self, pose, qdot, branch: Sequence[float] | None = None) -> np.ndarray:
+    def twist_from_qdot(self, pose: npt.ArrayLike, qdot: npt.ArrayLike,
+                        branch: npt.ArrayLike | None = None) -> np.ndarray:
         """:meth:`twist_from_actuator_velocities` (the carriage velocities ``qdot``)."""
         return self.twist_from_actuator_velocities(pose, qdot, branch)
 
-    def jacobian_derivative(self, pose, twist, branch: Sequence[float] | None = None) -> np.ndarray:
+    def jacobian_derivative(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                            branch: npt.ArrayLike | None = None) -> np.ndarray:
         """Time derivative ``dJ/dt`` (6, 6) of the workspace Jacobian along a twist.
 
         With ``dn_i/dt = v + w x r_k - qdot_i u_k`` and ``dr_k/dt = w x r_k``::
@@ -343,7 +349,9 @@ class HexapodKinematics:
             dJ/dt, shape (6, 6) (units of J per second).
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError: as :meth:`jacobian`.
+            InputError: bad shape, non-finite or non-real values (as :meth:`jacobian`).
+            UnreachablePoseError: a leg cannot reach the pose (as :meth:`jacobian`).
+            SingularityError: at a singular configuration (as :meth:`jacobian`).
         """
         twist = vec6(twist, "twist")
         wk = self._moving_legs(pose, twist, None, branch)
@@ -351,7 +359,8 @@ class HexapodKinematics:
         K.jacobian_derivative(self.geo, wk, twist, out)
         return out
 
-    def qddot(self, pose, twist, twist_dot, branch: Sequence[float] | None = None) -> np.ndarray:
+    def qddot(self, pose: npt.ArrayLike, twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
+              branch: npt.ArrayLike | None = None) -> np.ndarray:
         """Carriage accelerations (6,) (m/s^2): ``qddot = J twist_dot + dJ/dt twist``.
 
         Evaluated in the equivalent form obtained by differentiating
@@ -369,12 +378,15 @@ class HexapodKinematics:
             branch: IK branch, default the home branch.
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError: as :meth:`jacobian`.
+            InputError: bad shape, non-finite or non-real values (as :meth:`jacobian`).
+            UnreachablePoseError: a leg cannot reach the pose (as :meth:`jacobian`).
+            SingularityError: at a singular configuration (as :meth:`jacobian`).
         """
         return self._moving_legs(pose, twist, twist_dot, branch)[K.QDD].copy()
 
-    def leg_motion(self, pose, twist, twist_dot=None,
-                   branch: Sequence[float] | None = None) -> LegMotion:
+    def leg_motion(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                   twist_dot: npt.ArrayLike | None = None,
+                   branch: npt.ArrayLike | None = None) -> LegMotion:
         """Direction, angular velocity / acceleration and centre-of-mass motion of each leg.
 
         See :class:`LegMotion` for the definitions (the angular velocity is the
@@ -388,9 +400,11 @@ class HexapodKinematics:
             branch: IK branch, default the home branch.
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError: as :meth:`jacobian`;
-                also SingularityError where a leg lies along its rail (the
-                universal joint's gimbal lock: the leg's spin is undefined).
+            InputError: bad shape, non-finite or non-real values (as :meth:`jacobian`).
+            UnreachablePoseError: a leg cannot reach the pose (as :meth:`jacobian`).
+            SingularityError: at a singular configuration (as :meth:`jacobian`), and where a
+                leg lies along its rail (the universal joint's gimbal lock: the leg's spin is
+                undefined).
         """
         wk = self._moving_legs(pose, twist, twist_dot, branch)
         out = np.empty((6, 6, 3))
@@ -404,7 +418,8 @@ class HexapodKinematics:
                          wk[K.QDD].copy())
 
     # -- singularities ----------------------------------------------------------------------
-    def singularity(self, pose, branch: Sequence[float] | None = None) -> SingularityMeasures:
+    def singularity(self, pose: npt.ArrayLike,
+                    branch: npt.ArrayLike | None = None) -> SingularityMeasures:
         """Measures of the distance to type-I and type-II singularities (the definitions
         of :class:`~hexapod_pin.core.results.SingularityMeasures`, computed by
         :func:`~hexapod_pin.core.measures.singularity_measures`; the characteristic length
@@ -425,7 +440,8 @@ class HexapodKinematics:
         return singularity_measures(jac, cosines, a_hat, self.geometry.platform_radius)
 
     # -- forward kinematics and assembly modes -------------------------------------------------
-    def forward_kinematics(self, actuators, guess=None) -> np.ndarray:
+    def forward_kinematics(self, actuators: npt.ArrayLike,
+                           guess: npt.ArrayLike | None = None) -> np.ndarray:
         """Platform pose for carriage positions ``actuators``: Newton's method from ``guess``.
 
         The 18 closure equations reduce exactly to three (see
@@ -482,7 +498,7 @@ class HexapodKinematics:
                                 result.iterations)
         return np.array(pose)
 
-    def assembly_modes(self, actuators) -> np.ndarray:
+    def assembly_modes(self, actuators: npt.ArrayLike) -> np.ndarray:
         """Every real assembly of the closed chain for carriage positions ``actuators``.
 
         Method (details and the completeness argument in

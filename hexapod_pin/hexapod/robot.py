@@ -10,10 +10,12 @@ dynamics) as methods. Conventions: see :mod:`hexapod_pin.hexapod.geometry` and
 from __future__ import annotations
 
 import threading
+from typing import cast
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..core.checks import as_array
@@ -36,9 +38,12 @@ class HexapodIndices:
     """Where the hexapod's coordinates sit in Pinocchio's ``q`` and ``v``.
 
     Attributes:
-        carriage_q, carriage_v: carriage i's prismatic coordinate, shape (6,).
-        u_a_q, u_a_v: first universal-joint angle (about the rail), shape (6,).
-        u_b_q, u_b_v: second universal-joint angle, shape (6,).
+        carriage_q: carriage i's prismatic coordinate in q, shape (6,).
+        carriage_v: the same in v, shape (6,).
+        u_a_q: first universal-joint angle (about the rail) in q, shape (6,).
+        u_a_v: the same in v, shape (6,).
+        u_b_q: second universal-joint angle in q, shape (6,).
+        u_b_v: the same in v, shape (6,).
         platform_q: slice of the free-flyer (position, quaternion x y z w) in q.
         platform_v: slice of the free-flyer velocity (body frame) in v.
     """
@@ -69,7 +74,8 @@ class Hexapod:
         geometry: the :class:`HexapodGeometry`.
         model: the :class:`ClosedLoopModel` (tree + closures) built from the geometry.
         indices: where the hexapod's coordinates sit in the tree (:class:`HexapodIndices`).
-        pose_dim, n_actuators: 6 and 6.
+        pose_dim: 6.
+        n_actuators: 6.
 
     Example:
         >>> robot = Hexapod.default()
@@ -79,7 +85,7 @@ class Hexapod:
     pose_dim = 6
     n_actuators = 6
 
-    def __init__(self, geometry: HexapodGeometry | None = None):
+    def __init__(self, geometry: HexapodGeometry | None = None) -> None:
         self.geometry = HexapodGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, HexapodGeometry):
             raise TypeError(f"geometry must be a HexapodGeometry, got {type(geometry).__name__}")
@@ -144,7 +150,7 @@ class Hexapod:
     def urdf(self) -> str:
         """The URDF text of the tree (the xacro expanded with this geometry; the loops are
         in ``urdf/hexapod.loops.yaml``): ``robot.model.urdf_xml``."""
-        return self.model.urdf_xml
+        return cast(str, self.model.urdf_xml)    # the model is built from URDF text
 
     def _indices(self) -> HexapodIndices:
         m = self.model
@@ -179,7 +185,7 @@ class Hexapod:
         return self.configuration(self.home_pose)
 
     # -- pose <-> tree configuration -----------------------------------------------------
-    def configuration(self, pose, branch=None) -> np.ndarray:
+    def configuration(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
         """Pinocchio configuration of the tree for a platform pose (closed form).
 
         Carriages from the inverse kinematics (stroke limits not checked),
@@ -215,17 +221,17 @@ class Hexapod:
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
         return q
 
-    def pose_from_configuration(self, q) -> np.ndarray:
+    def pose_from_configuration(self, q: npt.ArrayLike) -> np.ndarray:
         """Platform pose (6,) read from a Pinocchio configuration (nq,)."""
         q = self.model.check_q(q)
         ff = q[self.indices.platform_q]
         rot = pin.Quaternion(ff[6], ff[3], ff[4], ff[5]).normalized().toRotationMatrix()
         return np.concatenate([ff[:3], rpy_from_rotation(rot)])
 
-    def carriage_positions(self, q) -> np.ndarray:
+    def carriage_positions(self, q: npt.ArrayLike) -> np.ndarray:
         """Carriage positions (6,) read from a Pinocchio configuration (nq,)."""
         return self.model.check_q(q)[self.indices.carriage_q].copy()
 
-    def actuator_positions(self, q) -> np.ndarray:
+    def actuator_positions(self, q: npt.ArrayLike) -> np.ndarray:
         """Actuator (carriage) positions (6,) (m) read from a Pinocchio configuration (nq,)."""
         return self.carriage_positions(q)

@@ -15,12 +15,14 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..core.simulation import ClosedLoopIntegrator
 from ..errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
 from ..core.pose import rotation_from_quaternion, rotation_from_rpy, rpy_from_rotation
 from ..core.checks import as_array
+from .robot import Hexapod
 
 #: closure residual above which a step is projected back onto the closures (m)
 PROJECTION_TOL = 1e-10
@@ -97,7 +99,8 @@ class SimState:
         twist: platform twist ``(v, w)``, world axes (6,).
         q: carriage positions (6,) (m).
         qdot: carriage velocities (6,) (m/s).
-        configuration, velocity: the tree state (Pinocchio conventions).
+        configuration: the tree configuration (nq,) (Pinocchio conventions).
+        velocity: the tree velocity (nv,).
     """
 
     t: float
@@ -131,8 +134,8 @@ class PIDController:
         feedforward: add the static forces of the reference pose.
     """
 
-    def __init__(self, robot, reference: ReferenceTrajectory, kp: float = 30000.0,
-                 ki: float = 40000.0, kd: float = 3000.0, feedforward: bool = False):
+    def __init__(self, robot: Hexapod, reference: ReferenceTrajectory, kp: float = 30000.0,
+                 ki: float = 40000.0, kd: float = 3000.0, feedforward: bool = False) -> None:
         self.robot = robot
         self.reference = reference
         self.kp, self.ki, self.kd = float(kp), float(ki), float(kd)
@@ -143,7 +146,7 @@ class PIDController:
         """Clear the integral."""
         self.integral = np.zeros(6)
 
-    def setpoints(self, t: float):
+    def setpoints(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Carriage set-points ``(q_ref, qdot_ref)`` at time t, each (6,)."""
         ref = self.reference(t)
         q_ref = self.robot.inverse_kinematics(ref.pose, check_limits=False)
@@ -174,8 +177,8 @@ class ComputedTorqueController:
             here (the simulation's ``saturation`` policy handles them).
     """
 
-    def __init__(self, robot, reference: ReferenceTrajectory, kp: float = 400.0,
-                 kd: float = 40.0, method: str = "kkt"):
+    def __init__(self, robot: Hexapod, reference: ReferenceTrajectory, kp: float = 400.0,
+                 kd: float = 40.0, method: str = "kkt") -> None:
         if method not in ("kkt", "qp"):
             raise InputError("method", method, "expected 'kkt' or 'qp'")
         self.robot = robot
@@ -247,7 +250,8 @@ class Trajectory:
         return span / self.wall_time if self.wall_time > 0 else float("inf")
 
 
-def check_run_arguments(duration, dt, on_limit, saturation, record_every) -> int:
+def check_run_arguments(duration: float, dt: float, on_limit: str, saturation: str,
+                        record_every: int) -> int:
     """Validate the run arguments shared by :func:`simulate` and
     :func:`hexapod_pin.hexapod.fast.simulate_fast`; returns ``record_every`` as an int.
 
@@ -269,12 +273,13 @@ def check_run_arguments(duration, dt, on_limit, saturation, record_every) -> int
     return int(record_every)
 
 
-def simulate(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist0=None,
-             actuator_forces=None, controller: Controller | None = None, wrench=None,
-             reference: ReferenceTrajectory | None = None, method: str = "pinocchio",
-             integrator: str = "rk4", projection_tol: float = PROJECTION_TOL,
-             check_limits: bool = True, on_limit: str = "stop",
-             saturation: str = "clip", record_every: int = 1,
+def simulate(robot: Hexapod, duration: float, dt: float = 1e-3, *,
+             pose0: npt.ArrayLike | None = None, twist0: npt.ArrayLike | None = None,
+             actuator_forces: npt.ArrayLike | None = None, controller: Controller | None = None,
+             wrench: npt.ArrayLike | None = None, reference: ReferenceTrajectory | None = None,
+             method: str = "pinocchio", integrator: str = "rk4",
+             projection_tol: float = PROJECTION_TOL, check_limits: bool = True,
+             on_limit: str = "stop", saturation: str = "clip", record_every: int = 1,
              progress: Callable[[int, int], None] | None = None) -> Trajectory:
     """Integrate the closed-loop dynamics of the hexapod.
 
@@ -282,8 +287,10 @@ def simulate(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist0=Non
         robot: the :class:`Hexapod`.
         duration: simulated time (s).
         dt: step and control period (s).
-        pose0, twist0: initial platform state (default: home at rest; with a
-            ``reference``, its state at t = 0).
+        pose0: initial platform pose (default: home; with a ``reference``, its pose at
+            t = 0).
+        twist0: initial platform twist (default: at rest; with a ``reference``, its twist
+            at t = 0).
         actuator_forces: used without a controller: (6,) constant, or a callable
             ``t -> (6,)`` (N); default zero (unactuated).
         controller: callable ``(SimState, dt) -> (6,)`` forces (N), called once per
@@ -352,7 +359,7 @@ def simulate(robot, duration: float, dt: float = 1e-3, *, pose0=None, twist0=Non
     rec_res = np.empty(n_rec)
     rec_ref = np.empty((n_rec, 6)) if reference is not None else np.empty((0, 6))
     status, message = "completed", ""
-    if hasattr(controller, "reset"):
+    if controller is not None and hasattr(controller, "reset"):
         controller.reset()
 
     def state_of(t, q, v) -> SimState:

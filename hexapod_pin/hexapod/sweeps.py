@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, fields
-from typing import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -24,6 +24,9 @@ from ..errors import HexapodPinError, InputError, MissingDependencyError
 from . import workspace
 from .geometry import HexapodGeometry
 from .robot import Hexapod
+
+if TYPE_CHECKING:    # pandas is optional (extra ``sweep``)
+    import pandas as pd
 
 DASK_MIN_DESIGNS = 100
 """Fewest designs for which ``use_dask=None`` starts a local Dask cluster (a local cluster
@@ -133,7 +136,7 @@ def evaluate_design(params: Mapping[str, float], settings: SweepSettings,
 def design_sweep(designs: Sequence[Mapping[str, float]], settings: SweepSettings | None = None,
                  base: HexapodGeometry | None = None, scheduler: str | None = None,
                  use_dask: bool | None = None, n_workers: int = 2,
-                 progress: Callable[[int, int], None] | None = None):
+                 progress: Callable[[int, int], None] | None = None) -> pd.DataFrame:
     """Evaluate many designs and return a pandas DataFrame, one row per design.
 
     Args:

@@ -36,14 +36,17 @@ from __future__ import annotations
 import math
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.checks import as_array
 from ..core.measures import condition_number
 from ..errors import InputError
 from . import batch
 from . import kernels as K
+from .robot import Hexapod
 
 #: poses processed per chunk (bounds the temporary memory to ~100 MB)
 CHUNK = 65_536
@@ -57,7 +60,10 @@ class WorkspaceMeasures:
         poses: the poses (N, 6).
         q: carriage positions (N, 6) (m) on the requested branch (finite even where
             a leg cannot reach: the nearest rail point).
-        reachable, within_stroke, regular, ok: boolean masks (see module doc).
+        reachable: boolean mask (see the module doc).
+        within_stroke: boolean mask (see the module doc).
+        regular: boolean mask (see the module doc).
+        ok: boolean mask (see the module doc).
         condition_number: 2-norm condition number of ``J`` where ``ok``; inf elsewhere
             (poses the robot cannot take are not analysed further).
         sigma_min: smallest singular value of ``J`` where ``ok``, 0 elsewhere.
@@ -100,8 +106,9 @@ class VolumeEstimate:
     box_volume: float
 
 
-def constant_orientation_grid(center, half_extent, n: int | tuple[int, int, int],
-                              orientation=(0.0, 0.0, 0.0)) -> np.ndarray:
+def constant_orientation_grid(center: npt.ArrayLike, half_extent: npt.ArrayLike,
+                              n: int | tuple[int, int, int],
+                              orientation: npt.ArrayLike = (0.0, 0.0, 0.0)) -> np.ndarray:
     """Poses on a regular 3-D grid of positions with one orientation.
 
     Args:
@@ -117,7 +124,7 @@ def constant_orientation_grid(center, half_extent, n: int | tuple[int, int, int]
     half = as_array(half_extent, (3,), "half_extent")
     if np.any(half <= 0):
         raise InputError("half_extent", half_extent, "must be > 0")
-    counts = (n, n, n) if np.isscalar(n) else tuple(n)
+    counts: tuple[Any, ...] = (n, n, n) if np.isscalar(n) else tuple(n)  # type: ignore[arg-type]
     if len(counts) != 3 or any(int(c) != c or c < 1 for c in counts):
         raise InputError("n", n, "expected a positive integer or three of them")
     axes = [np.linspace(c - h, c + h, int(m)) if m > 1 else np.array([c])
@@ -127,7 +134,7 @@ def constant_orientation_grid(center, half_extent, n: int | tuple[int, int, int]
     return np.concatenate([grid, rpy], axis=1)
 
 
-def orientation_grid(position, max_angle: float, n: int) -> np.ndarray:
+def orientation_grid(position: npt.ArrayLike, max_angle: float, n: int) -> np.ndarray:
     """Poses at one position with roll, pitch, yaw on an ``n^3`` grid in
     ``[-max_angle, max_angle]``."""
     position = as_array(position, (3,), "position")
@@ -140,8 +147,9 @@ def orientation_grid(position, max_angle: float, n: int) -> np.ndarray:
     return np.concatenate([np.broadcast_to(position, rpy.shape), rpy], axis=1)
 
 
-def evaluate(robot, poses, payload=None, branch=None, threads: int = 1,
-             singularity: bool = True, statics: bool = True) -> WorkspaceMeasures:
+def evaluate(robot: Hexapod, poses: npt.ArrayLike, payload: npt.ArrayLike | None = None,
+             branch: npt.ArrayLike | None = None, threads: int = 1, singularity: bool = True,
+             statics: bool = True) -> WorkspaceMeasures:
     """Reachability, conditioning, singularity distances and statics of many poses.
 
     Args:
@@ -255,7 +263,8 @@ class ForceCapability:
     ok: np.ndarray
 
 
-def force_capability(robot, poses, direction, branch=None, threads: int = 1) -> ForceCapability:
+def force_capability(robot: Hexapod, poses: npt.ArrayLike, direction: npt.ArrayLike,
+                     branch: npt.ArrayLike | None = None, threads: int = 1) -> ForceCapability:
     """Largest payload along a wrench direction that the actuators can hold, per pose.
 
     Solves, per pose, the linear program ``max s`` s.t. ``|tau0 + s tau1|_i <=
@@ -270,7 +279,8 @@ def force_capability(robot, poses, direction, branch=None, threads: int = 1) -> 
         direction: payload wrench direction (6,), e.g. ``(0, 0, -m g, 0, 0, 0)``
             for a mass m at the origin (then ``scale`` is in units of m). Any
             scale: the result scales inversely.
-        branch, threads: as in :func:`evaluate`.
+        branch: as in :func:`evaluate`.
+        threads: as in :func:`evaluate`.
 
     Raises:
         InputError: malformed inputs or a zero direction.
@@ -297,7 +307,8 @@ def force_capability(robot, poses, direction, branch=None, threads: int = 1) -> 
                            feasible0, base.ok)
 
 
-def sample_poses(rng, n: int, low, high) -> np.ndarray:
+def sample_poses(rng: np.random.Generator, n: int, low: npt.ArrayLike,
+                 high: npt.ArrayLike) -> np.ndarray:
     """Uniform random poses in the box ``low <= pose <= high`` (each (6,)), shape (n, 6)."""
     low, high = as_array(low, (6,), "low"), as_array(high, (6,), "high")
     if np.any(high < low):
@@ -305,7 +316,8 @@ def sample_poses(rng, n: int, low, high) -> np.ndarray:
     return rng.uniform(low, high, size=(int(n), 6))
 
 
-def leg_reachable(robot, poses, branch=None) -> np.ndarray:
+def leg_reachable(robot: Hexapod, poses: npt.ArrayLike,
+                  branch: npt.ArrayLike | None = None) -> np.ndarray:
     """Per-leg reach masks (N, 6): leg i can reach its platform point (strokes ignored)."""
     poses = as_array(poses, (6,), "poses", batch=True)
     out = np.empty((poses.shape[0], 6), dtype=bool)
@@ -317,9 +329,9 @@ def leg_reachable(robot, poses, branch=None) -> np.ndarray:
     return out
 
 
-def volume(robot, n_samples: int, center, half_extent, orientation=(0.0, 0.0, 0.0),
-           max_condition: float | None = None, seed: int = 0, threads: int = 1,
-           legs=None) -> VolumeEstimate:
+def volume(robot: Hexapod, n_samples: int, center: npt.ArrayLike, half_extent: npt.ArrayLike,
+           orientation: npt.ArrayLike = (0.0, 0.0, 0.0), max_condition: float | None = None,
+           seed: int = 0, threads: int = 1, legs: npt.ArrayLike | None = None) -> VolumeEstimate:
     """Monte-Carlo volume of the constant-orientation workspace inside a box.
 
     A position counts when the pose is ``ok`` (reachable, within the strokes,
@@ -333,7 +345,8 @@ def volume(robot, n_samples: int, center, half_extent, orientation=(0.0, 0.0, 0.
     Args:
         robot: a Hexapod.
         n_samples: number of uniform samples (>= 1).
-        center, half_extent: the box (3,) each (m).
+        center: the box's centre (3,) (m).
+        half_extent: the box's half side lengths (3,) (m).
         orientation: roll, pitch, yaw (rad).
         max_condition: optional threshold on the condition number.
         seed: random seed (the estimate is reproducible).

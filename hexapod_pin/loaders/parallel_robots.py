@@ -271,7 +271,8 @@ def load_parallel_robot(path: str | Path, urdf_name: str = "robot.urdf",
     Args:
         path: the folder holding both files (or the URDF file itself, the YAML
             then being ``yaml_name`` beside it).
-        urdf_name, yaml_name: file names inside the folder.
+        urdf_name: the URDF file's name inside the folder.
+        yaml_name: the loops file's name inside the folder.
         free_flyer: add a ``pin.JointModelFreeFlyer`` root joint (named
             ``root_joint``) as upstream's ``freeflyer=True``; else the URDF root
             is fixed to the world.

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 import scipy.linalg
 
@@ -54,7 +55,7 @@ class RobotDataNotFoundError(HexapodPinError, FileNotFoundError):
         searched: the folders that were tried.
     """
 
-    def __init__(self, what: str, searched: Sequence[str]):
+    def __init__(self, what: str, searched: Sequence[str | os.PathLike[str]]) -> None:
         self.what = what
         self.searched = [str(s) for s in searched]
         super().__init__(f"cannot find {what}; searched: {', '.join(self.searched)}. "
@@ -82,8 +83,9 @@ def example_robot_data_dir() -> Path:
         pass
     try:
         dist = importlib.metadata.distribution("example-robot-data")
-        candidates.append(Path(dist.locate_file("cmeel.prefix/share/example-robot-data/robots")))
-        candidates.append(Path(dist.locate_file("share/example-robot-data/robots")))
+        prefix = "cmeel.prefix/share/example-robot-data/robots"
+        candidates.append(Path(str(dist.locate_file(prefix))))
+        candidates.append(Path(str(dist.locate_file("share/example-robot-data/robots"))))
     except importlib.metadata.PackageNotFoundError:
         pass
     candidates.append(Path(sys.prefix) / "share" / "example-robot-data" / "robots")
@@ -153,7 +155,7 @@ def solo12_default_foot_positions() -> np.ndarray:
     return feet
 
 
-def solo12(foot_positions=None) -> ClosedLoopModel:
+def solo12(foot_positions: npt.ArrayLike | None = None) -> ClosedLoopModel:
     """Solo-12 standing: free-flyer base, four feet held at world points.
 
     Each foot frame (``FL_FOOT``, ...) is held by a 3-D point closure named
@@ -179,7 +181,7 @@ def solo12(foot_positions=None) -> ClosedLoopModel:
     return ClosedLoopModel(solo12_tree(), LoopsSpec(closures, SOLO12_JOINTS), name="solo12")
 
 
-def base_configuration(position, rpy=(0.0, 0.0, 0.0)) -> np.ndarray:
+def base_configuration(position: npt.ArrayLike, rpy: npt.ArrayLike = (0.0, 0.0, 0.0)) -> np.ndarray:
     """Free-flyer part of ``q`` (7,) for a base at ``position`` (m) with ``R = Rz Ry Rx(rpy)``."""
     position = np.asarray(position, dtype=float)
     rpy = np.asarray(rpy, dtype=float)
@@ -189,8 +191,9 @@ def base_configuration(position, rpy=(0.0, 0.0, 0.0)) -> np.ndarray:
     return np.concatenate([position, quat.coeffs()])
 
 
-def solo12_stand(clm: ClosedLoopModel, base_position, base_rpy=(0.0, 0.0, 0.0),
-                 q_guess=None) -> AssemblyResult:
+def solo12_stand(clm: ClosedLoopModel, base_position: npt.ArrayLike,
+                 base_rpy: npt.ArrayLike = (0.0, 0.0, 0.0),
+                 q_guess: npt.ArrayLike | None = None) -> AssemblyResult:
     """Assemble Solo-12 with its base at a given pose and its feet on their points.
 
     The base pose (the 6 free-flyer velocity coordinates) is held; the 12 leg
@@ -212,7 +215,8 @@ def solo12_stand(clm: ClosedLoopModel, base_position, base_rpy=(0.0, 0.0, 0.0),
     return clm.assemble(q0, fixed=FREE_FLYER_V)
 
 
-def motion_with_base(clm: ClosedLoopModel, q, v_base, a_base) -> tuple[np.ndarray, np.ndarray]:
+def motion_with_base(clm: ClosedLoopModel, q: npt.ArrayLike, v_base: npt.ArrayLike,
+                     a_base: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Tree velocity and acceleration keeping every closure, given the base motion.
 
     Args:
@@ -300,7 +304,8 @@ def cassie_urdf(sdf_name: str = "cassie_v2.sdf",
     return urdf, LoopsSpec(loops.closures, CASSIE_ACTUATED)
 
 
-def cassie_spring_torques(clm: ClosedLoopModel, q, sdf_name: str = "cassie_v2.sdf") -> np.ndarray:
+def cassie_spring_torques(clm: ClosedLoopModel, q: npt.ArrayLike,
+                          sdf_name: str = "cassie_v2.sdf") -> np.ndarray:
     """Generalised forces (nv,) of the SDF's joint springs: ``-k (q_j - q_ref)`` (N m).
 
     Zero on every joint without ``<spring_stiffness>`` (in ``cassie_v2.sdf``: the
@@ -360,7 +365,7 @@ class ActuationReport:
         return self.unactuated_mobility == 0
 
 
-def actuation_report(clm: ClosedLoopModel, q, rtol: float = 1e-9) -> ActuationReport:
+def actuation_report(clm: ClosedLoopModel, q: npt.ArrayLike, rtol: float = 1e-9) -> ActuationReport:
     """Mobility (``nv - rank J_c``), actuated DoF and actuation sufficiency at ``q``.
 
     Args:

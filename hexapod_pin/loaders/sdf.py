@@ -42,8 +42,9 @@ written in the file. Joint limits and damping go to the model (``lowerPositionLi
 from __future__ import annotations
 
 import math
+import os
 import xml.etree.ElementTree as ET
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -115,14 +116,21 @@ class SdfJoint:
     """A joint of the SDF.
 
     Attributes:
-        name, type, parent, child: as written (``parent`` may be ``"world"``).
+        name: as written.
+        type: as written.
+        parent: as written (may be ``"world"``).
+        child: as written.
         pose: the joint frame in the model frame at the zero configuration.
         axis: unit axis in the joint frame (revolute / prismatic / universal 1st).
         axis2: unit second axis of a universal joint, in the joint frame.
-        lower, upper: position limits (rad or m; +-inf when absent).
-        effort, velocity: limits (N m or N, rad/s or m/s; inf when absent or < 0).
-        damping, friction: viscous damping and Coulomb friction.
-        spring_reference, spring_stiffness: joint spring (rad or m; N m/rad or N/m).
+        lower: lower position limit (rad or m; -inf when absent).
+        upper: upper position limit (rad or m; +inf when absent).
+        effort: effort limit (N m or N; inf when absent or < 0).
+        velocity: velocity limit (rad/s or m/s; inf when absent or < 0).
+        damping: viscous damping.
+        friction: Coulomb friction.
+        spring_reference: joint spring rest position (rad or m).
+        spring_stiffness: joint spring stiffness (N m/rad or N/m).
     """
 
     name: str
@@ -212,7 +220,7 @@ class SdfTree:
 
 
 # ------------------------------------------------------------------------ parsing
-def load_sdf(path: str | Path, snap_angles: float = 0.0) -> SdfModel:
+def load_sdf(path: str | os.PathLike[str], snap_angles: float = 0.0) -> SdfModel:
     """Read and parse an SDF file (see :func:`parse_sdf`)."""
     path = Path(path)
     return parse_sdf(read_text(path), source=str(path), base_dir=path.parent,
@@ -397,14 +405,15 @@ class _ModelParser:
         if geom is None:
             return None
         placement = self.local_pose(element, link, name)
-        rgba = None
+        rgba: tuple[float, float, float, float] | None = None
         material = element.find("material")
         if material is not None:
             for tag in ("diffuse", "ambient"):
                 if material.find(tag) is not None:
                     values = _numbers(material.find(tag).text, self.source, name)
                     if len(values) in (3, 4):
-                        rgba = tuple(values) + ((1.0,) if len(values) == 3 else ())
+                        rgba = (values[0], values[1], values[2],
+                                values[3] if len(values) == 4 else 1.0)
                     break
         if geom.find("box") is not None:
             size = _vec(geom.find("box").find("size"), 3, self.source, name)
@@ -721,15 +730,18 @@ class _TreeBuilder:
                                           placement, pin.FrameType.OP_FRAME), False)
 
 
-def closed_loop_from_sdf(path_or_sdf, actuated: Sequence[str] = (),
-                         root_joint: pin.JointModel | None = None, root_link: str | None = None,
-                         cut: Iterable[str] | None = None):
+def closed_loop_from_sdf(path_or_sdf: str | os.PathLike[str] | SdfModel,
+                         actuated: Sequence[str] = (), root_joint: pin.JointModel | None = None,
+                         root_link: str | None = None,
+                         cut: Iterable[str] | None = None) -> ClosedLoopModel:
     """Load an SDF into a :class:`hexapod_pin.core.closed_loop.ClosedLoopModel`.
 
     Args:
         path_or_sdf: an SDF file path or a parsed :class:`SdfModel`.
         actuated: names of the actuated (1-DoF) joints.
-        root_joint, root_link, cut: see :func:`build_tree`.
+        root_joint: see :func:`build_tree`.
+        root_link: see :func:`build_tree`.
+        cut: see :func:`build_tree`.
 
     Raises:
         DescriptionError: see :func:`parse_sdf`, :func:`build_tree` and
@@ -744,7 +756,7 @@ def closed_loop_from_sdf(path_or_sdf, actuated: Sequence[str] = (),
 # ------------------------------------------------------------------ SDF -> URDF
 def sdf_to_urdf(sdf: SdfModel, root_link: str | None = None,
                 cut: Iterable[str] | None = None,
-                mesh_resolver=None) -> tuple[str, LoopsSpec]:
+                mesh_resolver: Callable[[str], str] | None = None) -> tuple[str, LoopsSpec]:
     """Write the spanning tree as URDF text, plus the closures as a :class:`LoopsSpec`.
 
     In the URDF every link frame is the frame of the joint above it (URDF's
@@ -756,7 +768,8 @@ def sdf_to_urdf(sdf: SdfModel, root_link: str | None = None,
 
     Args:
         sdf: the parsed model (fixed root: the URDF has no root joint).
-        root_link, cut: see :func:`build_tree`.
+        root_link: see :func:`build_tree`.
+        cut: see :func:`build_tree`.
         mesh_resolver: callable ``uri -> filename`` for mesh visuals (default:
             :func:`resolve_uri`, which keeps the URI when it cannot resolve it).
 

@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.checks import as_array
 from ..errors import AssemblyError, SingularityError
@@ -62,7 +63,7 @@ def rot2(theta: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
-def wrap(angle):
+def wrap(angle: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """Angle(s) wrapped to (-pi, pi]."""
     return np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2.0 * np.pi)
 
@@ -75,7 +76,7 @@ def same_pose(a: np.ndarray, b: np.ndarray, tol: float = 1e-8) -> bool:
 class PlanarAssembly:
     """The assembly (forward-kinematic) problem of one :class:`PlanarGeometry`."""
 
-    def __init__(self, geometry: PlanarGeometry):
+    def __init__(self, geometry: PlanarGeometry) -> None:
         self.home_pose = geometry.home_pose
         self.length = geometry.link_length
         self.mids = geometry.rail_midpoints
@@ -86,7 +87,7 @@ class PlanarAssembly:
         """Slider joints ``c_k = m_k + s_k u_k`` (m), shape (3, 2)."""
         return self.mids + s[:, None] * self.dirs
 
-    def closure(self, pose: np.ndarray, s: np.ndarray):
+    def closure(self, pose: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residual ``(|n_k|^2 - L^2) / 2`` (m^2) and its pose Jacobian (3, 3)."""
         r = self.pts @ rot2(pose[2]).T
         links = pose[:2] + r - self.slider_points(s)
@@ -99,7 +100,8 @@ class PlanarAssembly:
         norms = np.sqrt(np.maximum(self.length ** 2 + 2.0 * res, 0.0))
         return float(np.max(np.abs(norms - self.length)))
 
-    def newton(self, pose: np.ndarray, s: np.ndarray, tol: float, max_iter: int):
+    def newton(self, pose: np.ndarray, s: np.ndarray, tol: float,
+               max_iter: int) -> tuple[np.ndarray, float, int]:
         """Damped Newton (least-squares steps, halving line search) on the closures.
         Returns ``(pose, error, iterations)``."""
         res, jac = self.closure(pose, s)
@@ -121,7 +123,8 @@ class PlanarAssembly:
             pose, res, jac, err = trial, trial_res, trial_jac, trial_err
         return pose, err, max_iter
 
-    def forward_kinematics(self, actuators, guess=None) -> np.ndarray:
+    def forward_kinematics(self, actuators: npt.ArrayLike,
+                           guess: npt.ArrayLike | None = None) -> np.ndarray:
         """The pose (3,) of the assembly mode that Newton reaches from ``guess`` (3,)
         (default: the home pose); see the module docstring.
 
@@ -139,7 +142,7 @@ class PlanarAssembly:
         pose[2] = wrap(pose[2])
         return pose
 
-    def assembly_polynomial(self, actuators) -> AssemblyPolynomial:
+    def assembly_polynomial(self, actuators: npt.ArrayLike) -> AssemblyPolynomial:
         """The sextic in ``T = tan((theta - theta_offset) / 2)`` of the assembly modes.
 
         With ``e_k(theta) = R(theta) p_k - c_k`` the closures read ``|t + e_k|^2 = L^2``,
@@ -185,7 +188,7 @@ class PlanarAssembly:
         return float(adj_b @ adj_b + 2.0 * det * adj_b @ e[0]
                      + det ** 2 * (e[0] @ e[0] - self.length ** 2))
 
-    def eliminant_numerator(self, offset: float, centres: np.ndarray):
+    def eliminant_numerator(self, offset: float, centres: np.ndarray) -> np.polynomial.Polynomial:
         """``W^6 F`` as a polynomial in T (degree <= 12), theta = offset + 2 atan(T)."""
         poly = np.polynomial.Polynomial
         w = poly([1.0, 0.0, 1.0])
@@ -207,7 +210,7 @@ class PlanarAssembly:
                 + 2.0 * det * (adj_b[0] * e[0][0] + adj_b[1] * e[0][1])
                 + det ** 2 * (norm2[0] - length2 * w ** 2))                          # over W^6
 
-    def assembly_modes(self, actuators) -> np.ndarray:
+    def assembly_modes(self, actuators: npt.ArrayLike) -> np.ndarray:
         """Every real assembly mode (platform pose) for slider coordinates ``actuators``.
 
         The real roots of the sextic of :meth:`assembly_polynomial` are every ``theta``

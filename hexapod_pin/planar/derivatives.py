@@ -30,8 +30,10 @@ differences of the inverse dynamics.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..core.results import InverseDynamicsDerivatives
@@ -44,13 +46,16 @@ from .geometry import N_ACTUATORS
 _RCOND = 1e-12
 
 
-def inverse_dynamics_derivatives(dynamics: PlanarDynamics, pose, twist, twist_dot,
-                                 wrench=None) -> InverseDynamicsDerivatives:
+def inverse_dynamics_derivatives(dynamics: PlanarDynamics, pose: npt.ArrayLike,
+                                 twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
+                                 wrench: npt.ArrayLike | None = None) -> InverseDynamicsDerivatives:
     """The derivatives of the module docstring at one state (home branch).
 
     Raises:
-        InputError, UnreachablePoseError, SingularityError (type I, or type II where the
-        square system is singular).
+        InputError: bad shape, non-finite or non-real values.
+        UnreachablePoseError: a leg cannot reach the pose.
+        SingularityError: at a singular configuration (type I, or type II where the square system is
+            singular).
     """
     res = dynamics.inverse_dynamics(pose, twist, twist_dot, wrench, method="kkt",
                                     bounded=False, joint_wrenches=False)
@@ -77,7 +82,7 @@ def inverse_dynamics_derivatives(dynamics: PlanarDynamics, pose, twist, twist_do
                       - q[idx.slider[k]] * ws.dirs[k] for k in range(N_ACTUATORS)])
     phid, phidd = v[idx.link], a[idx.link]
 
-    def leg_rows(rhs: np.ndarray) -> np.ndarray:
+    def leg_rows(rhs: Sequence[np.ndarray]) -> np.ndarray:
         """Solve the closures' leg block: (s, phi) rates of each loop from its 2 rows."""
         out = np.zeros(ws.nv)
         for k in range(N_ACTUATORS):

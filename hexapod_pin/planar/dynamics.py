@@ -22,8 +22,10 @@ from __future__ import annotations
 import threading
 from collections.abc import Mapping
 from types import MappingProxyType
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..core.checks import as_array, max_abs, owned_copy
@@ -53,8 +55,10 @@ class TreeDetails:
         dyn: the tree's :class:`~hexapod_pin.core.dynamics.ClosedLoopDynamics`.
         ws: the robot's workspace.
         state: ``(q, v, a)`` the tree state.
-        tau: actuator forces (3,); tau_ext: the wrench on the tree (nv,).
-        wrench: the wrench (3,) or None; wanted: whether joint wrenches were asked for.
+        tau: actuator forces (3,).
+        tau_ext: the wrench on the tree (nv,).
+        wrench: the wrench (3,) or None.
+        wanted: whether joint wrenches were asked for.
         closure: (3, 2) closure forces, or None to read them from ``multipliers``.
         multipliers: (n_rows,) multipliers, or None to build them from ``closure``.
         residual: the route's residual, or None to evaluate it on Pinocchio.
@@ -63,8 +67,11 @@ class TreeDetails:
     __slots__ = ("_closure", "_multipliers", "_residual", "dyn", "lock", "platform_joint",
                  "state", "tau", "tau_ext", "wanted", "wrench", "ws")
 
-    def __init__(self, dyn, ws, state, tau, tau_ext, wrench, wanted, platform_joint,
-                 closure=None, multipliers=None, residual=None, lock=None):
+    def __init__(self, dyn: ClosedLoopDynamics, ws: PlanarWorkspace,
+                 state: tuple[np.ndarray, np.ndarray, np.ndarray], tau: np.ndarray,
+                 tau_ext: np.ndarray, wrench: np.ndarray | None, wanted: bool, platform_joint: int,
+                 closure: np.ndarray | None = None, multipliers: np.ndarray | None = None,
+                 residual: float | None = None, lock: threading.RLock | None = None) -> None:
         self.lock = threading.RLock() if lock is None else lock
         self.dyn, self.ws, self.state, self.tau, self.tau_ext = dyn, ws, state, tau, tau_ext
         self.wrench, self.wanted, self.platform_joint = wrench, wanted, platform_joint
@@ -72,12 +79,12 @@ class TreeDetails:
 
     def multipliers(self) -> np.ndarray:
         if self._multipliers is None:
-            self._multipliers = multipliers_of(self.ws, self._closure)
+            self._multipliers = multipliers_of(self.ws, self._closure)  # type: ignore[arg-type]
         return self._multipliers
 
     def closure_forces(self) -> np.ndarray:
         if self._closure is None:
-            self._closure = closure_of(self.ws, self._multipliers)
+            self._closure = closure_of(self.ws, self._multipliers)  # type: ignore[arg-type]
         return self._closure
 
     def joint_wrenches(self) -> Mapping[str, np.ndarray]:
@@ -127,12 +134,13 @@ class PlanarDynamics:
     """The dynamics of one planar 3-PRR (see the module docstring).
 
     Args:
-        geometry: the robot's geometry; model: its :class:`ClosedLoopModel`;
+        geometry: the robot's geometry.
+        model: its :class:`ClosedLoopModel`.
         workspace: its :class:`~hexapod_pin.planar.kinematics.PlanarWorkspace`.
     """
 
     def __init__(self, geometry: PlanarGeometry, model: ClosedLoopModel,
-                 workspace: PlanarWorkspace, lock=None):
+                 workspace: PlanarWorkspace, lock: threading.RLock | None = None) -> None:
         self.geometry, self.model, self.ws = geometry, model, workspace
         #: the robot's lock, held by the lazy parts of results (they use this workspace)
         self.lock = threading.RLock() if lock is None else lock
@@ -177,8 +185,10 @@ class PlanarDynamics:
                               "level", f"leg accelerations off by {miss:.3e}")
 
     # -- inverse dynamics ---------------------------------------------------------------------
-    def inverse_dynamics(self, pose, twist, twist_dot, wrench=None, *, branch=None,
-                         method: str = "kkt", bounded: bool = True,
+    def inverse_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
+                         wrench: npt.ArrayLike | None = None, *,
+                         branch: npt.ArrayLike | None = None, method: str = "kkt",
+                         bounded: bool = True,
                          joint_wrenches: bool = True) -> InverseDynamicsResult:
         """Actuator forces that produce a platform motion (closed-loop inverse dynamics).
 
@@ -251,8 +261,8 @@ class PlanarDynamics:
                               lock=self.lock)
         return InverseDynamicsResult(tau, q, v, a, method, res.status, res.iterations, details)
 
-    def static_forces(self, pose, wrench=None, *, branch=None,
-                      bounded: bool = True) -> np.ndarray:
+    def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
+                      branch: npt.ArrayLike | None = None, bounded: bool = True) -> np.ndarray:
         """Actuator forces (3,) (N, along ``+u_k``) holding the platform at rest.
 
         Balances gravity (``-g`` along y, every body) and the ``wrench`` ``(fx, fy, mz)``
@@ -260,8 +270,11 @@ class PlanarDynamics:
         inverse dynamics at zero twist and twist_dot.
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError, ActuatorSaturationError:
-            see :meth:`inverse_dynamics`.
+            InputError: bad shape, non-finite or non-real values (see :meth:`inverse_dynamics`).
+            UnreachablePoseError: a leg cannot reach the pose (see :meth:`inverse_dynamics`).
+            SingularityError: at a singular configuration (see :meth:`inverse_dynamics`).
+            ActuatorSaturationError: with ``bounded``, a motion needing forces beyond
+                ``geometry.max_actuator_force`` (see :meth:`inverse_dynamics`).
         """
         ws = self.ws
         pose_a = vec3(pose, "pose")
@@ -280,7 +293,9 @@ class PlanarDynamics:
         return tau
 
     # -- forward dynamics ----------------------------------------------------------------------
-    def forward_dynamics(self, pose, twist, actuator_forces, wrench=None, *, branch=None,
+    def forward_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         actuator_forces: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
+                         branch: npt.ArrayLike | None = None,
                          method: str = "nullspace") -> ForwardDynamicsResult:
         """Platform acceleration produced by actuator forces (constrained forward dynamics).
 
@@ -303,8 +318,9 @@ class PlanarDynamics:
             :class:`~hexapod_pin.core.results.ForwardDynamicsResult`.
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError: see
-            :meth:`inverse_dynamics`.
+            InputError: bad shape, non-finite or non-real values (see :meth:`inverse_dynamics`).
+            UnreachablePoseError: a leg cannot reach the pose (see :meth:`inverse_dynamics`).
+            SingularityError: at a singular configuration (see :meth:`inverse_dynamics`).
             SolverError: a route's answer failed its checks.
         """
         if method not in FORWARD_DYNAMICS_METHODS:
@@ -341,7 +357,8 @@ class PlanarDynamics:
                                      method, res.status, res.iterations, details)
 
     # -- reduced dynamics and energies --------------------------------------------------------
-    def reduced_dynamics(self, pose, twist, branch=None) -> ReducedDynamics:
+    def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         branch: npt.ArrayLike | None = None) -> ReducedDynamics:
         """Dynamics in platform coordinates: ``J^T tau + wrench = M_x twist_dot + h_x``.
 
         ``M_x = G^T M G`` (3, 3) (kg, kg m, kg m^2) and ``h_x = G^T (M a_0 + h)`` (3,)
@@ -350,7 +367,9 @@ class PlanarDynamics:
         acceleration at ``twist_dot = 0``.
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError.
+            InputError: bad shape, non-finite or non-real values.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: at a singular configuration.
         """
         ws = self.ws
         m_x, h_x, jac = np.empty((3, 3)), np.empty(3), np.empty((3, 3))
@@ -362,12 +381,15 @@ class PlanarDynamics:
         kernels.velocity_map(ws.geo, ws.idx, ws.buf, vmap)
         return ReducedDynamics(m_x, h_x, jac, vmap)
 
-    def energies(self, pose, twist, branch=None) -> Energies:
+    def energies(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                 branch: npt.ArrayLike | None = None) -> Energies:
         """Kinetic and gravity potential energy of every body (J), by Pinocchio on the
         closed-form tree state (potential zero when every centre of mass is at y = 0).
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError.
+            InputError: bad shape, non-finite or non-real values.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: at a singular configuration.
         """
         inputs = ((pose, "pose"), (twist, "twist"))
         q, v, _ = self.ws.state(1, True, branch, inputs, vec3(pose, "pose"),
@@ -402,20 +424,26 @@ class PlanarDynamics:
         self._raise_first(status, infos, tau, self.bounds(bounded))
         return tau, closure, infos[:, kernels.X_RES].copy()
 
-    def inverse_dynamics_batch(self, poses, twists, twist_dots, wrenches=None, *,
+    def inverse_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                               twist_dots: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
                                bounded: bool = True) -> BatchInverseDynamics:
         """:meth:`inverse_dynamics` ("kkt", home branch) of N states, the same compiled
         kernel over the states in parallel.
 
         Args:
-            poses, twists, twist_dots: (N, 3) each; wrenches: (N, 3) or None.
+            poses: (N, 3).
+            twists: (N, 3).
+            twist_dots: (N, 3).
+            wrenches: (N, 3) or None.
             bounded: raise for the first state beyond ``geometry.max_actuator_force``.
 
         Raises:
             InputError: bad shapes, NaN / inf, rows of different lengths.
-            BatchUnreachablePoseError, BatchSingularityError (type I, or type II: no
-            least-squares fallback in a batch), BatchActuatorSaturationError: for the
-            first such state (``index``).
+            BatchUnreachablePoseError: a pose out of reach; for the first such state (``index``).
+            BatchSingularityError: a singular state (type I, or type II: no least-squares fallback
+                in a batch); for the first such state (``index``).
+            BatchActuatorSaturationError: with ``bounded``, forces beyond
+                ``geometry.max_actuator_force``; for the first such state (``index``).
         """
         poses, twists, twist_dots, wrenches = check_batch(
             poses=poses, twists=twists, twist_dots=twist_dots, wrenches=wrenches)
@@ -423,19 +451,23 @@ class PlanarDynamics:
                                                      bounded)
         return BatchInverseDynamics(tau, closure, residual)
 
-    def static_forces_batch(self, poses, wrenches=None, *, bounded: bool = True) -> np.ndarray:
+    def static_forces_batch(self, poses: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
+                            bounded: bool = True) -> np.ndarray:
         """:meth:`static_forces` of N poses (N, 3): (N, 3) forces (N). Raises as
         :meth:`inverse_dynamics_batch`."""
         poses, wrenches = check_batch(poses=poses, wrenches=wrenches)
         zero = np.zeros_like(poses)
         return self._batch_inverse(poses, zero, zero, wrenches, bounded)[0]
 
-    def forward_dynamics_batch(self, poses, twists, actuator_forces,
-                               wrenches=None) -> BatchForwardDynamics:
+    def forward_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                               actuator_forces: npt.ArrayLike,
+                               wrenches: npt.ArrayLike | None = None) -> BatchForwardDynamics:
         """:meth:`forward_dynamics` ("nullspace", home branch) of N states.
 
         Raises:
-            InputError, BatchUnreachablePoseError, BatchSingularityError.
+            InputError: bad shape, non-finite or non-real values.
+            BatchUnreachablePoseError: a pose out of reach.
+            BatchSingularityError: a singular state.
         """
         poses, twists, forces, wrenches = check_batch(
             poses=poses, twists=twists, actuator_forces=actuator_forces, wrenches=wrenches)
@@ -451,12 +483,15 @@ class PlanarDynamics:
         self._raise_first(status, infos)
         return BatchForwardDynamics(twist_dot, acc, closure)
 
-    def reduced_dynamics_batch(self, poses, twists) -> BatchReducedDynamics:
+    def reduced_dynamics_batch(self, poses: npt.ArrayLike,
+                               twists: npt.ArrayLike) -> BatchReducedDynamics:
         """:meth:`reduced_dynamics` (home branch) of N states: ``M_x`` (N, 3, 3), ``h_x``
         (N, 3), ``J`` (N, 3, 3).
 
         Raises:
-            InputError, BatchUnreachablePoseError, BatchSingularityError.
+            InputError: bad shape, non-finite or non-real values.
+            BatchUnreachablePoseError: a pose out of reach.
+            BatchSingularityError: a singular state.
         """
         poses, twists = check_batch(poses=poses, twists=twists)
         ws = self.ws
@@ -469,13 +504,14 @@ class PlanarDynamics:
         return BatchReducedDynamics(m_x, h_x, jac)
 
 
-def check_batch(**arrays) -> list:
+def check_batch(**arrays: npt.ArrayLike | None) -> list[Any]:
     """Validate batch inputs: each ``(N, 3)`` (None passed through), the same N.
 
     Raises:
         InputError: bad shape, NaN / inf, or rows of different lengths.
     """
-    out, n = [], None
+    out: list[Any] = []
+    n = None
     for name, value in arrays.items():
         if value is None:
             out.append(None)

@@ -22,8 +22,10 @@ import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..core import layouts
@@ -41,7 +43,7 @@ ALL_BRANCHES = tuple(np.array(b, dtype=float)
                      for b in itertools.product((1.0, -1.0), repeat=N_ACTUATORS))
 
 
-def check_branch(branch) -> np.ndarray:
+def check_branch(branch: npt.ArrayLike) -> np.ndarray:
     """Validate a branch (three values, each +1 or -1); ``None`` -> the home branch.
 
     Raises:
@@ -154,7 +156,7 @@ class PlanarGeometry:
         }
         return {k: repr(float(v)) for k, v in values.items()}
 
-    def replace(self, **changes) -> "PlanarGeometry":
+    def replace(self, **changes: Any) -> "PlanarGeometry":
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 

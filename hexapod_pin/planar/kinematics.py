@@ -10,7 +10,11 @@ rows in actuator order, columns ``(vx, vy, omega)`` (world axes).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 from ..core.checks import as_array, vector
 from ..core.closed_loop import ClosedLoopModel
@@ -29,7 +33,7 @@ JACOBIAN_RCOND = 1e-12
 _TYPE_I_WHAT = "inverse kinematic Jacobian (a link perpendicular to its rail)"
 
 
-def vec3(value, name: str) -> np.ndarray:
+def vec3(value: npt.ArrayLike, name: str) -> np.ndarray:
     """:func:`~hexapod_pin.core.checks.vector` of size 3 (a planar pose, twist or wrench)."""
     return vector(value, 3, name)
 
@@ -47,7 +51,7 @@ class PlanarWorkspace:
         DescriptionError: the loops file does not hold those closures.
     """
 
-    def __init__(self, geometry: PlanarGeometry, model: ClosedLoopModel):
+    def __init__(self, geometry: PlanarGeometry, model: ClosedLoopModel) -> None:
         expected = [("point", f"link_{k}_tip", f"platform_anchor_{k}")
                     for k in range(N_ACTUATORS)]
         if [(c.type, c.frame1, c.frame2) for c in model.closures] != expected:
@@ -74,12 +78,12 @@ class PlanarWorkspace:
         self.buf = np.zeros((N_ACTUATORS, kernels.LEG_COLS))
         self.info = np.zeros(kernels.INFO_SIZE)
 
-    def signs(self, branch) -> np.ndarray:
+    def signs(self, branch: npt.ArrayLike | None) -> np.ndarray:
         """A validated branch (3,) (``None``: the home branch)."""
         return self.home_signs if branch is None else np.array(check_branch(branch))
 
-    def raise_for(self, status: int, inputs, info: np.ndarray | None = None,
-                  index: int | None = None) -> None:
+    def raise_for(self, status: int, inputs: Sequence[tuple[Any, str]],
+                  info: np.ndarray | None = None, index: int | None = None) -> None:
         """Raise the library's exception for a kernel status.
 
         Args:
@@ -89,7 +93,9 @@ class PlanarWorkspace:
             index: the state of a batch (Batch* errors), or None.
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError (Batch* with ``index``).
+            InputError: bad shape, non-finite or non-real values.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: at a singular configuration (Batch* with ``index``).
         """
         info = self.info if info is None else info
         if status == kernels.NONFINITE:
@@ -116,7 +122,9 @@ class PlanarWorkspace:
             raise BatchSingularityError(index, what, value)
         raise SingularityError(what, value)
 
-    def legs(self, level: int, singular: bool, branch, inputs, pose, twist=None) -> None:
+    def legs(self, level: int, singular: bool, branch: npt.ArrayLike | None,
+             inputs: Sequence[tuple[Any, str]], pose: npt.ArrayLike,
+             twist: npt.ArrayLike | None = None) -> None:
         """Fill the leg buffer of a platform state by :func:`kernels.leg_state` (``level``
         0: legs and Jacobian rows; 1: also the rates of ``twist``). Raises as
         :meth:`raise_for`."""
@@ -126,8 +134,10 @@ class PlanarWorkspace:
         if status != kernels.OK:
             self.raise_for(status, inputs)
 
-    def state(self, level: int, singular: bool, branch, inputs, pose, twist=None,
-              twist_dot=None):
+    def state(self, level: int, singular: bool, branch: npt.ArrayLike | None,
+              inputs: Sequence[tuple[Any, str]], pose: npt.ArrayLike,
+              twist: npt.ArrayLike | None = None,
+              twist_dot: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Tree ``q``, ``v``, ``a`` (fresh (nv,) arrays, model order) of a platform state,
         by :func:`kernels.tree_state` (``v`` filled from ``level`` 1, ``a`` from 2); the
         leg buffer then holds the legs. Raises as :meth:`raise_for`."""
@@ -153,27 +163,27 @@ class PlanarKinematics:
     """
 
     def __init__(self, geometry: PlanarGeometry, model: ClosedLoopModel,
-                 workspace: PlanarWorkspace):
+                 workspace: PlanarWorkspace) -> None:
         self.geometry, self.model, self.ws = geometry, model, workspace
         self.mids, self.dirs, self.pts = workspace.mids, workspace.dirs, workspace.pts
 
     # -- points ----------------------------------------------------------------------------
-    def platform_points_world(self, pose) -> np.ndarray:
+    def platform_points_world(self, pose: npt.ArrayLike) -> np.ndarray:
         """World positions ``P_k`` of the three platform joints (m), shape (3, 2)."""
         pose = as_array(pose, (3,), "pose")
         c, s = np.cos(pose[2]), np.sin(pose[2])
         return pose[:2] + self.pts @ np.array([[c, s], [-s, c]])
 
-    def slider_points(self, actuators) -> np.ndarray:
+    def slider_points(self, actuators: npt.ArrayLike) -> np.ndarray:
         """World positions ``c_k = m_k + s_k u_k`` of the slider joints (m), shape (3, 2)."""
         s = as_array(actuators, (N_ACTUATORS,), "actuators")
         return self.mids + s[:, None] * self.dirs
 
-    def link_vectors(self, pose, actuators) -> np.ndarray:
+    def link_vectors(self, pose: npt.ArrayLike, actuators: npt.ArrayLike) -> np.ndarray:
         """Link vectors ``n_k = P_k - c_k`` (m), shape (3, 2); ``|n_k| = L`` when closed."""
         return self.platform_points_world(pose) - self.slider_points(actuators)
 
-    def branch_of(self, pose, actuators) -> np.ndarray:
+    def branch_of(self, pose: npt.ArrayLike, actuators: npt.ArrayLike) -> np.ndarray:
         """The IK branch (3 signs) that maps ``pose`` to ``actuators``: ``-sign(n_k . u_k)``.
 
         Raises:
@@ -186,7 +196,8 @@ class PlanarKinematics:
         return -np.sign(dots)
 
     # -- inverse kinematics ----------------------------------------------------------------
-    def inverse_kinematics(self, pose, branch=None, check_limits: bool = True) -> np.ndarray:
+    def inverse_kinematics(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None,
+                           check_limits: bool = True) -> np.ndarray:
         """Slider positions (3,) (m along ``u_k`` from the rail midpoint) of a pose.
 
         ``s_k = u_k . d_k + branch_k sqrt(L^2 - |d_k|^2 + (u_k . d_k)^2)``,
@@ -212,35 +223,37 @@ class PlanarKinematics:
             self.check_stroke(s)
         return s
 
-    def stroke_violations(self, actuators) -> list[str]:
+    def stroke_violations(self, actuators: npt.ArrayLike) -> list[str]:
         """Human-readable stroke violations of slider positions (3,)."""
         s = as_array(actuators, (N_ACTUATORS,), "actuators")
         h = self.ws.half_stroke
         return [f"slider {k}: |s|={abs(s[k]):.6g} > rail_half_length={h:g}"
                 for k in range(N_ACTUATORS) if abs(s[k]) > h]
 
-    def check_stroke(self, actuators) -> None:
+    def check_stroke(self, actuators: npt.ArrayLike) -> None:
         """Raise :class:`StrokeLimitError` when the slider positions leave the stroke."""
         violations = self.stroke_violations(actuators)
         if violations:
             raise StrokeLimitError(actuators, violations)
 
     # -- Jacobian ---------------------------------------------------------------------------
-    def jacobian(self, pose, branch=None) -> np.ndarray:
+    def jacobian(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
         """Workspace Jacobian ``J`` (3, 3), ``actuator velocities = J @ twist``.
 
         From ``d/dt |n_k|^2 = 0`` with ``dP_k/dt = v + omega z x r_k``, ``r_k = R p_k``:
         ``J[k] = [n_k, r_k x n_k] / (n_k . u_k)``.
 
         Raises:
-            InputError, UnreachablePoseError: see :meth:`inverse_kinematics`.
+            InputError: bad shape, non-finite or non-real values (see :meth:`inverse_kinematics`).
+            UnreachablePoseError: a leg cannot reach the pose (see :meth:`inverse_kinematics`).
             SingularityError: a link perpendicular to its rail (type I singularity).
         """
         self.ws.legs(0, True, branch, ((pose, "pose"),), vec3(pose, "pose"))
         return self.ws.buf[:, kernels.J0:kernels.J2 + 1].copy()
 
-    def twist_from_actuator_velocities(self, pose, actuator_velocities,
-                                       branch=None) -> np.ndarray:
+    def twist_from_actuator_velocities(self, pose: npt.ArrayLike,
+                                       actuator_velocities: npt.ArrayLike,
+                                       branch: npt.ArrayLike | None = None) -> np.ndarray:
         """Platform twist (3,) from slider velocities (m/s): solves ``J @ twist = sdot``.
 
         Raises:
@@ -253,13 +266,16 @@ class PlanarKinematics:
             raise SingularityError("workspace Jacobian", sv[-1])
         return np.linalg.solve(jac, sdot)
 
-    def jacobian_derivative(self, pose, twist, branch=None) -> np.ndarray:
+    def jacobian_derivative(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                            branch: npt.ArrayLike | None = None) -> np.ndarray:
         """``dJ/dt`` (3, 3) along the motion ``twist`` (closed form,
         :func:`kernels.jacobian_derivative`); ``actuator accelerations = J twist_dot +
         dJ/dt twist``.
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError: see :meth:`jacobian`.
+            InputError: bad shape, non-finite or non-real values (see :meth:`jacobian`).
+            UnreachablePoseError: a leg cannot reach the pose (see :meth:`jacobian`).
+            SingularityError: at a singular configuration (see :meth:`jacobian`).
         """
         twist_a = vec3(twist, "twist")
         self.ws.legs(1, True, branch, ((pose, "pose"), (twist, "twist")), vec3(pose, "pose"),
@@ -268,7 +284,8 @@ class PlanarKinematics:
         kernels.jacobian_derivative(self.ws.geo, self.ws.buf, twist_a, out)
         return out
 
-    def singularity(self, pose, branch=None) -> SingularityMeasures:
+    def singularity(self, pose: npt.ArrayLike,
+                    branch: npt.ArrayLike | None = None) -> SingularityMeasures:
         """Distances to type-I and type-II singularities (never raises at one).
 
         Definitions: :class:`~hexapod_pin.core.results.SingularityMeasures`, computed by
@@ -276,7 +293,8 @@ class PlanarKinematics:
         is the platform radius.
 
         Raises:
-            InputError, UnreachablePoseError.
+            InputError: bad shape, non-finite or non-real values.
+            UnreachablePoseError: a leg cannot reach the pose.
         """
         ws = self.ws
         ws.legs(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
@@ -288,7 +306,7 @@ class PlanarKinematics:
         return singularity_measures(jac, cosines, a_hat, self.geometry.platform_radius)
 
     # -- tree state -------------------------------------------------------------------------
-    def configuration(self, pose, branch=None) -> np.ndarray:
+    def configuration(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
         """Pinocchio configuration ``q`` (nq = 9,) of the tree for a pose (closed form).
 
         Sliders from the inverse kinematics (stroke not checked), link angles
@@ -296,7 +314,8 @@ class PlanarKinematics:
         the closures are then evaluated on the Pinocchio model.
 
         Raises:
-            InputError, UnreachablePoseError: see :meth:`inverse_kinematics`.
+            InputError: bad shape, non-finite or non-real values (see :meth:`inverse_kinematics`).
+            UnreachablePoseError: a leg cannot reach the pose (see :meth:`inverse_kinematics`).
             AssemblyError: the closed form misses the closures by more than 1e-12 m.
         """
         q, _, _ = self.ws.state(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
@@ -305,40 +324,47 @@ class PlanarKinematics:
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
         return q
 
-    def velocity(self, pose, twist, branch=None) -> np.ndarray:
+    def velocity(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                 branch: npt.ArrayLike | None = None) -> np.ndarray:
         """Tree velocity ``v`` (nv = 9,) of a platform motion, every closure kept: sliders
         ``J @ twist``, link rates ``n_k x (dP_k/dt - s'_k u_k) / L^2``, the platform
         chain the twist itself.
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError: see :meth:`jacobian`.
+            InputError: bad shape, non-finite or non-real values (see :meth:`jacobian`).
+            UnreachablePoseError: a leg cannot reach the pose (see :meth:`jacobian`).
+            SingularityError: at a singular configuration (see :meth:`jacobian`).
         """
         inputs = ((pose, "pose"), (twist, "twist"))
         return self.ws.state(1, True, branch, inputs, vec3(pose, "pose"),
                              vec3(twist, "twist"))[1]
 
-    def acceleration(self, pose, twist, twist_dot, branch=None) -> np.ndarray:
+    def acceleration(self, pose: npt.ArrayLike, twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
+                     branch: npt.ArrayLike | None = None) -> np.ndarray:
         """Tree acceleration ``a`` (nv = 9,) of a platform motion, every closure kept
         (closed form: :func:`kernels.accelerations`); the platform chain's is
         ``twist_dot``.
 
         Raises:
-            InputError, UnreachablePoseError, SingularityError: see :meth:`jacobian`.
+            InputError: bad shape, non-finite or non-real values (see :meth:`jacobian`).
+            UnreachablePoseError: a leg cannot reach the pose (see :meth:`jacobian`).
+            SingularityError: at a singular configuration (see :meth:`jacobian`).
         """
         inputs = ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot"))
         return self.ws.state(2, True, branch, inputs, vec3(pose, "pose"),
                              vec3(twist, "twist"), vec3(twist_dot, "twist_dot"))[2]
 
-    def pose_from_configuration(self, q) -> np.ndarray:
+    def pose_from_configuration(self, q: npt.ArrayLike) -> np.ndarray:
         """Platform pose (3,) read from a Pinocchio configuration (nq,)."""
         return self.model.check_q(q)[self.ws.indices.platform].copy()
 
-    def actuator_positions(self, q) -> np.ndarray:
+    def actuator_positions(self, q: npt.ArrayLike) -> np.ndarray:
         """Slider positions (3,) read from a Pinocchio configuration (nq,)."""
         return self.model.check_q(q)[self.ws.indices.slider].copy()
 
     # -- batches ----------------------------------------------------------------------------
-    def inverse_kinematics_batch(self, poses, branch=None) -> InverseKinematicsBatch:
+    def inverse_kinematics_batch(self, poses: npt.ArrayLike,
+                                 branch: npt.ArrayLike | None = None) -> InverseKinematicsBatch:
         """:meth:`inverse_kinematics` of N poses (N, 3) at once (never raises for a state).
 
         Raises:
@@ -354,7 +380,8 @@ class PlanarKinematics:
         within = np.all(np.abs(positions) <= self.ws.half_stroke, axis=1)
         return InverseKinematicsBatch(positions, reachable, within, reachable & within)
 
-    def jacobian_batch(self, poses, branch=None) -> JacobianBatch:
+    def jacobian_batch(self, poses: npt.ArrayLike,
+                       branch: npt.ArrayLike | None = None) -> JacobianBatch:
         """:meth:`jacobian` of N poses (N, 3) at once: ``J`` (N, 3, 3), zero where a state
         is unreachable or type-I singular (never raises for a state).
 

@@ -20,9 +20,11 @@ reports them (rank 6 of 9, mobility 3) and every tree route tolerates them
 from __future__ import annotations
 
 import threading
+from typing import cast
 from functools import cached_property
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.results import (InverseDynamicsDerivatives)
 from ..core.robot_api import delegate
@@ -40,9 +42,12 @@ class Planar3PRR:
         geometry: design parameters; default :class:`PlanarGeometry` ().
 
     Attributes:
-        geometry, model (the :class:`ClosedLoopModel`), indices (where the sliders, links
-        and platform chain sit in ``q`` and ``v``), kinematics, assembly, dynamics (the
-        components the methods delegate to).
+        geometry: the :class:`PlanarGeometry`.
+        model: the :class:`ClosedLoopModel`.
+        indices: where the sliders, links and platform chain sit in ``q`` and ``v``.
+        kinematics: the :class:`PlanarKinematics` component.
+        assembly: the :class:`PlanarAssembly` component.
+        dynamics: the :class:`PlanarDynamics` component.
 
     Example:
         >>> robot = Planar3PRR.default()
@@ -52,7 +57,7 @@ class Planar3PRR:
     pose_dim = 3
     n_actuators = N_ACTUATORS
 
-    def __init__(self, geometry: PlanarGeometry | None = None):
+    def __init__(self, geometry: PlanarGeometry | None = None) -> None:
         self.geometry = PlanarGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, PlanarGeometry):
             raise TypeError(f"geometry must be a PlanarGeometry, got {type(geometry).__name__}")
@@ -76,7 +81,7 @@ class Planar3PRR:
     def urdf(self) -> str:
         """The URDF text of the tree (the xacro expanded with this geometry; the loops are
         in ``urdf/planar_3prr.loops.yaml``): ``robot.model.urdf_xml``."""
-        return self.model.urdf_xml
+        return cast(str, self.model.urdf_xml)    # the model is built from URDF text
 
     # -- home ---------------------------------------------------------------------------------
     @property
@@ -131,8 +136,9 @@ class Planar3PRR:
     static_forces_batch = delegate("dynamics", PlanarDynamics.static_forces_batch)
     reduced_dynamics_batch = delegate("dynamics", PlanarDynamics.reduced_dynamics_batch)
 
-    def inverse_dynamics_derivatives(self, pose, twist, twist_dot,
-                                     wrench=None) -> InverseDynamicsDerivatives:
+    def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                                     twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None
+                                     ) -> InverseDynamicsDerivatives:
         """Derivatives of the actuator forces w.r.t. pose, twist, twist_dot and wrench
         (analytic); see :mod:`hexapod_pin.planar.derivatives`."""
         with self.lock:

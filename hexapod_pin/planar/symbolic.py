@@ -50,6 +50,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import SingularityError
 from .geometry import PlanarGeometry
@@ -69,14 +70,20 @@ class PlanarEquations:
     """The symbolic model (sympy objects).
 
     Attributes:
-        q, qdot: the generalised coordinates and velocities (9 symbols each).
+        q: the generalised coordinates (9 symbols).
+        qdot: the generalised velocities (9 symbols).
         parameters: geometry symbols, in :data:`PARAMETER_NAMES` order.
-        tau: the three actuator forces; wrench: ``(fx, fy, mz)``.
+        tau: the three actuator forces.
+        wrench: ``(fx, fy, mz)``.
         constraints: ``Phi(q)`` (6 x 1), position level.
         constraint_jacobian: ``A = dPhi/dq`` (6 x 9).
         constraint_drift: ``Adot qdot`` (6 x 1).
-        kinetic_energy, potential_energy, lagrangian: ``T``, ``V``, ``T - V``.
-        mass_matrix: ``M`` (9 x 9); coriolis: ``C`` (9 x 1); gravity: ``G`` (9 x 1).
+        kinetic_energy: ``T``.
+        potential_energy: ``V``.
+        lagrangian: ``T - V``.
+        mass_matrix: ``M`` (9 x 9).
+        coriolis: ``C`` (9 x 1).
+        gravity: ``G`` (9 x 1).
         generalized_force: ``Q`` (9 x 1), linear in ``tau`` and the wrench.
     """
 
@@ -220,7 +227,7 @@ class PlanarSymbolicDynamics:
         geometry: design parameters; default :class:`PlanarGeometry` ().
     """
 
-    def __init__(self, geometry: PlanarGeometry | None = None):
+    def __init__(self, geometry: PlanarGeometry | None = None) -> None:
         self.geometry = PlanarGeometry() if geometry is None else geometry
         self.params = np.array([getattr(self.geometry, n) for n in PARAMETER_NAMES])
         self.functions = numeric_functions()
@@ -230,28 +237,28 @@ class PlanarSymbolicDynamics:
         qd = np.zeros(N_COORDINATES) if qd is None else as_array(qd, (N_COORDINATES,), "qdot")
         return np.array(fn(q, qd, self.params), dtype=float)
 
-    def mass_matrix(self, q) -> np.ndarray:
+    def mass_matrix(self, q: npt.ArrayLike) -> np.ndarray:
         """``M(q)`` (9, 9) (kg, kg m, kg m^2)."""
         return self._eval(self.functions.mass_matrix, q)
 
-    def bias(self, q, qdot) -> np.ndarray:
+    def bias(self, q: npt.ArrayLike, qdot: npt.ArrayLike) -> np.ndarray:
         """``C(q, qdot) + G(q)`` (9,) (N, N m)."""
         c = self._eval(self.functions.coriolis, q, qdot).reshape(-1)
         return c + self._eval(self.functions.gravity, q).reshape(-1)
 
-    def constraints(self, q) -> np.ndarray:
+    def constraints(self, q: npt.ArrayLike) -> np.ndarray:
         """``Phi(q)`` (6,) (m): link tip minus platform point, world x and y per loop."""
         return self._eval(self.functions.constraints, q).reshape(-1)
 
-    def constraint_jacobian(self, q) -> np.ndarray:
+    def constraint_jacobian(self, q: npt.ArrayLike) -> np.ndarray:
         """``A(q) = dPhi/dq`` (6, 9)."""
         return self._eval(self.functions.constraint_jacobian, q)
 
-    def constraint_drift(self, q, qdot) -> np.ndarray:
+    def constraint_drift(self, q: npt.ArrayLike, qdot: npt.ArrayLike) -> np.ndarray:
         """``Adot qdot`` (6,) (m/s^2)."""
         return self._eval(self.functions.constraint_drift, q, qdot).reshape(-1)
 
-    def energy(self, q, qdot) -> tuple[float, float]:
+    def energy(self, q: npt.ArrayLike, qdot: npt.ArrayLike) -> tuple[float, float]:
         """Kinetic and potential energy ``(T, V)`` (J); ``V = 0`` at y = 0 for every body."""
         t = float(self._eval(self.functions.kinetic_energy, q, qdot))
         v = float(self._eval(self.functions.potential_energy, q))
@@ -264,7 +271,8 @@ class PlanarSymbolicDynamics:
             out[6:] = as_array(wrench, (3,), "wrench")
         return out
 
-    def forward_dynamics(self, q, qdot, forces, wrench=None) -> SymbolicForwardDynamics:
+    def forward_dynamics(self, q: npt.ArrayLike, qdot: npt.ArrayLike, forces: npt.ArrayLike,
+                         wrench: npt.ArrayLike | None = None) -> SymbolicForwardDynamics:
         """Accelerations from actuator forces: the KKT system of the constrained EOM.
 
         Solves ``[[M, -A^T], [A, 0]] [qddot; lambda] = [Q - C - G; -Adot qdot]``.
@@ -281,7 +289,8 @@ class PlanarSymbolicDynamics:
         sol = _solve(kkt, rhs, "symbolic KKT matrix")
         return SymbolicForwardDynamics(sol[:N_COORDINATES], sol[N_COORDINATES:])
 
-    def inverse_dynamics(self, q, qdot, qddot, wrench=None) -> SymbolicInverseDynamics:
+    def inverse_dynamics(self, q: npt.ArrayLike, qdot: npt.ArrayLike, qddot: npt.ArrayLike,
+                         wrench: npt.ArrayLike | None = None) -> SymbolicInverseDynamics:
         """Actuator forces for a motion: ``M qddot + C + G - Q_ext = B tau + A^T lambda``.
 
         ``B`` selects the three slider coordinates; the 9 x 9 system in
@@ -300,7 +309,7 @@ class PlanarSymbolicDynamics:
                      "symbolic inverse-dynamics matrix")
         return SymbolicInverseDynamics(sol[:3], sol[3:])
 
-    def complete_velocity(self, q, twist) -> np.ndarray:
+    def complete_velocity(self, q: npt.ArrayLike, twist: npt.ArrayLike) -> np.ndarray:
         """``qdot`` (9,) with the platform rates ``twist`` and ``A qdot = 0``."""
         twist = as_array(twist, (3,), "twist")
         jac = self.constraint_jacobian(q)
@@ -309,7 +318,8 @@ class PlanarSymbolicDynamics:
         out[:6] = _solve(jac[:, :6], -jac[:, 6:] @ twist, "constraint Jacobian (sliders, links)")
         return out
 
-    def complete_acceleration(self, q, qdot, twist_dot) -> np.ndarray:
+    def complete_acceleration(self, q: npt.ArrayLike, qdot: npt.ArrayLike,
+                              twist_dot: npt.ArrayLike) -> np.ndarray:
         """``qddot`` (9,) with the platform part ``twist_dot`` and ``A qddot = -Adot qdot``."""
         twist_dot = as_array(twist_dot, (3,), "twist_dot")
         jac = self.constraint_jacobian(q)

@@ -17,15 +17,20 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
+from typing import Any
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..core.pose import euler_rates_matrix
+from ..core.robot_api import ParallelRobot
 from ..errors import InputError
 from ..motion import Motion, read_motion
 from .limits import Limits, Payload
 from .trajectory import TimedTrajectory
+
+#: what :func:`check_feasibility` accepts as a motion
+MotionSource = TimedTrajectory | Motion | str | os.PathLike[str] | Mapping[str, Any]
 
 
 @dataclass(frozen=True)
@@ -35,10 +40,13 @@ class Violation:
     Attributes:
         limit: "actuator_force", "actuator_velocity", "actuator_acceleration",
             "linear_speed", "angular_speed" or "stroke".
-        index: the sample (0-based); time: its time (s).
+        index: the sample (0-based).
+        time: its time (s).
         component: the actuator (or 0 for the platform speeds).
-        value: the absolute value there; bound: the limit; excess: ``value - bound``
-            (> 0: violated; for "stroke" 1.0 when the stroke is left).
+        value: the absolute value there.
+        bound: the limit.
+        excess: ``value - bound`` (> 0: violated; for "stroke" 1.0 when the stroke is
+            left).
     """
 
     limit: str
@@ -78,8 +86,8 @@ class FeasibilityReport:
     slow_down: float
 
 
-def motion_arrays(robot, motion) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                          np.ndarray | None]:
+def motion_arrays(robot: ParallelRobot, motion: MotionSource
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """``(t, poses, twists, twist_dots, wrenches)`` of a motion given as a
     :class:`TimedTrajectory`, a :class:`~hexapod_pin.motion.Motion`, a motion file
     (:func:`~hexapod_pin.motion.read_motion`) or a mapping with ``t``, ``poses`` and
@@ -131,7 +139,7 @@ def motion_arrays(robot, motion) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
     return t, poses, twists, twist_dots, arrays.get("wrenches")
 
 
-def check_feasibility(robot, motion, *, limits: Limits | None = None,
+def check_feasibility(robot: ParallelRobot, motion: MotionSource, *, limits: Limits | None = None,
                       payload: Payload | None = None,
                       tolerance: float = 1e-9) -> FeasibilityReport:
     """Margins of a timed motion against the limits (see the module docstring).
@@ -140,7 +148,8 @@ def check_feasibility(robot, motion, *, limits: Limits | None = None,
         robot: a robot with the shared API.
         motion: see :func:`motion_arrays`; a motion's own ``wrenches`` act on the
             platform on top of the payload (constant in the slow-down).
-        limits: :class:`Limits` (default: the robot's force bound); payload: :class:`Payload`.
+        limits: :class:`Limits` (default: the robot's force bound).
+        payload: :class:`Payload` (default: none).
         tolerance: relative excess still called feasible (``value <= bound (1 +
             tolerance)``); a time-optimal motion resampled between its grid points exceeds
             its bounds by a fraction of a percent that shrinks with the grid step.
@@ -149,8 +158,10 @@ def check_feasibility(robot, motion, *, limits: Limits | None = None,
         :class:`FeasibilityReport`.
 
     Raises:
-        InputError, DescriptionError: a malformed motion; the robot's batch errors
-        (``BatchUnreachablePoseError``, ``BatchSingularityError``) for a pose out of reach.
+        InputError: a malformed motion (shapes, non-finite values).
+        DescriptionError: a malformed motion file.
+        BatchUnreachablePoseError: a pose out of reach (the robot's batch error).
+        BatchSingularityError: a singular pose (the robot's batch error).
     """
     limits = Limits() if limits is None else limits
     payload = Payload() if payload is None else payload

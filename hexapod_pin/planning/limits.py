@@ -27,7 +27,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
+from ..core.robot_api import ParallelRobot
 from ..errors import HexapodPinError, InfeasiblePathError, InputError
 from .path import PathSamples
 
@@ -59,7 +61,7 @@ class Limits:
     strokes: bool = True
     margin: float = 0.0
 
-    def per_actuator(self, robot, planning: bool = False) -> dict[str, np.ndarray]:
+    def per_actuator(self, robot: ParallelRobot, planning: bool = False) -> dict[str, np.ndarray]:
         """``{"force", "velocity", "acceleration", "linear_speed", "angular_speed"}`` ->
         bounds for ``robot``: (n_act,) for the actuators, (1,) for the platform speeds;
         with ``planning``, each times ``1 - margin``.
@@ -118,7 +120,7 @@ class Payload:
     def is_zero(self) -> bool:
         return self.mass == 0.0 and (self.wrench is None or not np.any(self.wrench))
 
-    def wrenches(self, robot, twist_dots) -> np.ndarray | None:
+    def wrenches(self, robot: ParallelRobot, twist_dots: np.ndarray) -> np.ndarray | None:
         """The payload's wrench on the platform (N, dim) for platform accelerations
         ``twist_dots`` (N, dim): ``wrench + m (g - dv/dt)`` (no moment: the mass sits at
         the platform origin); None for no payload."""
@@ -140,7 +142,9 @@ class PathCoefficients:
 
     Attributes:
         samples: the :class:`PathSamples` (N points).
-        force_a, force_b, force_c: (N, n_act), ``tau = a s_ddot + b s_dot^2 + c`` (N).
+        force_a: (N, n_act) ``a`` of ``tau = a s_ddot + b s_dot^2 + c`` (N).
+        force_b: (N, n_act) ``b`` (N).
+        force_c: (N, n_act) ``c`` (N).
         velocity_ratio: (N, n_act) ``q' = J xi``: actuator velocities per unit path speed.
         acceleration_b: (N, n_act) ``q''`` (None unless accelerations are limited).
         actuator_positions: (N, n_act) (m or rad).
@@ -161,7 +165,7 @@ def _fail_at(samples: PathSamples, index: int, reason: str, **kw) -> InfeasibleP
     return InfeasiblePathError(index, samples.s[index], samples.poses[index], reason, **kw)
 
 
-def path_coefficients(robot, samples: PathSamples, limits: Limits,
+def path_coefficients(robot: ParallelRobot, samples: PathSamples, limits: Limits,
                       payload: Payload) -> PathCoefficients:
     """:class:`PathCoefficients` of ``robot`` along ``samples`` (see the module docstring).
 
@@ -185,8 +189,8 @@ def path_coefficients(robot, samples: PathSamples, limits: Limits,
     xi, dxi = samples.tangents, samples.curvatures
     wrenches = None
     if not payload.is_zero:
-        wrenches = np.vstack([payload.wrenches(robot, zero), payload.wrenches(robot, xi),
-                              payload.wrenches(robot, dxi)])
+        wrenches = np.vstack([payload.wrenches(robot, x)      # type: ignore[misc]
+                              for x in (zero, xi, dxi)])   # not None: a payload is given
     poses3 = np.vstack([samples.poses] * 3)
     try:
         forces = robot.inverse_dynamics_batch(poses3, np.vstack([zero, zero, xi]),
@@ -215,7 +219,7 @@ def path_coefficients(robot, samples: PathSamples, limits: Limits,
                             velocity_ratio, acc_b, ik.actuator_positions, speed_bound)
 
 
-def constraint_rows(coeffs: PathCoefficients, robot, limits: Limits) -> np.ndarray:
+def constraint_rows(coeffs: PathCoefficients, robot: ParallelRobot, limits: Limits) -> np.ndarray:
     """The limits as rows ``alpha s_ddot + beta s_dot^2 + gamma <= 0``, (N, m, 3), each
     divided by its bound (dimensionless; the bounds times ``1 - limits.margin``).
 
@@ -232,7 +236,7 @@ def constraint_rows(coeffs: PathCoefficients, robot, limits: Limits) -> np.ndarr
         if np.any(over):
             k, j = np.unravel_index(int(np.argmax(over)), over.shape)
             i = int(finite[j])
-            raise _fail_at(coeffs.samples, k, "the robot cannot hold this pose statically "
+            raise _fail_at(coeffs.samples, int(k), "the robot cannot hold this pose statically "
                                               "within its force limits", actuator=i,
                            value=coeffs.force_c[k, i], limit=force[i])
         blocks.append(_two_sided(coeffs.force_a[:, finite], coeffs.force_b[:, finite],
@@ -241,7 +245,7 @@ def constraint_rows(coeffs: PathCoefficients, robot, limits: Limits) -> np.ndarr
     finite = np.flatnonzero(np.isfinite(acc))
     if finite.size:
         blocks.append(_two_sided(coeffs.velocity_ratio[:, finite],
-                                 coeffs.acceleration_b[:, finite],
+                                 coeffs.acceleration_b[:, finite],  # type: ignore[index]
                                  np.zeros((len(coeffs.force_c), finite.size)), acc[finite]))
     if not blocks:
         return np.zeros((len(coeffs.force_c), 1, 3))

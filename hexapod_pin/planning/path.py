@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
@@ -88,7 +89,7 @@ class GeometricPath:
             equal waypoints, a rotation pi or more from the first waypoint.
     """
 
-    def __init__(self, waypoints, rotation_length: float):
+    def __init__(self, waypoints: npt.ArrayLike, rotation_length: float) -> None:
         pts = np.asarray(waypoints, dtype=float)
         if pts.ndim != 2 or pts.shape[1] not in (3, 6):
             raise InputError("waypoints", waypoints, "expected shape (K, 6) or (K, 3)")
@@ -103,7 +104,7 @@ class GeometricPath:
         lin = 3 if self.pose_dim == 6 else 2
         positions = pts[:, :lin]
         if self.pose_dim == 6:
-            self._r0 = rotation_from_rpy(pts[0, 3:])
+            self._r0: np.ndarray = rotation_from_rpy(pts[0, 3:])
             rel = np.einsum("ji,njk->nik", self._r0, rotation_from_rpy(pts[:, 3:]))
             angles = Rotation.from_matrix(rel).as_rotvec()
             far = np.flatnonzero(np.linalg.norm(angles, axis=1) >= _MAX_ANGLE)
@@ -111,7 +112,7 @@ class GeometricPath:
                 raise InputError("waypoints", pts[far[0]],
                                  f"waypoint {far[0]} is pi or more from the first rotation")
         else:
-            self._r0 = None
+            self._r0 = np.eye(3)                  # unused in the plane
             angles = np.unwrap(pts[:, 2])[:, None]
         steps = np.sqrt(np.sum(np.diff(positions, axis=0) ** 2, axis=1)
                         + (rotation_length ** 2) * np.sum(np.diff(angles, axis=0) ** 2, axis=1))
@@ -125,7 +126,7 @@ class GeometricPath:
         self._positions = CubicSpline(self.knots, positions, axis=0, bc_type="natural")
         self._angles = CubicSpline(self.knots, angles, axis=0, bc_type="natural")
 
-    def sample(self, s) -> PathSamples:
+    def sample(self, s: npt.ArrayLike) -> PathSamples:
         """Poses, tangents and curvatures at ``s`` (N,) (m), each clipped to [0, length].
 
         Raises:

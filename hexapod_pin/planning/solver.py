@@ -83,7 +83,8 @@ def _x_interval(rows, k, d, x_max, lo1, hi1, with_next, al, be, ga):
 
 
 @jit
-def backward_pass(rows, steps, x_max, x_end, lo, hi):
+def backward_pass(rows: np.ndarray, steps: np.ndarray, x_max: np.ndarray, x_end: float,
+                  lo: np.ndarray, hi: np.ndarray) -> tuple[int, int]:
     """Controllable sets ``[lo_k, hi_k]`` (filled), back from ``x_{N-1} = x_end``.
 
     Returns ``(status, k)``: ``EMPTY_SET`` and the grid index where no speed can still
@@ -107,7 +108,8 @@ def backward_pass(rows, steps, x_max, x_end, lo, hi):
 
 
 @jit
-def forward_pass(rows, steps, lo, hi, x_start, x, u):
+def forward_pass(rows: np.ndarray, steps: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                 x_start: float, x: np.ndarray, u: np.ndarray) -> tuple[int, int]:
     """Greedy forward pass: ``x`` (N,) and ``u`` (N-1,) filled, ``x_0 = x_start``.
 
     Returns ``(status, k)``: ``START_OUTSIDE`` when ``x_start`` is not in ``[lo_0, hi_0]``.
@@ -136,7 +138,7 @@ def forward_pass(rows, steps, lo, hi, x_start, x, u):
 
 
 @jit
-def max_velocity_curve(rows, x_max, out):
+def max_velocity_curve(rows: np.ndarray, x_max: np.ndarray, out: np.ndarray) -> None:
     """The largest ``x`` at each grid point for which some ``u`` meets that point's rows
     (``inf`` where nothing bounds it): the maximum-velocity curve (squared)."""
     npts, m = rows.shape[0], rows.shape[1]

@@ -19,7 +19,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
+from ..core.robot_api import ParallelRobot
 from ..errors import InfeasiblePathError, InputError
 from . import solver
 from .limits import Limits, Payload, constraint_rows, path_coefficients
@@ -61,10 +63,14 @@ class TimedTrajectory:
         actuator_forces: (N, n_act) (N or N m), the payload included.
         actuator_velocities: (N, n_act) (m/s or rad/s).
         actuator_positions: (N, n_act) (m or rad).
-        s, s_dot, s_ddot: (N,) path parameter (m), speed (m/s), acceleration (m/s^2).
+        s: (N,) path parameter (m).
+        s_dot: (N,) path speed (m/s).
+        s_ddot: (N,) path acceleration (m/s^2).
         path: the :class:`GeometricPath`.
         phase: the :class:`PhaseProfile` of the solution (grid points).
-        robot, limits, payload: what it was planned for.
+        robot: the robot it was planned for.
+        limits: the limits it was planned with.
+        payload: the payload it was planned with.
     """
 
     t: np.ndarray
@@ -79,7 +85,7 @@ class TimedTrajectory:
     s_ddot: np.ndarray
     path: GeometricPath
     phase: PhaseProfile
-    robot: object
+    robot: ParallelRobot
     limits: Limits
     payload: Payload
 
@@ -88,7 +94,7 @@ class TimedTrajectory:
         """``t[-1] - t[0]`` (s)."""
         return float(self.t[-1] - self.t[0])
 
-    def sample(self, times) -> TimedTrajectory:
+    def sample(self, times: npt.ArrayLike) -> TimedTrajectory:
         """The same motion at the given times (s), each clipped to ``[0, duration]``.
 
         Between grid points the path acceleration is that of the segment (a time on a
@@ -127,7 +133,7 @@ class TimedTrajectory:
         return _grid_times(self.phase)
 
 
-def time_optimal(robot, waypoints, *, limits: Limits | None = None,
+def time_optimal(robot: ParallelRobot, waypoints: npt.ArrayLike, *, limits: Limits | None = None,
                  payload: Payload | None = None, start_speed: float = 0.0,
                  end_speed: float = 0.0, grid_points: int = DEFAULT_GRID_POINTS,
                  rotation_length: float | None = None) -> TimedTrajectory:
@@ -141,7 +147,8 @@ def time_optimal(robot, waypoints, *, limits: Limits | None = None,
             (:mod:`hexapod_pin.planning.path`).
         limits: :class:`Limits`; default: the robot's actuator force bound only.
         payload: :class:`Payload` carried by the platform; default none.
-        start_speed, end_speed: path speeds ``s_dot`` (m/s) at the ends; default rest.
+        start_speed: path speed ``s_dot`` (m/s) at the start; default rest.
+        end_speed: path speed ``s_dot`` (m/s) at the end; default rest.
         grid_points: number of grid points N of the path parameter (>= 3).
         rotation_length: length (m) weighting rotations in the path parameter; default
             the robot's characteristic length (its platform radius).

@@ -80,7 +80,8 @@ def hexapod_trajectory_scene(robot: Any, times: ArrayLike, poses: ArrayLike, *,
             ``frames``, ``force_scale``, ``closure_forces`` (N, 6, 3), ...).
 
     Raises:
-        InputError, UnreachablePoseError: bad input.
+        InputError: bad shape, non-finite or non-real values.
+        UnreachablePoseError: a leg cannot reach the pose.
     """
     poses = as_array(poses, (6,), "poses", batch=True)
     t = check_times(times, len(poses))

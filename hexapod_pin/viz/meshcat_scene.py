@@ -79,8 +79,9 @@ class Scene:
     homogeneous transforms in world axes (z up) relative to the parent node.
 
     Attributes:
-        camera_target, camera_position: where the camera looks and stands,
-            world axes (m) (set by the scene functions to frame the robot).
+        camera_target: where the camera looks, world axes (m) (set by the scene functions
+            to frame the robot).
+        camera_position: where the camera stands, world axes (m) (set likewise).
         caption: text in the page's lower-left corner (no box when empty).
         legend: lines of text in the page's upper-left corner (what the colours and
             arrows mean, the arrow length scale); none when empty.

@@ -12,18 +12,25 @@ accelerations m/s^2; actuator order and signs as everywhere in hexapod_pin.
 
 from __future__ import annotations
 
+import os
+from typing import Any
+
 import numpy as np
 
+from ..planning.trajectory import TimedTrajectory
 from .plotting import CARRIAGE_COLORS, figure_class, finish_figure
 
 
-def plot_forces_against_limits(trajectory, *, path=None, title: str = ""):
+def plot_forces_against_limits(trajectory: TimedTrajectory, *,
+                               path: str | os.PathLike[str] | None = None,
+                               title: str = "") -> Any:
     """Actuator forces along the path parameter with their bounds (dashed), and the
     actuator velocities when they are limited.
 
     Args:
         trajectory: a :class:`hexapod_pin.planning.TimedTrajectory`.
-        path: where to save the figure (optional); title: figure title.
+        path: where to save the figure (optional).
+        title: figure title.
 
     Returns:
         the ``matplotlib.figure.Figure``.
@@ -55,13 +62,15 @@ def plot_forces_against_limits(trajectory, *, path=None, title: str = ""):
     return finish_figure(fig, path)
 
 
-def plot_phase_plane(trajectory, *, path=None, title: str = ""):
+def plot_phase_plane(trajectory: TimedTrajectory, *, path: str | os.PathLike[str] | None = None,
+                     title: str = "") -> Any:
     """The phase plane ``(s, s_dot)``: the maximum-velocity curve, the upper boundary of
     the controllable sets and the chosen profile.
 
     Args:
         trajectory: a :class:`hexapod_pin.planning.TimedTrajectory`.
-        path: where to save the figure (optional); title: figure title.
+        path: where to save the figure (optional).
+        title: figure title.
 
     Returns:
         the ``matplotlib.figure.Figure``.

@@ -447,9 +447,11 @@ def workspace_scene(robot: Any, positions: ArrayLike, values: ArrayLike | None =
         q: configuration the robot is drawn at; default ``robot.home_configuration``
             when the robot has one, else Pinocchio's neutral configuration.
         point_size: point size (m).
-        low, high: colour-map limits; default the finite min / max of ``values``.
+        low: colour-map lower limit; default the finite min of ``values``.
+        high: colour-map upper limit; default the finite max of ``values``.
         robot_opacity: opacity of the robot (0..1], so the cloud inside it shows.
-        caption, urdf: as in :func:`pose_scene`.
+        caption: as in :func:`pose_scene`.
+        urdf: as in :func:`pose_scene`.
         value_label: what ``values`` are, with their unit (e.g. ``"log10 cond(J)"``),
             shown above the colour bar (drawn when ``values`` are given).
 

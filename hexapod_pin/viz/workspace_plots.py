@@ -136,7 +136,8 @@ class WorkspaceSlice:
     """Reachability of a horizontal slice of platform positions at a fixed orientation.
 
     Attributes:
-        x, y: grid coordinates (nx,), (ny,) of the platform origin (m).
+        x: grid coordinates (nx,) of the platform origin (m).
+        y: grid coordinates (ny,) of the platform origin (m).
         z: the slice height (m).
         orientation: (roll, pitch, yaw) (rad).
         status: (ny, nx) ints: ``REACHABLE`` (0), ``OUT_OF_REACH`` (1: a leg cannot
@@ -332,7 +333,8 @@ def plot_design_sweep(table: Any, x: str, y: str, value: str = "reachable_volume
 
     Args:
         table: the DataFrame of :func:`hexapod_pin.hexapod.sweeps.design_sweep`.
-        x, y: two swept parameter columns (their values form the grid).
+        x: a swept parameter column (its values and those of ``y`` form the grid).
+        y: another swept parameter column.
         value: the summary column coloured (invalid designs are left white).
 
     Raises:
