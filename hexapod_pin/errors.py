@@ -46,6 +46,11 @@ class InputError(HexapodPinError, ValueError):
         super().__init__(f"invalid {name}: {reason} (got {_short(value)})")
 
 
+
+class ArgumentTypeError(InputError, TypeError):
+    """An argument of the wrong type (e.g. a string where a geometry object is expected):
+    an :class:`InputError` that is also a ``TypeError``."""
+
 class DescriptionError(HexapodPinError, ValueError):
     """A URDF / xacro or loop-closure description is malformed.
 
@@ -177,6 +182,22 @@ class InconsistentMotionError(SolverError):
         super().__init__("closure motion", "inconsistent",
                          f"{what} cannot keep the closures (rows missed by {residual:.3e})")
 
+
+
+class NonFiniteResultError(HexapodPinError, ArithmeticError):
+    """A computation from finite inputs produced NaN or inf (inputs of a magnitude whose
+    products overflow, e.g. a twist of 1e160): raised instead of returning the value.
+
+    Attributes:
+        function: the method that produced it.
+        field: which part of its result (e.g. "actuator_forces").
+    """
+
+    def __init__(self, function: str, field: str):
+        self.function = function
+        self.field = field
+        super().__init__(f"{function}: the returned {field} is not finite (NaN or inf from "
+                         "finite inputs: their magnitudes overflow double precision)")
 
 def _short(value: Any, limit: int = 120) -> str:
     text = repr(value)

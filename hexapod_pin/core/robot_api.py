@@ -34,6 +34,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from .checks import check_finite_result
 from .closed_loop import ClosedLoopModel
 from .results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                       Energies, ForwardDynamicsResult, InverseDynamicsDerivatives,
@@ -176,7 +177,9 @@ class delegate:
     scratch and ProxSuite problems are shared by its methods; the computations hold the
     GIL, so threads could not run them side by side anyway). ``Robot.inverse_dynamics`` is
     the component's function (its docstring and signature for ``help`` and ``inspect``);
-    the instance's wrapper is built on first access and kept on the instance.
+    the instance's wrapper is built on first access and kept on the instance. Every number
+    the call returns is checked finite (:func:`~hexapod_pin.core.checks.check_finite_result`:
+    :class:`~hexapod_pin.errors.NonFiniteResultError` instead of a NaN).
 
     Args:
         attribute: name of the facade's attribute holding the component.
@@ -197,9 +200,12 @@ class delegate:
         bound = getattr(getattr(obj, self.attribute), self.function.__name__)
         lock = obj.lock
 
+        where = f"{type(obj).__name__}.{self.name}"
+
         def serialized(*args, **kwargs):
             with lock:
-                return bound(*args, **kwargs)
+                out = bound(*args, **kwargs)
+            return check_finite_result(where, out)
 
         serialized.__wrapped__ = bound
         serialized.__doc__ = self.function.__doc__

@@ -22,7 +22,7 @@ import proxsuite
 from . import kernels
 from . import batch
 from .batch import check_batch
-from ..core.checks import as_array, max_abs, owned_copy
+from ..core.checks import as_array, max_abs, owned_copy, required
 from ..core.closed_loop import ClosedLoopModel
 from ..core.compiled import all_finite
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
@@ -655,6 +655,7 @@ class HexapodDynamics:
                 (subclasses of :class:`UnreachablePoseError`, :class:`SingularityError`,
                 with its ``index``).
         """
+        required(twists=twists, twist_dots=twist_dots)
         poses, twists, twist_dots, wrenches, _ = check_batch(poses, twists, twist_dots,
                                                              wrenches)
         return batch.inverse_dynamics_batch(self.closed_form.geo, poses, twists, twist_dots,
@@ -678,6 +679,7 @@ class HexapodDynamics:
         Raises:
             InputError, BatchUnreachablePoseError, BatchSingularityError.
         """
+        required(twists=twists, actuator_forces=actuator_forces)
         poses, twists, _, wrenches, forces = check_batch(poses, twists, None, wrenches,
                                                          actuator_forces)
         return batch.forward_dynamics_batch(self.closed_form.geo, poses, twists, forces,
@@ -700,6 +702,7 @@ class HexapodDynamics:
         Raises:
             InputError, BatchUnreachablePoseError, BatchSingularityError.
         """
+        required(twists=twists)
         poses, twists, _, _, _ = check_batch(poses, twists)
         return batch.reduced_dynamics_batch(self.closed_form.geo, poses, twists)
 

@@ -1341,6 +1341,7 @@ def error_of(code: int, geo: np.ndarray, wk: np.ndarray, scratch: np.ndarray | N
     if code == UNREACHABLE:
         bad = np.flatnonzero(~(wk[DISC] >= 0.0))
         short = np.sqrt(length * length - wk[DISC, bad]) - length
+        short[~(short >= 0.0)] = np.inf        # the discriminant overflowed: out of range
         if index is None:
             return UnreachablePoseError(bad, short)
         return BatchUnreachablePoseError(index, bad, short)

@@ -21,7 +21,7 @@ from ..core.closed_loop import ClosedLoopModel
 from ..core.description import build_model, load_loops, urdf_dir
 from ..core.robot_api import delegate
 from .dynamics import HexapodDynamics
-from ..errors import AssemblyError
+from ..errors import ArgumentTypeError, AssemblyError
 from .geometry import HexapodGeometry, hexapod_urdf
 from . import kernels
 from .kinematics import HexapodKinematics, check_branch
@@ -82,7 +82,8 @@ class Hexapod:
     def __init__(self, geometry: HexapodGeometry | None = None):
         self.geometry = HexapodGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, HexapodGeometry):
-            raise TypeError(f"geometry must be a HexapodGeometry, got {type(geometry).__name__}")
+            raise ArgumentTypeError("geometry", geometry,
+                                    f"expected a HexapodGeometry, got {type(geometry).__name__}")
         xml = hexapod_urdf(self.geometry)
         tree = build_model(xml, source="hexapod.urdf.xacro")
         self.model = ClosedLoopModel(tree, load_loops(urdf_dir() / "hexapod.loops.yaml"),
