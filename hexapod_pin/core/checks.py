@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 
 import numpy as np
 
@@ -124,6 +125,43 @@ def required(**arrays) -> None:
     for name, value in arrays.items():
         if value is None:
             raise InputError(name, value, "required (an array, not None)")
+
+
+def real_number(value, name: str, *, minimum: float | None = None,
+                strict: bool = True) -> float:
+    """A finite real scalar option (a gain, a tolerance, a duration) as a float.
+
+    Args:
+        value: the option as given.
+        name: its argument name, for the error.
+        minimum: the lower bound, or None.
+        strict: the bound excluded (``value > minimum``) or included.
+
+    Raises:
+        InputError: not a real number (None, text, bool, complex), NaN / inf, or below
+            the bound.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputError(name, value, "expected a real number")
+    out = float(value)
+    if not math.isfinite(out):
+        raise InputError(name, value, "must be finite")
+    if minimum is not None and not (out > minimum if strict else out >= minimum):
+        raise InputError(name, value, f"must be {'>' if strict else '>='} {minimum:g}")
+    return out
+
+
+def count(value, name: str, minimum: int = 1) -> int:
+    """An integer option (an iteration count, a recording period) as an int.
+
+    Raises:
+        InputError: not an integer (floats, bool and text refused) or below ``minimum``.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise InputError(name, value, "expected an integer")
+    if value < minimum:
+        raise InputError(name, value, f"must be >= {minimum}")
+    return int(value)
 
 def max_abs(x: np.ndarray) -> float:
     """Largest absolute entry of ``x`` (0 for an empty array)."""
