@@ -209,7 +209,7 @@ class HexapodKinematics:
 
         Raises:
             InputError: bad shapes, or ``q`` does not assemble at ``pose`` (a leg
-                length off by more than 1e-9 m).
+                length off by more than 1e-9 m, times the leg length above 1 m).
         """
         q = as_array(q, (6,), "q")
         wk = self._legs(as_array(pose, (6,), "pose"), None, refuse=())
@@ -218,7 +218,7 @@ class HexapodKinematics:
         shift = (wk[K.Q] - q)[:, None] * dirs
         rel = wk[[K.NX, K.NY, K.NZ]].T + shift
         err = np.abs(np.linalg.norm(rel, axis=1) - self.geometry.leg_length)
-        if not np.max(err) <= 1e-9:
+        if not np.max(err) <= 1e-9 * max(1.0, self.geometry.leg_length):
             raise InputError("q", q, f"does not assemble at the pose (leg length errors {err})")
         along = wk[K.Q] - HOME_BRANCH * np.sqrt(np.maximum(wk[K.DISC], 0.0))
         return np.where(q - along >= 0.0, 1.0, -1.0)

@@ -27,7 +27,8 @@ from . import kernels
 from .kinematics import HexapodKinematics, check_branch
 from ..core.pose import rpy_from_rotation
 
-#: closure residual accepted for a closed-form configuration (m)
+#: closure residual accepted for a closed-form configuration (m), for robots up to 1 m;
+#: scaled by the robot's size above (round-off grows with the coordinates)
 CLOSED_FORM_TOL = 1e-12
 
 
@@ -192,14 +193,16 @@ class Hexapod:
             branch: root choice per carriage, see :meth:`inverse_kinematics`.
 
         Returns:
-            q (nq,) satisfying all 18 closure equations to 1e-12 m: checked by rebuilding
-            each leg tip from the universal-joint angles, as the tree places it.
+            q (nq,) satisfying all 18 closure equations to 1e-12 m (times the robot's size
+            in m above 1 m: the largest of leg length, rail and platform radii): checked
+            by rebuilding each leg tip from the universal-joint angles, as the tree places
+            it.
 
         Raises:
             InputError: bad shape, NaN / inf, malformed branch.
             UnreachablePoseError: a leg cannot reach.
-            AssemblyError: the closed form misses the closures by more than
-                1e-12 m (a leg along its first universal axis).
+            AssemblyError: the closed form misses the closures by more than that
+                (a leg along its first universal axis).
         """
         cf = self.closed_form
         signs = cf.signs if branch is None else check_branch(branch)
@@ -211,7 +214,8 @@ class Hexapod:
             if code != kernels.OK:
                 raise cf.error(code)
         err = cf.closure_residual(q)
-        if not err <= CLOSED_FORM_TOL:
+        g = self.geometry
+        if not err <= CLOSED_FORM_TOL * max(1.0, g.leg_length, g.rail_radius, g.platform_radius):
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
         return q
 

@@ -22,7 +22,8 @@ from ..errors import (AssemblyError, BatchSingularityError, BatchUnreachablePose
 from . import kernels
 from .geometry import HOME_BRANCH, N_ACTUATORS, PlanarGeometry, PlanarIndices, check_branch
 
-#: closure residual accepted for a closed-form configuration (m)
+#: closure residual accepted for a closed-form configuration (m), for robots up to 1 m;
+#: scaled by the robot's size above (round-off grows with the coordinates)
 CLOSED_FORM_TOL = 1e-12
 #: ``J`` is called singular (type II, or type I) below this ratio of singular values
 JACOBIAN_RCOND = 1e-12
@@ -173,16 +174,28 @@ class PlanarKinematics:
         """Link vectors ``n_k = P_k - c_k`` (m), shape (3, 2); ``|n_k| = L`` when closed."""
         return self.platform_points_world(pose) - self.slider_points(actuators)
 
+    def size(self) -> float:
+        """The robot's size (m): the largest of link length, rail and platform radii."""
+        g = self.geometry
+        return float(max(g.link_length, g.rail_radius, g.platform_radius))
+
     def branch_of(self, pose, actuators) -> np.ndarray:
         """The IK branch (3 signs) that maps ``pose`` to ``actuators``: ``-sign(n_k . u_k)``.
 
         Raises:
+            InputError: bad shapes, or ``actuators`` that do not assemble at ``pose`` (a
+                link length off by more than 1e-9 m, times the size above 1 m).
             SingularityError: a link perpendicular to its rail (both branches meet).
         """
-        dots = np.einsum("ki,ki->k", self.link_vectors(pose, actuators), self.dirs)
+        links = self.link_vectors(pose, actuators)
+        dots = np.einsum("ki,ki->k", links, self.dirs)
         worst = float(np.min(np.abs(dots))) / self.geometry.link_length
         if worst < kernels.TYPE_I_TOL:
             raise SingularityError(_TYPE_I_WHAT, worst)
+        err = np.abs(np.linalg.norm(links, axis=1) - self.geometry.link_length)
+        if not np.max(err) <= 1e-9 * max(1.0, self.size()):
+            raise InputError("actuators", actuators,
+                             f"do not assemble at the pose (link length errors {err})")
         return -np.sign(dots)
 
     # -- inverse kinematics ----------------------------------------------------------------
@@ -297,11 +310,12 @@ class PlanarKinematics:
 
         Raises:
             InputError, UnreachablePoseError: see :meth:`inverse_kinematics`.
-            AssemblyError: the closed form misses the closures by more than 1e-12 m.
+            AssemblyError: the closed form misses the closures by more than 1e-12 m
+                (times the robot's size in m above 1 m: :meth:`size`).
         """
         q, _, _ = self.ws.state(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
         err = float(np.max(np.abs(self.model.residual(q))))
-        if not err <= CLOSED_FORM_TOL:
+        if not err <= CLOSED_FORM_TOL * max(1.0, self.size()):
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
         return q
 
