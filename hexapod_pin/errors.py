@@ -122,14 +122,21 @@ class SingularityError(HexapodPinError, RuntimeError):
     """A configuration is singular where a regular one is needed.
 
     Attributes:
-        sigma_min: smallest singular value of the matrix at fault.
+        sigma_min: the singularity measure of the matrix at fault (its smallest singular
+            value, or the measure ``what`` names, e.g. ``|cos|`` for a type-I singularity).
         what: which matrix (e.g. "workspace Jacobian").
+        threshold: the value of the measure below which the routes refuse the pose (the
+            answer's accuracy could no longer be guaranteed:
+            :data:`hexapod_pin.core.measures.ACCURACY`), or None.
     """
 
-    def __init__(self, what: str, sigma_min: float):
+    def __init__(self, what: str, sigma_min: float, threshold: float | None = None):
         self.what = what
         self.sigma_min = float(sigma_min)
-        super().__init__(f"{what} is singular (smallest singular value {sigma_min:.3e})")
+        self.threshold = None if threshold is None else float(threshold)
+        below = "" if threshold is None else f", below the threshold {threshold:.3g}"
+        super().__init__(f"{what} is singular (smallest singular value "
+                         f"{sigma_min:.3e}{below})")
 
 
 class ActuatorSaturationError(HexapodPinError, RuntimeError):
@@ -230,9 +237,10 @@ class BatchUnreachablePoseError(UnreachablePoseError):
 class BatchSingularityError(SingularityError):
     """A state of a batch is singular (``index``: the first such state)."""
 
-    def __init__(self, index: int, what: str, sigma_min: float):
+    def __init__(self, index: int, what: str, sigma_min: float,
+                 threshold: float | None = None):
         self.index = int(index)
-        super().__init__(what, sigma_min)
+        super().__init__(what, sigma_min, threshold)
         self.args = (f"state {self.index}: {self.args[0]}",)
 
 

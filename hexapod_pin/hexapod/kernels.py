@@ -1362,6 +1362,7 @@ def error_of(code: int, geo: np.ndarray, wk: np.ndarray, scratch: np.ndarray | N
         value = type_two_measure(geo, wk, np.empty((6, 6)) if scratch is None else scratch)
     else:
         return HexapodPinError(f"{prefix}internal: kernel status {code} for validated inputs")
+    tol = {TYPE_I: TYPE_I_TOL, GIMBAL: GIMBAL_TOL, TYPE_II: TYPE_II_TOL}[code]
     if index is None:
-        return SingularityError(what, value)
-    return BatchSingularityError(index, what, value)
+        return SingularityError(what, value, tol)
+    return BatchSingularityError(index, what, value, tol)

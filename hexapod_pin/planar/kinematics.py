@@ -25,9 +25,9 @@ from .geometry import HOME_BRANCH, N_ACTUATORS, PlanarGeometry, PlanarIndices, c
 #: closure residual accepted for a closed-form configuration (m), for robots up to 1 m;
 #: scaled by the robot's size above (round-off grows with the coordinates)
 CLOSED_FORM_TOL = 1e-12
-#: ``J`` is called singular (type II, or type I) below this ratio of singular values
-JACOBIAN_RCOND = 1e-12
 _TYPE_I_WHAT = "inverse kinematic Jacobian (a link perpendicular to its rail)"
+_TYPE_II_WHAT = ("leg matrix A_hat = [e_k, (r_k x e_k) / platform_radius] (type II "
+                 "singularity; sigma_min(A_hat))")
 
 
 def vec3(value, name: str) -> np.ndarray:
@@ -105,17 +105,15 @@ class PlanarWorkspace:
                 raise BatchUnreachablePoseError(index, bad, short)
             raise UnreachablePoseError(bad, short)
         if status == kernels.TYPE_I:
-            what, value = _TYPE_I_WHAT, info[kernels.X_WORST]
+            what, value, tol = _TYPE_I_WHAT, info[kernels.X_WORST], kernels.TYPE_I_TOL
         elif status == kernels.TYPE_II:
-            what = ("leg matrix A_hat = [e_k, (r_k x e_k) / platform_radius] (type II "
-                    "singularity; sigma_min(A_hat))")
-            value = info[kernels.X_TYPE_TWO]
+            what, value, tol = _TYPE_II_WHAT, info[kernels.X_TYPE_TWO], kernels.TYPE_II_TOL
         else:
             what = "closed-form closure system (ill-conditioned: residual)"
-            value = info[kernels.X_RES]
+            value, tol = info[kernels.X_RES], None
         if index is not None:
-            raise BatchSingularityError(index, what, value)
-        raise SingularityError(what, value)
+            raise BatchSingularityError(index, what, value, tol)
+        raise SingularityError(what, value, tol)
 
     def legs(self, level: int, singular: bool, branch, inputs, pose, twist=None) -> None:
         """Fill the leg buffer of a platform state by :func:`kernels.leg_state` (``level``
@@ -191,7 +189,7 @@ class PlanarKinematics:
         dots = np.einsum("ki,ki->k", links, self.dirs)
         worst = float(np.min(np.abs(dots))) / self.geometry.link_length
         if worst < kernels.TYPE_I_TOL:
-            raise SingularityError(_TYPE_I_WHAT, worst)
+            raise SingularityError(_TYPE_I_WHAT, worst, kernels.TYPE_I_TOL)
         err = np.abs(np.linalg.norm(links, axis=1) - self.geometry.link_length)
         if not np.max(err) <= 1e-9 * max(1.0, self.size()):
             raise InputError("actuators", actuators,
@@ -257,13 +255,15 @@ class PlanarKinematics:
         """Platform twist (3,) from slider velocities (m/s): solves ``J @ twist = sdot``.
 
         Raises:
-            SingularityError: where ``J`` is singular (type II, or type I).
+            SingularityError: a type-I singularity, or a type-II one (``sigma_min(A_hat)``
+                below :data:`~hexapod_pin.core.measures.TYPE_II_TOL`, the test of every
+                route).
         """
         jac = self.jacobian(pose, branch=branch)
         sdot = as_array(actuator_velocities, (N_ACTUATORS,), "actuator_velocities")
-        sv = np.linalg.svd(jac, compute_uv=False)
-        if sv[-1] <= JACOBIAN_RCOND * sv[0]:
-            raise SingularityError("workspace Jacobian", sv[-1])
+        sigma = kernels.type_two_sigma(self.ws.geo, self.ws.buf)
+        if not sigma >= kernels.TYPE_II_TOL:
+            raise SingularityError(_TYPE_II_WHAT, sigma, kernels.TYPE_II_TOL)
         return np.linalg.solve(jac, sdot)
 
     def jacobian_derivative(self, pose, twist, branch=None) -> np.ndarray:
