@@ -24,12 +24,12 @@ from .core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchRedu
                            InverseDynamicsResult, InverseKinematicsBatch, JacobianBatch,
                            ReducedDynamics, SingularityMeasures)
 from .core.robot_api import ParallelRobot
-from .errors import (ActuatorSaturationError, AssemblyError, BatchActuatorSaturationError,
-                     BatchSingularityError, BatchUnreachablePoseError, DescriptionError,
+from .errors import (ActuatorSaturationError, ArgumentTypeError, AssemblyError,
+                     BatchActuatorSaturationError, BatchSingularityError, BatchUnreachablePoseError, DescriptionError,
                      GeometryError, HexapodPinError, InconsistentMotionError,
                      InfeasiblePathError, InputError, MissingDependencyError,
-                     MotionSampleError, SingularityError, SolverError, StrokeLimitError,
-                     UnreachablePoseError)
+                     MotionSampleError, NonFiniteResultError, SingularityError, SolverError,
+                     StrokeLimitError, UnreachablePoseError)
 from .hexapod.geometry import ChainGeometry, HexapodGeometry
 from .hexapod.kinematics import LegMotion
 from .hexapod.robot import Hexapod
@@ -57,5 +57,6 @@ __all__ = [
     "GeometryError", "InputError", "SingularityError", "SolverError", "StrokeLimitError",
     "UnreachablePoseError", "BatchActuatorSaturationError", "BatchSingularityError",
     "BatchUnreachablePoseError", "MotionSampleError", "MissingDependencyError",
-    "InconsistentMotionError", "InfeasiblePathError",
+    "InconsistentMotionError", "InfeasiblePathError", "NonFiniteResultError",
+    "ArgumentTypeError",
 ]

@@ -48,6 +48,11 @@ class InputError(HexapodPinError, ValueError):
         super().__init__(f"invalid {name}: {reason} (got {_short(value)})")
 
 
+
+class ArgumentTypeError(InputError, TypeError):
+    """An argument of the wrong type (e.g. a string where a geometry object is expected):
+    an :class:`InputError` that is also a ``TypeError``."""
+
 class DescriptionError(HexapodPinError, ValueError):
     """A URDF / xacro or loop-closure description is malformed.
 
@@ -119,14 +124,21 @@ class SingularityError(HexapodPinError, RuntimeError):
     """A configuration is singular where a regular one is needed.
 
     Attributes:
-        sigma_min: smallest singular value of the matrix at fault.
+        sigma_min: the singularity measure of the matrix at fault (its smallest singular
+            value, or the measure ``what`` names, e.g. ``|cos|`` for a type-I singularity).
         what: which matrix (e.g. "workspace Jacobian").
+        threshold: the value of the measure below which the routes refuse the pose (the
+            answer's accuracy could no longer be guaranteed:
+            :data:`hexapod_pin.core.measures.ACCURACY`), or None.
     """
 
-    def __init__(self, what: str, sigma_min: float):
+    def __init__(self, what: str, sigma_min: float, threshold: float | None = None):
         self.what = what
         self.sigma_min = float(sigma_min)
-        super().__init__(f"{what} is singular (smallest singular value {sigma_min:.3e})")
+        self.threshold = None if threshold is None else float(threshold)
+        below = "" if threshold is None else f", below the threshold {threshold:.3g}"
+        super().__init__(f"{what} is singular (smallest singular value "
+                         f"{sigma_min:.3e}{below})")
 
 
 class ActuatorSaturationError(HexapodPinError, RuntimeError):
@@ -180,6 +192,22 @@ class InconsistentMotionError(SolverError):
                          f"{what} cannot keep the closures (rows missed by {residual:.3e})")
 
 
+
+class NonFiniteResultError(HexapodPinError, ArithmeticError):
+    """A computation from finite inputs produced NaN or inf (inputs of a magnitude whose
+    products overflow, e.g. a twist of 1e160): raised instead of returning the value.
+
+    Attributes:
+        function: the method that produced it.
+        field: which part of its result (e.g. "actuator_forces").
+    """
+
+    def __init__(self, function: str, field: str):
+        self.function = function
+        self.field = field
+        super().__init__(f"{function}: the returned {field} is not finite (NaN or inf from "
+                         "finite inputs: their magnitudes overflow double precision)")
+
 def _short(value: Any, limit: int = 120) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."
@@ -212,9 +240,10 @@ class BatchUnreachablePoseError(UnreachablePoseError):
 class BatchSingularityError(SingularityError):
     """A state of a batch is singular (``index``: the first such state)."""
 
-    def __init__(self, index: int, what: str, sigma_min: float):
+    def __init__(self, index: int, what: str, sigma_min: float,
+                 threshold: float | None = None):
         self.index = int(index)
-        super().__init__(what, sigma_min)
+        super().__init__(what, sigma_min, threshold)
         self.args = (f"state {self.index}: {self.args[0]}",)
 
 

@@ -465,8 +465,9 @@ class CircleRun:
 
     @property
     def ok(self) -> bool:
-        """Whether the run completed and tracked its reference."""
-        return self.status == "completed"
+        """Whether the run completed (its commands maybe clipped: status "saturated") and
+        tracked its reference."""
+        return self.status in ("completed", "saturated")
 
 
 def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None,
@@ -548,7 +549,7 @@ def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None,
     error = None if controller == "none" else float(np.max(np.linalg.norm(
         np.asarray(traj.poses)[:, :3] - references[:, :3], axis=1)))
     status, message = str(traj.status), str(traj.message)
-    if status == "completed" and error is not None and error > tolerance:
+    if status in ("completed", "saturated") and error is not None and error > tolerance:
         status = "tracking_lost"
         saturated = float(np.mean(np.asarray(traj.saturated, dtype=bool)))
         message = (f"max tracking error {error:.4g} m exceeds {tolerance:.4g} m (the circle's "

@@ -475,12 +475,12 @@ def test_simulate_fast_by_default_and_tracking_loss_is_a_failure():
     assert out["max_tracking_error_m"] < 1e-3 and out["samples"] == 801
     slow = ok_json("simulate", "--duration", 0.05, "--engine", "python")
     assert slow["engine"] == "python" and slow["status"] == "completed"
-    lost = invoke("simulate", "--duration", 1, "--dt", 0.01)
+    lost = invoke("simulate", "--duration", 1, "--dt", 0.01, "--radius", 0.005)
     assert lost.exit_code == 1 and "tracking_lost" in lost.stdout
     assert "completed" not in lost.stdout
-    summary = ok_json("simulate", "--duration", 1, "--dt", 0.01)
+    summary = ok_json("simulate", "--duration", 1, "--dt", 0.01, "--radius", 0.005)
     assert summary["status"] == "tracking_lost"
-    assert summary["max_tracking_error_m"] > summary["tracking_tolerance_m"] == 0.02
+    assert summary["max_tracking_error_m"] > summary["tracking_tolerance_m"] == 0.005
 
 
 def test_urdf_export_of_both_robots(tmp_path):

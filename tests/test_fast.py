@@ -294,7 +294,9 @@ def test_semi_implicit_euler_energy_of_an_oscillation(numba, robot):
     peaks = {}
     for integrator in ("semi_implicit_euler", "rk4"):
         tr = fast.simulate_fast(robot, 2.0, 1e-3, integrator=integrator, **kwargs)
-        assert tr.status == "completed"
+        # RK4's growing swing reaches the force bound near the end, and its status says so
+        assert tr.status == ("completed" if integrator == "semi_implicit_euler"
+                             else "saturated")
         error, kinetic = _energy_error(robot, tr, 2000.0, hold, q_ref)
         peaks[integrator] = kinetic[:100].max(), kinetic[-100:].max()
         if integrator == "semi_implicit_euler":

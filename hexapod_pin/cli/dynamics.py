@@ -168,5 +168,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
         f"simulation: {controller} control, circle r = {radius:g} m",
         {key: f"{value:.4g}" if isinstance(value, float) else str(value)
          for key, value in summary.items() if value not in (None, "")}))
+    if run.status == "saturated":
+        note(False, f"warning: {run.message}")
     if not run.ok:
         raise typer.Exit(code=1)

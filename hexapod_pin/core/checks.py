@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 
 import numpy as np
 
-from ..errors import GeometryError, InputError
+from ..errors import GeometryError, InputError, NonFiniteResultError
 
 
 def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False) -> np.ndarray:
@@ -114,6 +115,54 @@ def validate_scalars(obj, positive: tuple[str, ...], non_negative: tuple[str, ..
             raise GeometryError(name, getattr(obj, name), "must be >= 0")
 
 
+
+def required(**arrays) -> None:
+    """Refuse a required array argument given as None.
+
+    Raises:
+        InputError: naming the first argument that is None.
+    """
+    for name, value in arrays.items():
+        if value is None:
+            raise InputError(name, value, "required (an array, not None)")
+
+
+def real_number(value, name: str, *, minimum: float | None = None,
+                strict: bool = True) -> float:
+    """A finite real scalar option (a gain, a tolerance, a duration) as a float.
+
+    Args:
+        value: the option as given.
+        name: its argument name, for the error.
+        minimum: the lower bound, or None.
+        strict: the bound excluded (``value > minimum``) or included.
+
+    Raises:
+        InputError: not a real number (None, text, bool, complex), NaN / inf, or below
+            the bound.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputError(name, value, "expected a real number")
+    out = float(value)
+    if not math.isfinite(out):
+        raise InputError(name, value, "must be finite")
+    if minimum is not None and not (out > minimum if strict else out >= minimum):
+        raise InputError(name, value, f"must be {'>' if strict else '>='} {minimum:g}")
+    return out
+
+
+def count(value, name: str, minimum: int = 1) -> int:
+    """An integer option (an iteration count, a recording period) as an int.
+
+    Raises:
+        InputError: not an integer (floats, bool and text refused) or below ``minimum``.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise InputError(name, value, "expected an integer")
+    if value < minimum:
+        raise InputError(name, value, f"must be >= {minimum}")
+    return int(value)
+
 def max_abs(x: np.ndarray) -> float:
     """Largest absolute entry of ``x`` (0 for an empty array)."""
     return float(np.max(np.abs(x), initial=0.0))
@@ -129,3 +178,38 @@ def _all_real(raw: np.ndarray) -> bool:
     """Whether every element of an object array is a real number (not bool, not complex)."""
     return all(isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
                for x in raw.ravel())
+
+
+#: result fields allowed to be +inf (a condition number at a type-I singularity)
+_INF_ALLOWED = frozenset({"condition_number"})
+
+
+def check_finite_result(function: str, value, field: str = "value"):
+    """Return ``value`` after checking that every number in it is finite.
+
+    Walks arrays, floats, tuples, lists, mappings and dataclasses (their public fields;
+    parts computed on first access are not forced). ``condition_number`` may be ``+inf``.
+
+    Raises:
+        NonFiniteResultError: a NaN anywhere, or an inf outside ``condition_number``
+            (naming the function and the field).
+    """
+    if isinstance(value, np.ndarray):
+        bad = value.dtype.kind in "fc" and not np.isfinite(value).all()
+        if bad and not (field in _INF_ALLOWED and (value > 0).all()):
+            raise NonFiniteResultError(function, field)
+    elif isinstance(value, float):
+        if not math.isfinite(value) and not (field in _INF_ALLOWED and value > 0):
+            raise NonFiniteResultError(function, field)
+    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+        for item in dataclasses.fields(value):
+            if not item.name.startswith("_"):
+                check_finite_result(function, getattr(value, item.name), item.name)
+    elif isinstance(value, (tuple, list)):
+        names = getattr(value, "_fields", None)
+        for k, item in enumerate(value):
+            check_finite_result(function, item, names[k] if names else f"{field}[{k}]")
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            check_finite_result(function, item, f"{field}[{key!r}]")
+    return value

@@ -26,6 +26,7 @@ joints (a reduced model) is :func:`hexapod_pin.core.freeze.freeze_joints`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -37,7 +38,7 @@ import scipy.linalg
 
 from .description import WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro, load_loops
 from ..errors import AssemblyError, DescriptionError, InputError
-from .checks import as_array
+from .checks import as_array, count, real_number
 from .closure_motion import complete, project
 from .frame_ik import FrameIKResult, frame_inverse_kinematics
 
@@ -357,16 +358,22 @@ class ClosedLoopModel:
             max_iter: maximum Newton iterations.
 
         Raises:
+            InputError: a bad ``q0``, ``fixed``, ``tol`` or ``max_iter``, or a ``q0`` whose
+                closure residual overflows (not finite).
             AssemblyError: no convergence within ``max_iter`` or a step that cannot
                 decrease the residual (a singular or unreachable configuration).
         """
         q = self.check_q(q0, "q0").copy()
+        tol = real_number(tol, "tol", minimum=0.0)
+        max_iter = count(max_iter, "max_iter", minimum=0)
         fixed_idx = self.actuated_v if fixed is None else np.asarray(fixed, dtype=int)
         if fixed_idx.size and (fixed_idx.min() < 0 or fixed_idx.max() >= self.model.nv):
             raise InputError("fixed", fixed, f"indices must lie in [0, {self.model.nv})")
         free = np.setdiff1d(np.arange(self.model.nv), fixed_idx)
         res = self.residual(q)
         err = float(np.max(np.abs(res), initial=0.0))
+        if not math.isfinite(err):
+            raise InputError("q0", q0, "its closure residual is not finite (overflow)")
         for iteration in range(max_iter + 1):
             if err <= tol:
                 return AssemblyResult(q, err, iteration)

@@ -789,8 +789,11 @@ class ClosedLoopDynamics:
             if not bounds > 0.0:
                 raise InputError("bounds", bounds, "must be positive")
             return None if bounds == float("inf") else np.full(self.n_act, float(bounds))
-        arr = np.broadcast_to(np.asarray(bounds, dtype=float), (self.n_act,)).copy() \
-            if np.ndim(bounds) == 0 else np.asarray(bounds, dtype=float)
+        try:
+            arr = np.broadcast_to(np.asarray(bounds, dtype=float), (self.n_act,)).copy() \
+                if np.ndim(bounds) == 0 else np.asarray(bounds, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("bounds", bounds, "not numeric") from None
         if arr.shape != (self.n_act,) or np.any(np.isnan(arr)) or np.any(arr <= 0.0):
             raise InputError("bounds", bounds,
                              f"expected a positive scalar or ({self.n_act},) positive values")

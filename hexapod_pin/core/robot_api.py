@@ -37,6 +37,7 @@ from typing import Any, Concatenate, Generic, ParamSpec, Protocol, TypeVar, over
 import numpy as np
 import numpy.typing as npt
 
+from .checks import check_finite_result
 from .closed_loop import ClosedLoopModel
 from .results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                       Energies, ForwardDynamicsResult, InverseDynamicsDerivatives,
@@ -203,7 +204,9 @@ class delegate(Generic[P, R]):
     scratch and ProxSuite problems are shared by its methods; the computations hold the
     GIL, so threads could not run them side by side anyway). ``Robot.inverse_dynamics`` is
     the component's function (its docstring and signature for ``help`` and ``inspect``);
-    the instance's wrapper is built on first access and kept on the instance.
+    the instance's wrapper is built on first access and kept on the instance. Every number
+    the call returns is checked finite (:func:`~hexapod_pin.core.checks.check_finite_result`:
+    :class:`~hexapod_pin.errors.NonFiniteResultError` instead of a NaN).
 
     Typing: the descriptor is generic in the component method's parameters ``P`` (after
     ``self``) and result ``R``, and its ``__get__`` is overloaded, so a type checker sees
@@ -240,9 +243,12 @@ class delegate(Generic[P, R]):
         bound = getattr(getattr(obj, self.attribute), self.function.__name__)
         lock = getattr(obj, "lock")
 
+        where = f"{type(obj).__name__}.{self.name}"
+
         def serialized(*args: P.args, **kwargs: P.kwargs) -> R:
             with lock:
-                return bound(*args, **kwargs)
+                out = bound(*args, **kwargs)
+            return check_finite_result(where, out)
 
         serialized.__wrapped__ = bound    # type: ignore[attr-defined]
         serialized.__doc__ = self.function.__doc__

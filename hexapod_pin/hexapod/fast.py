@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..core.checks import as_array
+from ..core.checks import as_array, real_number
 from ..core.compiled import all_finite
 from ..errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
 from . import kernels as K
@@ -61,7 +61,8 @@ from ..core.pose import quaternion_rpy, rotation_quat, rpy_of
 from .kernels import (GAP, GIMBAL, NONFINITE, NOT_PD, OK, SATURATED, STROKE, TYPE_I, TYPE_II,
                       UNREACHABLE)
 from .robot import Hexapod
-from .simulation import ReferenceTrajectory, Trajectory, check_run_arguments
+from .simulation import (PID_KD, ReferenceTrajectory, Trajectory, check_run_arguments,
+                         saturation_status)
 
 __all__ = ["FastDynamics", "FastStepper", "FastTrajectory", "fast_dynamics", "simulate_fast"]
 
@@ -437,7 +438,8 @@ class FastTrajectory:
         actuator_forces: (n, 6) forces applied from each sample to the next (N) (last
             row: the command at the final state, or the previous one after a stop).
         saturated: (n,) True where the command was clipped to the bound.
-        status: "completed", "stroke_limit", "carriage_gap" or "failed".
+        status: "completed", "saturated" (completed with clipped commands), "stroke_limit",
+            "carriage_gap" or "failed".
         message: details of a stop.
         dt: the step (s).
         wall_time: seconds spent in the compiled code (set-points of the reference, then
@@ -491,7 +493,7 @@ def simulate_fast(robot: Hexapod, duration: float, dt: float = 1e-3, *,
                   pose0: npt.ArrayLike | None = None, twist0: npt.ArrayLike | None = None,
                   actuator_forces: npt.ArrayLike | None = None, wrench: npt.ArrayLike | None = None,
                   reference: ReferenceTrajectory | None = None, kp: float = 30000.0,
-                  ki: float = 40000.0, kd: float = 3000.0, feedforward: bool = False,
+                  ki: float = 40000.0, kd: float = PID_KD, feedforward: bool = False,
                   check_limits: bool = True, on_limit: str = "stop", saturation: str = "clip",
                   record_every: int = 1, integrator: str = "rk4") -> FastTrajectory:
     """Integrate the hexapod's dynamics in compiled code (in platform coordinates).
@@ -514,11 +516,15 @@ def simulate_fast(robot: Hexapod, duration: float, dt: float = 1e-3, *,
             ``t -> PlatformReference`` (sampled at ``k dt`` before the loop, in Python)
             or a pair of arrays ``(poses, twists)``, each (m, 6), sampled at ``k dt``
             (the last row is held when m < steps + 1).
-        kp: N/m. ki: N/(m s). kd: N s/m. feedforward: add the static forces of the
-            reference pose.
+        kp: N/m. ki: N/(m s). kd: N s/m (each a finite number >= 0; the default ``kd``
+            keeps the discrete PID stable at the default step, see
+            :class:`~hexapod_pin.hexapod.simulation.PIDController`). feedforward: add the
+            static forces of the reference pose.
         check_limits: stop at the stroke limits / carriage gap (checked after each step).
         on_limit: "stop" (status "stroke_limit" / "carriage_gap") or "raise".
-        saturation: "clip", "raise" or "ignore" (commands beyond the bound).
+        saturation: "clip", "raise" or "ignore" (commands beyond the bound); a run with
+            clipped commands ends with status "saturated" (the message gives the
+            fraction of the recorded steps).
         record_every: record one sample every this many steps.
         integrator: "rk4" (default; 4 forward dynamics per step, fourth order), "rk2"
             (explicit midpoint; 2, second order) or "semi_implicit_euler" (1, first
@@ -556,9 +562,8 @@ def simulate_fast(robot: Hexapod, duration: float, dt: float = 1e-3, *,
         twist0 = ref_twists[0] if reference is not None else np.zeros(6)
     pose0, twist0 = as_array(pose0, (6,), "pose0"), as_array(twist0, (6,), "twist0")
     wrench = _ZERO6 if wrench is None else as_array(wrench, (6,), "wrench")
-    gains = np.array([kp, ki, kd], dtype=float)
-    if not np.all(np.isfinite(gains)):
-        raise InputError("gains", gains, "must be finite")
+    gains = np.array([real_number(gain, name, minimum=0.0, strict=False)
+                      for gain, name in ((kp, "kp"), (ki, "ki"), (kd, "kd"))])
     feedforward = bool(feedforward)
     fd = fast_dynamics(robot)
     geo = fd.geo
@@ -605,6 +610,8 @@ def simulate_fast(robot: Hexapod, duration: float, dt: float = 1e-3, *,
             violations)
     elif code != OK:
         status, message = "failed", f"at t = {t_stop:.6g} s: {_describe(robot, code, poses[-1])}"
+    else:
+        status, message = saturation_status(rec_sat[:n], times)
     return FastTrajectory(times, poses, quat.copy(), rec_state[:, 7:].copy(), rec_q[:n].copy(),
                           rec_qd[:n].copy(), rec_f[:n].copy(), rec_sat[:n].copy(), status,
                           message, float(dt), wall, integrator)

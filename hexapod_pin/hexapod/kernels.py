@@ -1386,6 +1386,7 @@ def error_of(code: int, geo: np.ndarray, wk: np.ndarray, scratch: np.ndarray | N
     if code == UNREACHABLE:
         bad = np.flatnonzero(~(wk[DISC] >= 0.0))
         short = np.sqrt(length[bad] * length[bad] - wk[DISC, bad]) - length[bad]
+        short[~(short >= 0.0)] = np.inf        # the discriminant overflowed: out of range
         if index is None:
             return UnreachablePoseError(bad, short)
         return BatchUnreachablePoseError(index, bad, short)
@@ -1406,6 +1407,7 @@ def error_of(code: int, geo: np.ndarray, wk: np.ndarray, scratch: np.ndarray | N
         value = type_two_measure(geo, wk, np.empty((6, 6)) if scratch is None else scratch)
     else:
         return HexapodPinError(f"{prefix}internal: kernel status {code} for validated inputs")
+    tol = {TYPE_I: TYPE_I_TOL, GIMBAL: GIMBAL_TOL, TYPE_II: TYPE_II_TOL}[code]
     if index is None:
-        return SingularityError(what, value)
-    return BatchSingularityError(index, what, value)
+        return SingularityError(what, value, tol)
+    return BatchSingularityError(index, what, value, tol)

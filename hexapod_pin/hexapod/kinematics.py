@@ -230,7 +230,7 @@ class HexapodKinematics:
 
         Raises:
             InputError: bad shapes, or ``q`` does not assemble at ``pose`` (a leg
-                length off by more than 1e-9 m).
+                length off by more than 1e-9 m, times the leg length above 1 m).
         """
         q = as_array(q, (6,), "q")
         wk = self._legs(as_array(pose, (6,), "pose"), None, refuse=())
@@ -238,7 +238,7 @@ class HexapodKinematics:
         shift = (wk[K.Q] - q)[:, None] * self.chains.line_directions
         rel = wk[[K.NX, K.NY, K.NZ]].T + shift
         err = np.abs(np.linalg.norm(rel, axis=1) - self.chains.leg_lengths)
-        if not np.max(err) <= 1e-9:
+        if not np.max(err) <= 1e-9 * max(1.0, float(np.max(self.chains.leg_lengths))):
             raise InputError("q", q, f"does not assemble at the pose (leg length errors {err})")
         along = wk[K.Q] - HOME_BRANCH * np.sqrt(np.maximum(wk[K.DISC], 0.0))
         return np.where(q - along >= 0.0, 1.0, -1.0)

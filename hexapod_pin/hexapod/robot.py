@@ -23,13 +23,14 @@ from ..core.closed_loop import ClosedLoopModel
 from ..core.description import build_model, load_loops, urdf_dir
 from ..core.robot_api import delegate
 from .dynamics import HexapodDynamics
-from ..errors import AssemblyError
+from ..errors import ArgumentTypeError, AssemblyError
 from .geometry import HexapodGeometry, hexapod_urdf
 from . import kernels
 from .kinematics import HexapodKinematics, check_branch
 from ..core.pose import rpy_from_rotation
 
-#: closure residual accepted for a closed-form configuration (m)
+#: closure residual accepted for a closed-form configuration (m), for robots up to 1 m;
+#: scaled by the robot's size above (round-off grows with the coordinates)
 CLOSED_FORM_TOL = 1e-12
 
 
@@ -88,7 +89,8 @@ class Hexapod:
     def __init__(self, geometry: HexapodGeometry | None = None) -> None:
         self.geometry = HexapodGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, HexapodGeometry):
-            raise TypeError(f"geometry must be a HexapodGeometry, got {type(geometry).__name__}")
+            raise ArgumentTypeError("geometry", geometry,
+                                    f"expected a HexapodGeometry, got {type(geometry).__name__}")
         xml = hexapod_urdf(self.geometry)
         tree = build_model(xml, source="hexapod.urdf.xacro")
         self.model = ClosedLoopModel(tree, load_loops(urdf_dir() / "hexapod.loops.yaml"),
@@ -198,14 +200,16 @@ class Hexapod:
             branch: root choice per carriage, see :meth:`inverse_kinematics`.
 
         Returns:
-            q (nq,) satisfying all 18 closure equations to 1e-12 m: checked by rebuilding
-            each leg tip from the universal-joint angles, as the tree places it.
+            q (nq,) satisfying all 18 closure equations to 1e-12 m (times the robot's size
+            in m above 1 m: the largest of leg length, rail and platform radii): checked
+            by rebuilding each leg tip from the universal-joint angles, as the tree places
+            it.
 
         Raises:
             InputError: bad shape, NaN / inf, malformed branch.
             UnreachablePoseError: a leg cannot reach.
-            AssemblyError: the closed form misses the closures by more than
-                1e-12 m (a leg along its first universal axis).
+            AssemblyError: the closed form misses the closures by more than that
+                (a leg along its first universal axis).
         """
         cf = self.closed_form
         signs = cf.signs if branch is None else check_branch(branch)
@@ -217,7 +221,8 @@ class Hexapod:
             if code != kernels.OK:
                 raise cf.error(code)
         err = cf.closure_residual(q)
-        if not err <= CLOSED_FORM_TOL:
+        g = self.geometry
+        if not err <= CLOSED_FORM_TOL * max(1.0, g.leg_length, g.rail_radius, g.platform_radius):
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
         return q
 

@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core.checks import as_array
-from ..errors import AssemblyError, SingularityError
+from ..errors import AssemblyError, InputError, SingularityError
 from .geometry import N_ACTUATORS, PlanarGeometry
 
 #: Newton's convergence threshold on ``max_k | |n_k| - L |`` (m)
@@ -162,13 +162,22 @@ class PlanarAssembly:
 
         Args:
             actuators: slider coordinates (m), shape (3,).
+
+        Raises:
+            InputError: non-finite actuators, or of a magnitude whose products in the
+                polynomial overflow (a finite answer cannot be computed).
         """
         s = as_array(actuators, (N_ACTUATORS,), "actuators")
         centres = self.slider_points(s)
         candidates = np.linspace(-np.pi, np.pi, 24, endpoint=False)
-        values = [abs(self.eliminant(theta, centres)) for theta in candidates + np.pi]
-        offset = float(candidates[int(np.argmax(values))])
-        numerator = self.eliminant_numerator(offset, centres)
+        with np.errstate(over="ignore", invalid="ignore"):
+            values = [abs(self.eliminant(theta, centres)) for theta in candidates + np.pi]
+            offset = float(candidates[int(np.nanargmax(values))]) \
+                if np.isfinite(values).any() else 0.0
+            numerator = self.eliminant_numerator(offset, centres)
+        if not np.isfinite(numerator.coef).all():
+            raise InputError("actuators", actuators, "too large: the assembly polynomial "
+                             "overflows double precision")
         weight = np.polynomial.Polynomial([1.0, 0.0, 1.0]) ** 3
         quotient, remainder = divmod(numerator, weight)
         scale = float(np.max(np.abs(numerator.coef)))

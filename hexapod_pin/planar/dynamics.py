@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..core.checks import as_array, max_abs, owned_copy
+from ..core.checks import as_array, max_abs, owned_copy, required
 from ..core.closed_loop import ClosedLoopModel
 from ..core.dynamics import ClosedLoopDynamics, forward_dynamics_tree, inverse_dynamics_tree
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
@@ -505,7 +505,7 @@ class PlanarDynamics:
 
 
 def check_batch(**arrays: npt.ArrayLike | None) -> list[Any]:
-    """Validate batch inputs: each ``(N, 3)`` (None passed through), the same N.
+    """Validate batch inputs: each ``(N, 3)`` (``wrenches`` may be None), the same N.
 
     Raises:
         InputError: bad shape, NaN / inf, or rows of different lengths.
@@ -513,9 +513,10 @@ def check_batch(**arrays: npt.ArrayLike | None) -> list[Any]:
     out: list[Any] = []
     n = None
     for name, value in arrays.items():
-        if value is None:
+        if value is None and name == "wrenches":
             out.append(None)
             continue
+        required(**{name: value})
         arr = as_array(value, (3,), name, batch=True)
         if n is None:
             n = arr.shape[0]

@@ -66,8 +66,9 @@ OK, NONFINITE, UNREACHABLE, TYPE_I, TYPE_II, RESIDUAL = 0, -1, 1, 2, 3, 4
 RESIDUAL_RTOL = 1e-9
 
 # geometry vector: per leg k, 7 values from 7 k: m (2), u (2), p (2), a_k; then scalars
-_G_LEN, _G_TOL, _G_MS, _G_ML, _G_MP, _G_IP, _G_G, _G_RP = range(21, 29)
-GEO_SIZE = 29
+# (the singularity thresholds are packed, not read as globals: compiled code caches globals)
+_G_LEN, _G_TOL, _G_MS, _G_ML, _G_MP, _G_IP, _G_G, _G_RP, _G_TOL2 = range(21, 30)
+GEO_SIZE = 30
 # leg buffer columns
 S, NX, NY, RX, RY, NU, J0, J1, J2, SD, PD, SDD, PDD = range(13)
 LEG_COLS = 13
@@ -91,6 +92,7 @@ def pack_geometry(geometry: PlanarGeometry) -> np.ndarray:
     geo[_G_MS], geo[_G_ML] = geometry.slider_mass, geometry.link_mass
     geo[_G_MP], geo[_G_IP] = geometry.platform_mass, geometry.platform_inertia
     geo[_G_G], geo[_G_RP] = geometry.gravity, geometry.platform_radius
+    geo[_G_TOL2] = TYPE_II_TOL
     return geo
 
 
@@ -358,7 +360,7 @@ def type_two_sigma(geo, buf):
     for k in range(N_ACTUATORS):
         for c in range(3):
             frob2 += a[k, c] * a[k, c]
-    if frob2 > 0.0 and abs(det) / (0.5 * frob2) >= TYPE_II_TOL:
+    if frob2 > 0.0 and abs(det) / (0.5 * frob2) >= geo[_G_TOL2]:
         return abs(det) / (0.5 * frob2)
     return np.linalg.svd(a)[1][-1]
 
@@ -393,7 +395,7 @@ def solve_inverse(geo, buf, force, wrench, has_wrench, tau, closure, info):
                       l2[RX] * l2[NY] - l2[RY] * l2[NX], px, py, pth, mu)
     sigma = type_two_sigma(geo, buf) if hadamard > 0.0 else 0.0
     info[X_TYPE_TWO] = sigma
-    if not sigma >= TYPE_II_TOL:
+    if not sigma >= geo[_G_TOL2]:
         return TYPE_II
     res, sum_x, sum_y, sum_m = 0.0, 0.0, 0.0, 0.0
     scale = max(1.0, abs(fx), abs(fy), abs(fth))

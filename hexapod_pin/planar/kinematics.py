@@ -26,11 +26,12 @@ from ..errors import (AssemblyError, BatchSingularityError, BatchUnreachablePose
 from . import kernels
 from .geometry import HOME_BRANCH, N_ACTUATORS, PlanarGeometry, PlanarIndices, check_branch
 
-#: closure residual accepted for a closed-form configuration (m)
+#: closure residual accepted for a closed-form configuration (m), for robots up to 1 m;
+#: scaled by the robot's size above (round-off grows with the coordinates)
 CLOSED_FORM_TOL = 1e-12
-#: ``J`` is called singular (type II, or type I) below this ratio of singular values
-JACOBIAN_RCOND = 1e-12
 _TYPE_I_WHAT = "inverse kinematic Jacobian (a link perpendicular to its rail)"
+_TYPE_II_WHAT = ("leg matrix A_hat = [e_k, (r_k x e_k) / platform_radius] (type II "
+                 "singularity; sigma_min(A_hat))")
 
 
 def vec3(value: npt.ArrayLike, name: str) -> np.ndarray:
@@ -110,17 +111,15 @@ class PlanarWorkspace:
                 raise BatchUnreachablePoseError(index, bad, short)
             raise UnreachablePoseError(bad, short)
         if status == kernels.TYPE_I:
-            what, value = _TYPE_I_WHAT, info[kernels.X_WORST]
+            what, value, tol = _TYPE_I_WHAT, info[kernels.X_WORST], kernels.TYPE_I_TOL
         elif status == kernels.TYPE_II:
-            what = ("leg matrix A_hat = [e_k, (r_k x e_k) / platform_radius] (type II "
-                    "singularity; sigma_min(A_hat))")
-            value = info[kernels.X_TYPE_TWO]
+            what, value, tol = _TYPE_II_WHAT, info[kernels.X_TYPE_TWO], kernels.TYPE_II_TOL
         else:
             what = "closed-form closure system (ill-conditioned: residual)"
-            value = info[kernels.X_RES]
+            value, tol = info[kernels.X_RES], None
         if index is not None:
-            raise BatchSingularityError(index, what, value)
-        raise SingularityError(what, value)
+            raise BatchSingularityError(index, what, value, tol)
+        raise SingularityError(what, value, tol)
 
     def legs(self, level: int, singular: bool, branch: npt.ArrayLike | None,
              inputs: Sequence[tuple[Any, str]], pose: npt.ArrayLike,
@@ -183,16 +182,28 @@ class PlanarKinematics:
         """Link vectors ``n_k = P_k - c_k`` (m), shape (3, 2); ``|n_k| = L`` when closed."""
         return self.platform_points_world(pose) - self.slider_points(actuators)
 
+    def size(self) -> float:
+        """The robot's size (m): the largest of link length, rail and platform radii."""
+        g = self.geometry
+        return float(max(g.link_length, g.rail_radius, g.platform_radius))
+
     def branch_of(self, pose: npt.ArrayLike, actuators: npt.ArrayLike) -> np.ndarray:
         """The IK branch (3 signs) that maps ``pose`` to ``actuators``: ``-sign(n_k . u_k)``.
 
         Raises:
+            InputError: bad shapes, or ``actuators`` that do not assemble at ``pose`` (a
+                link length off by more than 1e-9 m, times the size above 1 m).
             SingularityError: a link perpendicular to its rail (both branches meet).
         """
-        dots = np.einsum("ki,ki->k", self.link_vectors(pose, actuators), self.dirs)
+        links = self.link_vectors(pose, actuators)
+        dots = np.einsum("ki,ki->k", links, self.dirs)
         worst = float(np.min(np.abs(dots))) / self.geometry.link_length
         if worst < kernels.TYPE_I_TOL:
-            raise SingularityError(_TYPE_I_WHAT, worst)
+            raise SingularityError(_TYPE_I_WHAT, worst, kernels.TYPE_I_TOL)
+        err = np.abs(np.linalg.norm(links, axis=1) - self.geometry.link_length)
+        if not np.max(err) <= 1e-9 * max(1.0, self.size()):
+            raise InputError("actuators", actuators,
+                             f"do not assemble at the pose (link length errors {err})")
         return -np.sign(dots)
 
     # -- inverse kinematics ----------------------------------------------------------------
@@ -257,13 +268,15 @@ class PlanarKinematics:
         """Platform twist (3,) from slider velocities (m/s): solves ``J @ twist = sdot``.
 
         Raises:
-            SingularityError: where ``J`` is singular (type II, or type I).
+            SingularityError: a type-I singularity, or a type-II one (``sigma_min(A_hat)``
+                below :data:`~hexapod_pin.core.measures.TYPE_II_TOL`, the test of every
+                route).
         """
         jac = self.jacobian(pose, branch=branch)
         sdot = as_array(actuator_velocities, (N_ACTUATORS,), "actuator_velocities")
-        sv = np.linalg.svd(jac, compute_uv=False)
-        if sv[-1] <= JACOBIAN_RCOND * sv[0]:
-            raise SingularityError("workspace Jacobian", sv[-1])
+        sigma = kernels.type_two_sigma(self.ws.geo, self.ws.buf)
+        if not sigma >= kernels.TYPE_II_TOL:
+            raise SingularityError(_TYPE_II_WHAT, sigma, kernels.TYPE_II_TOL)
         return np.linalg.solve(jac, sdot)
 
     def jacobian_derivative(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
@@ -316,11 +329,12 @@ class PlanarKinematics:
         Raises:
             InputError: bad shape, non-finite or non-real values (see :meth:`inverse_kinematics`).
             UnreachablePoseError: a leg cannot reach the pose (see :meth:`inverse_kinematics`).
-            AssemblyError: the closed form misses the closures by more than 1e-12 m.
+            AssemblyError: the closed form misses the closures by more than 1e-12 m
+                (times the robot's size in m above 1 m: :meth:`size`).
         """
         q, _, _ = self.ws.state(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
         err = float(np.max(np.abs(self.model.residual(q))))
-        if not err <= CLOSED_FORM_TOL:
+        if not err <= CLOSED_FORM_TOL * max(1.0, self.size()):
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
         return q
 

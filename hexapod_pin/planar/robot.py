@@ -28,6 +28,7 @@ import numpy.typing as npt
 
 from ..core.results import (InverseDynamicsDerivatives)
 from ..core.robot_api import delegate
+from ..errors import ArgumentTypeError
 from .assembly_modes import PlanarAssembly
 from .derivatives import inverse_dynamics_derivatives
 from .dynamics import PlanarDynamics
@@ -60,7 +61,8 @@ class Planar3PRR:
     def __init__(self, geometry: PlanarGeometry | None = None) -> None:
         self.geometry = PlanarGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, PlanarGeometry):
-            raise TypeError(f"geometry must be a PlanarGeometry, got {type(geometry).__name__}")
+            raise ArgumentTypeError("geometry", geometry,
+                                    f"expected a PlanarGeometry, got {type(geometry).__name__}")
         self.model = planar_model(self.geometry)
         #: serialises the robot's calls (its components share scratch and Pinocchio data)
         self.lock = threading.RLock()
