@@ -39,6 +39,7 @@ from .parameters import (
     parameter_indices,
 )
 from .problem import DEFAULT_NOISE, Measurements, Problem, reference_measurements
+from .registration import register_instrument
 
 #: least-squares tolerances (scipy's ftol, xtol, gtol)
 TOLERANCE = 1e-15
@@ -289,7 +290,11 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
         identify: parameter groups to identify (:data:`~.parameters.GROUPS`, ``"chains"``
             for all five chain groups); the others stay at their start values.
         instrument: guessed pose of the instrument frame in the robot's world (6,);
-            default the world frame itself.
+            default a rigid registration of the measurements onto the nominal forward
+            kinematics of the readings
+            (:func:`~hexapod_pin.calibration.registration.register_instrument`). When the
+            instrument frame is not in the base set (it trades with the lines), the lines
+            are identified in this guessed frame.
         target: guessed pose of the target frame in the platform frame (6,); default the
             platform frame.
         noise: standard deviations of the measurement noise (target position m, target
@@ -313,6 +318,8 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
     if not (isinstance(rcond, float) and 0.0 < rcond < 1.0):
         raise InputError("rcond", rcond, "expected a float in (0, 1)")
     data = Measurements.checked(actuators, poses, points, target_points)
+    if instrument is None:
+        instrument = register_instrument(robot, data, target)
     params = ParameterModel(robot.geometry.chain_geometry, instrument, target)
     columns = parameter_indices(identify)
     scales = params.scales
