@@ -200,7 +200,9 @@ def test_noisy_calibration_end_to_end(nominal, truth, commanded):
     floor = np.sqrt(np.mean((true_robot.inverse_kinematics_batch(held.poses)
                              .actuator_positions - held.actuators) ** 2))
     nominal_err, identified = report.nominal.summary(), report.identified.summary()
-    assert nominal_err["actuator_rms"] > 1e-3 and nominal_err["position_rms"] > 1e-3
+    # (the nominal model sees the instrument registered: about 1 mm, 6 mrad off)
+    assert nominal_err["actuator_rms"] > 5e-4 and nominal_err["position_rms"] > 5e-4
+    assert nominal_err["position_rms"] > 30 * identified["position_rms"]
     assert identified["actuator_rms"] < 1.5 * floor
     assert identified["position_rms"] < 4e-5 and identified["rotation_rms"] < 1e-4
 

@@ -132,7 +132,14 @@ class ModelErrors:
 
 @dataclass(frozen=True)
 class ValidationReport:
-    """Errors of the nominal and of the identified model on validation measurements."""
+    """Errors of the nominal and of the identified model on validation measurements.
+
+    Attributes:
+        nominal: errors of the start model (the nominal chains seen through the guessed
+            frames, the instrument's registered by default): what the robot does before
+            calibration with a registered instrument.
+        identified: errors of the identified model (``CalibrationResult.robot``).
+    """
 
     nominal: ModelErrors
     identified: ModelErrors
