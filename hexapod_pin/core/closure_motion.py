@@ -17,8 +17,10 @@ Routes: ``"lstsq"`` (the direct one: a Householder QR where the unknowns are det
 LAPACK's SVD least squares ``numpy.linalg.lstsq`` where they are not; for a projection a
 Cholesky factor of ``W`` first) and ``"qp"`` (ProxSuite's dense
 proximal QP on the independent rows of ``J_c``, chosen by a column-pivoted QR, because
-redundant equality rows make the proximal iterations crawl). Every answer is checked
-(finite, constraint residual relative to the data) before it is returned.
+redundant equality rows make the proximal iterations crawl; one ProxSuite problem per size
+is kept per thread and updated). Every answer is checked (finite, constraint residual
+relative to the data) before it is returned. :func:`row_basis` gives the bases of the
+independent rows (range, null space, right inverse) from one compiled pivoted QR.
 
 Units follow the caller: velocities (m/s, rad/s) or accelerations (m/s^2, rad/s^2) of
 the tree coordinates, ``rhs`` in the closure-row units.

@@ -14,8 +14,9 @@ with ``e`` the stacked task errors, ``J_t`` their Jacobians, ``W`` the weights a
 Levenberg-Marquardt damping ``lambda = mu |e|_W^2`` (vanishing at a solution, so the
 iteration converges quadratically there). The step is applied with ``pin.integrate`` and
 the loops closed again (chord Newton steps with the closure rows of the linearisation
-point, :meth:`ClosedLoopModel.assemble` where they do not contract; each iterate keeps the
-closures to ``closure_tol``); it is kept when ``|e|_W^2`` falls by a fair part of what
+point, :meth:`ClosedLoopModel.assemble` where they do not contract: to ``closure_tol`` at
+the answer and after slow steps, to ``max(closure_tol, RELAX |e|_W^2)`` while the error
+falls fast, the next step's closure rows taking the rest); it is kept when ``|e|_W^2`` falls by a fair part of what
 the linear model predicts, and ``mu`` follows the gain ratio continuously (Nielsen's
 rule: lowered, down to ``damping``, after good steps, doubled and doubled again after
 rejected ones): a trust region in the Levenberg-Marquardt manner.
@@ -171,7 +172,8 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
         method: "qp" (ProxSuite, joint limits as inequalities) or "lstsq" (null-space
             least squares, limits ignored).
         tol: convergence threshold on the max-abs task error (m / rad).
-        closure_tol: closure residual kept at every iterate (m / rad).
+        closure_tol: closure residual at the answer (m / rad), and at every iterate once
+            the steps slow down.
         max_iter: iteration cap (accepted steps).
         limits: keep 1-DoF joints with finite position limits in their range (route
             "qp": bounds of each step, and joints put on their bound while the loops
