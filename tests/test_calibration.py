@@ -21,7 +21,7 @@ from hexapod_pin.calibration.parameters import N_PARAMETERS, NAMES, ParameterMod
 from hexapod_pin.calibration.problem import reference_poses
 from hexapod_pin.calibration.selection import candidate_blocks, observability, select_poses
 from hexapod_pin.cli import app
-from hexapod_pin.errors import DescriptionError, InputError
+from hexapod_pin.errors import DescriptionError, GeometryError, InputError
 from hexapod_pin.files import load_geometry
 
 INSTRUMENT = np.array([2e-3, -1e-3, 1.5e-3, 1e-3, -2e-3, 1.5e-3])
@@ -59,6 +59,17 @@ def in_measurement_frames(chains, instrument, target):
     zero = chains.line_points + chains.sensor_offsets[:, None] * chains.line_directions
     return ((zero - ti) @ ri, chains.line_directions @ ri, chains.leg_lengths,
             (chains.platform_joints - tt) @ rt)
+
+
+def gauge_chains(parts, instrument, target):
+    """The chains in the robot's frames whose view from the frames ``instrument`` and
+    ``target`` is ``parts`` (the inverse of :func:`in_measurement_frames`)."""
+    zero, u, lengths, joints = parts
+    ri, ti = rot(instrument[3:]), instrument[:3]
+    rt, tt = rot(target[3:]), target[:3]
+    return hp.ChainGeometry(line_points=zero @ ri.T + ti, line_directions=u @ ri.T,
+                            sensor_offsets=np.zeros(6), leg_lengths=lengths,
+                            platform_joints=joints @ rt.T + tt)
 
 
 @pytest.fixture(scope="module")
@@ -145,18 +156,18 @@ def test_noise_free_data_recover_the_base_parameters(nominal, truth, exact):
     assert set(report.fixed) == {n for n in NAMES if n.startswith(("instrument", "target"))}
     assert any("rigid motion of all six lines" in t for t in report.unidentifiable)
     assert any("platform joints" in t for t in report.unidentifiable)
-    # the instrument and target frames are held at their guesses (identity): the
-    # identified chains are the truth seen from the measurement frames
+    # the instrument and target frames are held at their guesses (the instrument
+    # registered, the target the identity): seen from them, the identified chains are the
+    # truth seen from the true measurement frames
+    assert np.array_equal(result.target, np.zeros(6))
+    # registered onto the nominal robot: within what the deviations move the platform
+    assert np.max(np.abs(result.instrument - INSTRUMENT)) < 3e-2
     want = in_measurement_frames(truth.chain_geometry, INSTRUMENT, TARGET)
-    got = in_measurement_frames(result.chains, np.zeros(6), np.zeros(6))
+    got = in_measurement_frames(result.chains, result.instrument, result.target)
     for a, b in zip(got, want):
         assert np.allclose(a, b, atol=1e-9, rtol=0)
     params = ParameterModel(nominal.geometry.chain_geometry)
-    zero, u, lengths, joints = want
-    true_gauge = hp.ChainGeometry(line_points=zero, line_directions=u,
-                                  sensor_offsets=np.zeros(6), leg_lengths=lengths,
-                                  platform_joints=joints)
-    theta = params.deviations_of(true_gauge)
+    theta = params.deviations_of(gauge_chains(want, result.instrument, result.target))
     est = result.estimates()
     assert max(abs(est[NAMES[k]] - theta[k]) for k in range(54)) < 1e-9
     assert result.residuals_after.max < 1e-10
@@ -170,11 +181,9 @@ def test_noisy_calibration_end_to_end(nominal, truth, commanded):
                                   target=TARGET, position_noise=1e-5, rotation_noise=2e-5,
                                   seed=11)
     result = calibrate(nominal, data.poses, data.actuators, noise=(1e-5, 2e-5, 1e-9))
-    zero, u, lengths, joints = in_measurement_frames(truth.chain_geometry, INSTRUMENT, TARGET)
+    want = in_measurement_frames(truth.chain_geometry, INSTRUMENT, TARGET)
     params = ParameterModel(nominal.geometry.chain_geometry)
-    theta = params.deviations_of(hp.ChainGeometry(
-        line_points=zero, line_directions=u, sensor_offsets=np.zeros(6), leg_lengths=lengths,
-        platform_joints=joints))
+    theta = params.deviations_of(gauge_chains(want, result.instrument, result.target))
     errors = [(p.deviation - theta[NAMES.index(p.name)]) / p.std_error
               for p in result.parameters if p.identified]
     assert len(errors) == 54
@@ -186,15 +195,33 @@ def test_noisy_calibration_end_to_end(nominal, truth, commanded):
                                   target=TARGET, position_noise=1e-5, rotation_noise=2e-5,
                                   seed=12)
     report = result.validate(held.poses, held.actuators)
-    true_robot = hp.Hexapod(nominal.geometry.with_chains(hp.ChainGeometry(
-        line_points=zero, line_directions=u, sensor_offsets=np.zeros(6),
-        leg_lengths=lengths, platform_joints=joints)))
+    true_robot = hp.Hexapod(nominal.geometry.with_chains(gauge_chains(want, np.zeros(6),
+                                                                      np.zeros(6))))
     floor = np.sqrt(np.mean((true_robot.inverse_kinematics_batch(held.poses)
                              .actuator_positions - held.actuators) ** 2))
     nominal_err, identified = report.nominal.summary(), report.identified.summary()
-    assert nominal_err["actuator_rms"] > 1e-3 and nominal_err["position_rms"] > 1e-3
+    # (the nominal model sees the instrument registered: about 1 mm, 6 mrad off)
+    assert nominal_err["actuator_rms"] > 5e-4 and nominal_err["position_rms"] > 5e-4
+    assert nominal_err["position_rms"] > 30 * identified["position_rms"]
     assert identified["actuator_rms"] < 1.5 * floor
     assert identified["position_rms"] < 4e-5 and identified["rotation_rms"] < 1e-4
+
+
+@pytest.mark.xfail(strict=True, raises=GeometryError, reason=(
+    "HexapodGeometry assembles an as-built home by Newton from the IDEAL home pose, which "
+    "does not converge for lines expressed in a frame far from the robot's world (here "
+    "1.5 m, 0.4 rad); hexapod/geometry.py needs a start moved by the rigid fit of the "
+    "ideal onto the as-built carriage points"))
+def test_a_far_instrument_is_registered(nominal, truth, commanded):
+    """A tracker 1.5 m away and turned by 0.4 rad: the registration starts the fit."""
+    far = np.array([1.5, -0.8, 0.2, 0.05, -0.03, 0.4])
+    data = synthetic_measurements(nominal, truth, commanded[:30], instrument=far,
+                                  route="closed_form")
+    result = calibrate(nominal, data.poses, data.actuators)
+    assert np.max(np.abs(result.instrument - far)) < 3e-2
+    assert result.residuals_after.max < 1e-10
+    q = result.robot.inverse_kinematics(data.poses[0], check_limits=False)
+    assert np.allclose(q, data.actuators[0], atol=1e-9)
 
 
 def test_frames_alone_are_identified_exactly(nominal, commanded):
@@ -212,7 +239,7 @@ def test_three_points_recover_the_chains(nominal, truth, exact):
                        target_points=POINTS)
     assert len(result.identifiability.base) == 54
     want = in_measurement_frames(truth.chain_geometry, INSTRUMENT, TARGET)
-    got = in_measurement_frames(result.chains, np.zeros(6), np.zeros(6))
+    got = in_measurement_frames(result.chains, result.instrument, result.target)
     for a, b in zip(got, want):
         assert np.allclose(a, b, atol=1e-8, rtol=0)
     report = result.validate(actuators=exact.actuators[40:], points=exact.points[40:])

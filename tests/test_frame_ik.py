@@ -334,6 +334,9 @@ def test_folded_delta_targets_are_reached_or_give_the_closest_placement(method):
         assert res.reachable == reachable, (margin, res.target_residual, res.iterations)
         if reachable:
             assert res.target_residual <= 1e-10 and res.iterations <= 10
+            for before, after in zip(res.history, res.history[1:]):
+                if before < 1e-4:                        # quadratic near the solution
+                    assert after <= max(1e3 * before ** 2, 1e-13), res.history
             continue
         assert res.iterations <= 40, res.history
         p = placed.translation

@@ -208,6 +208,102 @@ def test_mujoco_export_has_the_same_mass_matrix_and_inverse_dynamics(stress):
         assert np.max(np.abs(u_mj - inv.actuator_forces)) <= 1e-8 * scale
 
 
+def _delta_with_ball_wrists(tmp_path):
+    """The delta of tests/data/parallel with spherical wrists (MuJoCo ball joints)."""
+    from hexapod_pin.loaders.parallel_robots import load_parallel_robot
+
+    src = stress_robots.DATA / "delta"
+    (tmp_path / "robot.urdf").write_text((src / "robot.urdf").read_text())
+    yaml = (src / "robot.yaml").read_text()
+    old = "'UJOINT_ZY', 'UJOINT_ZY', 'UJOINT_ZY'"
+    assert old in yaml
+    (tmp_path / "robot.yaml").write_text(yaml.replace(old, "'SPHERICAL', 'SPHERICAL', 'SPHERICAL'"))
+    return load_parallel_robot(tmp_path)
+
+
+def _consistent_state(clm, q, rng):
+    _, sv, vt = np.linalg.svd(clm.constraint_jacobian(q))
+    basis = vt[int(np.sum(sv > 1e-10 * sv[0])):].T
+    return basis @ rng.normal(size=basis.shape[1])
+
+
+@pytest.mark.parametrize("robot", ["solo12_free_flyer", "delta_ball_wrists"])
+def test_mujoco_export_of_free_flyer_and_ball_joints(robot, tmp_path):
+    """Free flyer (Solo-12) and ball joints: the converted qpos puts MuJoCo's closure sites
+    on Pinocchio's anchor frames, the converted qvel gives every body Pinocchio's
+    velocity; MuJoCo's mass matrix is ours in its coordinates
+    (qvel = T v, T built here from MuJoCo's own body rotation: M_mj = T^-T M T^-1); and
+    mj_inverse (without equalities), mapped back (tau = T^T qfrc) and projected on the
+    null space of MuJoCo's constraint Jacobian, matches our actuator forces to 1e-8 (on
+    the null space: Solo-12's forces are not unique)."""
+    mujoco = pytest.importorskip("mujoco")
+    from hexapod_pin.core.mujoco_export import mujoco_state, to_mujoco
+    from hexapod_pin.loaders import robots
+
+    rng = np.random.default_rng(10)
+    if robot == "solo12_free_flyer":
+        clm = robots.solo12()
+        q = robots.solo12_stand(clm, [0.01, -0.005, 0.20], 0.05 * rng.normal(size=3)).q
+    else:
+        clm = _delta_with_ball_wrists(tmp_path)
+        dq = np.zeros(clm.nv)
+        dq[clm.actuated_v] = 0.1 * rng.normal(size=clm.n_actuated)
+        q = clm.assemble(pin.integrate(clm.model, pin.neutral(clm.model), dq)).q
+    kinds = {clm.model.joints[j].shortname() for j in range(1, clm.model.njoints)}
+    assert kinds & {"JointModelFreeFlyer", "JointModelSpherical"}
+    v = _consistent_state(clm, q, rng)
+    tau = _tau(clm, rng)
+    a_ref, _ = reference_forward(clm, q, v, tau)
+    inv = inverse_dynamics_tree(clm, q, v, a_ref, method="kkt")
+    model = to_mujoco(clm)
+    data = mujoco.MjData(model)
+    state = mujoco_state(clm, q, v, a_ref)
+    data.qpos[:], data.qvel[:] = state.qpos, state.qvel
+    mujoco.mj_forward(model, data)
+    assert np.max(np.abs(data.efc_pos)) < 1e-12                 # closures hold at q
+    pdata = clm.model.createData()
+    pin.forwardKinematics(clm.model, pdata, q, v)
+    pin.updateFramePlacements(clm.model, pdata)
+    for j in range(1, clm.model.njoints):                     # qvel: every body's velocity
+        body = model.body(clm.model.names[j]).id
+        twist = np.zeros(6)               # (angular, linear) at the body's COM, world axes
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, twist, 0)
+        ref = pin.getVelocity(clm.model, pdata, j, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        at_com = ref.linear + np.cross(ref.angular, data.xipos[body] - data.xpos[body])
+        assert np.max(np.abs(twist - np.concatenate([ref.angular, at_com]))) <= 1e-12 * \
+            max(1.0, np.max(np.abs(v)))
+    for closure in clm.closures:
+        for tag in ("anchor1", "anchor2"):
+            site = model.site(f"{closure.name}__{tag}").id
+            frame = pdata.oMf[clm.model.getFrameId(f"{closure.name}/{tag}")]
+            assert np.max(np.abs(data.site_xpos[site] - frame.translation)) < 1e-12
+            assert np.max(np.abs(data.site_xmat[site].reshape(3, 3) - frame.rotation)) < 1e-12
+    t_map = np.eye(clm.nv)
+    for j in range(1, clm.model.njoints):
+        if clm.model.joints[j].shortname() == "JointModelFreeFlyer":
+            iv = clm.model.joints[j].idx_v
+            t_map[iv:iv + 3, iv:iv + 3] = data.xmat[model.body(clm.model.names[j]).id].reshape(3, 3)
+    t_inv = np.linalg.inv(t_map)
+    mass = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, mass)
+    mass_ref = t_inv.T @ reference_terms(clm, q, v)[0] @ t_inv
+    assert np.max(np.abs(mass - mass_ref)) <= 1e-8 * np.max(np.abs(mass_ref))
+    jac = data.efc_J.reshape(data.nefc, model.nv).copy()
+    _, sv, vt = np.linalg.svd(jac)
+    basis = t_inv @ vt[int(np.sum(sv > 1e-10 * sv[0])):].T        # ker J_c in our coordinates
+    model.opt.disableflags = int(mujoco.mjtDisableBit.mjDSBL_EQUALITY)
+    data.qacc[:] = state.qacc
+    mujoco.mj_inverse(model, data)
+    tau_mj = t_map.T @ data.qfrc_inverse
+    selection = np.zeros((clm.nv, clm.n_actuated))
+    selection[clm.actuated_v, np.arange(clm.n_actuated)] = 1.0
+    miss = basis.T @ (tau_mj - selection @ inv.actuator_forces)
+    assert np.max(np.abs(miss)) <= 1e-8 * np.max(np.abs(tau_mj))
+    if robot == "delta_ball_wrists":                           # forces unique there
+        u_mj, *_ = np.linalg.lstsq(basis.T @ selection, basis.T @ tau_mj, rcond=None)
+        assert np.max(np.abs(u_mj - inv.actuator_forces)) <= 1e-8 * np.max(np.abs(u_mj))
+
+
 def test_mujoco_export_needs_mujoco(monkeypatch):
     import sys
 

@@ -402,3 +402,49 @@ def test_hexapod_velocity_map_matches_an_svd_null_space(robot, rng):
     for method in ("lstsq", "qp"):
         np.testing.assert_allclose(model.actuated_velocity_map(q, method), ref,
                                    atol=1e-10 * max(1.0, np.abs(ref).max()))
+
+
+# --------------------------------------------------------- closure_motion building blocks
+from hexapod_pin.core import closure_motion  # noqa: E402
+
+
+def test_row_basis_matches_an_svd_of_the_rows(rng):
+    """The compiled pivoted QR against numpy's SVD: as many rows as the rank, those rows
+    independent, the null-space basis spanning the SVD's null space (equal projectors), the
+    range basis orthonormal over the chosen rows, the right inverse = pinv of those rows."""
+    for trial in range(60):
+        m, n = rng.integers(1, 16, 2)
+        jac = rng.normal(size=(m, n)) * 10.0 ** rng.uniform(-3, 3)
+        if m > 2:
+            jac[-1] = jac[0] - 2.0 * jac[1]             # a redundant row
+        if n > 3 and trial % 3 == 0:
+            jac[:, 1] = 0.0                              # a coordinate no row involves
+        basis = closure_motion.row_basis(jac)
+        _, sv, vt = np.linalg.svd(jac)
+        rank = int(np.sum(sv > 1e-10 * sv[0]))
+        assert basis.rows.size == rank
+        np.testing.assert_array_equal(closure_motion.independent_rows(jac), np.sort(basis.rows))
+        assert np.linalg.matrix_rank(jac[basis.rows]) == rank
+        svd_null = vt[rank:].T
+        np.testing.assert_allclose(basis.null @ basis.null.T, svd_null @ svd_null.T, atol=1e-10)
+        np.testing.assert_allclose(basis.range.T @ basis.range, np.eye(rank), atol=1e-12)
+        np.testing.assert_allclose(basis.pinv, np.linalg.pinv(jac[basis.rows]),
+                                   atol=1e-9 * np.abs(np.linalg.pinv(jac[basis.rows])).max())
+    with pytest.raises(hp.SolverError):
+        closure_motion.row_basis(np.array([[1.0, np.nan]]))
+
+
+def test_qp_route_answers_do_not_depend_on_the_reused_problem(rng):
+    """The ProxSuite route keeps one problem per size and thread: the same completion before
+    and after other data of that size gives the same answer, equal to the direct route."""
+    jacs = [rng.normal(size=(5, 9)) for _ in range(3)]
+    jacs[1][4] = jacs[1][0] + jacs[1][2]                 # a redundant row in the middle one
+    known, values = np.array([0, 4, 7]), rng.normal(size=3)
+    first = closure_motion.complete(jacs[0], np.zeros(5), known, values, "qp")
+    for jac in jacs[1:] + jacs[:1]:
+        qp = closure_motion.complete(jac, np.zeros(5), known, values, "qp")
+        direct = closure_motion.complete(jac, np.zeros(5), known, values, "lstsq")
+        np.testing.assert_allclose(qp, direct, atol=1e-10)
+    np.testing.assert_allclose(qp, first, atol=1e-12)
+    with pytest.raises(hp.InputError):
+        closure_motion.complete(jacs[0], np.zeros(5), known, [np.nan, 0.0, 0.0], "lstsq")

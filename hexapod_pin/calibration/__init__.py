@@ -10,6 +10,7 @@
 * :func:`select_poses`: measurement poses maximising an observability index
   (:mod:`.selection`);
 * :func:`synthetic_measurements`: data of a perturbed robot (:mod:`.synthetic`);
+* a first guess of the instrument frame by rigid registration (:mod:`.registration`);
 * measurement files (CSV) and the identified geometry file (:mod:`.files`);
 * figures (:mod:`.plots`, matplotlib optional).
 

@@ -39,6 +39,7 @@ from .parameters import (
     parameter_indices,
 )
 from .problem import DEFAULT_NOISE, Measurements, Problem, reference_measurements
+from .registration import register_instrument
 
 #: least-squares tolerances (scipy's ftol, xtol, gtol)
 TOLERANCE = 1e-15
@@ -131,7 +132,14 @@ class ModelErrors:
 
 @dataclass(frozen=True)
 class ValidationReport:
-    """Errors of the nominal and of the identified model on validation measurements."""
+    """Errors of the nominal and of the identified model on validation measurements.
+
+    Attributes:
+        nominal: errors of the start model (the nominal chains seen through the guessed
+            frames, the instrument's registered by default): what the robot does before
+            calibration with a registered instrument.
+        identified: errors of the identified model (``CalibrationResult.robot``).
+    """
 
     nominal: ModelErrors
     identified: ModelErrors
@@ -289,7 +297,11 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
         identify: parameter groups to identify (:data:`~.parameters.GROUPS`, ``"chains"``
             for all five chain groups); the others stay at their start values.
         instrument: guessed pose of the instrument frame in the robot's world (6,);
-            default the world frame itself.
+            default a rigid registration of the measurements onto the nominal forward
+            kinematics of the readings
+            (:func:`~hexapod_pin.calibration.registration.register_instrument`). When the
+            instrument frame is not in the base set (it trades with the lines), the lines
+            are identified in this guessed frame.
         target: guessed pose of the target frame in the platform frame (6,); default the
             platform frame.
         noise: standard deviations of the measurement noise (target position m, target
@@ -305,14 +317,18 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
     Raises:
         InputError: malformed measurements or options.
         IdentifiabilityError: the measurements do not determine the base parameter set.
-        SolverError: the least squares stops without converging.
+        SolverError: the least squares stops without converging (or see :func:`solve`).
         AssemblyError: (points) a forward kinematics fails on the current estimate.
+        GeometryError: the identified geometry's home pose does not assemble (the
+            as-built home is found by Newton from the ideal home pose).
     """
     if method not in ("lm", "trf"):
         raise InputError("method", method, "expected 'lm' or 'trf'")
     if not (isinstance(rcond, float) and 0.0 < rcond < 1.0):
         raise InputError("rcond", rcond, "expected a float in (0, 1)")
     data = Measurements.checked(actuators, poses, points, target_points)
+    if instrument is None:
+        instrument = register_instrument(robot, data, target)
     params = ParameterModel(robot.geometry.chain_geometry, instrument, target)
     columns = parameter_indices(identify)
     scales = params.scales
@@ -324,6 +340,46 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
     base_sigma = ident.check_data(jac0 * scales, base, rcond, data.count, data.poses)
     sigma = np.linalg.svd((jac0 * scales)[:, columns], compute_uv=False)
 
+    theta, cov, fit = solve(problem, base, scales, method, max_nfev, rcond)
+    res, _ = problem.evaluate(theta)
+    std = np.sqrt(np.diag(cov))
+    where = {int(c): k for k, c in enumerate(base)}
+    estimates = tuple(
+        ParameterEstimate(NAMES[c], UNITS[c], PARAMETER_GROUPS[c], float(theta[c]),
+                          None if int(c) not in where else float(std[where[int(c)]]),
+                          int(c) in where) for c in columns)
+    report = ident.IdentifiabilityReport(
+        requested=tuple(NAMES[c] for c in columns), singular_values=sigma,
+        rank=ident.numerical_rank(sigma, rcond), base=tuple(NAMES[c] for c in base),
+        fixed=tuple(NAMES[c] for c in columns if int(c) not in where),
+        unidentifiable=tuple(structural), base_singular_values=base_sigma,
+        condition_number=float(base_sigma[0] / base_sigma[-1]), rcond=rcond)
+    chains, frames = params.chains(theta), params.frames(theta)
+    inst, targ = params.frame_poses(theta)
+    nominal = measurement_chains(params.start, params.frames(np.zeros(N_PARAMETERS)))
+    return CalibrationResult(
+        robot=Hexapod(robot.geometry.with_chains(measurement_chains(chains, frames))),
+        geometry=robot.geometry.with_chains(chains), chains=chains, instrument=inst,
+        target=targ, parameters=estimates, covariance=cov,
+        residuals_before=ResidualSummary.of(res0, problem.weights),
+        residuals_after=ResidualSummary.of(res, problem.weights),
+        identifiability=report, iterations=int(fit.nfev), status=int(fit.status),
+        message=str(fit.message), measurement=data.kind, target_points=data.target_points,
+        nominal_geometry=robot.geometry.with_chains(nominal))
+
+
+def solve(problem: Problem, base: np.ndarray, scales: np.ndarray, method: str,
+          max_nfev: int, rcond: float = ident.RCOND):
+    """Least squares over the base parameters (scaled), from the start model.
+
+    Returns:
+        the deviations ``theta`` (66,), the covariance (n, n) of the base parameters
+        (``s^2 (J^T J)^-1``, see the module doc) and scipy's result.
+
+    Raises:
+        SolverError: no convergence, a non-finite residual, or a base Jacobian that lost
+            rank at the solution.
+    """
     def theta_of(x: np.ndarray) -> np.ndarray:
         theta = np.zeros(N_PARAMETERS)
         theta[base] = x * scales[base]
@@ -337,37 +393,15 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
         raise SolverError("least_squares", str(fit.status), fit.message)
     theta = theta_of(fit.x)
     res, jac = problem.evaluate(theta)
-    jb = jac[:, base]
-    dof = res.size - base.size
-    cov = float(res @ res) / dof * np.linalg.inv(jb.T @ jb)
-    std = np.sqrt(np.diag(cov))
-    chains = params.chains(theta)
-    frames = params.frames(theta)
-    inst, targ = params.frame_poses(theta)
-    geometry = robot.geometry.with_chains(chains)
-    estimates = []
-    where = {int(c): k for k, c in enumerate(base)}
-    for c in columns:
-        k = where.get(int(c))
-        estimates.append(ParameterEstimate(NAMES[c], UNITS[c], PARAMETER_GROUPS[c],
-                                           float(theta[c]),
-                                           None if k is None else float(std[k]), k is not None))
-    report = ident.IdentifiabilityReport(
-        requested=tuple(NAMES[c] for c in columns), singular_values=sigma,
-        rank=ident.numerical_rank(sigma, rcond), base=tuple(NAMES[c] for c in base),
-        fixed=tuple(NAMES[c] for c in columns if int(c) not in where),
-        unidentifiable=tuple(structural), base_singular_values=base_sigma,
-        condition_number=float(base_sigma[0] / base_sigma[-1]), rcond=rcond)
-    nominal = measurement_chains(params.start, params.frames(np.zeros(N_PARAMETERS)))
-    return CalibrationResult(
-        robot=Hexapod(robot.geometry.with_chains(measurement_chains(chains, frames))),
-        geometry=geometry, chains=chains, instrument=inst, target=targ,
-        parameters=tuple(estimates), covariance=cov,
-        residuals_before=ResidualSummary.of(res0, problem.weights),
-        residuals_after=ResidualSummary.of(res, problem.weights),
-        identifiability=report, iterations=int(fit.nfev), status=int(fit.status),
-        message=str(fit.message), measurement=data.kind, target_points=data.target_points,
-        nominal_geometry=robot.geometry.with_chains(nominal))
+    if not np.all(np.isfinite(res)):
+        raise SolverError("least_squares", "non-finite", "residuals not finite at the solution")
+    sigma = np.linalg.svd(jac[:, base] * scales[base], compute_uv=False)
+    if ident.numerical_rank(sigma, rcond) < base.size:
+        raise SolverError("least_squares", "rank lost",
+                          "the base parameters are not determined at the solution")
+    normal = jac[:, base].T @ jac[:, base]
+    cov = float(res @ res) / (res.size - base.size) * np.linalg.inv(normal)
+    return theta, cov, fit
 
 
 def base_set(robot: Hexapod, params: ParameterModel, columns: np.ndarray, kind: str,

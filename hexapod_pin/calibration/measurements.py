@@ -97,7 +97,8 @@ def read_measurements(path: str | os.PathLike, target_points=None,
     pts = values[:, [col[h] for h in point_columns(n_points)]].reshape(-1, n_points, 3)
     if target_points is None:
         raise InputError("target_points", None, f"the file has {n_points} point(s): give "
-                         "their target-frame coordinates")
+                         "their target-frame coordinates (the command line's "
+                         "--target-point x,y,z, once per point)")
     return Measurements.checked(q, points=pts, target_points=target_points)
 
 

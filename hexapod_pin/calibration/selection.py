@@ -37,6 +37,7 @@ from .identify import base_set
 from .model import PointModel, measured_poses, platform_from_measured
 from .parameters import DEFAULT_IDENTIFY, N_PARAMETERS, ParameterModel, parameter_indices
 from .problem import Measurements, Problem
+from .registration import register_instrument
 
 CRITERIA = ("O1", "D")
 METHODS = ("greedy", "exchange")
@@ -187,7 +188,9 @@ def select_measurements(robot: Hexapod, data: Measurements, n: int, *, criterion
                         target=None) -> PoseSelection:
     """Choose ``n`` rows of existing measurements (:func:`select_poses` on the world poses
     they correspond to on the nominal model: measured poses through the guessed frames,
-    or the forward kinematics of the readings for points).
+    the instrument's by default registered as in
+    :func:`~hexapod_pin.calibration.identify.calibrate`, or the forward kinematics of the
+    readings for points).
 
     Returns:
         :class:`PoseSelection` whose ``indices`` are rows of ``data``.
@@ -196,6 +199,8 @@ def select_measurements(robot: Hexapod, data: Measurements, n: int, *, criterion
         InputError: as :func:`select_poses`.
         AssemblyError: (points) the nominal forward kinematics of a reading fails.
     """
+    if instrument is None:
+        instrument = register_instrument(robot, data, target)
     if data.kind == "poses":
         params = ParameterModel(robot.geometry.chain_geometry, instrument, target)
         rot, trans = platform_from_measured(params, np.zeros(N_PARAMETERS), data.poses)

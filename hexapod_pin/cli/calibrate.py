@@ -65,7 +65,8 @@ def calibrate(measurements: Annotated[Path, typer.Argument(
                        "sensor_offsets, leg_lengths, platform_joints), instrument, target")
               ] = "chains,instrument,target",
               instrument: Annotated[str | None, typer.Option(
-                  help="guessed instrument pose in the robot world 'x,y,z,roll,pitch,yaw'",
+                  help="guessed instrument pose in the robot world 'x,y,z,roll,pitch,yaw' "
+                       "(default: registered onto the nominal robot)",
                   show_default=False)] = None,
               target: Annotated[str | None, typer.Option(
                   help="guessed target pose in the platform frame 'x,y,z,roll,pitch,yaw'",

@@ -17,8 +17,10 @@ Routes: ``"lstsq"`` (the direct one: a Householder QR where the unknowns are det
 LAPACK's SVD least squares ``numpy.linalg.lstsq`` where they are not; for a projection a
 Cholesky factor of ``W`` first) and ``"qp"`` (ProxSuite's dense
 proximal QP on the independent rows of ``J_c``, chosen by a column-pivoted QR, because
-redundant equality rows make the proximal iterations crawl). Every answer is checked
-(finite, constraint residual relative to the data) before it is returned.
+redundant equality rows make the proximal iterations crawl; one ProxSuite problem per size
+is kept per thread and updated). Every answer is checked (finite, constraint residual
+relative to the data) before it is returned. :func:`row_basis` gives the bases of the
+independent rows (range, null space, right inverse) from one compiled pivoted QR.
 
 Units follow the caller: velocities (m/s, rad/s) or accelerations (m/s^2, rad/s^2) of
 the tree coordinates, ``rhs`` in the closure-row units.
@@ -26,6 +28,7 @@ the tree coordinates, ``rhs`` in the closure-row units.
 
 from __future__ import annotations
 
+import threading
 from typing import NamedTuple
 
 import numpy as np
@@ -209,17 +212,20 @@ def complete(jac: np.ndarray, rhs: np.ndarray, known: npt.ArrayLike, values: npt
         values2 = values
     if values2.shape != (known.size, rhs2.shape[1]):
         raise InputError("values", values, f"expected {known.size} values per problem")
-    if not (np.all(np.isfinite(values2)) and np.all(np.isfinite(rhs2))):
-        raise InputError("values", values, "NaN or inf")
     if method == "lstsq":
+        # the kernel checks the data's finiteness first (worst == -2)
         out, worst, miss = _complete_kernel(np.ascontiguousarray(jac), np.ascontiguousarray(rhs2),
                                             known, free, np.ascontiguousarray(values2),
                                             CONSISTENCY_RTOL)
+        if worst == -2:
+            raise InputError("values", values, "NaN or inf")
         if worst >= 0:
             if not np.all(np.isfinite(out)):
                 raise SolverError("closure motion", "non-finite", f"{what} has NaN or inf")
             raise InconsistentMotionError(what, miss)
     else:
+        if not (np.all(np.isfinite(values2)) and np.all(np.isfinite(rhs2))):
+            raise InputError("values", values, "NaN or inf")
         b = rhs2 - jac[:, known] @ values2
         out = np.empty((n, b.shape[1]))
         out[known] = values2
@@ -298,13 +304,16 @@ def least_squares(a_mat: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 # ------------------------------------------------------------------------------ helpers
 @jit
 def _complete_kernel(jac, rhs, known, free, values, rtol):
-    """The "lstsq" route of :func:`complete`, compiled: (x, worst column or -1, its miss).
+    """The "lstsq" route of :func:`complete`, compiled: (x, worst column or -1, its miss);
+    -2 when ``rhs`` or ``values`` has NaN or inf.
 
     Same algorithm as :func:`least_squares` (QR when the free columns have full rank, SVD
     least squares with NumPy's default cut-off otherwise), then the check of
     :func:`_verify` (a non-finite x reports column 0 with an infinite miss).
     """
     n, k = jac.shape[1], rhs.shape[1]
+    if not (np.all(np.isfinite(values)) and np.all(np.isfinite(rhs))):
+        return np.zeros((n, k)), -2, np.inf
     b = rhs - jac[:, known] @ values
     a_free = np.ascontiguousarray(jac[:, free])
     rows, cols = a_free.shape
@@ -373,16 +382,16 @@ def _qp(hess: np.ndarray, grad: np.ndarray, a_mat: np.ndarray, rhs: np.ndarray,
     norms = np.linalg.norm(a_ind, axis=1)
     a_ind = np.ascontiguousarray(a_ind / norms[:, None])
     n = a_mat.shape[1]
-    qp = proxsuite.proxqp.dense.QP(n, rows.size, 0)
-    qp.settings.eps_abs = QP_EPS
-    qp.settings.eps_rel = 0.0
-    qp.settings.verbose = False
+    qp, fresh = _cached_qp(n, rows.size)
     out = np.empty((n, rhs.shape[1]))
     for col in range(rhs.shape[1]):
         b = np.ascontiguousarray(rhs[rows, col] / norms)
         if col == 0:
-            qp.init(np.ascontiguousarray(hess), np.ascontiguousarray(grad), a_ind, b,
-                    None, None, None)
+            data = (np.ascontiguousarray(hess), np.ascontiguousarray(grad), a_ind, b)
+            if fresh:
+                qp.init(*data, None, None, None)
+            else:
+                qp.update(*data, None, None, None)
         else:
             qp.update(b=b)
         qp.solve()
@@ -391,3 +400,26 @@ def _qp(hess: np.ndarray, grad: np.ndarray, a_mat: np.ndarray, rhs: np.ndarray,
             raise SolverError("proxsuite.proxqp.dense", str(status), f"{what}, column {col}")
         out[:, col] = qp.results.x
     return out
+
+
+_QP_CACHE = threading.local()
+#: ProxSuite problems kept per thread (one per size); past this many the cache is emptied
+QP_CACHE_SIZE = 32
+
+
+def _cached_qp(n: int, n_eq: int):
+    """A ProxSuite dense QP of this size with this module's settings, kept per thread (a
+    new QP costs twice an ``update``): (qp, fresh) where fresh QPs need ``init``."""
+    cache = getattr(_QP_CACHE, "qps", None)
+    if cache is None:
+        cache = _QP_CACHE.qps = {}
+    qp = cache.get((n, n_eq))
+    if qp is not None:
+        return qp, False
+    if len(cache) >= QP_CACHE_SIZE:
+        cache.clear()
+    qp = cache[(n, n_eq)] = proxsuite.proxqp.dense.QP(n, n_eq, 0)
+    qp.settings.eps_abs = QP_EPS
+    qp.settings.eps_rel = 0.0
+    qp.settings.verbose = False
+    return qp, True

@@ -14,8 +14,9 @@ with ``e`` the stacked task errors, ``J_t`` their Jacobians, ``W`` the weights a
 Levenberg-Marquardt damping ``lambda = mu |e|_W^2`` (vanishing at a solution, so the
 iteration converges quadratically there). The step is applied with ``pin.integrate`` and
 the loops closed again (chord Newton steps with the closure rows of the linearisation
-point, :meth:`ClosedLoopModel.assemble` where they do not contract; each iterate keeps the
-closures to ``closure_tol``); it is kept when ``|e|_W^2`` falls by a fair part of what
+point, :meth:`ClosedLoopModel.assemble` where they do not contract: to ``closure_tol`` at
+the answer and after slow steps, to ``max(closure_tol, RELAX |e|_W^2)`` while the error
+falls fast, the next step's closure rows taking the rest); it is kept when ``|e|_W^2`` falls by a fair part of what
 the linear model predicts, and ``mu`` follows the gain ratio continuously (Nielsen's
 rule: lowered, down to ``damping``, after good steps, doubled and doubled again after
 rejected ones): a trust region in the Levenberg-Marquardt manner.
@@ -88,6 +89,9 @@ STALL_RTOL = 1e-10
 SLOW_RATIO = 0.5
 #: forward-difference step of that term (rad / m along unit null-space directions)
 CURVATURE_STEP = 1e-7
+#: while steps are fast, intermediate iterates keep the closures to
+#: ``max(closure_tol, RELAX |e|_W^2)`` (the answer always to ``closure_tol``)
+RELAX = 1e-2
 #: smallest damping factor a rejected step raises (when ``damping`` is 0)
 MU_MIN = 1e-12
 #: chord Newton steps tried when closing the loops after a step, and the contraction each
@@ -172,7 +176,8 @@ def frame_inverse_kinematics(clm: Any, frame: str, target: npt.ArrayLike,
         method: "qp" (ProxSuite, joint limits as inequalities) or "lstsq" (null-space
             least squares, limits ignored).
         tol: convergence threshold on the max-abs task error (m / rad).
-        closure_tol: closure residual kept at every iterate (m / rad).
+        closure_tol: closure residual at the answer (m / rad), and at every iterate once
+            the steps slow down.
         max_iter: iteration cap (accepted steps).
         limits: keep 1-DoF joints with finite position limits in their range (route
             "qp": bounds of each step, and joints put on their bound while the loops
@@ -200,31 +205,47 @@ def frame_inverse_kinematics(clm: Any, frame: str, target: npt.ArrayLike,
     fixed_v = _fixed_indices(clm, fixed)
     q = clm.neutral() if q0 is None else clm.check_q(q0, "q0")
     res_c = clm.residual(q)
-    if not np.max(np.abs(res_c), initial=0.0) <= closure_tol:
+    if not _max_abs(res_c) <= closure_tol:
         q = clm.assemble(q, fixed=fixed_v, tol=closure_tol).q
         res_c = clm.residual(q)
     problem = _Problem(clm, tasks, fixed_v, method, closure_tol, limits, q)
     lin = problem.linearise(q, res_c)
-    cost = lin.cost
-    mu, growth, stalled, curvature, slow = damping, 2.0, 0, None, True
-    history = [float(np.max(np.abs(lin.err)))]
+    cost, closure = lin.cost, _max_abs(res_c)
+    mu, growth, stalled, curvature, slow = damping, 2.0, 0, None, False
+    history = [_max_abs(lin.err)]
+
+    def flagged(q, lin, closure):
+        """The closest reachable placement (the closures made exact first if relaxed)."""
+        if closure > closure_tol:
+            held = problem.retract(q, lin, closure_tol)
+            if held is None:
+                raise AssemblyError("closures cannot be held at the closest placement",
+                                    closure, len(history) - 1, q)
+            q = held[0]
+        return _result(clm, tasks, q, False, history, closure_tol)
+
     for iteration in range(max_iter + 1):
-        if history[-1] <= tol:
+        exact = closure <= closure_tol
+        if history[-1] <= tol and exact:
             return _result(clm, tasks, q, True, history, closure_tol)
-        if slow and problem.stationary(lin, q):     # (fast steps are not near one)
+        # (stationarity is looked for after slow steps only: fast ones are not near one)
+        if exact and (iteration == 0 or slow) and problem.stationary(lin, q):
             return _result(clm, tasks, q, False, history, closure_tol)
         if iteration == max_iter:
             break
+        # while the task error falls fast the loops are closed to a tolerance that shrinks
+        # with |e|_W^2 (the next step's closure rows take the rest): exact near the answer
+        loose = closure_tol if slow else max(closure_tol, RELAX * cost)
         accepted = None
         while accepted is None:
             lam = max(mu * cost, DAMPING_FLOOR)
             step = problem.step(lin, lam, q, curvature)
-            if mu <= damping and float(np.max(np.abs(step))) <= STEP_TOL:
+            if exact and mu <= damping and _max_abs(step) <= STEP_TOL:
                 # the least-squares step vanishes: a stationary point of |e|_W^2
                 return _result(clm, tasks, q, False, history, closure_tol)
             model = lin.err + lin.jac_t @ step
             predicted = cost - float(model @ (problem.weight * model))
-            trial = problem.retract(pin.integrate(clm.model, q, problem.full(step)), lin)
+            trial = problem.retract(pin.integrate(clm.model, q, problem.full(step)), lin, loose)
             if trial is not None:
                 trial_err = problem.errors(trial[0])
                 trial_cost = float(trial_err @ (problem.weight * trial_err))
@@ -237,19 +258,22 @@ def frame_inverse_kinematics(clm: Any, frame: str, target: npt.ArrayLike,
                     growth = 2.0
                     break
             if mu > MU_MAX:
-                return _result(clm, tasks, q, False, history, closure_tol)
+                return flagged(q, lin, closure)
             mu = max(mu, MU_MIN) * growth
             growth *= 2.0
-        q = accepted[0]
-        lin = problem.linearise(q, accepted[1])
+        q, res_c = accepted
+        closure = _max_abs(res_c)
+        history.append(_max_abs(trial_err))
+        if history[-1] <= tol and closure <= closure_tol:
+            return _result(clm, tasks, q, True, history, closure_tol)
+        lin = problem.linearise(q, res_c)
         stalled = stalled + 1 if cost - lin.cost <= STALL_RTOL * cost else 0
         # a step that did not halve |e|_W^2: Gauss-Newton's model misses the curvature
         # (an out-of-reach target); the next steps add it (Newton's method)
         slow = lin.cost > SLOW_RATIO * cost
         cost = lin.cost
         curvature = problem.curvature(lin, q) if slow else None
-        history.append(float(np.max(np.abs(lin.err))))
-        if stalled >= STALL_STEPS and history[-1] > tol:
+        if stalled >= STALL_STEPS and closure <= closure_tol:
             # the cost no longer moves above the noise of closures held to closure_tol:
             # a stationary point where the task Jacobian loses rank (a folded leg)
             return _result(clm, tasks, q, False, history, closure_tol)
@@ -274,7 +298,8 @@ def _tasks(clm, frame, target, position_only, weights) -> list[FrameTask]:
     out = []
     for fr, tgt, flag, w in zip(frames, targets, flags, wlist):
         rows = 3 if flag else 6
-        w = np.broadcast_to(np.asarray(w, dtype=float), (rows,)).copy()
+        w = (np.full(rows, float(w)) if isinstance(w, (int, float, np.floating))
+             else np.broadcast_to(np.asarray(w, dtype=float), (rows,)).copy())
         if not np.all(np.isfinite(w) & (w > 0)):
             raise InputError("weights", w, "weights must be finite and > 0")
         out.append(FrameTask(clm.frame_id(fr), _placement(tgt, flag), flag, w))
@@ -527,9 +552,10 @@ class _Problem:
             return None
         return step
 
-    def retract(self, q: np.ndarray, lin: Linearisation):
+    def retract(self, q: np.ndarray, lin: Linearisation, tol: float):
         """Close the loops again from ``q`` (a step from the linearisation point):
-        ``(q, closure residual)``, or None if they cannot be closed.
+        ``(q, closure residual)`` with the residual at most ``tol`` (m / rad), or None if
+        they cannot be closed.
 
         A chord Newton iteration first (the right inverse of the linearisation point's
         closure rows, the free coordinates moved by the least norm), the full Newton of
@@ -540,14 +566,14 @@ class _Problem:
         clm, box = self.clm, self.box
         if box is None or self._inside(q):
             res = clm.residual(q)
-            err = float(np.max(np.abs(res), initial=0.0))
+            err = _max_abs(res)
             for _ in range(CHORD_ITER):
-                if err <= self.closure_tol:
+                if err <= tol:
                     return (q, res) if box is None or self._inside(q) else self._held(q)
                 trial = pin.integrate(clm.model, q,
                                       self.full(-lin.basis.pinv @ res[lin.basis.rows]))
                 trial_res = clm.residual(trial)
-                trial_err = float(np.max(np.abs(trial_res)))
+                trial_err = _max_abs(trial_res)
                 if not trial_err <= CHORD_CONTRACTION * err:
                     break
                 q, res, err = trial, trial_res, trial_err
@@ -606,6 +632,11 @@ def _task_errors(model, data, tasks, q) -> np.ndarray:
         else:
             out.append(pin.log6(task.target.actInv(omf)).vector)
     return np.concatenate(out)
+
+
+def _max_abs(vec: np.ndarray) -> float:
+    """Max-abs of a 1-D array (0 when empty), without numpy's Python-level dispatch."""
+    return float(np.abs(vec).max()) if vec.size else 0.0
 
 
 _NO_CURVATURE = np.zeros((0, 0))

@@ -2,7 +2,8 @@
 
 :func:`closed_loop_mjcf` writes the MJCF text of a
 :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`; :func:`to_mujoco` compiles it
-(``mujoco`` is optional: the ``bench`` / ``test`` extras install it).
+(``mujoco`` is optional: the ``bench`` / ``test`` extras install it);
+:func:`mujoco_state` and :func:`velocity_map` convert states and matrices.
 
 Conventions of the export:
 
@@ -10,10 +11,17 @@ Conventions of the export:
   parent (``model.jointPlacements``), named after the joint; bodies fixed to a joint are
   already merged into its inertia by Pinocchio (``model.inertias``: mass, centre of mass
   and the inertia about it in the joint frame, written as ``<inertial fullinertia>``);
-* 1-DoF joints only (revolute / prismatic about a frame axis or an unaligned axis), whose
-  MuJoCo ``qpos`` / ``qvel`` equal Pinocchio's ``q`` / ``v`` entry by entry (same order:
-  Pinocchio's joints are in depth-first order, and the bodies are written in that order);
-  other joint types raise :class:`~hexapod_pin.errors.InputError`;
+* joints: 1-DoF revolute / prismatic (about a frame axis or an unaligned axis) as
+  ``hinge`` / ``slide``, spherical as ``ball``, a free flyer (a child of the world with an
+  identity placement) as ``freejoint``; other joint types raise
+  :class:`~hexapod_pin.errors.InputError`. Pinocchio's joints are in depth-first order
+  and the bodies are written in that order, so each joint has the same ``idx_q`` /
+  ``idx_v`` in both. The coordinates differ in two places (:func:`mujoco_state` and
+  :func:`velocity_map` convert): quaternions are ``(x, y, z, w)`` in Pinocchio and
+  ``(w, x, y, z)`` in MuJoCo, and a free flyer's linear velocity is in the body frame
+  in Pinocchio (``v_lin = R^T p'``) and in the world frame in MuJoCo (``p'``); angular
+  velocities are in the body frame in both. With ``qvel = T v`` (:func:`velocity_map`),
+  ``M_mj = T^-T M T^-1`` and generalised forces map as ``tau = T^T qfrc``;
 * every closure anchor is a ``<site>`` (``<closure>__anchor1`` / ``__anchor2``) on its
   body; a point closure becomes ``<connect site1 site2>``, a weld ``<weld site1 site2>``
   (site frames kept coincident), both with the stiffest impedance MuJoCo allows
@@ -35,7 +43,7 @@ constraint Jacobian) are exact and agree with this library's to rounding.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -69,8 +77,15 @@ def _site_name(frame_name: str) -> str:
     return frame_name.replace("/", "__")
 
 
-def _joint_xml(jmodel, name: str) -> str:
+def _joint_xml(jmodel, name: str, parent: int, placement: pin.SE3) -> str:
     short = jmodel.shortname()
+    if short == "JointModelFreeFlyer":
+        if parent != 0 or not placement.isIdentity():
+            raise InputError("clm", name, "the MuJoCo export supports a free flyer only as a "
+                                          "child of the world with an identity placement")
+        return f'<freejoint name="{name}"/>'
+    if short == "JointModelSpherical":
+        return f'<joint name="{name}" type="ball"/>'
     if short.startswith("JointModelR") and short[-1] in _AXES and len(short) == 12:
         kind, axis = "hinge", _AXES[short[-1]]
     elif short.startswith("JointModelP") and short[-1] in _AXES and len(short) == 12:
@@ -81,7 +96,8 @@ def _joint_xml(jmodel, name: str) -> str:
         kind, axis = "slide", tuple(jmodel.extract().axis)
     else:
         raise InputError("clm", short, f"joint {name!r}: the MuJoCo export supports 1-DoF "
-                                       "revolute and prismatic joints only")
+                                       "revolute and prismatic, spherical and free-flyer "
+                                       "joints only")
     return f'<joint name="{name}" type="{kind}" axis="{_vec(axis)}"/>'
 
 
@@ -136,9 +152,10 @@ def closed_loop_mjcf(clm: ClosedLoopModel, timestep: float = 1e-3,
         children.setdefault(model.parents[jid], []).append(jid)
 
     def body(jid: int, indent: str) -> list[str]:
-        name = model.names[jid]
-        lines = [f'{indent}<body name="{name}" {_pose(model.jointPlacements[jid])}>',
-                 f"{indent}  {_joint_xml(model.joints[jid], name)}",
+        name, placement = model.names[jid], model.jointPlacements[jid]
+        joint = _joint_xml(model.joints[jid], name, model.parents[jid], placement)
+        lines = [f'{indent}<body name="{name}" {_pose(placement)}>',
+                 f"{indent}  {joint}",
                  f"{indent}  {_inertial_xml(model.inertias[jid], tiny_inertia)}"]
         lines += [f"{indent}  {site}" for site in sites.get(jid, [])]
         for child in children.get(jid, []):
@@ -185,4 +202,81 @@ def to_mujoco(clm: ClosedLoopModel, **options: Any) -> Any:
         import mujoco
     except ImportError:
         raise MissingDependencyError("mujoco", "bench") from None
+    for name in clm.actuated_joints:
+        if clm.model.joints[clm.model.getJointId(name)].nv != 1:
+            raise InputError("clm", name, "the MuJoCo export actuates 1-DoF joints only")
     return mujoco.MjModel.from_xml_string(closed_loop_mjcf(clm, **options))
+
+
+class MujocoState(NamedTuple):
+    """MuJoCo coordinates of a Pinocchio state (see the module docstring).
+
+    Attributes:
+        qpos: (nq,) positions, quaternions ``(w, x, y, z)``.
+        qvel: (nv,) velocities, free-flyer linear velocity in the world frame (m/s).
+        qacc: (nv,) accelerations (their time derivative), or None when ``a`` was not given.
+    """
+
+    qpos: np.ndarray
+    qvel: np.ndarray
+    qacc: np.ndarray | None
+
+
+def _quaternion_joints(model: pin.Model):
+    """(idx_q, idx_v, is_free) of the free-flyer and spherical joints."""
+    out = []
+    for jid in range(1, model.njoints):
+        short = model.joints[jid].shortname()
+        if short in ("JointModelFreeFlyer", "JointModelSpherical"):
+            out.append((model.idx_qs[jid], model.idx_vs[jid], short == "JointModelFreeFlyer"))
+    return out
+
+
+def mujoco_state(clm: ClosedLoopModel, q, v=None, a=None) -> MujocoState:
+    """MuJoCo's ``qpos`` / ``qvel`` / ``qacc`` for Pinocchio's ``q``, ``v``, ``a`` of ``clm``.
+
+    Equal entry by entry on 1-DoF joints; quaternions reordered from ``(x, y, z, w)`` to
+    ``(w, x, y, z)``; a free flyer's linear velocity ``p' = R v_lin`` and acceleration
+    ``p'' = R (a_lin + omega x v_lin)`` (Pinocchio's ``a`` is the derivative of the
+    body-frame velocity); angular parts unchanged (body frame in both).
+
+    Args:
+        clm: the closed-loop model.
+        q: configuration (nq,); v, a: velocity, acceleration (nv,), optional (zero / None).
+
+    Raises:
+        InputError: bad shapes or non-finite values.
+    """
+    q = clm.check_q(q)
+    v = np.zeros(clm.nv) if v is None else clm.check_v(v)
+    qpos, qvel = q.copy(), v.copy()
+    qacc = None if a is None else clm.check_v(a).copy()
+    for iq, iv, free in _quaternion_joints(clm.model):
+        quat = q[iq + 3:iq + 7] if free else q[iq:iq + 4]
+        at = iq + 3 if free else iq
+        qpos[at] = quat[3]
+        qpos[at + 1:at + 4] = quat[:3]
+        if free:
+            rot = pin.Quaternion(quat).normalized().matrix()
+            lin, ang = v[iv:iv + 3], v[iv + 3:iv + 6]
+            qvel[iv:iv + 3] = rot @ lin
+            if qacc is not None:
+                qacc[iv:iv + 3] = rot @ (a[iv:iv + 3] + np.cross(ang, lin))
+    return MujocoState(qpos, qvel, qacc)
+
+
+def velocity_map(clm: ClosedLoopModel, q) -> np.ndarray:
+    """``T`` (nv, nv) with MuJoCo's ``qvel = T v`` at ``q``: identity but for each free
+    flyer's linear block, the rotation ``R`` of its quaternion. Hence ``M_mj = T^-T M
+    T^-1``, a constraint Jacobian ``J_mj = J T^-1`` and generalised forces
+    ``tau = T^T qfrc`` (same power).
+
+    Raises:
+        InputError: bad shape or non-finite ``q``.
+    """
+    q = clm.check_q(q)
+    out = np.eye(clm.nv)
+    for iq, iv, free in _quaternion_joints(clm.model):
+        if free:
+            out[iv:iv + 3, iv:iv + 3] = pin.Quaternion(q[iq + 3:iq + 7]).normalized().matrix()
+    return out

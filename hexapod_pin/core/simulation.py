@@ -13,7 +13,10 @@ whose joints are 1-DoF or free-flyers:
   quaternions are renormalised; when the closure residual ``r`` exceeds ``projection_tol``
   (default 1e-10 m), ``q`` gets Gauss-Newton corrections ``q <- q (+) (-J_c^+ r)``
   (minimum norm over all coordinates) and the velocity is projected,
-  ``v <- v - J_c^+ J_c v``.
+  ``v <- v - J_c^+ J_c v``. All closures at once: one Pinocchio kinematic pass per
+  Gauss-Newton step gives the stacked errors and constraint Jacobian (Pinocchio's LOCAL
+  constraint rows), and one compiled kernel solves the step and the velocity projection
+  on the independent rows with one factorisation.
 """
 
 
@@ -27,6 +30,7 @@ import pinocchio as pin
 
 from ..errors import AssemblyError, InputError
 from .closed_loop import ClosedLoopModel
+from .compiled import jit
 from .dynamics import FORWARD_METHODS, dynamics_of, independent_rows
 
 #: closure residual above which a step is projected back onto the closures (m)
@@ -94,6 +98,13 @@ class ClosedLoopIntegrator:
                                 slice(vec_v[0], vec_v[0] + len(vec_v)))
         self._redundant: bool | None = None
         self._rows: np.ndarray | None = None     # independent closure rows (projection)
+        # the projection's own Pinocchio data and constraint data (Pinocchio's LOCAL rows)
+        self._data = model.createData()
+        self._cms, self._cds = clm.pinocchio_constraints()
+        self._err = np.empty(clm.n_rows)
+        self._out = np.empty(1)
+        self._closures = [(cm, cd, cm.type == pin.ContactType.CONTACT_3D)
+                          for cm, cd in zip(self._cms, self._cds)]
 
     # -- kinematics of the configuration vector -------------------------------------------
     def qdot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -186,71 +197,139 @@ class ClosedLoopIntegrator:
         return q_new, v_new
 
     def residual(self, q: np.ndarray) -> float:
-        """Max-abs closure residual at ``q`` (m / rad)."""
+        """Max-abs closure residual at ``q`` (m / rad): the ``residual`` callable when one was
+        given, else the closure errors in Pinocchio's constraint rows (see :meth:`project`)."""
         if self._residual_fn is not None:
             return float(self._residual_fn(q))
-        pin.framesForwardKinematics(self.clm.model, self.dyn.data, q)
-        return float(np.max(np.abs(self._residual_from_data()), initial=0.0))
+        self._closure_pass(q)
+        return float(np.max(np.abs(self._err), initial=0.0))
+
+    def _closure_pass(self, q: np.ndarray) -> np.ndarray:
+        """One kinematic pass at ``q``: the closure errors into ``self._err`` (n_rows,), and
+        Pinocchio's constraint Jacobian ``J`` (n_rows, nv) returned.
+
+        Rows of Pinocchio's LOCAL constraints (anchor-1 frame), in which ``J`` is the
+        derivative of the errors along ``pin.integrate`` where they vanish: a point
+        closure's error is ``R_1^T (p_1 - p_2)`` (the :meth:`ClosedLoopModel.residual`
+        rows in anchor-1 axes: same Euclidean norm), a weld's ``log6(c2Mc1)`` (the same
+        rows as :meth:`ClosedLoopModel.residual`)."""
+        model, data = self.clm.model, self._data
+        pin.computeJointJacobians(model, data, q)
+        parts = []
+        for cm, cd, point in self._closures:
+            cm.calc(model, data, cd)              # the anchor placements (J reads them)
+            parts.append(cd.c1Mc2.translation if point else pin.log6(cd.c1Mc2).vector)
+        np.negative(np.concatenate(parts), out=self._err)   # -translation = R_1^T (p_1 - p_2)
+        return pin.getConstraintsJacobian(model, data, self._cms, self._cds)
 
     def project(self, q: np.ndarray, v: np.ndarray, trigger: float = PROJECTION_TOL,
                 max_iter: int = 8) -> tuple[np.ndarray, np.ndarray, float]:
         """Project ``(q, v)`` onto the closures when the residual exceeds ``trigger``.
 
-        Gauss-Newton steps ``q <- q (+) (-J_c^+ r)`` on the independent closure rows (rows
-        dependent on the others, exactly or to 1e-8, are left out once and for all) until
-        the residual stops decreasing tenfold or falls below ``1e-3 trigger``, then
-        ``v <- v - J_c^+ J_c v`` on the same rows.
-        Returns ``(q, v, residual)``; untouched when the residual is below ``trigger``.
+        All closures at once: one kinematic pass gives the stacked errors ``r`` and
+        Pinocchio's constraint Jacobian ``J`` (rows of :meth:`_closure_pass`); Gauss-Newton
+        steps ``q <- q (+) (-J_r^+ r_r)`` on the independent rows (rows dependent on the
+        others, exactly or to 1e-8, are left out once and for all; ``J_r^+`` through the
+        Gram matrix ``J_r J_r^T``, SVD least squares when that solve is inaccurate), one
+        pass per step, until the residual stops decreasing tenfold or falls below
+        ``1e-2 trigger``; then ``v <- v - J_r^+ J_r v`` with the Jacobian of the last pass
+        (at the returned ``q``). The residual is the ``residual`` callable's when one was
+        given, else the max-abs of ``r`` (m / rad). Returns ``(q, v, residual)``;
+        untouched when the residual is below ``trigger``.
 
         Raises:
             AssemblyError: the residual stays above ``trigger`` after ``max_iter`` steps.
         """
-        err = self.residual(q)
+        model = self.clm.model
+        jac = self._closure_pass(q)
+        rows = self._rows
+        if rows is None:
+            rows = self._rows = independent_rows(jac)
+        step, v_new = np.empty(self.clm.nv), np.empty(self.clm.nv)
+        err = self._solve_pass(jac, rows, v, step, v_new, q)
         if err <= trigger:
             return q, v, err
-        dyn = self.dyn
-        model = self.clm.model
-        rows = self._rows
         for _ in range(max_iter):
-            jac = dyn.constraint_jacobian(q)          # also updates the frame placements
-            if rows is None:
-                rows = self._rows = independent_rows(jac)
-            res = self._residual_from_data()
-            err = float(np.max(np.abs(res), initial=0.0))
-            if not np.isfinite(err):
+            if not math.isfinite(err):
                 break
-            q_new = pin.integrate(model, q, -_pinv_apply(jac[rows], res[rows]))
-            err_new = self.residual(q_new)
+            q_new = pin.integrate(model, q, step)
+            jac_new = self._closure_pass(q_new)
+            step_new, v_next = np.empty(self.clm.nv), np.empty(self.clm.nv)
+            err_new = self._solve_pass(jac_new, rows, v, step_new, v_next, q_new)
             if not err_new < err:
                 break
-            q, err, err_old = q_new, err_new, err
-            if err <= 1e-3 * trigger or err > 0.1 * err_old:
+            q, err, err_old, step, v_new = q_new, err_new, err, step_new, v_next
+            if err <= 1e-2 * trigger or err > 0.1 * err_old:
                 break
         if not (err <= trigger):
             raise AssemblyError("projection onto the closures failed", err, max_iter, q)
-        jac = dyn.constraint_jacobian(q)[rows]
-        v = v - _pinv_apply(jac, jac @ v)
-        return q, v, err
+        return q, v_new, err
 
-    def _residual_from_data(self) -> np.ndarray:
-        data = self.dyn.data
-        out = np.empty(self.dyn.n_rows)
-        for is_point, rows, f1, f2, _, _ in self.dyn.closure_frames:
-            m1, m2 = data.oMf[f1], data.oMf[f2]
-            out[rows] = (m1.translation - m2.translation if is_point
-                         else pin.log6(m2.actInv(m1)).vector)
-        return out
+    def _solve_pass(self, jac, rows, v, step, v_new, q) -> float:
+        """After a :meth:`_closure_pass` at ``q``: the Gauss-Newton step
+        ``-J_r^+ r_r`` into ``step`` and the projected velocity ``v - J_r^+ J_r v`` into
+        ``v_new`` (one compiled LU of ``J_r J_r^T`` for both; SVD least squares when that
+        solve is singular or inaccurate). Returns the residual at ``q``."""
+        out = self._out
+        try:
+            ok = gauss_newton_pass(jac, self._err, rows, v, step, v_new, out) <= 1e-12
+        except np.linalg.LinAlgError:
+            ok = False
+        if not ok:
+            jac_r = jac[rows]
+            step[:] = -_lstsq(jac_r, self._err[rows])
+            v_new[:] = v - _lstsq(jac_r, jac_r @ v)
+            out[0] = float(np.max(np.abs(self._err), initial=0.0))
+        return float(out[0]) if self._residual_fn is None else float(self._residual_fn(q))
 
 
-def _pinv_apply(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """``J^+ rhs`` (minimum norm): through ``J J^T`` when that solve reproduces ``rhs``
-    (full row rank), else by SVD least squares (rank-deficient or ill-conditioned ``J``)."""
-    try:
-        sol = jac.T @ np.linalg.solve(jac @ jac.T, rhs)
-        miss = np.max(np.abs(jac @ sol - rhs), initial=0.0)
-        if math.isfinite(miss) and miss <= 1e-12 * max(1.0, np.max(np.abs(rhs), initial=0.0)):
-            return sol
-    except np.linalg.LinAlgError:
-        pass
+@jit
+def gauss_newton_pass(jac, err, rows, v, step, v_new, out):
+    """One compiled projection pass on the rows ``rows`` of ``J`` (n_rows, nv) and of the
+    closure errors ``err``: ``step = -J_r^+ err_r`` and ``v_new = v - J_r^+ J_r v``
+    (minimum norm, one LU of the Gram matrix ``J_r J_r^T`` for both; raises numpy's
+    LinAlgError when it is exactly singular). ``out[0]`` = max-abs of ``err`` (all
+    rows). Returns the larger relative miss of ``J_r step = -err_r`` and
+    ``J_r v_new = 0`` (small only when the solves were accurate)."""
+    n, nv = rows.shape[0], jac.shape[1]
+    jr = np.empty((n, nv))
+    rhs = np.empty((n, 2))
+    emax = 0.0
+    for k in range(err.shape[0]):
+        emax = max(emax, abs(err[k]))
+    for i in range(n):
+        jr[i] = jac[rows[i]]
+        rhs[i, 0] = -err[rows[i]]
+        rhs[i, 1] = jr[i] @ v
+    sol = np.linalg.solve(jr @ jr.T, rhs)
+    corr = jr.T @ sol
+    miss_s, miss_v, scale_s, scale_v, jmax = 0.0, 0.0, 0.0, 0.0, 0.0
+    for j in range(nv):
+        step[j] = corr[j, 0]
+        v_new[j] = v[j] - corr[j, 1]
+    for i in range(n):
+        row_s = 0.0
+        row_v = 0.0
+        for j in range(nv):
+            row_s += jr[i, j] * step[j]
+            row_v += jr[i, j] * v_new[j]
+            jmax = max(jmax, abs(jr[i, j]))
+        miss_s = max(miss_s, abs(row_s - rhs[i, 0]))
+        miss_v = max(miss_v, abs(row_v))
+        scale_s = max(scale_s, abs(rhs[i, 0]))
+        scale_v = max(scale_v, abs(rhs[i, 1]))
+    out[0] = emax
+    vmax = 0.0
+    for j in range(nv):
+        vmax = max(vmax, abs(v[j]))
+    rel_s = miss_s / max(scale_s, 1e-300)
+    rel_v = miss_v / max(scale_v, jmax * vmax, 1e-300)
+    if not (math.isfinite(rel_s) and math.isfinite(rel_v)):
+        return math.inf
+    return max(rel_s, rel_v)
+
+
+def _lstsq(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``J^+ rhs`` by SVD least squares (minimum norm; any rank)."""
     sol, *_ = np.linalg.lstsq(jac, rhs, rcond=None)
     return sol
