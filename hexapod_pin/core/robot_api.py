@@ -88,47 +88,49 @@ class ParallelRobot(Protocol):
         """The robot with its default geometry."""
 
     @property
-    def home_pose(self) -> np.ndarray: ...
+    def home_pose(self) -> npt.NDArray[np.float64]: ...
 
     @property
-    def home_actuators(self) -> np.ndarray: ...
+    def home_actuators(self) -> npt.NDArray[np.float64]: ...
 
     @property
-    def home_configuration(self) -> np.ndarray: ...
+    def home_configuration(self) -> npt.NDArray[np.float64]: ...
 
     # -- configurations ----------------------------------------------------------------
     def configuration(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None
-                      ) -> np.ndarray:
+                      ) -> npt.NDArray[np.float64]:
         """Pinocchio ``q`` (nq,) of the tree for a pose, every closure held to 1e-12."""
 
-    def pose_from_configuration(self, q: npt.ArrayLike) -> np.ndarray:
+    def pose_from_configuration(self, q: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """The platform pose (dim,) read from a tree configuration (nq,)."""
 
-    def actuator_positions(self, q: npt.ArrayLike) -> np.ndarray:
+    def actuator_positions(self, q: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """The actuator positions (n_act,) read from a tree configuration (nq,)."""
 
     # -- kinematics ----------------------------------------------------------------------
     def inverse_kinematics(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None,
-                           check_limits: bool = True) -> np.ndarray:
+                           check_limits: bool = True) -> npt.NDArray[np.float64]:
         """Actuator positions (n_act,) of a pose (closed form)."""
 
     def forward_kinematics(self, actuators: npt.ArrayLike,
-                           guess: npt.ArrayLike | None = None) -> np.ndarray:
+                           guess: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """The pose (dim,) of the assembly mode nearest ``guess`` (default: home)."""
 
-    def assembly_modes(self, actuators: npt.ArrayLike) -> np.ndarray:
+    def assembly_modes(self, actuators: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Every real assembly mode, shape (n_modes, dim) (n_modes may be 0)."""
 
-    def jacobian(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
+    def jacobian(self, pose: npt.ArrayLike,
+                 branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """``J`` (n_act, dim) with ``actuator velocities = J @ twist``."""
 
     def twist_from_actuator_velocities(self, pose: npt.ArrayLike,
                                        actuator_velocities: npt.ArrayLike,
-                                       branch: npt.ArrayLike | None = None) -> np.ndarray:
+                                       branch: npt.ArrayLike | None = None
+                                       ) -> npt.NDArray[np.float64]:
         """The twist (dim,) that gives the actuator velocities (``J^-1``)."""
 
     def jacobian_derivative(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
-                            branch: npt.ArrayLike | None = None) -> np.ndarray:
+                            branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """``dJ/dt`` (n_act, dim) along the motion."""
 
     def singularity(self, pose: npt.ArrayLike,
@@ -150,7 +152,8 @@ class ParallelRobot(Protocol):
         """Platform acceleration produced by actuator forces."""
 
     def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
-                      branch: npt.ArrayLike | None = None, bounded: bool = True) -> np.ndarray:
+                      branch: npt.ArrayLike | None = None,
+                      bounded: bool = True) -> npt.NDArray[np.float64]:
         """Actuator forces (n_act,) holding the platform at rest against gravity + wrench."""
 
     def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
@@ -182,7 +185,7 @@ class ParallelRobot(Protocol):
                                wrenches: npt.ArrayLike | None = None) -> BatchForwardDynamics: ...
 
     def static_forces_batch(self, poses: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
-                            bounded: bool = True) -> np.ndarray: ...
+                            bounded: bool = True) -> npt.NDArray[np.float64]: ...
 
     def reduced_dynamics_batch(self, poses: npt.ArrayLike,
                                twists: npt.ArrayLike) -> BatchReducedDynamics: ...

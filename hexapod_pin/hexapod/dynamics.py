@@ -449,7 +449,8 @@ class HexapodDynamics:
         return self._solve_tree(ws, force, wrench_a, method, None)[0]
 
     def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
-                      branch: npt.ArrayLike | None = None, bounded: bool = True) -> np.ndarray:
+                      branch: npt.ArrayLike | None = None,
+                      bounded: bool = True) -> npt.NDArray[np.float64]:
         """Actuator forces holding the platform at rest at ``pose`` under gravity and a wrench.
 
         ``J^T tau = G^T g(q) - wrench`` with ``g(q)`` the tree's generalised gravity
@@ -720,7 +721,7 @@ class HexapodDynamics:
                                             wrenches)
 
     def static_forces_batch(self, poses: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
-                            bounded: bool = True) -> np.ndarray:
+                            bounded: bool = True) -> npt.NDArray[np.float64]:
         """:meth:`static_forces` of N poses at once (closed form): (N, 6) forces (N).
 
         Raises:

@@ -175,7 +175,7 @@ class HexapodKinematics:
 
     # -- inverse kinematics -----------------------------------------------------------
     def inverse_kinematics(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None,
-                           check_limits: bool = True) -> np.ndarray:
+                           check_limits: bool = True) -> npt.NDArray[np.float64]:
         """Carriage positions for a platform pose (closed form).
 
         Args:
@@ -285,7 +285,8 @@ class HexapodKinematics:
         return batch.kinematics_batch(self.geo, poses, signs, with_jacobian=True)
 
     # -- velocity level ---------------------------------------------------------------
-    def jacobian(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
+    def jacobian(self, pose: npt.ArrayLike,
+                 branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """Workspace Jacobian ``J`` (6, 6) with ``qdot = J @ twist``.
 
         Rows in carriage order, ``J[i] = [n_i, r_k x n_i] / (n_i . u_k)``; columns
@@ -305,7 +306,8 @@ class HexapodKinematics:
 
     def twist_from_actuator_velocities(self, pose: npt.ArrayLike,
                                        actuator_velocities: npt.ArrayLike,
-                                       branch: npt.ArrayLike | None = None) -> np.ndarray:
+                                       branch: npt.ArrayLike | None = None
+                                       ) -> npt.NDArray[np.float64]:
         """Platform twist (6,) from carriage velocities (6,): solves ``J @ twist = qdot``.
 
         Twist ``(v, w)``: velocity of the platform origin and angular velocity,
@@ -332,7 +334,7 @@ class HexapodKinematics:
         return self.twist_from_actuator_velocities(pose, qdot, branch)
 
     def jacobian_derivative(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
-                            branch: npt.ArrayLike | None = None) -> np.ndarray:
+                            branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """Time derivative ``dJ/dt`` (6, 6) of the workspace Jacobian along a twist.
 
         With ``dn_i/dt = v + w x r_k - qdot_i u_k`` and ``dr_k/dt = w x r_k``::
@@ -441,7 +443,7 @@ class HexapodKinematics:
 
     # -- forward kinematics and assembly modes -------------------------------------------------
     def forward_kinematics(self, actuators: npt.ArrayLike,
-                           guess: npt.ArrayLike | None = None) -> np.ndarray:
+                           guess: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """Platform pose for carriage positions ``actuators``: Newton's method from ``guess``.
 
         The 18 closure equations reduce exactly to three (see
@@ -498,7 +500,7 @@ class HexapodKinematics:
                                 result.iterations)
         return np.array(pose)
 
-    def assembly_modes(self, actuators: npt.ArrayLike) -> np.ndarray:
+    def assembly_modes(self, actuators: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Every real assembly of the closed chain for carriage positions ``actuators``.
 
         Method (details and the completeness argument in

@@ -172,22 +172,23 @@ class Hexapod:
         return self.geometry.home_q
 
     @property
-    def home_actuators(self) -> np.ndarray:
+    def home_actuators(self) -> npt.NDArray[np.float64]:
         """Actuator (carriage) positions at home (m), shape (6,)."""
         return self.geometry.home_q
 
     @property
-    def home_pose(self) -> np.ndarray:
+    def home_pose(self) -> npt.NDArray[np.float64]:
         """Home pose (m, rad), shape (6,): level platform at ``geometry.home_height``."""
         return self.geometry.home_pose
 
     @cached_property
-    def home_configuration(self) -> np.ndarray:
+    def home_configuration(self) -> npt.NDArray[np.float64]:
         """Pinocchio configuration at home (nq,), every closure satisfied."""
         return self.configuration(self.home_pose)
 
     # -- pose <-> tree configuration -----------------------------------------------------
-    def configuration(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
+    def configuration(self, pose: npt.ArrayLike,
+                      branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """Pinocchio configuration of the tree for a platform pose (closed form).
 
         Carriages from the inverse kinematics (stroke limits not checked),
@@ -226,7 +227,7 @@ class Hexapod:
             raise AssemblyError("closed-form configuration misses the closures", err, 0, q)
         return q
 
-    def pose_from_configuration(self, q: npt.ArrayLike) -> np.ndarray:
+    def pose_from_configuration(self, q: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Platform pose (6,) read from a Pinocchio configuration (nq,)."""
         q = self.model.check_q(q)
         ff = q[self.indices.platform_q]
@@ -237,6 +238,6 @@ class Hexapod:
         """Carriage positions (6,) read from a Pinocchio configuration (nq,)."""
         return self.model.check_q(q)[self.indices.carriage_q].copy()
 
-    def actuator_positions(self, q: npt.ArrayLike) -> np.ndarray:
+    def actuator_positions(self, q: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Actuator (carriage) positions (6,) (m) read from a Pinocchio configuration (nq,)."""
         return self.carriage_positions(q)

@@ -124,7 +124,7 @@ class PlanarAssembly:
         return pose, err, max_iter
 
     def forward_kinematics(self, actuators: npt.ArrayLike,
-                           guess: npt.ArrayLike | None = None) -> np.ndarray:
+                           guess: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """The pose (3,) of the assembly mode that Newton reaches from ``guess`` (3,)
         (default: the home pose); see the module docstring.
 
@@ -219,7 +219,7 @@ class PlanarAssembly:
                 + 2.0 * det * (adj_b[0] * e[0][0] + adj_b[1] * e[0][1])
                 + det ** 2 * (norm2[0] - length2 * w ** 2))                          # over W^6
 
-    def assembly_modes(self, actuators: npt.ArrayLike) -> np.ndarray:
+    def assembly_modes(self, actuators: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Every real assembly mode (platform pose) for slider coordinates ``actuators``.
 
         The real roots of the sextic of :meth:`assembly_polynomial` are every ``theta``

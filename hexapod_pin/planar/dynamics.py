@@ -262,7 +262,8 @@ class PlanarDynamics:
         return InverseDynamicsResult(tau, q, v, a, method, res.status, res.iterations, details)
 
     def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
-                      branch: npt.ArrayLike | None = None, bounded: bool = True) -> np.ndarray:
+                      branch: npt.ArrayLike | None = None,
+                      bounded: bool = True) -> npt.NDArray[np.float64]:
         """Actuator forces (3,) (N, along ``+u_k``) holding the platform at rest.
 
         Balances gravity (``-g`` along y, every body) and the ``wrench`` ``(fx, fy, mz)``
@@ -452,7 +453,7 @@ class PlanarDynamics:
         return BatchInverseDynamics(tau, closure, residual)
 
     def static_forces_batch(self, poses: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
-                            bounded: bool = True) -> np.ndarray:
+                            bounded: bool = True) -> npt.NDArray[np.float64]:
         """:meth:`static_forces` of N poses (N, 3): (N, 3) forces (N). Raises as
         :meth:`inverse_dynamics_batch`."""
         poses, wrenches = check_batch(poses=poses, wrenches=wrenches)

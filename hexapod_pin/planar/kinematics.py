@@ -208,7 +208,7 @@ class PlanarKinematics:
 
     # -- inverse kinematics ----------------------------------------------------------------
     def inverse_kinematics(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None,
-                           check_limits: bool = True) -> np.ndarray:
+                           check_limits: bool = True) -> npt.NDArray[np.float64]:
         """Slider positions (3,) (m along ``u_k`` from the rail midpoint) of a pose.
 
         ``s_k = u_k . d_k + branch_k sqrt(L^2 - |d_k|^2 + (u_k . d_k)^2)``,
@@ -248,7 +248,8 @@ class PlanarKinematics:
             raise StrokeLimitError(actuators, violations)
 
     # -- Jacobian ---------------------------------------------------------------------------
-    def jacobian(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
+    def jacobian(self, pose: npt.ArrayLike,
+                 branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """Workspace Jacobian ``J`` (3, 3), ``actuator velocities = J @ twist``.
 
         From ``d/dt |n_k|^2 = 0`` with ``dP_k/dt = v + omega z x r_k``, ``r_k = R p_k``:
@@ -264,7 +265,8 @@ class PlanarKinematics:
 
     def twist_from_actuator_velocities(self, pose: npt.ArrayLike,
                                        actuator_velocities: npt.ArrayLike,
-                                       branch: npt.ArrayLike | None = None) -> np.ndarray:
+                                       branch: npt.ArrayLike | None = None
+                                       ) -> npt.NDArray[np.float64]:
         """Platform twist (3,) from slider velocities (m/s): solves ``J @ twist = sdot``.
 
         Raises:
@@ -280,7 +282,7 @@ class PlanarKinematics:
         return np.linalg.solve(jac, sdot)
 
     def jacobian_derivative(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
-                            branch: npt.ArrayLike | None = None) -> np.ndarray:
+                            branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """``dJ/dt`` (3, 3) along the motion ``twist`` (closed form,
         :func:`kernels.jacobian_derivative`); ``actuator accelerations = J twist_dot +
         dJ/dt twist``.
@@ -319,7 +321,8 @@ class PlanarKinematics:
         return singularity_measures(jac, cosines, a_hat, self.geometry.platform_radius)
 
     # -- tree state -------------------------------------------------------------------------
-    def configuration(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
+    def configuration(self, pose: npt.ArrayLike,
+                      branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """Pinocchio configuration ``q`` (nq = 9,) of the tree for a pose (closed form).
 
         Sliders from the inverse kinematics (stroke not checked), link angles
@@ -368,11 +371,11 @@ class PlanarKinematics:
         return self.ws.state(2, True, branch, inputs, vec3(pose, "pose"),
                              vec3(twist, "twist"), vec3(twist_dot, "twist_dot"))[2]
 
-    def pose_from_configuration(self, q: npt.ArrayLike) -> np.ndarray:
+    def pose_from_configuration(self, q: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Platform pose (3,) read from a Pinocchio configuration (nq,)."""
         return self.model.check_q(q)[self.ws.indices.platform].copy()
 
-    def actuator_positions(self, q: npt.ArrayLike) -> np.ndarray:
+    def actuator_positions(self, q: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Slider positions (3,) read from a Pinocchio configuration (nq,)."""
         return self.model.check_q(q)[self.ws.indices.slider].copy()
 

@@ -87,17 +87,17 @@ class Planar3PRR:
 
     # -- home ---------------------------------------------------------------------------------
     @property
-    def home_pose(self) -> np.ndarray:
+    def home_pose(self) -> npt.NDArray[np.float64]:
         """Home pose (0, 0, 0) (m, m, rad), shape (3,)."""
         return self.geometry.home_pose
 
     @property
-    def home_actuators(self) -> np.ndarray:
+    def home_actuators(self) -> npt.NDArray[np.float64]:
         """Slider positions at home (m), shape (3,)."""
         return self.geometry.home_actuators
 
     @cached_property
-    def home_configuration(self) -> np.ndarray:
+    def home_configuration(self) -> npt.NDArray[np.float64]:
         """Pinocchio configuration at home (nq,), every closure satisfied."""
         return self.configuration(self.home_pose)
 
