@@ -190,7 +190,8 @@ class PlanarKinematics:
         worst = float(np.min(np.abs(dots))) / self.geometry.link_length
         if worst < kernels.TYPE_I_TOL:
             raise SingularityError(_TYPE_I_WHAT, worst, kernels.TYPE_I_TOL)
-        err = np.abs(np.linalg.norm(links, axis=1) - self.geometry.link_length)
+        with np.errstate(over="ignore"):
+            err = np.abs(np.linalg.norm(links, axis=1) - self.geometry.link_length)
         if not np.max(err) <= 1e-9 * max(1.0, self.size()):
             raise InputError("actuators", actuators,
                              f"do not assemble at the pose (link length errors {err})")
