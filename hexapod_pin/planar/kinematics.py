@@ -10,6 +10,8 @@ rows in actuator order, columns ``(vx, vy, omega)`` (world axes).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..core.checks import as_array, vector
@@ -100,7 +102,8 @@ class PlanarWorkspace:
             raise InputError(inputs[0][1], inputs[0][0], "contains NaN or inf")
         if status == kernels.UNREACHABLE:
             bad = [k for k in range(N_ACTUATORS) if info[3 + k] > 0.0]
-            short = [info[k] for k in bad]
+            # an overflowing discriminant leaves NaN: out of range, an infinite shortfall
+            short = [info[k] if info[k] >= 0.0 else math.inf for k in bad]
             if index is not None:
                 raise BatchUnreachablePoseError(index, bad, short)
             raise UnreachablePoseError(bad, short)
