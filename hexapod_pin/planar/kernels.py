@@ -478,6 +478,7 @@ def forward(geo, buf, twist, forces, wrench, has_wrench, twist_dot, closure, inf
     motion_forces(geo, buf, twist_dot, 1.0, force)
     omega2 = twist[2] * twist[2]
     cres, sum_x, sum_y, sum_m, scale = 0.0, 0.0, 0.0, 0.0, 1.0
+    acc_scale = max(1.0, abs(ax), abs(ay), abs(alpha))
     for k in range(N_ACTUATORS):
         leg = buf[k]
         nx, ny, rx, ry, nu = leg[NX], leg[NY], leg[RX], leg[RY], leg[NU]
@@ -486,10 +487,14 @@ def forward(geo, buf, twist, forces, wrench, has_wrench, twist_dot, closure, inf
         lx, ly = (fs * nx - uy * fl) / nu, (ux * fl + ny * fs) / nu
         closure[k, 0], closure[k, 1] = -lx, -ly
         sum_x, sum_y, sum_m = sum_x + lx, sum_y + ly, sum_m + rx * ly - ry * lx
-        scale = max(scale, abs(force[k]), abs(fl), abs(forces[k]))
+        scale = max(scale, abs(force[k]), abs(fl), abs(forces[k]), abs(lx), abs(ly),
+                    abs(rx * ly), abs(ry * lx))
         # the loop's in-plane closure rows at acceleration level, J_c a + gamma
         phid2 = leg[PD] * leg[PD]
         sdd, pdd = leg[SDD], leg[PDD]
+        # relative to the terms' magnitudes (round-off of their sum)
+        acc_scale = max(acc_scale, abs(sdd), abs(pdd) * geo[_G_LEN], phid2 * geo[_G_LEN],
+                        omega2 * geo[_G_RP], abs(alpha) * geo[_G_RP])
         cres = max(cres,
                    abs(ux * sdd - ny * pdd - (ax - alpha * ry) - phid2 * nx + omega2 * rx),
                    abs(uy * sdd + nx * pdd - (ay + alpha * rx) - phid2 * ny + omega2 * ry))
@@ -498,7 +503,6 @@ def forward(geo, buf, twist, forces, wrench, has_wrench, twist_dot, closure, inf
         fx, fy, fth = fx - wrench[0], fy - wrench[1], fth - wrench[2]
     scale = max(scale, abs(fx), abs(fy), abs(fth))
     worst = max(abs(sum_x + fx), abs(sum_y + fy), abs(sum_m + fth))
-    acc_scale = max(1.0, abs(ax), abs(ay), abs(alpha))
     info[X_RES] = cres
     if not (worst <= RESIDUAL_RTOL * scale and cres <= RESIDUAL_RTOL * acc_scale
             and all_finite(twist_dot)):

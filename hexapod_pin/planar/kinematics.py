@@ -10,6 +10,7 @@ rows in actuator order, columns ``(vx, vy, omega)`` (world axes).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -106,7 +107,8 @@ class PlanarWorkspace:
             raise InputError(inputs[0][1], inputs[0][0], "contains NaN or inf")
         if status == kernels.UNREACHABLE:
             bad = [k for k in range(N_ACTUATORS) if info[3 + k] > 0.0]
-            short = [info[k] for k in bad]
+            # an overflowing discriminant leaves NaN: out of range, an infinite shortfall
+            short = [info[k] if info[k] >= 0.0 else math.inf for k in bad]
             if index is not None:
                 raise BatchUnreachablePoseError(index, bad, short)
             raise UnreachablePoseError(bad, short)
@@ -200,7 +202,8 @@ class PlanarKinematics:
         worst = float(np.min(np.abs(dots))) / self.geometry.link_length
         if worst < kernels.TYPE_I_TOL:
             raise SingularityError(_TYPE_I_WHAT, worst, kernels.TYPE_I_TOL)
-        err = np.abs(np.linalg.norm(links, axis=1) - self.geometry.link_length)
+        with np.errstate(over="ignore"):
+            err = np.abs(np.linalg.norm(links, axis=1) - self.geometry.link_length)
         if not np.max(err) <= 1e-9 * max(1.0, self.size()):
             raise InputError("actuators", actuators,
                              f"do not assemble at the pose (link length errors {err})")
