@@ -18,7 +18,8 @@ from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tr
 from hexapod_pin.core.pose import rotation_from_rpy, rpy_from_rotation
 from hexapod_pin.errors import GeometryError
 from hexapod_pin.files import load_geometry, save_geometry
-from hexapod_pin.hexapod import fast, kernels
+from hexapod_pin.hexapod import fast, kernels, workspace
+from hexapod_pin.hexapod.simulation import CircleTrajectory, PIDController, simulate
 from hexapod_pin.hexapod.geometry import CHAIN_VECTOR_SIZE, ChainGeometry
 
 SEEDS = (0, 1, 2)
@@ -240,6 +241,10 @@ def test_forward_kinematics_round_trip_and_modes(built, rng):
         ideal.assembly_modes(ideal.geometry.home_q))
     with pytest.raises(GeometryError):
         built.platform_points_world(built.home_pose)
+    apart = np.tile([-0.6, 0.6], 3)                  # the legs of a rail cannot meet
+    with pytest.raises(hp.AssemblyError):
+        built.forward_kinematics(apart)
+    assert built.assembly_modes(apart).shape == (0, 6)
 
 
 def test_jacobian_against_finite_differences_and_the_tree(built, rng):
@@ -334,6 +339,30 @@ def test_batch_matches_single_calls(built, rng):
         batch = built.reduced_dynamics_batch(poses[k:k + 1], twists[k:k + 1])
         close(batch.mass_matrix[0], red.mass_matrix, 1e-13)
         close(batch.bias[0], red.bias, 1e-13)
+
+
+def test_simulation_and_workspace(built, rng):
+    """PID on a circle about the as-built home: the compiled platform-coordinate RK4 ==
+    the tree RK4 (simulate(), Pinocchio's constrained dynamics); workspace measures ==
+    the single-pose routes."""
+    reference = CircleTrajectory(built.home_pose, 0.01, 1.0)
+    gains = {"kp": 2000.0, "ki": 500.0, "kd": 50.0}
+    start = reference(0.0)
+    tree = simulate(built, 0.1, 1e-3, controller=PIDController(built, reference, **gains),
+                    pose0=start.pose, twist0=start.twist)
+    quick = fast.simulate_fast(built, 0.1, 1e-3, reference=reference, **gains)
+    assert tree.status == quick.status == "completed"
+    assert np.abs(quick.poses - tree.poses).max() <= 1e-8
+    assert np.abs(tree.poses - tree.poses[0]).max() > 1e-3            # a real motion
+    tree_q = np.array([built.configuration(p) for p in tree.poses[::20]])
+    assert max(np.max(np.abs(built.model.residual(q))) for q in tree_q) <= 1e-10
+    poses = np.array([random_pose(built, rng) for _ in range(4)])
+    payload = np.array([0.0, 0.0, -5.0, 0.0, 0.1, 0.0])
+    measures = workspace.evaluate(built, poses, payload)
+    assert np.all(measures.ok)
+    for k, pose in enumerate(poses):
+        close(measures.static_forces[k], built.static_forces(pose, payload, bounded=False))
+        close(measures.type_two[k], built.singularity(pose).type_two, 1e-12)
 
 
 # -- URDF and files ----------------------------------------------------------------------------

@@ -370,3 +370,22 @@ def test_validation_figure(tmp_path, nominal, truth, exact):
     report = result.validate(exact.poses[40:], exact.actuators[40:])
     fig = plots.plot_validation_errors(report, path=tmp_path / "v.png")
     assert len(fig.axes) == 3 and (tmp_path / "v.png").stat().st_size > 0
+
+
+def test_chains_alone_absorb_the_frames(nominal, exact):
+    """Frames held: the chains take the instrument and target offsets exactly (a rigid
+    motion of the lines and of the joints), nothing is structurally unidentifiable."""
+    result = calibrate(nominal, exact.poses[:40], exact.actuators[:40], identify="chains",
+                       instrument=np.zeros(6))
+    assert result.identifiability.unidentifiable == () and result.identifiability.fixed == ()
+    assert result.residuals_after.max < 1e-10
+    assert np.array_equal(result.instrument, np.zeros(6))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_parameter_map_inverts_for_random_chains(nominal, seed):
+    """deviations_of(chains(theta)) == theta for deviations up to 1 cm / 10 mrad."""
+    params = ParameterModel(nominal.geometry.chain_geometry)
+    theta = np.random.default_rng(seed).uniform(-1e-2, 1e-2, size=N_PARAMETERS)
+    theta[54:] = 0.0
+    assert np.allclose(params.deviations_of(params.chains(theta)), theta, atol=1e-13)

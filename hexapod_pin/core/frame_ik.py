@@ -70,8 +70,9 @@ from .compiled import jit
 IK_METHODS = ("qp", "lstsq")
 #: damping factor of the Levenberg-Marquardt term ``lambda = DAMPING |e|_W^2``
 DAMPING = 1e-3
-#: floor of lambda (keeps the step unique when the task leaves directions free)
-DAMPING_FLOOR = 1e-12
+#: floor of lambda (keeps the step unique when the task leaves directions free); a task
+#: direction whose squared singular value falls below it converges linearly, so it is tiny
+DAMPING_FLOOR = 1e-18
 #: a step is kept when it achieves this fraction of the decrease its linear model predicts
 ACCEPT_RATIO = 1e-4
 #: past this damping factor no step is tried any more (the start is stationary)

@@ -48,7 +48,7 @@ import numpy.typing as npt
 
 from ..core.pose import rotation_rpy, rpy_of
 from ..errors import AssemblyError
-from .geometry import ChainGeometry, HexapodGeometry, closure_pose
+from .geometry import ChainGeometry, HexapodGeometry, closure_pose, leg_residuals
 
 #: the three triangle equations, as (j, k) pairs of rails
 PAIRS = ((0, 1), (1, 2), (2, 0))
@@ -700,9 +700,11 @@ def forward_as_built(chains: ChainGeometry, q, guess, max_iter: int = 50) -> np.
     """
     pose = closure_pose(chains, q, guess, max_iter=max_iter)
     if pose is None:
+        start = float(np.max(np.abs(leg_residuals(chains, q, guess))))
         raise AssemblyError("Newton's method on the six closure equations did not converge "
-                            "from the guess (no assembly nearby, or a type-II singularity)",
-                            float("nan"), max_iter)
+                            "from the guess (no assembly nearby, or a type-II singularity); "
+                            f"leg-length residual at the guess {start:.3e} m",
+                            start, max_iter)
     return pose
 
 

@@ -216,6 +216,15 @@ def closure_pose(chains: ChainGeometry, q, start, *, max_iter: int = 50) -> np.n
     return None
 
 
+def leg_residuals(chains: ChainGeometry, q, pose) -> np.ndarray:
+    """Closure residuals ``|t + R p_i - c_i(q)| - L_i`` (6,) (m) of a pose (6,) at the
+    readings ``q`` (6,)."""
+    rot = rotation_from_rpy(np.asarray(pose[3:], dtype=float))
+    legs = (np.asarray(pose[:3], dtype=float) + chains.platform_joints @ rot.T
+            - chains.carriage_points(q))
+    return np.linalg.norm(legs, axis=1) - chains.leg_lengths
+
+
 def branch_of(chains: ChainGeometry, q, pose) -> np.ndarray:
     """IK branch signs ``s_i = -sign(n_i . u_i)`` (6,) of an assembled pose (6,) at the
     readings ``q`` (6,), ``n_i`` the leg from its joint centre to its platform joint."""

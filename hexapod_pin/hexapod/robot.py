@@ -178,7 +178,8 @@ class Hexapod:
 
     @property
     def home_pose(self) -> npt.NDArray[np.float64]:
-        """Home pose (m, rad), shape (6,): level platform at ``geometry.home_height``."""
+        """Home pose (m, rad), shape (6,): ``geometry.home_pose`` (the level platform at
+        ``home_height``; as built, the forward kinematics of ``home_q``)."""
         return self.geometry.home_pose
 
     @cached_property
