@@ -116,6 +116,7 @@ class SphinxRoles(Extension):
             obj.docstring.value = rewrite(obj.docstring.value)
 
     def on_package(self, *, pkg: Module, **kwargs: Any) -> None:
+        """Replace each ``delegate`` attribute of the package's classes by a method."""
         for cls in classes(pkg):
             for name, member in list(cls.members.items()):
                 if isinstance(member, Attribute):
