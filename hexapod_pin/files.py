@@ -109,6 +109,19 @@ def load_geometry(path: str | os.PathLike | None = None,
         raise GeometryError("geometry", fields, str(exc)) from None
 
 
+def read_text(path: Path, what: str) -> str:
+    """The UTF-8 text of a file the library reads (``what``: e.g. "geometry file").
+
+    Raises:
+        DescriptionError: the file is not UTF-8 text (a binary file), naming it.
+    """
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise DescriptionError(str(path), f"{what} is not UTF-8 text (a binary file?): "
+                               f"byte {exc.start}") from None
+
+
 def read_geometry_file(path: str | os.PathLike) -> dict:
     """The table of geometry fields in a TOML / YAML / JSON file (not yet checked).
 
@@ -121,7 +134,7 @@ def read_geometry_file(path: str | os.PathLike) -> dict:
     suffix = path.suffix.lower()
     if suffix not in GEOMETRY_SUFFIXES:
         raise DescriptionError(str(path), "geometry file must be .toml, .yaml, .yml or .json")
-    text = path.read_text(encoding="utf-8")
+    text = read_text(path, "geometry file")
     try:
         if suffix == ".toml":
             data = tomllib.loads(text)

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.checks import as_array, real_number
+from ..core.checks import as_array, check_finite_result, real_number
 from ..core.compiled import all_finite
 from ..errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
 from . import kernels as K
@@ -339,7 +339,8 @@ class FastDynamics:
             tau (6,) (N), force on carriage i along ``+u_k``.
 
         Raises:
-            ActuatorSaturationError, UnreachablePoseError, SingularityError, InputError.
+            ActuatorSaturationError, UnreachablePoseError, SingularityError, InputError,
+            NonFiniteResultError (inputs whose magnitudes overflow).
         """
         pose, twist, twist_dot = _vec6(pose, "pose"), _vec6(twist, "twist"), \
             _vec6(twist_dot, "twist_dot")
@@ -350,7 +351,7 @@ class FastDynamics:
         if code:
             self._fail(code, {"pose": pose, "twist": twist, "twist_dot": twist_dot,
                               "wrench": wrench}, tau)
-        return tau
+        return check_finite_result("FastDynamics.inverse_dynamics", tau, "actuator_forces")
 
     def forward_dynamics(self, pose, twist, actuator_forces, wrench=None) -> np.ndarray:
         """Platform acceleration produced by actuator forces (constrained forward dynamics).
@@ -366,7 +367,7 @@ class FastDynamics:
             twist_dot (6,) (m/s^2, rad/s^2), world axes.
 
         Raises:
-            UnreachablePoseError, SingularityError, InputError.
+            UnreachablePoseError, SingularityError, InputError, NonFiniteResultError.
         """
         return self.forward_dynamics_full(pose, twist, actuator_forces, wrench)[0]
 
@@ -382,7 +383,9 @@ class FastDynamics:
         if code:
             self._fail(code, {"pose": pose, "twist": twist, "actuator_forces": forces,
                               "wrench": wrench})
-        return twist_dot, qddot
+        check_finite_result("FastDynamics.forward_dynamics", twist_dot, "twist_dot")
+        return twist_dot, check_finite_result("FastDynamics.forward_dynamics", qddot,
+                                              "actuator_accelerations")
 
     def static_forces(self, pose, wrench=None, bounded: bool = True) -> np.ndarray:
         """Actuator forces (6,) (N) holding the platform at rest at ``pose``.
@@ -396,7 +399,7 @@ class FastDynamics:
                                s.mats)
         if code:
             self._fail(code, {"pose": pose, "wrench": wrench}, tau)
-        return tau
+        return check_finite_result("FastDynamics.static_forces", tau, "actuator_forces")
 
 
 def fast_dynamics(robot) -> FastDynamics:
