@@ -32,6 +32,7 @@ from typing import Any
 
 import yaml
 
+from .core.description import read_text
 from .errors import DescriptionError, GeometryError, InputError
 from .hexapod.geometry import CHAIN_FIELDS, ChainGeometry, HexapodGeometry
 
@@ -187,8 +188,6 @@ def save_geometry(geometry: Any, path: str | os.PathLike) -> Path:
                 lines += [f"{name} = {_toml_value(rows)}" for name, rows in value.items()]
         text = "\n".join(lines) + "\n"
     return write_text_atomic(path, text)
-
-
 def read_geometry_file(path: str | os.PathLike) -> dict:
     """The table of geometry fields in a TOML / YAML / JSON file (not yet checked).
 
@@ -201,7 +200,7 @@ def read_geometry_file(path: str | os.PathLike) -> dict:
     suffix = path.suffix.lower()
     if suffix not in GEOMETRY_SUFFIXES:
         raise DescriptionError(str(path), "geometry file must be .toml, .yaml, .yml or .json")
-    text = path.read_text(encoding="utf-8")
+    text = read_text(path)
     try:
         if suffix == ".toml":
             data = tomllib.loads(text)

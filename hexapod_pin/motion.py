@@ -43,7 +43,7 @@ import numpy as np
 from .core.pose import euler_rates_matrix
 from .core.robot_api import INVERSE_DYNAMICS_METHODS, ParallelRobot
 from .errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
-from .files import write_text_atomic
+from .files import read_text, write_text_atomic
 from .hexapod import simulation
 from .hexapod.fast import FastTrajectory, simulate_fast
 from .hexapod.robot import Hexapod
@@ -203,7 +203,7 @@ def write_motion(path: str | os.PathLike, motion: Motion) -> Path:
 
 
 def _motion_from_csv(path: Path) -> Motion:
-    numbered = [(n, ln) for n, ln in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+    numbered = [(n, ln) for n, ln in enumerate(read_text(path, "motion file").splitlines(), 1)
                 if ln.strip() and not ln.lstrip().startswith("#")]
     if len(numbered) < 2:
         raise DescriptionError(str(path), "needs a header row and at least one data row")
@@ -248,7 +248,7 @@ def _is_number(text: str) -> bool:
 
 def _motion_from_json(path: Path) -> Motion:
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(read_text(path, "motion file"))
     except json.JSONDecodeError as exc:
         raise DescriptionError(str(path), f"malformed JSON: {exc}") from None
     if not isinstance(data, dict) or "t" not in data or "pose" not in data:

@@ -7,12 +7,15 @@ to the forward dynamics (and back), twists through ``J`` and back, against the a
 the library documents (:data:`hexapod_pin.core.measures.ACCURACY`).
 """
 
+import json
 import math
 
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 import hexapod_pin as hp
+from hexapod_pin.cli import app
 from hexapod_pin.core.dynamics import ClosedLoopDynamics
 from hexapod_pin.core.measures import ACCURACY, TYPE_I_TOL, TYPE_II_TOL
 from hexapod_pin.hexapod.fast import fast_dynamics, simulate_fast
@@ -281,3 +284,33 @@ def test_planar_branch_of_refuses_actuators_that_do_not_assemble(planar):
         planar.branch_of(planar.home_pose, [1e300] * 3)
     np.testing.assert_array_equal(planar.branch_of(planar.home_pose, planar.home_actuators),
                                   [1.0, 1.0, 1.0])
+
+
+def test_compiled_routes_never_return_nan(robot):
+    fd = fast_dynamics(robot)
+    huge = [1e160] * 6
+    for call in (lambda: fd.inverse_dynamics(robot.home_pose, huge, np.zeros(6),
+                                             bounded=False),
+                 lambda: fd.forward_dynamics(robot.home_pose, huge, np.zeros(6))):
+        with pytest.raises(hp.NonFiniteResultError, match="FastDynamics"):
+            call()
+
+
+# -- the command line: strict JSON, no silently dropped field, binary files --------------------
+def test_cli_json_is_strict_and_bad_files_are_one_line_errors(tmp_path):
+    run = CliRunner()
+    result = run.invoke(app, ["jacobian", "0", "0", "0", "0", "0", "0", "--json"])
+    assert result.exit_code == 0
+    out = json.loads(result.stdout, parse_constant=lambda c: pytest.fail(c))
+    assert out["condition_number"] is None                  # infinite at this singularity
+    result = run.invoke(app, ["ik", "0,,0,0.35,0,0,0"])
+    assert result.exit_code == 1 and "empty field" in result.stderr
+    binary = tmp_path / "g.toml"
+    binary.write_bytes(b"\x00\x01\xff\xfe")
+    motion = tmp_path / "m.csv"
+    motion.write_bytes(b"\x00\x01\xff\xfe")
+    for args in (["jacobian", "0", "0", "0.35", "0", "0", "0", "--geometry", str(binary)],
+                 ["plot", "trajectory", str(motion), "-o", str(tmp_path / "x.png")]):
+        result = run.invoke(app, args)
+        assert result.exit_code == 1 and "Traceback" not in result.output
+        assert "not UTF-8" in result.stderr and len(result.stderr.strip().splitlines()) == 1

@@ -16,6 +16,7 @@ import contextlib
 import dataclasses
 import functools
 import json
+import math
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
@@ -195,9 +196,15 @@ def parse_numbers(tokens: Sequence[str] | None, count: int | None, name: str,
     """Floats from tokens like ``["0", "-0.1"]`` or ``["0,-0.1"]``; exactly ``count``.
 
     Raises:
-        InputError: a token that is not a number, another count, NaN or inf.
+        InputError: a token that is not a number, an empty field between commas, another
+            count, NaN or inf.
     """
-    parts = [p for tok in (tokens or []) for p in str(tok).replace(",", " ").split()]
+    parts = []
+    for chunk in (c for tok in (tokens or []) for c in str(tok).split()):
+        pieces = chunk.split(",")
+        if "" in pieces[1:-1]:
+            raise InputError(name, chunk, "an empty field between commas")
+        parts.extend(piece for piece in pieces if piece)
     values = []
     for part in parts:
         try:
@@ -237,20 +244,24 @@ def check_suffix(name: str, path: Path | None, suffixes: tuple[str, ...]) -> Non
 
 # -- output ---------------------------------------------------------------------------------
 def emit_json(payload: Any) -> None:
-    """Write ``payload`` as one line of JSON on stdout (arrays, numpy scalars, paths and
-    dataclasses converted)."""
-    typer.echo(json.dumps(plain(payload)))
+    """Write ``payload`` as one line of strict JSON on stdout (arrays, numpy scalars, paths
+    and dataclasses converted; NaN and infinities written as ``null``)."""
+    typer.echo(json.dumps(plain(payload), allow_nan=False))
 
 
 def plain(obj: Any) -> Any:
-    """A dataclass / array / scalar / path as JSON-friendly values (floats and lists)."""
+    """A dataclass / array / scalar / path as JSON-friendly values (floats and lists); a
+    non-finite float becomes None (JSON has no NaN or Infinity: e.g. the condition number
+    at a singularity)."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         return {f.name: plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)
                 if not f.name.startswith("_")}
     if isinstance(obj, np.ndarray):
-        return obj.tolist()
+        return plain(obj.tolist()) if obj.dtype.kind in "fc" else obj.tolist()
     if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
+        return plain(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
     if isinstance(obj, Path):
         return str(obj)
     if isinstance(obj, dict):

@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..core.checks import as_array, real_number
+from ..core.checks import as_array, check_finite_result, real_number
 from ..core.compiled import all_finite
 from ..errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
 from . import kernels as K
@@ -352,6 +352,7 @@ class FastDynamics:
             UnreachablePoseError: a leg cannot reach the pose.
             SingularityError: at a singular configuration.
             InputError: bad shape, non-finite or non-real values.
+            NonFiniteResultError: inputs whose magnitudes overflow.
         """
         pose, twist, twist_dot = _vec6(pose, "pose"), _vec6(twist, "twist"), \
             _vec6(twist_dot, "twist_dot")
@@ -362,7 +363,7 @@ class FastDynamics:
         if code:
             self._fail(code, {"pose": pose, "twist": twist, "twist_dot": twist_dot,
                               "wrench": wrench}, tau)
-        return tau
+        return check_finite_result("FastDynamics.inverse_dynamics", tau, "actuator_forces")
 
     def forward_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                          actuator_forces: npt.ArrayLike,
@@ -383,6 +384,7 @@ class FastDynamics:
             UnreachablePoseError: a leg cannot reach the pose.
             SingularityError: at a singular configuration.
             InputError: bad shape, non-finite or non-real values.
+            NonFiniteResultError: inputs whose magnitudes overflow.
         """
         return self.forward_dynamics_full(pose, twist, actuator_forces, wrench)[0]
 
@@ -400,7 +402,9 @@ class FastDynamics:
         if code:
             self._fail(code, {"pose": pose, "twist": twist, "actuator_forces": forces,
                               "wrench": wrench})
-        return twist_dot, qddot
+        check_finite_result("FastDynamics.forward_dynamics", twist_dot, "twist_dot")
+        return twist_dot, check_finite_result("FastDynamics.forward_dynamics", qddot,
+                                              "actuator_accelerations")
 
     def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None,
                       bounded: bool = True) -> np.ndarray:
@@ -415,7 +419,7 @@ class FastDynamics:
                                s.mats)
         if code:
             self._fail(code, {"pose": pose, "wrench": wrench}, tau)
-        return tau
+        return check_finite_result("FastDynamics.static_forces", tau, "actuator_forces")
 
 
 def fast_dynamics(robot: Hexapod) -> FastDynamics:
