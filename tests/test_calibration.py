@@ -290,6 +290,8 @@ def test_bad_inputs_raise_typed_errors(nominal, exact):
         calibrate(nominal, poses, q, points=exact.points[:30], target_points=POINTS)
     with pytest.raises(InputError, match="30 actuator"):
         calibrate(nominal, poses[:20], q)
+    with pytest.raises(InputError, match="Hexapod"):
+        calibrate(hp.Planar3PRR.default(), poses, q)
     with pytest.raises(InputError, match="method"):
         calibrate(nominal, poses, q, method="newton")
     with pytest.raises(InputError, match="noise"):

@@ -315,13 +315,15 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
         :class:`CalibrationResult`.
 
     Raises:
-        InputError: malformed measurements or options.
+        InputError: not a Hexapod, malformed measurements or options.
         IdentifiabilityError: the measurements do not determine the base parameter set.
         SolverError: the least squares stops without converging (or see :func:`solve`).
         AssemblyError: (points) a forward kinematics fails on the current estimate.
         GeometryError: the identified geometry's home pose does not assemble (the
             as-built home is found by Newton from the ideal home pose).
     """
+    if not isinstance(robot, Hexapod):
+        raise InputError("robot", type(robot).__name__, "expected a Hexapod")
     if method not in ("lm", "trf"):
         raise InputError("method", method, "expected 'lm' or 'trf'")
     if not (isinstance(rcond, float) and 0.0 < rcond < 1.0):
