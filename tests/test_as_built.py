@@ -10,17 +10,21 @@ milliradians) in every field, several seeds.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 import hexapod_pin as hp
+from hexapod_pin.cli import app
 from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.core.pose import rotation_from_rpy, rpy_from_rotation
 from hexapod_pin.errors import GeometryError
 from hexapod_pin.files import load_geometry, save_geometry
 from hexapod_pin.hexapod import fast, kernels, workspace
-from hexapod_pin.hexapod.simulation import CircleTrajectory, PIDController, simulate
 from hexapod_pin.hexapod.geometry import CHAIN_VECTOR_SIZE, ChainGeometry
+from hexapod_pin.hexapod.simulation import CircleTrajectory, PIDController, simulate
 
 SEEDS = (0, 1, 2)
 RTOL = 1e-9
@@ -397,3 +401,23 @@ def test_geometry_file_bad_chains_table(tmp_path):
     with pytest.raises(GeometryError) as info:
         load_geometry(path)
     assert info.value.field == "chains"
+
+
+def test_command_line_takes_an_as_built_geometry_file(tmp_path, rng):
+    """``--geometry asbuilt.toml``: ik / fk / statics of the command line are those of the
+    as-built robot (IK checked on the numpy closure equations)."""
+    g = as_built_geometry(4)
+    path = save_geometry(g, tmp_path / "asbuilt.toml")
+    robot = hp.Hexapod(g)
+    pose = random_pose(robot, rng)
+
+    def run(*args):
+        result = CliRunner().invoke(app, [str(a) for a in args] + ["--geometry", str(path),
+                                                                     "--json"])
+        assert result.exit_code == 0, result.output
+        return json.loads(result.stdout)
+
+    q = np.array(run("ik", *pose)["q"])
+    assert np.max(np.abs(leg_errors(g.chains, pose, q))) <= 1e-12
+    close(run("fk", *q)["pose"], pose, 1e-9)
+    close(run("statics")["actuator_forces"], robot.static_forces(robot.home_pose))
