@@ -11,6 +11,7 @@ milliradians) in every field, several seeds.
 from __future__ import annotations
 
 import json
+import pickle
 
 import numpy as np
 import pytest
@@ -120,6 +121,9 @@ def test_chain_geometry_values_and_vector():
     np.testing.assert_array_equal(vec[48:66].reshape(6, 3), chains.platform_joints)
     back = ChainGeometry.from_vector(vec)
     assert back == chains and hash(back) == hash(chains)
+    copy = pickle.loads(pickle.dumps(g))
+    assert copy == g and not copy.chains.leg_lengths.flags.writeable
+    np.testing.assert_array_equal(copy.home_pose, g.home_pose)
     assert g == g.replace() and hash(g) == hash(g.replace())
     assert g != hp.HexapodGeometry() and g != as_built_geometry(1)
     ideal = ChainGeometry.ideal(g)
