@@ -492,8 +492,8 @@ class _Problem:
         if self.method == "qp" and self.box is not None and not self._inside(
                 pin.integrate(self.clm.model, q, self.full(step))):
             raise SolverError("proxsuite.proxqp.dense", str(self.qp.results.info.status),
-                              "frame inverse kinematics step (a limit is active: no "
-                              "null-space fallback)")
+                              "frame inverse kinematics step (its null-space fallback "
+                              "would cross a joint limit)")
         return step
 
     @staticmethod
