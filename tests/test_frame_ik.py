@@ -388,6 +388,30 @@ def test_proxsuite_stopping_early_falls_back_to_the_null_space_step(monkeypatch)
         clm.model.upperPositionLimit = saved
 
 
+@pytest.mark.parametrize("relax", [1e-2, 1.0, 1e2])
+def test_relaxed_intermediate_closures_still_give_exact_answers(monkeypatch, relax):
+    """However loosely the intermediate iterates close the loops (frame_ik.RELAX), every
+    answer keeps them to 1e-12 and reaches its target (checked with the model's own
+    residual and placements, not the result's numbers)."""
+    from hexapod_pin.core import frame_ik
+
+    monkeypatch.setattr(frame_ik, "RELAX", relax)
+    rng = np.random.default_rng(12)
+    for name, frame in (("delta_weld", "platform_center"), ("five_bar_stiff", "pin")):
+        robot = stress_robots.build(name)
+        clm = robot.clm
+        for _ in range(3):
+            q_goal, _ = robot.sample(rng)
+            goal = _placement(clm, q_goal, frame).translation
+            start = _perturbed(clm, robot.sample(rng)[0], rng, 0.02)
+            res = clm.frame_inverse_kinematics(frame, goal, start, position_only=True,
+                                               limits=False)
+            assert res.reachable and res.iterations <= 30
+            assert np.max(np.abs(clm.residual(res.q))) <= 1e-12
+            np.testing.assert_allclose(_placement(clm, res.q, frame).translation, goal,
+                                       atol=1e-10)
+
+
 # ------------------------------------------------------------------------- errors
 def test_closures_that_cannot_hold_raise():
     five = stress_robots.build("five_bar_stiff")

@@ -197,7 +197,8 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
     Raises:
         InputError: unknown frame or joint, bad target shape, non-positive weight, bad
             method or option.
-        AssemblyError: the closures cannot be held from ``q0`` with ``fixed`` held.
+        AssemblyError: the closures cannot be held from ``q0`` with ``fixed`` held (or,
+            exceptionally, at the closest placement found).
         SolverError: ProxSuite failed on a step whose null-space fallback would cross a
             joint limit, or neither convergence nor a stationary point within
             ``max_iter`` steps.
@@ -269,6 +270,12 @@ def frame_inverse_kinematics(clm, frame, target, q0=None, *, position_only=False
             growth *= 2.0
         q, res_c = accepted
         closure = _max_abs(res_c)
+        if _max_abs(trial_err) <= tol and closure > closure_tol:
+            # on target with relaxed closures: close them exactly before judging
+            held = problem.retract(q, lin, closure_tol)
+            if held is not None:
+                q, res_c = held
+                closure, trial_err = _max_abs(res_c), problem.errors(q)
         history.append(_max_abs(trial_err))
         if history[-1] <= tol and closure <= closure_tol:
             return _result(clm, tasks, q, True, history, closure_tol)
