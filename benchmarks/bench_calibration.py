@@ -27,8 +27,8 @@ import numpy as np
 
 import hexapod_pin as hp
 from hexapod_pin.calibration import calibrate, plots, select_poses, synthetic_measurements
-from hexapod_pin.calibration.identify import measurement_chains
 from hexapod_pin.calibration.problem import reference_poses
+from hexapod_pin.calibration.results import measurement_chains
 from hexapod_pin.calibration.selection import candidate_blocks, observability
 from hexapod_pin.calibration.synthetic import frames_of
 from hexapod_pin.errors import IdentifiabilityError

@@ -10,17 +10,22 @@ milliradians) in every field, several seeds.
 
 from __future__ import annotations
 
+import json
+import pickle
+
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 import hexapod_pin as hp
+from hexapod_pin.cli import app
 from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.core.pose import rotation_from_rpy, rpy_from_rotation
 from hexapod_pin.errors import GeometryError
 from hexapod_pin.files import load_geometry, save_geometry
 from hexapod_pin.hexapod import fast, kernels, workspace
-from hexapod_pin.hexapod.simulation import CircleTrajectory, PIDController, simulate
 from hexapod_pin.hexapod.geometry import CHAIN_VECTOR_SIZE, ChainGeometry
+from hexapod_pin.hexapod.simulation import CircleTrajectory, PIDController, simulate
 
 SEEDS = (0, 1, 2)
 RTOL = 1e-9
@@ -116,6 +121,9 @@ def test_chain_geometry_values_and_vector():
     np.testing.assert_array_equal(vec[48:66].reshape(6, 3), chains.platform_joints)
     back = ChainGeometry.from_vector(vec)
     assert back == chains and hash(back) == hash(chains)
+    copy = pickle.loads(pickle.dumps(g))
+    assert copy == g and not copy.chains.leg_lengths.flags.writeable
+    np.testing.assert_array_equal(copy.home_pose, g.home_pose)
     assert g == g.replace() and hash(g) == hash(g.replace())
     assert g != hp.HexapodGeometry() and g != as_built_geometry(1)
     ideal = ChainGeometry.ideal(g)
@@ -397,3 +405,23 @@ def test_geometry_file_bad_chains_table(tmp_path):
     with pytest.raises(GeometryError) as info:
         load_geometry(path)
     assert info.value.field == "chains"
+
+
+def test_command_line_takes_an_as_built_geometry_file(tmp_path, rng):
+    """``--geometry asbuilt.toml``: ik / fk / statics of the command line are those of the
+    as-built robot (IK checked on the numpy closure equations)."""
+    g = as_built_geometry(4)
+    path = save_geometry(g, tmp_path / "asbuilt.toml")
+    robot = hp.Hexapod(g)
+    pose = random_pose(robot, rng)
+
+    def run(*args):
+        result = CliRunner().invoke(app, [str(a) for a in args] + ["--geometry", str(path),
+                                                                     "--json"])
+        assert result.exit_code == 0, result.output
+        return json.loads(result.stdout)
+
+    q = np.array(run("ik", *pose)["q"])
+    assert np.max(np.abs(leg_errors(g.chains, pose, q))) <= 1e-12
+    close(run("fk", *q)["pose"], pose, 1e-9)
+    close(run("statics")["actuator_forces"], robot.static_forces(robot.home_pose))

@@ -290,6 +290,8 @@ def test_bad_inputs_raise_typed_errors(nominal, exact):
         calibrate(nominal, poses, q, points=exact.points[:30], target_points=POINTS)
     with pytest.raises(InputError, match="30 actuator"):
         calibrate(nominal, poses[:20], q)
+    with pytest.raises(InputError, match="Hexapod"):
+        calibrate(hp.Planar3PRR.default(), poses, q)
     with pytest.raises(InputError, match="method"):
         calibrate(nominal, poses, q, method="newton")
     with pytest.raises(InputError, match="noise"):
@@ -342,8 +344,9 @@ def test_measurement_file_round_trip_and_errors(tmp_path, exact):
 def test_cli_calibrate_round_trip(tmp_path, nominal, exact):
     csv = write_measurements(tmp_path / "m.csv", exact.actuators[:50], exact.poses[:50])
     out = tmp_path / "asbuilt.toml"
+    own = tmp_path / "robot_frame.json"
     run = CliRunner().invoke(app, ["calibrate", str(csv), "--out", str(out), "--json",
-                                   "--select-poses", "40"])
+                                   "--select-poses", "40", "--out-robot-frame", str(own)])
     assert run.exit_code == 0, run.output
     payload = json.loads(run.stdout)
     assert len(payload["rows_used"]) == 40
@@ -353,6 +356,15 @@ def test_cli_calibrate_round_trip(tmp_path, nominal, exact):
     robot = hp.Hexapod(load_geometry(out))
     q = robot.inverse_kinematics_batch(exact.poses[50:60]).actuator_positions
     assert np.allclose(q, exact.actuators[50:60], atol=1e-9)
+    # the robot-frame file: the same robot seen from the held (registered) frames
+    inst, seen = np.array(payload["instrument"]), exact.poses[50]
+    assert payload["target"] == [0.0] * 6
+    turn = rot(inst[3:]) @ rot(seen[3:])                # T_WP = T_WI T_IT (target held)
+    pose = np.r_[rot(inst[3:]) @ seen[:3] + inst[:3], Rotation.from_matrix(turn)
+                 .as_euler("ZYX")[::-1]]
+    robot_frame = hp.Hexapod(load_geometry(own))
+    assert np.allclose(robot_frame.inverse_kinematics(pose, check_limits=False),
+                       exact.actuators[50], atol=1e-9)
     shown = CliRunner().invoke(app, ["ik", "--geometry", str(out), "--json",
                                      *map(str, exact.poses[55])])
     assert shown.exit_code == 0, shown.output

@@ -351,6 +351,67 @@ def test_folded_delta_targets_are_reached_or_give_the_closest_placement(method):
     assert seen[True] >= 5 and seen[False] >= 5, seen
 
 
+def test_proxsuite_stopping_early_falls_back_to_the_null_space_step(monkeypatch):
+    """Where ProxSuite stops at its iteration cap (here forced to 1) the QP route takes the
+    null-space step: same answers as route "lstsq"; with a joint limit that step would
+    cross, the route raises SolverError instead of leaving the range."""
+    from hexapod_pin.core import frame_ik
+    from hexapod_pin.errors import SolverError
+
+    monkeypatch.setattr(frame_ik, "QP_MAX_ITER", 1)
+    delta = stress_robots.build("delta_weld")
+    clm = delta.clm
+    rng = np.random.default_rng(8)
+    for _ in range(3):
+        q_goal, _ = delta.sample(rng)
+        goal = _placement(clm, q_goal, "platform_center").translation
+        start = clm.assemble(_perturbed(clm, q_goal, rng, 0.05)).q
+        a = clm.frame_inverse_kinematics("platform_center", goal, start, position_only=True,
+                                         limits=False)
+        b = clm.frame_inverse_kinematics("platform_center", goal, start, position_only=True,
+                                         method="lstsq")
+        assert a.reachable and a.target_residual <= 1e-10 and a.closure_residual <= 1e-12
+        np.testing.assert_allclose(a.q, b.q, atol=1e-10)
+    q_start, _ = delta.sample(np.random.default_rng(6))
+    iq = clm.joint_q_index("motor_0")
+    q_goal = q_start.copy()
+    q_goal[iq] += 0.1
+    goal = _placement(clm, clm.assemble(q_goal).q, "platform_center").translation
+    saved = clm.model.upperPositionLimit.copy()
+    try:
+        upper = saved.copy()
+        upper[iq] = q_start[iq] + 0.05
+        clm.model.upperPositionLimit = upper
+        with pytest.raises(SolverError):
+            clm.frame_inverse_kinematics("platform_center", goal, q_start, position_only=True)
+    finally:
+        clm.model.upperPositionLimit = saved
+
+
+@pytest.mark.parametrize("relax", [1e-2, 1.0, 1e2])
+def test_relaxed_intermediate_closures_still_give_exact_answers(monkeypatch, relax):
+    """However loosely the intermediate iterates close the loops (frame_ik.RELAX), every
+    answer keeps them to 1e-12 and reaches its target (checked with the model's own
+    residual and placements, not the result's numbers)."""
+    from hexapod_pin.core import frame_ik
+
+    monkeypatch.setattr(frame_ik, "RELAX", relax)
+    rng = np.random.default_rng(12)
+    for name, frame in (("delta_weld", "platform_center"), ("five_bar_stiff", "pin")):
+        robot = stress_robots.build(name)
+        clm = robot.clm
+        for _ in range(3):
+            q_goal, _ = robot.sample(rng)
+            goal = _placement(clm, q_goal, frame).translation
+            start = _perturbed(clm, robot.sample(rng)[0], rng, 0.02)
+            res = clm.frame_inverse_kinematics(frame, goal, start, position_only=True,
+                                               limits=False)
+            assert res.reachable and res.iterations <= 30
+            assert np.max(np.abs(clm.residual(res.q))) <= 1e-12
+            np.testing.assert_allclose(_placement(clm, res.q, frame).translation, goal,
+                                       atol=1e-10)
+
+
 # ------------------------------------------------------------------------- errors
 def test_closures_that_cannot_hold_raise():
     five = stress_robots.build("five_bar_stiff")

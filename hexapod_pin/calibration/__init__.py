@@ -3,7 +3,7 @@
 * :func:`calibrate`: identify the per-chain geometry (lines, sensor zeros, leg lengths,
   platform joints) and the instrument and target frames from measured poses or target
   points and the actuator readings (:mod:`.identify`; the models in :mod:`.model`, the
-  parameters in :mod:`.parameters`);
+  parameters in :mod:`.parameters`, the result and its validation in :mod:`.results`);
 * identifiability: rank, singular values, the base parameter set and the combinations no
   data can separate (:mod:`.identifiability`; :class:`~hexapod_pin.errors.IdentifiabilityError`
   when the data cannot give what is asked);
@@ -19,17 +19,17 @@ Units: m, rad; poses ``(x, y, z, roll, pitch, yaw)`` with ``R = Rz Ry Rx``.
 
 from ..errors import IdentifiabilityError
 from .identifiability import IdentifiabilityReport
-from .identify import (
+from .identify import calibrate
+from .measurements import read_measurements, write_measurements
+from .parameters import DEFAULT_IDENTIFY, GROUPS, NAMES, ParameterModel
+from .problem import Measurements, reference_poses
+from .results import (
     CalibrationResult,
     ModelErrors,
     ParameterEstimate,
     ResidualSummary,
     ValidationReport,
-    calibrate,
 )
-from .measurements import read_measurements, write_measurements
-from .parameters import DEFAULT_IDENTIFY, GROUPS, NAMES, ParameterModel
-from .problem import Measurements, reference_poses
 from .selection import PoseSelection, select_measurements, select_poses
 from .synthetic import SyntheticData, synthetic_measurements
 

@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..viz.plotting import figure_class, finish_figure
-from .identify import ValidationReport
+from .results import ValidationReport
 
 MICRO = 1e6
 
@@ -26,7 +26,7 @@ def plot_validation_errors(report: ValidationReport, *, path=None, title: str = 
     rotation errors (urad), on logarithmic bins.
 
     Args:
-        report: :meth:`~hexapod_pin.calibration.identify.CalibrationResult.validate`'s report.
+        report: :meth:`~hexapod_pin.calibration.results.CalibrationResult.validate`'s report.
         path: where to save the figure (optional); title: figure title.
 
     Returns:

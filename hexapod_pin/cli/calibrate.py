@@ -57,6 +57,10 @@ def calibrate(measurements: Annotated[Path, typer.Argument(
                   help="write the identified geometry (.toml / .yaml / .json), commanded in "
                        "the measurement frames; read it back with --geometry",
                   show_default=False)] = None,
+              out_robot_frame: Annotated[Path | None, typer.Option(
+                  "--out-robot-frame", help="also write the identified geometry in the "
+                  "robot's own frames (for dynamics: gravity along its -z)",
+                  show_default=False)] = None,
               select_poses: Annotated[int | None, typer.Option(
                   "--select-poses", help="identify from the N most informative rows (O1, "
                   "greedy) and validate on the others", show_default=False)] = None,
@@ -86,6 +90,7 @@ def calibrate(measurements: Annotated[Path, typer.Argument(
     errors."""
     quiet = quiet or as_json
     check_suffix("out", out, GEOMETRY_SUFFIXES)
+    check_suffix("out-robot-frame", out_robot_frame, GEOMETRY_SUFFIXES)
     robot = robot_of(geometry, set_)
     points = None if not target_point else np.array(
         [parse_numbers([p], 3, "target-point", "x y z") for p in target_point])
@@ -108,9 +113,10 @@ def calibrate(measurements: Annotated[Path, typer.Argument(
     report = None
     if held is not None:
         report = result.validate(held.poses, held.actuators, points=held.points)
-    if out is not None:
-        save_geometry(result.robot.geometry, out)
-        note(quiet, f"wrote {out}")
+    for path, geom in ((out, result.robot.geometry), (out_robot_frame, result.geometry)):
+        if path is not None:
+            save_geometry(geom, path)
+            note(quiet, f"wrote {path}")
     if as_json:
         emit_json(_payload(result, rows, report, out))
         return

@@ -415,6 +415,7 @@ class ClosedLoopDynamics:
         self._all_points = all(c[0] for c in self.closure_frames)
         # live views of Pinocchio's data (eigenpy maps the Data members, allocated once)
         data = self.data
+        self._v_ddq = data.ddq
         self._v_mass, self._v_nle, self._v_lambda = data.M, data.nle, data.lambda_c
         self._v_rhs = data.primal_rhs_contact[:self.n_rows]
         self._pin_ready = True
@@ -493,22 +494,27 @@ class ClosedLoopDynamics:
 
     def _pinocchio_result(self, q, v, tau, acc, iters, rank) -> TreeForwardDynamics:
         """The result of a verified Pinocchio solve (``acc``: Pinocchio's buffer; ``tau``:
-        an array this call owns). The multipliers are computed on access: Pinocchio's
-        LOCAL ones converted to our rows, or, with redundant rows, the minimum-norm ones
-        (the proximal multipliers are minimum-norm only up to the conditioning of the
-        regularised system)."""
+        an array this call owns): :meth:`pinocchio_result_of` on copies."""
+        return self.pinocchio_result_of(q.copy(), v.copy(), tau, acc.copy(),
+                                        self._v_lambda.copy(), iters, rank)
+
+    def pinocchio_result_of(self, q, v, tau, acc, lam_pin, iters: int,
+                            rank: int) -> TreeForwardDynamics:
+        """The result of a verified Pinocchio solve from arrays the caller owns (kept as
+        they are, no copies): ``acc`` (nv,) and Pinocchio's LOCAL multipliers ``lam_pin``.
+        The multipliers are computed on access: ``lam_pin`` converted to our rows, or,
+        with redundant rows, the minimum-norm ones (the proximal multipliers are
+        minimum-norm only up to the conditioning of the regularised system)."""
         if rank == self.n_rows:
-            return TreeForwardDynamics(acc.copy(), _PinRows(self, q.copy(),
-                                                            self._v_lambda.copy()),
-                                       "pinocchio", "solved", iters, rank, -1.0)
+            return TreeForwardDynamics(acc, _PinRows(self, q, lam_pin), "pinocchio",
+                                       "solved", iters, rank, -1.0)
         status = _REDUNDANT_STATUS.get(iters)
         if status is None:
             status = _REDUNDANT_STATUS[iters] = (
                 f"solved (redundant rows: proximal mu={_PIN_PROX_MU:g}, {iters} "
                 "iterations; minimum-norm multipliers)")
-        acc = acc.copy()
-        return TreeForwardDynamics(acc, _MinNormRows(self, q.copy(), v.copy(), acc, tau),
-                                   "pinocchio", status, iters, rank, -1.0)
+        return TreeForwardDynamics(acc, _MinNormRows(self, q, v, acc, tau), "pinocchio",
+                                   status, iters, rank, -1.0)
 
     def forward_actuated(self, q, v, actuator_forces, tau_ext=None,
                          method: str = "pinocchio") -> TreeForwardDynamics:
@@ -536,20 +542,42 @@ class ClosedLoopDynamics:
         if tau_ext is not None:
             tau_ext = _vector(tau_ext, self.nv, "tau_ext")
             tau += tau_ext
-        prox = self._pin_fast
-        if prox is not None and method == "pinocchio":
-            model, data, cms, cds = self.model, self.data, self.pin_models, self.pin_datas
-            acc = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
-            # checked on Pinocchio's own M, nle, J and drift (J a = primal_rhs)
-            eom, con = kkt_residuals(self._v_mass, self._v_nle, tau,
-                                     pin.getConstraintsJacobian(model, data, cms, cds),
-                                     self._v_rhs, acc, self._v_lambda, self._res_out)
-            if eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL:
-                return self._pinocchio_result(q, v, tau, acc, prox.iter, self._rank)
+        if method == "pinocchio":
+            res = self.forward_pinocchio_fast(q, v, tau)
+            if res is not None:
+                return res
         elif method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
         return _solve_checked(lambda: self.forward_unchecked(q, v, tau, method), ("q", q),
                               ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
+
+    def forward_pinocchio_fast(self, q, v, tau) -> TreeForwardDynamics | None:
+        """The short "pinocchio" route (no input checks; ``tau`` is kept by the result):
+        :meth:`pinocchio_verified`, then the result. None when that gives no answer: the
+        caller then takes :meth:`forward_unchecked` (retries, fallback, or SolverError)."""
+        prox = self.pinocchio_verified(q, v, tau)
+        if prox is None:
+            return None
+        return self._pinocchio_result(q, v, tau, self._v_ddq, prox.iter, self._rank)
+
+    def pinocchio_verified(self, q, v, tau):
+        """One ``pin.constraintDynamics`` call with the settings of the last verified call,
+        verified on Pinocchio's own ``M``, ``nle``, constraint Jacobian and drift (one
+        compiled kernel). Returns the proximal settings used (the answer is in
+        ``self.data.ddq`` / ``self.data.lambda_c``), or None when the model has no
+        verified call yet or this answer fails the verification (no input checks)."""
+        prox = self._pin_fast
+        if prox is None:
+            return None
+        model, data, cms, cds = self.model, self.data, self.pin_models, self.pin_datas
+        acc = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
+        # checked on Pinocchio's own M, nle, J and drift (J a = primal_rhs)
+        eom, con = kkt_residuals(self._v_mass, self._v_nle, tau,
+                                 pin.getConstraintsJacobian(model, data, cms, cds),
+                                 self._v_rhs, acc, self._v_lambda, self._res_out)
+        if eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL:
+            return prox
+        return None
 
     def _forward_pinocchio(self, q, v, tau, rank) -> TreeForwardDynamics:
         redundant = rank < self.n_rows

@@ -53,6 +53,8 @@ would be crossed.
 
 from __future__ import annotations
 
+import threading
+import weakref
 from dataclasses import dataclass
 from collections.abc import Sequence
 from typing import Any, NamedTuple
@@ -125,6 +127,13 @@ class JointBox(NamedTuple):
     v_index: np.ndarray   # (k,) their indices in v
 
 
+class SingleDofJoints(NamedTuple):
+    """The 1-DoF joints of a model (the ones whose position limits become QP bounds)."""
+
+    q_index: np.ndarray   # their indices in q
+    v_index: np.ndarray   # their indices in v
+
+
 @dataclass(frozen=True)
 class FrameIKResult:
     """Result of :func:`frame_inverse_kinematics`.
@@ -192,7 +201,8 @@ def frame_inverse_kinematics(clm: Any, frame: str, target: npt.ArrayLike,
     Raises:
         InputError: unknown frame or joint, bad target shape, non-positive weight, bad
             method or option.
-        AssemblyError: the closures cannot be held from ``q0`` with ``fixed`` held.
+        AssemblyError: the closures cannot be held from ``q0`` with ``fixed`` held (or,
+            exceptionally, at the closest placement found).
         SolverError: ProxSuite failed on a step whose null-space fallback would cross a
             joint limit, or neither convergence nor a stationary point within
             ``max_iter`` steps.
@@ -264,6 +274,12 @@ def frame_inverse_kinematics(clm: Any, frame: str, target: npt.ArrayLike,
             growth *= 2.0
         q, res_c = accepted
         closure = _max_abs(res_c)
+        if _max_abs(trial_err) <= tol and closure > closure_tol:
+            # on target with relaxed closures: close them exactly before judging
+            held = problem.retract(q, lin, closure_tol)
+            if held is not None:
+                q, res_c = held
+                closure, trial_err = _max_abs(res_c), problem.errors(q)
         history.append(_max_abs(trial_err))
         if history[-1] <= tol and closure <= closure_tol:
             return _result(clm, tasks, q, True, history, closure_tol)
@@ -340,32 +356,41 @@ def _fixed_indices(clm, fixed) -> np.ndarray:
     return np.unique(np.asarray(out, dtype=int))
 
 
-def _limits(clm, free: np.ndarray, q: np.ndarray) -> JointBox | None:
-    """The limited 1-DoF joints among the free coordinates, or None.
+def _limits(clm, free: np.ndarray, q: np.ndarray, single: SingleDofJoints) -> JointBox | None:
+    """The limited 1-DoF joints among the free coordinates, or None (limits read now).
 
     A joint that starts outside its range gets the range extended to its start value
     (it may come back, never go further out).
     """
     model = clm.model
-    lo: list[float] = []
-    hi: list[float] = []
-    qi: list[int] = []
-    pos: list[int] = []
-    where = {int(v): k for k, v in enumerate(free)}
-    for joint in model.joints[1:]:
-        if joint.nq != 1 or joint.nv != 1 or joint.idx_v not in where:
-            continue
-        low = model.lowerPositionLimit[joint.idx_q]
-        up = model.upperPositionLimit[joint.idx_q]
-        if -1e10 < low < up < 1e10:
-            lo.append(low)
-            hi.append(up)
-            qi.append(joint.idx_q)
-            pos.append(where[joint.idx_v])
-    if not pos:
+    where = np.full(clm.nv, -1)
+    where[free] = np.arange(free.size)
+    among = where[single.v_index] >= 0
+    qi, vi = single.q_index[among], single.v_index[among]
+    low, up = model.lowerPositionLimit[qi], model.upperPositionLimit[qi]
+    finite = (low > -1e10) & (low < up) & (up < 1e10)
+    if not finite.any():
         return None
-    pos_a, qi_a = np.array(pos, dtype=int), np.array(qi, dtype=int)
-    return JointBox(np.minimum(lo, q[qi_a]), np.maximum(hi, q[qi_a]), qi_a, pos_a, free[pos_a])
+    qi, vi, low, up = qi[finite], vi[finite], low[finite], up[finite]
+    return JointBox(np.minimum(low, q[qi]), np.maximum(up, q[qi]), qi, where[vi], vi)
+
+
+_PER_THREAD = threading.local()
+
+
+def _model_cache(clm: Any) -> tuple[Any, SingleDofJoints]:
+    """Per thread and model (weakly held): a Pinocchio data for the task frames and the
+    model's :class:`SingleDofJoints`, so that a solve does not rebuild them."""
+    store = getattr(_PER_THREAD, "models", None)
+    if store is None:
+        store = _PER_THREAD.models = weakref.WeakKeyDictionary()
+    entry = store.get(clm)
+    if entry is None or entry[2] is not clm.model:
+        joints = [(j.idx_q, j.idx_v) for j in clm.model.joints[1:] if j.nq == 1 and j.nv == 1]
+        single = SingleDofJoints(np.array([a for a, _ in joints], dtype=int),
+                                 np.array([b for _, b in joints], dtype=int))
+        entry = store[clm] = (clm.model.createData(), single, clm.model)
+    return entry[0], entry[1]
 
 
 class Linearisation(NamedTuple):
@@ -390,9 +415,9 @@ class _Problem:
         keep[fixed_v] = False
         self.free = np.flatnonzero(keep)
         self.all_free = self.free.size == clm.nv
-        self.box = _limits(clm, self.free, q) if (limits and method == "qp") else None
+        self.data, single = _model_cache(clm)
+        self.box = _limits(clm, self.free, q, single) if (limits and method == "qp") else None
         self.weight = np.concatenate([t.weight for t in tasks])
-        self.data = clm.model.createData()
         self.qp, self.qp_rows = None, -1
         self.selection = None            # the rows of the limited joints (QP inequalities)
         if self.box is not None:
@@ -502,8 +527,8 @@ class _Problem:
         if self.method == "qp" and self.box is not None and not self._inside(
                 pin.integrate(self.clm.model, q, self.full(step))):
             raise SolverError("proxsuite.proxqp.dense", str(self.qp.results.info.status),
-                              "frame inverse kinematics step (a limit is active: no "
-                              "null-space fallback)")
+                              "frame inverse kinematics step (its null-space fallback "
+                              "would cross a joint limit)")
         return step
 
     @staticmethod

@@ -7,7 +7,8 @@ The inputs are checked once for the whole batch; every state is then solved and 
 like a single call. Inverse dynamics evaluates ``M a + h`` of all states with Pinocchio's
 pooled ``rneaInParallel`` (OpenMP over a ``pin.ModelPool``). Pinocchio 4.1 has no pooled
 constrained forward dynamics (only ``abaInParallel``, unconstrained), so forward dynamics
-runs ``pin.constraintDynamics`` state after state on the calling thread.
+runs ``pin.constraintDynamics`` state after state on the calling thread, each on the
+short verified path of a single call (the inputs were checked once).
 
 Errors name the first failing state: :class:`~hexapod_pin.errors.SolverError` (detail
 prefixed by ``state i``), :class:`~hexapod_pin.errors.BatchActuatorSaturationError`.
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import numpy.typing as npt
@@ -50,18 +52,23 @@ class _PerStateResults:
         return tuple(r.status for r in self.results)
 
 
-@dataclass(frozen=True)
 class TreeForwardDynamicsBatch(_PerStateResults):
     """Result of :func:`forward_dynamics_tree_batch`.
 
     Attributes:
         a: tree accelerations (N, nv).
         results: the per-state :class:`~hexapod_pin.core.dynamics.TreeForwardDynamics`
-            (status, iterations, rank; multipliers converted on access).
+            (status, iterations, rank; multipliers converted on access), built on first
+            access from what the solves stored.
     """
 
-    a: np.ndarray
-    results: tuple[TreeForwardDynamics, ...]
+    def __init__(self, a: np.ndarray, make_results):
+        self.a = a
+        self._make_results = make_results
+
+    @cached_property
+    def results(self) -> tuple[TreeForwardDynamics, ...]:
+        return tuple(self._make_results())
 
 
 @dataclass(frozen=True)
@@ -136,15 +143,35 @@ def forward_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarr
     tau = _tau_ext(clm, tau_ext, n).copy()
     tau[:, clm.actuated_v] += u
     acc = np.empty((n, clm.nv))
-    results = []
+    # the short "pinocchio" path stores the answer and its iterations (0: a full result
+    # in `full`); the per-state results are built from the stored rows on access
+    lam = np.empty((n, clm.n_rows))
+    iters = np.zeros(n, dtype=int)
+    full: dict[int, TreeForwardDynamics] = {}
+    verified = dyn.pinocchio_verified if method == "pinocchio" else None
+    if verified is not None:
+        q, v = q.copy(), v.copy()          # the results keep views of their rows
+        ddq, lam_pin = dyn.data.ddq, dyn.data.lambda_c
     for i in range(n):
+        prox = None if verified is None else verified(q[i], v[i], tau[i])
+        if prox is not None:
+            acc[i], lam[i], iters[i] = ddq, lam_pin, prox.iter
+            continue
         try:
             res = dyn.forward_unchecked(q[i], v[i], tau[i], method)
         except SolverError as exc:
             raise _state_error(i, exc) from None
         acc[i] = res.a
-        results.append(res)
-    return TreeForwardDynamicsBatch(acc, tuple(results))
+        full[i] = res
+        if verified is not None:       # the first call sets the short path up
+            ddq, lam_pin = dyn.data.ddq, dyn.data.lambda_c
+    rank = dyn.closure_rank(q[0]) if n else 0
+
+    def make_results():
+        return [full[i] if i in full else
+                dyn.pinocchio_result_of(q[i], v[i], tau[i], acc[i], lam[i], int(iters[i]), rank)
+                for i in range(n)]
+    return TreeForwardDynamicsBatch(acc, make_results)
 
 
 def inverse_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarray,

@@ -166,6 +166,10 @@ class ChainGeometry:
     def __hash__(self) -> int:
         return hash(self.as_vector().tobytes())
 
+    def __reduce__(self):
+        # pickled by value, rebuilt (validated, read-only) by the constructor
+        return (ChainGeometry, tuple(getattr(self, name) for name, _ in CHAIN_FIELDS))
+
 
 def closure_pose(chains: ChainGeometry, q, start, *, max_iter: int = 50) -> np.ndarray:
     """Forward kinematics by Newton's method on the six closure equations
