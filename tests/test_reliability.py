@@ -314,3 +314,24 @@ def test_cli_json_is_strict_and_bad_files_are_one_line_errors(tmp_path):
         result = run.invoke(app, args)
         assert result.exit_code == 1 and "Traceback" not in result.output
         assert "not UTF-8" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_measures_say_whether_the_routes_answer(robot, planar):
+    """``singularity(pose).regular`` predicts exactly whether the dynamics answers."""
+    for bot, poses in ((robot, [robot.home_pose,
+                                np.array([0.0, 0.0, TYPE_I_HEIGHT - 1e-7, 0.0, 0.0, 0.0]),
+                                HEX_TYPE_II + 1e-9 * (robot.home_pose - HEX_TYPE_II)]),
+                       (planar, [planar.home_pose,
+                                 PLANAR_TYPE_II + 1e-10 * (planar.home_pose
+                                                           - PLANAR_TYPE_II)])):
+        for pose in poses:
+            measures = bot.singularity(pose)
+            assert (measures.type_one_threshold, measures.type_two_threshold) == \
+                (TYPE_I_TOL, TYPE_II_TOL)
+            zero = np.zeros(bot.pose_dim)
+            try:
+                bot.inverse_dynamics(pose, zero, zero, bounded=False)
+                answered = True
+            except hp.SingularityError:
+                answered = False
+            assert answered == measures.regular, (pose, measures)

@@ -48,6 +48,10 @@ SINGULARITY_LABELS = {
     "type_two_singular_values": ("singular values of A_hat",
                                  "A_hat = [e_i, (r_i x e_i) / length], rows per leg"),
     "characteristic_length": ("length (m)", "divides the angular columns of A_hat"),
+    "type_one_threshold": ("type I: threshold",
+                           "below it every route raises SingularityError"),
+    "type_two_threshold": ("type II: threshold",
+                           "below it every route raises SingularityError"),
 }
 
 

@@ -1,7 +1,8 @@
-"""Input checks shared by every module: arrays, branches, geometry scalars.
+"""Input checks shared by every module: arrays, branches, geometry scalars, scalar
+options (numbers and counts), and the finiteness check of returned values.
 
 Each raises a specific :class:`~hexapod_pin.errors.HexapodPinError` naming the argument
-and the offending values; nothing here returns NaN or prints.
+(or the returned field) and the offending values; nothing here returns NaN or prints.
 """
 
 from __future__ import annotations

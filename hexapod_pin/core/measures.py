@@ -79,4 +79,5 @@ def singularity_measures(jacobian: np.ndarray | None, cosines: np.ndarray,
     sv_a = np.linalg.svd(a_hat, compute_uv=False)
     sv_j = None if jacobian is None else np.linalg.svd(jacobian, compute_uv=False)
     return SingularityMeasures(sv_j, condition_number(sv_j), float(cosines[worst]), worst,
-                               float(sv_a[-1]), sv_a, float(characteristic_length))
+                               float(sv_a[-1]), sv_a, float(characteristic_length),
+                               TYPE_I_TOL, TYPE_II_TOL)

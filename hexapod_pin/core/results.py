@@ -271,6 +271,12 @@ class SingularityMeasures:
         type_two_singular_values: singular values of ``A_hat``, descending.
         characteristic_length: the length (m) dividing the angular columns of ``A_hat``
             (each robot's platform radius).
+        type_one_threshold, type_two_threshold: the values of ``type_one`` and
+            ``type_two`` below which every route refuses the pose with a
+            ``SingularityError`` (:data:`hexapod_pin.core.measures.TYPE_I_TOL`,
+            :data:`~hexapod_pin.core.measures.TYPE_II_TOL`): below them the answers'
+            relative accuracy is no longer guaranteed to
+            :data:`~hexapod_pin.core.measures.ACCURACY`.
     """
 
     jacobian_singular_values: np.ndarray | None
@@ -280,6 +286,15 @@ class SingularityMeasures:
     type_two: float
     type_two_singular_values: np.ndarray
     characteristic_length: float
+    type_one_threshold: float = 0.0
+    type_two_threshold: float = 0.0
+
+    @property
+    def regular(self) -> bool:
+        """Whether the routes answer at this pose: both measures at or above their
+        thresholds."""
+        return self.type_one >= self.type_one_threshold and \
+            self.type_two >= self.type_two_threshold
 
 
 @dataclass(frozen=True)
