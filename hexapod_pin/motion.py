@@ -203,7 +203,7 @@ def write_motion(path: str | os.PathLike, motion: Motion) -> Path:
 
 
 def _motion_from_csv(path: Path) -> Motion:
-    numbered = [(n, ln) for n, ln in enumerate(read_text(path, "motion file").splitlines(), 1)
+    numbered = [(n, ln) for n, ln in enumerate(read_text(path).splitlines(), 1)
                 if ln.strip() and not ln.lstrip().startswith("#")]
     if len(numbered) < 2:
         raise DescriptionError(str(path), "needs a header row and at least one data row")
@@ -248,7 +248,7 @@ def _is_number(text: str) -> bool:
 
 def _motion_from_json(path: Path) -> Motion:
     try:
-        data = json.loads(read_text(path, "motion file"))
+        data = json.loads(read_text(path))
     except json.JSONDecodeError as exc:
         raise DescriptionError(str(path), f"malformed JSON: {exc}") from None
     if not isinstance(data, dict) or "t" not in data or "pose" not in data:
