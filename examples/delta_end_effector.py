@@ -10,7 +10,10 @@ platform: 12 closure rows for a 3-DoF translating platform. The script
     as bounds), and prints the motor angles, the residuals and the iterations;
 (c) maps motor velocities to the platform velocity there (``frame_jacobian_from_actuated``);
 (d) asks for a tilted platform, which a delta cannot give: the closest reachable
-    placement comes back, flagged ``reachable=False``, its position on the target.
+    placement comes back, flagged ``reachable=False``, its position on the target;
+(e) folds the legs (forearms bent back along the upper arms, the platform above the base)
+    and asks for a point 2 cm lower, out of reach from there: the closest placement comes
+    back flagged, in a few steps.
 
 Usage::
 
@@ -61,6 +64,21 @@ def main() -> None:
     print(f"tilted target: reachable={closest.reachable}; closest placement at "
           f"{np.abs(miss).max():.1e} m from the target position, orientation error "
           f"{closest.target_residual:.3f} rad (the tilt a delta cannot make)")
+
+    folded = delta.neutral()
+    for k in range(3):                       # forearms folded back: the platform above the base
+        folded[delta.joint_q_index(f"motor_{k}")] = 1.2
+        folded[delta.joint_q_index(f"elbow_{k}_Y")] = 2.6
+        folded[delta.joint_q_index(f"wrist_{k}_Y")] = -3.0
+    folded = delta.assemble(folded).q
+    pin.framesForwardKinematics(delta.model, delta.data, folded)
+    top = delta.data.oMf[delta.frame_id("platform_center")].translation.copy()
+    below = delta.frame_inverse_kinematics("platform_center", top - [0.0, 0.0, 0.02], folded,
+                                           position_only=True)
+    print(f"folded legs, target 2 cm below {top} m: reachable={below.reachable} after "
+          f"{below.iterations} iterations, closest placement "
+          f"{np.linalg.norm(below.errors) * 1e3:.2f} mm from it, closures "
+          f"{below.closure_residual:.1e} m")
 
 
 if __name__ == "__main__":

@@ -460,6 +460,9 @@ def test_example_runs(script, expected, capsys):
                    run_name="__main__")
     out = capsys.readouterr().out
     assert expected in out
+    if script == "delta_end_effector.py":
+        line = next(l for l in out.splitlines() if l.startswith("folded legs"))
+        assert "reachable=False" in line
     if script == "hexapod_platform_generic_ik.py":
         line = next(l for l in out.splitlines() if l.startswith("largest difference"))
         assert float(line.split()[2]) <= 1e-10

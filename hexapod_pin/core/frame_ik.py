@@ -406,7 +406,8 @@ class Linearisation(NamedTuple):
 
 class _Problem:
     """What one solve keeps between its steps: tasks, free coordinates, limits, a Pinocchio
-    data of its own for the task frames, the ProxSuite QP (updated, not rebuilt)."""
+    data for the task frames (one per thread and model), the ProxSuite QP (updated, not
+    rebuilt)."""
 
     def __init__(self, clm, tasks, fixed_v, method, closure_tol, limits, q):
         self.clm, self.tasks, self.method, self.closure_tol = clm, tasks, method, closure_tol
