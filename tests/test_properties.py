@@ -197,7 +197,7 @@ SINGULAR_POSES = {
 @given(robots, st.integers(0, 2), st.floats(0.0, 15.0), unit12)
 def test_walks_toward_singularities_answer_accurately_or_refuse(name, which, digits, rates):
     robot = ROBOTS[name]
-    d, n = dims(robot)
+    d = robot.pose_dim
     target = SINGULAR_POSES[name][which % len(SINGULAR_POSES[name])]
     pose = target + 10.0 ** -digits * (robot.home_pose - target)
     rates = np.array(rates)
