@@ -29,6 +29,8 @@ import hexapod_pin as hp
 from hexapod_pin.cli import app
 from hexapod_pin.core.description import build_model
 from hexapod_pin.core.measures import ACCURACY
+from hexapod_pin.hexapod.fast import simulate_fast
+from hexapod_pin.hexapod.simulation import simulate
 
 ROBOTS = {"hexapod": hp.Hexapod.default(), "planar": hp.Planar3PRR.default()}
 PROFILE = settings(max_examples=60, deadline=None, database=None, derandomize=True,
@@ -197,7 +199,7 @@ SINGULAR_POSES = {
 @given(robots, st.integers(0, 2), st.floats(0.0, 15.0), unit12)
 def test_walks_toward_singularities_answer_accurately_or_refuse(name, which, digits, rates):
     robot = ROBOTS[name]
-    d, n = dims(robot)
+    d = robot.pose_dim
     target = SINGULAR_POSES[name][which % len(SINGULAR_POSES[name])]
     pose = target + 10.0 ** -digits * (robot.home_pose - target)
     rates = np.array(rates)
@@ -275,3 +277,34 @@ def test_cli_bad_numbers_one_line_error_and_valid_json(command, slot, token, as_
     assert len(lines) <= 1 + 5 * (result.exit_code == 2), result.stderr  # usage: typer's box
     if as_json and result.exit_code == 1:
         strict_json(result.stdout or "{}")
+
+
+# -- simulation options ------------------------------------------------------------------------------
+BAD_OPTIONS = {"duration": [None, "x", math.nan, -1.0, 0.0, math.inf, 1e300, 1 + 2j],
+               "dt": [None, "x", math.nan, -1e-3, 0.0, 1e-300, True],
+               "record_every": ["x", 2.5, 0, -1, None, True],
+               "kp": ["x", math.nan, -1.0, None, math.inf],
+               "kd": ["x", math.nan, -5.0, None]}
+
+
+@SMALL
+@given(st.sampled_from(sorted(BAD_OPTIONS)), st.integers(0, 10), st.booleans())
+def test_bad_simulation_options_are_input_errors_naming_them(option, pick, compiled):
+    robot = ROBOTS["hexapod"]
+    value = BAD_OPTIONS[option][pick % len(BAD_OPTIONS[option])]
+    kwargs = {"duration": 0.01, "dt": 1e-3, "record_every": 1}
+    reference = (robot.home_pose[None], np.zeros((1, 6)))
+    if option in ("kp", "kd"):
+        if not compiled:
+            return                      # the Python route's gains live in its controller
+        kwargs["reference"] = reference
+    kwargs[option] = value
+    try:
+        if compiled:
+            simulate_fast(robot, **kwargs)
+        else:
+            simulate(robot, **kwargs)
+    except hp.InputError as exc:
+        assert exc.name == option or (option == "duration" and exc.name == "dt"), exc
+        return
+    raise AssertionError(f"{option}={value!r} accepted")

@@ -199,7 +199,7 @@ def parse_numbers(tokens: Sequence[str] | None, count: int | None, name: str,
         InputError: a token that is not a number, an empty field between commas, another
             count, NaN or inf.
     """
-    parts = []
+    parts: list[str] = []
     for chunk in (c for tok in (tokens or []) for c in str(tok).split()):
         pieces = chunk.split(",")
         if "" in pieces[1:-1]:

@@ -22,9 +22,10 @@ from .results import SingularityMeasures
 ACCURACY = 1e-6
 #: a pose is type-I singular for every route of every robot when the smallest ``|cos|``
 #: between a chain's last link and its actuator direction is below this. The round-trip
-#: error grows like ``u / |cos|^4`` at a moving platform (``u`` the unit round-off): measured
-#: 1.2e-7 at ``|cos|`` = 2e-3 on the hexapod (0.1 m/s, 0.5 rad/s) and 3e-8 on the 3-PRR,
-#: 5e-5 and 7e-7 at ``|cos|`` = 6e-4 / 8e-4
+#: error grows like ``u |twist|^2 / |cos|^4`` at a moving platform (``u`` the unit
+#: round-off): measured 1.2e-7 at ``|cos|`` = 2e-3 on the hexapod (0.1 m/s, 0.5 rad/s) and
+#: 3e-8 on the 3-PRR, 5e-5 and 7e-7 at ``|cos|`` = 6e-4 / 8e-4; 5e-7 at 0.3 m/s and
+#: 1.5 rad/s (the speeds the guarantee covers), 1e-5 at 1 m/s and 5 rad/s
 TYPE_I_TOL = 2e-3
 #: a pose is type-II singular for every route of every robot when
 #: ``sigma_min(A_hat) < TYPE_II_TOL`` (``A_hat``: :func:`closure_matrix_hat`). The round-trip

@@ -116,9 +116,10 @@ Controller = Callable[[SimState, float], np.ndarray]
 
 #: default derivative gain of the joint PID (N s/m): stable at the default step of 1 ms
 PID_KD = 600.0
-#: the most steps one run may take, and the most samples it may record
+#: the most steps one run may take, and the most samples it may record (each sample of
+#: :func:`simulate` holds the tree state, about 400 bytes for the hexapod)
 MAX_STEPS = 10 ** 9
-MAX_SAMPLES = 10 ** 7
+MAX_SAMPLES = 2 * 10 ** 6
 
 
 class PIDController:
