@@ -274,7 +274,8 @@ class IdentifiabilityError(HexapodPinError, ValueError):
         combinations: the combinations the data leave undetermined, in words.
     """
 
-    def __init__(self, reason: str, needed: int, rank: int, combinations=()):
+    def __init__(self, reason: str, needed: int, rank: int,
+                 combinations: Iterable[object] = ()):
         self.needed = int(needed)
         self.rank = int(rank)
         self.combinations = [str(c) for c in combinations]

@@ -498,7 +498,8 @@ class ClosedLoopDynamics:
         return self.pinocchio_result_of(q.copy(), v.copy(), tau, acc.copy(),
                                         self._v_lambda.copy(), iters, rank)
 
-    def pinocchio_result_of(self, q, v, tau, acc, lam_pin, iters: int,
+    def pinocchio_result_of(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
+                            acc: np.ndarray, lam_pin: np.ndarray, iters: int,
                             rank: int) -> TreeForwardDynamics:
         """The result of a verified Pinocchio solve from arrays the caller owns (kept as
         they are, no copies): ``acc`` (nv,) and Pinocchio's LOCAL multipliers ``lam_pin``.
@@ -516,7 +517,8 @@ class ClosedLoopDynamics:
         return TreeForwardDynamics(acc, _MinNormRows(self, q, v, acc, tau), "pinocchio",
                                    status, iters, rank, -1.0)
 
-    def forward_actuated(self, q, v, actuator_forces, tau_ext=None,
+    def forward_actuated(self, q: npt.ArrayLike, v: npt.ArrayLike,
+                         actuator_forces: npt.ArrayLike, tau_ext: npt.ArrayLike | None = None,
                          method: str = "pinocchio") -> TreeForwardDynamics:
         """:func:`forward_dynamics_tree` on this workspace (same arguments after ``clm``).
 
@@ -551,7 +553,8 @@ class ClosedLoopDynamics:
         return _solve_checked(lambda: self.forward_unchecked(q, v, tau, method), ("q", q),
                               ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
 
-    def forward_pinocchio_fast(self, q, v, tau) -> TreeForwardDynamics | None:
+    def forward_pinocchio_fast(self, q: np.ndarray, v: np.ndarray,
+                               tau: np.ndarray) -> TreeForwardDynamics | None:
         """The short "pinocchio" route (no input checks; ``tau`` is kept by the result):
         :meth:`pinocchio_verified`, then the result. None when that gives no answer: the
         caller then takes :meth:`forward_unchecked` (retries, fallback, or SolverError)."""
@@ -560,7 +563,8 @@ class ClosedLoopDynamics:
             return None
         return self._pinocchio_result(q, v, tau, self._v_ddq, prox.iter, self._rank)
 
-    def pinocchio_verified(self, q, v, tau):
+    def pinocchio_verified(self, q: np.ndarray, v: np.ndarray,
+                           tau: np.ndarray) -> pin.ProximalSettings | None:
         """One ``pin.constraintDynamics`` call with the settings of the last verified call,
         verified on Pinocchio's own ``M``, ``nle``, constraint Jacobian and drift (one
         compiled kernel). Returns the proximal settings used (the answer is in
@@ -1314,7 +1318,8 @@ class _PinRows:
 
     def __init__(self, dyn: ClosedLoopDynamics, q: np.ndarray, lam_pin: np.ndarray,
                  jac: np.ndarray | None = None):
-        self.dyn, self.q, self.lam_pin, self.jac, self.value = dyn, q, lam_pin, jac, None
+        self.dyn, self.q, self.lam_pin, self.jac = dyn, q, lam_pin, jac
+        self.value: np.ndarray | None = None
 
     def __call__(self) -> np.ndarray:
         if self.value is None:
@@ -1334,8 +1339,10 @@ class _MinNormRows:
 
     __slots__ = ("acc", "dyn", "q", "tau", "v", "value")
 
-    def __init__(self, dyn: ClosedLoopDynamics, q, v, acc, tau):
-        self.dyn, self.q, self.v, self.acc, self.tau, self.value = dyn, q, v, acc, tau, None
+    def __init__(self, dyn: ClosedLoopDynamics, q: np.ndarray, v: np.ndarray,
+                 acc: np.ndarray, tau: np.ndarray):
+        self.dyn, self.q, self.v, self.acc, self.tau = dyn, q, v, acc, tau
+        self.value: np.ndarray | None = None
 
     def __call__(self) -> np.ndarray:
         if self.value is None:

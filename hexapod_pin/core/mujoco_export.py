@@ -46,6 +46,7 @@ from __future__ import annotations
 from typing import Any, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import InputError, MissingDependencyError
@@ -232,7 +233,8 @@ def _quaternion_joints(model: pin.Model):
     return out
 
 
-def mujoco_state(clm: ClosedLoopModel, q, v=None, a=None) -> MujocoState:
+def mujoco_state(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike | None = None,
+                 a: npt.ArrayLike | None = None) -> MujocoState:
     """MuJoCo's ``qpos`` / ``qvel`` / ``qacc`` for Pinocchio's ``q``, ``v``, ``a`` of ``clm``.
 
     Equal entry by entry on 1-DoF joints; quaternions reordered from ``(x, y, z, w)`` to
@@ -242,7 +244,9 @@ def mujoco_state(clm: ClosedLoopModel, q, v=None, a=None) -> MujocoState:
 
     Args:
         clm: the closed-loop model.
-        q: configuration (nq,); v, a: velocity, acceleration (nv,), optional (zero / None).
+        q: configuration (nq,).
+        v: velocity (nv,), optional (zero when None).
+        a: acceleration (nv,), optional (``qacc`` None when None).
 
     Raises:
         InputError: bad shapes or non-finite values.
@@ -250,7 +254,8 @@ def mujoco_state(clm: ClosedLoopModel, q, v=None, a=None) -> MujocoState:
     q = clm.check_q(q)
     v = np.zeros(clm.nv) if v is None else clm.check_v(v)
     qpos, qvel = q.copy(), v.copy()
-    qacc = None if a is None else clm.check_v(a).copy()
+    acc = None if a is None else clm.check_v(a)
+    qacc = None if acc is None else acc.copy()
     for iq, iv, free in _quaternion_joints(clm.model):
         quat = q[iq + 3:iq + 7] if free else q[iq:iq + 4]
         at = iq + 3 if free else iq
@@ -260,12 +265,12 @@ def mujoco_state(clm: ClosedLoopModel, q, v=None, a=None) -> MujocoState:
             rot = pin.Quaternion(quat).normalized().matrix()
             lin, ang = v[iv:iv + 3], v[iv + 3:iv + 6]
             qvel[iv:iv + 3] = rot @ lin
-            if qacc is not None:
-                qacc[iv:iv + 3] = rot @ (a[iv:iv + 3] + np.cross(ang, lin))
+            if qacc is not None and acc is not None:
+                qacc[iv:iv + 3] = rot @ (acc[iv:iv + 3] + np.cross(ang, lin))
     return MujocoState(qpos, qvel, qacc)
 
 
-def velocity_map(clm: ClosedLoopModel, q) -> np.ndarray:
+def velocity_map(clm: ClosedLoopModel, q: npt.ArrayLike) -> np.ndarray:
     """``T`` (nv, nv) with MuJoCo's ``qvel = T v`` at ``q``: identity but for each free
     flyer's linear block, the rotation ``R`` of its quaternion. Hence ``M_mj = T^-T M
     T^-1``, a constraint Jacobian ``J_mj = J T^-1`` and generalised forces

@@ -17,8 +17,10 @@ prefixed by ``state i``), :class:`~hexapod_pin.errors.BatchActuatorSaturationErr
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -39,7 +41,9 @@ from .dynamics import (
 class _PerStateResults:
     """What both batch results read from their per-state results (``self.results``)."""
 
-    results: tuple
+    if TYPE_CHECKING:              # a field or a cached property of each result class
+        @property
+        def results(self) -> tuple: ...
 
     @property
     def multipliers(self) -> np.ndarray:
@@ -62,7 +66,8 @@ class TreeForwardDynamicsBatch(_PerStateResults):
             access from what the solves stored.
     """
 
-    def __init__(self, a: np.ndarray, make_results):
+    def __init__(self, a: np.ndarray,
+                 make_results: Callable[[], Sequence[TreeForwardDynamics]]):
         self.a = a
         self._make_results = make_results
 

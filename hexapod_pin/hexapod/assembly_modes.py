@@ -688,7 +688,8 @@ def _distinct(points: np.ndarray, tol: float) -> list[int]:
 CONTINUATION_STEPS = 8
 
 
-def forward_as_built(chains: ChainGeometry, q, guess, max_iter: int = 50) -> np.ndarray:
+def forward_as_built(chains: ChainGeometry, q: npt.ArrayLike, guess: npt.ArrayLike,
+                     max_iter: int = 50) -> np.ndarray:
     """Forward kinematics of an as-built robot: Newton's method on the six closure
     equations ``|t + R p_i - c_i(q)| = L_i`` (:func:`~hexapod_pin.hexapod.geometry.
     closure_pose`) from ``guess`` (6,), converging to the assembly mode whose basin holds
@@ -708,7 +709,7 @@ def forward_as_built(chains: ChainGeometry, q, guess, max_iter: int = 50) -> np.
     return pose
 
 
-def modes_as_built(geometry: HexapodGeometry, q) -> list[np.ndarray]:
+def modes_as_built(geometry: HexapodGeometry, q: npt.ArrayLike) -> list[np.ndarray]:
     """The assembly modes of an as-built robot at readings ``q`` (6,), by continuation
     from those of its ideal drawing.
 
