@@ -25,7 +25,6 @@ Two kinds of rank loss are told apart:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -190,7 +189,7 @@ def check_data(scaled: np.ndarray, base: np.ndarray, rcond: float, n_measurement
     return sigma
 
 
-def null_space(scaled: np.ndarray, columns: Sequence[int], rcond: float) -> np.ndarray:
+def null_space(scaled: np.ndarray, columns: np.ndarray, rcond: float) -> np.ndarray:
     """Orthonormal null space (len(columns), k) of the scaled columns."""
     sub = scaled[:, columns]
     _, sigma, vt = np.linalg.svd(sub, full_matrices=sub.shape[0] < sub.shape[1])

@@ -19,7 +19,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.optimize import least_squares
+import numpy.typing as npt
+from scipy.optimize import OptimizeResult, least_squares
 
 from ..errors import InputError, SolverError
 from ..hexapod.robot import Hexapod
@@ -41,9 +42,11 @@ from .results import CalibrationResult, ParameterEstimate, ResidualSummary, meas
 TOLERANCE = 1e-15
 
 
-def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
-              target_points=None, identify: Sequence[str] | str = DEFAULT_IDENTIFY,
-              instrument=None, target=None, noise=DEFAULT_NOISE,
+def calibrate(robot: Hexapod, poses: npt.ArrayLike | None = None, actuators: npt.ArrayLike | None = None, *,
+              points: npt.ArrayLike | None = None, target_points: npt.ArrayLike | None = None,
+              identify: Sequence[str] | str = DEFAULT_IDENTIFY,
+              instrument: npt.ArrayLike | None = None, target: npt.ArrayLike | None = None,
+              noise: npt.ArrayLike = DEFAULT_NOISE,
               rcond: float = ident.RCOND, method: str = "lm",
               max_nfev: int = 200) -> CalibrationResult:
     """Identify the as-built geometry of ``robot`` from measurements.
@@ -133,7 +136,8 @@ def calibrate(robot: Hexapod, poses=None, actuators=None, *, points=None,
 
 
 def solve(problem: Problem, base: np.ndarray, scales: np.ndarray, method: str,
-          max_nfev: int, rcond: float = ident.RCOND):
+          max_nfev: int,
+          rcond: float = ident.RCOND) -> tuple[np.ndarray, np.ndarray, OptimizeResult]:
     """Least squares over the base parameters (scaled), from the start model.
 
     Returns:

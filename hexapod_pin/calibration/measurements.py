@@ -24,6 +24,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import DescriptionError, InputError
 from ..files import write_text_atomic
@@ -38,7 +39,7 @@ def point_columns(count: int) -> tuple[str, ...]:
     return tuple(f"p{j}_{a}" for j in range(count) for a in "xyz")
 
 
-def read_measurements(path: str | os.PathLike, target_points=None,
+def read_measurements(path: str | os.PathLike, target_points: npt.ArrayLike | None = None,
                       degrees: bool = False) -> Measurements:
     """Measurements from a CSV file (see the module doc).
 
@@ -102,16 +103,18 @@ def read_measurements(path: str | os.PathLike, target_points=None,
     return Measurements.checked(q, points=pts, target_points=target_points)
 
 
-def measurements_csv(actuators, poses=None, points=None) -> str:
+def measurements_csv(actuators: npt.ArrayLike, poses: npt.ArrayLike | None = None,
+                     points: npt.ArrayLike | None = None) -> str:
     """CSV text of measurements (the format of :func:`read_measurements`, angles in rad,
     numbers as their shortest exact decimal)."""
     data = Measurements.checked(actuators, poses, points,
                                 None if points is None else np.zeros((np.shape(points)[1], 3)))
-    if data.kind == "poses":
+    if data.poses is not None:
         header, body = POSE_COLUMNS, data.poses
     else:
-        header = point_columns(data.points.shape[1])
-        body = data.points.reshape(data.count, -1)
+        points = data.point_arrays()[0]
+        header = point_columns(points.shape[1])
+        body = points.reshape(data.count, -1)
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(header + ACTUATOR_COLUMNS)
@@ -120,7 +123,8 @@ def measurements_csv(actuators, poses=None, points=None) -> str:
     return out.getvalue()
 
 
-def write_measurements(path: str | os.PathLike, actuators, poses=None, points=None) -> Path:
+def write_measurements(path: str | os.PathLike, actuators: npt.ArrayLike,
+                       poses: npt.ArrayLike | None = None, points: npt.ArrayLike | None = None) -> Path:
     """Write measurements to a CSV file (atomically); returns the path.
 
     Raises:

@@ -40,8 +40,8 @@ import numpy as np
 
 from ..core.pose import euler_rates_matrix, rotation_from_rpy, rpy_from_rotation, skew
 from ..errors import AssemblyError
-from ..hexapod.geometry import closure_pose
-from .parameters import INSTRUMENT, N_CHAIN, N_PARAMETERS, TARGET, ParameterModel
+from ..hexapod.geometry import ChainGeometry, closure_pose
+from .parameters import INSTRUMENT, N_CHAIN, N_PARAMETERS, TARGET, Frames, ParameterModel
 
 
 @dataclass(frozen=True)
@@ -49,8 +49,11 @@ class Legs:
     """The legs of N measurements at a platform pose (world frame).
 
     Attributes:
-        legs: ``n`` (N, 6, 3) m; arms: ``r = R p`` (N, 6, 3) m; e: residual (N, 6) m;
-        dot: ``n . u`` (N, 6) m^2 / m; grad: ``g`` (N, 6, 3).
+        legs: ``n`` (N, 6, 3) m.
+        arms: ``r = R p`` (N, 6, 3) m.
+        e: residual (N, 6) m.
+        dot: ``n . u`` (N, 6) m^2 / m.
+        grad: ``g`` (N, 6, 3).
     """
 
     legs: np.ndarray
@@ -60,7 +63,7 @@ class Legs:
     grad: np.ndarray
 
 
-def legs_at(chains, rot: np.ndarray, trans: np.ndarray, q: np.ndarray) -> Legs:
+def legs_at(chains: ChainGeometry, rot: np.ndarray, trans: np.ndarray, q: np.ndarray) -> Legs:
     """The legs for platform rotations ``rot`` (N, 3, 3), translations ``trans`` (N, 3) and
     readings ``q`` (N, 6) on the chain geometry ``chains``."""
     arms = np.einsum("nab,ib->nia", rot, chains.platform_joints)
@@ -73,7 +76,8 @@ def legs_at(chains, rot: np.ndarray, trans: np.ndarray, q: np.ndarray) -> Legs:
     return Legs(legs, arms, e, dot, grad)
 
 
-def chain_jacobian(params: ParameterModel, theta: np.ndarray, chains, rot: np.ndarray,
+def chain_jacobian(params: ParameterModel, theta: np.ndarray, chains: ChainGeometry,
+                   rot: np.ndarray,
                    q: np.ndarray, lg: Legs) -> np.ndarray:
     """``de/d(chain parameters)`` at a fixed platform pose, (N, 6, 9): residual ``e_i``
     depends on chain ``i``'s nine parameters only."""
@@ -111,7 +115,8 @@ def scatter_chains(block: np.ndarray) -> np.ndarray:
     return out
 
 
-def platform_from_measured(params: ParameterModel, theta: np.ndarray, poses: np.ndarray):
+def platform_from_measured(params: ParameterModel, theta: np.ndarray,
+                           poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Platform rotations (N, 3, 3) and translations (N, 3) in the world for measured
     target poses (N, 6) in the instrument frame: ``T_WP = T_WI T_IT T_PT^-1``."""
     fr = params.frames(theta)
@@ -123,12 +128,14 @@ def platform_from_measured(params: ParameterModel, theta: np.ndarray, poses: np.
 
 
 def pose_residuals(params: ParameterModel, theta: np.ndarray, poses: np.ndarray,
-                   q: np.ndarray, with_jacobian: bool = True):
+                   q: np.ndarray,
+                   with_jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """Pose model: closure residuals (N, 6) (m) and, with ``with_jacobian``, their
     Jacobian (6N, 66).
 
     Args:
-        params: the parameter model; theta: deviations (66,).
+        params: the parameter model.
+        theta: deviations (66,).
         poses: measured target poses in the instrument frame (N, 6) (m, rad).
         q: actuator readings (N, 6) (m).
     """
@@ -176,7 +183,7 @@ class PointModel:
         self.q = q
         self.starts = np.array(start_poses, dtype=float)
 
-    def platform_poses(self, chains) -> np.ndarray:
+    def platform_poses(self, chains: ChainGeometry) -> np.ndarray:
         """Forward kinematics of every reading on ``chains`` (N, 6), from the kept starts.
 
         Raises:
@@ -193,7 +200,8 @@ class PointModel:
         self.starts = out
         return out
 
-    def predicted(self, theta: np.ndarray, platform: np.ndarray):
+    def predicted(self, theta: np.ndarray,
+                  platform: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Predicted points in the instrument frame (N, M, 3), the world points (N, M, 3)
         and the platform rotations (N, 3, 3) at platform poses ``platform`` (N, 6)."""
         fr = self.params.frames(theta)
@@ -203,7 +211,8 @@ class PointModel:
         pred = (world - fr.instrument_translation) @ fr.instrument_rotation
         return pred, world, rot
 
-    def residuals(self, theta: np.ndarray, with_jacobian: bool = True):
+    def residuals(self, theta: np.ndarray,
+                  with_jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         """Residuals (N, M, 3) (m, measured minus predicted) and their Jacobian (3NM, 66)."""
         chains = self.params.chains(theta)
         platform = self.platform_poses(chains)
@@ -213,7 +222,8 @@ class PointModel:
             return res, None
         return res, self.jacobian(theta, chains, platform, world, rot)
 
-    def jacobian(self, theta, chains, platform, world, rot) -> np.ndarray:
+    def jacobian(self, theta: np.ndarray, chains: ChainGeometry, platform: np.ndarray,
+                 world: np.ndarray, rot: np.ndarray) -> np.ndarray:
         """``d(residual)/d(theta)`` (3NM, 66) at the forward-kinematics poses."""
         params = self.params
         fr = params.frames(theta)
@@ -239,7 +249,7 @@ class PointModel:
         return -d_pred.reshape(3 * n * m, N_PARAMETERS)
 
 
-def measured_poses(rot: np.ndarray, trans: np.ndarray, frames) -> np.ndarray:
+def measured_poses(rot: np.ndarray, trans: np.ndarray, frames: Frames) -> np.ndarray:
     """Target poses in the instrument frame (N, 6) of platform poses in the world
     (``T_IT = T_WI^-1 T_WP T_PT``), rotations (N, 3, 3), translations (N, 3)."""
     r_it = frames.instrument_rotation.T @ rot @ frames.target_rotation

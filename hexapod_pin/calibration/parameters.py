@@ -36,6 +36,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.checks import as_array
 from ..core.pose import rotation_from_rpy
@@ -132,9 +133,12 @@ class Frames:
     """The two frames of a measurement as rotations and translations.
 
     Attributes:
-        instrument_rotation, instrument_translation: the instrument frame in the robot's
-            world, ``x_world = R x_instrument + t`` ((3, 3), (3,) m).
-        target_rotation, target_translation: the target frame in the platform frame.
+        instrument_rotation: rotation (3, 3) of the instrument frame in the robot's world,
+            ``x_world = R x_instrument + t``.
+        instrument_translation: its translation ``t`` (3,) (m).
+        target_rotation: rotation (3, 3) of the target frame in the platform frame,
+            ``x_platform = R x_target + t``.
+        target_translation: its translation ``t`` (3,) (m).
     """
 
     instrument_rotation: np.ndarray
@@ -152,7 +156,9 @@ class ParameterModel:
         target: guessed pose of the target frame in the platform frame (6,) (m, rad).
 
     Attributes:
-        start: the start :class:`ChainGeometry`; instrument, target: the guessed poses.
+        start: the start :class:`ChainGeometry`.
+        instrument: the guessed instrument pose (6,) (m, rad).
+        target: the guessed target pose (6,) (m, rad).
         basis: the normals of each nominal line (6, 2, 3) (:func:`normal_basis`).
         scales: (66,) the scale of each parameter (1 mm, 1 mrad).
 
@@ -160,7 +166,8 @@ class ParameterModel:
         InputError: a frame pose of the wrong shape or not finite.
     """
 
-    def __init__(self, chains: ChainGeometry, instrument=None, target=None):
+    def __init__(self, chains: ChainGeometry, instrument: npt.ArrayLike | None = None,
+                 target: npt.ArrayLike | None = None):
         self.start = chains
         self.instrument = (np.zeros(6) if instrument is None
                            else as_array(instrument, (6,), "instrument").copy())
@@ -199,7 +206,8 @@ class ParameterModel:
                + dev[:, 3:4] * self.basis[:, 1])
         return np.linalg.norm(raw, axis=1)
 
-    def deviations_of(self, chains: ChainGeometry, instrument=None, target=None) -> np.ndarray:
+    def deviations_of(self, chains: ChainGeometry, instrument: npt.ArrayLike | None = None,
+                      target: npt.ArrayLike | None = None) -> np.ndarray:
         """The deviations ``theta`` (66,) of given chains and frames: the inverse of
         :meth:`chains` and :meth:`frame_poses` (a line point is moved along its line onto
         the plane normal to the nominal line, its sensor zero taking the shift).

@@ -10,7 +10,9 @@ microradians on the axes.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -20,14 +22,16 @@ from .results import ValidationReport
 MICRO = 1e6
 
 
-def plot_validation_errors(report: ValidationReport, *, path=None, title: str = ""):
+def plot_validation_errors(report: ValidationReport, *, path: str | os.PathLike | None = None,
+                           title: str = "") -> Any:
     """Histograms of the validation errors of the nominal and the identified model:
     actuator errors (um, every reading), target position errors (um) and, for poses,
     rotation errors (urad), on logarithmic bins.
 
     Args:
         report: :meth:`~hexapod_pin.calibration.results.CalibrationResult.validate`'s report.
-        path: where to save the figure (optional); title: figure title.
+        path: where to save the figure (optional).
+        title: figure title.
 
     Returns:
         the ``matplotlib.figure.Figure``.
@@ -65,7 +69,7 @@ def plot_validation_errors(report: ValidationReport, *, path=None, title: str = 
 
 def plot_error_against_poses(counts: Sequence[int], curves: Mapping[str, Sequence[float]], *,
                              ylabel: str = "validation position error RMS (um)",
-                             path=None, title: str = ""):
+                             path: str | os.PathLike | None = None, title: str = "") -> Any:
     """Validation error against the number of measurement poses, one curve per way of
     choosing them (e.g. ``{"random": [...], "selected (O1)": [...]}``), in the units
     given (plotted as given, log scale).

@@ -13,10 +13,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.checks import as_array
 from ..core.pose import rotation_from_rpy
 from ..errors import InputError
+from ..hexapod.robot import Hexapod
 from .model import PointModel, closure_noise, measured_poses, pose_residuals
 from .parameters import N_PARAMETERS, ParameterModel
 
@@ -54,16 +56,47 @@ class Measurements:
         """``"poses"`` or ``"points"``."""
         return "poses" if self.poses is not None else "points"
 
-    @classmethod
-    def checked(cls, actuators, poses=None, points=None, target_points=None) -> Measurements:
-        """Measurements from raw arrays.
+    def pose_array(self) -> np.ndarray:
+        """The measured target poses (N, 6) in the instrument frame (m, rad).
 
         Raises:
-            InputError: wrong shapes or non-finite values, both or neither of ``poses``
-                and ``points``, ``points`` without ``target_points`` (or with another
-                number of points), more than three points, a count differing between the
-                readings and the measurements, or no measurement.
+            InputError: point measurements (no poses).
         """
+        if self.poses is None:
+            raise InputError("poses", None, "point measurements have no poses")
+        return self.poses
+
+    def point_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """The measured target points (N, M, 3) in the instrument frame and their
+        coordinates (M, 3) in the target frame (m).
+
+        Raises:
+            InputError: pose measurements (no points), or points without target points.
+        """
+        if self.points is None or self.target_points is None:
+            raise InputError("points", None, "pose measurements have no points")
+        return self.points, self.target_points
+
+    @classmethod
+    def checked(cls, actuators: npt.ArrayLike | None, poses: npt.ArrayLike | None = None,
+                points: npt.ArrayLike | None = None,
+                target_points: npt.ArrayLike | None = None) -> Measurements:
+        """Measurements from raw arrays.
+
+        Args:
+            actuators: readings (N, 6) (m); required (None is refused).
+            poses: measured target poses (N, 6) in the instrument frame (m, rad), or None.
+            points: measured target points (N, M, 3) in the instrument frame (m), or None.
+            target_points: the points in the target frame (M, 3) (m), with ``points``.
+
+        Raises:
+            InputError: no readings, wrong shapes or non-finite values, both or neither
+                of ``poses`` and ``points``, ``points`` without ``target_points`` (or with
+                another number of points), more than three points, a count differing between
+                the readings and the measurements, or no measurement.
+        """
+        if actuators is None:
+            raise InputError("actuators", None, "the actuator readings (N, 6) are required")
         q = as_array(actuators, (6,), "actuators", batch=True)
         if q.shape[0] == 0:
             raise InputError("actuators", actuators, "no measurement")
@@ -96,7 +129,7 @@ class Measurements:
 DEFAULT_NOISE = (1e-5, 2e-5, 1e-6)
 
 
-def check_noise(noise) -> tuple[float, float, float]:
+def check_noise(noise: npt.ArrayLike) -> tuple[float, float, float]:
     """``noise`` as three standard deviations (position m, rotation rad, readings m).
 
     Raises:
@@ -119,7 +152,8 @@ class Problem:
     less. Point measurements: the point errors divided by the position noise.
 
     Args:
-        params: the parameter model; data: the measurements.
+        params: the parameter model.
+        data: the measurements.
         start_poses: for point measurements, world platform poses (N, 6) where the
             forward kinematics starts (e.g. the nominal robot's forward kinematics).
         noise: standard deviations (position m, rotation rad, readings m); only their
@@ -127,18 +161,27 @@ class Problem:
 
     Attributes:
         weights: per residual (rows,), 1 / standard deviation (1/m).
+
+    Raises:
+        InputError: bad ``noise``, point measurements without ``start_poses``, or a
+            measured pose where a leg of the start model is perpendicular to its line.
     """
 
     def __init__(self, params: ParameterModel, data: Measurements,
-                 start_poses: np.ndarray | None = None, noise=DEFAULT_NOISE):
+                 start_poses: np.ndarray | None = None,
+                 noise: npt.ArrayLike = DEFAULT_NOISE):
         self.params = params
         self.data = data
-        self.points = None
+        self.points: PointModel | None = None
         noise = check_noise(noise)
-        if data.kind == "points":
-            self.points = PointModel(params, data.points, data.target_points, data.actuators,
+        if data.poses is None:                               # point measurements
+            points, target_points = data.point_arrays()
+            if start_poses is None:
+                raise InputError("start_poses", None, "point measurements need the poses "
+                                 "(N, 6) where the forward kinematics starts")
+            self.points = PointModel(params, points, target_points, data.actuators,
                                      start_poses)
-            self.weights = np.full(data.points.size, 1.0 / max(noise[0], 1e-300))
+            self.weights = np.full(points.size, 1.0 / max(noise[0], 1e-300))
         else:
             sigma = closure_noise(params, np.zeros(N_PARAMETERS), data.poses, data.actuators,
                                   noise)
@@ -155,10 +198,11 @@ class Problem:
         """Weighted residual vector (rows,) (dimensionless: standard deviations) and its
         Jacobian (rows, 66) at ``theta`` (the last evaluation is kept: least squares asks
         for both at the same point)."""
-        if self._theta is not None and np.array_equal(theta, self._theta):
+        if (self._theta is not None and self._value is not None
+                and np.array_equal(theta, self._theta)):
             return self._value
         if self.points is None:
-            res, jac = pose_residuals(self.params, theta, self.data.poses,
+            res, jac = pose_residuals(self.params, theta, self.data.pose_array(),
                                       self.data.actuators)
         else:
             res, jac = self.points.residuals(theta)
@@ -167,7 +211,7 @@ class Problem:
         return self._value
 
 
-def reference_poses(robot, count: int = 60, seed: int = 0, scale: float = 1.0) -> np.ndarray:
+def reference_poses(robot: Hexapod, count: int = 60, seed: int = 0, scale: float = 1.0) -> np.ndarray:
     """World platform poses (n <= count, 6) spread about the robot's home pose: uniform
     within ``scale * REFERENCE_TRANSLATION * platform_radius`` (m) and ``scale *
     REFERENCE_ROTATION`` (rad) per coordinate (a fixed seed), kept when reachable, within
@@ -190,8 +234,9 @@ def reference_poses(robot, count: int = 60, seed: int = 0, scale: float = 1.0) -
     return poses[np.min(cosine, axis=1) >= REFERENCE_MIN_COS]
 
 
-def reference_measurements(robot, params: ParameterModel, kind: str,
-                           target_points: np.ndarray | None, count: int = 60):
+def reference_measurements(robot: Hexapod, params: ParameterModel, kind: str,
+                           target_points: np.ndarray | None,
+                           count: int = 60) -> tuple[Measurements, np.ndarray]:
     """Exact measurements of the start model at :func:`reference_poses`, as the
     measurement model ``kind`` sees them, and the world poses used."""
     world = reference_poses(robot, count)
@@ -200,6 +245,8 @@ def reference_measurements(robot, params: ParameterModel, kind: str,
     rot = rotation_from_rpy(world[:, 3:])
     if kind == "poses":
         return Measurements(q, poses=measured_poses(rot, world[:, :3], frames)), world
+    if target_points is None:
+        raise InputError("target_points", None, "point measurements need the target points")
     model = PointModel(params, np.zeros((len(world),) + target_points.shape), target_points,
                        q, world)
     pred, _, _ = model.predicted(np.zeros(N_PARAMETERS), world)

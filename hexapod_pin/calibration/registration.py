@@ -19,9 +19,11 @@ drawing, wherever the instrument stands (a tracker metres away, turned by any an
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
 from ..errors import AssemblyError
+from ..hexapod.robot import Hexapod
 from .problem import Measurements
 
 #: fewest registered points (non-collinear ones are needed)
@@ -38,7 +40,8 @@ def rigid_fit(source: np.ndarray, destination: np.ndarray) -> tuple[np.ndarray, 
     return rot, cd - rot @ cs
 
 
-def register_instrument(robot, data: Measurements, target=None) -> np.ndarray:
+def register_instrument(robot: Hexapod, data: Measurements,
+                        target: npt.ArrayLike | None = None) -> np.ndarray:
     """A guess of the instrument pose in the robot's world (6,) (m, rad) from measurements.
 
     Args:
@@ -51,10 +54,10 @@ def register_instrument(robot, data: Measurements, target=None) -> np.ndarray:
         :data:`MIN_POINTS` readings assemble on the nominal robot.
     """
     targ = np.zeros(6) if target is None else np.asarray(target, dtype=float)
-    if data.kind == "poses":
+    if data.poses is not None:
         local = targ[None, :3]                                     # target origin
     else:
-        local = data.target_points @ rotation_from_rpy(targ[3:]).T + targ[:3]
+        local = data.point_arrays()[1] @ rotation_from_rpy(targ[3:]).T + targ[:3]
     world, measured, turns = [], [], []
     for k, q in enumerate(data.actuators):
         try:
@@ -63,13 +66,13 @@ def register_instrument(robot, data: Measurements, target=None) -> np.ndarray:
             continue
         rot = rotation_from_rpy(pose[3:])
         world.append(pose[:3] + local @ rot.T)
-        if data.kind == "poses":
+        if data.poses is not None:
             measured.append(data.poses[k, None, :3])
             # R_WI ~ R_WP R_PT R_IT^T for this measurement
             turns.append(rot @ rotation_from_rpy(targ[3:])
                          @ rotation_from_rpy(data.poses[k, 3:]).T)
         else:
-            measured.append(data.points[k])
+            measured.append(data.point_arrays()[0][k])
     if len(world) < MIN_POINTS:
         return np.zeros(6)
     source, destination = np.concatenate(measured), np.concatenate(world)

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial.transform import Rotation
 
 from ..core.pose import rotation_from_rpy
@@ -34,7 +35,9 @@ class ParameterEstimate:
     """One parameter of the calibration.
 
     Attributes:
-        name: e.g. ``chain2.sensor_offset``; unit: ``m`` or ``rad``; group: its group.
+        name: e.g. ``chain2.sensor_offset``.
+        unit: ``m`` or ``rad``.
+        group: its parameter group.
         deviation: identified value minus the start value (m or rad).
         std_error: its standard error (m or rad); None when not in the base set (held at
             the start value).
@@ -55,7 +58,9 @@ class ResidualSummary:
     poses, point errors for points).
 
     Attributes:
-        rms: root mean square; max: largest absolute value; count: number of residuals.
+        rms: root mean square (m).
+        max: largest absolute value (m).
+        count: number of residuals.
         normalized_rms: RMS of the residuals divided by their standard deviations under
             the noise model (about 1 at the solution when the noise model is right).
     """
@@ -150,18 +155,21 @@ class CalibrationResult:
             instrument or target frame trades with the lines or joints (see
             ``identifiability``), those frames are held at their guesses and the robot's
             frames are defined through them.
-        chains: ``geometry.chains``; instrument: identified pose of the instrument frame
-            in the world (6,); target: identified pose of the target frame in the platform
-            frame (6,) (m, rad).
+        chains: ``geometry.chains``.
+        instrument: identified pose of the instrument frame in the world (6,) (m, rad).
+        target: identified pose of the target frame in the platform frame (6,) (m, rad).
         parameters: every requested parameter (:class:`ParameterEstimate`).
         covariance: covariance of the base parameters (n, n), order of ``identifiability.base``
             (m, rad).
-        residuals_before, residuals_after: :class:`ResidualSummary` at the start and at
-            the solution.
+        residuals_before: :class:`ResidualSummary` at the start.
+        residuals_after: :class:`ResidualSummary` at the solution.
         identifiability: what the data identify
             (:class:`~hexapod_pin.calibration.identifiability.IdentifiabilityReport`).
-        iterations: function evaluations of the least squares; status, message: scipy's.
-        measurement: ``"poses"`` or ``"points"``; target_points: (M, 3) or None.
+        iterations: function evaluations of the least squares.
+        status: scipy's ``least_squares`` status.
+        message: scipy's ``least_squares`` message.
+        measurement: ``"poses"`` or ``"points"``.
+        target_points: the points in the target frame (M, 3) (m), or None (poses).
         nominal_geometry: the start model in the measurement frames (the geometry of
             :attr:`nominal_robot`).
     """
@@ -197,7 +205,8 @@ class CalibrationResult:
         """Standard error of every base parameter by name (m, rad)."""
         return {p.name: p.std_error for p in self.parameters if p.std_error is not None}
 
-    def validate(self, poses=None, actuators=None, *, points=None) -> ValidationReport:
+    def validate(self, poses: npt.ArrayLike | None = None, actuators: npt.ArrayLike | None = None, *,
+                 points: npt.ArrayLike | None = None) -> ValidationReport:
         """Errors of the nominal and of the identified model on held-out measurements
         (same kind as the calibration's).
 
@@ -227,7 +236,8 @@ class CalibrationResult:
 def model_errors(robot: Hexapod, data: Measurements) -> ModelErrors:
     """Errors of a robot commanded in the measurement frames on measurements ``data``
     (rows it cannot reach or assemble are left out and counted)."""
-    guesses = data.poses if data.kind == "poses" else np.tile(robot.home_pose, (data.count, 1))
+    guesses = data.poses if data.poses is not None else np.tile(robot.home_pose,
+                                                                (data.count, 1))
     fk_rows, predicted = [], []
     for k, (q, guess) in enumerate(zip(data.actuators, guesses)):
         try:
@@ -238,14 +248,16 @@ def model_errors(robot: Hexapod, data: Measurements) -> ModelErrors:
     rows = np.array(fk_rows, dtype=int)
     pred = np.array(predicted).reshape(-1, 6)
     rot = rotation_from_rpy(pred[:, 3:])
-    if data.kind == "points":
-        pts = pred[:, None, :3] + np.einsum("nab,mb->nma", rot, data.target_points)
-        dist = np.max(np.linalg.norm(pts - data.points[rows], axis=2), axis=1)
+    if data.poses is None:                                   # point measurements
+        points, target_points = data.point_arrays()
+        pts = pred[:, None, :3] + np.einsum("nab,mb->nma", rot, target_points)
+        dist = np.max(np.linalg.norm(pts - points[rows], axis=2), axis=1)
         return ModelErrors(None, None, dist, None, rows, data.count)
-    batch = robot.inverse_kinematics_batch(data.poses)
+    poses = data.poses
+    batch = robot.inverse_kinematics_batch(poses)
     ik_rows = np.flatnonzero(batch.reachable)
-    pos = np.linalg.norm(pred[:, :3] - data.poses[rows, :3], axis=1)
-    rel = np.swapaxes(rot, 1, 2) @ rotation_from_rpy(data.poses[rows, 3:])
+    pos = np.linalg.norm(pred[:, :3] - poses[rows, :3], axis=1)
+    rel = np.swapaxes(rot, 1, 2) @ rotation_from_rpy(poses[rows, 3:])
     angle = Rotation.from_matrix(rel).magnitude() if rows.size else np.empty(0)
     return ModelErrors(batch.actuator_positions[ik_rows] - data.actuators[ik_rows], ik_rows,
                        pos, angle, rows, data.count)

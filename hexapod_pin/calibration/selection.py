@@ -27,6 +27,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.checks import as_array
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
@@ -52,9 +53,10 @@ class PoseSelection:
     Attributes:
         indices: indices into the candidates (n,), in the order chosen.
         poses: the chosen world poses (n, 6) (m, rad).
-        criterion: ``"O1"`` or ``"D"``; value: its value for the chosen set.
-        o1, log_det: both indices of the chosen set (O1 dimensionless per mm / mrad,
-            ``log det`` of the scaled information matrix).
+        criterion: ``"O1"`` or ``"D"``.
+        value: the criterion's value for the chosen set.
+        o1: the O1 index of the chosen set (dimensionless, per mm / mrad).
+        log_det: ``log det`` of the scaled information matrix of the chosen set.
         swaps: exchanges made (0 for greedy).
     """
 
@@ -79,8 +81,9 @@ def observability(blocks: np.ndarray) -> tuple[float, float]:
 
 
 def candidate_blocks(robot: Hexapod, candidates: np.ndarray,
-                     identify: Sequence[str] | str = DEFAULT_IDENTIFY, instrument=None,
-                     target=None, target_points=None) -> tuple[np.ndarray, np.ndarray]:
+                     identify: Sequence[str] | str = DEFAULT_IDENTIFY,
+                     instrument: npt.ArrayLike | None = None, target: npt.ArrayLike | None = None,
+                     target_points: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Scaled Jacobian blocks of the base set at each candidate, (C, r, n), and the mask
     (len(candidates),) of the candidates kept (reachable, within the strokes)."""
     params = ParameterModel(robot.geometry.chain_geometry, instrument, target)
@@ -93,7 +96,7 @@ def candidate_blocks(robot: Hexapod, candidates: np.ndarray,
     world, q = candidates[batch.ok], batch.actuator_positions[batch.ok]
     frames = params.frames(np.zeros(N_PARAMETERS))
     rot = rotation_from_rpy(world[:, 3:])
-    if kind == "poses":
+    if tp is None:
         data = Measurements(q, poses=measured_poses(rot, world[:, :3], frames))
     else:
         model = PointModel(params, np.zeros((len(world),) + tp.shape), tp, q, world)
@@ -112,9 +115,10 @@ def _gains(blocks: np.ndarray, info: np.ndarray) -> np.ndarray:
     return np.linalg.slogdet(inner)[1]
 
 
-def select_poses(robot: Hexapod, candidates, n: int, *, criterion: str = "O1",
+def select_poses(robot: Hexapod, candidates: npt.ArrayLike, n: int, *, criterion: str = "O1",
                  method: str = "greedy", identify: Sequence[str] | str = DEFAULT_IDENTIFY,
-                 instrument=None, target=None, target_points=None,
+                 instrument: npt.ArrayLike | None = None, target: npt.ArrayLike | None = None,
+                 target_points: npt.ArrayLike | None = None,
                  max_rounds: int = 20) -> PoseSelection:
     """Choose ``n`` measurement poses among ``candidates`` (see the module doc).
 
@@ -123,10 +127,16 @@ def select_poses(robot: Hexapod, candidates, n: int, *, criterion: str = "O1",
         candidates: world platform poses (C, 6) (m, rad); those out of reach or stroke are
             skipped.
         n: poses to choose.
-        criterion: ``"O1"`` or ``"D"``; method: ``"greedy"`` or ``"exchange"``.
-        identify, instrument, target, target_points: as in
-            :func:`~hexapod_pin.calibration.identify.calibrate` (the parameters to identify and the
-            measurement model).
+        criterion: ``"O1"`` or ``"D"``.
+        method: ``"greedy"`` or ``"exchange"``.
+        identify: the parameter groups to identify, as in
+            :func:`~hexapod_pin.calibration.identify.calibrate`.
+        instrument: guessed pose of the instrument frame in the world (6,) (m, rad), as in
+            :func:`~hexapod_pin.calibration.identify.calibrate`; default the identity.
+        target: guessed pose of the target frame in the platform frame (6,) (m, rad), as
+            in :func:`~hexapod_pin.calibration.identify.calibrate`; default the identity.
+        target_points: (M, 3) target-frame coordinates of measured points (m) for the
+            point model, or None for the pose model.
         max_rounds: exchange passes at most.
 
     Returns:
@@ -184,8 +194,9 @@ def select_poses(robot: Hexapod, candidates, n: int, *, criterion: str = "O1",
 
 def select_measurements(robot: Hexapod, data: Measurements, n: int, *, criterion: str = "O1",
                         method: str = "greedy",
-                        identify: Sequence[str] | str = DEFAULT_IDENTIFY, instrument=None,
-                        target=None) -> PoseSelection:
+                        identify: Sequence[str] | str = DEFAULT_IDENTIFY,
+                        instrument: npt.ArrayLike | None = None,
+                        target: npt.ArrayLike | None = None) -> PoseSelection:
     """Choose ``n`` rows of existing measurements (:func:`select_poses` on the world poses
     they correspond to on the nominal model: measured poses through the guessed frames,
     the instrument's by default registered as in
@@ -201,7 +212,7 @@ def select_measurements(robot: Hexapod, data: Measurements, n: int, *, criterion
     """
     if instrument is None:
         instrument = register_instrument(robot, data, target)
-    if data.kind == "poses":
+    if data.poses is not None:
         params = ParameterModel(robot.geometry.chain_geometry, instrument, target)
         rot, trans = platform_from_measured(params, np.zeros(N_PARAMETERS), data.poses)
         world = np.concatenate([trans, rpy_from_rotation(rot)], axis=1)

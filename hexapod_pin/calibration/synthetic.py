@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial.transform import Rotation
 
 from ..core.checks import as_array
@@ -52,7 +53,7 @@ class SyntheticData:
     points: np.ndarray | None
 
 
-def frames_of(instrument, target) -> Frames:
+def frames_of(instrument: npt.ArrayLike | None, target: npt.ArrayLike | None) -> Frames:
     """:class:`~.parameters.Frames` of two poses (6,) (None: the identity)."""
     inst = np.zeros(6) if instrument is None else as_array(instrument, (6,), "instrument")
     targ = np.zeros(6) if target is None else as_array(target, (6,), "target")
@@ -70,8 +71,9 @@ def true_pose_pinocchio(nominal: Hexapod, true: Hexapod, pose: np.ndarray,
     return true.pose_from_configuration(done.q)
 
 
-def synthetic_measurements(robot: Hexapod, true_geometry: HexapodGeometry, commanded, *,
-                           instrument=None, target=None, target_points=None,
+def synthetic_measurements(robot: Hexapod, true_geometry: HexapodGeometry,
+                           commanded: npt.ArrayLike, *, instrument: npt.ArrayLike | None = None,
+                           target: npt.ArrayLike | None = None, target_points: npt.ArrayLike | None = None,
                            position_noise: float = 0.0, rotation_noise: float = 0.0,
                            actuator_noise: float = 0.0, seed: int = 0,
                            route: str = "pinocchio") -> SyntheticData:
@@ -84,7 +86,9 @@ def synthetic_measurements(robot: Hexapod, true_geometry: HexapodGeometry, comma
         instrument: true pose of the instrument frame in the world (6,), default identity.
         target: true pose of the target frame in the platform frame (6,), default identity.
         target_points: (M, 3) points in the target frame (m) to measure as well, or None.
-        position_noise, rotation_noise, actuator_noise: standard deviations (m, rad, m).
+        position_noise: standard deviation of the measured target positions (m).
+        rotation_noise: standard deviation of the measured target orientations (rad).
+        actuator_noise: standard deviation of the readings (m).
         seed: of the noise generator.
         route: ``"pinocchio"`` or ``"closed_form"``.
 

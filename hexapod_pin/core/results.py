@@ -271,12 +271,12 @@ class SingularityMeasures:
         type_two_singular_values: singular values of ``A_hat``, descending.
         characteristic_length: the length (m) dividing the angular columns of ``A_hat``
             (each robot's platform radius).
-        type_one_threshold, type_two_threshold: the values of ``type_one`` and
-            ``type_two`` below which every route refuses the pose with a
-            ``SingularityError`` (:data:`hexapod_pin.core.measures.TYPE_I_TOL`,
-            :data:`~hexapod_pin.core.measures.TYPE_II_TOL`): below them the answers'
-            relative accuracy is no longer guaranteed to
-            :data:`~hexapod_pin.core.measures.ACCURACY`.
+        type_one_threshold: the value of ``type_one`` below which every route refuses
+            the pose with a ``SingularityError``
+            (:data:`hexapod_pin.core.measures.TYPE_I_TOL`): below it the answers' relative
+            accuracy is no longer guaranteed to :data:`~hexapod_pin.core.measures.ACCURACY`.
+        type_two_threshold: the same for ``type_two``
+            (:data:`~hexapod_pin.core.measures.TYPE_II_TOL`).
     """
 
     jacobian_singular_values: np.ndarray | None

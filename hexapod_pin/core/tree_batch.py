@@ -23,7 +23,6 @@ from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import ActuatorSaturationError, BatchActuatorSaturationError, InputError, SolverError
