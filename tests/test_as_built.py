@@ -14,6 +14,7 @@ import json
 import pickle
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from typer.testing import CliRunner
 
@@ -279,6 +280,23 @@ def test_jacobian_against_finite_differences_and_the_tree(built, rng):
         _, v = tree_state(built, pose, twist)
         close(v[built.indices.carriage_v], jac @ twist)
         close(built.twist_from_qdot(pose, jac @ twist), twist)
+
+
+def test_leg_motion_against_the_tree_bodies(built, rng):
+    """Leg directions, centres of mass and angular velocities == Pinocchio's leg bodies."""
+    model = built.model.model
+    data = model.createData()
+    pose, twist = random_pose(built, rng), 0.3 * rng.normal(size=6)
+    q, v = tree_state(built, pose, twist)
+    pin.forwardKinematics(model, data, q, v)
+    motion = built.leg_motion(pose, twist)
+    for i in range(6):
+        joint = model.getJointId(f"u_{i}_b")
+        placement = data.oMi[joint]
+        close(motion.direction[i], placement.rotation[:, 2], 1e-12)
+        close(motion.com_position[i], placement.act(model.inertias[joint].lever), 1e-12)
+        close(motion.angular_velocity[i],
+              pin.getVelocity(model, data, joint, pin.LOCAL_WORLD_ALIGNED).angular)
 
 
 # -- dynamics against the generic Pinocchio routes -----------------------------------------
