@@ -48,7 +48,8 @@ import numpy.typing as npt
 
 from ..core.pose import rotation_rpy, rpy_of
 from ..errors import AssemblyError
-from .geometry import ChainGeometry, HexapodGeometry, closure_pose, leg_residuals
+from .geometry import (ChainGeometry, HexapodGeometry, closure_pose, continue_pose,
+                       leg_residuals)
 
 #: the three triangle equations, as (j, k) pairs of rails
 PAIRS = ((0, 1), (1, 2), (2, 0))
@@ -684,10 +685,6 @@ def _distinct(points: np.ndarray, tol: float) -> list[int]:
 # --------------------------------------------------------------------------------------
 # as-built robots: Newton on the six closure equations, continuation from the drawing
 # --------------------------------------------------------------------------------------
-#: geometry steps of the continuation from the ideal drawing to the as-built chains
-CONTINUATION_STEPS = 8
-
-
 def forward_as_built(chains: ChainGeometry, q: npt.ArrayLike, guess: npt.ArrayLike,
                      max_iter: int = 50) -> np.ndarray:
     """Forward kinematics of an as-built robot: Newton's method on the six closure
@@ -716,12 +713,14 @@ def modes_as_built(geometry: HexapodGeometry, q: npt.ArrayLike) -> list[np.ndarr
     The ideal robot's modes at the same readings come from the complete enumeration
     (:func:`enumerate_assemblies`); each is followed along the straight line from the
     drawing's :class:`~hexapod_pin.hexapod.geometry.ChainGeometry` vector to the as-built
-    one in ``CONTINUATION_STEPS`` steps (directions renormalised at each), Newton's
-    method on the six closure equations at each step; the modes that arrive are
-    verified by :func:`~hexapod_pin.hexapod.geometry.closure_pose`'s tolerance and
-    deduplicated. For deviations small against the distances between the modes
-    (millimetres on this robot) every mode is followed; a mode that meets a type-II
-    singularity on the way is lost (not replaced by a wrong pose).
+    one (:func:`~hexapod_pin.hexapod.geometry.continue_pose`: Newton's method on the six
+    closure equations at each step, adaptive steps); the modes that arrive are verified
+    by :func:`~hexapod_pin.hexapod.geometry.closure_pose`'s tolerance and deduplicated.
+    A mode that meets a fold on the way (two real assemblies merge and cease to exist)
+    or a type-II singularity is lost, never replaced by a wrong pose. Completeness is
+    not guaranteed: an as-built robot may have assemblies with no ideal counterpart
+    (the drawing is a special, symmetric case); for millimetre deviations the tests find
+    every mode of the drawing.
 
     Returns:
         the distinct poses (6,) found, in no particular order.
@@ -734,17 +733,11 @@ def modes_as_built(geometry: HexapodGeometry, q: npt.ArrayLike) -> list[np.ndarr
     system = circle_system(cg, q)
     if system is None:
         return []
-    start = ChainGeometry.ideal(geometry).as_vector()
-    stop = geometry.chain_geometry.as_vector()
-    steps = [ChainGeometry.from_vector(start + t * (stop - start))
-             for t in np.linspace(0.0, 1.0, CONTINUATION_STEPS + 1)[1:]]
+    start, stop = ChainGeometry.ideal(geometry), geometry.chain_geometry
     found: list[np.ndarray] = []
     for theta in enumerate_assemblies(system):
         pose = np.array(pose_from_points_t(cg, system.points_t(*theta.tolist())))
-        for chains in steps:
-            pose = closure_pose(chains, q, pose)
-            if pose is None:
-                break
+        pose = continue_pose(start, stop, q, pose)
         if pose is not None and not any(
                 np.max(np.abs(pose - other)) <= 1e-9 for other in found):
             found.append(pose)

@@ -24,8 +24,10 @@ lengths ``leg_length`` and ``platform_joints[i] = p_k`` (``k = i // 2``), which 
 ``carriage_min_gap``) apply to the readings ``q``, the type-II measure keeps the nominal
 ``platform_radius`` as its length scale, and the masses and inertias are the nominal ones
 (each leg a uniform rod of its own length). An as-built home pose is the forward
-kinematics of ``home_q`` on the home branch, started from the ideal home pose
-(:func:`closure_pose`).
+kinematics of ``home_q`` on the home branch: the ideal home's assembly, moved by the rigid
+motion that best fits the drawing's joint centres onto the as-built ones, followed from
+the drawing to the as-built chains (:func:`continue_pose`, Newton's method at each step),
+so that it is the same assembly mode as the drawing's home.
 """
 
 from __future__ import annotations
@@ -56,6 +58,12 @@ CHAIN_VECTOR_SIZE = 66
 #: residual (m, relative to ``max(1, leg length)``) below which :func:`closure_pose` has
 #: converged
 CLOSURE_TOL = 1e-12
+#: largest step and smallest step of :func:`continue_pose` (fractions of the path)
+CONTINUATION_STEP = 1.0
+CONTINUATION_MIN_STEP = 1.0 / 4096.0
+#: largest move of the platform in one continuation step (m, and rad of rotation): a
+#: larger one is a jump to another assembly, and the step is halved
+CONTINUATION_MAX_MOVE = 0.02
 
 
 def _frozen(value: np.ndarray) -> np.ndarray:
@@ -220,6 +228,71 @@ def closure_pose(chains: ChainGeometry, q, start, *, max_iter: int = 50) -> np.n
     return None
 
 
+def rigid_fit(points, targets) -> tuple[np.ndarray, np.ndarray]:
+    """The rotation ``R`` (3, 3) and translation ``t`` (3,) (m) minimising
+    ``sum |R points_i + t - targets_i|^2`` (Kabsch; a proper rotation) for (n, 3) arrays."""
+    points, targets = np.asarray(points, dtype=float), np.asarray(targets, dtype=float)
+    p0, t0 = points.mean(axis=0), targets.mean(axis=0)
+    u, _, vt = np.linalg.svd((targets - t0).T @ (points - p0))
+    flip = np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt)) or 1.0])
+    rot = u @ flip @ vt
+    return rot, t0 - rot @ p0
+
+
+def continue_pose(start: ChainGeometry, stop: ChainGeometry, q, pose) -> np.ndarray | None:
+    """Follow an assembly from the geometry ``start`` to ``stop`` at fixed readings.
+
+    First ``start`` and ``pose`` are moved by the rigid motion that best fits ``start``'s
+    joint centres at ``q`` onto ``stop``'s (least squares; the moved pose assembles the
+    moved chains exactly, so a measuring instrument's frame far from the robot's costs
+    nothing). Then the chains move on the straight line between the two
+    :meth:`ChainGeometry.as_vector` (directions renormalised); at each step
+    :func:`closure_pose` starts from the previous pose. A step is accepted when Newton's method converges and the platform moves by at
+    most ``CONTINUATION_MAX_MOVE`` (m, and rad of rotation; a larger move is a jump to
+    another assembly); otherwise it is halved, down to ``CONTINUATION_MIN_STEP`` of the
+    path. Accepted steps double again up to ``CONTINUATION_STEP``.
+
+    Args:
+        start, stop: the two geometries (``pose`` assembles ``start``).
+        q: (6,) actuator readings (m).
+        pose: (6,) an assembly of ``start`` at ``q`` (m, rad).
+
+    Returns:
+        (6,) the assembly of ``stop`` the path leads to (``closure_pose`` from ``pose``
+        when the two geometries are equal), or None where the assembly is lost
+        (it meets a fold, i.e. merges with another one and ceases to exist, or a
+        type-II singularity).
+    """
+    if start == stop:
+        return closure_pose(stop, q, pose)
+    rot_fit, shift = rigid_fit(start.carriage_points(q), stop.carriage_points(q))
+    start = ChainGeometry(line_points=start.line_points @ rot_fit.T + shift,
+                          line_directions=start.line_directions @ rot_fit.T,
+                          sensor_offsets=start.sensor_offsets, leg_lengths=start.leg_lengths,
+                          platform_joints=start.platform_joints)
+    pose = np.asarray(pose, dtype=float)
+    rot = rot_fit @ rotation_from_rpy(pose[3:])
+    pose = np.concatenate([rot_fit @ pose[:3] + shift, rpy_from_rotation(rot)])
+    a, b = start.as_vector(), stop.as_vector()
+    done, step = 0.0, CONTINUATION_STEP
+    while done < 1.0:
+        t = min(1.0, done + step)
+        found = closure_pose(ChainGeometry.from_vector(a + t * (b - a)), q, pose)
+        if found is not None:
+            new_rot = rotation_from_rpy(found[3:])
+            cosine = 0.5 * (np.trace(rot.T @ new_rot) - 1.0)
+            turn = math.acos(min(1.0, max(-1.0, cosine)))
+            if max(float(np.max(np.abs(found[:3] - pose[:3]))), turn) \
+                    <= CONTINUATION_MAX_MOVE:
+                done, pose, rot = t, found, new_rot
+                step = min(2.0 * step, CONTINUATION_STEP)
+                continue
+        step /= 2.0
+        if step < CONTINUATION_MIN_STEP:
+            return None
+    return pose
+
+
 def leg_residuals(chains: ChainGeometry, q, pose) -> np.ndarray:
     """Closure residuals ``|t + R p_i - c_i(q)| - L_i`` (6,) (m) of a pose (6,) at the
     readings ``q`` (6,)."""
@@ -354,12 +427,13 @@ class HexapodGeometry:
         if np.any(np.abs(frames[:, 2, 0]) > 1.0 - 1e-6):
             raise GeometryError("chains.line_directions", chains.line_directions,
                                 "a line along the vertical has no carriage frame")
-        pose = closure_pose(chains, self.home_q, ideal)
+        pose = continue_pose(ChainGeometry.ideal(self), chains, self.home_q, ideal)
         if pose is None or not np.array_equal(branch_of(chains, self.home_q, pose),
                                               HOME_SIGNS):
             raise GeometryError("chains", chains,
-                                "home cannot be assembled: no pose on the home branch "
-                                "closes the six legs at home_q (Newton from the ideal home)")
+                                "home cannot be assembled: the ideal home's assembly, "
+                                "followed to these chains at home_q, is lost (a fold or a "
+                                "singularity on the way) or leaves the home branch")
         return pose
 
     @property
