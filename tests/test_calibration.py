@@ -207,11 +207,6 @@ def test_noisy_calibration_end_to_end(nominal, truth, commanded):
     assert identified["position_rms"] < 4e-5 and identified["rotation_rms"] < 1e-4
 
 
-@pytest.mark.xfail(strict=True, raises=GeometryError, reason=(
-    "HexapodGeometry assembles an as-built home by Newton from the IDEAL home pose, which "
-    "does not converge for lines expressed in a frame far from the robot's world (here "
-    "1.5 m, 0.4 rad); hexapod/geometry.py needs a start moved by the rigid fit of the "
-    "ideal onto the as-built carriage points"))
 def test_a_far_instrument_is_registered(nominal, truth, commanded):
     """A tracker 1.5 m away and turned by 0.4 rad: the registration starts the fit."""
     far = np.array([1.5, -0.8, 0.2, 0.05, -0.03, 0.4])
