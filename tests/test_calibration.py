@@ -21,7 +21,7 @@ from hexapod_pin.calibration.parameters import N_PARAMETERS, NAMES, ParameterMod
 from hexapod_pin.calibration.problem import reference_poses
 from hexapod_pin.calibration.selection import candidate_blocks, observability, select_poses
 from hexapod_pin.cli import app
-from hexapod_pin.errors import DescriptionError, GeometryError, InputError
+from hexapod_pin.errors import DescriptionError, InputError
 from hexapod_pin.files import load_geometry
 
 INSTRUMENT = np.array([2e-3, -1e-3, 1.5e-3, 1e-3, -2e-3, 1.5e-3])
