@@ -4,13 +4,87 @@ Kernels are compiled with ``@njit(cache=True)``: the machine code is cached next
 module (or in numba's user cache directory when that is read-only), so only the first
 call after an install compiles. Kernels never raise: they return an integer status and
 the caller raises the library's exception with its values.
+
+Cache freshness: numba keys a cached kernel on its own source file only, but a kernel
+compiled into another module's kernel (``batch`` and ``fast`` inline ``kernels``) is
+frozen into that module's cache. The cache locators registered here (:func:`source_stamp`)
+key every kernel of this package on the contents of ALL its compiled modules instead, so
+an edit to any of them recompiles every kernel on next use (never stale machine code).
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import math
+from pathlib import Path
 
 import numba
+from numba.core import caching
+
+#: the package's source folder (``hexapod_pin/``)
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
+
+
+def compiled_modules() -> list[Path]:
+    """The package's source files that hold compiled kernels (those mentioning ``jit``),
+    sorted."""
+    return sorted(path for path in PACKAGE_DIR.rglob("*.py")
+                  if "jit" in path.read_text(encoding="utf-8"))
+
+
+@functools.lru_cache(maxsize=1)
+def source_stamp() -> str:
+    """SHA-256 of the contents of every file of :func:`compiled_modules` (and their paths
+    relative to the package): the freshness stamp of every cached kernel of the package."""
+    digest = hashlib.sha256()
+    for path in compiled_modules():
+        digest.update(str(path.relative_to(PACKAGE_DIR)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def _in_package(py_file: str) -> bool:
+    try:
+        Path(py_file).resolve().relative_to(PACKAGE_DIR)
+    except (OSError, ValueError):
+        return False
+    return True
+
+
+class PackageInTreeLocator(caching.InTreeCacheLocator):
+    """numba's ``__pycache__`` locator for this package's kernels, stamped with
+    :func:`source_stamp` instead of the kernel's own file."""
+
+    def get_source_stamp(self) -> str:
+        return source_stamp()
+
+    @classmethod
+    def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
+        return super().from_function(py_func, py_file) if _in_package(py_file) else None
+
+
+class PackageUserWideLocator(caching.UserWideCacheLocator):
+    """numba's user-wide locator (read-only installs) for this package's kernels, stamped
+    with :func:`source_stamp`."""
+
+    def get_source_stamp(self) -> str:
+        return source_stamp()
+
+    @classmethod
+    def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
+        return super().from_function(py_func, py_file) if _in_package(py_file) else None
+
+
+def _register_locators() -> None:
+    """Put the package's locators first in numba's list (functions of other packages fall
+    through to numba's own locators). A numba without that list keeps its default."""
+    classes = getattr(getattr(caching, "CacheImpl", None), "_locator_classes", None)
+    if isinstance(classes, list) and PackageInTreeLocator not in classes:
+        classes[0:0] = [PackageInTreeLocator, PackageUserWideLocator]
+
+
+_register_locators()
 
 #: options of every kernel: cached machine code, numpy's error model (a division by zero
 #: gives inf / NaN, which the kernels' finiteness checks catch, never an exception)
