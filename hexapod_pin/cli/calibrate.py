@@ -40,7 +40,7 @@ def _subset(data: Measurements, rows: np.ndarray) -> Measurements:
                         data.target_points)
 
 
-def _pose_option(text: str | None, name: str, degrees: bool):
+def _pose_option(text: str | None, name: str, degrees: bool) -> np.ndarray | None:
     if text is None:
         return None
     pose = parse_numbers([text], 6, name, "x y z roll pitch yaw")
@@ -96,18 +96,20 @@ def calibrate(measurements: Annotated[Path, typer.Argument(
         [parse_numbers([p], 3, "target-point", "x y z") for p in target_point])
     data = read_measurements(measurements, points, degrees)
     groups = tuple(g.strip() for g in identify.split(",") if g.strip())
-    guess = {"instrument": _pose_option(instrument, "instrument", degrees),
-             "target": _pose_option(target, "target", degrees)}
+    inst_guess = _pose_option(instrument, "instrument", degrees)
+    targ_guess = _pose_option(target, "target", degrees)
     rows = np.arange(data.count)
     held = None
     if select_poses is not None:
-        chosen = select_measurements(robot, data, select_poses, identify=groups, **guess)
+        chosen = select_measurements(robot, data, select_poses, identify=groups,
+                                     instrument=inst_guess, target=targ_guess)
         rows = np.sort(chosen.indices)
         rest = np.setdiff1d(np.arange(data.count), rows)
         held = _subset(data, rest) if rest.size else None
     used = _subset(data, rows)
     result = cal.calibrate(robot, used.poses, used.actuators, points=used.points,
-                           target_points=used.target_points, identify=groups, **guess)
+                           target_points=used.target_points, identify=groups,
+                           instrument=inst_guess, target=targ_guess)
     if validate is not None:
         held = read_measurements(validate, points, degrees)
     report = None
@@ -123,7 +125,8 @@ def calibrate(measurements: Annotated[Path, typer.Argument(
     _print_report(result, data.count, rows, report)
 
 
-def _payload(result, rows, report, out) -> dict:
+def _payload(result: cal.CalibrationResult, rows: np.ndarray,
+             report: cal.ValidationReport | None, out: Path | None) -> dict:
     idr = result.identifiability
     return {"measurement": result.measurement, "rows_used": rows,
             "residuals_before": result.residuals_before,
@@ -141,7 +144,8 @@ def _payload(result, rows, report, out) -> dict:
             "out": None if out is None else str(out)}
 
 
-def _print_report(result, count: int, rows: np.ndarray, report) -> None:
+def _print_report(result: cal.CalibrationResult, count: int, rows: np.ndarray,
+                  report: cal.ValidationReport | None) -> None:
     idr = result.identifiability
     before, after = result.residuals_before, result.residuals_after
     console.print(quantity_table("calibration", {

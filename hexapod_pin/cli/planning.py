@@ -51,14 +51,14 @@ NoStrokes = Annotated[bool, typer.Option(
     "--no-strokes", help="do not reject poses outside the actuator strokes")]
 
 
-def _limits(max_force, max_velocity, max_acceleration, max_linear, max_angular,
-            no_strokes) -> Limits:
+def _limits(max_force: float | None, max_velocity: float, max_acceleration: float,
+            max_linear: float, max_angular: float, no_strokes: bool) -> Limits:
     return Limits(actuator_force=max_force, actuator_velocity=max_velocity,
                   actuator_acceleration=max_acceleration, linear_speed=max_linear,
                   angular_speed=max_angular, strokes=not no_strokes)
 
 
-def _payload(mass, wrench) -> Payload:
+def _payload(mass: float, wrench: str | None) -> Payload:
     values = None if wrench is None else tuple(parse_numbers([wrench], 6, "payload-wrench",
                                                              "fx fy fz mx my mz"))
     return Payload(mass=mass, wrench=values)
