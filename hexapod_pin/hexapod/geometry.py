@@ -247,13 +247,15 @@ def continue_pose(start: ChainGeometry, stop: ChainGeometry, q, pose) -> np.ndar
     moved chains exactly, so a measuring instrument's frame far from the robot's costs
     nothing). Then the chains move on the straight line between the two
     :meth:`ChainGeometry.as_vector` (directions renormalised); at each step
-    :func:`closure_pose` starts from the previous pose. A step is accepted when Newton's method converges and the platform moves by at
-    most ``CONTINUATION_MAX_MOVE`` (m, and rad of rotation; a larger move is a jump to
-    another assembly); otherwise it is halved, down to ``CONTINUATION_MIN_STEP`` of the
-    path. Accepted steps double again up to ``CONTINUATION_STEP``.
+    :func:`closure_pose` starts from the previous pose. A step is accepted when Newton's
+    method converges and the platform moves by at most ``CONTINUATION_MAX_MOVE`` (m, and
+    rad of rotation; a larger move is a jump to another assembly); otherwise it is halved,
+    down to ``CONTINUATION_MIN_STEP`` of the path. Accepted steps double again up to
+    ``CONTINUATION_STEP``.
 
     Args:
-        start, stop: the two geometries (``pose`` assembles ``start``).
+        start: the geometry the path starts from (``pose`` assembles it).
+        stop: the geometry the path ends at.
         q: (6,) actuator readings (m).
         pose: (6,) an assembly of ``start`` at ``q`` (m, rad).
 
