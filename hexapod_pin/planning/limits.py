@@ -27,7 +27,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from ..core.robot_api import ParallelRobot
 from ..errors import HexapodPinError, InfeasiblePathError, InputError
