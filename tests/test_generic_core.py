@@ -376,14 +376,15 @@ def test_generic_step_keeps_the_closures(name, integrator):
             1.0, np.max(np.abs(v)))
 
 
-@pytest.mark.parametrize(("integrator", "dt"), [("rk4", 5e-4), ("semi_implicit_euler", 1e-3)])
+@pytest.mark.parametrize(("integrator", "dt"), [("rk4", 5e-4), ("rk4", 1e-3),
+                                               ("semi_implicit_euler", 1e-3)])
 def test_generic_step_keeps_cassies_closures(integrator, dt):
     """Cassie (four point closures, 12 rows of rank 10: the projection drops dependent
     rows), steps from a moving state: after every step the closures hold to 1e-9 in
     position and velocity, checked with ClosedLoopModel's own residual and Jacobian.
-    (RK4's stage states are not projected: at 1 ms from this 0.8 m/s state they leave the
+    (RK4 at 1 ms from this 0.8 m/s state: unprojected stage states would leave the
     closures far enough for the drift to fall outside the range of the nearly redundant
-    rows, and the verified dynamics raise; 0.5 ms keeps them close.)"""
+    rows, and the verified dynamics would raise; the stages are projected.)"""
     from hexapod_pin.core.simulation import ClosedLoopIntegrator
     from hexapod_pin.loaders import robots
 

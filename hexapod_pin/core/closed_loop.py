@@ -142,6 +142,7 @@ class ClosedLoopModel:
             self.row_slices.append(slice(start, start + closure.n_rows))
             start += closure.n_rows
         self.n_rows = start
+        self._init_kinematics()
         self.actuated_joints: tuple[str, ...] = tuple(loops.actuated)
         self.actuated_v = np.array([self._actuated_index(j) for j in self.actuated_joints],
                                    dtype=int)
@@ -238,48 +239,99 @@ class ClosedLoopModel:
         return models, datas
 
     # -- closures -----------------------------------------------------------------
-    def _update_placements(self, q: np.ndarray) -> None:
-        pin.framesForwardKinematics(self.model, self.data, q)
+    def _init_kinematics(self) -> None:
+        """Precomputed pieces of :meth:`residual` and :meth:`constraint_jacobian`: the
+        point closures as Pinocchio constraints with ``LOCAL_WORLD_ALIGNED`` rows (their
+        stacked Jacobian is the world-axes ``J_1 - J_2`` of the anchor points, from one
+        ``pin.getConstraintsJacobian`` call; anchors those of :attr:`constraint_models`)
+        and their rows; the welds' rows and anchor frames."""
+        self._point_models = pin.StdVec_RigidConstraintModel()
+        self._point_datas = pin.StdVec_RigidConstraintData()
+        point_rows, self._welds = [], []
+        for closure, rows, cm, frames in zip(self.closures, self.row_slices,
+                                             self.constraint_models, self._anchor_frames):
+            if closure.type == "point":
+                pm = pin.RigidConstraintModel(cm.type, self.model, cm.joint1_id,
+                                              cm.joint1_placement, cm.joint2_id,
+                                              cm.joint2_placement,
+                                              pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+                self._point_models.append(pm)
+                self._point_datas.append(pm.createData())
+                point_rows.append(np.arange(rows.start, rows.stop))
+            else:
+                self._welds.append((rows, *frames))
+        # (calc, data) pairs: getConstraintsJacobian reads the anchor placements of the
+        # constraint datas but does not compute them
+        self._point_calcs = [(cm.calc, cd) for cm, cd in zip(self._point_models,
+                                                              self._point_datas)]
+        self._point_rows = (np.concatenate(point_rows) if point_rows
+                            else np.zeros(0, dtype=int))
+        self._all_points = not self._welds
+
+    def _calc_anchors(self) -> None:
+        """Anchor placements (joint placements of ``self.data`` up to date): each point
+        closure's into its constraint data; with welds, every frame's into ``data.oMf``."""
+        model, data = self.model, self.data
+        for calc, cd in self._point_calcs:
+            calc(model, data, cd)
+        if self._welds:
+            pin.updateFramePlacements(model, data)
 
     def residual(self, q: npt.ArrayLike) -> np.ndarray:
         """Closure residual at ``q``, shape (n_rows,) (m for points, m/rad for welds)."""
         q = self.check_q(q)
-        self._update_placements(q)
-        return self._residual_from_data()
+        pin.forwardKinematics(self.model, self.data, q)
+        self._calc_anchors()
+        return self._residual_from_anchors()
 
-    def _residual_from_data(self) -> np.ndarray:
+    def _residual_from_anchors(self) -> np.ndarray:
+        """The residual from the anchor placements of :meth:`_calc_anchors`."""
+        points = [cd.oMc1.translation - cd.oMc2.translation for _, cd in self._point_calcs]
+        if self._all_points:
+            return np.concatenate(points) if points else np.zeros(0)
         out = np.empty(self.n_rows)
-        for closure, rows, (f1, f2) in zip(self.closures, self.row_slices, self._anchor_frames):
-            m1, m2 = self.data.oMf[f1], self.data.oMf[f2]
-            if closure.type == "point":
-                out[rows] = m1.translation - m2.translation
-            else:
-                out[rows] = pin.log6(m2.actInv(m1)).vector
+        if points:
+            out[self._point_rows] = np.concatenate(points)
+        omf = self.data.oMf
+        for rows, f1, f2 in self._welds:
+            out[rows] = pin.log6(omf[f2].actInv(omf[f1])).vector
         return out
 
     def constraint_jacobian(self, q: npt.ArrayLike) -> np.ndarray:
         """Constraint Jacobian ``J_c`` at ``q``, shape (n_rows, nv).
 
-        Derivative of :meth:`residual` along ``pin.integrate`` (see module doc).
+        Derivative of :meth:`residual` along ``pin.integrate`` (see module doc). Leaves
+        the joint Jacobians of ``q`` in ``self.data``.
         """
         q = self.check_q(q)
         pin.computeJointJacobians(self.model, self.data, q)
-        pin.updateFramePlacements(self.model, self.data)
-        return self._jacobian_from_data()
+        self._calc_anchors()
+        return self._jacobian_from_anchors()
 
-    def _jacobian_from_data(self) -> np.ndarray:
-        out = np.empty((self.n_rows, self.model.nv))
-        for closure, rows, (f1, f2) in zip(self.closures, self.row_slices, self._anchor_frames):
-            if closure.type == "point":
-                rf = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-                out[rows] = (pin.getFrameJacobian(self.model, self.data, f1, rf)[:3]
-                             - pin.getFrameJacobian(self.model, self.data, f2, rf)[:3])
-            else:
-                rf = pin.ReferenceFrame.LOCAL
-                m21 = self.data.oMf[f2].actInv(self.data.oMf[f1])
-                j1 = pin.getFrameJacobian(self.model, self.data, f1, rf)
-                j2 = pin.getFrameJacobian(self.model, self.data, f2, rf)
-                out[rows] = pin.Jlog6(m21) @ (j1 - m21.inverse().action @ j2)
+    def residual_and_jacobian(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`residual` (n_rows,) and :meth:`constraint_jacobian` (n_rows, nv) at ``q``
+        from one kinematic pass (the same values as the two calls)."""
+        q = self.check_q(q)
+        pin.computeJointJacobians(self.model, self.data, q)
+        self._calc_anchors()
+        return self._residual_from_anchors(), self._jacobian_from_anchors()
+
+    def _jacobian_from_anchors(self) -> np.ndarray:
+        """``J_c`` from the joint Jacobians of ``self.data`` and the anchor placements."""
+        model, data = self.model, self.data
+        points = (pin.getConstraintsJacobian(model, data, self._point_models, self._point_datas)
+                  if self._point_calcs else None)
+        if self._all_points:
+            return points if points is not None else np.zeros((0, model.nv))
+        out = np.empty((self.n_rows, model.nv))
+        if points is not None:
+            out[self._point_rows] = points
+        loc, omf = pin.ReferenceFrame.LOCAL, data.oMf
+        for rows, f1, f2 in self._welds:
+            m21 = omf[f2].actInv(omf[f1])
+            out[rows] = pin.Jlog6(m21) @ (pin.getFrameJacobian(model, data, f1, loc)
+                                          - m21.inverse().action
+                                          @ pin.getFrameJacobian(model, data, f2, loc))
         return out
 
     def constraint_drift(self, q: npt.ArrayLike, v: npt.ArrayLike) -> np.ndarray:
