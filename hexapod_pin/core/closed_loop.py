@@ -308,7 +308,7 @@ class ClosedLoopModel:
         self._calc_anchors()
         return self._jacobian_from_anchors()
 
-    def residual_and_jacobian(self, q) -> tuple[np.ndarray, np.ndarray]:
+    def residual_and_jacobian(self, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`residual` (n_rows,) and :meth:`constraint_jacobian` (n_rows, nv) at ``q``
         from one kinematic pass (the same values as the two calls)."""
         q = self.check_q(q)
