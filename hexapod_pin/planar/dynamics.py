@@ -20,7 +20,7 @@ platform: ``-lambda_k`` in x and y.
 from __future__ import annotations
 
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from types import MappingProxyType
 from typing import Any
 
@@ -33,13 +33,14 @@ from ..core.closed_loop import ClosedLoopModel
 from ..core.dynamics import ClosedLoopDynamics, forward_dynamics_tree, inverse_dynamics_tree
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                             ComputedDetails, Energies, ForwardDynamicsResult,
-                            InverseDynamicsResult, ReducedDynamics)
+                            InverseDynamicsResult, LazyConditioning, ReducedDynamics,
+                            SingularityMeasures)
 from ..core.robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS
 from ..errors import (ActuatorSaturationError, BatchActuatorSaturationError, InputError,
                       SolverError)
 from . import kernels
 from .geometry import N_ACTUATORS, PlanarGeometry
-from .kinematics import PlanarWorkspace, vec3
+from .kinematics import PlanarKinematics, PlanarWorkspace, vec3
 
 STATUS_ID = "solved (closed form; out-of-plane multipliers zero: minimum norm)"
 STATUS_FD = "solved (closed form, null-space; out-of-plane multipliers zero: minimum norm)"
@@ -137,11 +138,21 @@ class PlanarDynamics:
         geometry: the robot's geometry.
         model: its :class:`ClosedLoopModel`.
         workspace: its :class:`~hexapod_pin.planar.kinematics.PlanarWorkspace`.
+        lock: the robot's lock (held by the facade's calls and by the lazy parts of
+            results); default a new one.
+        singularity: the robot's ``singularity(pose, branch)`` (the kinematics
+            component's), giving the results' conditioning; default that of a
+            :class:`~hexapod_pin.planar.kinematics.PlanarKinematics` on ``workspace``.
     """
 
     def __init__(self, geometry: PlanarGeometry, model: ClosedLoopModel,
-                 workspace: PlanarWorkspace, lock: threading.RLock | None = None) -> None:
+                 workspace: PlanarWorkspace, lock: threading.RLock | None = None,
+                 singularity: Callable[[npt.ArrayLike, npt.ArrayLike | None],
+                                       SingularityMeasures] | None = None) -> None:
         self.geometry, self.model, self.ws = geometry, model, workspace
+        #: the measures of a pose, for the results' lazy ``singularity``
+        self.singularity = PlanarKinematics(geometry, model, workspace).singularity \
+            if singularity is None else singularity
         #: the robot's lock, held by the lazy parts of results (they use this workspace)
         self.lock = threading.RLock() if lock is None else lock
         # its own generic workspace (the robot's lock guards it)
@@ -244,12 +255,14 @@ class PlanarDynamics:
         bounds = self.bounds(bounded)
         wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
         tau_ext = self.tau_ext(wrench_kept)
+        conditioning = self._conditioning(owned_copy(pose_a, pose), ws.signs(branch))
         if method == "kkt" and status == kernels.OK:
             self.check_bounds(tau, bounds)
             details = TreeDetails(self.dyn, ws, (q, v, a), tau, tau_ext, wrench_kept,
                                   joint_wrenches, self.platform_joint, closure=closure,
                                   lock=self.lock)
-            return InverseDynamicsResult(tau, q, v, a, "kkt", STATUS_ID, 0, details)
+            return InverseDynamicsResult(tau, q, v, a, "kkt", STATUS_ID, 0, details,
+                                         conditioning)
         res = inverse_dynamics_tree(self.model, q, v, a, tau_ext, bounds=bounds,
                                     method=method)
         tau = res.actuator_forces.copy()
@@ -259,7 +272,12 @@ class PlanarDynamics:
                               joint_wrenches, self.platform_joint,
                               multipliers=res.multipliers.copy(), residual=res.residual,
                               lock=self.lock)
-        return InverseDynamicsResult(tau, q, v, a, method, res.status, res.iterations, details)
+        return InverseDynamicsResult(tau, q, v, a, method, res.status, res.iterations, details,
+                                     conditioning)
+
+    def _conditioning(self, pose: np.ndarray, signs: np.ndarray) -> LazyConditioning:
+        """The lazy conditioning of a result at ``pose`` (an owned copy) on ``signs``."""
+        return LazyConditioning(self.singularity, pose, np.array(signs, copy=True), self.lock)
 
     def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
                       branch: npt.ArrayLike | None = None,
@@ -345,7 +363,8 @@ class PlanarDynamics:
                 ws.raise_for(status, inputs)
             details = ComputedDetails(multipliers_of(ws, closure), closure)
             return ForwardDynamicsResult(twist_dot, a[ws.indices.slider], a, method,
-                                         STATUS_FD, 0, details)
+                                         STATUS_FD, 0, details,
+                                         self._conditioning(owned_copy(pose_a, pose), signs))
         q, v, _ = ws.state(1, True, branch, inputs[:2], pose_a, twist_a)
         forces = as_array(actuator_forces, (N_ACTUATORS,), "actuator_forces")
         wrench_c = None if wrench is None else as_array(wrench, (3,), "wrench")
@@ -355,7 +374,8 @@ class PlanarDynamics:
         self._tree_check(q, v, acc, branch, twist_a)
         details = ComputedDetails(res.multipliers.copy(), closure_of(ws, res.multipliers))
         return ForwardDynamicsResult(acc[ws.indices.platform], acc[ws.indices.slider], acc,
-                                     method, res.status, res.iterations, details)
+                                     method, res.status, res.iterations, details,
+                                     self._conditioning(owned_copy(pose_a, pose), signs))
 
     # -- reduced dynamics and energies --------------------------------------------------------
     def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
