@@ -252,6 +252,15 @@ class PlanarDynamics:
             ws.signs(branch), q, v, a, tau, closure, ws.buf, ws.info)
         if status in (kernels.NONFINITE, kernels.UNREACHABLE, kernels.TYPE_I, kernels.TYPE_II):
             ws.raise_for(status, inputs)
+        if not (np.all(np.isfinite(v)) and np.all(np.isfinite(a))):
+            # finite inputs whose products overflow (a twist of 1e160): name the user's
+            # argument, not the tree state it overflowed in
+            name, value = max(((twist_a, "twist"), (twist_dot_a, "twist_dot")),
+                              key=lambda pair: max_abs(pair[0]))[::-1]
+            if not np.all(np.isfinite(v)):
+                name, value = "twist", twist
+            raise InputError(name, value, "too large: the motion's tree velocities or "
+                             "accelerations overflow double precision")
         bounds = self.bounds(bounded)
         wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
         tau_ext = self.tau_ext(wrench_kept)
@@ -420,8 +429,8 @@ class PlanarDynamics:
         return Energies(kin, pot, kin + pot)
 
     # -- batches --------------------------------------------------------------------------------
-    def _raise_first(self, status: np.ndarray, infos: np.ndarray, tau=None,
-                     bounds=None) -> None:
+    def _raise_first(self, status: np.ndarray, infos: np.ndarray, poses: np.ndarray,
+                     tau=None, bounds=None) -> None:
         """Raise the Batch* error of the first state that failed or saturates."""
         bad = status != kernels.OK
         if tau is not None and bounds is not None:
@@ -431,6 +440,9 @@ class PlanarDynamics:
         first = int(np.argmax(bad))
         if status[first] == kernels.OK:
             raise BatchActuatorSaturationError(first, tau[first], bounds)
+        if status[first] == kernels.RESIDUAL:
+            # the leg buffer then holds the refused state's legs (its measures)
+            self.ws.legs(0, False, None, (), poses[first])
         self.ws.raise_for(int(status[first]), (), infos[first], index=first)
 
     def _batch_inverse(self, poses, twists, twist_dots, wrenches, bounded):
@@ -442,7 +454,7 @@ class PlanarDynamics:
         kernels.inverse_dynamics_batch(ws.geo, ws.idx, ws.home_signs, poses, twists,
                                        twist_dots, wrenches if has_wrench else np.zeros((n, 3)),
                                        has_wrench, tau, closure, status, infos)
-        self._raise_first(status, infos, tau, self.bounds(bounded))
+        self._raise_first(status, infos, poses, tau, self.bounds(bounded))
         return tau, closure, infos[:, kernels.X_RES].copy()
 
     def inverse_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
@@ -501,7 +513,7 @@ class PlanarDynamics:
         kernels.forward_dynamics_batch(ws.geo, ws.idx, ws.home_signs, poses, twists, forces,
                                        wrenches if has_wrench else np.zeros((n, 3)),
                                        has_wrench, twist_dot, acc, closure, status, infos)
-        self._raise_first(status, infos)
+        self._raise_first(status, infos, poses)
         return BatchForwardDynamics(twist_dot, acc, closure)
 
     def reduced_dynamics_batch(self, poses: npt.ArrayLike,
@@ -521,7 +533,7 @@ class PlanarDynamics:
         status, infos = np.empty(n, np.int64), np.zeros((n, kernels.INFO_SIZE))
         kernels.reduced_dynamics_batch(ws.geo, ws.home_signs, poses, twists, m_x, h_x, jac,
                                        status, infos)
-        self._raise_first(status, infos)
+        self._raise_first(status, infos, poses)
         return BatchReducedDynamics(m_x, h_x, jac)
 
 
