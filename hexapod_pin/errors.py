@@ -129,14 +129,18 @@ class SingularityError(HexapodPinError, RuntimeError):
         what: which matrix (e.g. "workspace Jacobian").
         threshold: the value of the measure below which the routes refuse the pose (the
             answer's accuracy could no longer be guaranteed:
-            :data:`hexapod_pin.core.measures.ACCURACY`), or None.
+            :data:`hexapod_pin.core.measures.ACCURACY`), or None. A closed form that
+            failed its own residual check near a singularity reports the pose's measure
+            nearer its threshold, which may lie just above it (the message then says
+            "near the threshold").
     """
 
     def __init__(self, what: str, sigma_min: float, threshold: float | None = None):
         self.what = what
         self.sigma_min = float(sigma_min)
         self.threshold = None if threshold is None else float(threshold)
-        below = "" if threshold is None else f", below the threshold {threshold:.3g}"
+        below = "" if threshold is None else \
+            f", {'below' if sigma_min < threshold else 'near'} the threshold {threshold:.3g}"
         super().__init__(f"{what} is singular (smallest singular value "
                          f"{sigma_min:.3e}{below})")
 

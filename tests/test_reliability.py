@@ -71,15 +71,17 @@ def walk(robot, poses, dim):
         try:
             miss = round_trips(robot, pose, rng, dim)
         except hp.SingularityError as exc:
-            if exc.threshold is None:
+            # every refusal carries the shared threshold it is measured against
+            assert exc.threshold in (TYPE_I_TOL, TYPE_II_TOL)
+            if "residual" in str(exc):
                 # a closed form that failed its own residual check: only close to a
-                # singularity (within 10x of a threshold)
+                # singularity (within 10x of a threshold), whose measure it reports
                 measures = robot.singularity(pose)
-                assert "residual" in str(exc)
+                assert exc.sigma_min == (measures.type_one if exc.threshold == TYPE_I_TOL
+                                         else measures.type_two)
                 assert min(measures.type_one / TYPE_I_TOL,
                            measures.type_two / TYPE_II_TOL) < 10.0
             else:
-                assert exc.threshold in (TYPE_I_TOL, TYPE_II_TOL)
                 assert exc.sigma_min < exc.threshold
             refused += 1
             continue

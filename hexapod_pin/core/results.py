@@ -14,18 +14,23 @@ same field names, shapes and sign conventions:
 
 Parts that cost a Pinocchio call or a conversion are computed on first access: a result
 holds a *details* object (:class:`ResultDetails`) that computes them. A robot either passes
-:class:`ComputedDetails` (values already known) or its own lazy implementation.
+:class:`ComputedDetails` (values already known) or its own lazy implementation. The
+dynamics results also carry their pose's conditioning (``singularity``, the robot's
+:class:`SingularityMeasures` at the result's pose and branch), computed on first access by
+a :class:`LazyConditioning` under the robot's lock.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import threading
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from types import MappingProxyType
 from typing import Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 _NO_WRENCHES: Mapping[str, np.ndarray] = MappingProxyType({})
 
@@ -73,6 +78,34 @@ class ComputedDetails:
         return float(self.residual_)
 
 
+class LazyConditioning:
+    """The singularity measures of a result's pose, computed on first call under the
+    robot's lock (the measure routes share the robot's scratch) and kept.
+
+    Args:
+        singularity: the robot's ``singularity(pose, branch)`` (its kinematics component's
+            method, the same the facade's ``robot.singularity`` serves).
+        pose: the result's pose (dim,), an owned copy.
+        branch: the branch the result was computed on (n_act signs), an owned copy.
+        lock: the robot's lock (a ``threading.RLock``).
+    """
+
+    __slots__ = ("branch", "lock", "pose", "singularity", "value")
+
+    def __init__(self, singularity: Callable[[npt.ArrayLike, npt.ArrayLike | None],
+                                             SingularityMeasures],
+                 pose: np.ndarray, branch: np.ndarray, lock: threading.RLock) -> None:
+        self.singularity, self.pose, self.branch, self.lock = singularity, pose, branch, lock
+        self.value: SingularityMeasures | None = None
+
+    def __call__(self) -> SingularityMeasures:
+        """The measures (:class:`SingularityMeasures`), computed once."""
+        with self.lock:                     # the robot's scratch
+            if self.value is None:
+                self.value = self.singularity(self.pose, self.branch)
+            return self.value
+
+
 @dataclass(frozen=True, eq=False)
 class InverseDynamicsResult:
     """Result of ``robot.inverse_dynamics(pose, twist, twist_dot, wrench)``.
@@ -95,6 +128,9 @@ class InverseDynamicsResult:
             empty unless requested (first access).
         residual: max-abs residual of ``M a + h - tau_ext - S^T tau - J_c^T lambda``
             (N, N m): round-off only (first access).
+        singularity: the conditioning of the result's pose, :class:`SingularityMeasures`
+            (equal to ``robot.singularity(pose, branch)``: how close the pose is to the
+            thresholds below which the routes refuse it) (first access).
     """
 
     actuator_forces: np.ndarray
@@ -105,6 +141,7 @@ class InverseDynamicsResult:
     status: str
     iterations: int
     _details: ResultDetails = field(repr=False)
+    _conditioning: Callable[[], SingularityMeasures] = field(repr=False)
 
     @cached_property
     def closure_forces(self) -> np.ndarray:
@@ -122,6 +159,10 @@ class InverseDynamicsResult:
     def residual(self) -> float:
         return self._details.residual()
 
+    @cached_property
+    def singularity(self) -> SingularityMeasures:
+        return self._conditioning()
+
 
 @dataclass(frozen=True, eq=False)
 class ForwardDynamicsResult:
@@ -137,6 +178,8 @@ class ForwardDynamicsResult:
         closure_forces: (n_chains, d) force each chain exerts ON the platform, world axes
             (N) (computed on first access).
         multipliers: closure multipliers of the tree rows (n_rows,) (first access).
+        singularity: the conditioning of the result's pose, :class:`SingularityMeasures`
+            (equal to ``robot.singularity(pose, branch)``) (first access).
     """
 
     twist_dot: np.ndarray
@@ -146,6 +189,7 @@ class ForwardDynamicsResult:
     status: str
     iterations: int
     _details: ForwardDetails = field(repr=False)
+    _conditioning: Callable[[], SingularityMeasures] = field(repr=False)
 
     @cached_property
     def closure_forces(self) -> np.ndarray:
@@ -154,6 +198,10 @@ class ForwardDynamicsResult:
     @cached_property
     def multipliers(self) -> np.ndarray:
         return self._details.multipliers()
+
+    @cached_property
+    def singularity(self) -> SingularityMeasures:
+        return self._conditioning()
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ solve; the ``*_batch`` methods run the Newton-Euler kernels over N states
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
@@ -29,11 +29,12 @@ from ..core.closed_loop import ClosedLoopModel
 from ..core.compiled import all_finite
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                             Energies, ForwardDynamicsResult, InverseDynamicsDerivatives,
-                            InverseDynamicsResult, ReducedDynamics)
+                            InverseDynamicsResult, LazyConditioning, ReducedDynamics,
+                            SingularityMeasures)
 from ..core.dynamics import (INVERSE_METHODS, QP_SOLVED, QP_STATUS, RESIDUAL_RTOL,
                              ClosedLoopDynamics)
 from .derivatives import DerivativesWorkspace, analytic_derivatives
-from .kinematics import check_branch
+from .kinematics import HexapodKinematics, check_branch
 from ..errors import (
     ActuatorSaturationError,
     HexapodPinError,
@@ -188,6 +189,9 @@ class HexapodDynamics:
         closed_form: the :class:`~hexapod_pin.hexapod.kernels.ClosedForm` of the same robot.
         lock: the robot's lock (held by the facade's calls and by the lazy parts of
             results); default a new one.
+        singularity: the robot's ``singularity(pose, branch)`` (the kinematics
+            component's), giving the results' conditioning; default that of a
+            :class:`~hexapod_pin.hexapod.kinematics.HexapodKinematics` on ``closed_form``.
 
     It keeps its per-robot workspace (its own generic tree workspace, buffers, ProxSuite
     problems, the derivatives' workspace) as explicit attributes, built on first use.
@@ -211,9 +215,14 @@ class HexapodDynamics:
     """
 
     def __init__(self, geometry: HexapodGeometry, model: ClosedLoopModel, indices: Any,
-                 closed_form: kernels.ClosedForm, lock: threading.RLock | None = None) -> None:
+                 closed_form: kernels.ClosedForm, lock: threading.RLock | None = None,
+                 singularity: Callable[[npt.ArrayLike, npt.ArrayLike | None],
+                                       SingularityMeasures] | None = None) -> None:
         self.geometry, self.model, self.indices = geometry, model, indices
         self.closed_form = closed_form
+        #: the measures of a pose, for the results' lazy ``singularity``
+        self.singularity = HexapodKinematics(geometry, closed_form).singularity \
+            if singularity is None else singularity
         #: the robot's lock, held by the lazy parts of results (they use this workspace)
         self.lock = threading.RLock() if lock is None else lock
         self._ws: _HexapodWorkspace | None = None
@@ -354,7 +363,13 @@ class HexapodDynamics:
         details = _InverseDetails(ws, force, tau,
                                   None if wrench_a is None else owned_copy(wrench_a, wrench), q, v,
                                   a, joint_wrenches, owned_copy(pose_a, pose), signs)
-        return InverseDynamicsResult(tau, q, v, a, method, status, iters, details)
+        return InverseDynamicsResult(tau, q, v, a, method, status, iters, details,
+                                     self._conditioning(details.pose, signs))
+
+    def _conditioning(self, pose: np.ndarray, signs: np.ndarray) -> LazyConditioning:
+        """The lazy conditioning of a result at ``pose`` (an owned copy) on ``signs``."""
+        return LazyConditioning(self.singularity, pose, np.array(signs, copy=True),
+                                self.lock)
 
     def _solve_tree(self, ws, force, wrench_a, method, bounds):
         """``J^T tau = G^T force - wrench`` at the legs of the last tree state, under the
@@ -574,7 +589,8 @@ class HexapodDynamics:
                 signs)
             details = _ForwardDetails(dyn, q, ws.leg_of_closure, ws.lock, rows=lazy)
             return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
-                                         "solved", 0, details)
+                                         "solved", 0, details,
+                                         self._conditioning(lazy.pose, signs))
         if not all_finite(tau_a) or (wrench_a is not None and not all_finite(wrench_a)):
             self._raise_code(ck, kernels.NONFINITE, pose=pose, twist=twist,
                              actuator_forces=actuator_forces, wrench=wrench)
@@ -596,7 +612,8 @@ class HexapodDynamics:
             details = _ForwardDetails(dyn, q, ws.leg_of_closure, ws.lock, rows=res.multipliers)
         kernels.twist_dot_of(s.rot, twist_a, acc[ws.ff_v], twist_dot)
         return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
-                                     status, iters, details)
+                                     status, iters, details,
+                                     self._conditioning(owned_copy(pose_a, pose), signs))
 
     # -- reduced (null-space) dynamics ------------------------------------------------------
     def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,

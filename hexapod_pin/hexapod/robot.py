@@ -104,7 +104,8 @@ class Hexapod:
         self.closed_form = kernels.ClosedForm(self.geometry, self.indices)
         self.kinematics = HexapodKinematics(self.geometry, self.closed_form)
         self.dynamics = HexapodDynamics(self.geometry, self.model, self.indices,
-                                             self.closed_form, self.lock)
+                                        self.closed_form, self.lock,
+                                        self.kinematics.singularity)
 
     # -- kinematics (HexapodKinematics) ----------------------------------------------------
     platform_points_world = delegate("kinematics", HexapodKinematics.platform_points_world)

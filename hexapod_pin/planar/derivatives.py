@@ -72,7 +72,7 @@ def inverse_dynamics_derivatives(dynamics: PlanarDynamics, pose: npt.ArrayLike,
     square[idx.slider, np.arange(N_ACTUATORS)] = 1.0
     square[:, N_ACTUATORS:] = a_c.T
     if np.linalg.cond(square) * _RCOND > 1.0:
-        raise SingularityError("closed-loop dynamics [S^T A^T] (type II singularity)",
+        raise SingularityError("closed-loop dynamics [S^T A^T] (type-II singularity)",
                                float(np.linalg.svd(square, compute_uv=False)[-1]))
     lam = res.multipliers[rows].reshape(N_ACTUATORS, 2)
     theta, omega, alpha = q[idx.platform[2]], v[idx.platform[2]], a[idx.platform[2]]

@@ -20,7 +20,7 @@ platform: ``-lambda_k`` in x and y.
 from __future__ import annotations
 
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from types import MappingProxyType
 from typing import Any
 
@@ -33,13 +33,14 @@ from ..core.closed_loop import ClosedLoopModel
 from ..core.dynamics import ClosedLoopDynamics, forward_dynamics_tree, inverse_dynamics_tree
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                             ComputedDetails, Energies, ForwardDynamicsResult,
-                            InverseDynamicsResult, ReducedDynamics)
+                            InverseDynamicsResult, LazyConditioning, ReducedDynamics,
+                            SingularityMeasures)
 from ..core.robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS
 from ..errors import (ActuatorSaturationError, BatchActuatorSaturationError, InputError,
                       SolverError)
 from . import kernels
 from .geometry import N_ACTUATORS, PlanarGeometry
-from .kinematics import PlanarWorkspace, vec3
+from .kinematics import PlanarKinematics, PlanarWorkspace, vec3
 
 STATUS_ID = "solved (closed form; out-of-plane multipliers zero: minimum norm)"
 STATUS_FD = "solved (closed form, null-space; out-of-plane multipliers zero: minimum norm)"
@@ -137,11 +138,21 @@ class PlanarDynamics:
         geometry: the robot's geometry.
         model: its :class:`ClosedLoopModel`.
         workspace: its :class:`~hexapod_pin.planar.kinematics.PlanarWorkspace`.
+        lock: the robot's lock (held by the facade's calls and by the lazy parts of
+            results); default a new one.
+        singularity: the robot's ``singularity(pose, branch)`` (the kinematics
+            component's), giving the results' conditioning; default that of a
+            :class:`~hexapod_pin.planar.kinematics.PlanarKinematics` on ``workspace``.
     """
 
     def __init__(self, geometry: PlanarGeometry, model: ClosedLoopModel,
-                 workspace: PlanarWorkspace, lock: threading.RLock | None = None) -> None:
+                 workspace: PlanarWorkspace, lock: threading.RLock | None = None,
+                 singularity: Callable[[npt.ArrayLike, npt.ArrayLike | None],
+                                       SingularityMeasures] | None = None) -> None:
         self.geometry, self.model, self.ws = geometry, model, workspace
+        #: the measures of a pose, for the results' lazy ``singularity``
+        self.singularity = PlanarKinematics(geometry, model, workspace).singularity \
+            if singularity is None else singularity
         #: the robot's lock, held by the lazy parts of results (they use this workspace)
         self.lock = threading.RLock() if lock is None else lock
         # its own generic workspace (the robot's lock guards it)
@@ -241,15 +252,26 @@ class PlanarDynamics:
             ws.signs(branch), q, v, a, tau, closure, ws.buf, ws.info)
         if status in (kernels.NONFINITE, kernels.UNREACHABLE, kernels.TYPE_I, kernels.TYPE_II):
             ws.raise_for(status, inputs)
+        if not (np.all(np.isfinite(v)) and np.all(np.isfinite(a))):
+            # finite inputs whose products overflow (a twist of 1e160): name the user's
+            # argument, not the tree state it overflowed in
+            name, value = max(((twist_a, "twist"), (twist_dot_a, "twist_dot")),
+                              key=lambda pair: max_abs(pair[0]))[::-1]
+            if not np.all(np.isfinite(v)):
+                name, value = "twist", twist
+            raise InputError(name, value, "too large: the motion's tree velocities or "
+                             "accelerations overflow double precision")
         bounds = self.bounds(bounded)
         wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
         tau_ext = self.tau_ext(wrench_kept)
+        conditioning = self._conditioning(owned_copy(pose_a, pose), ws.signs(branch))
         if method == "kkt" and status == kernels.OK:
             self.check_bounds(tau, bounds)
             details = TreeDetails(self.dyn, ws, (q, v, a), tau, tau_ext, wrench_kept,
                                   joint_wrenches, self.platform_joint, closure=closure,
                                   lock=self.lock)
-            return InverseDynamicsResult(tau, q, v, a, "kkt", STATUS_ID, 0, details)
+            return InverseDynamicsResult(tau, q, v, a, "kkt", STATUS_ID, 0, details,
+                                         conditioning)
         res = inverse_dynamics_tree(self.model, q, v, a, tau_ext, bounds=bounds,
                                     method=method)
         tau = res.actuator_forces.copy()
@@ -259,7 +281,12 @@ class PlanarDynamics:
                               joint_wrenches, self.platform_joint,
                               multipliers=res.multipliers.copy(), residual=res.residual,
                               lock=self.lock)
-        return InverseDynamicsResult(tau, q, v, a, method, res.status, res.iterations, details)
+        return InverseDynamicsResult(tau, q, v, a, method, res.status, res.iterations, details,
+                                     conditioning)
+
+    def _conditioning(self, pose: np.ndarray, signs: np.ndarray) -> LazyConditioning:
+        """The lazy conditioning of a result at ``pose`` (an owned copy) on ``signs``."""
+        return LazyConditioning(self.singularity, pose, np.array(signs, copy=True), self.lock)
 
     def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
                       branch: npt.ArrayLike | None = None,
@@ -345,7 +372,8 @@ class PlanarDynamics:
                 ws.raise_for(status, inputs)
             details = ComputedDetails(multipliers_of(ws, closure), closure)
             return ForwardDynamicsResult(twist_dot, a[ws.indices.slider], a, method,
-                                         STATUS_FD, 0, details)
+                                         STATUS_FD, 0, details,
+                                         self._conditioning(owned_copy(pose_a, pose), signs))
         q, v, _ = ws.state(1, True, branch, inputs[:2], pose_a, twist_a)
         forces = as_array(actuator_forces, (N_ACTUATORS,), "actuator_forces")
         wrench_c = None if wrench is None else as_array(wrench, (3,), "wrench")
@@ -355,7 +383,8 @@ class PlanarDynamics:
         self._tree_check(q, v, acc, branch, twist_a)
         details = ComputedDetails(res.multipliers.copy(), closure_of(ws, res.multipliers))
         return ForwardDynamicsResult(acc[ws.indices.platform], acc[ws.indices.slider], acc,
-                                     method, res.status, res.iterations, details)
+                                     method, res.status, res.iterations, details,
+                                     self._conditioning(owned_copy(pose_a, pose), signs))
 
     # -- reduced dynamics and energies --------------------------------------------------------
     def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
@@ -400,8 +429,8 @@ class PlanarDynamics:
         return Energies(kin, pot, kin + pot)
 
     # -- batches --------------------------------------------------------------------------------
-    def _raise_first(self, status: np.ndarray, infos: np.ndarray, tau=None,
-                     bounds=None) -> None:
+    def _raise_first(self, status: np.ndarray, infos: np.ndarray, poses: np.ndarray,
+                     tau=None, bounds=None) -> None:
         """Raise the Batch* error of the first state that failed or saturates."""
         bad = status != kernels.OK
         if tau is not None and bounds is not None:
@@ -411,6 +440,9 @@ class PlanarDynamics:
         first = int(np.argmax(bad))
         if status[first] == kernels.OK:
             raise BatchActuatorSaturationError(first, tau[first], bounds)
+        if status[first] == kernels.RESIDUAL:
+            # the leg buffer then holds the refused state's legs (its measures)
+            self.ws.legs(0, False, None, (), poses[first])
         self.ws.raise_for(int(status[first]), (), infos[first], index=first)
 
     def _batch_inverse(self, poses, twists, twist_dots, wrenches, bounded):
@@ -422,7 +454,7 @@ class PlanarDynamics:
         kernels.inverse_dynamics_batch(ws.geo, ws.idx, ws.home_signs, poses, twists,
                                        twist_dots, wrenches if has_wrench else np.zeros((n, 3)),
                                        has_wrench, tau, closure, status, infos)
-        self._raise_first(status, infos, tau, self.bounds(bounded))
+        self._raise_first(status, infos, poses, tau, self.bounds(bounded))
         return tau, closure, infos[:, kernels.X_RES].copy()
 
     def inverse_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
@@ -481,7 +513,7 @@ class PlanarDynamics:
         kernels.forward_dynamics_batch(ws.geo, ws.idx, ws.home_signs, poses, twists, forces,
                                        wrenches if has_wrench else np.zeros((n, 3)),
                                        has_wrench, twist_dot, acc, closure, status, infos)
-        self._raise_first(status, infos)
+        self._raise_first(status, infos, poses)
         return BatchForwardDynamics(twist_dot, acc, closure)
 
     def reduced_dynamics_batch(self, poses: npt.ArrayLike,
@@ -501,7 +533,7 @@ class PlanarDynamics:
         status, infos = np.empty(n, np.int64), np.zeros((n, kernels.INFO_SIZE))
         kernels.reduced_dynamics_batch(ws.geo, ws.home_signs, poses, twists, m_x, h_x, jac,
                                        status, infos)
-        self._raise_first(status, infos)
+        self._raise_first(status, infos, poses)
         return BatchReducedDynamics(m_x, h_x, jac)
 
 

@@ -19,7 +19,7 @@ import numpy.typing as npt
 
 from ..core.checks import as_array, vector
 from ..core.closed_loop import ClosedLoopModel
-from ..core.measures import singularity_measures
+from ..core.measures import TYPE_I_TOL, TYPE_II_TOL, singularity_measures
 from ..core.results import InverseKinematicsBatch, JacobianBatch, SingularityMeasures
 from ..errors import (AssemblyError, BatchSingularityError, BatchUnreachablePoseError,
                       DescriptionError, InputError, SingularityError, StrokeLimitError,
@@ -31,7 +31,7 @@ from .geometry import HOME_BRANCH, N_ACTUATORS, PlanarGeometry, PlanarIndices, c
 #: scaled by the robot's size above (round-off grows with the coordinates)
 CLOSED_FORM_TOL = 1e-12
 _TYPE_I_WHAT = "inverse kinematic Jacobian (a link perpendicular to its rail)"
-_TYPE_II_WHAT = ("leg matrix A_hat = [e_k, (r_k x e_k) / platform_radius] (type II "
+_TYPE_II_WHAT = ("leg matrix A_hat = [e_k, (r_k x e_k) / platform_radius] (type-II "
                  "singularity; sigma_min(A_hat))")
 
 
@@ -69,6 +69,8 @@ class PlanarWorkspace:
         self.idx = np.concatenate([self.indices.platform, self.indices.slider,
                                    self.indices.link, self.rows]).astype(np.int64)
         self.geo = kernels.pack_geometry(geometry)
+        #: the characteristic length of the singularity measures (m)
+        self.platform_radius = float(geometry.platform_radius)
         #: rail midpoints ``m_k``, directions ``u_k``, platform points ``p_k`` (3, 2), read-only
         self.mids = _frozen(geometry.rail_midpoints)
         self.dirs = _frozen(geometry.rail_directions)
@@ -94,6 +96,11 @@ class PlanarWorkspace:
             info: the kernel's info vector (default: the single-state one).
             index: the state of a batch (Batch* errors), or None.
 
+        A residual refusal (a closed form that failed its own residual check, which happens
+        near a singularity) reports the measure nearer its threshold (``|cos|`` against
+        TYPE_I_TOL or ``sigma_min(A_hat)`` against TYPE_II_TOL) of the legs in the leg
+        buffer, which must hold the refused state's legs.
+
         Raises:
             InputError: bad shape, non-finite or non-real values.
             UnreachablePoseError: a leg cannot reach the pose.
@@ -117,8 +124,20 @@ class PlanarWorkspace:
         elif status == kernels.TYPE_II:
             what, value, tol = _TYPE_II_WHAT, info[kernels.X_TYPE_TWO], kernels.TYPE_II_TOL
         else:
-            what = "closed-form closure system (ill-conditioned: residual)"
-            value, tol = info[kernels.X_RES], None
+            # the closed form failed its own residual check (round-off near a singularity):
+            # the measure of the legs in the buffer nearer its threshold, with that threshold
+            cosines, a_hat = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, 3))
+            kernels.singularity_parts(self.geo, self.buf, cosines, a_hat)
+            measures = singularity_measures(None, cosines, a_hat, self.platform_radius)
+            label = "closed-form closure system (ill-conditioned: max-abs residual " \
+                f"{info[kernels.X_RES]:.3e}, beyond {kernels.RESIDUAL_RTOL:.0e} of the " \
+                "terms' magnitude) near a "
+            if measures.type_one / TYPE_I_TOL <= measures.type_two / TYPE_II_TOL:
+                what = label + "type-I singularity (|cos| of a link and its rail)"
+                value, tol = measures.type_one, TYPE_I_TOL
+            else:
+                what = label + "type-II singularity (sigma_min(A_hat))"
+                value, tol = measures.type_two, TYPE_II_TOL
         if index is not None:
             raise BatchSingularityError(index, what, value, tol)
         raise SingularityError(what, value, tol)

@@ -70,7 +70,8 @@ class Planar3PRR:
         self.indices = self.workspace.indices
         self.kinematics = PlanarKinematics(self.geometry, self.model, self.workspace)
         self.assembly = PlanarAssembly(self.geometry)
-        self.dynamics = PlanarDynamics(self.geometry, self.model, self.workspace, self.lock)
+        self.dynamics = PlanarDynamics(self.geometry, self.model, self.workspace, self.lock,
+                                       self.kinematics.singularity)
 
     @classmethod
     def default(cls) -> "Planar3PRR":
