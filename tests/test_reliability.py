@@ -7,6 +7,7 @@ to the forward dynamics (and back), twists through ``J`` and back, against the a
 the library documents (:data:`hexapod_pin.core.measures.ACCURACY`).
 """
 
+import dataclasses
 import json
 import math
 
@@ -16,6 +17,7 @@ from typer.testing import CliRunner
 
 import hexapod_pin as hp
 from hexapod_pin.cli import app
+from hexapod_pin.core.checks import check_finite_result
 from hexapod_pin.core.dynamics import ClosedLoopDynamics
 from hexapod_pin.core.measures import ACCURACY, TYPE_I_TOL, TYPE_II_TOL
 from hexapod_pin.hexapod.fast import fast_dynamics, simulate_fast
@@ -337,3 +339,28 @@ def test_measures_say_whether_the_routes_answer(robot, planar):
             except hp.SingularityError:
                 answered = False
             assert answered == measures.regular, (pose, measures)
+
+
+# -- the finiteness check of every facade result -------------------------------------------
+@pytest.mark.parametrize("bad", [np.array([1.0, np.nan]), np.array([[1.0], [np.inf]]),
+                                 np.arange(6.0).reshape(2, 3).T * np.array([1.0, -np.inf]),
+                                 np.array([1.0 + 0j, np.nan]), np.array([np.nan], np.float32),
+                                 (1.0, [2.0, {"k": np.array([np.nan])}])])
+def test_the_finiteness_check_finds_every_non_finite_number(bad):
+    with pytest.raises(hp.NonFiniteResultError):
+        check_finite_result("f", bad)
+
+
+def test_the_finiteness_check_walks_dataclasses_and_allows_an_infinite_condition():
+    @dataclasses.dataclass
+    class Inner:
+        values: np.ndarray
+        condition_number: float
+        _lazy: object = None
+
+    good = Inner(np.ones((3, 2))[:, 0], math.inf, _lazy=np.array([np.nan]))   # private: skipped
+    assert check_finite_result("f", good) is good
+    with pytest.raises(hp.NonFiniteResultError, match="values"):
+        check_finite_result("f", Inner(np.array([0.0, np.nan]), 1.0))
+    with pytest.raises(hp.NonFiniteResultError):
+        check_finite_result("f", Inner(np.ones(2), -math.inf))

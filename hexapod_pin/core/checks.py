@@ -8,12 +8,15 @@ Each raises a specific :class:`~hexapod_pin.errors.HexapodPinError` naming the a
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
+from typing import Any
 
 import numpy as np
 
 from ..errors import GeometryError, InputError, NonFiniteResultError
+from .compiled import all_finite
 
 
 def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False) -> np.ndarray:
@@ -185,27 +188,28 @@ def _all_real(raw: np.ndarray) -> bool:
 _INF_ALLOWED = frozenset({"condition_number"})
 
 
-def check_finite_result(function: str, value, field: str = "value"):
+def check_finite_result(function: str, value: Any, field: str = "value") -> Any:
     """Return ``value`` after checking that every number in it is finite.
 
     Walks arrays, floats, tuples, lists, mappings and dataclasses (their public fields;
     parts computed on first access are not forced). ``condition_number`` may be ``+inf``.
+    Float64 arrays are scanned by the compiled :func:`~hexapod_pin.core.compiled.all_finite`
+    (no temporary array), so that the check costs little next to the call it guards.
 
     Raises:
         NonFiniteResultError: a NaN anywhere, or an inf outside ``condition_number``
             (naming the function and the field).
     """
     if isinstance(value, np.ndarray):
-        bad = value.dtype.kind in "fc" and not np.isfinite(value).all()
+        if value.dtype == np.float64:
+            bad = not all_finite(value.reshape(-1))
+        else:
+            bad = value.dtype.kind in "fc" and not np.isfinite(value).all()
         if bad and not (field in _INF_ALLOWED and (value > 0).all()):
             raise NonFiniteResultError(function, field)
     elif isinstance(value, float):
         if not math.isfinite(value) and not (field in _INF_ALLOWED and value > 0):
             raise NonFiniteResultError(function, field)
-    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
-        for item in dataclasses.fields(value):
-            if not item.name.startswith("_"):
-                check_finite_result(function, getattr(value, item.name), item.name)
     elif isinstance(value, (tuple, list)):
         names = getattr(value, "_fields", None)
         for k, item in enumerate(value):
@@ -213,4 +217,18 @@ def check_finite_result(function: str, value, field: str = "value"):
     elif isinstance(value, dict):
         for key, item in value.items():
             check_finite_result(function, item, f"{field}[{key!r}]")
+    elif not isinstance(value, (str, int, bool, type(None))):
+        names = _public_fields(type(value))
+        if names:
+            for name in names:
+                check_finite_result(function, getattr(value, name), name)
     return value
+
+
+@functools.lru_cache(maxsize=None)
+def _public_fields(kind: type) -> tuple[str, ...]:
+    """The public dataclass fields of a type (empty for a type that is not a dataclass)."""
+    if not dataclasses.is_dataclass(kind):
+        return ()
+    return tuple(item.name for item in dataclasses.fields(kind)
+                 if not item.name.startswith("_"))
