@@ -6,6 +6,7 @@ import itertools
 import numpy as np
 import pytest
 
+from hexapod_pin.core.simulation import gauss_newton_pass
 from hexapod_pin.errors import ActuatorSaturationError, InputError, StrokeLimitError
 from hexapod_pin.hexapod.simulation import (
     CircleTrajectory,
@@ -156,3 +157,22 @@ def test_integrator_rejects_unsupported_joints_and_bad_inputs(robot):
         simulate(robot, 0.01, on_limit="ignore")
     with pytest.raises(InputError):
         CircleTrajectory(robot.home_pose, radius=-0.01, period=1.0)
+
+
+def test_gauss_newton_pass_matches_pseudo_inverse():
+    """The compiled projection pass against numpy's pseudo-inverse on the kept rows; a
+    singular Gram matrix (a repeated row) is refused with an infinite miss."""
+    rng = np.random.default_rng(3)
+    jac = rng.normal(size=(12, 22))
+    jac[11] = jac[3]
+    err = 1e-6 * rng.normal(size=12)
+    v = rng.normal(size=22)
+    rows = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 10])
+    step, v_new, out = np.empty(22), np.empty(22), np.empty(1)
+    miss = gauss_newton_pass(jac, err, rows, v, step, v_new, out)
+    pinv = np.linalg.pinv(jac[rows])
+    assert miss <= 1e-12
+    np.testing.assert_allclose(step, -pinv @ err[rows], rtol=0, atol=1e-18)
+    np.testing.assert_allclose(v_new, v - pinv @ (jac[rows] @ v), rtol=0, atol=1e-12)
+    assert out[0] == np.max(np.abs(err))
+    assert gauss_newton_pass(jac, err, np.array([3, 11]), v, step, v_new, out) == np.inf

@@ -105,8 +105,17 @@ class ClosedLoopIntegrator:
         self._cms, self._cds = clm.pinocchio_constraints()
         self._err = np.empty(clm.n_rows)
         self._out = np.empty(1)
-        self._closures = [(cm, cd, cm.type == pin.ContactType.CONTACT_3D)
-                          for cm, cd in zip(self._cms, self._cds)]
+        self._nv = model.nv
+        # (constraint model, constraint data, row slice of the errors, point closure)
+        self._closures = []
+        start = 0
+        for cm, cd in zip(self._cms, self._cds):
+            point = cm.type == pin.ContactType.CONTACT_3D
+            size = 3 if point else 6
+            self._closures.append((cm, cd, slice(start, start + size), point))
+            start += size
+        # the Gauss-Newton steps of the projection (two buffers: the current and the next)
+        self._steps = (np.empty(model.nv), np.empty(model.nv))
 
     # -- kinematics of the configuration vector -------------------------------------------
     def qdot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -155,6 +164,23 @@ class ClosedLoopIntegrator:
                 return acc.copy()
         return dyn.forward_unchecked(q, v, tau, self.method).a
 
+    def _euler_velocity(self, q, v, tau, dt):
+        """``v + dt a`` (nv,) with the verified acceleration ``a`` at ``(q, v)`` (one new
+        array: Pinocchio's buffer is read in place)."""
+        dyn = self.dyn
+        if self.method == "pinocchio":
+            redundant = self._redundant
+            if redundant is None:
+                redundant = self._redundant = dyn.closure_rank(q) < dyn.n_rows
+            acc, _ = dyn.pinocchio_call(q, v, tau, redundant)
+            if acc is None:
+                acc = dyn.forward_unchecked(q, v, tau, self.method).a
+        else:
+            acc = dyn.forward_unchecked(q, v, tau, self.method).a
+        out = np.multiply(acc, dt)
+        out += v
+        return out
+
     def step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
              projection_tol: float = PROJECTION_TOL) -> tuple[np.ndarray, np.ndarray, float]:
         """One step of length ``dt`` (s) with ``tau`` (nv,) held; returns ``(q, v, residual)``.
@@ -167,7 +193,7 @@ class ClosedLoopIntegrator:
         if self.integrator == "rk4":
             q_new, v_new = self._rk4(q, v, tau, dt, projection_tol)
         else:
-            v_new = v + dt * self.acceleration(q, v, tau)
+            v_new = self._euler_velocity(q, v, tau, dt)
             q_new = pin.integrate(self.clm.model, q, dt * v_new)
         return self.project(q_new, v_new, projection_tol)
 
@@ -223,7 +249,7 @@ class ClosedLoopIntegrator:
         rows = self._rows
         if rows is None:
             rows = self._rows = independent_rows(jac)
-        step, v_new = np.empty(self.clm.nv), np.empty(self.clm.nv)
+        step, v_new = self._steps[0], np.empty(self._nv)
         if self._solve_pass(jac, rows, v, step, v_new, q) <= trigger:
             return q, v
         return pin.integrate(self.clm.model, q, step), v_new
@@ -245,13 +271,12 @@ class ClosedLoopIntegrator:
         closure's error is ``R_1^T (p_1 - p_2)`` (the :meth:`ClosedLoopModel.residual`
         rows in anchor-1 axes: same Euclidean norm), a weld's ``log6(c2Mc1)`` (the same
         rows as :meth:`ClosedLoopModel.residual`)."""
-        model, data = self.clm.model, self._data
+        model, data, err = self.clm.model, self._data, self._err
         pin.computeJointJacobians(model, data, q)
-        parts = []
-        for cm, cd, point in self._closures:
+        for cm, cd, rows, point in self._closures:
             cm.calc(model, data, cd)              # the anchor placements (J reads them)
-            parts.append(cd.c1Mc2.translation if point else pin.log6(cd.c1Mc2).vector)
-        np.negative(np.concatenate(parts), out=self._err)   # -translation = R_1^T (p_1 - p_2)
+            err[rows] = cd.c1Mc2.translation if point else pin.log6(cd.c1Mc2).vector
+        np.negative(err, out=err)                 # -translation = R_1^T (p_1 - p_2)
         return pin.getConstraintsJacobian(model, data, self._cms, self._cds)
 
     def project(self, q: np.ndarray, v: np.ndarray, trigger: float = PROJECTION_TOL,
@@ -277,7 +302,8 @@ class ClosedLoopIntegrator:
         rows = self._rows
         if rows is None:
             rows = self._rows = independent_rows(jac)
-        step, v_new = np.empty(self.clm.nv), np.empty(self.clm.nv)
+        nv, steps = self._nv, self._steps
+        step, v_new = steps[0], np.empty(nv)
         err = self._solve_pass(jac, rows, v, step, v_new, q)
         if err <= trigger:
             return q, v, err
@@ -286,7 +312,7 @@ class ClosedLoopIntegrator:
                 break
             q_new = pin.integrate(model, q, step)
             jac_new = self._closure_pass(q_new)
-            step_new, v_next = np.empty(self.clm.nv), np.empty(self.clm.nv)
+            step_new, v_next = steps[1] if step is steps[0] else steps[0], np.empty(nv)
             err_new = self._solve_pass(jac_new, rows, v, step_new, v_next, q_new)
             if not err_new < err:
                 break
@@ -300,14 +326,10 @@ class ClosedLoopIntegrator:
     def _solve_pass(self, jac, rows, v, step, v_new, q) -> float:
         """After a :meth:`_closure_pass` at ``q``: the Gauss-Newton step
         ``-J_r^+ r_r`` into ``step`` and the projected velocity ``v - J_r^+ J_r v`` into
-        ``v_new`` (one compiled LU of ``J_r J_r^T`` for both; SVD least squares when that
-        solve is singular or inaccurate). Returns the residual at ``q``."""
+        ``v_new`` (one compiled Cholesky factorisation of ``J_r J_r^T`` for both; SVD least
+        squares when that solve is singular or inaccurate). Returns the residual at ``q``."""
         out = self._out
-        try:
-            ok = gauss_newton_pass(jac, self._err, rows, v, step, v_new, out) <= 1e-12
-        except np.linalg.LinAlgError:
-            ok = False
-        if not ok:
+        if not gauss_newton_pass(jac, self._err, rows, v, step, v_new, out) <= 1e-12:
             jac_r = jac[rows]
             step[:] = -_lstsq(jac_r, self._err[rows])
             v_new[:] = v - _lstsq(jac_r, jac_r @ v)
@@ -319,26 +341,58 @@ class ClosedLoopIntegrator:
 def gauss_newton_pass(jac, err, rows, v, step, v_new, out):
     """One compiled projection pass on the rows ``rows`` of ``J`` (n_rows, nv) and of the
     closure errors ``err``: ``step = -J_r^+ err_r`` and ``v_new = v - J_r^+ J_r v``
-    (minimum norm, one LU of the Gram matrix ``J_r J_r^T`` for both; raises numpy's
-    LinAlgError when it is exactly singular). ``out[0]`` = max-abs of ``err`` (all
-    rows). Returns the larger relative miss of ``J_r step = -err_r`` and
-    ``J_r v_new = 0`` (small only when the solves were accurate)."""
+    (minimum norm, one Cholesky factorisation of the Gram matrix ``J_r J_r^T`` for both).
+    ``out[0]`` = max-abs of ``err`` (all rows). Returns the larger relative miss of
+    ``J_r step = -err_r`` and ``J_r v_new = 0`` (small only when the solves were
+    accurate); ``inf`` when the Gram matrix is not numerically positive definite."""
     n, nv = rows.shape[0], jac.shape[1]
     jr = np.empty((n, nv))
     rhs = np.empty((n, 2))
     emax = 0.0
     for k in range(err.shape[0]):
         emax = max(emax, abs(err[k]))
+    out[0] = emax
     for i in range(n):
         jr[i] = jac[rows[i]]
         rhs[i, 0] = -err[rows[i]]
         rhs[i, 1] = jr[i] @ v
-    sol = np.linalg.solve(jr @ jr.T, rhs)
-    corr = jr.T @ sol
-    miss_s, miss_v, scale_s, scale_v, jmax = 0.0, 0.0, 0.0, 0.0, 0.0
+    # lower Cholesky factor of the Gram matrix, in place
+    low = np.empty((n, n))
+    for i in range(n):
+        for j in range(i + 1):
+            acc = 0.0
+            for k in range(nv):
+                acc += jr[i, k] * jr[j, k]
+            for k in range(j):
+                acc -= low[i, k] * low[j, k]
+            if i == j:
+                if not acc > 0.0:
+                    return math.inf
+                low[i, i] = math.sqrt(acc)
+            else:
+                low[i, j] = acc / low[j, j]
+    # sol = G^-1 rhs: forward then backward substitution, both columns
+    sol = rhs.copy()
+    for c in range(2):
+        for i in range(n):
+            acc = sol[i, c]
+            for k in range(i):
+                acc -= low[i, k] * sol[k, c]
+            sol[i, c] = acc / low[i, i]
+        for i in range(n - 1, -1, -1):
+            acc = sol[i, c]
+            for k in range(i + 1, n):
+                acc -= low[k, i] * sol[k, c]
+            sol[i, c] = acc / low[i, i]
     for j in range(nv):
-        step[j] = corr[j, 0]
-        v_new[j] = v[j] - corr[j, 1]
+        s0 = 0.0
+        s1 = 0.0
+        for i in range(n):
+            s0 += jr[i, j] * sol[i, 0]
+            s1 += jr[i, j] * sol[i, 1]
+        step[j] = s0
+        v_new[j] = v[j] - s1
+    miss_s, miss_v, scale_s, scale_v, jmax = 0.0, 0.0, 0.0, 0.0, 0.0
     for i in range(n):
         row_s = 0.0
         row_v = 0.0
@@ -350,7 +404,6 @@ def gauss_newton_pass(jac, err, rows, v, step, v_new, out):
         miss_v = max(miss_v, abs(row_v))
         scale_s = max(scale_s, abs(rhs[i, 0]))
         scale_v = max(scale_v, abs(rhs[i, 1]))
-    out[0] = emax
     vmax = 0.0
     for j in range(nv):
         vmax = max(vmax, abs(v[j]))
