@@ -106,14 +106,8 @@ class ClosedLoopIntegrator:
         self._err = np.empty(clm.n_rows)
         self._out = np.empty(1)
         self._nv = model.nv
-        # (constraint model, constraint data, row slice of the errors, point closure)
-        self._closures = []
-        start = 0
-        for cm, cd in zip(self._cms, self._cds):
-            point = cm.type == pin.ContactType.CONTACT_3D
-            size = 3 if point else 6
-            self._closures.append((cm, cd, slice(start, start + size), point))
-            start += size
+        self._closures = [(cm, cd, cm.type == pin.ContactType.CONTACT_3D)
+                          for cm, cd in zip(self._cms, self._cds)]
         # the Gauss-Newton steps of the projection (two buffers: the current and the next)
         self._steps = (np.empty(model.nv), np.empty(model.nv))
 
@@ -273,9 +267,11 @@ class ClosedLoopIntegrator:
         rows as :meth:`ClosedLoopModel.residual`)."""
         model, data, err = self.clm.model, self._data, self._err
         pin.computeJointJacobians(model, data, q)
-        for cm, cd, rows, point in self._closures:
+        closures = self._closures
+        for cm, cd, _ in closures:
             cm.calc(model, data, cd)              # the anchor placements (J reads them)
-            err[rows] = cd.c1Mc2.translation if point else pin.log6(cd.c1Mc2).vector
+        np.concatenate([cd.c1Mc2.translation if point else pin.log6(cd.c1Mc2).vector
+                        for _, cd, point in closures], out=err)
         np.negative(err, out=err)                 # -translation = R_1^T (p_1 - p_2)
         return pin.getConstraintsJacobian(model, data, self._cms, self._cds)
 
