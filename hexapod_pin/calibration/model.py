@@ -66,10 +66,7 @@ class Legs:
 def legs_at(chains: ChainGeometry, rot: np.ndarray, trans: np.ndarray, q: np.ndarray) -> Legs:
     """The legs for platform rotations ``rot`` (N, 3, 3), translations ``trans`` (N, 3) and
     readings ``q`` (N, 6) on the chain geometry ``chains``."""
-    arms = np.einsum("nab,ib->nia", rot, chains.platform_joints)
-    centres = (chains.line_points[None]
-               + (q + chains.sensor_offsets)[..., None] * chains.line_directions[None])
-    legs = trans[:, None, :] + arms - centres
+    legs, arms = chains.legs(rot, trans, q)
     dot = np.einsum("nia,ia->ni", legs, chains.line_directions)
     e = (np.einsum("nia,nia->ni", legs, legs) - chains.leg_lengths ** 2) / (2.0 * dot)
     grad = (legs - e[..., None] * chains.line_directions[None]) / dot[..., None]

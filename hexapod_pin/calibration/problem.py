@@ -225,11 +225,8 @@ def reference_poses(robot: Hexapod, count: int = 60, seed: int = 0, scale: float
     batch = robot.inverse_kinematics_batch(poses)
     poses = poses[batch.ok]
     chains = robot.geometry.chain_geometry
-    legs = (poses[:, None, :3] + np.einsum("nab,ib->nia", rotation_from_rpy(poses[:, 3:]),
-                                           chains.platform_joints)
-            - chains.line_points
-            - (batch.actuator_positions[batch.ok] + chains.sensor_offsets)[..., None]
-            * chains.line_directions)
+    legs, _ = chains.legs(rotation_from_rpy(poses[:, 3:]), poses[:, :3],
+                          batch.actuator_positions[batch.ok])
     cosine = np.abs(np.einsum("nia,ia->ni", legs, chains.line_directions)) / chains.leg_lengths
     return poses[np.min(cosine, axis=1) >= REFERENCE_MIN_COS]
 

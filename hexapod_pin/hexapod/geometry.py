@@ -161,9 +161,20 @@ class ChainGeometry:
         return {name: getattr(self, name).tolist() for name, _ in CHAIN_FIELDS}
 
     def carriage_points(self, q) -> np.ndarray:
-        """Universal-joint centres ``c_i`` (6, 3), world frame (m), at readings ``q`` (6,)."""
+        """Universal-joint centres ``c_i`` (..., 6, 3), world frame (m), at readings ``q``
+        (..., 6)."""
         q = np.asarray(q, dtype=float)
-        return self.line_points + (q + self.sensor_offsets)[:, None] * self.line_directions
+        return self.line_points + (q + self.sensor_offsets)[..., None] * self.line_directions
+
+    def legs(self, rot, trans, q) -> tuple[np.ndarray, np.ndarray]:
+        """The closure equations' vectors, written once: legs ``n_i = t + R p_i - c_i(q)``
+        from each universal-joint centre to its platform joint, and arms ``R p_i``, both
+        (..., 6, 3) in world axes (m), for platform rotations ``rot`` (..., 3, 3),
+        translations ``trans`` (..., 3) (m) and readings ``q`` (..., 6) (m). A pose closes
+        when ``|n_i| = leg_lengths[i]`` for every leg."""
+        arms = np.einsum("...ab,ib->...ia", rot, self.platform_joints)
+        legs = np.asarray(trans, dtype=float)[..., None, :] + arms - self.carriage_points(q)
+        return legs, arms
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, ChainGeometry):
@@ -298,18 +309,14 @@ def continue_pose(start: ChainGeometry, stop: ChainGeometry, q, pose) -> np.ndar
 def leg_residuals(chains: ChainGeometry, q, pose) -> np.ndarray:
     """Closure residuals ``|t + R p_i - c_i(q)| - L_i`` (6,) (m) of a pose (6,) at the
     readings ``q`` (6,)."""
-    rot = rotation_from_rpy(np.asarray(pose[3:], dtype=float))
-    legs = (np.asarray(pose[:3], dtype=float) + chains.platform_joints @ rot.T
-            - chains.carriage_points(q))
+    legs, _ = chains.legs(rotation_from_rpy(np.asarray(pose[3:], dtype=float)), pose[:3], q)
     return np.linalg.norm(legs, axis=1) - chains.leg_lengths
 
 
 def branch_of(chains: ChainGeometry, q, pose) -> np.ndarray:
     """IK branch signs ``s_i = -sign(n_i . u_i)`` (6,) of an assembled pose (6,) at the
     readings ``q`` (6,), ``n_i`` the leg from its joint centre to its platform joint."""
-    rot = rotation_from_rpy(np.asarray(pose[3:], dtype=float))
-    legs = (np.asarray(pose[:3], dtype=float) + chains.platform_joints @ rot.T
-            - chains.carriage_points(q))
+    legs, _ = chains.legs(rotation_from_rpy(np.asarray(pose[3:], dtype=float)), pose[:3], q)
     return -np.sign(np.einsum("ij,ij->i", legs, chains.line_directions))
 
 
