@@ -37,6 +37,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import pinocchio as pin
 
 from ..core import layouts
 from ..core.checks import validate_scalars
@@ -228,14 +229,7 @@ def closure_pose(chains: ChainGeometry, q, start, *, max_iter: int = 50) -> np.n
         except np.linalg.LinAlgError:
             return None
         t = t + step[:3]
-        w = step[3:]
-        angle = float(np.linalg.norm(w))
-        if angle > 0.0:
-            axis = w / angle
-            kx = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
-                           [-axis[1], axis[0], 0.0]])
-            rot = (np.eye(3) + math.sin(angle) * kx
-                   + (1.0 - math.cos(angle)) * kx @ kx) @ rot
+        rot = pin.exp3(step[3:]) @ rot          # the rotation step, world axes
     return None
 
 
