@@ -23,7 +23,7 @@ the tree integrator (semi-implicit Euler and RK4) against ``mj_step`` (MuJoCo's 
 and RK4 integrators) on Cassie and the one-loop ladder.
 
 Run ``python benchmarks/bench_generic.py`` (``--smoke``: two robots, short samples; a
-test runs it). Prints Markdown tables; exits 1 when a route failed a solve or disagreed
+test runs it; ``--integrators``: the integrator table only). Prints Markdown tables; exits 1 when a route failed a solve or disagreed
 with the reference by more than ``AGREEMENT``.
 """
 
@@ -304,32 +304,57 @@ def bench_batch(name, clm, states, n: int = 64):
 
 def bench_step(name, clm, states, dt: float = 1e-3):
     """One step from the same state (a falling robot would leave its workspace): us per
-    step of each integrator and of ``mj_step`` (MuJoCo's Euler and RK4 integrators), and
-    the largest closure residual after the step, checked here with
-    ``ClosedLoopModel.residual`` (m / rad)."""
+    step of each integrator and of ``mj_step`` (MuJoCo's Euler and RK4 integrators; each
+    integrator timed in alternating samples with its MuJoCo counterpart, so that both see
+    the same machine load), and the largest closure residual after the step, checked here
+    with ``ClosedLoopModel.residual`` (m / rad)."""
     out = {}
     q0, v0 = states[0][0], states[0][1]
     tau = np.zeros(clm.nv)
-    for integ in ("semi_implicit_euler", "rk4"):
+    for integ, mj_integ, key in (("semi_implicit_euler", "mjINT_EULER", "mj_step"),
+                                 ("rk4", "mjINT_RK4", "mj_step_rk4")):
         sim = ClosedLoopIntegrator(clm, integrator=integ)
         residual = max(float(np.max(np.abs(clm.residual(sim.step(q0, v0, tau, dt)[0]))))
                        for _ in range(3))
-        out[integ] = (timing(lambda sim=sim: sim.step(q0, v0, tau, dt)), residual)
-    if mujoco is not None:
+
+        def step(sim=sim):
+            sim.step(q0, v0, tau, dt)
+        if mujoco is None:
+            out[integ] = (timing(step), residual)
+            continue
         mjm = to_mujoco(clm, timestep=dt)
+        mjm.opt.integrator = getattr(mujoco.mjtIntegrator, mj_integ)
         mjd = mujoco.MjData(mjm)
         st = mujoco_state(clm, q0, v0)
 
-        def mj_step():
+        def mj_step(mjm=mjm, mjd=mjd, st=st):
             mjd.qpos[:], mjd.qvel[:] = st.qpos, st.qvel
             mujoco.mj_step(mjm, mjd)
-        out["mj_step"] = (timing(mj_step), float("nan"))
-        mjm.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
-        out["mj_step_rk4"] = (timing(mj_step), float("nan"))
+        t_ours, t_mj = paired(step, mj_step)
+        out[integ] = (t_ours, residual)
+        out[key] = (t_mj, float("nan"))
     return name, out
 
 
 # ------------------------------------------------------------------------------ report
+def print_steps(kept) -> None:
+    """The integrator table: one step on Cassie and the one-loop ladder (of ``kept``,
+    ``(name, clm, states)`` triples) against ``mj_step``."""
+    print("\n| robot | semi-implicit Euler us/step | mj_step (Euler) us | ratio | RK4 us/step | "
+          "mj_step (RK4) us | ratio | max closure residual |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, clm, states in kept:
+        if name not in ("cassie", "ladder_1"):
+            continue
+        _, out = bench_step(name, clm, states)
+        mj = out.get("mj_step", (None, 0.0))[0]
+        mj4 = out.get("mj_step_rk4", (None, 0.0))[0]
+        sie, rk4 = out["semi_implicit_euler"][0], out["rk4"][0]
+        res = max(out["semi_implicit_euler"][1], out["rk4"][1])
+        print(f"| {name} | {_us(sie)} | {_us(mj)} | {_ratio(sie, mj)} | {_us(rk4)} | "
+              f"{_us(mj4)} | {_ratio(rk4, mj4)} | {res:.1e} |")
+
+
 def machine() -> str:
     versions = ", ".join(f"{p} {metadata.version(p)}" for p in
                          ("pin", "proxsuite", "numpy", "numba", "mujoco")
@@ -358,11 +383,20 @@ def _ratio(x, ref):
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--smoke", action="store_true", help="two robots, short samples")
+    parser.add_argument("--integrators", action="store_true",
+                        help="the integrator table only (Cassie and the one-loop ladder)")
     args = parser.parse_args(argv)
     if args.smoke:
         SAMPLE["seconds"] = 0.002
     n_states = 2 if args.smoke else 5
     print(f"machine: {machine()}\n")
+    if args.integrators:
+        kept = []
+        for name, clm, sample in (_cassie(), _ladder(1)):
+            q, v = sample(np.random.default_rng(0))    # the first state of bench_robot
+            kept.append((name, clm, [(q, v)]))
+        print_steps(kept)
+        return 0
     print("| robot | nv | rows/rank | route | us/call | raw Pinocchio us | ratio | "
           "mj_forward us | ratio to mj | max rel. error vs null-space | failed |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
@@ -386,19 +420,7 @@ def main(argv=None) -> int:
             continue
         _, n, fb, fl, ib, il = bench_batch(name, clm, states, 8 if args.smoke else 64)
         print(f"| {name} | {n} | {_us(fb)} | {_us(fl)} | {_us(ib)} | {_us(il)} |")
-    print("\n| robot | semi-implicit Euler us/step | mj_step (Euler) us | ratio | RK4 us/step | "
-          "mj_step (RK4) us | ratio | max closure residual |")
-    print("|---|---|---|---|---|---|---|---|")
-    for name, clm, states in kept:
-        if name not in ("cassie", "ladder_1"):
-            continue
-        _, out = bench_step(name, clm, states)
-        mj = out.get("mj_step", (None, 0.0))[0]
-        mj4 = out.get("mj_step_rk4", (None, 0.0))[0]
-        sie, rk4 = out["semi_implicit_euler"][0], out["rk4"][0]
-        res = max(out["semi_implicit_euler"][1], out["rk4"][1])
-        print(f"| {name} | {_us(sie)} | {_us(mj)} | {_ratio(sie, mj)} | {_us(rk4)} | "
-              f"{_us(mj4)} | {_ratio(rk4, mj4)} | {res:.1e} |")
+    print_steps(kept)
     if bad:
         print("\nDISAGREEMENT OR FAILED SOLVES:\n" + "\n".join(bad))
         return 1
