@@ -6,7 +6,7 @@ import itertools
 import numpy as np
 import pytest
 
-from hexapod_pin.core.simulation import gauss_newton_pass
+from hexapod_pin.core.simulation import gauss_newton_pass, rk4_stage
 from hexapod_pin.errors import ActuatorSaturationError, InputError, StrokeLimitError
 from hexapod_pin.hexapod.simulation import (
     CircleTrajectory,
@@ -176,3 +176,18 @@ def test_gauss_newton_pass_matches_pseudo_inverse():
     np.testing.assert_allclose(v_new, v - pinv @ (jac[rows] @ v), rtol=0, atol=1e-12)
     assert out[0] == np.max(np.abs(err))
     assert gauss_newton_pass(jac, err, np.array([3, 11]), v, step, v_new, out) == np.inf
+
+
+def test_rk4_stage_matches_numpy():
+    """The compiled stage update against numpy: ``q + h qdot`` with its quaternion
+    renormalised, ``v + h vdot``."""
+    rng = np.random.default_rng(5)
+    q, d = rng.normal(size=9), rng.normal(size=9)
+    v, a = rng.normal(size=8), rng.normal(size=8)
+    q_out, v_out = np.empty(9), np.empty(8)
+    rk4_stage(q, v, d, a, 0.3, q_out, v_out, np.array([2]))
+    want = q + 0.3 * d
+    want[2:6] /= np.linalg.norm(want[2:6])
+    np.testing.assert_allclose(q_out, want, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(v_out, v + 0.3 * a, rtol=0, atol=1e-15)
+    assert abs(np.linalg.norm(q_out[2:6]) - 1.0) < 1e-15

@@ -98,6 +98,8 @@ class ClosedLoopIntegrator:
                 vec_v == list(range(vec_v[0], vec_v[0] + len(vec_v))):
             self._vec_slices = (slice(vec_q[0], vec_q[0] + len(vec_q)),
                                 slice(vec_v[0], vec_v[0] + len(vec_v)))
+        #: start of each free-flyer's quaternion (x, y, z, w) in q (RK4 stage kernels)
+        self._quat = np.array([iq + 3 for iq, _ in self._ff], dtype=np.int64)
         self._redundant: bool | None = None
         self._rows: np.ndarray | None = None     # independent closure rows (projection)
         # the projection's own Pinocchio data and constraint data (Pinocchio's LOCAL rows)
@@ -129,12 +131,6 @@ class ClosedLoopIntegrator:
                               0.5 * (w * wx + y * wz - z * wy), 0.5 * (w * wy + z * wx - x * wz),
                               0.5 * (w * wz + x * wy - y * wx), -0.5 * (x * wx + y * wy + z * wz))
         return out
-
-    def _normalise(self, q: np.ndarray) -> None:
-        for iq, _ in self._ff:
-            x, y, z, w = q[iq + 3:iq + 7].tolist()
-            inv = 1.0 / math.sqrt(x * x + y * y + z * z + w * w)
-            q[iq + 3:iq + 7] = (x * inv, y * inv, z * inv, w * inv)
 
     # -- dynamics ---------------------------------------------------------------------------
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
@@ -198,7 +194,7 @@ class ClosedLoopIntegrator:
         and the verified constrained dynamics then raise (Cassie at 1 ms). With
         independent rows every drift is in their range and the stages are left as RK4
         makes them."""
-        qdot, normalise = self.qdot, self._normalise
+        qdot = self.qdot
         if self._rows is None:
             self._rows = independent_rows(self._closure_pass(q))
         if self._rows.size < self.clm.n_rows:
@@ -210,28 +206,27 @@ class ClosedLoopIntegrator:
         def acc(qs, vs):
             return self.acceleration(qs, vs, tau)
 
-        half = 0.5 * dt
+        half, quat = 0.5 * dt, self._quat
         a1 = acc(q, v)
         d1 = qdot(q, v)
-        q2, v2 = q + half * d1, v + half * a1
-        normalise(q2)
+        q2, v2 = np.empty_like(q), np.empty_like(v)
+        rk4_stage(q, v, d1, a1, half, q2, v2, quat)
         q2, v2 = project(q2, v2, projection_tol)
         a2 = acc(q2, v2)
         d2 = qdot(q2, v2)
-        q3, v3 = q + half * d2, v + half * a2
-        normalise(q3)
+        q3, v3 = np.empty_like(q), np.empty_like(v)
+        rk4_stage(q, v, d2, a2, half, q3, v3, quat)
         q3, v3 = project(q3, v3, projection_tol)
         a3 = acc(q3, v3)
         d3 = qdot(q3, v3)
-        q4, v4 = q + dt * d3, v + dt * a3
-        normalise(q4)
+        q4, v4 = np.empty_like(q), np.empty_like(v)
+        rk4_stage(q, v, d3, a3, dt, q4, v4, quat)
         q4, v4 = project(q4, v4, projection_tol)
         a4 = acc(q4, v4)
         d4 = qdot(q4, v4)
-        sixth = dt / 6.0
-        q_new = q + sixth * (d1 + d4 + 2.0 * (d2 + d3))
-        v_new = v + sixth * (a1 + a4 + 2.0 * (a2 + a3))
-        normalise(q_new)
+        q_new, v_new = np.empty_like(q), np.empty_like(v)
+        rk4_stage(q, v, d1 + d4 + 2.0 * (d2 + d3), a1 + a4 + 2.0 * (a2 + a3), dt / 6.0,
+                  q_new, v_new, quat)
         return q_new, v_new
 
     def _project_stage(self, q: np.ndarray, v: np.ndarray, trigger: float):
@@ -331,6 +326,22 @@ class ClosedLoopIntegrator:
             v_new[:] = v - _lstsq(jac_r, jac_r @ v)
             out[0] = float(np.max(np.abs(self._err), initial=0.0))
         return float(out[0]) if self._residual_fn is None else float(self._residual_fn(q))
+
+
+@jit
+def rk4_stage(q, v, qdot, vdot, h, q_out, v_out, quat):
+    """``q_out = q + h qdot`` (nq,) and ``v_out = v + h vdot`` (nv,), the quaternions
+    starting at the indices ``quat`` (x, y, z, w) renormalised in ``q_out``."""
+    for i in range(q.shape[0]):
+        q_out[i] = q[i] + h * qdot[i]
+    for i in range(v.shape[0]):
+        v_out[i] = v[i] + h * vdot[i]
+    for k in range(quat.shape[0]):
+        i = quat[k]
+        inv = 1.0 / math.sqrt(q_out[i] ** 2 + q_out[i + 1] ** 2 + q_out[i + 2] ** 2
+                              + q_out[i + 3] ** 2)
+        for j in range(4):
+            q_out[i + j] *= inv
 
 
 @jit
