@@ -144,6 +144,13 @@ class ClosedLoopIntegrator:
         KKT route when it is refused. ``checked`` is kept for callers; every call is
         checked.
         """
+        acc = self._verified_acceleration(q, v, tau)
+        return acc.copy() if self.method == "pinocchio" else acc
+
+    def _verified_acceleration(self, q, v, tau):
+        """The verified tree acceleration (nv,) at ``(q, v)``: with the "pinocchio" method
+        Pinocchio's own buffer (overwritten by the next call: read it, do not keep it),
+        falling back to the exact KKT route when that answer is refused."""
         dyn = self.dyn
         if self.method == "pinocchio":
             redundant = self._redundant
@@ -151,23 +158,13 @@ class ClosedLoopIntegrator:
                 redundant = self._redundant = dyn.closure_rank(q) < dyn.n_rows
             acc, _ = dyn.pinocchio_call(q, v, tau, redundant)
             if acc is not None:
-                return acc.copy()
+                return acc
         return dyn.forward_unchecked(q, v, tau, self.method).a
 
     def _euler_velocity(self, q, v, tau, dt):
         """``v + dt a`` (nv,) with the verified acceleration ``a`` at ``(q, v)`` (one new
         array: Pinocchio's buffer is read in place)."""
-        dyn = self.dyn
-        if self.method == "pinocchio":
-            redundant = self._redundant
-            if redundant is None:
-                redundant = self._redundant = dyn.closure_rank(q) < dyn.n_rows
-            acc, _ = dyn.pinocchio_call(q, v, tau, redundant)
-            if acc is None:
-                acc = dyn.forward_unchecked(q, v, tau, self.method).a
-        else:
-            acc = dyn.forward_unchecked(q, v, tau, self.method).a
-        out = np.multiply(acc, dt)
+        out = np.multiply(self._verified_acceleration(q, v, tau), dt)
         out += v
         return out
 
