@@ -176,6 +176,20 @@ def test_gauss_newton_pass_matches_pseudo_inverse():
     np.testing.assert_allclose(v_new, v - pinv @ (jac[rows] @ v), rtol=0, atol=1e-12)
     assert out[0] == np.max(np.abs(err))
     assert gauss_newton_pass(jac, err, np.array([3, 11]), v, step, v_new, out) == np.inf
+    # rows with zero columns at both ends and between (a closure's row is zero on the
+    # joints that move neither anchor): the products skip the zero ends only
+    sparse = jac.copy()
+    sparse[:6, 8:] = 0.0
+    sparse[6:, :5] = 0.0
+    sparse[2, 3] = 0.0
+    sparse[7, -1] = 0.0
+    miss = gauss_newton_pass(sparse, err, rows, v, step, v_new, out)
+    pinv = np.linalg.pinv(sparse[rows])
+    assert miss <= 1e-12
+    np.testing.assert_allclose(step, -pinv @ err[rows], rtol=0, atol=1e-18)
+    np.testing.assert_allclose(v_new, v - pinv @ (sparse[rows] @ v), rtol=0, atol=1e-12)
+    sparse[4, 10] = np.nan
+    assert gauss_newton_pass(sparse, err, rows, v, step, v_new, out) == np.inf
 
 
 def test_rk4_stage_matches_numpy():

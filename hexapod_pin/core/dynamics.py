@@ -237,6 +237,9 @@ class ClosedLoopDynamics:
         self._pin_singular = False       # M structurally singular: Pinocchio refused
         self._rank_rechecked = False
         self._no_rows = (np.zeros((0, self.nv)), np.zeros(0))
+        #: Pinocchio's constraint Jacobian (n_rows, nv; LOCAL rows) at the ``q`` of the last
+        #: verified ``pinocchio_call`` (integrators reuse it); None before the first one
+        self.last_jacobian: np.ndarray | None = None
         self._kkt = np.zeros((self.nv + self.n_rows, self.nv + self.n_rows))
         self._id_matrix = np.zeros((self.nv, self.n_act + self.n_rows))
         self._id_matrix[:, :self.n_act] = self.selection
@@ -439,6 +442,8 @@ class ClosedLoopDynamics:
         acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
                                      self.pin_datas, prox)
         if self._pin_verified(acc, tau):
+            if self.n_rows:
+                self._pin_fast = prox    # the short path of pinocchio_verified
             return acc, prox
         diag = np.diagonal(self._v_mass)
         if np.min(diag) <= 1e-14 * max(np.max(diag), _TINY):
@@ -456,9 +461,12 @@ class ClosedLoopDynamics:
         return None, prox
 
     def _pin_verified(self, acc, tau) -> bool:
+        """Whether Pinocchio's answer ``acc`` meets both equations (see
+        :meth:`pinocchio_call`); Pinocchio's constraint Jacobian at the call's ``q`` (LOCAL
+        rows, a new array) is left in :attr:`last_jacobian`."""
         if self.n_rows:
-            jac = pin.getConstraintsJacobian(self.model, self.data, self.pin_models,
-                                             self.pin_datas)
+            jac = self.last_jacobian = pin.getConstraintsJacobian(
+                self.model, self.data, self.pin_models, self.pin_datas)
             target = self._v_rhs           # Pinocchio's J a = primal_rhs (recomputed per call)
         else:
             jac, target = self._no_rows
@@ -568,17 +576,18 @@ class ClosedLoopDynamics:
         """One ``pin.constraintDynamics`` call with the settings of the last verified call,
         verified on Pinocchio's own ``M``, ``nle``, constraint Jacobian and drift (one
         compiled kernel). Returns the proximal settings used (the answer is in
-        ``self.data.ddq`` / ``self.data.lambda_c``), or None when the model has no
-        verified call yet or this answer fails the verification (no input checks)."""
+        ``self.data.ddq`` / ``self.data.lambda_c``, the constraint Jacobian at ``q`` in
+        :attr:`last_jacobian`), or None when the model has no verified call yet or this
+        answer fails the verification (no input checks)."""
         prox = self._pin_fast
         if prox is None:
             return None
         model, data, cms, cds = self.model, self.data, self.pin_models, self.pin_datas
         acc = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
         # checked on Pinocchio's own M, nle, J and drift (J a = primal_rhs)
-        eom, con = kkt_residuals(self._v_mass, self._v_nle, tau,
-                                 pin.getConstraintsJacobian(model, data, cms, cds),
-                                 self._v_rhs, acc, self._v_lambda, self._res_out)
+        jac = self.last_jacobian = pin.getConstraintsJacobian(model, data, cms, cds)
+        eom, con = kkt_residuals(self._v_mass, self._v_nle, tau, jac, self._v_rhs, acc,
+                                 self._v_lambda, self._res_out)
         if eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL:
             return prox
         return None

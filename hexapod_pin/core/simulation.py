@@ -33,6 +33,7 @@ import pinocchio as pin
 from ..errors import AssemblyError, InputError
 from .closed_loop import ClosedLoopModel
 from .compiled import jit
+from .constraint_views import ConstraintErrors
 from .dynamics import FORWARD_METHODS, dynamics_of, independent_rows
 
 #: closure residual above which a step is projected back onto the closures (m)
@@ -108,10 +109,16 @@ class ClosedLoopIntegrator:
         self._err = np.empty(clm.n_rows)
         self._out = np.empty(1)
         self._nv = model.nv
-        self._closures = [(cm, cd, cm.type == pin.ContactType.CONTACT_3D)
-                          for cm, cd in zip(self._cms, self._cds)]
+        self._calcs = [(cm.calc, cd) for cm, cd in zip(self._cms, self._cds)]
+        self._errors = ConstraintErrors(model, self._cms, self._cds, "local")
         # the Gauss-Newton steps of the projection (two buffers: the current and the next)
         self._steps = (np.empty(model.nv), np.empty(model.nv))
+        #: the constraint Jacobian at the start of the current step (from the verified
+        #: dynamics call), None when the dynamics did not give one
+        self._jac0: np.ndarray | None = None
+        self._model = model
+        self.dyn.pinocchio_arguments()    # Pinocchio's constraint dynamics set up, then
+        self._ddq = self.dyn.data.ddq     # its acceleration buffer (a live view)
 
     # -- kinematics of the configuration vector -------------------------------------------
     def qdot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -153,20 +160,18 @@ class ClosedLoopIntegrator:
         falling back to the exact KKT route when that answer is refused."""
         dyn = self.dyn
         if self.method == "pinocchio":
+            if dyn.pinocchio_verified(q, v, tau) is not None:      # the short path
+                self._jac0 = dyn.last_jacobian
+                return self._ddq
             redundant = self._redundant
             if redundant is None:
                 redundant = self._redundant = dyn.closure_rank(q) < dyn.n_rows
             acc, _ = dyn.pinocchio_call(q, v, tau, redundant)
             if acc is not None:
+                self._jac0 = dyn.last_jacobian
                 return acc
+        self._jac0 = None
         return dyn.forward_unchecked(q, v, tau, self.method).a
-
-    def _euler_velocity(self, q, v, tau, dt):
-        """``v + dt a`` (nv,) with the verified acceleration ``a`` at ``(q, v)`` (one new
-        array: Pinocchio's buffer is read in place)."""
-        out = np.multiply(self._verified_acceleration(q, v, tau), dt)
-        out += v
-        return out
 
     def step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
              projection_tol: float = PROJECTION_TOL) -> tuple[np.ndarray, np.ndarray, float]:
@@ -179,10 +184,31 @@ class ClosedLoopIntegrator:
         """
         if self.integrator == "rk4":
             q_new, v_new = self._rk4(q, v, tau, dt, projection_tol)
-        else:
-            v_new = self._euler_velocity(q, v, tau, dt)
-            q_new = pin.integrate(self.clm.model, q, dt * v_new)
-        return self.project(q_new, v_new, projection_tol)
+            return self.project(q_new, v_new, projection_tol)
+        # semi-implicit Euler: v' = v + dt a(q, v), q' = q (+) dt v'
+        v_new = np.multiply(self._verified_acceleration(q, v, tau), dt)
+        v_new += v
+        model = self._model
+        q_new = pin.integrate(model, q, dt * v_new)
+        jac0, rows = self._jac0, self._rows
+        if jac0 is None or rows is None or self._residual_fn is not None:
+            return self.project(q_new, v_new, projection_tol)
+        # the first Gauss-Newton step with jac0, the constraint Jacobian at the start of
+        # the step (the step moved q by dt v: the error of that Jacobian slows the
+        # convergence by a factor of order dt |v| only), so that this pass needs the
+        # closure errors at q_new but no Jacobian; the next pass (project, at the
+        # corrected q) verifies the closures and projects the velocity
+        data = self._data
+        pin.forwardKinematics(model, data, q_new)
+        for calc, cd in self._calcs:
+            calc(model, data, cd)
+        step, out = self._steps[0], self._out
+        if gauss_newton_pass(jac0, self._errors.gather(self._err), rows, v_new, step,
+                             self._steps[1], out) > 1e-12:
+            return self.project(q_new, v_new, projection_tol)
+        if out[0] > projection_tol:
+            q_new = pin.integrate(model, q_new, step)
+        return self.project(q_new, v_new, projection_tol, velocity=True)
 
     def _rk4(self, q, v, tau, dt, projection_tol=PROJECTION_TOL):
         """Classical RK4. With redundant closure rows (dependent on the others), each
@@ -259,16 +285,14 @@ class ClosedLoopIntegrator:
         rows as :meth:`ClosedLoopModel.residual`)."""
         model, data, err = self.clm.model, self._data, self._err
         pin.computeJointJacobians(model, data, q)
-        closures = self._closures
-        for cm, cd, _ in closures:
-            cm.calc(model, data, cd)              # the anchor placements (J reads them)
-        np.concatenate([cd.c1Mc2.translation if point else pin.log6(cd.c1Mc2).vector
-                        for _, cd, point in closures], out=err)
-        np.negative(err, out=err)                 # -translation = R_1^T (p_1 - p_2)
+        for calc, cd in self._calcs:
+            calc(model, data, cd)                 # the anchor placements (J reads them)
+        self._errors.gather(err)
         return pin.getConstraintsJacobian(model, data, self._cms, self._cds)
 
     def project(self, q: np.ndarray, v: np.ndarray, trigger: float = PROJECTION_TOL,
-                max_iter: int = 8) -> tuple[np.ndarray, np.ndarray, float]:
+                max_iter: int = 8, velocity: bool = False) -> tuple[np.ndarray, np.ndarray,
+                                                                    float]:
         """Project ``(q, v)`` onto the closures when the residual exceeds ``trigger``.
 
         All closures at once: one kinematic pass gives the stacked errors ``r`` and
@@ -280,7 +304,8 @@ class ClosedLoopIntegrator:
         ``1e-2 trigger``; then ``v <- v - J_r^+ J_r v`` with the Jacobian of the last pass
         (at the returned ``q``). The residual is the ``residual`` callable's when one was
         given, else the max-abs of ``r`` (m / rad). Returns ``(q, v, residual)``;
-        untouched when the residual is below ``trigger``.
+        untouched when the residual is below ``trigger``, except that with ``velocity``
+        the velocity is then projected all the same (with the Jacobian at ``q``).
 
         Raises:
             AssemblyError: the residual stays above ``trigger`` after ``max_iter`` steps.
@@ -294,7 +319,7 @@ class ClosedLoopIntegrator:
         step, v_new = steps[0], np.empty(nv)
         err = self._solve_pass(jac, rows, v, step, v_new, q)
         if err <= trigger:
-            return q, v, err
+            return q, v_new if velocity else v, err
         for _ in range(max_iter):
             if not math.isfinite(err):
                 break
@@ -348,25 +373,48 @@ def gauss_newton_pass(jac, err, rows, v, step, v_new, out):
     (minimum norm, one Cholesky factorisation of the Gram matrix ``J_r J_r^T`` for both).
     ``out[0]`` = max-abs of ``err`` (all rows). Returns the larger relative miss of
     ``J_r step = -err_r`` and ``J_r v_new = 0`` (small only when the solves were
-    accurate); ``inf`` when the Gram matrix is not numerically positive definite."""
+    accurate); ``inf`` when the Gram matrix is not numerically positive definite.
+
+    Each row's products run over the columns from its first to its last nonzero entry
+    (the entries outside are exact zeros: the same sums; a closure's row is zero on the
+    joints that move neither of its anchors)."""
     n, nv = rows.shape[0], jac.shape[1]
-    jr = np.empty((n, nv))
+    lo = np.empty(n, dtype=np.int64)
+    hi = np.empty(n, dtype=np.int64)
     rhs = np.empty((n, 2))
     emax = 0.0
     for k in range(err.shape[0]):
         emax = max(emax, abs(err[k]))
     out[0] = emax
+    jmax = 0.0
     for i in range(n):
-        jr[i] = jac[rows[i]]
-        rhs[i, 0] = -err[rows[i]]
-        rhs[i, 1] = jr[i] @ v
-    # lower Cholesky factor of the Gram matrix, in place
+        r = rows[i]
+        first, last = nv, 0
+        for k in range(nv):
+            a = jac[r, k]
+            if a != 0.0:
+                if first == nv:
+                    first = k
+                last = k + 1
+                jmax = max(jmax, abs(a))
+            elif a != a:                           # NaN: keep it in the sums
+                first = min(first, k)
+                last = max(last, k + 1)
+        lo[i], hi[i] = min(first, last), last
+        rhs[i, 0] = -err[r]
+        acc = 0.0
+        for k in range(lo[i], hi[i]):
+            acc += jac[r, k] * v[k]
+        rhs[i, 1] = acc
+    # lower Cholesky factor of the Gram matrix
     low = np.empty((n, n))
     for i in range(n):
+        ri = rows[i]
         for j in range(i + 1):
+            rj = rows[j]
             acc = 0.0
-            for k in range(nv):
-                acc += jr[i, k] * jr[j, k]
+            for k in range(max(lo[i], lo[j]), min(hi[i], hi[j])):
+                acc += jac[ri, k] * jac[rj, k]
             for k in range(j):
                 acc -= low[i, k] * low[j, k]
             if i == j:
@@ -375,7 +423,7 @@ def gauss_newton_pass(jac, err, rows, v, step, v_new, out):
                 low[i, i] = math.sqrt(acc)
             else:
                 low[i, j] = acc / low[j, j]
-    # sol = G^-1 rhs: forward then backward substitution, both columns
+    # sol = G^-1 rhs: forward then backward substitution, both columns (in place)
     sol = rhs.copy()
     for c in range(2):
         for i in range(n):
@@ -388,22 +436,24 @@ def gauss_newton_pass(jac, err, rows, v, step, v_new, out):
             for k in range(i + 1, n):
                 acc -= low[k, i] * sol[k, c]
             sol[i, c] = acc / low[i, i]
+    # step = J_r^T sol_0, v_new = v - J_r^T sol_1
     for j in range(nv):
-        s0 = 0.0
-        s1 = 0.0
-        for i in range(n):
-            s0 += jr[i, j] * sol[i, 0]
-            s1 += jr[i, j] * sol[i, 1]
-        step[j] = s0
-        v_new[j] = v[j] - s1
-    miss_s, miss_v, scale_s, scale_v, jmax = 0.0, 0.0, 0.0, 0.0, 0.0
+        step[j] = 0.0
+        v_new[j] = v[j]
     for i in range(n):
+        r = rows[i]
+        s0, s1 = sol[i, 0], sol[i, 1]
+        for k in range(lo[i], hi[i]):
+            step[k] += jac[r, k] * s0
+            v_new[k] -= jac[r, k] * s1
+    miss_s, miss_v, scale_s, scale_v = 0.0, 0.0, 0.0, 0.0
+    for i in range(n):
+        r = rows[i]
         row_s = 0.0
         row_v = 0.0
-        for j in range(nv):
-            row_s += jr[i, j] * step[j]
-            row_v += jr[i, j] * v_new[j]
-            jmax = max(jmax, abs(jr[i, j]))
+        for k in range(lo[i], hi[i]):
+            row_s += jac[r, k] * step[k]
+            row_v += jac[r, k] * v_new[k]
         miss_s = max(miss_s, abs(row_s - rhs[i, 0]))
         miss_v = max(miss_v, abs(row_v))
         scale_s = max(scale_s, abs(rhs[i, 0]))
