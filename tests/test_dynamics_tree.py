@@ -260,3 +260,20 @@ def test_bad_inputs_raise(robot):
         inverse_dynamics_tree(clm, q, zero, zero, bounds=np.ones(3))
     with pytest.raises(InputError):
         ClosedLoopDynamics("not a model")
+
+
+def test_workspace_is_dropped_with_its_model(robot):
+    """dynamics_of keeps one workspace per model and thread, and none after the model is
+    collected (the workspace refers to its model weakly); a non-model is refused."""
+    import gc
+    import weakref
+
+    clm = _redundant_model(robot)
+    dyn = dynamics_of(clm)
+    assert dynamics_of(clm) is dyn and dyn.clm is clm
+    ref = weakref.ref(dyn)
+    del clm, dyn
+    gc.collect()
+    assert ref() is None
+    with pytest.raises(InputError, match="ClosedLoopModel"):
+        dynamics_of(robot)

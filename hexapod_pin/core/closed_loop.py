@@ -107,6 +107,10 @@ class ClosedLoopModel:
     def __init__(self, model: pin.Model, loops: LoopsSpec, name: str = "closed-loop model",
                  urdf_xml: str | None = None) -> None:
         self.name = name
+        #: per-thread workspaces of other modules, keyed by (kind, thread id) (e.g. the
+        #: dynamics workspace of :func:`~hexapod_pin.core.dynamics.dynamics_of`): held by
+        #: the model, so that they are collected with it
+        self.workspaces: dict[tuple[str, int], Any] = {}
         #: the URDF text the tree was built from, when known (drawing uses its visuals)
         self.urdf_xml = urdf_xml
         #: the tree as given (without the closure anchor frames), for derived models

@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import math
 import threading
-import weakref
 from collections.abc import Callable, Mapping
 from typing import Any, NamedTuple
 
@@ -82,9 +81,12 @@ _QP_MAX_ITER = 1000
 #: a stalled tree QP is accepted when its residuals are below this, relative to its data
 _QP_ACCEPT = 1e-10
 #: Pinocchio proximal settings used when the closures are redundant (the acceleration
-#: converges in a few iterations; the multipliers are then polished to minimum norm)
-_PIN_PROX_MU = 1e-6
-_PIN_PROX_ITERS = 5
+#: converges in a few iterations; every answer is verified, the multipliers are polished
+#: to minimum norm when read). Two iterations at mu = 1e-8 meet RESIDUAL_RTOL with a
+#: margin of 250 or more on every redundant robot of the benchmarks and tests (Cassie,
+#: the five-bars and ladders closed by welds); a miss continues the solve.
+_PIN_PROX_MU = 1e-8
+_PIN_PROX_ITERS = 2
 #: iterations of the continued proximal solve when the first ones did not converge
 _PIN_PROX_DEEP_ITERS = 500
 #: weight of the multipliers in the inverse-dynamics QP objective (relative to forces)
@@ -553,23 +555,14 @@ class ClosedLoopDynamics:
             tau_ext = _vector(tau_ext, self.nv, "tau_ext")
             tau += tau_ext
         if method == "pinocchio":
-            res = self.forward_pinocchio_fast(q, v, tau)
-            if res is not None:
-                return res
+            prox = self.pinocchio_verified(q, v, tau)
+            if prox is not None:         # the short path: the result with lazy multipliers
+                return self.pinocchio_result_of(q.copy(), v.copy(), tau, self._v_ddq.copy(),
+                                                self._v_lambda.copy(), prox.iter, self._rank)
         elif method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
         return _solve_checked(lambda: self.forward_unchecked(q, v, tau, method), ("q", q),
                               ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
-
-    def forward_pinocchio_fast(self, q: np.ndarray, v: np.ndarray,
-                               tau: np.ndarray) -> TreeForwardDynamics | None:
-        """The short "pinocchio" route (no input checks; ``tau`` is kept by the result):
-        :meth:`pinocchio_verified`, then the result. None when that gives no answer: the
-        caller then takes :meth:`forward_unchecked` (retries, fallback, or SolverError)."""
-        prox = self.pinocchio_verified(q, v, tau)
-        if prox is None:
-            return None
-        return self._pinocchio_result(q, v, tau, self._v_ddq, prox.iter, self._rank)
 
     def pinocchio_verified(self, q: np.ndarray, v: np.ndarray,
                            tau: np.ndarray) -> pin.ProximalSettings | None:
@@ -1052,22 +1045,20 @@ class ClosedLoopDynamics:
 
 #: per thread: model -> its workspace (a workspace holds Pinocchio data and ProxSuite
 #: problems that every call mutates: one per thread makes the generic routes thread-safe)
-_PER_THREAD = threading.local()
-
-
 def dynamics_of(clm: ClosedLoopModel) -> ClosedLoopDynamics:
     """The :class:`ClosedLoopDynamics` workspace of ``clm`` for the calling thread (created
-    once per model and thread, dropped with the model)."""
-    cache = getattr(_PER_THREAD, "cache", None)
-    if cache is None:
-        cache = _PER_THREAD.cache = weakref.WeakKeyDictionary()
+    once per model and thread, kept in ``clm.workspaces``: collected with the model).
+
+    Raises:
+        InputError: ``clm`` is not a :class:`ClosedLoopModel`.
+    """
+    key = ("dynamics", threading.get_ident())
     try:
-        return cache[clm]
+        return clm.workspaces[key]
     except KeyError:
-        dyn = ClosedLoopDynamics(clm)
-        cache[clm] = dyn
+        dyn = clm.workspaces[key] = ClosedLoopDynamics(clm)
         return dyn
-    except TypeError:
+    except AttributeError:
         raise InputError("clm", clm, "expected a ClosedLoopModel") from None
 
 
@@ -1091,7 +1082,7 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
         tau_ext: generalised external force on the tree (nv,) (N, N m); default zero.
         method: "pinocchio" (``pin.constraintDynamics``, checked on Pinocchio's own
             ``M``, ``nle``, constraint Jacobian and drift; when the closures are
-            redundant: proximal, mu = 1e-6, 5 iterations, continued up to 500 when not
+            redundant: proximal, mu = 1e-8, 2 iterations, continued up to 500 when not
             converged, and the multipliers polished to minimum norm by least squares;
             when Pinocchio's answer is refused, the "kkt" route answers and the status
             says so), "qp" (Gauss principle ``min 1/2 (a - a_free)^T M (a - a_free)``

@@ -397,7 +397,7 @@ def gauss_newton_pass(jac, err, rows, v, step, v_new, out):
                     first = k
                 last = k + 1
                 jmax = max(jmax, abs(a))
-            elif a != a:                           # NaN: keep it in the sums
+            elif math.isnan(a):                    # NaN: keep it in the sums
                 first = min(first, k)
                 last = max(last, k + 1)
         lo[i], hi[i] = min(first, last), last
