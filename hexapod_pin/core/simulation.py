@@ -193,22 +193,28 @@ class ClosedLoopIntegrator:
         jac0, rows = self._jac0, self._rows
         if jac0 is None or rows is None or self._residual_fn is not None:
             return self.project(q_new, v_new, projection_tol)
-        # the first Gauss-Newton step with jac0, the constraint Jacobian at the start of
-        # the step (the step moved q by dt v: the error of that Jacobian slows the
-        # convergence by a factor of order dt |v| only), so that this pass needs the
-        # closure errors at q_new but no Jacobian; the next pass (project, at the
-        # corrected q) verifies the closures and projects the velocity
-        data = self._data
-        pin.forwardKinematics(model, data, q_new)
+        # the first Gauss-Newton step with the Jacobian at the start of the step (no
+        # Jacobian pass at q_new); the next pass (project, at the corrected q) verifies
+        # the closures and projects the velocity
+        if self._light_step(q_new, v_new, jac0, rows) > 1e-12:
+            return self.project(q_new, v_new, projection_tol)
+        if self._out[0] > projection_tol:
+            q_new = pin.integrate(model, q_new, self._steps[0])
+        return self.project(q_new, v_new, projection_tol, velocity=True)
+
+    def _light_step(self, q: np.ndarray, v: np.ndarray, jac: np.ndarray,
+                    rows: np.ndarray) -> float:
+        """A Gauss-Newton step at ``q`` taken with ``jac``, the constraint Jacobian at a
+        nearby configuration (the start of the step: ``q`` is ``dt v`` away, and the error
+        of that Jacobian slows the convergence by a factor of order ``dt |v|`` only): one
+        kinematic pass for the closure errors at ``q`` and no Jacobian. The step is left in ``self._steps[0]``, the max-abs error at ``q`` in
+        ``self._out[0]``; returns the miss of the solve (see :func:`gauss_newton_pass`)."""
+        model, data = self._model, self._data
+        pin.forwardKinematics(model, data, q)
         for calc, cd in self._calcs:
             calc(model, data, cd)
-        step, out = self._steps[0], self._out
-        if gauss_newton_pass(jac0, self._errors.gather(self._err), rows, v_new, step,
-                             self._steps[1], out) > 1e-12:
-            return self.project(q_new, v_new, projection_tol)
-        if out[0] > projection_tol:
-            q_new = pin.integrate(model, q_new, step)
-        return self.project(q_new, v_new, projection_tol, velocity=True)
+        return gauss_newton_pass(jac, self._errors.gather(self._err), rows, v,
+                                 self._steps[0], self._steps[1], self._out)
 
     def _rk4(self, q, v, tau, dt, projection_tol=PROJECTION_TOL):
         """Classical RK4. With redundant closure rows (dependent on the others), each
@@ -256,7 +262,10 @@ class ClosedLoopIntegrator:
         """An RK4 stage state put back on the closures: when its closure residual exceeds
         ``trigger``, one Gauss-Newton pass of :meth:`project` (the step and the velocity
         projection from one kinematic pass at ``q``), leaving a residual of the order of
-        the square of the stage's (no verifying pass: the step's end state is verified)."""
+        the square of the stage's (no verifying pass: the step's end state is verified).
+        The velocity is projected with the Jacobian at the stage's ``q``: left as RK4
+        made it (off the closures' tangent space by O(dt^2)), Cassie's stage dynamics at
+        1 ms missed the closure equation on its nearly redundant rows."""
         jac = self._closure_pass(q)
         rows = self._rows
         if rows is None:
