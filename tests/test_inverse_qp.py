@@ -28,7 +28,7 @@ from hexapod_pin.core.dynamics import (
     inverse_dynamics_tree,
     weighted_minimum_norm_solve,
 )
-from hexapod_pin.errors import ActuatorSaturationError
+from hexapod_pin.errors import ActuatorSaturationError, InputError
 from hexapod_pin.loaders import robots
 
 RTOL = 1e-9
@@ -202,6 +202,16 @@ def test_infeasible_bounds_raise_saturation(problems, monkeypatch, active_set):
     res, x = solve(p, 1.03 * lo)
     assert np.all(np.abs(res.actuator_forces) <= 1.03 * lo * (1.0 + RTOL))
     assert p.eom_residual(x) <= RTOL
+
+
+def test_non_finite_load_is_an_input_error(problems):
+    p = problems[0]
+    load = np.zeros(p.clm.nv)
+    load[3] = np.nan
+    for bounds in (None, 1e-3):
+        with pytest.raises(InputError, match="tau_ext"):
+            inverse_dynamics_tree(p.clm, p.q, p.v, p.a, tau_ext=load, bounds=bounds,
+                                  method="qp")
 
 
 # ------------------------------------------------------------------- compiled kernels

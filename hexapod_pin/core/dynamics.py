@@ -932,6 +932,9 @@ class ClosedLoopDynamics:
                 return direct, "solved", 0, reduced
             raise ActuatorSaturationError(direct[:self.n_act].copy(), bounds)
         direct = self._weighted_minimum_norm(mat, rhs)
+        if not all_finite(direct):
+            raise SolverError("inverse dynamics QP", "not finite",
+                              "the weighted minimum-norm solution is not finite")
         if bounds is None or within_bounds(direct[:self.n_act], bounds, 0.0):
             return direct, "solved", 0, False
         found = self._inverse_active_set(mat, rhs, bounds, direct)
@@ -1347,7 +1350,8 @@ def weighted_minimum_norm_solve(mat: np.ndarray, rhs: np.ndarray, inv_w: np.ndar
     equation's multiplier: ``x_j / inv_w_j^2 = (mat^T z)_j`` on the free entries). When
     that solve fails or misses ``rtol`` (relative, :func:`linear_residual`; a singular
     Gram matrix), SVD least squares of the scaled system instead and ``z`` NaN. Returns
-    the relative residual of the scaled free system (also in ``out``).
+    the relative residual of the scaled free system (also in ``out``); inf, with ``x``
+    NaN, when the data are not finite.
     """
     nv, ncol = mat.shape
     cols = np.empty(ncol, dtype=np.int64)
@@ -1371,8 +1375,12 @@ def weighted_minimum_norm_solve(mat: np.ndarray, rhs: np.ndarray, inv_w: np.ndar
     except Exception:  # noqa: BLE001 - numba catches no narrower class (singular Gram)
         miss = math.inf
     if not miss <= rtol:
-        y[:] = np.linalg.lstsq(scaled, target, max(nv, n_free) * 2.220446049250313e-16)[0]
         z[:] = np.nan
+        if not (np.all(np.isfinite(scaled)) and np.all(np.isfinite(target))):
+            x[:] = np.nan
+            out[:] = math.inf
+            return math.inf
+        y[:] = np.linalg.lstsq(scaled, target, max(nv, n_free) * 2.220446049250313e-16)[0]
         miss = linear_residual(scaled, y, target, out)
     for k in range(n_free):
         x[cols[k]] = y[k] * inv_w[cols[k]]
