@@ -3,8 +3,8 @@
 ``inverse_dynamics_tree(..., method="qp")`` minimises ``1/2 |u|^2 + 1/2 w |lambda|^2``
 (``w = 1e-2``) subject to ``S^T u + J_c^T lambda = M a + h`` and ``|u| <= bounds``. On
 Solo-12 standing (twelve actuators, four feet held: the actuator forces are not unique)
-and on a ladder with three actuated bars for one degree of freedom, checked against
-references written here:
+and on two ladders with three actuated bars for one degree of freedom (point closures;
+planar welds, whose rows are redundant), checked against references written here:
 
 * bounds inactive: the weighted minimum-norm solution of the equation by numpy
   (``lstsq`` of the column-scaled matrix), to 1e-9 relative, with no QP iteration;
@@ -109,8 +109,7 @@ def solo_problems(count=3):
     return out
 
 
-def ladder_problems(count=3):
-    robot = stress_robots.ladder_redundantly_actuated()
+def ladder_problems(robot, count=3):
     clm = robot.clm
     rng = np.random.default_rng(22)
     out = []
@@ -126,9 +125,12 @@ def ladder_problems(count=3):
     return out
 
 
-@pytest.fixture(scope="module", params=["solo12", "ladder_redundantly_actuated"])
+@pytest.fixture(scope="module", params=["solo12", "ladder_redundantly_actuated",
+                                        "planar_ladder_weld_redundantly_actuated"])
 def problems(request):
-    return solo_problems() if request.param == "solo12" else ladder_problems()
+    if request.param == "solo12":
+        return solo_problems()
+    return ladder_problems(getattr(stress_robots, request.param)())
 
 
 def solve(p, bounds):
