@@ -190,12 +190,12 @@ def ladder_model(loops: int, bar_masses, coupler_masses, actuated=("bar_0",)
                            name=f"ladder_{loops}", urdf_xml=urdf)
 
 
-def planar_ladder_model(loops: int, masses) -> ClosedLoopModel:
-    """The planar welded ladder as a ClosedLoopModel."""
+def planar_ladder_model(loops: int, masses, actuated=("bar_0",)) -> ClosedLoopModel:
+    """The planar welded ladder as a ClosedLoopModel (``actuated`` bars)."""
     urdf = planar_ladder_urdf(loops, masses)
     text = "closures:\n" + "".join(
         f"  - {{name: weld_{j}, type: weld, frame1: pin_{j}, frame2: bar_{j + 1}_tip}}\n"
-        for j in range(loops)) + "actuated: [bar_0]\n"
+        for j in range(loops)) + f"actuated: [{', '.join(actuated)}]\n"
     return ClosedLoopModel(build_model(urdf), parse_loops(text), name=f"planar_ladder_{loops}",
                            urdf_xml=urdf)
 
@@ -298,9 +298,16 @@ def ladder_massless(loops: int = 4) -> StressRobot:
     return StressRobot("ladder_massless", clm, _ladder_sampler(clm, loops))
 
 
-def planar_ladder_weld(loops: int = 5) -> StressRobot:
-    clm = planar_ladder_model(loops, (1e2, 1e-3, 1.0, 1e-1, 1e1, 1e-2))
+def planar_ladder_weld(loops: int = 5, actuated=("bar_0",)) -> StressRobot:
+    clm = planar_ladder_model(loops, (1e2, 1e-3, 1.0, 1e-1, 1e1, 1e-2), actuated)
     return StressRobot("planar_ladder_weld", clm, _ladder_sampler(clm, loops, ("coupler_{j}",), ("pin_{j}",)))
+
+
+def planar_ladder_weld_redundantly_actuated(loops: int = 5) -> StressRobot:
+    """:func:`planar_ladder_weld` (redundant weld rows) with three actuated bars for one
+    degree of freedom: the actuator forces are not unique."""
+    robot = planar_ladder_weld(loops, ("bar_0", "bar_2", "bar_4"))
+    return StressRobot("planar_ladder_weld_redundantly_actuated", robot.clm, robot.sample)
 
 
 def ladder_long(loops: int = 24) -> StressRobot:

@@ -91,6 +91,8 @@ _PIN_PROX_ITERS = 2
 _PIN_PROX_DEEP_ITERS = 500
 #: weight of the multipliers in the inverse-dynamics QP objective (relative to forces)
 _LAMBDA_WEIGHT = 1e-2
+#: steps of the inverse-dynamics active-set search before ProxSuite takes over
+_ACTIVE_SET_STEPS = 8
 
 QP_SOLVED = proxsuite.proxqp.PROXQP_SOLVED
 QP_STATUS = {
@@ -247,6 +249,8 @@ class ClosedLoopDynamics:
         self._id_matrix[:, :self.n_act] = self.selection
         self._id_hess = np.diag(np.concatenate([np.ones(self.n_act),
                                                 np.full(self.n_rows, _LAMBDA_WEIGHT)]))
+        self._id_inv_root_w = 1.0 / np.sqrt(np.diag(self._id_hess))
+        self._no_held = np.zeros(0, dtype=bool)
         self._id_box = np.zeros((self.n_act, self.n_act + self.n_rows))
         self._id_box[:, :self.n_act] = np.eye(self.n_act)
         # the fast path of forward_actuated: shapes, the actuated coordinates (a slice when
@@ -842,7 +846,7 @@ class ClosedLoopDynamics:
         else:
             sol, status, iters, reduced = self._inverse_qp(mat, rhs, bounds, rank)
         u = sol[:self.n_act]
-        if bounds is not None and np.any(np.abs(u) > bounds * (1.0 + RESIDUAL_RTOL)):
+        if bounds is not None and not within_bounds(u, bounds, RESIDUAL_RTOL):
             if self._unique_forces(mat) or \
                     self._bounds_infeasible(mat, rhs, bounds, sol) is not None:
                 raise ActuatorSaturationError(u.copy(), bounds)
@@ -907,48 +911,93 @@ class ClosedLoopDynamics:
         return sol, _ID_STATUS[redundant], False
 
     def _inverse_qp(self, mat, rhs, bounds, rank):
-        """Bounded ID as a ProxSuite QP: ``min 1/2 |u|^2 + 1/2 w |lambda|^2`` s.t. the
-        equation of motion (rows scaled by their norms, forces by their scale) and
-        ``|u| <= bounds``; warm-started from the direct (minimum-norm) solution."""
-        n = self.n_act + self.n_rows
-        direct, _, reduced = self._inverse_kkt(mat, rhs, rank)
+        """Bounded ID: ``min 1/2 |u|^2 + 1/2 w |lambda|^2`` (``w = _LAMBDA_WEIGHT``) subject
+        to the equation of motion ``mat x = rhs`` and ``|u| <= bounds``; returns ``(x,
+        status, iterations, reduced)``.
+
+        Every answer is the QP's minimiser by an exact certificate, or ProxSuite's:
+
+        * the equation determines ``u``: the direct solution (multipliers minimum-norm)
+          when it keeps the bounds; no point keeps them when it does not
+          (ActuatorSaturationError);
+        * redundant actuation: the weighted minimum-norm solution of the equation
+          (:meth:`_weighted_minimum_norm`) minimises the objective on it, so when it keeps
+          the bounds it is the minimiser (KKT conditions with zero bound multipliers;
+          status "solved", 0 iterations); else the active-set search of
+          :meth:`_inverse_active_set` (KKT-certified; status "solved (active set)", its
+          steps as iterations), and when that stops without a certificate, ProxSuite
+          (:meth:`_inverse_proxsuite`).
+        """
         if self._unique_forces(mat):
-            # u is determined by the equation and lambda is minimum-norm: the direct
-            # solution is the QP's minimiser when it keeps the bounds, and no point keeps
-            # them when it does not (an exact certificate, no iteration needed)
-            if bounds is None or np.all(np.abs(direct[:self.n_act]) <= bounds):
+            direct, _, reduced = self._inverse_kkt(mat, rhs, rank)
+            if bounds is None or within_bounds(direct[:self.n_act], bounds, 0.0):
                 return direct, "solved", 0, reduced
             raise ActuatorSaturationError(direct[:self.n_act].copy(), bounds)
+        direct = self._weighted_minimum_norm(mat, rhs)
+        if not all_finite(direct):
+            raise SolverError("inverse dynamics QP", "not finite",
+                              "the weighted minimum-norm solution is not finite")
+        if bounds is None or within_bounds(direct[:self.n_act], bounds, 0.0):
+            return direct, "solved", 0, False
+        found = self._inverse_active_set(mat, rhs, bounds, direct)
+        if found is not None:
+            return found[0], "solved (active set)", found[1], False
+        return self._inverse_proxsuite(mat, rhs, bounds, direct)
+
+    def _weighted_minimum_norm(self, mat, rhs, held=None, held_u=None) -> np.ndarray:
+        """The minimiser of the QP's objective ``1/2 x^T H x`` (``H = diag(1, w)``) subject
+        to ``mat x = rhs``, with the actuators of the mask ``held`` (n_act,) fixed at
+        ``held_u`` (none when ``held`` is None): :func:`weighted_minimum_norm_solve` (one
+        compiled Gram solve, SVD least squares when that misses :data:`RESIDUAL_RTOL`).
+        Not verified here: the callers verify the answer on the full system."""
+        if held is None:
+            held = held_u = self._no_held
+        x = np.empty(mat.shape[1])
+        weighted_minimum_norm_solve(mat, rhs, self._id_inv_root_w, held, held_u, x,
+                                    np.empty(mat.shape[0]), self._res_out, RESIDUAL_RTOL)
+        return x
+
+    def _inverse_active_set(self, mat, rhs, bounds, x):
+        """The bounded minimiser by the compiled active-set search
+        :func:`box_active_set_solve` from the weighted minimiser ``x`` (which breaks a
+        bound): ``(x, steps)``, certified by the KKT conditions of the QP, or None when
+        the search stops without a certificate (after ``_ACTIVE_SET_STEPS`` steps, or on a
+        held set that the Gram solve cannot meet)."""
+        x = x.copy()
+        steps = box_active_set_solve(mat, rhs, self._id_inv_root_w, bounds, x,
+                                     np.empty(mat.shape[0]), self._res_out, RESIDUAL_RTOL,
+                                     _ACTIVE_SET_STEPS)
+        return (x, steps) if steps else None
+
+    def _inverse_proxsuite(self, mat, rhs, bounds, direct):
+        """The bounded ID QP by ProxSuite: rows scaled by their norms, forces by their
+        scale; warm-started from the weighted minimiser ``direct`` clipped to the bounds,
+        polished on its active set (:meth:`_polish_inverse`) and verified; returns ``(x,
+        status, iterations, reduced)``. A verification failure raises
+        ActuatorSaturationError when box-constrained least squares proves the bounds
+        infeasible (needed forces: ``direct``'s), else SolverError."""
+        n_act = self.n_act
         f_scale = max(max_abs(rhs), max_abs(direct), _TINY)
         norms = np.sqrt(np.einsum("ij,ij->i", mat, mat))
         dinv = 1.0 / np.maximum(norms, _TINY)
         mat_s = mat * dinv[:, None]
         b = rhs * dinv / f_scale
         x0 = direct / f_scale
-        hess = self._id_hess
-        zero_g = np.zeros(n)
-        if bounds is None:
-            qp = self._qp_solve("id", 0, (hess, zero_g, mat_s, b, None, None, None),
-                                warm=(x0, None, None))
-        else:
-            x0 = x0.copy()
-            x0[:self.n_act] = np.clip(x0[:self.n_act], -bounds / f_scale, bounds / f_scale)
-            qp = self._qp_solve("id_bounded", self.n_act,
-                                (hess, zero_g, mat_s, b, self._id_box, -bounds / f_scale,
-                                 bounds / f_scale), warm=(x0, None, None))
+        x0[:n_act] = np.clip(x0[:n_act], -bounds / f_scale, bounds / f_scale)
+        qp = self._qp_solve("id_bounded", n_act,
+                            (self._id_hess, np.zeros(x0.size), mat_s, b, self._id_box,
+                             -bounds / f_scale, bounds / f_scale), warm=(x0, None, None))
         info = qp.results.info
         status = QP_STATUS.get(info.status, str(info.status))
         sol = self._polish_inverse(mat, rhs, qp.results.x * f_scale, bounds)
         try:
             self._verify_inverse(mat, sol, rhs, "ProxSuite (inverse dynamics QP)")
-            if bounds is not None and np.any(np.abs(sol[:self.n_act])
-                                             > bounds * (1.0 + RESIDUAL_RTOL)):
+            if not within_bounds(sol[:n_act], bounds, RESIDUAL_RTOL):
                 raise SolverError("ProxSuite (inverse dynamics QP)", status, "bounds missed")
         except SolverError as exc:
-            if bounds is not None:
-                needed = self._bounds_infeasible(mat, rhs, bounds, direct)
-                if needed is not None:
-                    raise ActuatorSaturationError(needed, bounds) from None
+            needed = self._bounds_infeasible(mat, rhs, bounds, direct)
+            if needed is not None:
+                raise ActuatorSaturationError(needed, bounds) from None
             raise SolverError("ProxSuite (inverse dynamics QP)", status,
                               f"{exc}; primal residual {info.pri_res:.3e}") from None
         if status != "solved":
@@ -966,25 +1015,14 @@ class ClosedLoopDynamics:
         return self._unique
 
     def _polish_inverse(self, mat, rhs, sol, bounds) -> np.ndarray:
-        """Exact solution on the QP's active set: the actuators at a bound held there, the
-        rest of ``x = (u, lambda)`` minimising the weighted norm of the QP subject to the
-        equation of motion (weighted minimum-norm least squares). Returns ``sol`` unchanged
-        when the polished point leaves the bounds."""
-        n_act = self.n_act
-        fixed = np.zeros(sol.size, dtype=bool)
-        if bounds is not None:
-            fixed[:n_act] = np.abs(sol[:n_act]) >= bounds * (1.0 - 1e-7)
-        out = sol.copy()
-        out[:n_act][fixed[:n_act]] = np.sign(sol[:n_act][fixed[:n_act]]) * \
-            bounds[fixed[:n_act]] if bounds is not None else 0.0
-        free = ~fixed
-        root_w = np.sqrt(np.diag(self._id_hess))[free]
-        step, *_ = np.linalg.lstsq(mat[:, free] / root_w, rhs - mat[:, fixed] @ out[fixed],
-                                   rcond=None)
-        out[free] = step / root_w
-        if bounds is not None and np.any(np.abs(out[:n_act]) > bounds * (1.0 + RESIDUAL_RTOL)):
-            return sol
-        return out
+        """Exact solution on the active set of a QP answer ``sol``: the actuators at a
+        bound held there, the rest of ``x = (u, lambda)`` the weighted minimiser of
+        :meth:`_weighted_minimum_norm`. Returns ``sol`` unchanged when the polished point
+        leaves the bounds."""
+        u = sol[:self.n_act]
+        held = np.abs(u) >= bounds * (1.0 - 1e-7)
+        out = self._weighted_minimum_norm(mat, rhs, held, np.sign(u) * bounds)
+        return out if within_bounds(out[:self.n_act], bounds, RESIDUAL_RTOL) else sol
 
     def _bounds_infeasible(self, mat, rhs, bounds, direct) -> np.ndarray | None:
         """The needed forces when no ``|u| <= bounds`` satisfies the equation of motion, else
@@ -1126,11 +1164,13 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
         method: "qp" (minimise ``1/2 |u|^2 + 1/2 w |lambda|^2``, ``w = 1e-2``, subject
             to the equation of motion and the box bounds: when the equation determines
             ``u`` the direct minimum-norm solution is the minimiser (or proves the
-            bounds infeasible); otherwise a ProxSuite dense QP, scaled, warm-started
-            from the direct solution and polished on its active set) or "kkt" (the
-            linear system ``[S^T J_c^T] [u; lambda] = rhs``: one LU solve when square,
-            least squares / minimum norm otherwise). Both agree to 1e-10 when no bound
-            is active. Solved in Pinocchio's constraint rows (the multipliers are
+            bounds infeasible); otherwise the weighted minimum-norm solution when it
+            keeps the bounds, else an active-set search certified by the KKT
+            conditions, else a ProxSuite dense QP, scaled, warm-started from the
+            clipped weighted minimum-norm solution and polished on its active set) or
+            "kkt" (the linear system ``[S^T J_c^T] [u; lambda] = rhs``: one LU solve
+            when square, least squares / minimum norm otherwise). Both agree to 1e-10
+            when no bound is active and the equation determines ``u``. Solved in Pinocchio's constraint rows (the multipliers are
             converted to ours on access).
 
     Returns:
@@ -1284,9 +1324,130 @@ def minimum_norm_solve(mat: np.ndarray, rhs: np.ndarray, x: np.ndarray,
     row rank (LU of the Gram matrix; raises numpy's LinAlgError when it is exactly
     singular); returns the relative residual of :func:`linear_residual`, which exposes a
     rank-deficient or ill-conditioned ``mat``."""
-    gram = mat @ mat.T
-    x[:] = mat.T @ np.linalg.solve(gram, rhs)
+    return minimum_norm_dual_solve(mat, rhs, x, np.empty(mat.shape[0]), out)
+
+
+@jit
+def minimum_norm_dual_solve(mat: np.ndarray, rhs: np.ndarray, x: np.ndarray, z: np.ndarray,
+                            out: np.ndarray) -> float:
+    """:func:`minimum_norm_solve` that also writes ``z = (mat mat^T)^-1 rhs`` (``x = mat^T
+    z``; ``z`` is the multiplier of the equation in ``min 1/2 |x|^2 s.t. mat x = rhs``)."""
+    z[:] = np.linalg.solve(mat @ mat.T, rhs)
+    x[:] = mat.T @ z
     return linear_residual(mat, x, rhs, out)
+
+
+@jit
+def weighted_minimum_norm_solve(mat: np.ndarray, rhs: np.ndarray, inv_w: np.ndarray,
+                                held: np.ndarray, held_u: np.ndarray, x: np.ndarray,
+                                z: np.ndarray, out: np.ndarray, rtol: float) -> float:
+    """Weighted minimum-norm solution with held entries: ``x`` minimising
+    ``sum_j (x_j / inv_w_j)^2`` subject to ``mat x = rhs`` and ``x_i = held_u_i`` for each
+    ``i < held.size`` with ``held_i``.
+
+    The free columns scaled by ``inv_w``, the minimum-norm solution ``y`` of the scaled
+    system (:func:`minimum_norm_dual_solve`: ``x_free = inv_w y``, and ``z`` (nv,) the
+    equation's multiplier: ``x_j / inv_w_j^2 = (mat^T z)_j`` on the free entries). When
+    that solve fails or misses ``rtol`` (relative, :func:`linear_residual`; a singular
+    Gram matrix), SVD least squares of the scaled system instead and ``z`` NaN. Returns
+    the relative residual of the scaled free system (also in ``out``); inf, with ``x``
+    NaN, when the data are not finite.
+    """
+    nv, ncol = mat.shape
+    cols = np.empty(ncol, dtype=np.int64)
+    target = rhs.copy()
+    n_free = 0
+    for j in range(ncol):
+        if j < held.shape[0] and held[j]:
+            x[j] = held_u[j]
+            for i in range(nv):
+                target[i] -= mat[i, j] * held_u[j]
+        else:
+            cols[n_free] = j
+            n_free += 1
+    scaled = np.empty((nv, n_free))
+    for k in range(n_free):
+        for i in range(nv):
+            scaled[i, k] = mat[i, cols[k]] * inv_w[cols[k]]
+    y = np.empty(n_free)
+    try:
+        miss = minimum_norm_dual_solve(scaled, target, y, z, out)
+    except Exception:  # noqa: BLE001 - numba catches no narrower class (singular Gram)
+        miss = math.inf
+    if not miss <= rtol:
+        z[:] = np.nan
+        if not (np.all(np.isfinite(scaled)) and np.all(np.isfinite(target))):
+            x[:] = np.nan
+            out[:] = math.inf
+            return math.inf
+        y[:] = np.linalg.lstsq(scaled, target, max(nv, n_free) * 2.220446049250313e-16)[0]
+        miss = linear_residual(scaled, y, target, out)
+    for k in range(n_free):
+        x[cols[k]] = y[k] * inv_w[cols[k]]
+    return miss
+
+
+@jit
+def box_active_set_solve(mat: np.ndarray, rhs: np.ndarray, inv_w: np.ndarray,
+                         bounds: np.ndarray, x: np.ndarray, z: np.ndarray, out: np.ndarray,
+                         rtol: float, max_steps: int) -> int:
+    """Active-set solve of ``min sum_j (x_j / inv_w_j)^2 / 2`` subject to ``mat x = rhs``
+    and ``|x_i| <= bounds_i`` for ``i < bounds.size``, from ``x`` = the minimiser without
+    the bounds (overwritten).
+
+    Each step holds the entries of the active set at their bound (sign ``s_i`` of the
+    entry when it joined) and solves the rest (:func:`weighted_minimum_norm_solve`); the
+    bound multiplier of a held entry is ``mu_i = s_i ((mat^T z)_i - x_i / inv_w_i^2)``.
+    When every free entry keeps its bound and every ``mu_i >= -rtol max|x_b|`` (``x_b``
+    the bounded entries), ``x`` meets the KKT conditions of the convex problem: it is the
+    minimiser, and the number of steps is returned. Otherwise the free entries past their
+    bound join the set and those with ``mu_i`` below that leave it. Returns 0 (no
+    certificate) after ``max_steps`` steps or when a step's Gram solve fails or misses
+    ``rtol``.
+    """
+    n_b = bounds.shape[0]
+    nv = mat.shape[0]
+    held = np.zeros(n_b, dtype=np.bool_)
+    held_u = np.zeros(n_b)
+    for i in range(n_b):
+        if abs(x[i]) > bounds[i]:
+            held[i] = True
+            held_u[i] = math.copysign(bounds[i], x[i])
+    for step in range(1, max_steps + 1):
+        if not weighted_minimum_norm_solve(mat, rhs, inv_w, held, held_u, x, z, out,
+                                           rtol) <= rtol or not math.isfinite(z[0]):
+            return 0
+        size = 1e-300
+        for i in range(n_b):
+            size = max(size, abs(x[i]))
+        changed = False
+        for i in range(n_b):
+            if held[i]:
+                force = 0.0
+                for k in range(nv):
+                    force += mat[k, i] * z[k]
+                mu = force - x[i] / (inv_w[i] * inv_w[i])
+                if held_u[i] < 0.0:
+                    mu = -mu
+                if mu < -rtol * size:
+                    held[i] = False
+                    changed = True
+            elif abs(x[i]) > bounds[i]:
+                held[i] = True
+                held_u[i] = math.copysign(bounds[i], x[i])
+                changed = True
+        if not changed:
+            return step
+    return 0
+
+
+@jit
+def within_bounds(u: np.ndarray, bounds: np.ndarray, rtol: float) -> bool:
+    """Whether ``|u_i| <= bounds_i (1 + rtol)`` for every ``i`` (False on NaN)."""
+    for i in range(u.shape[0]):
+        if not abs(u[i]) <= bounds[i] * (1.0 + rtol):
+            return False
+    return True
 
 
 
