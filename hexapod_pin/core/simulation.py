@@ -116,6 +116,9 @@ class ClosedLoopIntegrator:
         #: the constraint Jacobian at the start of the current step (from the verified
         #: dynamics call), None when the dynamics did not give one
         self._jac0: np.ndarray | None = None
+        #: whether the last Euler step needed a position correction (then the next one
+        #: takes its first Gauss-Newton step without a Jacobian pass, see step)
+        self._drifting = True
         self._model = model
         self.dyn.pinocchio_arguments()    # Pinocchio's constraint dynamics set up, then
         self._ddq = self.dyn.data.ddq     # its acceleration buffer (a live view)
@@ -191,15 +194,22 @@ class ClosedLoopIntegrator:
         model = self._model
         q_new = pin.integrate(model, q, dt * v_new)
         jac0, rows = self._jac0, self._rows
-        if jac0 is None or rows is None or self._residual_fn is not None:
-            return self.project(q_new, v_new, projection_tol)
-        # the first Gauss-Newton step with the Jacobian at the start of the step (no
-        # Jacobian pass at q_new); the next pass (project, at the corrected q) verifies
-        # the closures and projects the velocity
+        if jac0 is None or rows is None or self._residual_fn is not None \
+                or not self._drifting:
+            # one pass at q_new: the closures verified (corrected when they drifted) and
+            # the velocity projected
+            q_out, v_out, res = self.project(q_new, v_new, projection_tol, velocity=True)
+            self._drifting = q_out is not q_new
+            return q_out, v_out, res
+        # the closures drifted at the last step: the first Gauss-Newton step with the
+        # Jacobian at the start of the step (no Jacobian pass at q_new); the next pass
+        # (project, at the corrected q) verifies the closures and projects the velocity
         if self._light_step(q_new, v_new, jac0, rows) > 1e-12:
-            return self.project(q_new, v_new, projection_tol)
+            return self.project(q_new, v_new, projection_tol, velocity=True)
         if self._out[0] > projection_tol:
             q_new = pin.integrate(model, q_new, self._steps[0])
+        else:
+            self._drifting = False
         return self.project(q_new, v_new, projection_tol, velocity=True)
 
     def _light_step(self, q: np.ndarray, v: np.ndarray, jac: np.ndarray,
