@@ -4,6 +4,7 @@ import dataclasses
 import itertools
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from hexapod_pin.core.simulation import gauss_newton_pass, rk4_stage
@@ -193,15 +194,39 @@ def test_gauss_newton_pass_matches_pseudo_inverse():
 
 
 def test_rk4_stage_matches_numpy():
-    """The compiled stage update against numpy: ``q + h qdot`` with its quaternion
-    renormalised, ``v + h vdot``."""
+    """The compiled stage update against numpy: ``q + h qdot(qs, vs)`` with its quaternion
+    renormalised, ``v + h vdot``, the weighted rates accumulated; the combination
+    ``q + h rates``; the configuration rate of a free-flyer against a finite difference
+    of ``pin.integrate`` (1-DoF joints: ``qdot = v``)."""
+    from hexapod_pin.core.simulation import configuration_rate, rk4_combine
+
+    model = pin.Model()
+    ff = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "base")
+    model.addJoint(ff, pin.JointModelRY(), pin.SE3.Identity(), "hinge")
+    model.addJoint(ff, pin.JointModelPX(), pin.SE3.Identity(), "slide")
+    joints = np.array([(1, 0, 0), (0, 7, 6), (0, 8, 7)], dtype=np.int64)
+    quat = np.array([3])
     rng = np.random.default_rng(5)
-    q, d = rng.normal(size=9), rng.normal(size=9)
-    v, a = rng.normal(size=8), rng.normal(size=8)
+    q = pin.randomConfiguration(model, -np.ones(9), np.ones(9))
+    qs = pin.randomConfiguration(model, -np.ones(9), np.ones(9))
+    v, vs, a = rng.normal(size=8), rng.normal(size=8), rng.normal(size=8)
+    rate = np.empty(9)
+    configuration_rate(qs, vs, joints, rate)
+    eps = 1e-7
+    fd = (pin.integrate(model, qs, eps * vs) - pin.integrate(model, qs, -eps * vs)) / (2 * eps)
+    np.testing.assert_allclose(rate, fd, rtol=0, atol=1e-8)
+    rates = np.full(17, 0.5)
     q_out, v_out = np.empty(9), np.empty(8)
-    rk4_stage(q, v, d, a, 0.3, q_out, v_out, np.array([2]))
-    want = q + 0.3 * d
-    want[2:6] /= np.linalg.norm(want[2:6])
+    rk4_stage(q, v, qs, vs, a, 0.3, 2.0, joints, quat, q_out, v_out, rates)
+    want = q + 0.3 * rate
+    want[3:7] /= np.linalg.norm(want[3:7])
     np.testing.assert_allclose(q_out, want, rtol=0, atol=1e-15)
     np.testing.assert_allclose(v_out, v + 0.3 * a, rtol=0, atol=1e-15)
-    assert abs(np.linalg.norm(q_out[2:6]) - 1.0) < 1e-15
+    assert abs(np.linalg.norm(q_out[3:7]) - 1.0) < 1e-15
+    np.testing.assert_allclose(rates, 0.5 + 2.0 * np.concatenate([rate, a]), rtol=0,
+                               atol=1e-15)
+    rk4_combine(q, v, rates, 0.1, quat, q_out, v_out)
+    want = q + 0.1 * rates[:9]
+    want[3:7] /= np.linalg.norm(want[3:7])
+    np.testing.assert_allclose(q_out, want, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(v_out, v + 0.1 * rates[9:], rtol=0, atol=1e-15)

@@ -91,16 +91,13 @@ class ClosedLoopIntegrator:
             else:
                 raise InputError("clm", name, "the integrator supports 1-DoF revolute / "
                                               "prismatic joints and free-flyers only")
-        self._vec_q = np.array(vec_q, dtype=int)
-        self._vec_v = np.array(vec_v, dtype=int)
-        # contiguous blocks of 1-DoF coordinates are copied as slices (cheaper than indices)
-        self._vec_slices = None
-        if vec_q and vec_q == list(range(vec_q[0], vec_q[0] + len(vec_q))) and \
-                vec_v == list(range(vec_v[0], vec_v[0] + len(vec_v))):
-            self._vec_slices = (slice(vec_q[0], vec_q[0] + len(vec_q)),
-                                slice(vec_v[0], vec_v[0] + len(vec_v)))
         #: start of each free-flyer's quaternion (x, y, z, w) in q (RK4 stage kernels)
         self._quat = np.array([iq + 3 for iq, _ in self._ff], dtype=np.int64)
+        #: (kind, idx_q, idx_v) of every joint, kind 0 a 1-DoF joint, 1 a free-flyer (the
+        #: compiled configuration rate and RK4 stage kernels)
+        self._joints = np.array([(0, iq, iv) for iq, iv in zip(vec_q, vec_v)]
+                                + [(1, iq, iv) for iq, iv in self._ff],
+                                dtype=np.int64).reshape(-1, 3)
         self._redundant: bool | None = None
         self._rows: np.ndarray | None = None     # independent closure rows (projection)
         # the projection's own Pinocchio data and constraint data (Pinocchio's LOCAL rows)
@@ -125,21 +122,10 @@ class ClosedLoopIntegrator:
 
     # -- kinematics of the configuration vector -------------------------------------------
     def qdot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Time derivative of ``q`` as a vector of ``R^nq`` for the velocity ``v``."""
+        """Time derivative of ``q`` as a vector of ``R^nq`` for the velocity ``v`` (1-DoF
+        joints ``qdot = v``; a free-flyer ``p' = R v_lin``, ``Q' = 1/2 Q (x) (w_body, 0)``)."""
         out = np.empty_like(q)
-        if self._vec_slices is not None:
-            out[self._vec_slices[0]] = v[self._vec_slices[1]]
-        else:
-            out[self._vec_q] = v[self._vec_v]
-        for iq, iv in self._ff:
-            x, y, z, w = q[iq + 3:iq + 7].tolist()
-            vx, vy, vz, wx, wy, wz = v[iv:iv + 6].tolist()
-            # p' = R v_lin (R of the unit quaternion)
-            tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
-            out[iq:iq + 7] = (vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz),
-                              vz + w * tz + (x * ty - y * tx),
-                              0.5 * (w * wx + y * wz - z * wy), 0.5 * (w * wy + z * wx - x * wz),
-                              0.5 * (w * wz + x * wy - y * wx), -0.5 * (x * wx + y * wy + z * wz))
+        configuration_rate(q, v, self._joints, out)
         return out
 
     # -- dynamics ---------------------------------------------------------------------------
@@ -187,7 +173,7 @@ class ClosedLoopIntegrator:
         """
         if self.integrator == "rk4":
             q_new, v_new = self._rk4(q, v, tau, dt, projection_tol)
-            return self.project(q_new, v_new, projection_tol)
+            return self.project(q_new, v_new, projection_tol, velocity=True)
         # semi-implicit Euler: v' = v + dt a(q, v), q' = q (+) dt v'
         v_new = np.multiply(self._verified_acceleration(q, v, tau), dt)
         v_new += v
@@ -233,7 +219,6 @@ class ClosedLoopIntegrator:
         and the verified constrained dynamics then raise (Cassie at 1 ms). With
         independent rows every drift is in their range and the stages are left as RK4
         makes them."""
-        qdot = self.qdot
         if self._rows is None:
             self._rows = independent_rows(self._closure_pass(q))
         if self._rows.size < self.clm.n_rows:
@@ -241,31 +226,20 @@ class ClosedLoopIntegrator:
         else:
             def project(qs, vs, _):
                 return qs, vs
-
-        def acc(qs, vs):
-            return self.acceleration(qs, vs, tau)
-
-        half, quat = 0.5 * dt, self._quat
-        a1 = acc(q, v)
-        d1 = qdot(q, v)
-        q2, v2 = np.empty_like(q), np.empty_like(v)
-        rk4_stage(q, v, d1, a1, half, q2, v2, quat)
-        q2, v2 = project(q2, v2, projection_tol)
-        a2 = acc(q2, v2)
-        d2 = qdot(q2, v2)
-        q3, v3 = np.empty_like(q), np.empty_like(v)
-        rk4_stage(q, v, d2, a2, half, q3, v3, quat)
-        q3, v3 = project(q3, v3, projection_tol)
-        a3 = acc(q3, v3)
-        d3 = qdot(q3, v3)
-        q4, v4 = np.empty_like(q), np.empty_like(v)
-        rk4_stage(q, v, d3, a3, dt, q4, v4, quat)
-        q4, v4 = project(q4, v4, projection_tol)
-        a4 = acc(q4, v4)
-        d4 = qdot(q4, v4)
+        acc = self._verified_acceleration
+        joints, quat, nq = self._joints, self._quat, q.shape[0]
+        # the weighted sums of the stage rates, (qdot_1 + 2 qdot_2 + 2 qdot_3 + qdot_4,
+        # a_1 + 2 a_2 + 2 a_3 + a_4), accumulated by the stage kernel
+        rates = np.zeros(nq + v.shape[0])
+        qs, vs = q, v
+        for h, w in ((0.5 * dt, 1.0), (0.5 * dt, 2.0), (dt, 2.0)):
+            q_next, v_next = np.empty_like(q), np.empty_like(v)
+            rk4_stage(q, v, qs, vs, acc(qs, vs, tau), h, w, joints, quat, q_next, v_next,
+                      rates)
+            qs, vs = project(q_next, v_next, projection_tol)
         q_new, v_new = np.empty_like(q), np.empty_like(v)
-        rk4_stage(q, v, d1 + d4 + 2.0 * (d2 + d3), a1 + a4 + 2.0 * (a2 + a3), dt / 6.0,
-                  q_new, v_new, quat)
+        rk4_stage(q, v, qs, vs, acc(qs, vs, tau), 0.0, 1.0, joints, quat, q_new, v_new, rates)
+        rk4_combine(q, v, rates, dt / 6.0, quat, q_new, v_new)
         return q_new, v_new
 
     def _project_stage(self, q: np.ndarray, v: np.ndarray, trigger: float):
@@ -370,19 +344,67 @@ class ClosedLoopIntegrator:
 
 
 @jit
-def rk4_stage(q, v, qdot, vdot, h, q_out, v_out, quat):
-    """``q_out = q + h qdot`` (nq,) and ``v_out = v + h vdot`` (nv,), the quaternions
-    starting at the indices ``quat`` (x, y, z, w) renormalised in ``q_out``."""
-    for i in range(q.shape[0]):
-        q_out[i] = q[i] + h * qdot[i]
-    for i in range(v.shape[0]):
-        v_out[i] = v[i] + h * vdot[i]
+def configuration_rate(q, v, joints, out):
+    """``qdot`` (nq,) into ``out`` for the velocity ``v`` (nv,) at ``q``: per row
+    ``(kind, idx_q, idx_v)`` of ``joints``, a 1-DoF joint (kind 0) ``qdot = v``, a
+    free-flyer (kind 1, q = (p, x, y, z, w), v = (v_lin, w) in the body frame)
+    ``p' = R v_lin`` and ``Q' = 1/2 Q (x) (w, 0)``."""
+    for k in range(joints.shape[0]):
+        iq, iv = joints[k, 1], joints[k, 2]
+        if joints[k, 0] == 0:
+            out[iq] = v[iv]
+            continue
+        x, y, z, w = q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6]
+        vx, vy, vz = v[iv], v[iv + 1], v[iv + 2]
+        wx, wy, wz = v[iv + 3], v[iv + 4], v[iv + 5]
+        # p' = R v_lin (R of the unit quaternion)
+        tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
+        out[iq] = vx + w * tx + (y * tz - z * ty)
+        out[iq + 1] = vy + w * ty + (z * tx - x * tz)
+        out[iq + 2] = vz + w * tz + (x * ty - y * tx)
+        out[iq + 3] = 0.5 * (w * wx + y * wz - z * wy)
+        out[iq + 4] = 0.5 * (w * wy + z * wx - x * wz)
+        out[iq + 5] = 0.5 * (w * wz + x * wy - y * wx)
+        out[iq + 6] = -0.5 * (x * wx + y * wy + z * wz)
+
+
+@jit
+def _normalise_quaternions(q, quat):
     for k in range(quat.shape[0]):
         i = quat[k]
-        inv = 1.0 / math.sqrt(q_out[i] ** 2 + q_out[i + 1] ** 2 + q_out[i + 2] ** 2
-                              + q_out[i + 3] ** 2)
+        inv = 1.0 / math.sqrt(q[i] ** 2 + q[i + 1] ** 2 + q[i + 2] ** 2 + q[i + 3] ** 2)
         for j in range(4):
-            q_out[i + j] *= inv
+            q[i + j] *= inv
+
+
+@jit
+def rk4_stage(q, v, qs, vs, vdot, h, w, joints, quat, q_out, v_out, rates):
+    """One RK4 stage from the step's start ``(q, v)`` with the rates of the stage state
+    ``(qs, vs)``: ``q_out = q + h qdot(qs, vs)`` (nq,; the quaternions starting at the
+    indices ``quat`` renormalised) and ``v_out = v + h vdot`` (nv,); ``rates`` (nq + nv,)
+    accumulates ``w (qdot, vdot)``."""
+    nq = q.shape[0]
+    configuration_rate(qs, vs, joints, q_out)
+    for i in range(nq):
+        d = q_out[i]
+        rates[i] += w * d
+        q_out[i] = q[i] + h * d
+    for i in range(v.shape[0]):
+        rates[nq + i] += w * vdot[i]
+        v_out[i] = v[i] + h * vdot[i]
+    _normalise_quaternions(q_out, quat)
+
+
+@jit
+def rk4_combine(q, v, rates, h, quat, q_out, v_out):
+    """The RK4 update ``q_out = q + h rates[:nq]`` (quaternions renormalised) and
+    ``v_out = v + h rates[nq:]``."""
+    nq = q.shape[0]
+    for i in range(nq):
+        q_out[i] = q[i] + h * rates[i]
+    for i in range(v.shape[0]):
+        v_out[i] = v[i] + h * rates[nq + i]
+    _normalise_quaternions(q_out, quat)
 
 
 @jit
