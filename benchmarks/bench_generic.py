@@ -6,8 +6,9 @@ tests/stress_robots.py, Cassie, Solo-12, the ladder with 1 / 16 / 64 loops) and 
 closure-consistent states:
 
 * forward dynamics, routes "pinocchio", "kkt", "qp": us per call; the raw
-  ``pin.constraintDynamics`` with the same constraint models (mu = 0, one iteration; for
-  redundant rows mu = 1e-6, 5 iterations, i.e. what a user would call); MuJoCo's
+  ``pin.constraintDynamics`` with the same constraint models and the settings of our
+  "pinocchio" route (mu = 0, one iteration; for redundant rows mu = 1e-8, 2 iterations),
+  and for redundant rows also with mu = 1e-6, 5 iterations (an extra row); MuJoCo's
   ``mj_forward`` on :func:`hexapod_pin.core.mujoco_export.to_mujoco`'s model;
 * inverse dynamics, routes "kkt", "qp" (bounded at 10x the needed forces): us per call;
   raw ``pin.rnea`` + ``computeJointJacobians`` + ``getConstraintsJacobian`` + a least-squares
@@ -47,7 +48,13 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 import ladder
 import stress_robots
 
-from hexapod_pin.core.dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
+from hexapod_pin.core.dynamics import (
+    PIN_PROX_ITERS,
+    PIN_PROX_MU,
+    dynamics_of,
+    forward_dynamics_tree,
+    inverse_dynamics_tree,
+)
 from hexapod_pin.core.simulation import ClosedLoopIntegrator
 from hexapod_pin.core.tree_batch import forward_dynamics_tree_batch, inverse_dynamics_tree_batch
 from hexapod_pin.errors import HexapodPinError, InputError
@@ -207,7 +214,11 @@ def bench_robot(name, clm, sample, n_states: int):
     data = model.createData()
     cms, cds = clm.pinocchio_constraints()
     pin.initConstraintDynamics(model, data, cms, cds)
-    prox = pin.ProximalSettings(1e-13, 1e-6 if redundant else 0.0, 5 if redundant else 1)
+    # the raw call with the settings of our "pinocchio" route (its overhead is the ratio);
+    # with redundant rows also with mu = 1e-6 and 5 iterations (an extra row)
+    prox = pin.ProximalSettings(1e-13, PIN_PROX_MU if redundant else 0.0,
+                                PIN_PROX_ITERS if redundant else 1)
+    prox_user = pin.ProximalSettings(1e-13, 1e-6, 5)
     cyc = {"k": 0}
 
     def nxt():
@@ -251,6 +262,13 @@ def bench_robot(name, clm, sample, n_states: int):
         t, raw = paired(call, raw_fd)
         rows.append((name, clm.nv, f"{clm.n_rows}/{rank}", f"FD {method}", t, raw, mj, err,
                      fails, n_states))
+        if method == "pinocchio" and redundant:
+            def raw_user():
+                s = nxt()
+                pin.constraintDynamics(model, data, s[0], s[1], s[3], cms, cds, prox_user)
+            t_user, raw = paired(raw_user, raw_fd)
+            rows.append((name, clm.nv, f"{clm.n_rows}/{rank}", "raw, mu 1e-6, 5 iterations",
+                         t_user, raw, mj, err, 0, n_states))
     # inverse dynamics
     sel = np.zeros((clm.nv, clm.n_actuated))
     sel[clm.actuated_v, np.arange(clm.n_actuated)] = 1.0

@@ -85,8 +85,8 @@ _QP_ACCEPT = 1e-10
 #: to minimum norm when read). Two iterations at mu = 1e-8 meet RESIDUAL_RTOL with a
 #: margin of 250 or more on every redundant robot of the benchmarks and tests (Cassie,
 #: the five-bars and ladders closed by welds); a miss continues the solve.
-_PIN_PROX_MU = 1e-8
-_PIN_PROX_ITERS = 2
+PIN_PROX_MU = 1e-8
+PIN_PROX_ITERS = 2
 #: iterations of the continued proximal solve when the first ones did not converge
 _PIN_PROX_DEEP_ITERS = 500
 #: weight of the multipliers in the inverse-dynamics QP objective (relative to forces)
@@ -416,10 +416,10 @@ class ClosedLoopDynamics:
     def _init_pinocchio(self) -> None:
         pin.initConstraintDynamics(self.model, self.data, self.pin_models, self.pin_datas)
         self._prox_exact = pin.ProximalSettings(1e-13, 0.0, 1)
-        self._prox_redundant = pin.ProximalSettings(1e-13, _PIN_PROX_MU, _PIN_PROX_ITERS)
-        self._prox_deep = pin.ProximalSettings(1e-14, _PIN_PROX_MU, _PIN_PROX_DEEP_ITERS)
+        self._prox_redundant = pin.ProximalSettings(1e-13, PIN_PROX_MU, PIN_PROX_ITERS)
+        self._prox_deep = pin.ProximalSettings(1e-14, PIN_PROX_MU, _PIN_PROX_DEEP_ITERS)
         #: one cheap proximal pass: only the constraint terms of the call are used
-        self._prox_probe = pin.ProximalSettings(1e-13, _PIN_PROX_MU, 1)
+        self._prox_probe = pin.ProximalSettings(1e-13, PIN_PROX_MU, 1)
         self._cd_list = list(self.pin_datas)
         self._all_points = all(c[0] for c in self.closure_frames)
         # live views of Pinocchio's data (eigenpy maps the Data members, allocated once)
@@ -526,7 +526,7 @@ class ClosedLoopDynamics:
         status = _REDUNDANT_STATUS.get(iters)
         if status is None:
             status = _REDUNDANT_STATUS[iters] = (
-                f"solved (redundant rows: proximal mu={_PIN_PROX_MU:g}, {iters} "
+                f"solved (redundant rows: proximal mu={PIN_PROX_MU:g}, {iters} "
                 "iterations; minimum-norm multipliers)")
         return TreeForwardDynamics(acc, _MinNormRows(self, q, v, acc, tau), "pinocchio",
                                    status, iters, rank, -1.0)
