@@ -11,14 +11,22 @@ whose joints are 1-DoF or free-flyers:
   the actuator forces and the wrench are held constant over a step (zero-order hold);
   with redundant closure rows the stage states are put back on the closures (one
   Gauss-Newton pass each) before their dynamics are solved;
+* or semi-implicit Euler, ``v' = v + dt a(q, v)``, ``q' = q (+) dt v'``;
 * after each step, drift control by projection onto the constraint manifold: the
   quaternions are renormalised; when the closure residual ``r`` exceeds ``projection_tol``
   (default 1e-10 m), ``q`` gets Gauss-Newton corrections ``q <- q (+) (-J_c^+ r)``
-  (minimum norm over all coordinates) and the velocity is projected,
+  (minimum norm over all coordinates); the velocity is projected at the returned ``q``,
   ``v <- v - J_c^+ J_c v``. All closures at once: one Pinocchio kinematic pass per
-  Gauss-Newton step gives the stacked errors and constraint Jacobian (Pinocchio's LOCAL
-  constraint rows), and one compiled kernel solves the step and the velocity projection
-  on the independent rows with one factorisation.
+  Gauss-Newton step gives the stacked errors (read from live views of the constraint
+  datas, :class:`~hexapod_pin.core.constraint_views.ConstraintErrors`) and constraint
+  Jacobian (Pinocchio's LOCAL constraint rows), and one compiled kernel solves the step
+  and the velocity projection on the independent rows with one factorisation. The Euler
+  step's first correction, while the closures drift, is taken with the constraint
+  Jacobian of its verified dynamics call (at the step's start, ``dt |v|`` away: no
+  Jacobian pass at the predicted ``q``); the pass at the corrected ``q`` verifies the
+  closures and projects the velocity. Every returned state has its closure residual
+  measured at the returned ``q`` (at most ``projection_tol``, or
+  :class:`~hexapod_pin.errors.AssemblyError`).
 """
 
 
