@@ -193,6 +193,23 @@ def test_gauss_newton_pass_matches_pseudo_inverse():
     assert gauss_newton_pass(sparse, err, rows, v, step, v_new, out) == np.inf
 
 
+def test_euler_update_matches_pin_integrate():
+    """The compiled semi-implicit Euler update of 1-DoF joints against numpy and
+    ``pin.integrate`` (revolute and prismatic joints: ``q (+) dt v = q + dt v``)."""
+    from hexapod_pin.core.simulation import euler_update
+
+    model = pin.Model()
+    j = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "a")
+    model.addJoint(j, pin.JointModelPX(), pin.SE3.Identity(), "b")
+    rng = np.random.default_rng(2)
+    q, v, a = rng.normal(size=2), rng.normal(size=2), rng.normal(size=2)
+    q_out, v_out = np.empty(2), np.empty(2)
+    euler_update(q, v, a, 0.01, q_out, v_out)
+    np.testing.assert_allclose(v_out, v + 0.01 * a, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(q_out, pin.integrate(model, q, 0.01 * (v + 0.01 * a)), rtol=0,
+                               atol=1e-15)
+
+
 def test_rk4_stage_matches_numpy():
     """The compiled stage update against numpy: ``q + h qdot(qs, vs)`` with its quaternion
     renormalised, ``v + h vdot``, the weighted rates accumulated; the combination

@@ -561,8 +561,10 @@ class ClosedLoopDynamics:
         if method == "pinocchio":
             prox = self.pinocchio_verified(q, v, tau)
             if prox is not None:         # the short path: the result with lazy multipliers
+                rank = self._rank
                 return self.pinocchio_result_of(q.copy(), v.copy(), tau, self._v_ddq.copy(),
-                                                self._v_lambda.copy(), prox.iter, self._rank)
+                                                self._v_lambda.copy(), prox.iter,
+                                                self.closure_rank(q) if rank is None else rank)
         elif method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
         return _solve_checked(lambda: self.forward_unchecked(q, v, tau, method), ("q", q),

@@ -183,10 +183,15 @@ class ClosedLoopIntegrator:
             q_new, v_new = self._rk4(q, v, tau, dt, projection_tol)
             return self.project(q_new, v_new, projection_tol, velocity=True)
         # semi-implicit Euler: v' = v + dt a(q, v), q' = q (+) dt v'
-        v_new = np.multiply(self._verified_acceleration(q, v, tau), dt)
-        v_new += v
         model = self._model
-        q_new = pin.integrate(model, q, dt * v_new)
+        acc = self._verified_acceleration(q, v, tau)
+        if self._quat.size:                      # free-flyers: the exponential map
+            v_new = np.multiply(acc, dt)
+            v_new += v
+            q_new = pin.integrate(model, q, dt * v_new)
+        else:                                    # 1-DoF joints: q (+) dt v' = q + dt v'
+            q_new, v_new = np.empty_like(q), np.empty_like(v)
+            euler_update(q, v, acc, dt, q_new, v_new)
         jac0, rows = self._jac0, self._rows
         if jac0 is None or rows is None or self._residual_fn is not None \
                 or not self._drifting:
@@ -401,6 +406,15 @@ def rk4_stage(q, v, qs, vs, vdot, h, w, joints, quat, q_out, v_out, rates):
         rates[nq + i] += w * vdot[i]
         v_out[i] = v[i] + h * vdot[i]
     _normalise_quaternions(q_out, quat)
+
+
+@jit
+def euler_update(q, v, acc, dt, q_out, v_out):
+    """Semi-implicit Euler on 1-DoF joints (nq = nv): ``v_out = v + dt acc`` then
+    ``q_out = q + dt v_out``."""
+    for i in range(v.shape[0]):
+        v_out[i] = v[i] + dt * acc[i]
+        q_out[i] = q[i] + dt * v_out[i]
 
 
 @jit
