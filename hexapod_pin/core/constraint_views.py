@@ -114,6 +114,9 @@ class ConstraintErrors:
         as their last ``calc`` left them (m; rad for the weld rotations)."""
         views = self._views
         if views is not None:
+            if self._local:                  # the common case, without a further call
+                np.concatenate(views, out=out)
+                return np.negative(out, out=out)
             return self._gather_views(views, out)
         if self.n_rows:
             np.concatenate([self._read(k) for k in range(len(self._cds))], out=out)
