@@ -24,8 +24,9 @@ the tree integrator (semi-implicit Euler and RK4) against ``mj_step`` (MuJoCo's 
 and RK4 integrators) on Cassie and the one-loop ladder.
 
 Run ``python benchmarks/bench_generic.py`` (``--smoke``: two robots, short samples; a
-test runs it; ``--integrators``: the integrator table only). Prints Markdown tables; exits 1 when a route failed a solve or disagreed
-with the reference by more than ``AGREEMENT``.
+test runs it; ``--integrators``: the integrator table only). Prints Markdown tables;
+exits 1 when a route failed a solve or disagreed with the reference by more than
+``AGREEMENT``.
 """
 
 from __future__ import annotations

@@ -1172,8 +1172,9 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
             clipped weighted minimum-norm solution and polished on its active set) or
             "kkt" (the linear system ``[S^T J_c^T] [u; lambda] = rhs``: one LU solve
             when square, least squares / minimum norm otherwise). Both agree to 1e-10
-            when no bound is active and the equation determines ``u``. Solved in Pinocchio's constraint rows (the multipliers are
-            converted to ours on access).
+            when no bound is active and the equation determines ``u``. Solved in
+            Pinocchio's constraint rows (the multipliers are converted to ours on
+            access).
 
     Returns:
         :class:`TreeInverseDynamics`.

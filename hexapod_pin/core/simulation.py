@@ -216,8 +216,9 @@ class ClosedLoopIntegrator:
         """A Gauss-Newton step at ``q`` taken with ``jac``, the constraint Jacobian at a
         nearby configuration (the start of the step: ``q`` is ``dt v`` away, and the error
         of that Jacobian slows the convergence by a factor of order ``dt |v|`` only): one
-        kinematic pass for the closure errors at ``q`` and no Jacobian. The step is left in ``self._steps[0]``, the max-abs error at ``q`` in
-        ``self._out[0]``; returns the miss of the solve (see :func:`gauss_newton_pass`)."""
+        kinematic pass for the closure errors at ``q`` and no Jacobian. The step is left
+        in ``self._steps[0]``, the max-abs error at ``q`` in ``self._out[0]``; returns the
+        miss of the solve (see :func:`gauss_newton_pass`)."""
         model, data = self._model, self._data
         pin.forwardKinematics(model, data, q)
         for calc, cd in self._calcs:
