@@ -38,7 +38,7 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
-from ..errors import AssemblyError, InputError
+from ..errors import AssemblyError, InputError, SolverError
 from .closed_loop import ClosedLoopModel
 from .compiled import jit
 from .constraint_views import ConstraintErrors
@@ -235,24 +235,40 @@ class ClosedLoopIntegrator:
         makes them."""
         if self._rows is None:
             self._rows = independent_rows(self._closure_pass(q))
+        verified = self._verified_acceleration
         if self._rows.size < self.clm.n_rows:
             project = self._project_stage
+
+            def acc(qs, vs, first):
+                """The stage's verified acceleration; a stage whose dynamics are refused
+                (its drift outside the range of the nearly redundant rows: Cassie at
+                18 m/s joint speeds) is projected to the trigger and solved again."""
+                try:
+                    return verified(qs, vs, tau), qs, vs
+                except SolverError:
+                    if first:
+                        raise
+                qs, vs, _ = self.project(qs, vs, projection_tol, velocity=True)
+                return verified(qs, vs, tau), qs, vs
         else:
             def project(qs, vs, _):
                 return qs, vs
-        acc = self._verified_acceleration
+
+            def acc(qs, vs, _):
+                return verified(qs, vs, tau), qs, vs
         joints, quat, nq = self._joints, self._quat, q.shape[0]
         # the weighted sums of the stage rates, (qdot_1 + 2 qdot_2 + 2 qdot_3 + qdot_4,
         # a_1 + 2 a_2 + 2 a_3 + a_4), accumulated by the stage kernel
         rates = np.zeros(nq + v.shape[0])
         qs, vs = q, v
         for h, w in ((0.5 * dt, 1.0), (0.5 * dt, 2.0), (dt, 2.0)):
+            a_s, qs, vs = acc(qs, vs, qs is q)
             q_next, v_next = np.empty_like(q), np.empty_like(v)
-            rk4_stage(q, v, qs, vs, acc(qs, vs, tau), h, w, joints, quat, q_next, v_next,
-                      rates)
+            rk4_stage(q, v, qs, vs, a_s, h, w, joints, quat, q_next, v_next, rates)
             qs, vs = project(q_next, v_next, projection_tol)
+        a_s, qs, vs = acc(qs, vs, False)
         q_new, v_new = np.empty_like(q), np.empty_like(v)
-        rk4_stage(q, v, qs, vs, acc(qs, vs, tau), 0.0, 1.0, joints, quat, q_new, v_new, rates)
+        rk4_stage(q, v, qs, vs, a_s, 0.0, 1.0, joints, quat, q_new, v_new, rates)
         rk4_combine(q, v, rates, dt / 6.0, quat, q_new, v_new)
         return q_new, v_new
 
