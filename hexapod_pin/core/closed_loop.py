@@ -36,6 +36,7 @@ import numpy.typing as npt
 import pinocchio as pin
 import scipy.linalg
 
+from .constraint_views import ConstraintErrors
 from .description import WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro, load_loops
 from ..errors import AssemblyError, DescriptionError, InputError
 from .checks import as_array, count, real_number
@@ -268,6 +269,9 @@ class ClosedLoopModel:
         # constraint datas but does not compute them
         self._point_calcs = [(cm.calc, cd) for cm, cd in zip(self._point_models,
                                                               self._point_datas)]
+        #: the point closures' world-axes errors, gathered from live views
+        self._point_errors = ConstraintErrors(self.model, self._point_models,
+                                              self._point_datas, "world")
         self._point_rows = (np.concatenate(point_rows) if point_rows
                             else np.zeros(0, dtype=int))
         self._all_points = not self._welds
@@ -290,12 +294,12 @@ class ClosedLoopModel:
 
     def _residual_from_anchors(self) -> np.ndarray:
         """The residual from the anchor placements of :meth:`_calc_anchors`."""
-        points = [cd.oMc1.translation - cd.oMc2.translation for _, cd in self._point_calcs]
+        points = self._point_errors
         if self._all_points:
-            return np.concatenate(points) if points else np.zeros(0)
+            return points.gather(np.empty(points.n_rows))
         out = np.empty(self.n_rows)
-        if points:
-            out[self._point_rows] = np.concatenate(points)
+        if points.n_rows:
+            out[self._point_rows] = points.gather(np.empty(points.n_rows))
         omf = self.data.oMf
         for rows, f1, f2 in self._welds:
             out[rows] = pin.log6(omf[f2].actInv(omf[f1])).vector

@@ -62,6 +62,7 @@ class ConstraintErrors:
         self._local = rows == "local"
         self.n_rows = sum(3 if p else 6 for p in self._points)
         self._all_points = all(self._points)
+        self._scratch = np.empty(self.n_rows)
         self._views: list[np.ndarray] | None = self._live_views(model)
 
     def _read(self, k: int) -> np.ndarray:
@@ -79,8 +80,11 @@ class ConstraintErrors:
         if not self._all_points or not self._points:
             return None
         cds = self._cds
+        # local rows: the c1Mc2 translations; world rows: the oMc1 translations, then the
+        # oMc2 ones
         views = ([cd.c1Mc2.translation for cd in cds] if self._local
-                 else [a for cd in cds for a in (cd.oMc1.translation, cd.oMc2.translation)])
+                 else [cd.oMc1.translation for cd in cds]
+                 + [cd.oMc2.translation for cd in cds])
         data = model.createData()
         for q in (pin.neutral(model), pin.randomConfiguration(
                 model, -np.ones(model.nq), np.ones(model.nq)) if model.nq else None):
@@ -99,9 +103,10 @@ class ConstraintErrors:
             np.concatenate(views, out=out)
             np.negative(out, out=out)
         else:
-            out3 = out.reshape(-1, 3)
-            for k in range(out3.shape[0]):
-                np.subtract(views[2 * k], views[2 * k + 1], out=out3[k])
+            half = len(views) // 2
+            np.concatenate(views[:half], out=out)
+            np.concatenate(views[half:], out=self._scratch)
+            np.subtract(out, self._scratch, out=out)
         return out
 
     @property
@@ -114,9 +119,6 @@ class ConstraintErrors:
         as their last ``calc`` left them (m; rad for the weld rotations)."""
         views = self._views
         if views is not None:
-            if self._local:                  # the common case, without a further call
-                np.concatenate(views, out=out)
-                return np.negative(out, out=out)
             return self._gather_views(views, out)
         if self.n_rows:
             np.concatenate([self._read(k) for k in range(len(self._cds))], out=out)
