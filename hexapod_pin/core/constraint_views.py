@@ -6,7 +6,7 @@ the Python properties builds an ``SE3`` and a numpy array per read (about 1.5 us
 closure and per call: more than the ``calc`` itself). The translation arrays that
 Pinocchio's bindings return are views of the constraint data's own memory, updated in
 place by every later ``calc``: :class:`ConstraintErrors` takes them once and gathers the
-errors of every point closure with one ``numpy.concatenate``.
+errors of all point closures with two or three numpy calls, whatever their number.
 
 That the arrays are live views is a property of the bindings, not a documented contract:
 it is checked when a :class:`ConstraintErrors` is made (the gathered errors compared with
