@@ -376,6 +376,19 @@ def test_generic_step_keeps_the_closures(name, integrator):
             1.0, np.max(np.abs(v)))
 
 
+def _moving_cassie(seed):
+    """``(clm, q, v)``: Cassie assembled from random actuator angles (0.1 rad), moving
+    with a random closure-consistent velocity (seeded)."""
+    from hexapod_pin.loaders import robots
+
+    clm = robots.cassie()
+    rng = np.random.default_rng(seed)
+    dq = np.zeros(clm.nv)
+    dq[clm.actuated_v] = 0.1 * rng.normal(size=clm.n_actuated)
+    q = clm.assemble(pin.integrate(clm.model, pin.neutral(clm.model), dq)).q
+    return clm, q, 0.5 * _consistent_state(clm, q, rng)
+
+
 @pytest.mark.parametrize(("integrator", "dt"), [("rk4", 5e-4), ("rk4", 1e-3),
                                                ("semi_implicit_euler", 1e-3)])
 def test_generic_step_keeps_cassies_closures(integrator, dt):
@@ -386,14 +399,8 @@ def test_generic_step_keeps_cassies_closures(integrator, dt):
     closures far enough for the drift to fall outside the range of the nearly redundant
     rows, and the verified dynamics would raise; the stages are projected.)"""
     from hexapod_pin.core.simulation import ClosedLoopIntegrator
-    from hexapod_pin.loaders import robots
 
-    clm = robots.cassie()
-    rng = np.random.default_rng(11)
-    dq = np.zeros(clm.nv)
-    dq[clm.actuated_v] = 0.1 * rng.normal(size=clm.n_actuated)
-    q = clm.assemble(pin.integrate(clm.model, pin.neutral(clm.model), dq)).q
-    v = 0.5 * _consistent_state(clm, q, rng)
+    clm, q, v = _moving_cassie(11)
     sim = ClosedLoopIntegrator(clm, integrator=integrator)
     tau = np.zeros(clm.nv)
     for _ in range(10):
@@ -411,14 +418,8 @@ def test_rk4_keeps_a_falling_cassies_closures():
     range of the nearly redundant rows: this fall raised SolverError at step 112 before)
     is projected to the trigger and solved again."""
     from hexapod_pin.core.simulation import ClosedLoopIntegrator
-    from hexapod_pin.loaders import robots
 
-    clm = robots.cassie()
-    rng = np.random.default_rng(3)
-    dq = np.zeros(clm.nv)
-    dq[clm.actuated_v] = 0.1 * rng.normal(size=clm.n_actuated)
-    q = clm.assemble(pin.integrate(clm.model, pin.neutral(clm.model), dq)).q
-    v = 0.5 * _consistent_state(clm, q, rng)
+    clm, q, v = _moving_cassie(3)
     sim = ClosedLoopIntegrator(clm, integrator="rk4")
     tau = np.zeros(clm.nv)
     fastest = 0.0
