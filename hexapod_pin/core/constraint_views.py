@@ -86,10 +86,9 @@ class ConstraintErrors:
                  else [cd.oMc1.translation for cd in cds]
                  + [cd.oMc2.translation for cd in cds])
         data = model.createData()
-        for q in (pin.neutral(model), pin.randomConfiguration(
-                model, -np.ones(model.nq), np.ones(model.nq)) if model.nq else None):
-            if q is None:
-                continue
+        neutral = pin.neutral(model)
+        # two configurations (deterministic: Pinocchio's random generator is left alone)
+        for q in (neutral, pin.integrate(model, neutral, np.linspace(0.1, 0.3, model.nv))):
             pin.forwardKinematics(model, data, q)
             for cm, cd in zip(self._cms, cds):
                 cm.calc(model, data, cd)
