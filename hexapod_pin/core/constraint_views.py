@@ -32,6 +32,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import InputError
+from .compiled import jit
 
 ROWS = ("local", "world")
 
@@ -62,8 +63,7 @@ class ConstraintErrors:
         self._local = rows == "local"
         self.n_rows = sum(3 if p else 6 for p in self._points)
         self._all_points = all(self._points)
-        self._scratch = np.empty(self.n_rows)
-        self._views: list[np.ndarray] | None = self._live_views(model)
+        self._views: tuple[np.ndarray, ...] | None = self._live_views(model)
 
     def _read(self, k: int) -> np.ndarray:
         """The error of constraint ``k`` through the properties (fresh objects)."""
@@ -74,7 +74,7 @@ class ConstraintErrors:
             return -cd.c1Mc2.translation
         return cd.oMc1.translation - cd.oMc2.translation
 
-    def _live_views(self, model: pin.Model) -> list[np.ndarray] | None:
+    def _live_views(self, model: pin.Model) -> tuple[np.ndarray, ...] | None:
         """Views of the point closures' translations, when they follow later ``calc``
         calls (checked at two configurations against fresh reads), else None."""
         if not self._all_points or not self._points:
@@ -82,9 +82,9 @@ class ConstraintErrors:
         cds = self._cds
         # local rows: the c1Mc2 translations; world rows: the oMc1 translations, then the
         # oMc2 ones
-        views = ([cd.c1Mc2.translation for cd in cds] if self._local
-                 else [cd.oMc1.translation for cd in cds]
-                 + [cd.oMc2.translation for cd in cds])
+        views = (tuple(cd.c1Mc2.translation for cd in cds) if self._local
+                 else tuple(cd.oMc1.translation for cd in cds)
+                 + tuple(cd.oMc2.translation for cd in cds))
         data = model.createData()
         neutral = pin.neutral(model)
         # two configurations (deterministic: Pinocchio's random generator is left alone)
@@ -97,16 +97,20 @@ class ConstraintErrors:
                 return None
         return views
 
-    def _gather_views(self, views: list[np.ndarray], out: np.ndarray) -> np.ndarray:
+    def _gather_views(self, views: tuple[np.ndarray, ...], out: np.ndarray) -> np.ndarray:
         if self._local:
-            np.concatenate(views, out=out)
-            np.negative(out, out=out)
+            gather_negated(views, out)
         else:
             half = len(views) // 2
-            np.concatenate(views[:half], out=out)
-            np.concatenate(views[half:], out=self._scratch)
-            np.subtract(out, self._scratch, out=out)
+            gather_difference(views[:half], views[half:], out)
         return out
+
+    @property
+    def local_views(self) -> tuple[np.ndarray, ...] | None:
+        """The live views of the local rows (the c1Mc2 translations, one per point
+        closure), for :func:`gather_negated` in a caller's own kernel; None when the rows
+        are world rows or the views are not live."""
+        return self._views if self._local else None
 
     @property
     def live(self) -> bool:
@@ -122,3 +126,25 @@ class ConstraintErrors:
         if self.n_rows:
             np.concatenate([self._read(k) for k in range(len(self._cds))], out=out)
         return out
+
+
+@jit
+def gather_negated(views, out):
+    """``out = -(v_1, v_2, ...)`` stacked, for a tuple of 1-D arrays ``views``."""
+    k = 0
+    for view in views:
+        for i in range(view.shape[0]):
+            out[k] = -view[i]
+            k += 1
+
+
+@jit
+def gather_difference(first, second, out):
+    """``out = (a_1 - b_1, a_2 - b_2, ...)`` stacked, for tuples of 1-D arrays ``first``
+    (the a) and ``second`` (the b) of the same shapes."""
+    k = 0
+    for j in range(len(first)):
+        a, b = first[j], second[j]
+        for i in range(a.shape[0]):
+            out[k] = a[i] - b[i]
+            k += 1

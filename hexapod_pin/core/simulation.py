@@ -41,7 +41,7 @@ import pinocchio as pin
 from ..errors import AssemblyError, InputError, SolverError
 from .closed_loop import ClosedLoopModel
 from .compiled import jit
-from .constraint_views import ConstraintErrors
+from .constraint_views import ConstraintErrors, gather_negated
 from .dynamics import FORWARD_METHODS, dynamics_of, independent_rows
 
 #: closure residual above which a step is projected back onto the closures (m)
@@ -116,6 +116,8 @@ class ClosedLoopIntegrator:
         self._nv = model.nv
         self._calcs = [(cm.calc, cd) for cm, cd in zip(self._cms, self._cds)]
         self._errors = ConstraintErrors(model, self._cms, self._cds, "local")
+        #: the live views of the errors (None: read through ConstraintErrors.gather)
+        self._views = self._errors.local_views
         # the Gauss-Newton steps of the projection (two buffers: the current and the next)
         self._steps = (np.empty(model.nv), np.empty(model.nv))
         #: the constraint Jacobian at the start of the current step (from the verified
@@ -223,8 +225,12 @@ class ClosedLoopIntegrator:
         pin.forwardKinematics(model, data, q)
         for calc, cd in self._calcs:
             calc(model, data, cd)
-        return gauss_newton_pass(jac, self._errors.gather(self._err), rows, v,
-                                 self._steps[0], self._steps[1], self._out)
+        views = self._views
+        if views is None:
+            return gauss_newton_pass(jac, self._errors.gather(self._err), rows, v,
+                                     self._steps[0], self._steps[1], self._out)
+        return errors_gauss_newton_pass(views, jac, self._err, rows, v, self._steps[0],
+                                        self._steps[1], self._out)
 
     def _rk4(self, q, v, tau, dt, projection_tol=PROJECTION_TOL):
         """Classical RK4. With redundant closure rows (dependent on the others), each
@@ -310,7 +316,11 @@ class ClosedLoopIntegrator:
         pin.computeJointJacobians(model, data, q)
         for calc, cd in self._calcs:
             calc(model, data, cd)                 # the anchor placements (J reads them)
-        self._errors.gather(err)
+        views = self._views
+        if views is None:
+            self._errors.gather(err)
+        else:
+            gather_negated(views, err)
         return pin.getConstraintsJacobian(model, data, self._cms, self._cds)
 
     def project(self, q: np.ndarray, v: np.ndarray, trigger: float = PROJECTION_TOL,
@@ -444,6 +454,14 @@ def rk4_combine(q, v, rates, h, quat, q_out, v_out):
     for i in range(v.shape[0]):
         v_out[i] = v[i] + h * rates[nq + i]
     _normalise_quaternions(q_out, quat)
+
+
+@jit
+def errors_gauss_newton_pass(views, jac, err, rows, v, step, v_new, out):
+    """:func:`gauss_newton_pass` on the errors gathered from the live views ``views``
+    (:func:`~hexapod_pin.core.constraint_views.gather_negated`, into ``err``)."""
+    gather_negated(views, err)
+    return gauss_newton_pass(jac, err, rows, v, step, v_new, out)
 
 
 @jit
