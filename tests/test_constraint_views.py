@@ -89,3 +89,20 @@ def test_bad_rows_are_refused():
         ConstraintErrors(clm.model, cms, cds, "body")
     with pytest.raises(InputError, match="point closures only"):
         ConstraintErrors(clm.model, cms, cds, "world")
+
+
+def test_gather_kernels_match_numpy():
+    """The compiled gathers against numpy: ``-concatenate(views)`` and
+    ``concatenate(first) - concatenate(second)``, for tuples of one and of several
+    arrays."""
+    from hexapod_pin.core.constraint_views import gather_difference, gather_negated
+
+    rng = np.random.default_rng(0)
+    for n in (1, 4, 7):
+        first = tuple(rng.normal(size=3) for _ in range(n))
+        second = tuple(rng.normal(size=3) for _ in range(n))
+        out = np.empty(3 * n)
+        gather_negated(first, out)
+        np.testing.assert_array_equal(out, -np.concatenate(first))
+        gather_difference(first, second, out)
+        np.testing.assert_array_equal(out, np.concatenate(first) - np.concatenate(second))
