@@ -26,7 +26,13 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np
 
 import hexapod_pin as hp
-from hexapod_pin.calibration import calibrate, plots, select_poses, synthetic_measurements
+from hexapod_pin.calibration import (
+    calibrate,
+    plots,
+    random_as_built,
+    select_poses,
+    synthetic_measurements,
+)
 from hexapod_pin.calibration.problem import reference_poses
 from hexapod_pin.calibration.results import measurement_chains
 from hexapod_pin.calibration.selection import candidate_blocks, observability
@@ -38,13 +44,7 @@ INSTRUMENT = np.array([2e-3, -1e-3, 1.5e-3, 1e-3, -2e-3, 1.5e-3])
 
 
 def truth(nominal: hp.Hexapod) -> hp.HexapodGeometry:
-    rng = np.random.default_rng(7)
-    return nominal.geometry.as_built(
-        line_points=rng.normal(scale=1e-3, size=(6, 3)),
-        line_directions=rng.normal(scale=1e-3, size=(6, 3)),
-        sensor_offsets=rng.normal(scale=1e-3, size=6),
-        leg_lengths=rng.normal(scale=1e-3, size=6),
-        platform_joints=rng.normal(scale=1e-3, size=(6, 3)))
+    return random_as_built(nominal.geometry, 1e-3, seed=7)
 
 
 def timing_table(nominal, true, pool, sizes, repeats):

@@ -19,6 +19,7 @@ import pytest
 from typer.testing import CliRunner
 
 import hexapod_pin as hp
+from hexapod_pin.calibration import random_as_built
 from hexapod_pin.cli import app
 from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.core.pose import rotation_from_rpy, rpy_from_rotation
@@ -35,13 +36,7 @@ RTOL = 1e-9
 def as_built_geometry(seed: int, scale: float = 1e-3) -> hp.HexapodGeometry:
     """The default geometry with Gaussian deviations of ``scale`` (m, or rad for the
     directions) in every ChainGeometry field."""
-    rng = np.random.default_rng(seed)
-    return hp.HexapodGeometry().as_built(
-        line_points=rng.normal(0.0, scale, (6, 3)),
-        line_directions=rng.normal(0.0, scale, (6, 3)),
-        sensor_offsets=rng.normal(0.0, scale, 6),
-        leg_lengths=rng.normal(0.0, scale, 6),
-        platform_joints=rng.normal(0.0, scale, (6, 3)))
+    return random_as_built(hp.HexapodGeometry(), scale, seed)
 
 
 @pytest.fixture(scope="module", params=[(seed, 1e-3) for seed in SEEDS] + [(7, 1e-2)],

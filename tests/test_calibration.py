@@ -14,7 +14,13 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 import hexapod_pin as hp
-from hexapod_pin.calibration import IdentifiabilityError, calibrate, plots, synthetic_measurements
+from hexapod_pin.calibration import (
+    IdentifiabilityError,
+    calibrate,
+    plots,
+    random_as_built,
+    synthetic_measurements,
+)
 from hexapod_pin.calibration import model as cm
 from hexapod_pin.calibration.measurements import read_measurements, write_measurements
 from hexapod_pin.calibration.parameters import N_PARAMETERS, NAMES, ParameterModel
@@ -41,13 +47,7 @@ def nominal():
 @pytest.fixture(scope="module")
 def truth(nominal):
     """Millimetre-level deviations in every chain parameter."""
-    rng = np.random.default_rng(7)
-    return nominal.geometry.as_built(
-        line_points=rng.normal(scale=1e-3, size=(6, 3)),
-        line_directions=rng.normal(scale=1e-3, size=(6, 3)),
-        sensor_offsets=rng.normal(scale=1e-3, size=6),
-        leg_lengths=rng.normal(scale=1e-3, size=6),
-        platform_joints=rng.normal(scale=1e-3, size=(6, 3)))
+    return random_as_built(nominal.geometry, 1e-3, seed=7)
 
 
 def in_measurement_frames(chains, instrument, target):
@@ -396,3 +396,24 @@ def test_parameter_map_inverts_for_random_chains(nominal, seed):
     theta = np.random.default_rng(seed).uniform(-1e-2, 1e-2, size=N_PARAMETERS)
     theta[54:] = 0.0
     assert np.allclose(params.deviations_of(params.chains(theta)), theta, atol=1e-13)
+
+
+def test_random_as_built_draws_every_chain_parameter_and_checks_its_options():
+    """random_as_built: the deviations of the geometry's chains from the drawing have the
+    asked standard deviation (one seed: 66 draws within 4 sigma, spread near ``scale``),
+    the same seed gives the same robot, scale 0 the drawing; bad options are refused."""
+    nominal = hp.HexapodGeometry()
+    built = random_as_built(nominal, 2e-3, seed=11)
+    drawing = nominal.chain_geometry.as_vector()
+    dev = built.chains.as_vector() - drawing
+    assert dev.size == 66 and np.all(np.abs(dev) <= 4 * 2e-3)
+    assert 1e-3 < np.std(dev) < 3e-3
+    again = random_as_built(nominal, 2e-3, seed=np.random.default_rng(11))
+    np.testing.assert_array_equal(again.chains.as_vector(), built.chains.as_vector())
+    zero = random_as_built(nominal, 0.0, seed=3)
+    np.testing.assert_allclose(zero.chains.as_vector(), drawing, rtol=0, atol=1e-15)
+    for bad in (-1e-3, float("nan"), "1e-3"):
+        with pytest.raises(InputError, match="scale"):
+            random_as_built(nominal, bad)
+    with pytest.raises(InputError, match="seed"):
+        random_as_built(nominal, 1e-3, seed=1.5)

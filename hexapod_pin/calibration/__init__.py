@@ -9,7 +9,8 @@
   when the data cannot give what is asked);
 * :func:`select_poses`: measurement poses maximising an observability index
   (:mod:`.selection`);
-* :func:`synthetic_measurements`: data of a perturbed robot (:mod:`.synthetic`);
+* :func:`synthetic_measurements`: data of a perturbed robot, :func:`random_as_built` a
+  random perturbed robot (:mod:`.synthetic`);
 * a first guess of the instrument frame by rigid registration (:mod:`.registration`);
 * measurement files (CSV) and the identified geometry file (:mod:`.files`);
 * figures (:mod:`.plots`, matplotlib optional).
@@ -31,12 +32,12 @@ from .results import (
     ValidationReport,
 )
 from .selection import PoseSelection, select_measurements, select_poses
-from .synthetic import SyntheticData, synthetic_measurements
+from .synthetic import SyntheticData, random_as_built, synthetic_measurements
 
 __all__ = [
     "DEFAULT_IDENTIFY", "GROUPS", "NAMES", "CalibrationResult", "IdentifiabilityError",
     "IdentifiabilityReport", "Measurements", "ModelErrors", "ParameterEstimate",
     "ParameterModel", "PoseSelection", "ResidualSummary", "SyntheticData", "ValidationReport",
     "calibrate", "read_measurements", "reference_poses", "select_measurements",
-    "select_poses", "synthetic_measurements", "write_measurements",
+    "random_as_built", "select_poses", "synthetic_measurements", "write_measurements",
 ]

@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial.transform import Rotation
 
-from ..core.checks import as_array
+from ..core.checks import as_array, real_number
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
 from ..errors import AssemblyError, InputError
 from ..hexapod.geometry import HexapodGeometry, closure_pose
@@ -59,6 +59,41 @@ def frames_of(instrument: npt.ArrayLike | None, target: npt.ArrayLike | None) ->
     targ = np.zeros(6) if target is None else as_array(target, (6,), "target")
     return Frames(rotation_from_rpy(inst[3:]), inst[:3].copy(),
                   rotation_from_rpy(targ[3:]), targ[:3].copy())
+
+
+def random_as_built(geometry: HexapodGeometry, scale: float = 1e-3,
+                    seed: int | np.random.Generator = 0) -> HexapodGeometry:
+    """A random as-built robot for simulation studies: ``geometry`` with independent
+    Gaussian deviations of standard deviation ``scale`` in every chain parameter
+    (:meth:`~hexapod_pin.hexapod.geometry.HexapodGeometry.as_built`: line points (m),
+    line directions (rad, small rotations), sensor zero offsets (m), leg lengths (m),
+    platform joints (m); drawn in that order).
+
+    Args:
+        geometry: the nominal geometry.
+        scale: standard deviation of the deviations (m, or rad), >= 0.
+        seed: an integer seed or a numpy ``Generator``.
+
+    Returns:
+        the as-built :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry`.
+
+    Raises:
+        InputError: ``scale`` negative or not a finite number, ``seed`` neither an
+            integer nor a Generator.
+    """
+    scale = real_number(scale, "scale", minimum=0.0, strict=False)
+    if isinstance(seed, np.random.Generator):
+        rng = seed
+    elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        rng = np.random.default_rng(seed)
+    else:
+        raise InputError("seed", seed, "expected an integer or a numpy Generator")
+    return geometry.as_built(
+        line_points=rng.normal(0.0, scale, (6, 3)),
+        line_directions=rng.normal(0.0, scale, (6, 3)),
+        sensor_offsets=rng.normal(0.0, scale, 6),
+        leg_lengths=rng.normal(0.0, scale, 6),
+        platform_joints=rng.normal(0.0, scale, (6, 3)))
 
 
 def true_pose_pinocchio(nominal: Hexapod, true: Hexapod, pose: np.ndarray,
