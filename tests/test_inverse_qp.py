@@ -23,11 +23,8 @@ import scipy.optimize
 import stress_robots
 
 from hexapod_pin.core import dynamics
-from hexapod_pin.core.dynamics import (
-    box_active_set_solve,
-    inverse_dynamics_tree,
-    weighted_minimum_norm_solve,
-)
+from hexapod_pin.core.dynamics import inverse_dynamics_tree
+from hexapod_pin.core.linear_kernels import box_active_set_solve, weighted_minimum_norm_solve
 from hexapod_pin.errors import ActuatorSaturationError, InputError
 from hexapod_pin.loaders import robots
 

@@ -36,15 +36,15 @@ singular system).
 
 Verification: no route returns an answer it has not checked. Forward dynamics checks
 both equations above to :data:`RESIDUAL_RTOL` relative to the largest term of each
-(:func:`forward_residuals`); inverse dynamics checks that ``a`` keeps the closures
-(to 1e-8) and that ``S^T u + J_c^T lambda = M a + h - tau_ext`` (:func:`linear_residual`).
+(:func:`~hexapod_pin.core.linear_kernels.forward_residuals`); inverse dynamics checks
+that ``a`` keeps the closures (to 1e-8) and that ``S^T u + J_c^T lambda = M a + h -
+tau_ext`` (:func:`~hexapod_pin.core.linear_kernels.linear_residual`).
 A failed check raises :class:`~hexapod_pin.errors.SolverError` naming the equation and
 its relative residual, after the retries documented on each route.
 """
 
 from __future__ import annotations
 
-import math
 import threading
 from collections.abc import Callable, Mapping
 from typing import Any, NamedTuple
@@ -59,7 +59,18 @@ import scipy.optimize
 from ..errors import ActuatorSaturationError, InputError, SolverError
 from .checks import as_array, max_abs
 from .closed_loop import RANK_RTOL, ClosedLoopModel
-from .compiled import all_finite, jit
+from .compiled import all_finite
+from .linear_kernels import (
+    box_active_set_solve,
+    forward_residuals,
+    kkt_residuals,
+    linear_residual,
+    minimum_norm_solve,
+    normal_solve,
+    square_solve,
+    weighted_minimum_norm_solve,
+    within_bounds,
+)
 
 FORWARD_METHODS = ("pinocchio", "qp", "kkt")
 INVERSE_METHODS = ("qp", "kkt")
@@ -949,9 +960,10 @@ class ClosedLoopDynamics:
     def _weighted_minimum_norm(self, mat, rhs, held=None, held_u=None) -> np.ndarray:
         """The minimiser of the QP's objective ``1/2 x^T H x`` (``H = diag(1, w)``) subject
         to ``mat x = rhs``, with the actuators of the mask ``held`` (n_act,) fixed at
-        ``held_u`` (none when ``held`` is None): :func:`weighted_minimum_norm_solve` (one
-        compiled Gram solve, SVD least squares when that misses :data:`RESIDUAL_RTOL`).
-        Not verified here: the callers verify the answer on the full system."""
+        ``held_u`` (none when ``held`` is None):
+        :func:`~hexapod_pin.core.linear_kernels.weighted_minimum_norm_solve` (one compiled
+        Gram solve, SVD least squares when that misses :data:`RESIDUAL_RTOL`). Not
+        verified here: the callers verify the answer on the full system."""
         if held is None:
             held = held_u = self._no_held
         x = np.empty(mat.shape[1])
@@ -961,8 +973,9 @@ class ClosedLoopDynamics:
 
     def _inverse_active_set(self, mat, rhs, bounds, x):
         """The bounded minimiser by the compiled active-set search
-        :func:`box_active_set_solve` from the weighted minimiser ``x`` (which breaks a
-        bound): ``(x, steps)``, certified by the KKT conditions of the QP, or None when
+        :func:`~hexapod_pin.core.linear_kernels.box_active_set_solve` from the weighted
+        minimiser ``x`` (which breaks a bound): ``(x, steps)``, certified by the KKT
+        conditions of the QP, or None when
         the search stops without a certificate (after ``_ACTIVE_SET_STEPS`` steps, or on a
         held set that the Gram solve cannot meet)."""
         x = x.copy()
@@ -1226,232 +1239,6 @@ def _solve_checked(solve, *inputs):
             if value is not None and not all_finite(value):
                 as_array(value, value.shape, name)
         raise
-
-
-def forward_residuals(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: np.ndarray,
-                      drift: np.ndarray, acc: np.ndarray, lam: np.ndarray,
-                      out: np.ndarray) -> tuple[float, float]:
-    """Relative residuals of ``M a + h - tau - J^T lam = 0`` and ``J a + drift = 0``:
-    :func:`kkt_residuals` with the target ``-drift``. Returns ``(eom, closure)`` (also
-    written to ``out``)."""
-    return kkt_residuals(mass, bias, tau, jac, -drift, acc, lam, out)
-
-
-@jit
-def kkt_residuals(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: np.ndarray,
-                  target: np.ndarray, acc: np.ndarray, lam: np.ndarray,
-                  out: np.ndarray) -> tuple[float, float]:
-    """Relative residuals of ``M a + h - tau - J^T lam = 0`` and ``J a = target``.
-
-    Reads only the upper triangle of ``mass`` (Pinocchio's ``crba`` and
-    ``constraintDynamics`` fill that one), so a symmetric matrix or Pinocchio's
-    half-filled ``data.M`` give the same result. The first residual is relative to the
-    largest of ``|M a|``, ``|h - tau|``, ``|J^T lam|``, the second to ``max|J| max|a|``
-    and ``max|target|`` (max-abs norms; 0 without rows). Non-finite data give inf.
-    Returns ``(eom, closure)`` (also written to ``out``); allocates nothing.
-    """
-    nv = acc.shape[0]
-    nr = jac.shape[0]
-    eom_num = 0.0
-    eom_den = 1e-300
-    for i in range(nv):
-        m_a = 0.0
-        for j in range(i):
-            m_a += mass[j, i] * acc[j]
-        for j in range(i, nv):
-            m_a += mass[i, j] * acc[j]
-        force = 0.0
-        for k in range(nr):
-            force += jac[k, i] * lam[k]
-        rest = bias[i] - tau[i]
-        r = abs(m_a + rest - force)
-        if not math.isfinite(r):
-            eom_num = math.inf
-        elif r > eom_num:
-            eom_num = r
-        eom_den = max(eom_den, abs(m_a), abs(rest), abs(force))
-    linear_residual(jac, acc, target, out)     # out[1]: the closure rows' relative residual
-    out[0] = eom_num / eom_den
-    return out[0], out[1]
-
-
-@jit
-def linear_residual(mat: np.ndarray, x: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> float:
-    """``out = (max|mat x - rhs|, that over max(max|rhs|, max|mat| max|x|))`` (inf when not
-    finite)."""
-    n, m = mat.shape
-    num = 0.0
-    mmax = 0.0
-    xmax = 0.0
-    bmax = 0.0
-    for j in range(m):
-        xmax = max(xmax, abs(x[j]))
-    for i in range(n):
-        acc = 0.0
-        for j in range(m):
-            acc += mat[i, j] * x[j]
-            mmax = max(mmax, abs(mat[i, j]))
-        r = abs(acc - rhs[i])
-        if not math.isfinite(r):
-            num = math.inf
-        elif r > num:
-            num = r
-        bmax = max(bmax, abs(rhs[i]))
-    out[0] = num
-    out[1] = num / max(bmax, mmax * xmax, 1e-300)
-    return out[1]
-
-
-@jit
-def square_solve(mat: np.ndarray, rhs: np.ndarray, x: np.ndarray, out: np.ndarray) -> float:
-    """``x = mat^-1 rhs`` (LU; raises numpy's LinAlgError when singular); returns the
-    relative residual of :func:`linear_residual`."""
-    x[:] = np.linalg.solve(mat, rhs)
-    return linear_residual(mat, x, rhs, out)
-
-
-@jit
-def normal_solve(mat: np.ndarray, rhs: np.ndarray, x: np.ndarray, out: np.ndarray) -> float:
-    """``x = (mat^T mat)^-1 mat^T rhs``, the least-squares solution of a tall ``mat`` of full
-    column rank (LU of the normal matrix; raises numpy's LinAlgError when it is exactly
-    singular); returns the relative residual of :func:`linear_residual` (small only when
-    ``rhs`` is in the range of ``mat`` and the solve was accurate)."""
-    x[:] = np.linalg.solve(mat.T @ mat, mat.T @ rhs)
-    return linear_residual(mat, x, rhs, out)
-
-
-@jit
-def minimum_norm_solve(mat: np.ndarray, rhs: np.ndarray, x: np.ndarray,
-                       out: np.ndarray) -> float:
-    """``x = mat^T (mat mat^T)^-1 rhs``, the minimum-norm solution of a wide ``mat`` of full
-    row rank (LU of the Gram matrix; raises numpy's LinAlgError when it is exactly
-    singular); returns the relative residual of :func:`linear_residual`, which exposes a
-    rank-deficient or ill-conditioned ``mat``."""
-    return minimum_norm_dual_solve(mat, rhs, x, np.empty(mat.shape[0]), out)
-
-
-@jit
-def minimum_norm_dual_solve(mat: np.ndarray, rhs: np.ndarray, x: np.ndarray, z: np.ndarray,
-                            out: np.ndarray) -> float:
-    """:func:`minimum_norm_solve` that also writes ``z = (mat mat^T)^-1 rhs`` (``x = mat^T
-    z``; ``z`` is the multiplier of the equation in ``min 1/2 |x|^2 s.t. mat x = rhs``)."""
-    z[:] = np.linalg.solve(mat @ mat.T, rhs)
-    x[:] = mat.T @ z
-    return linear_residual(mat, x, rhs, out)
-
-
-@jit
-def weighted_minimum_norm_solve(mat: np.ndarray, rhs: np.ndarray, inv_w: np.ndarray,
-                                held: np.ndarray, held_u: np.ndarray, x: np.ndarray,
-                                z: np.ndarray, out: np.ndarray, rtol: float) -> float:
-    """Weighted minimum-norm solution with held entries: ``x`` minimising
-    ``sum_j (x_j / inv_w_j)^2`` subject to ``mat x = rhs`` and ``x_i = held_u_i`` for each
-    ``i < held.size`` with ``held_i``.
-
-    The free columns scaled by ``inv_w``, the minimum-norm solution ``y`` of the scaled
-    system (:func:`minimum_norm_dual_solve`: ``x_free = inv_w y``, and ``z`` (nv,) the
-    equation's multiplier: ``x_j / inv_w_j^2 = (mat^T z)_j`` on the free entries). When
-    that solve fails or misses ``rtol`` (relative, :func:`linear_residual`; a singular
-    Gram matrix), SVD least squares of the scaled system instead and ``z`` NaN. Returns
-    the relative residual of the scaled free system (also in ``out``); inf, with ``x``
-    NaN, when the data are not finite.
-    """
-    nv, ncol = mat.shape
-    cols = np.empty(ncol, dtype=np.int64)
-    target = rhs.copy()
-    n_free = 0
-    for j in range(ncol):
-        if j < held.shape[0] and held[j]:
-            x[j] = held_u[j]
-            for i in range(nv):
-                target[i] -= mat[i, j] * held_u[j]
-        else:
-            cols[n_free] = j
-            n_free += 1
-    scaled = np.empty((nv, n_free))
-    for k in range(n_free):
-        for i in range(nv):
-            scaled[i, k] = mat[i, cols[k]] * inv_w[cols[k]]
-    y = np.empty(n_free)
-    try:
-        miss = minimum_norm_dual_solve(scaled, target, y, z, out)
-    except Exception:  # noqa: BLE001 - numba catches no narrower class (singular Gram)
-        miss = math.inf
-    if not miss <= rtol:
-        z[:] = np.nan
-        if not (np.all(np.isfinite(scaled)) and np.all(np.isfinite(target))):
-            x[:] = np.nan
-            out[:] = math.inf
-            return math.inf
-        y[:] = np.linalg.lstsq(scaled, target, max(nv, n_free) * 2.220446049250313e-16)[0]
-        miss = linear_residual(scaled, y, target, out)
-    for k in range(n_free):
-        x[cols[k]] = y[k] * inv_w[cols[k]]
-    return miss
-
-
-@jit
-def box_active_set_solve(mat: np.ndarray, rhs: np.ndarray, inv_w: np.ndarray,
-                         bounds: np.ndarray, x: np.ndarray, z: np.ndarray, out: np.ndarray,
-                         rtol: float, max_steps: int) -> int:
-    """Active-set solve of ``min sum_j (x_j / inv_w_j)^2 / 2`` subject to ``mat x = rhs``
-    and ``|x_i| <= bounds_i`` for ``i < bounds.size``, from ``x`` = the minimiser without
-    the bounds (overwritten).
-
-    Each step holds the entries of the active set at their bound (sign ``s_i`` of the
-    entry when it joined) and solves the rest (:func:`weighted_minimum_norm_solve`); the
-    bound multiplier of a held entry is ``mu_i = s_i ((mat^T z)_i - x_i / inv_w_i^2)``.
-    When every free entry keeps its bound and every ``mu_i >= -rtol max|x_b|`` (``x_b``
-    the bounded entries), ``x`` meets the KKT conditions of the convex problem: it is the
-    minimiser, and the number of steps is returned. Otherwise the free entries past their
-    bound join the set and those with ``mu_i`` below that leave it. Returns 0 (no
-    certificate) after ``max_steps`` steps or when a step's Gram solve fails or misses
-    ``rtol``.
-    """
-    n_b = bounds.shape[0]
-    nv = mat.shape[0]
-    held = np.zeros(n_b, dtype=np.bool_)
-    held_u = np.zeros(n_b)
-    for i in range(n_b):
-        if abs(x[i]) > bounds[i]:
-            held[i] = True
-            held_u[i] = math.copysign(bounds[i], x[i])
-    for step in range(1, max_steps + 1):
-        if not weighted_minimum_norm_solve(mat, rhs, inv_w, held, held_u, x, z, out,
-                                           rtol) <= rtol or not math.isfinite(z[0]):
-            return 0
-        size = 1e-300
-        for i in range(n_b):
-            size = max(size, abs(x[i]))
-        changed = False
-        for i in range(n_b):
-            if held[i]:
-                force = 0.0
-                for k in range(nv):
-                    force += mat[k, i] * z[k]
-                mu = force - x[i] / (inv_w[i] * inv_w[i])
-                if held_u[i] < 0.0:
-                    mu = -mu
-                if mu < -rtol * size:
-                    held[i] = False
-                    changed = True
-            elif abs(x[i]) > bounds[i]:
-                held[i] = True
-                held_u[i] = math.copysign(bounds[i], x[i])
-                changed = True
-        if not changed:
-            return step
-    return 0
-
-
-@jit
-def within_bounds(u: np.ndarray, bounds: np.ndarray, rtol: float) -> bool:
-    """Whether ``|u_i| <= bounds_i (1 + rtol)`` for every ``i`` (False on NaN)."""
-    for i in range(u.shape[0]):
-        if not abs(u[i]) <= bounds[i] * (1.0 + rtol):
-            return False
-    return True
-
 
 
 class _PinRows:
