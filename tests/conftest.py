@@ -98,3 +98,14 @@ def forward_dynamics_full_tau(clm, q, v, tau, method="pinocchio"):
     tau_ext = tau.copy()
     tau_ext[clm.actuated_v] = 0.0
     return forward_dynamics_tree(clm, q, v, tau[clm.actuated_v], tau_ext, method=method)
+
+
+#: a two-link URDF template (format fields mass, ixx, x, axis) for the description checks
+TWO_LINKS = """<robot name="t">
+  <link name="base"/>
+  <link name="arm"><inertial><origin xyz="0 0 0.1"/><mass value="{mass}"/>
+    <inertia ixx="{ixx}" iyy="0.02" izz="0.03" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j" type="revolute"><parent link="base"/><child link="arm"/>
+    <origin xyz="{x} 0 0"/><axis xyz="{axis}"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>"""

@@ -2,6 +2,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import yourdfpy
+from conftest import TWO_LINKS
 
 import hexapod_pin as hp
 from hexapod_pin.hexapod.geometry import hexapod_urdf
@@ -101,16 +102,6 @@ def test_missing_files_raise(tmp_path):
 
 
 # -- descriptions validated at load (Pinocchio alone only warns, or loads non-physics) ----------
-TWO_LINKS = """<robot name="t">
-  <link name="base"/>
-  <link name="arm"><inertial><origin xyz="0 0 0.1"/><mass value="{mass}"/>
-    <inertia ixx="{ixx}" iyy="0.02" izz="0.03" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <joint name="j" type="revolute"><parent link="base"/><child link="arm"/>
-    <origin xyz="{x} 0 0"/><axis xyz="{axis}"/>
-    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
-</robot>"""
-
-
 def _two_links(mass="1.0", ixx="0.02", x="0", axis="0 0 1"):
     return TWO_LINKS.format(mass=mass, ixx=ixx, x=x, axis=axis)
 

@@ -21,6 +21,7 @@ import json
 import math
 
 import numpy as np
+from conftest import TWO_LINKS
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
@@ -219,14 +220,6 @@ def test_walks_toward_singularities_answer_accurately_or_refuse(name, which, dig
 
 
 # -- malformed descriptions ------------------------------------------------------------------------
-TWO_LINKS = """<robot name="t">
-  <link name="base"/>
-  <link name="arm"><inertial><origin xyz="0 0 0.1"/><mass value="{mass}"/>
-    <inertia ixx="{ixx}" iyy="0.02" izz="0.03" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <joint name="j" type="revolute"><parent link="base"/><child link="arm"/>
-    <origin xyz="{x} 0 0"/><axis xyz="{axis}"/>
-    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
-</robot>"""
 GOOD = {"mass": "1.0", "ixx": "0.02", "x": "0", "axis": "0 0 1"}
 BAD = {"mass": ["-1", "nan", "inf", "abc", "-1e300", ""],
        "ixx": ["-0.02", "nan", "1.0", "abc"],          # 1.0 breaks the triangle inequality
