@@ -277,3 +277,38 @@ def test_workspace_is_dropped_with_its_model(robot):
     assert ref() is None
     with pytest.raises(InputError, match="ClosedLoopModel"):
         dynamics_of(robot)
+
+
+def test_forward_calls_leave_no_state_behind(robot, rng):
+    """The forward route builds ``S^T u + tau_ext`` in a buffer of the workspace: a call
+    with ``tau_ext`` followed by one without must give what a fresh workspace gives, and a
+    result that keeps its generalised force (redundant rows: multipliers computed when
+    read) must not see later calls. References: the null-space solve written here."""
+    for clm in (robot.model, _redundant_model(robot)):
+        q, v = _state(robot, robot.model, rng)
+        data = clm.model.createData()
+        mass = pin.crba(clm.model, data, q)
+        mass = np.triu(mass) + np.triu(mass, 1).T
+        bias = pin.nonLinearEffects(clm.model, data, q, v)
+        jac, gamma = clm.constraint_jacobian(q), clm.constraint_drift(q, v)
+
+        def reference(u, tau_ext):
+            tau = tau_ext.copy()
+            tau[clm.actuated_v] += u
+            a_p = -np.linalg.lstsq(jac, gamma, rcond=None)[0]
+            _, sv, vt = np.linalg.svd(jac)
+            basis = vt[int(np.sum(sv > 1e-10 * sv[0])):].T
+            z = np.linalg.solve(basis.T @ mass @ basis,
+                                basis.T @ (tau - bias - mass @ a_p))
+            acc = a_p + basis @ z
+            return acc, np.linalg.lstsq(jac.T, mass @ acc + bias - tau, rcond=None)[0]
+
+        calls = []
+        for with_ext in (True, False, True, False, False):
+            u = 5.0 * rng.normal(size=clm.n_actuated)
+            tau_ext = rng.normal(size=clm.nv) if with_ext else np.zeros(clm.nv)
+            res = forward_dynamics_tree(clm, q, v, u, tau_ext if with_ext else None)
+            calls.append((res, reference(u, tau_ext)))
+        for res, (acc, lam) in calls:          # read after all calls were made
+            np.testing.assert_allclose(res.a, acc, atol=1e-9)
+            np.testing.assert_allclose(res.multipliers, lam, atol=1e-8)

@@ -85,6 +85,8 @@ _MOTION_RTOL = 1e-8
 _TINY = 1e-300
 _EPS = np.finfo(float).eps
 _F64 = np.dtype(np.float64)
+#: builds a result named tuple from its fields without the keyword machinery (short path)
+_FORWARD_NEW = tuple.__new__
 #: box-constrained least-squares miss (relative) above which bounds count as infeasible
 _INFEASIBLE_RTOL = 1e-6
 #: iteration cap of the tree QPs (redundant closure rows slow the proximal iterations down)
@@ -273,6 +275,8 @@ class ClosedLoopDynamics:
         self._act_index = slice(int(act[0]), int(act[0]) + act.size) if act.size and \
             np.array_equal(act, np.arange(act[0], act[0] + act.size)) else act
         self._pin_fast = None
+        self._tau = np.zeros(self.nv)    # the generalised force of forward_actuated
+        self._tau_zero = True
         #: columns of [S^T J^T] kept by the reduced inverse solve (u, independent rows)
         self._id_keep: np.ndarray | None = None
 
@@ -520,7 +524,7 @@ class ClosedLoopDynamics:
     def _pinocchio_result(self, q, v, tau, acc, iters, rank) -> TreeForwardDynamics:
         """The result of a verified Pinocchio solve (``acc``: Pinocchio's buffer; ``tau``:
         an array this call owns): :meth:`pinocchio_result_of` on copies."""
-        return self.pinocchio_result_of(q.copy(), v.copy(), tau, acc.copy(),
+        return self.pinocchio_result_of(q.copy(), v.copy(), tau.copy(), acc.copy(),
                                         self._v_lambda.copy(), iters, rank)
 
     def pinocchio_result_of(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
@@ -564,20 +568,33 @@ class ClosedLoopDynamics:
         u = actuator_forces
         if not (type(u) is nd and u.dtype is _F64 and u.shape == self._shape_u):
             u = _vector(u, self.n_act, "actuator_forces")
-        tau = np.zeros(self.nv)
-        tau[self._act_index] = u
-        if tau_ext is not None:
+        # tau = S^T u + tau_ext in this thread's buffer (its other entries kept at zero
+        # between calls without tau_ext); a result that keeps tau gets a copy
+        tau = self._tau
+        if tau_ext is None:
+            if not self._tau_zero:
+                tau.fill(0.0)
+                self._tau_zero = True
+            tau[self._act_index] = u
+        else:
             tau_ext = _vector(tau_ext, self.nv, "tau_ext")
-            tau += tau_ext
+            tau[:] = tau_ext
+            tau[self._act_index] += u
+            self._tau_zero = False
         if method == "pinocchio":
             prox = self.pinocchio_verified(q, v, tau)
             if prox is not None:         # the short path: the result with lazy multipliers
-                rank = self._rank
-                return self.pinocchio_result_of(q.copy(), v.copy(), tau, self._v_ddq.copy(),
-                                                self._v_lambda.copy(), prox.iter,
-                                                self.closure_rank(q) if rank is None else rank)
+                rank = self._rank            # set: the model has a verified call
+                if rank == self.n_rows:  # Pinocchio's multipliers, converted when read
+                    return _FORWARD_NEW(TreeForwardDynamics, (
+                        self._v_ddq.copy(), _PinRows(self, q.copy(), self._v_lambda.copy()),
+                        "pinocchio", "solved", prox.iter, rank, -1.0))
+                return self.pinocchio_result_of(q.copy(), v.copy(), tau.copy(),
+                                                self._v_ddq.copy(), self._v_lambda.copy(),
+                                                prox.iter, rank)
         elif method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
+        tau = tau.copy()
         return _solve_checked(lambda: self.forward_unchecked(q, v, tau, method), ("q", q),
                               ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
 
