@@ -49,7 +49,6 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 import ladder
 import stress_robots
 
-from hexapod_pin.core.linear_kernels import kkt_residuals
 from hexapod_pin.core.dynamics import (
     PIN_PROX_ITERS,
     PIN_PROX_MU,
@@ -57,6 +56,7 @@ from hexapod_pin.core.dynamics import (
     forward_dynamics_tree,
     inverse_dynamics_tree,
 )
+from hexapod_pin.core.linear_kernels import kkt_residuals
 from hexapod_pin.core.simulation import ClosedLoopIntegrator
 from hexapod_pin.core.tree_batch import forward_dynamics_tree_batch, inverse_dynamics_tree_batch
 from hexapod_pin.errors import HexapodPinError, InputError
@@ -270,11 +270,11 @@ def bench_robot(name, clm, sample, n_states: int):
             v_mass, v_nle, v_lam = data.M, data.nle, data.lambda_c
             v_rhs, out = data.primal_rhs_contact[:clm.n_rows], np.empty(2)
 
-            def raw_checked():
+            def raw_checked(views=(v_mass, v_nle, v_rhs, v_lam, out)):
                 s = nxt()
                 acc = pin.constraintDynamics(model, data, s[0], s[1], s[3], cms, cds, prox)
-                kkt_residuals(v_mass, v_nle, s[3], pin.getConstraintsJacobian(
-                    model, data, cms, cds), v_rhs, acc, v_lam, out)
+                jac = pin.getConstraintsJacobian(model, data, cms, cds)
+                kkt_residuals(views[0], views[1], s[3], jac, views[2], acc, views[3], views[4])
             t_floor, raw = paired(raw_checked, raw_fd)
             rows.append((name, clm.nv, f"{clm.n_rows}/{rank}",
                          "raw + its verification (no other Python)", t_floor, raw, mj, err, 0,

@@ -22,7 +22,7 @@ import pytest
 import scipy.optimize
 import stress_robots
 
-from hexapod_pin.core import dynamics
+from hexapod_pin.core import inverse_routes
 from hexapod_pin.core.dynamics import inverse_dynamics_tree
 from hexapod_pin.core.linear_kernels import box_active_set_solve, weighted_minimum_norm_solve
 from hexapod_pin.errors import ActuatorSaturationError, InputError
@@ -182,7 +182,7 @@ def test_binding_bounds_keep_the_equation_and_the_optimum(problems):
 
 def test_binding_bounds_through_proxsuite(problems, monkeypatch):
     """The ProxSuite route behind the active-set search (search switched off)."""
-    monkeypatch.setattr(dynamics, "_ACTIVE_SET_STEPS", 0)
+    monkeypatch.setattr(inverse_routes, "_ACTIVE_SET_STEPS", 0)
     for p in problems[:2]:
         for bound in binding_bounds(p)[::2]:
             res = check_bounded(p, bound)
@@ -192,7 +192,7 @@ def test_binding_bounds_through_proxsuite(problems, monkeypatch):
 @pytest.mark.parametrize("active_set", [True, False])
 def test_infeasible_bounds_raise_saturation(problems, monkeypatch, active_set):
     if not active_set:
-        monkeypatch.setattr(dynamics, "_ACTIVE_SET_STEPS", 0)
+        monkeypatch.setattr(inverse_routes, "_ACTIVE_SET_STEPS", 0)
     p = problems[0]
     lo = p.smallest_bound()
     with pytest.raises(ActuatorSaturationError) as info:

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import GeometryError, InputError, NonFiniteResultError
+from ..errors import GeometryError, InputError, NonFiniteResultError, SolverError
 from .compiled import all_finite
 
 
@@ -232,3 +232,16 @@ def _public_fields(kind: type) -> tuple[str, ...]:
         return ()
     return tuple(item.name for item in dataclasses.fields(kind)
                  if not item.name.startswith("_"))
+
+
+def solve_checked(solve, *inputs):
+    """``solve()``, re-validating the named ``inputs`` (pairs of name and array) when it
+    raises SolverError: a NaN / inf input gives InputError naming it (the solves run on
+    unchecked arrays and their verification rejects non-finite answers)."""
+    try:
+        return solve()
+    except SolverError:
+        for name, value in inputs:
+            if value is not None and not all_finite(value):
+                as_array(value, value.shape, name)
+        raise

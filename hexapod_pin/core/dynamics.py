@@ -9,7 +9,12 @@ For any :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`:
   closure-consistent tree motion, as a ProxSuite QP with actuator bounds ("qp") or a
   linear solve ("kkt"). Pinocchio has no closed-loop inverse dynamics; this is it.
 * :class:`ClosedLoopDynamics` -- the cached workspace behind both (Pinocchio data,
-  constraint data, ProxSuite problems), reachable with :func:`dynamics_of`.
+  constraint data, the "pinocchio" route), reachable with :func:`dynamics_of`. It owns
+  the other routes by composition: the "kkt" and "qp" forward routes
+  (:mod:`~hexapod_pin.core.forward_routes`) and the inverse-dynamics routes
+  (:mod:`~hexapod_pin.core.inverse_routes`); what they share (tolerances, result types,
+  the forward verification, the cached ProxSuite problems) is in
+  :mod:`~hexapod_pin.core.dynamics_common` and re-exported here.
 
 Equations and sign conventions (tree coordinates, Pinocchio's ``q``, ``v``, ``a``)::
 
@@ -36,7 +41,7 @@ singular system).
 
 Verification: no route returns an answer it has not checked. Forward dynamics checks
 both equations above to :data:`RESIDUAL_RTOL` relative to the largest term of each
-(:func:`~hexapod_pin.core.linear_kernels.forward_residuals`); inverse dynamics checks
+(:func:`~hexapod_pin.core.dynamics_common.verify_forward`); inverse dynamics checks
 that ``a`` keeps the closures (to 1e-8) and that ``S^T u + J_c^T lambda = M a + h -
 tau_ext`` (:func:`~hexapod_pin.core.linear_kernels.linear_residual`).
 A failed check raises :class:`~hexapod_pin.errors.SolverError` naming the equation and
@@ -52,47 +57,35 @@ from typing import Any, NamedTuple
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-import proxsuite
-import scipy.linalg
-import scipy.optimize
 
-from ..errors import ActuatorSaturationError, InputError, SolverError
-from .checks import as_array, max_abs
-from .closed_loop import RANK_RTOL, ClosedLoopModel
-from .compiled import all_finite
-from .linear_kernels import (
-    box_active_set_solve,
-    forward_residuals,
-    kkt_residuals,
-    linear_residual,
-    minimum_norm_solve,
-    normal_solve,
-    square_solve,
-    weighted_minimum_norm_solve,
-    within_bounds,
+from ..errors import InputError
+from .checks import solve_checked, vector
+from .closed_loop import ClosedLoopModel
+from .dynamics_common import (  # re-exported: other modules and users import them from here
+    QP_SOLVED,
+    QP_STATUS,
+    RESIDUAL_RTOL,
+    TINY,
+    TreeForwardDynamics,
+    TreeInverseDynamics,
+    independent_rows,
 )
+from .forward_routes import ForwardDynamicsRoutes
+from .inverse_routes import INVERSE_METHODS, InverseDynamicsRoutes
+from .linear_kernels import kkt_residuals
+
+__all__ = [
+    "FORWARD_METHODS", "INVERSE_METHODS", "PIN_PROX_ITERS", "PIN_PROX_MU", "QP_SOLVED",
+    "QP_STATUS", "RESIDUAL_RTOL", "ClosedLoopDynamics", "ClosureFrames", "TreeForwardDynamics",
+    "TreeInverseDynamics", "dynamics_of", "forward_dynamics_tree", "independent_rows",
+    "inverse_dynamics_tree",
+]
 
 FORWARD_METHODS = ("pinocchio", "qp", "kkt")
-INVERSE_METHODS = ("qp", "kkt")
 
-#: relative tolerance on equation residuals before a route is declared failed
-RESIDUAL_RTOL = 1e-9
-#: ProxSuite accuracy (absolute, on primal and dual residuals of the scaled problems)
-_QP_EPS = 1e-12
-#: relative miss of ``J_c a + gamma`` above which an inverse-dynamics motion is refused
-_MOTION_RTOL = 1e-8
-#: a floor for scales (avoids dividing by zero on all-zero data)
-_TINY = 1e-300
-_EPS = np.finfo(float).eps
 _F64 = np.dtype(np.float64)
 #: builds a result named tuple from its fields without the keyword machinery (short path)
 _FORWARD_NEW = tuple.__new__
-#: box-constrained least-squares miss (relative) above which bounds count as infeasible
-_INFEASIBLE_RTOL = 1e-6
-#: iteration cap of the tree QPs (redundant closure rows slow the proximal iterations down)
-_QP_MAX_ITER = 1000
-#: a stalled tree QP is accepted when its residuals are below this, relative to its data
-_QP_ACCEPT = 1e-10
 #: Pinocchio proximal settings used when the closures are redundant (the acceleration
 #: converges in a few iterations; every answer is verified, the multipliers are polished
 #: to minimum norm when read). Two iterations at mu = 1e-8 meet RESIDUAL_RTOL with a
@@ -102,20 +95,6 @@ PIN_PROX_MU = 1e-8
 PIN_PROX_ITERS = 2
 #: iterations of the continued proximal solve when the first ones did not converge
 _PIN_PROX_DEEP_ITERS = 500
-#: weight of the multipliers in the inverse-dynamics QP objective (relative to forces)
-_LAMBDA_WEIGHT = 1e-2
-#: steps of the inverse-dynamics active-set search before ProxSuite takes over
-_ACTIVE_SET_STEPS = 8
-
-QP_SOLVED = proxsuite.proxqp.PROXQP_SOLVED
-QP_STATUS = {
-    proxsuite.proxqp.PROXQP_SOLVED: "solved",
-    proxsuite.proxqp.PROXQP_MAX_ITER_REACHED: "max_iter_reached",
-    proxsuite.proxqp.PROXQP_PRIMAL_INFEASIBLE: "primal_infeasible",
-    proxsuite.proxqp.PROXQP_DUAL_INFEASIBLE: "dual_infeasible",
-    proxsuite.proxqp.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE: "solved_closest_primal_feasible",
-    proxsuite.proxqp.PROXQP_NOT_RUN: "not_run",
-}
 
 
 class ClosureFrames(NamedTuple):
@@ -129,78 +108,6 @@ class ClosureFrames(NamedTuple):
     joint2: int
 
 
-# --------------------------------------------------------------------------------------
-# results
-# --------------------------------------------------------------------------------------
-class TreeForwardDynamics(NamedTuple):
-    """Result of :func:`forward_dynamics_tree` (an immutable named tuple).
-
-    Attributes:
-        a: tree acceleration (nv,), Pinocchio convention (free-flyer part: derivative
-            of the body-frame velocity).
-        raw_multipliers: the multipliers, or a zero-argument callable producing them
-            (Pinocchio's LOCAL multipliers converted on first access): read
-            :attr:`multipliers`.
-        method: the route used ("pinocchio", "qp" or "kkt").
-        status: "solved", or a note on how it was solved (redundant rows, fallback,
-            a ProxSuite status other than solved whose residuals were verified).
-        iterations: solver iterations (0 for a direct solve).
-        rank: rank of ``J_c`` assumed by the solve.
-        constraint_residual: max-abs of ``J_c a + gamma`` (m/s^2); -1.0 (not
-            computed, never NaN) for the "pinocchio" route, which verifies the same
-            equation in Pinocchio's LOCAL rows instead.
-    """
-
-    a: np.ndarray
-    raw_multipliers: np.ndarray | Callable[[], np.ndarray]
-    method: str
-    status: str
-    iterations: int
-    rank: int
-    constraint_residual: float
-
-    @property
-    def multipliers(self) -> np.ndarray:
-        """Closure multipliers (n_rows,), ``M a + h = tau + J_c^T multipliers``, rows as in
-        :meth:`ClosedLoopModel.constraint_jacobian` (N for point rows, world axes);
-        minimum-norm when the closures are redundant."""
-        value = self.raw_multipliers
-        return value() if callable(value) else value
-
-
-class TreeInverseDynamics(NamedTuple):
-    """Result of :func:`inverse_dynamics_tree` (an immutable named tuple).
-
-    Attributes:
-        actuator_forces: ``u`` (n_act,), generalised forces of the actuated joints
-            (N for prismatic, N m for revolute), in ``clm.actuated_joints`` order.
-        raw_multipliers: the multipliers or a callable producing them: read
-            :attr:`multipliers`.
-        residual: max-abs of ``M a + h - tau_ext - S^T u - J_c^T multipliers`` (N, N m),
-            verified below :data:`RESIDUAL_RTOL` relative to the data.
-        method: "qp" or "kkt".
-        status: solver status ("solved", ...).
-        iterations: solver iterations (0 for a direct solve).
-    """
-
-    actuator_forces: np.ndarray
-    raw_multipliers: np.ndarray | Callable[[], np.ndarray]
-    residual: float
-    method: str
-    status: str
-    iterations: int
-
-    @property
-    def multipliers(self) -> np.ndarray:
-        """Closure multipliers (n_rows,), same convention as
-        :attr:`TreeForwardDynamics.multipliers` (minimum-norm when redundant)."""
-        value = self.raw_multipliers
-        return value() if callable(value) else value
-
-
-#: status of a least-squares / minimum-norm inverse solve, by "the rows are redundant"
-_ID_STATUS = {True: "solved (redundant rows: minimum-norm multipliers)",
-              False: "solved (least squares / minimum norm)"}
 #: status strings of the redundant-row Pinocchio route by iteration count
 _REDUNDANT_STATUS: dict[int, str] = {}
 
@@ -244,28 +151,17 @@ class ClosedLoopDynamics:
         self._zero_v = np.zeros(self.nv)
         self._lower = np.tril_indices(self.nv, -1)
         self._rank: int | None = None
-        self._qps: dict = {}
         self._aux_data = self.model.createData()   # lazy multiplier conversions
         #: a result may convert its multipliers on any thread: the conversions take turns
         self._aux_lock = threading.Lock()
         self._res_out = np.empty(2)
         self._pools: dict[int, pin.ModelPool] = {}
-        self._unique: bool | None = None
         self._pin_singular = False       # M structurally singular: Pinocchio refused
         self._rank_rechecked = False
         self._no_rows = (np.zeros((0, self.nv)), np.zeros(0))
         #: Pinocchio's constraint Jacobian (n_rows, nv; LOCAL rows) at the ``q`` of the last
         #: verified ``pinocchio_call`` (integrators reuse it); None before the first one
         self.last_jacobian: np.ndarray | None = None
-        self._kkt = np.zeros((self.nv + self.n_rows, self.nv + self.n_rows))
-        self._id_matrix = np.zeros((self.nv, self.n_act + self.n_rows))
-        self._id_matrix[:, :self.n_act] = self.selection
-        self._id_hess = np.diag(np.concatenate([np.ones(self.n_act),
-                                                np.full(self.n_rows, _LAMBDA_WEIGHT)]))
-        self._id_inv_root_w = 1.0 / np.sqrt(np.diag(self._id_hess))
-        self._no_held = np.zeros(0, dtype=bool)
-        self._id_box = np.zeros((self.n_act, self.n_act + self.n_rows))
-        self._id_box[:, :self.n_act] = np.eye(self.n_act)
         # the fast path of forward_actuated: shapes, the actuated coordinates (a slice when
         # contiguous), and the proximal settings of a verified Pinocchio solve (None until
         # the first verified call, and again when Pinocchio's answers are refused)
@@ -277,8 +173,10 @@ class ClosedLoopDynamics:
         self._pin_fast = None
         self._tau = np.zeros(self.nv)    # the generalised force of forward_actuated
         self._tau_zero = True
-        #: columns of [S^T J^T] kept by the reduced inverse solve (u, independent rows)
-        self._id_keep: np.ndarray | None = None
+        #: the "kkt" and "qp" forward routes and the inverse-dynamics routes (composition:
+        #: each keeps its own buffers and ProxSuite problems)
+        self.forward_routes = ForwardDynamicsRoutes(self)
+        self.inverse_routes = InverseDynamicsRoutes(self)
 
     # -- rank ----------------------------------------------------------------------------
     def closure_rank(self, q: np.ndarray, force: bool = False) -> int:
@@ -362,33 +260,6 @@ class ClosedLoopDynamics:
                 out.append(data.oMf[f1].act(local))
         return out
 
-    # -- verification -----------------------------------------------------------------------
-    def verify(self, mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
-               jac: np.ndarray, drift: np.ndarray, acc: np.ndarray, lam: np.ndarray,
-               route: str) -> tuple[float, float]:
-        """Relative residuals of the two equations a forward solution must satisfy.
-
-        ``M a + h - tau - J^T lam`` relative to the largest of ``|M a|``, ``|h - tau|``,
-        ``|J^T lam|``, and ``J a + drift`` relative to ``|J| |a|`` and ``|drift|`` (max-abs
-        norms). ``jac`` / ``drift`` may be ours (``J_c``, ``gamma``) or Pinocchio's LOCAL ones
-        (``J_pin``, ``-primal_rhs``): both equations hold in either row convention.
-
-        Returns:
-            (equation-of-motion residual, closure residual), both relative.
-
-        Raises:
-            SolverError: either exceeds :data:`RESIDUAL_RTOL` or is not finite; the
-                message names the equation and its residual.
-        """
-        eom, con = forward_residuals(mass, bias, tau, jac, drift, acc, lam, self._res_out)
-        if not eom <= RESIDUAL_RTOL:
-            raise SolverError(route, "unverified", "equation of motion M a + h = tau + J_c^T "
-                              f"lambda missed by {eom:.3e} (relative)")
-        if not con <= RESIDUAL_RTOL:
-            raise SolverError(route, "unverified", "closure equation J_c a = -gamma missed by "
-                              f"{con:.3e} (relative)")
-        return eom, con
-
     def _terms(self, q, v):
         """(M, h, J_c, gamma) at (q, v), ours."""
         jac = self.constraint_jacobian(q)
@@ -401,12 +272,12 @@ class ClosedLoopDynamics:
     def forward(self, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike,
                 method: str = "pinocchio") -> TreeForwardDynamics:
         """Constrained forward dynamics; see :func:`forward_dynamics_tree`."""
-        q = _vector(q, self.model.nq, "q")
-        v = _vector(v, self.nv, "v")
-        tau = _vector(tau, self.nv, "tau")
+        q = vector(q, self.model.nq, "q")
+        v = vector(v, self.nv, "v")
+        tau = vector(tau, self.nv, "tau")
         if method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
-        return _solve_checked(lambda: self.forward_unchecked(q, v, tau, method),
+        return solve_checked(lambda: self.forward_unchecked(q, v, tau, method),
                               ("q", q), ("v", v), ("tau", tau))
 
     def forward_unchecked(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
@@ -418,8 +289,8 @@ class ClosedLoopDynamics:
             return self._forward_pinocchio(q, v, tau, rank)
         mass, bias, jac, gamma = self._terms(q, v)
         if method == "kkt":
-            return self._forward_kkt(mass, bias, jac, gamma, tau, rank)
-        return self._forward_qp(mass, bias, jac, gamma, tau, rank)
+            return self.forward_routes.kkt(mass, bias, jac, gamma, tau, rank)
+        return self.forward_routes.qp(mass, bias, jac, gamma, tau, rank)
 
     def pinocchio_arguments(self) -> tuple:
         """``((model, data), (constraint models, constraint datas, proximal settings))``: the
@@ -467,7 +338,7 @@ class ClosedLoopDynamics:
                 self._pin_fast = prox    # the short path of pinocchio_verified
             return acc, prox
         diag = np.diagonal(self._v_mass)
-        if np.min(diag) <= 1e-14 * max(np.max(diag), _TINY):
+        if np.min(diag) <= 1e-14 * max(np.max(diag), TINY):
             # a joint that moves no mass: Pinocchio's factorisation of M cannot hold this
             # model at any state (structural); the exact routes answer from now on
             self._pin_singular = True
@@ -563,11 +434,11 @@ class ClosedLoopDynamics:
         if not (type(q) is nd and type(v) is nd and q.dtype is _F64 and v.dtype is _F64
                 and q.shape == self._shape_q and v.shape == self._shape_v
                 and q.flags.c_contiguous and v.flags.c_contiguous):
-            q = _vector(q, self.model.nq, "q")
-            v = _vector(v, self.nv, "v")
+            q = vector(q, self.model.nq, "q")
+            v = vector(v, self.nv, "v")
         u = actuator_forces
         if not (type(u) is nd and u.dtype is _F64 and u.shape == self._shape_u):
-            u = _vector(u, self.n_act, "actuator_forces")
+            u = vector(u, self.n_act, "actuator_forces")
         # tau = S^T u + tau_ext in this thread's buffer (its other entries kept at zero
         # between calls without tau_ext); a result that keeps tau gets a copy
         tau = self._tau
@@ -577,15 +448,15 @@ class ClosedLoopDynamics:
                 self._tau_zero = True
             tau[self._act_index] = u
         else:
-            tau_ext = _vector(tau_ext, self.nv, "tau_ext")
+            tau_ext = vector(tau_ext, self.nv, "tau_ext")
             tau[:] = tau_ext
             tau[self._act_index] += u
             self._tau_zero = False
         if method == "pinocchio":
             prox = self.pinocchio_verified(q, v, tau)
             if prox is not None:         # the short path: the result with lazy multipliers
-                rank = self._rank            # set: the model has a verified call
-                if rank == self.n_rows:  # Pinocchio's multipliers, converted when read
+                rank = self.closure_rank(q)  # known: the model has a verified call
+                if rank == self.n_rows:      # Pinocchio's multipliers, converted when read
                     return _FORWARD_NEW(TreeForwardDynamics, (
                         self._v_ddq.copy(), _PinRows(self, q.copy(), self._v_lambda.copy()),
                         "pinocchio", "solved", prox.iter, rank, -1.0))
@@ -595,7 +466,7 @@ class ClosedLoopDynamics:
         elif method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
         tau = tau.copy()
-        return _solve_checked(lambda: self.forward_unchecked(q, v, tau, method), ("q", q),
+        return solve_checked(lambda: self.forward_unchecked(q, v, tau, method), ("q", q),
                               ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
 
     def pinocchio_verified(self, q: np.ndarray, v: np.ndarray,
@@ -636,440 +507,70 @@ class ClosedLoopDynamics:
         # Pinocchio's factorisation cannot hold this problem (e.g. a zero pivot of M from a
         # massless link): the exact KKT route answers, and the status says so
         mass, bias, jac, gamma = self._terms(q, v)
-        res = self._forward_kkt(mass, bias, jac, gamma, tau, rank)
+        res = self.forward_routes.kkt(mass, bias, jac, gamma, tau, rank)
         return TreeForwardDynamics(res.a, res.multipliers, "pinocchio",
                                    "pin.constraintDynamics unverified; solved by the KKT route"
                                    + (" (redundant rows: minimum-norm multipliers)"
                                       if res.rank < self.n_rows else ""),
                                    0, res.rank, res.constraint_residual)
 
-    def _forward_kkt(self, mass, bias, jac, gamma, tau, rank) -> TreeForwardDynamics:
-        nv, nr = self.nv, self.n_rows
-        rhs = np.empty(nv + nr)
-        rhs[:nv] = tau - bias
-        rhs[nv:] = -gamma
-        sol, status = None, "solved"
-        if rank == nr:
-            kkt = self._kkt_matrix(mass, jac)
-            try:
-                sol = np.linalg.solve(kkt, rhs)
-            except np.linalg.LinAlgError:
-                sol = None
-            if sol is not None:
-                try:
-                    self.verify(mass, bias, tau, jac, gamma, sol[:nv], -sol[nv:], "kkt")
-                except SolverError:
-                    sol = None
-            if sol is None:
-                rank = self._ensure_rank_from(jac)
-        if sol is None:
-            acc, lam = self._nullspace_forward(mass, bias, jac, gamma, tau)
-            status = "solved (redundant rows: minimum-norm multipliers)" if rank < nr \
-                else "solved (null-space route)"
-        else:
-            acc, lam = sol[:nv], -sol[nv:]
-        self.verify(mass, bias, tau, jac, gamma, acc, lam, "kkt")
-        return TreeForwardDynamics(acc, lam, "kkt", status, 0, rank,
-                                   max_abs(jac @ acc + gamma))
-
-    def _kkt_matrix(self, mass, jac) -> np.ndarray:
-        nv = self.nv
-        kkt = self._kkt
-        kkt[:nv, :nv] = mass
-        kkt[:nv, nv:] = jac.T
-        kkt[nv:, :nv] = jac
-        return kkt
-
-    def _nullspace_forward(self, mass, bias, jac, gamma, tau):
-        """Exact solve for any rank: ``a = a_p + N z`` with ``N`` an orthonormal basis of
-        ``ker J_c`` (SVD), ``(N^T M N) z = N^T (tau - h - M a_p)``; minimum-norm multipliers
-        ``lambda = (J_c^T)^+ (M a + h - tau)``."""
-        if self.n_rows == 0:
-            return np.linalg.solve(mass, tau - bias), np.zeros(0)
-        u_mat, sv, vt = np.linalg.svd(jac)
-        tol = max(RANK_RTOL * sv[0], max(jac.shape) * _EPS) if sv.size else 0.0
-        r = int(np.sum(sv > tol))
-        a_p = vt[:r].T @ ((u_mat[:, :r].T @ -gamma) / sv[:r])
-        basis = vt[r:].T
-        reduced = basis.T @ mass @ basis
-        try:
-            z = np.linalg.solve(reduced, basis.T @ (tau - bias - mass @ a_p))
-        except np.linalg.LinAlgError:
-            raise SolverError("null-space forward dynamics", "singular",
-                              "N^T M N is singular: the mass matrix is not positive on the "
-                              "motions the closures allow") from None
-        acc = a_p + basis @ z
-        force = mass @ acc + bias - tau
-        lam = u_mat[:, :r] @ ((vt[:r] @ force) / sv[:r])
-        return acc, lam
-
-    def _ensure_rank_from(self, jac: np.ndarray) -> int:
+    # -- what the forward / inverse routes use ----------------------------------------------
+    def closure_rank_from(self, jac: np.ndarray) -> int:
+        """Re-evaluate the structural closure rank from ``jac`` (a route met a singular
+        system) and return it."""
         self._rank = int(np.linalg.matrix_rank(jac))
         return self._rank
 
-    def _qp_solve(self, key, n_in, args, warm=None) -> proxsuite.proxqp.dense.QP:
-        """Initialise (first call) or update the cached ProxSuite problem ``key``; solve,
-        warm-started from ``warm = (x, y, z)`` when given. The data must be scaled to
-        order one (tolerance ``_QP_EPS`` absolute)."""
-        qp = self._qps.get(key)
-        if qp is None:
-            hess, _, amat = args[0], args[1], args[2]
-            qp = proxsuite.proxqp.dense.QP(hess.shape[0], amat.shape[0], n_in)
-            qp.settings.eps_abs = _QP_EPS
-            qp.settings.eps_rel = 0.0
-            qp.settings.max_iter = _QP_MAX_ITER
-            qp.settings.verbose = False
-            qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START
-            qp.init(*args)
-            self._qps[key] = qp
-        else:
-            qp.update(*args, update_preconditioner=True)
-        if warm is None:
-            qp.solve()
-        else:
-            qp.solve(*warm)
-        return qp
+    def pinocchio_constraint_terms(self, q: np.ndarray, v: np.ndarray,
+                                   tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pinocchio's constraint Jacobian ``J_pin`` (n_rows, nv; LOCAL rows, a new array)
+        and target ``primal_rhs`` (n_rows,; ``J_pin a = primal_rhs`` for a motion that
+        keeps the closures; a view, valid until the next call) at ``(q, v)``, from one
+        cheap proximal ``pin.constraintDynamics`` pass with generalised force ``tau``
+        (its acceleration is not used). Empty arrays without closures."""
+        if not self.n_rows:
+            return self._no_rows
+        if not self._pin_ready:
+            self._init_pinocchio()
+        pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
+                               self.pin_datas, self._prox_probe)
+        return (pin.getConstraintsJacobian(self.model, self.data, self.pin_models,
+                                           self.pin_datas), self._v_rhs)
 
-    def _forward_qp(self, mass, bias, jac, gamma, tau, rank) -> TreeForwardDynamics:
-        """Gauss principle as a ProxSuite QP, reformulated so that it is well posed on every
-        class: ``min 1/2 a^T H a + g^T a  s.t.  D J_c a = -D gamma`` with the augmented
-        Hessian ``H = M + rho J_c^T J_c`` (same minimiser on the feasible set; positive
-        definite when ``M`` is only positive on ``ker J_c``: massless links), rows of
-        ``J_c`` normalised by ``D``, the objective divided by its scale; warm-started from
-        the direct (KKT) solution."""
-        direct = self._forward_kkt(mass, bias, jac, gamma, tau, rank)
-        rank = direct.rank
-        nr = self.n_rows
-        rows: slice | np.ndarray = slice(None)
-        if rank < nr:
-            # the QP keeps independent rows only (a pivoted QR of J_c^T): same feasible set
-            # for a consistent drift, and the equality constraints get full row rank
-            _, _, piv = scipy.linalg.qr(jac.T, pivoting=True, mode="economic")
-            rows = np.sort(piv[:rank])
-        jac_q, gamma_q = jac[rows], gamma[rows]
-        n_eq = jac_q.shape[0]
-        scale_m = max(max_abs(np.diag(mass)), _TINY)
-        if n_eq:
-            norms = np.sqrt(np.einsum("ij,ij->i", jac_q, jac_q))
-            dinv = 1.0 / np.maximum(norms, _TINY)
-            jac_s = jac_q * dinv[:, None]
-            rho = scale_m
-            hess = (mass + rho * (jac_s.T @ jac_s)) / scale_m
-            grad = (bias - tau + rho * (jac_s.T @ (gamma_q * dinv))) / scale_m
-            b = -gamma_q * dinv
-            # multipliers of the kept rows giving the direct generalised force
-            lam_q, *_ = np.linalg.lstsq(jac_q.T, jac.T @ direct.multipliers, rcond=None)
-        else:
-            jac_s, dinv, hess, grad, b = jac_q, np.ones(0), mass / scale_m, \
-                (bias - tau) / scale_m, np.zeros(0)
-            lam_q = np.zeros(0)
-        # ProxSuite: H x + g + A^T y = 0 with A = D J_c  =>  lambda = -scale_m D y
-        y0 = -lam_q / (scale_m * dinv) if n_eq else np.zeros(0)
-        qp = self._qp_solve(("fd", n_eq), 0, (hess, grad, jac_s, b, None, None, None),
-                            warm=(direct.a, y0, None))
-        info = qp.results.info
-        status = QP_STATUS.get(info.status, str(info.status))
-        acc = qp.results.x.copy()
-        lam = np.zeros(nr)
-        if n_eq:
-            lam[rows] = -qp.results.y * scale_m * dinv
-        try:
-            self.verify(mass, bias, tau, jac, gamma, acc, lam, "ProxSuite (forward dynamics QP)")
-        except SolverError as exc:
-            raise SolverError("ProxSuite (forward dynamics QP)", status,
-                              f"{exc}; primal residual {info.pri_res:.3e}, dual residual "
-                              f"{info.dua_res:.3e}") from None
-        if rank < nr:
-            lam = direct.multipliers            # same generalised force; minimum norm
-            status = f"{status} (redundant rows: minimum-norm multipliers)"
-        elif status != "solved":
-            status = f"{status} (residuals verified)"
-        return TreeForwardDynamics(acc, lam, "qp", status, int(info.iter), rank,
-                                   max_abs(jac @ acc + gamma))
+    def lazy_multipliers(self, q: np.ndarray, lam_pin: np.ndarray,
+                         jac: np.ndarray | None = None) -> Callable[[], np.ndarray]:
+        """A callable giving our row multipliers from Pinocchio's LOCAL ones ``lam_pin`` at
+        ``q`` (computed on its first call, safe on any thread); with ``jac`` (Pinocchio's
+        constraint Jacobian at ``q``) the minimum-norm multipliers of the same generalised
+        force. ``q``, ``lam_pin`` and ``jac`` are kept: pass arrays the caller owns."""
+        return _PinRows(self, q, lam_pin, jac)
 
-    # -- inverse dynamics -------------------------------------------------------------------
+    # -- inverse dynamics (the routes of core.inverse_routes) -------------------------------
     def inverse(self, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike,
                 tau_ext: npt.ArrayLike | None = None, bounds: npt.ArrayLike | None = None,
                 method: str = "qp") -> TreeInverseDynamics:
         """Closed-loop inverse dynamics; see :func:`inverse_dynamics_tree`."""
-        q = _vector(q, self.model.nq, "q")
-        v = _vector(v, self.nv, "v")
-        a = _vector(a, self.nv, "a")
-        tau_ext = self._zero_v if tau_ext is None else _vector(tau_ext, self.nv, "tau_ext")
-        bounds = self.check_bounds(bounds)
-        if method not in INVERSE_METHODS:
-            raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
-        return _solve_checked(lambda: self.inverse_unchecked(q, v, a, tau_ext, bounds, method),
-                              ("q", q), ("v", v), ("a", a), ("tau_ext", tau_ext))
-
-    def inverse_unchecked(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
-                          tau_ext: np.ndarray, bounds: np.ndarray | None,
-                          method: str) -> TreeInverseDynamics:
-        """:meth:`inverse` without the input checks (``bounds`` None or (n_act,) array)."""
-        force = pin.rnea(self.model, self.data, q, v, a)
-        return self.inverse_from_force(q, v, a, force, tau_ext, bounds, method)
+        return self.inverse_routes.inverse(q, v, a, tau_ext, bounds, method)
 
     def inverse_from_force(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
                            force: np.ndarray, tau_ext: np.ndarray, bounds: np.ndarray | None,
                            method: str) -> TreeInverseDynamics:
-        """Inverse dynamics given ``force = M a + h`` (nv,) (e.g. from a pooled
-        ``rneaInParallel``); no input checks.
+        """:meth:`InverseDynamicsRoutes.inverse_from_force
+        <hexapod_pin.core.inverse_routes.InverseDynamicsRoutes.inverse_from_force>`
+        (``force = M a + h`` given; no input checks)."""
+        return self.inverse_routes.inverse_from_force(q, v, a, force, tau_ext, bounds, method)
 
-        Works in Pinocchio's LOCAL constraint rows: one ``pin.constraintDynamics`` call
-        with ``tau = force`` evaluates ``J_pin`` and the drift (its acceleration is not
-        used), ``a`` is checked against ``J_pin a = -drift`` (raises SolverError when it
-        breaks the closures), ``[S J_pin^T] (u, lambda_pin) = force - tau_ext`` is solved
-        and verified, and ``lambda_pin`` is converted to our rows on access (``u`` and
-        the minimum norm do not depend on the row convention: the rows differ by
-        rotations, and by ``Jlog6 = I`` for a weld at an assembled configuration).
-        """
-        rank = self.closure_rank(q)
-        rhs = force - tau_ext
-        if self.n_rows:
-            if not self._pin_ready:
-                self._init_pinocchio()
-            pin.constraintDynamics(self.model, self.data, q, v, force, self.pin_models,
-                                   self.pin_datas, self._prox_probe)
-            jac = pin.getConstraintsJacobian(self.model, self.data, self.pin_models,
-                                             self.pin_datas)
-            # Pinocchio's J a = primal_rhs (its drift with the sign flipped)
-            miss = linear_residual(jac, a, self._v_rhs, self._res_out)
-            if not miss <= _MOTION_RTOL:
-                raise SolverError("closed-loop inverse dynamics", "inconsistent motion",
-                                  f"closure equation J_c a = -gamma missed by {miss:.3e} "
-                                  "(relative): the acceleration does not keep the closures")
-        else:
-            jac = self._no_rows[0]
-        return self._inverse_solve(jac, rhs, bounds, method, rank, q)
+    def check_bounds(self, bounds: npt.ArrayLike | None) -> np.ndarray | None:
+        """Actuator bounds as an (n_act,) array (None: unbounded); raises InputError."""
+        return self.inverse_routes.check_bounds(bounds)
 
+    # -- pooled data -----------------------------------------------------------------------
     def model_pool(self, threads: int) -> pin.ModelPool:
         """A ``pin.ModelPool`` of this model with ``threads`` datas (cached)."""
         pool = self._pools.get(threads)
         if pool is None:
             pool = self._pools[threads] = pin.ModelPool(self.model, threads)
         return pool
-
-    def check_bounds(self, bounds: npt.ArrayLike | None) -> np.ndarray | None:
-        """Actuator bounds as an (n_act,) array (None: unbounded); raises InputError."""
-        if bounds is None:
-            return None
-        if isinstance(bounds, (int, float)) and not isinstance(bounds, bool):
-            if not bounds > 0.0:
-                raise InputError("bounds", bounds, "must be positive")
-            return None if bounds == float("inf") else np.full(self.n_act, float(bounds))
-        try:
-            arr = np.broadcast_to(np.asarray(bounds, dtype=float), (self.n_act,)).copy() \
-                if np.ndim(bounds) == 0 else np.asarray(bounds, dtype=float)
-        except (TypeError, ValueError):
-            raise InputError("bounds", bounds, "not numeric") from None
-        if arr.shape != (self.n_act,) or np.any(np.isnan(arr)) or np.any(arr <= 0.0):
-            raise InputError("bounds", bounds,
-                             f"expected a positive scalar or ({self.n_act},) positive values")
-        return None if np.all(np.isinf(arr)) else arr
-
-    def _inverse_solve(self, jac, rhs, bounds, method, rank, q) -> TreeInverseDynamics:
-        mat = self._id_matrix
-        mat[:, self.n_act:] = jac.T
-        if method == "kkt":
-            sol, status, reduced = self._inverse_kkt(mat, rhs, rank)
-            iters = 0
-        else:
-            sol, status, iters, reduced = self._inverse_qp(mat, rhs, bounds, rank)
-        u = sol[:self.n_act]
-        if bounds is not None and not within_bounds(u, bounds, RESIDUAL_RTOL):
-            if self._unique_forces(mat) or \
-                    self._bounds_infeasible(mat, rhs, bounds, sol) is not None:
-                raise ActuatorSaturationError(u.copy(), bounds)
-            raise SolverError(method, "bounds", "the minimum-norm actuator forces exceed the "
-                              "bounds but other forces within them meet the equation of "
-                              "motion (redundant actuation): use method='qp'")
-        residual = self._verify_inverse(mat, sol, rhs, method)
-        lam = sol[self.n_act:].copy()
-        if self.n_rows:
-            # multipliers in our rows on access (minimum-norm ones from the generalised
-            # force J^T lambda when the solve kept the independent rows only)
-            lam = _PinRows(self, q.copy(), lam, jac.copy() if reduced else None)
-        return TreeInverseDynamics(u.copy(), lam, residual, method, status, iters)
-
-    def _verify_inverse(self, mat, sol, rhs, route: str) -> float:
-        """Max-abs residual of ``S^T u + J_c^T lambda = M a + h - tau_ext``; SolverError when
-        it exceeds :data:`RESIDUAL_RTOL` relative to the data."""
-        out = self._res_out
-        linear_residual(mat, sol, rhs, out)
-        if not out[1] <= RESIDUAL_RTOL:
-            raise SolverError(route, "unverified", "equation of motion S^T u + J_c^T lambda = "
-                              f"M a + h - tau_ext missed by {out[1]:.3e} (relative)")
-        return float(out[0])
-
-    def _inverse_kkt(self, mat, rhs, rank):
-        """``[S^T J^T] x = rhs`` (``A x = rhs``), the minimum-norm solution; returns
-        ``(x, status, reduced)``.
-
-        One compiled solve, chosen by the structure: LU when ``A`` is square and the rows
-        independent; ``x = A^T (A A^T)^-1 rhs`` when ``A`` is wide (Gram matrix); when the
-        rows are redundant and ``A`` determines ``u``, the least-squares solve of ``A``
-        restricted to ``u`` and the independent rows (normal equations; ``reduced``: the
-        multipliers then give the right generalised force but are made minimum-norm on
-        access). SVD least squares when none of them reproduces ``rhs`` to
-        :data:`RESIDUAL_RTOL` (rank-deficient or ill-conditioned ``A``). The caller
-        verifies the answer on the full system."""
-        nv, ncol = mat.shape
-        sol = np.empty(ncol)
-        out = self._res_out
-        redundant = rank < self.n_rows
-        try:
-            if not redundant and ncol == nv:
-                if square_solve(mat, rhs, sol, out) <= RESIDUAL_RTOL:
-                    return sol, "solved", False
-            elif redundant and self._unique_forces(mat):
-                keep = self._id_keep
-                if keep is None:
-                    rows = independent_rows(mat[:, self.n_act:].T)
-                    keep = self._id_keep = np.concatenate([np.arange(self.n_act),
-                                                           self.n_act + rows])
-                sub = np.ascontiguousarray(mat[:, keep])
-                part = np.empty(keep.size)
-                if normal_solve(sub, rhs, part, out) <= RESIDUAL_RTOL:
-                    sol[:] = 0.0
-                    sol[keep] = part
-                    return sol, _ID_STATUS[True], True
-            elif ncol > nv and minimum_norm_solve(mat, rhs, sol, out) <= RESIDUAL_RTOL:
-                return sol, _ID_STATUS[redundant], False
-        except np.linalg.LinAlgError:
-            pass
-        sol, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
-        return sol, _ID_STATUS[redundant], False
-
-    def _inverse_qp(self, mat, rhs, bounds, rank):
-        """Bounded ID: ``min 1/2 |u|^2 + 1/2 w |lambda|^2`` (``w = _LAMBDA_WEIGHT``) subject
-        to the equation of motion ``mat x = rhs`` and ``|u| <= bounds``; returns ``(x,
-        status, iterations, reduced)``.
-
-        Every answer is the QP's minimiser by an exact certificate, or ProxSuite's:
-
-        * the equation determines ``u``: the direct solution (multipliers minimum-norm)
-          when it keeps the bounds; no point keeps them when it does not
-          (ActuatorSaturationError);
-        * redundant actuation: the weighted minimum-norm solution of the equation
-          (:meth:`_weighted_minimum_norm`) minimises the objective on it, so when it keeps
-          the bounds it is the minimiser (KKT conditions with zero bound multipliers;
-          status "solved", 0 iterations); else the active-set search of
-          :meth:`_inverse_active_set` (KKT-certified; status "solved (active set)", its
-          steps as iterations), and when that stops without a certificate, ProxSuite
-          (:meth:`_inverse_proxsuite`).
-        """
-        if self._unique_forces(mat):
-            direct, _, reduced = self._inverse_kkt(mat, rhs, rank)
-            if bounds is None or within_bounds(direct[:self.n_act], bounds, 0.0):
-                return direct, "solved", 0, reduced
-            raise ActuatorSaturationError(direct[:self.n_act].copy(), bounds)
-        direct = self._weighted_minimum_norm(mat, rhs)
-        if not all_finite(direct):
-            raise SolverError("inverse dynamics QP", "not finite",
-                              "the weighted minimum-norm solution is not finite")
-        if bounds is None or within_bounds(direct[:self.n_act], bounds, 0.0):
-            return direct, "solved", 0, False
-        found = self._inverse_active_set(mat, rhs, bounds, direct)
-        if found is not None:
-            return found[0], "solved (active set)", found[1], False
-        return self._inverse_proxsuite(mat, rhs, bounds, direct)
-
-    def _weighted_minimum_norm(self, mat, rhs, held=None, held_u=None) -> np.ndarray:
-        """The minimiser of the QP's objective ``1/2 x^T H x`` (``H = diag(1, w)``) subject
-        to ``mat x = rhs``, with the actuators of the mask ``held`` (n_act,) fixed at
-        ``held_u`` (none when ``held`` is None):
-        :func:`~hexapod_pin.core.linear_kernels.weighted_minimum_norm_solve` (one compiled
-        Gram solve, SVD least squares when that misses :data:`RESIDUAL_RTOL`). Not
-        verified here: the callers verify the answer on the full system."""
-        if held is None:
-            held = held_u = self._no_held
-        x = np.empty(mat.shape[1])
-        weighted_minimum_norm_solve(mat, rhs, self._id_inv_root_w, held, held_u, x,
-                                    np.empty(mat.shape[0]), self._res_out, RESIDUAL_RTOL)
-        return x
-
-    def _inverse_active_set(self, mat, rhs, bounds, x):
-        """The bounded minimiser by the compiled active-set search
-        :func:`~hexapod_pin.core.linear_kernels.box_active_set_solve` from the weighted
-        minimiser ``x`` (which breaks a bound): ``(x, steps)``, certified by the KKT
-        conditions of the QP, or None when
-        the search stops without a certificate (after ``_ACTIVE_SET_STEPS`` steps, or on a
-        held set that the Gram solve cannot meet)."""
-        x = x.copy()
-        steps = box_active_set_solve(mat, rhs, self._id_inv_root_w, bounds, x,
-                                     np.empty(mat.shape[0]), self._res_out, RESIDUAL_RTOL,
-                                     _ACTIVE_SET_STEPS)
-        return (x, steps) if steps else None
-
-    def _inverse_proxsuite(self, mat, rhs, bounds, direct):
-        """The bounded ID QP by ProxSuite: rows scaled by their norms, forces by their
-        scale; warm-started from the weighted minimiser ``direct`` clipped to the bounds,
-        polished on its active set (:meth:`_polish_inverse`) and verified; returns ``(x,
-        status, iterations, reduced)``. A verification failure raises
-        ActuatorSaturationError when box-constrained least squares proves the bounds
-        infeasible (needed forces: ``direct``'s), else SolverError."""
-        n_act = self.n_act
-        f_scale = max(max_abs(rhs), max_abs(direct), _TINY)
-        norms = np.sqrt(np.einsum("ij,ij->i", mat, mat))
-        dinv = 1.0 / np.maximum(norms, _TINY)
-        mat_s = mat * dinv[:, None]
-        b = rhs * dinv / f_scale
-        x0 = direct / f_scale
-        x0[:n_act] = np.clip(x0[:n_act], -bounds / f_scale, bounds / f_scale)
-        qp = self._qp_solve("id_bounded", n_act,
-                            (self._id_hess, np.zeros(x0.size), mat_s, b, self._id_box,
-                             -bounds / f_scale, bounds / f_scale), warm=(x0, None, None))
-        info = qp.results.info
-        status = QP_STATUS.get(info.status, str(info.status))
-        sol = self._polish_inverse(mat, rhs, qp.results.x * f_scale, bounds)
-        try:
-            self._verify_inverse(mat, sol, rhs, "ProxSuite (inverse dynamics QP)")
-            if not within_bounds(sol[:n_act], bounds, RESIDUAL_RTOL):
-                raise SolverError("ProxSuite (inverse dynamics QP)", status, "bounds missed")
-        except SolverError as exc:
-            needed = self._bounds_infeasible(mat, rhs, bounds, direct)
-            if needed is not None:
-                raise ActuatorSaturationError(needed, bounds) from None
-            raise SolverError("ProxSuite (inverse dynamics QP)", status,
-                              f"{exc}; primal residual {info.pri_res:.3e}") from None
-        if status != "solved":
-            status = f"{status} (residuals verified)"
-        return sol, status, int(info.iter), False
-
-    def _unique_forces(self, mat) -> bool:
-        """Whether ``[S^T J_c^T] x = rhs`` determines ``u`` (no null direction of the matrix
-        moves ``u``); evaluated at the first call and assumed structural afterwards."""
-        if self._unique is None:
-            _, sv, vt = np.linalg.svd(mat)
-            tol = max(RANK_RTOL * sv[0], max(mat.shape) * _EPS) if sv.size else 0.0
-            null = vt[int(np.sum(sv > tol)):, :self.n_act]
-            self._unique = bool(null.size == 0 or max_abs(null) <= 1e-9)
-        return self._unique
-
-    def _polish_inverse(self, mat, rhs, sol, bounds) -> np.ndarray:
-        """Exact solution on the active set of a QP answer ``sol``: the actuators at a
-        bound held there, the rest of ``x = (u, lambda)`` the weighted minimiser of
-        :meth:`_weighted_minimum_norm`. Returns ``sol`` unchanged when the polished point
-        leaves the bounds."""
-        u = sol[:self.n_act]
-        held = np.abs(u) >= bounds * (1.0 - 1e-7)
-        out = self._weighted_minimum_norm(mat, rhs, held, np.sign(u) * bounds)
-        return out if within_bounds(out[:self.n_act], bounds, RESIDUAL_RTOL) else sol
-
-    def _bounds_infeasible(self, mat, rhs, bounds, direct) -> np.ndarray | None:
-        """The needed forces when no ``|u| <= bounds`` satisfies the equation of motion, else
-        None. Certified by a box-constrained least-squares problem (``scipy.optimize.
-        lsq_linear``): the bounds are infeasible when its smallest residual exceeds
-        ``_INFEASIBLE_RTOL`` relative to the data. The needed forces are the direct
-        (minimum-norm) ones."""
-        lower = np.concatenate([-bounds, np.full(self.n_rows, -np.inf)])
-        upper = np.concatenate([bounds, np.full(self.n_rows, np.inf)])
-        fit = scipy.optimize.lsq_linear(mat, rhs, bounds=(lower, upper), method="bvls",
-                                        tol=1e-14)
-        miss = max_abs(mat @ fit.x - rhs)
-        if miss > _INFEASIBLE_RTOL * max(max_abs(rhs), _TINY):
-            return direct[:self.n_act].copy()
-        return None
 
     # -- joint reaction wrenches ------------------------------------------------------------
     def joint_wrenches(self, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike,
@@ -1223,41 +724,6 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
 # --------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------
-def independent_rows(jac: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
-    """Rows of ``jac`` kept by a column-pivoted QR of ``jac^T`` up to its numerical rank
-    (singular values above ``rtol`` times the largest), sorted: rows dependent on the
-    others, exactly or nearly, are left out so that the kept rows are well conditioned."""
-    if jac.shape[0] == 0:
-        return np.arange(0)
-    sv = np.linalg.svd(jac, compute_uv=False)
-    rank = int(np.sum(sv > rtol * sv[0]))
-    _, _, piv = scipy.linalg.qr(jac.T, pivoting=True, mode="economic")
-    return np.sort(piv[:rank])
-
-
-def _vector(value, size: int, name: str) -> np.ndarray:
-    """``value`` when it is already a contiguous float64 (size,) array (the cheap path:
-    finiteness is left to the verified solve, see :func:`_solve_checked`), else
-    :func:`~hexapod_pin.core.checks.as_array` (converts or raises InputError)."""
-    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (size,) \
-            and value.flags.c_contiguous:
-        return value
-    return as_array(value, (size,), name)
-
-
-def _solve_checked(solve, *inputs):
-    """``solve()``, re-validating the named ``inputs`` (pairs of name and array) when it
-    raises SolverError: a NaN / inf input gives InputError naming it (the solves run on
-    unchecked arrays and their verification rejects non-finite answers)."""
-    try:
-        return solve()
-    except SolverError:
-        for name, value in inputs:
-            if value is not None and not all_finite(value):
-                as_array(value, value.shape, name)
-        raise
-
-
 class _PinRows:
     """Our row multipliers from Pinocchio's LOCAL ones ``lam_pin`` at ``q``, computed on the
     first call (on the workspace's auxiliary data, under its lock: a result may be read

@@ -1,0 +1,191 @@
+"""The exact and ProxSuite forward-dynamics routes of the generic closed-loop core.
+
+Given the terms at one state (``M``, ``h``, ``J_c``, ``gamma``, ``tau``; conventions in
+:mod:`hexapod_pin.core.dynamics`), two routes of
+:func:`~hexapod_pin.core.dynamics.forward_dynamics_tree` solve
+
+    M a + h = tau + J_c^T lambda,        J_c a = -gamma:
+
+* "kkt": one numpy solve of the KKT system when the rows are independent, else (or when
+  that solve misses the verification) the exact null-space solve with minimum-norm
+  multipliers;
+* "qp": the Gauss principle as a scaled ProxSuite QP on the independent rows, with the
+  augmented Hessian ``M + rho J_c^T J_c``, warm-started from the "kkt" answer.
+
+Both verify their answer (:func:`~hexapod_pin.core.dynamics_common.verify_forward`)
+before returning it. The "pinocchio" route and the workspace live in
+:mod:`hexapod_pin.core.dynamics`; each workspace owns one
+:class:`ForwardDynamicsRoutes`.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from ..errors import SolverError
+from .checks import max_abs
+from .closed_loop import RANK_RTOL
+from .dynamics_common import (
+    QP_STATUS,
+    TINY,
+    TreeForwardDynamics,
+    cached_qp,
+    independent_rows_of_rank,
+    verify_forward,
+)
+
+_EPS = np.finfo(float).eps
+
+
+class Workspace(Protocol):
+    """What the routes use of their :class:`~hexapod_pin.core.dynamics.ClosedLoopDynamics`."""
+
+    nv: int
+    n_rows: int
+
+    def closure_rank_from(self, jac: np.ndarray) -> int: ...
+
+
+class ForwardDynamicsRoutes:
+    """The "kkt" and "qp" forward routes of one workspace, with the KKT buffer and the
+    ProxSuite problems they keep from call to call (one workspace per thread, see
+    :func:`~hexapod_pin.core.dynamics.dynamics_of`).
+
+    Args:
+        ws: the workspace (sizes; the closure rank is re-evaluated through it when a
+            system turns out singular).
+    """
+
+    def __init__(self, ws: Workspace) -> None:
+        self.ws = ws
+        self.nv, self.n_rows = ws.nv, ws.n_rows
+        self._kkt = np.zeros((self.nv + self.n_rows, self.nv + self.n_rows))
+        self._qps: dict = {}
+        self._res_out = np.empty(2)
+
+    def verify(self, mass, bias, tau, jac, drift, acc, lam, route) -> tuple[float, float]:
+        """:func:`~hexapod_pin.core.dynamics_common.verify_forward` (raises SolverError)."""
+        return verify_forward(mass, bias, tau, jac, drift, acc, lam, route, self._res_out)
+
+    def kkt(self, mass: np.ndarray, bias: np.ndarray, jac: np.ndarray, gamma: np.ndarray,
+            tau: np.ndarray, rank: int) -> TreeForwardDynamics:
+        """The "kkt" route: ``a`` and the multipliers (minimum-norm when ``rank`` is below
+        the number of rows or the KKT system is singular), verified."""
+        nv, nr = self.nv, self.n_rows
+        rhs = np.empty(nv + nr)
+        rhs[:nv] = tau - bias
+        rhs[nv:] = -gamma
+        sol, status = None, "solved"
+        if rank == nr:
+            kkt = self._kkt_matrix(mass, jac)
+            try:
+                sol = np.linalg.solve(kkt, rhs)
+            except np.linalg.LinAlgError:
+                sol = None
+            if sol is not None:
+                try:
+                    self.verify(mass, bias, tau, jac, gamma, sol[:nv], -sol[nv:], "kkt")
+                except SolverError:
+                    sol = None
+            if sol is None:
+                rank = self.ws.closure_rank_from(jac)
+        if sol is None:
+            acc, lam = self._nullspace_forward(mass, bias, jac, gamma, tau)
+            status = "solved (redundant rows: minimum-norm multipliers)" if rank < nr \
+                else "solved (null-space route)"
+        else:
+            acc, lam = sol[:nv], -sol[nv:]
+        self.verify(mass, bias, tau, jac, gamma, acc, lam, "kkt")
+        return TreeForwardDynamics(acc, lam, "kkt", status, 0, rank,
+                                   max_abs(jac @ acc + gamma))
+
+    def _kkt_matrix(self, mass, jac) -> np.ndarray:
+        nv = self.nv
+        kkt = self._kkt
+        kkt[:nv, :nv] = mass
+        kkt[:nv, nv:] = jac.T
+        kkt[nv:, :nv] = jac
+        return kkt
+
+    def _nullspace_forward(self, mass, bias, jac, gamma, tau):
+        """Exact solve for any rank: ``a = a_p + N z`` with ``N`` an orthonormal basis of
+        ``ker J_c`` (SVD), ``(N^T M N) z = N^T (tau - h - M a_p)``; minimum-norm multipliers
+        ``lambda = (J_c^T)^+ (M a + h - tau)``."""
+        if self.n_rows == 0:
+            return np.linalg.solve(mass, tau - bias), np.zeros(0)
+        u_mat, sv, vt = np.linalg.svd(jac)
+        tol = max(RANK_RTOL * sv[0], max(jac.shape) * _EPS) if sv.size else 0.0
+        r = int(np.sum(sv > tol))
+        a_p = vt[:r].T @ ((u_mat[:, :r].T @ -gamma) / sv[:r])
+        basis = vt[r:].T
+        reduced = basis.T @ mass @ basis
+        try:
+            z = np.linalg.solve(reduced, basis.T @ (tau - bias - mass @ a_p))
+        except np.linalg.LinAlgError:
+            raise SolverError("null-space forward dynamics", "singular",
+                              "N^T M N is singular: the mass matrix is not positive on the "
+                              "motions the closures allow") from None
+        acc = a_p + basis @ z
+        force = mass @ acc + bias - tau
+        lam = u_mat[:, :r] @ ((vt[:r] @ force) / sv[:r])
+        return acc, lam
+
+    def qp(self, mass: np.ndarray, bias: np.ndarray, jac: np.ndarray, gamma: np.ndarray,
+           tau: np.ndarray, rank: int) -> TreeForwardDynamics:
+        """Gauss principle as a ProxSuite QP, reformulated so that it is well posed on every
+        class: ``min 1/2 a^T H a + g^T a  s.t.  D J_c a = -D gamma`` with the augmented
+        Hessian ``H = M + rho J_c^T J_c`` (same minimiser on the feasible set; positive
+        definite when ``M`` is only positive on ``ker J_c``: massless links), rows of
+        ``J_c`` normalised by ``D``, the objective divided by its scale; warm-started from
+        the direct (KKT) solution."""
+        direct = self.kkt(mass, bias, jac, gamma, tau, rank)
+        rank = direct.rank
+        nr = self.n_rows
+        rows: slice | np.ndarray = slice(None)
+        if rank < nr:
+            # the QP keeps independent rows only (a pivoted QR of J_c^T): same feasible set
+            # for a consistent drift, and the equality constraints get full row rank
+            rows = independent_rows_of_rank(jac, rank)
+        jac_q, gamma_q = jac[rows], gamma[rows]
+        n_eq = jac_q.shape[0]
+        scale_m = max(max_abs(np.diag(mass)), TINY)
+        if n_eq:
+            norms = np.sqrt(np.einsum("ij,ij->i", jac_q, jac_q))
+            dinv = 1.0 / np.maximum(norms, TINY)
+            jac_s = jac_q * dinv[:, None]
+            rho = scale_m
+            hess = (mass + rho * (jac_s.T @ jac_s)) / scale_m
+            grad = (bias - tau + rho * (jac_s.T @ (gamma_q * dinv))) / scale_m
+            b = -gamma_q * dinv
+            # multipliers of the kept rows giving the direct generalised force
+            lam_q, *_ = np.linalg.lstsq(jac_q.T, jac.T @ direct.multipliers, rcond=None)
+        else:
+            jac_s, dinv, hess, grad, b = jac_q, np.ones(0), mass / scale_m, \
+                (bias - tau) / scale_m, np.zeros(0)
+            lam_q = np.zeros(0)
+        # ProxSuite: H x + g + A^T y = 0 with A = D J_c  =>  lambda = -scale_m D y
+        y0 = -lam_q / (scale_m * dinv) if n_eq else np.zeros(0)
+        qp = cached_qp(self._qps, ("fd", n_eq), 0, (hess, grad, jac_s, b, None, None, None),
+                            warm=(direct.a, y0, None))
+        info = qp.results.info
+        status = QP_STATUS.get(info.status, str(info.status))
+        acc = qp.results.x.copy()
+        lam = np.zeros(nr)
+        if n_eq:
+            lam[rows] = -qp.results.y * scale_m * dinv
+        try:
+            self.verify(mass, bias, tau, jac, gamma, acc, lam, "ProxSuite (forward dynamics QP)")
+        except SolverError as exc:
+            raise SolverError("ProxSuite (forward dynamics QP)", status,
+                              f"{exc}; primal residual {info.pri_res:.3e}, dual residual "
+                              f"{info.dua_res:.3e}") from None
+        if rank < nr:
+            lam = direct.multipliers            # same generalised force; minimum norm
+            status = f"{status} (redundant rows: minimum-norm multipliers)"
+        elif status != "solved":
+            status = f"{status} (residuals verified)"
+        return TreeForwardDynamics(acc, lam, "qp", status, int(info.iter), rank,
+                                   max_abs(jac @ acc + gamma))
+
