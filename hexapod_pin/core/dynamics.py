@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Mapping
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -60,7 +60,12 @@ import pinocchio as pin
 
 from ..errors import InputError
 from .checks import solve_checked, vector
-from .closed_loop import ClosedLoopModel
+from .closed_loop import (  # ClosureFrames re-exported
+    ClosedLoopModel,
+    ClosureFrames,
+    closure_drift,
+    closure_jacobian,
+)
 from .dynamics_common import (  # re-exported: other modules and users import them from here
     QP_SOLVED,
     QP_STATUS,
@@ -97,17 +102,6 @@ PIN_PROX_ITERS = 2
 _PIN_PROX_DEEP_ITERS = 500
 
 
-class ClosureFrames(NamedTuple):
-    """Where one closure sits in the tree: its type, rows and Pinocchio frame / joint ids."""
-
-    is_point: bool
-    rows: slice
-    frame1: int
-    frame2: int
-    joint1: int
-    joint2: int
-
-
 #: status strings of the redundant-row Pinocchio route by iteration count
 _REDUNDANT_STATUS: dict[int, str] = {}
 
@@ -138,13 +132,8 @@ class ClosedLoopDynamics:
         #: Pinocchio's constraint models and datas of the closures (for ``constraintDynamics``)
         self.pin_models, self.pin_datas = clm.pinocchio_constraints()
         self._pin_ready = False
-        #: one :class:`ClosureFrames` per closure, in the order of the loops file
-        self.closure_frames: list[ClosureFrames] = []
-        for closure, rows, cm in zip(clm.closures, clm.row_slices, clm.constraint_models):
-            f1 = self.model.getFrameId(f"{closure.name}/anchor1")
-            f2 = self.model.getFrameId(f"{closure.name}/anchor2")
-            self.closure_frames.append(ClosureFrames(closure.type == "point", rows, f1, f2,
-                                                     cm.joint1_id, cm.joint2_id))
+        #: one :class:`~hexapod_pin.core.closed_loop.ClosureFrames` per closure (the model's)
+        self.closure_frames = clm.closure_frames
         #: actuation selection ``S^T`` (nv, n_act): ``tau = selection @ u``
         self.selection = np.zeros((self.nv, self.n_act))
         self.selection[clm.actuated_v, np.arange(self.n_act)] = 1.0
@@ -200,41 +189,17 @@ class ClosedLoopDynamics:
 
     def jacobian_from(self, data: pin.Data) -> np.ndarray:
         """``J_c`` (n_rows, nv) from ``data`` (a ``pin.Data`` of this model whose joint
-        Jacobians and frame placements are up to date)."""
-        out = np.empty((self.n_rows, self.nv))
-        model = self.model
-        lwa, loc = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ReferenceFrame.LOCAL
-        for is_point, rows, f1, f2, _, _ in self.closure_frames:
-            if is_point:
-                out[rows] = (pin.getFrameJacobian(model, data, f1, lwa)[:3]
-                             - pin.getFrameJacobian(model, data, f2, lwa)[:3])
-            else:
-                m21 = data.oMf[f2].actInv(data.oMf[f1])
-                out[rows] = pin.Jlog6(m21) @ (pin.getFrameJacobian(model, data, f1, loc)
-                                              - m21.inverse().action
-                                              @ pin.getFrameJacobian(model, data, f2, loc))
-        return out
+        Jacobians and frame placements are up to date):
+        :func:`~hexapod_pin.core.closed_loop.closure_jacobian`."""
+        return closure_jacobian(self.model, data, self.closure_frames, self.n_rows)
 
     def constraint_drift(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``gamma`` (n_rows,) at ``(q, v)`` (same as :meth:`ClosedLoopModel.constraint_drift`)."""
+        """``gamma`` (n_rows,) at ``(q, v)`` (same as :meth:`ClosedLoopModel.constraint_drift`,
+        on this workspace's data): :func:`~hexapod_pin.core.closed_loop.closure_drift`."""
         model, data = self.model, self.data
         pin.forwardKinematics(model, data, q, v, self._zero_v)
         pin.updateFramePlacements(model, data)
-        out = np.empty(self.n_rows)
-        lwa, loc = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ReferenceFrame.LOCAL
-        for is_point, rows, f1, f2, _, _ in self.closure_frames:
-            if is_point:
-                out[rows] = (pin.getFrameClassicalAcceleration(model, data, f1, lwa).linear
-                             - pin.getFrameClassicalAcceleration(model, data, f2, lwa).linear)
-            else:
-                m21 = data.oMf[f2].actInv(data.oMf[f1])
-                a1 = pin.getFrameAcceleration(model, data, f1, loc)
-                a2 = pin.getFrameAcceleration(model, data, f2, loc)
-                v1 = pin.getFrameVelocity(model, data, f1, loc)
-                v2 = pin.getFrameVelocity(model, data, f2, loc)
-                rel = a1 - m21.actInv(a2) + v1.cross(m21.actInv(v2))
-                out[rows] = pin.Jlog6(m21) @ rel.vector
-        return out
+        return closure_drift(model, data, self.closure_frames, self.n_rows)
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Joint-space inertia matrix ``M(q)`` (nv, nv), symmetric (kg, kg m, kg m^2)."""
