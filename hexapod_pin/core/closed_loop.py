@@ -29,13 +29,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 import scipy.linalg
 
+from .closure_terms import ClosureFrames, closure_drift, weld_jacobian
 from .constraint_views import ConstraintErrors
 from .description import WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro, load_loops
 from ..errors import AssemblyError, DescriptionError, InputError
@@ -50,75 +51,6 @@ RANK_RTOL = 1e-10
 #: first of these types
 FRAME_TYPE_ORDER = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT,
                     pin.FrameType.JOINT, pin.FrameType.SENSOR)
-
-
-class ClosureFrames(NamedTuple):
-    """Where one closure sits in the tree: its type, rows and Pinocchio frame / joint ids
-    (the anchor frames ``<closure>/anchor1`` and ``<closure>/anchor2``)."""
-
-    is_point: bool
-    rows: slice
-    frame1: int
-    frame2: int
-    joint1: int
-    joint2: int
-
-
-def weld_jacobian(model: pin.Model, data: pin.Data, frame1: int, frame2: int) -> np.ndarray:
-    """The six rows of a weld in ``J_c``: ``Jlog6(M21) (J_1 - Ad(M21^-1) J_2)`` (6, nv),
-    ``M21 = oM2^-1 oM1`` and ``J_i`` the LOCAL Jacobians of the anchor frames (the
-    derivative of ``log6(M21)``). ``data``: joint Jacobians and frame placements up to
-    date."""
-    loc = pin.ReferenceFrame.LOCAL
-    m21 = data.oMf[frame2].actInv(data.oMf[frame1])
-    return pin.Jlog6(m21) @ (pin.getFrameJacobian(model, data, frame1, loc)
-                             - m21.inverse().action @ pin.getFrameJacobian(model, data, frame2,
-                                                                           loc))
-
-
-def closure_jacobian(model: pin.Model, data: pin.Data,
-                     frames: Sequence[ClosureFrames], n_rows: int) -> np.ndarray:
-    """``J_c`` (n_rows, nv) from frame Jacobians: point rows ``J_1 - J_2`` of the anchor
-    points in world axes (LOCAL_WORLD_ALIGNED), weld rows :func:`weld_jacobian`.
-    ``data``: joint Jacobians and frame placements up to date."""
-    out = np.empty((n_rows, model.nv))
-    lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-    for is_point, rows, f1, f2, _, _ in frames:
-        if is_point:
-            out[rows] = (pin.getFrameJacobian(model, data, f1, lwa)[:3]
-                         - pin.getFrameJacobian(model, data, f2, lwa)[:3])
-        else:
-            out[rows] = weld_jacobian(model, data, f1, f2)
-    return out
-
-
-def closure_drift(model: pin.Model, data: pin.Data, frames: Sequence[ClosureFrames],
-                  n_rows: int) -> np.ndarray:
-    """The drift ``gamma`` (n_rows,) with ``J_c a = -gamma`` (see
-    :meth:`ClosedLoopModel.constraint_drift`). ``data``: ``forwardKinematics(q, v, 0)``
-    and frame placements up to date.
-
-    Point rows: the difference of the classical accelerations of the anchor points at
-    zero joint acceleration, world axes (m/s^2). Weld rows: ``Jlog6(M21)`` times the
-    relative spatial acceleration bias in anchor-1 axes,
-    ``d/dt (v1 - Ad(M12) v2) = a1 - Ad(M12) a2 + v1 x Ad(M12) v2`` (exact at an
-    assembled configuration with ``J_c v = 0``).
-    """
-    out = np.empty(n_rows)
-    lwa, loc = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ReferenceFrame.LOCAL
-    for is_point, rows, f1, f2, _, _ in frames:
-        if is_point:
-            out[rows] = (pin.getFrameClassicalAcceleration(model, data, f1, lwa).linear
-                         - pin.getFrameClassicalAcceleration(model, data, f2, lwa).linear)
-        else:
-            m21 = data.oMf[f2].actInv(data.oMf[f1])
-            a1 = pin.getFrameAcceleration(model, data, f1, loc)
-            a2 = pin.getFrameAcceleration(model, data, f2, loc)
-            v1 = pin.getFrameVelocity(model, data, f1, loc)
-            v2 = pin.getFrameVelocity(model, data, f2, loc)
-            rel = a1 - m21.actInv(a2) + v1.cross(m21.actInv(v2))
-            out[rows] = pin.Jlog6(m21) @ rel.vector
-    return out
 
 
 @dataclass(frozen=True)

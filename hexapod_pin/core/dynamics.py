@@ -60,12 +60,8 @@ import pinocchio as pin
 
 from ..errors import InputError
 from .checks import solve_checked, vector
-from .closed_loop import (  # ClosureFrames re-exported
-    ClosedLoopModel,
-    ClosureFrames,
-    closure_drift,
-    closure_jacobian,
-)
+from .closed_loop import ClosedLoopModel
+from .closure_terms import ClosureFrames, closure_drift, closure_jacobian  # ClosureFrames re-exported
 from .dynamics_common import (  # re-exported: other modules and users import them from here
     QP_SOLVED,
     QP_STATUS,
@@ -132,7 +128,7 @@ class ClosedLoopDynamics:
         #: Pinocchio's constraint models and datas of the closures (for ``constraintDynamics``)
         self.pin_models, self.pin_datas = clm.pinocchio_constraints()
         self._pin_ready = False
-        #: one :class:`~hexapod_pin.core.closed_loop.ClosureFrames` per closure (the model's)
+        #: one :class:`~hexapod_pin.core.closure_terms.ClosureFrames` per closure (the model's)
         self.closure_frames = clm.closure_frames
         #: actuation selection ``S^T`` (nv, n_act): ``tau = selection @ u``
         self.selection = np.zeros((self.nv, self.n_act))
@@ -190,12 +186,12 @@ class ClosedLoopDynamics:
     def jacobian_from(self, data: pin.Data) -> np.ndarray:
         """``J_c`` (n_rows, nv) from ``data`` (a ``pin.Data`` of this model whose joint
         Jacobians and frame placements are up to date):
-        :func:`~hexapod_pin.core.closed_loop.closure_jacobian`."""
+        :func:`~hexapod_pin.core.closure_terms.closure_jacobian`."""
         return closure_jacobian(self.model, data, self.closure_frames, self.n_rows)
 
     def constraint_drift(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``gamma`` (n_rows,) at ``(q, v)`` (same as :meth:`ClosedLoopModel.constraint_drift`,
-        on this workspace's data): :func:`~hexapod_pin.core.closed_loop.closure_drift`."""
+        on this workspace's data): :func:`~hexapod_pin.core.closure_terms.closure_drift`."""
         model, data = self.model, self.data
         pin.forwardKinematics(model, data, q, v, self._zero_v)
         pin.updateFramePlacements(model, data)
