@@ -200,7 +200,8 @@ def rel(x, ref):
 
 
 # ------------------------------------------------------------------------------- rows
-def bench_robot(name, clm, sample, n_states: int):
+def make_states(clm, sample, n_states: int):
+    """``n_states`` closure-consistent states ``(q, v, u, tau, a_ref)`` (seeded)."""
     rng = np.random.default_rng(0)
     states = []
     for _ in range(n_states):
@@ -209,27 +210,66 @@ def bench_robot(name, clm, sample, n_states: int):
         tau = np.zeros(clm.nv)
         tau[clm.actuated_v] = u
         states.append((q, v, u, tau, reference(clm, q, v, tau)))
+    return states
+
+
+class PinocchioCalls:
+    """The forward-dynamics calls compared with our "pinocchio" route, cycling over
+    ``states``: ``raw`` (``pin.constraintDynamics`` on its own model, data and constraint
+    models, with the settings of our route: mu = 0 and one iteration, or mu = 1e-8 and 2
+    iterations when the rows are redundant), ``raw_user`` (mu = 1e-6, 5 iterations, the
+    settings of the issue's first measurements), ``floor`` (the raw call plus what our
+    route needs to verify it: ``getConstraintsJacobian`` and the compiled residual kernel,
+    no other Python) and ``ours`` (``forward_dynamics_tree``)."""
+
+    def __init__(self, clm, states, redundant: bool):
+        self.clm, self.states, self.k = clm, states, 0
+        self.model = model = pin.Model(clm.model)
+        self.data = data = model.createData()
+        self.cms, self.cds = cms, cds = clm.pinocchio_constraints()
+        pin.initConstraintDynamics(model, data, cms, cds)
+        self.prox = pin.ProximalSettings(1e-13, PIN_PROX_MU if redundant else 0.0,
+                                         PIN_PROX_ITERS if redundant else 1)
+        self.prox_user = pin.ProximalSettings(1e-13, 1e-6, 5)
+        # Pinocchio's buffers, as our route reads them (live views, bound once)
+        self.views = (data.M, data.nle, data.primal_rhs_contact[:clm.n_rows], data.lambda_c,
+                      np.empty(2))
+
+    def nxt(self):
+        self.k = (self.k + 1) % len(self.states)
+        return self.states[self.k]
+
+    def raw(self):
+        s = self.nxt()
+        pin.constraintDynamics(self.model, self.data, s[0], s[1], s[3], self.cms, self.cds,
+                               self.prox)
+
+    def raw_user(self):
+        s = self.nxt()
+        pin.constraintDynamics(self.model, self.data, s[0], s[1], s[3], self.cms, self.cds,
+                               self.prox_user)
+
+    def floor(self):
+        s = self.nxt()
+        model, data, cms, cds = self.model, self.data, self.cms, self.cds
+        acc = pin.constraintDynamics(model, data, s[0], s[1], s[3], cms, cds, self.prox)
+        jac = pin.getConstraintsJacobian(model, data, cms, cds)
+        mass, nle, rhs, lam, out = self.views
+        kkt_residuals(mass, nle, s[3], jac, rhs, acc, lam, out)
+
+    def ours(self):
+        s = self.nxt()
+        forward_dynamics_tree(self.clm, s[0], s[1], s[2])
+
+
+def bench_robot(name, clm, sample, n_states: int):
+    states = make_states(clm, sample, n_states)
     dyn = dynamics_of(clm)
     rank = clm.rank(states[0][0]).rank
     redundant = rank < clm.n_rows
-    model, data = pin.Model(clm.model), None
-    data = model.createData()
-    cms, cds = clm.pinocchio_constraints()
-    pin.initConstraintDynamics(model, data, cms, cds)
-    # the raw call with the settings of our "pinocchio" route (its overhead is the ratio);
-    # with redundant rows also with mu = 1e-6 and 5 iterations (an extra row)
-    prox = pin.ProximalSettings(1e-13, PIN_PROX_MU if redundant else 0.0,
-                                PIN_PROX_ITERS if redundant else 1)
-    prox_user = pin.ProximalSettings(1e-13, 1e-6, 5)
-    cyc = {"k": 0}
-
-    def nxt():
-        cyc["k"] = (cyc["k"] + 1) % n_states
-        return states[cyc["k"]]
-
-    def raw_fd():
-        s = nxt()
-        pin.constraintDynamics(model, data, s[0], s[1], s[3], cms, cds, prox)
+    calls = PinocchioCalls(clm, states, redundant)
+    model, data, cms, cds = calls.model, calls.data, calls.cms, calls.cds
+    nxt, raw_fd = calls.nxt, calls.raw
     mj = None
     if mujoco is not None:
         try:
@@ -239,7 +279,7 @@ def bench_robot(name, clm, sample, n_states: int):
 
             def mj_fwd():
                 s = nxt()
-                st = mj_states[cyc["k"]]
+                st = mj_states[calls.k]
                 mjd.qpos[:], mjd.qvel[:], mjd.ctrl[:] = st.qpos, st.qvel, s[2]
                 mujoco.mj_forward(mjm, mjd)
             mj = timing(mj_fwd)
@@ -265,25 +305,12 @@ def bench_robot(name, clm, sample, n_states: int):
         rows.append((name, clm.nv, f"{clm.n_rows}/{rank}", f"FD {method}", t, raw, mj, err,
                      fails, n_states))
         if method == "pinocchio":
-            # the floor of a verified call: the raw call, Pinocchio's constraint Jacobian
-            # and the compiled residual kernel of our route, no other Python
-            v_mass, v_nle, v_lam = data.M, data.nle, data.lambda_c
-            v_rhs, out = data.primal_rhs_contact[:clm.n_rows], np.empty(2)
-
-            def raw_checked(views=(v_mass, v_nle, v_rhs, v_lam, out)):
-                s = nxt()
-                acc = pin.constraintDynamics(model, data, s[0], s[1], s[3], cms, cds, prox)
-                jac = pin.getConstraintsJacobian(model, data, cms, cds)
-                kkt_residuals(views[0], views[1], s[3], jac, views[2], acc, views[3], views[4])
-            t_floor, raw = paired(raw_checked, raw_fd)
+            t_floor, raw = paired(calls.floor, raw_fd)
             rows.append((name, clm.nv, f"{clm.n_rows}/{rank}",
                          "raw + its verification (no other Python)", t_floor, raw, mj, err, 0,
                          n_states))
         if method == "pinocchio" and redundant:
-            def raw_user():
-                s = nxt()
-                pin.constraintDynamics(model, data, s[0], s[1], s[3], cms, cds, prox_user)
-            t_user, raw = paired(raw_user, raw_fd)
+            t_user, raw = paired(calls.raw_user, raw_fd)
             rows.append((name, clm.nv, f"{clm.n_rows}/{rank}", "raw, mu 1e-6, 5 iterations",
                          t_user, raw, mj, err, 0, n_states))
     # inverse dynamics
@@ -371,6 +398,37 @@ def bench_step(name, clm, states, dt: float = 1e-3):
     return name, out
 
 
+def bench_overhead(name, clm, sample, runs: int = 7):
+    """Our "pinocchio" route and the floor of a verified call against the raw call, each
+    pair timed :func:`paired` ``runs`` times (states cycled): the median ratio and its
+    range over the runs, and the smallest us per call of each."""
+    states = make_states(clm, sample, 5)
+    calls = PinocchioCalls(clm, states, clm.rank(states[0][0]).rank < clm.n_rows)
+    ratios: dict[str, list[float]] = {"ours": [], "floor": []}
+    best = {"ours": np.inf, "floor": np.inf, "raw": np.inf}
+    for _ in range(runs):
+        for key in ("ours", "floor"):
+            t, raw = paired(getattr(calls, key), calls.raw)
+            ratios[key].append(t / raw)
+            best[key], best["raw"] = min(best[key], t), min(best["raw"], raw)
+    return name, clm.nv, {k: (float(np.median(r)), min(r), max(r)) for k, r in ratios.items()}, best
+
+
+def print_overhead() -> None:
+    """The table of ``--overhead``: our route and the verification floor against raw."""
+    print("| robot | nv | raw us | ours us | ours / raw: median (range) | floor us | "
+          "floor / raw: median (range) | ours - raw us |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, clm, sample in robot_list(False):
+        if name in ("delta_massless", "ladder_64"):     # exact route / minutes per run
+            continue
+        _, nv, rat, best = bench_overhead(name, clm, sample)
+        (om, olo, ohi), (fm, flo, fhi) = rat["ours"], rat["floor"]
+        print(f"| {name} | {nv} | {_us(best['raw'])} | {_us(best['ours'])} | {om:.2f} "
+              f"({olo:.2f}-{ohi:.2f}) | {_us(best['floor'])} | {fm:.2f} ({flo:.2f}-{fhi:.2f}) "
+              f"| {_us(best['ours'] - best['raw'])} |")
+
+
 # ------------------------------------------------------------------------------ report
 def print_steps(kept) -> None:
     """The integrator table: one step on Cassie and the one-loop ladder (of ``kept``,
@@ -420,11 +478,18 @@ def main(argv=None) -> int:
     parser.add_argument("--smoke", action="store_true", help="two robots, short samples")
     parser.add_argument("--integrators", action="store_true",
                         help="the integrator table only (Cassie and the one-loop ladder)")
+    parser.add_argument("--overhead", action="store_true",
+                        help="the forward-dynamics overhead table only: our 'pinocchio' "
+                             "route and the verification floor against the raw call, seven "
+                             "paired runs per robot")
     args = parser.parse_args(argv)
     if args.smoke:
         SAMPLE["seconds"] = 0.002
     n_states = 2 if args.smoke else 5
     print(f"machine: {machine()}\n")
+    if args.overhead:
+        print_overhead()
+        return 0
     if args.integrators:
         kept = []
         for name, clm, sample in (_cassie(), _ladder(1)):
