@@ -312,3 +312,18 @@ def test_forward_calls_leave_no_state_behind(robot, rng):
         for res, (acc, lam) in calls:          # read after all calls were made
             np.testing.assert_allclose(res.a, acc, atol=1e-9)
             np.testing.assert_allclose(res.multipliers, lam, atol=1e-8)
+
+
+def test_forward_result_does_not_alias_the_callers_force(robot, rng):
+    """``ClosedLoopDynamics.forward`` with redundant rows computes the multipliers when read,
+    from the generalised force of the call: changing the caller's array afterwards must
+    not change them (reference: the same call on a copy that nobody touches)."""
+    red = _redundant_model(robot)
+    q, v = _state(robot, robot.model, rng)
+    tau = _tau(red, rng)
+    dyn = ClosedLoopDynamics(red)
+    res = dyn.forward(q, v, tau)
+    ref = ClosedLoopDynamics(red).forward(q, v, tau.copy()).multipliers
+    tau += 100.0
+    np.testing.assert_allclose(res.multipliers, ref, atol=1e-9)
+    assert "redundant" in res.status
