@@ -31,7 +31,8 @@ of ``frame2`` exerts on the body of ``frame1`` at the joint (``-lambda_c`` acts 
 
 For a weld the six multipliers pair with the ``log6`` rows (at an assembled
 configuration, the spatial force in anchor-1 axes). Pinocchio's own ``lambda_c``
-(LOCAL contact frames) is converted: ``lambda = R_c1 lambda_pin`` for a point.
+(LOCAL contact frames) is converted: ``lambda = R_c1 lambda_pin`` for a point
+(:mod:`~hexapod_pin.core.closure_forces`, when the multipliers are read).
 
 Redundant closures (rank-deficient ``J_c``): the accelerations and actuator forces
 stay unique and every route returns them; the multipliers are not unique and every
@@ -59,9 +60,14 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import InputError
-from .checks import solve_checked, vector
+from .checks import as_array, solve_checked, vector
 from .closed_loop import ClosedLoopModel
-from .closure_terms import ClosureFrames, closure_drift, closure_jacobian  # ClosureFrames re-exported
+from .closure_forces import LazyMultipliers, MultiplierConversion, joint_wrenches
+from .closure_terms import (  # ClosureFrames re-exported
+    ClosureFrames,
+    closure_drift,
+    closure_jacobian,
+)
 from .dynamics_common import (  # re-exported: other modules and users import them from here
     QP_SOLVED,
     QP_STATUS,
@@ -109,8 +115,10 @@ class ClosedLoopDynamics:
     """Cached dynamics workspace of one :class:`ClosedLoopModel`.
 
     Owns its own ``pin.Data`` (it never touches ``clm.data``), the Pinocchio constraint
-    data for ``pin.constraintDynamics``, and the ProxSuite problems (kept and updated
-    from call to call). Get the shared instance of a model with :func:`dynamics_of`.
+    data for ``pin.constraintDynamics``, and, by composition, the other routes with their
+    buffers and ProxSuite problems (:attr:`forward_routes`, :attr:`inverse_routes`) and
+    the multiplier conversions of its results (:attr:`conversion`). Get the instance of a
+    model for the calling thread with :func:`dynamics_of`.
 
     Args:
         clm: the closed-loop model.
@@ -136,9 +144,9 @@ class ClosedLoopDynamics:
         self._zero_v = np.zeros(self.nv)
         self._lower = np.tril_indices(self.nv, -1)
         self._rank: int | None = None
-        self._aux_data = self.model.createData()   # lazy multiplier conversions
-        #: a result may convert its multipliers on any thread: the conversions take turns
-        self._aux_lock = threading.Lock()
+        #: the multiplier conversions of the results (their own data, under a lock: a
+        #: result may convert its multipliers on any thread)
+        self.conversion = MultiplierConversion(self.model, self.closure_frames, self.n_rows)
         self._res_out = np.empty(2)
         self._pools: dict[int, pin.ModelPool] = {}
         self._pin_singular = False       # M structurally singular: Pinocchio refused
@@ -202,24 +210,6 @@ class ClosedLoopDynamics:
         mat = pin.crba(self.model, self.data, q).copy()   # upper triangle filled
         mat[self._lower] = mat.T[self._lower]
         return mat
-
-    def _closure_world_forces(self, multipliers: np.ndarray) -> list[pin.Force]:
-        """Spatial force (world frame, about the world origin) on body 1 of each closure.
-
-        Needs the frame placements of ``self.data`` up to date.
-        """
-        out = []
-        data = self.data
-        for is_point, rows, f1, f2, _, _ in self.closure_frames:
-            lam = multipliers[rows]
-            p1 = data.oMf[f1].translation
-            if is_point:
-                out.append(pin.Force(lam, np.cross(p1, lam)))
-            else:
-                m21 = data.oMf[f2].actInv(data.oMf[f1])
-                local = pin.Force(pin.Jlog6(m21).T @ lam)      # in anchor-1 frame
-                out.append(data.oMf[f1].act(local))
-        return out
 
     def _terms(self, q, v):
         """(M, h, J_c, gamma) at (q, v), ours."""
@@ -337,25 +327,9 @@ class ClosedLoopDynamics:
             return self._forward_pinocchio(q, v, tau, rank).a
         return acc.copy()
 
-    def _pin_to_row_multipliers(self, lam_pin: np.ndarray, data) -> np.ndarray:
-        """Convert Pinocchio's LOCAL contact forces into our row convention.
-
-        Point rows: ``lambda = R_c1 lambda_pin`` (``J_c = R_c1 J_pin``); weld rows:
-        ``lambda = Jlog6^-T lambda_pin`` (``J_c = Jlog6 J_pin``). ``data`` holds the frame
-        placements at the state of the solve.
-        """
-        out = np.empty(self.n_rows)
-        for is_point, rows, f1, f2, _, _ in self.closure_frames:
-            if is_point:
-                out[rows] = data.oMf[f1].rotation @ lam_pin[rows]
-            else:
-                jlog = pin.Jlog6(data.oMf[f2].actInv(data.oMf[f1]))
-                out[rows] = np.linalg.solve(jlog.T, lam_pin[rows])
-        return out
-
     def _pinocchio_result(self, q, v, tau, acc, iters, rank) -> TreeForwardDynamics:
         """The result of a verified Pinocchio solve (``acc``: Pinocchio's buffer; ``tau``:
-        an array this call owns): :meth:`pinocchio_result_of` on copies."""
+        possibly the caller's array): :meth:`pinocchio_result_of` on copies."""
         return self.pinocchio_result_of(q.copy(), v.copy(), tau.copy(), acc.copy(),
                                         self._v_lambda.copy(), iters, rank)
 
@@ -368,14 +342,14 @@ class ClosedLoopDynamics:
         with redundant rows, the minimum-norm ones (the proximal multipliers are
         minimum-norm only up to the conditioning of the regularised system)."""
         if rank == self.n_rows:
-            return TreeForwardDynamics(acc, _PinRows(self, q, lam_pin), "pinocchio",
+            return TreeForwardDynamics(acc, LazyMultipliers(self.conversion.from_pinocchio, q, lam_pin), "pinocchio",
                                        "solved", iters, rank, -1.0)
         status = _REDUNDANT_STATUS.get(iters)
         if status is None:
             status = _REDUNDANT_STATUS[iters] = (
                 f"solved (redundant rows: proximal mu={PIN_PROX_MU:g}, {iters} "
                 "iterations; minimum-norm multipliers)")
-        return TreeForwardDynamics(acc, _MinNormRows(self, q, v, acc, tau), "pinocchio",
+        return TreeForwardDynamics(acc, LazyMultipliers(self.conversion.minimum_norm, q, v, acc, tau), "pinocchio",
                                    status, iters, rank, -1.0)
 
     def forward_actuated(self, q: npt.ArrayLike, v: npt.ArrayLike,
@@ -410,16 +384,17 @@ class ClosedLoopDynamics:
             tau[self._act_index] = u
         else:
             tau_ext = vector(tau_ext, self.nv, "tau_ext")
+            self._tau_zero = False
             tau[:] = tau_ext
             tau[self._act_index] += u
-            self._tau_zero = False
         if method == "pinocchio":
             prox = self.pinocchio_verified(q, v, tau)
             if prox is not None:         # the short path: the result with lazy multipliers
                 rank = self.closure_rank(q)  # known: the model has a verified call
                 if rank == self.n_rows:      # Pinocchio's multipliers, converted when read
                     return _FORWARD_NEW(TreeForwardDynamics, (
-                        self._v_ddq.copy(), _PinRows(self, q.copy(), self._v_lambda.copy()),
+                        self._v_ddq.copy(), LazyMultipliers(self.conversion.from_pinocchio, q.copy(),
+                                        self._v_lambda.copy()),
                         "pinocchio", "solved", prox.iter, rank, -1.0))
                 return self.pinocchio_result_of(q.copy(), v.copy(), tau.copy(),
                                                 self._v_ddq.copy(), self._v_lambda.copy(),
@@ -504,7 +479,7 @@ class ClosedLoopDynamics:
         ``q`` (computed on its first call, safe on any thread); with ``jac`` (Pinocchio's
         constraint Jacobian at ``q``) the minimum-norm multipliers of the same generalised
         force. ``q``, ``lam_pin`` and ``jac`` are kept: pass arrays the caller owns."""
-        return _PinRows(self, q, lam_pin, jac)
+        return LazyMultipliers(self.conversion.from_pinocchio, q, lam_pin, jac)
 
     # -- inverse dynamics (the routes of core.inverse_routes) -------------------------------
     def inverse(self, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike,
@@ -516,8 +491,7 @@ class ClosedLoopDynamics:
     def inverse_from_force(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
                            force: np.ndarray, tau_ext: np.ndarray, bounds: np.ndarray | None,
                            method: str) -> TreeInverseDynamics:
-        """:meth:`InverseDynamicsRoutes.inverse_from_force
-        <hexapod_pin.core.inverse_routes.InverseDynamicsRoutes.inverse_from_force>`
+        """:meth:`~hexapod_pin.core.inverse_routes.InverseDynamicsRoutes.inverse_from_force`
         (``force = M a + h`` given; no input checks)."""
         return self.inverse_routes.inverse_from_force(q, v, a, force, tau_ext, bounds, method)
 
@@ -557,22 +531,16 @@ class ClosedLoopDynamics:
         Returns:
             (wrenches by joint name, each (6,) = (f, m)), and the generalised force
             ``tau`` (nv,) that rnea needs with those forces (``S^T u`` if consistent).
+
+        Raises:
+            InputError: an input that is not real, of the wrong shape, or not finite.
         """
-        model, data = self.model, self.data
-        pin.forwardKinematics(model, data, q)
-        pin.updateFramePlacements(model, data)
-        forces = pin.StdVec_Force()
-        for _ in range(model.njoints):
-            forces.append(pin.Force.Zero())
-        for world, (_, _, _, _, j1, j2) in zip(self._closure_world_forces(multipliers),
-                                               self.closure_frames):
-            forces[j1] = forces[j1] + data.oMi[j1].actInv(world)
-            forces[j2] = forces[j2] - data.oMi[j2].actInv(world)
-        for joint, force in (fext or {}).items():
-            forces[joint] = forces[joint] + force
-        tau = pin.rnea(model, data, q, v, a, forces)
-        out = {model.names[j]: data.f[j].vector.copy() for j in range(1, model.njoints)}
-        return out, tau.copy()
+        q = as_array(q, (self.model.nq,), "q")
+        v = as_array(v, (self.nv,), "v")
+        a = as_array(a, (self.nv,), "a")
+        multipliers = as_array(multipliers, (self.n_rows,), "multipliers")
+        return joint_wrenches(self.model, self.data, self.closure_frames, q, v, a,
+                              multipliers, fext)
 
 
 #: per thread: model -> its workspace (a workspace holds Pinocchio data and ProxSuite
@@ -685,53 +653,3 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
 # --------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------
-class _PinRows:
-    """Our row multipliers from Pinocchio's LOCAL ones ``lam_pin`` at ``q``, computed on the
-    first call (on the workspace's auxiliary data, under its lock: a result may be read
-    on any thread). With ``jac`` (Pinocchio's constraint Jacobian at ``q``), ``lam_pin``
-    is first replaced by the minimum-norm multipliers of the same generalised force,
-    ``(J^T)^+ J^T lam_pin`` (the rows differ from ours by rotations: the same minimum)."""
-
-    __slots__ = ("dyn", "jac", "lam_pin", "q", "value")
-
-    def __init__(self, dyn: ClosedLoopDynamics, q: np.ndarray, lam_pin: np.ndarray,
-                 jac: np.ndarray | None = None):
-        self.dyn, self.q, self.lam_pin, self.jac = dyn, q, lam_pin, jac
-        self.value: np.ndarray | None = None
-
-    def __call__(self) -> np.ndarray:
-        if self.value is None:
-            dyn, lam = self.dyn, self.lam_pin
-            if self.jac is not None:
-                lam, *_ = np.linalg.lstsq(self.jac.T, self.jac.T @ lam, rcond=None)
-            with dyn._aux_lock:
-                pin.framesForwardKinematics(dyn.model, dyn._aux_data, self.q)
-                self.value = dyn._pin_to_row_multipliers(lam, dyn._aux_data)
-        return self.value
-
-
-class _MinNormRows:
-    """Minimum-norm multipliers in our rows, ``lambda = (J_c^T)^+ (M a + h - tau)`` at
-    ``(q, v)``, computed on the first call from a fresh ``crba`` / ``nonLinearEffects`` /
-    ``J_c`` on the workspace's auxiliary data (under its lock)."""
-
-    __slots__ = ("acc", "dyn", "q", "tau", "v", "value")
-
-    def __init__(self, dyn: ClosedLoopDynamics, q: np.ndarray, v: np.ndarray,
-                 acc: np.ndarray, tau: np.ndarray):
-        self.dyn, self.q, self.v, self.acc, self.tau = dyn, q, v, acc, tau
-        self.value: np.ndarray | None = None
-
-    def __call__(self) -> np.ndarray:
-        if self.value is None:
-            dyn, q = self.dyn, self.q
-            model, aux = dyn.model, dyn._aux_data
-            with dyn._aux_lock:
-                mass = pin.crba(model, aux, q)
-                mass = np.triu(mass) + np.triu(mass, 1).T
-                force = mass @ self.acc + pin.nonLinearEffects(model, aux, q, self.v) - self.tau
-                pin.computeJointJacobians(model, aux, q)
-                pin.updateFramePlacements(model, aux)
-                jac = dyn.jacobian_from(aux)
-            self.value, *_ = np.linalg.lstsq(jac.T, force, rcond=None)
-        return self.value

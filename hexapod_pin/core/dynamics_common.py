@@ -1,7 +1,8 @@
 """What the closed-loop dynamics routes share: tolerances, ProxSuite settings and status
 names, the cached ProxSuite problems, the forward-dynamics verification, and the result
 types of :func:`~hexapod_pin.core.dynamics.forward_dynamics_tree` and
-:func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree`.
+:func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree` (documented with them, in
+:mod:`hexapod_pin.core.dynamics`, which re-exports everything here that callers use).
 
 Conventions (tree coordinates, Pinocchio's ``q``, ``v``, ``a``; see
 :mod:`hexapod_pin.core.dynamics`)::
@@ -118,7 +119,7 @@ def verify_forward(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: np.
 
     ``M a + h - tau - J^T lam`` relative to the largest of ``|M a|``, ``|h - tau|``,
     ``|J^T lam|``, and ``J a + drift`` relative to ``|J| |a|`` and ``|drift|`` (max-abs
-    norms; :func:`~hexapod_pin.core.linear_kernels.kkt_residuals`). ``jac`` / ``drift``
+    norms; :func:`~hexapod_pin.core.linear_kernels.forward_residuals`). ``jac`` / ``drift``
     may be ours (``J_c``, ``gamma``) or Pinocchio's LOCAL ones (``J_pin``,
     ``-primal_rhs``): both equations hold in either row convention. ``out`` (2,) receives
     the two residuals.

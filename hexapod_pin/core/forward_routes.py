@@ -65,7 +65,9 @@ class ForwardDynamicsRoutes:
         self._qps: dict = {}
         self._res_out = np.empty(2)
 
-    def verify(self, mass, bias, tau, jac, drift, acc, lam, route) -> tuple[float, float]:
+    def verify(self, mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: np.ndarray,
+               drift: np.ndarray, acc: np.ndarray, lam: np.ndarray,
+               route: str) -> tuple[float, float]:
         """:func:`~hexapod_pin.core.dynamics_common.verify_forward` (raises SolverError)."""
         return verify_forward(mass, bias, tau, jac, drift, acc, lam, route, self._res_out)
 

@@ -22,6 +22,7 @@ this module holds the routes, on a :class:`InverseDynamicsRoutes` object that ea
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
@@ -83,7 +84,7 @@ class Workspace(Protocol):
                                    force: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
     def lazy_multipliers(self, q: np.ndarray, lam_pin: np.ndarray,
-                         jac: np.ndarray | None = None): ...
+                         jac: np.ndarray | None = None) -> Callable[[], np.ndarray]: ...
 
 
 class InverseDynamicsRoutes:
