@@ -10,12 +10,14 @@ import sys
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from conftest import random_pose
 
 import hexapod_pin as hp
 from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.hexapod.fast import fast_dynamics
+from hexapod_pin.loaders import robots
 
 N_STATES = 24
 
@@ -143,3 +145,48 @@ def test_the_generic_tree_routes_from_threads(fast_switching):
         threaded = list(pool.map(both, states * 4))
     for k, got in enumerate(threaded):
         np.testing.assert_array_equal(got, serial[k % N_STATES])
+
+
+def _generic_states(clm, rng, hexapod=None):
+    """Closure-consistent states ``(q, v, u, tau_ext)`` of ``clm`` at rest (tau_ext on
+    every other one): poses of ``hexapod`` when given, else actuated joints moved from
+    the neutral configuration and the closures assembled."""
+    out = []
+    for k in range(N_STATES):
+        if hexapod is not None:
+            q = hexapod.configuration(random_pose(hexapod, rng))
+        else:
+            dq = np.zeros(clm.nv)
+            dq[clm.actuated_v] = 0.05 * rng.normal(size=clm.n_actuated)
+            q = clm.assemble(pin.integrate(clm.model, pin.neutral(clm.model), dq)).q
+        ext = rng.normal(size=clm.nv) if k % 2 else None
+        out.append((q, np.zeros(clm.nv), rng.normal(size=clm.n_actuated), ext))
+    return out
+
+
+def test_generic_pinocchio_route_and_lazy_multipliers_across_threads(fast_switching):
+    """The "pinocchio" forward route (its generalised-force buffer, Pinocchio's buffers,
+    the multipliers converted when read) from several threads on one model, and results
+    made in one thread read in others while those compute: bit for bit the answers of a
+    model that nobody else uses. Cassie has redundant rows (minimum-norm multipliers),
+    the hexapod independent ones (Pinocchio's, converted)."""
+    rng = np.random.default_rng(15)
+    hexapod = hp.Hexapod.default()
+    for clm, fresh, states in (
+            (hexapod.model, hp.Hexapod.default().model,
+             _generic_states(hexapod.model, rng, hexapod)),
+            (robots.cassie(), robots.cassie(), None)):
+        states = states or _generic_states(clm, rng)
+        expected = [forward_dynamics_tree(fresh, *s) for s in states]
+        made = [forward_dynamics_tree(clm, *s) for s in states]    # read later, elsewhere
+
+        def work(k, clm=clm, states=states, made=made):
+            res = forward_dynamics_tree(clm, *states[(k + 5) % N_STATES])    # keep busy
+            return np.concatenate([res.a, res.multipliers, made[k].multipliers])
+
+        with ThreadPoolExecutor(4) as pool:
+            got = list(pool.map(work, range(N_STATES)))
+        for k in range(N_STATES):
+            other = expected[(k + 5) % N_STATES]
+            want = np.concatenate([other.a, other.multipliers, expected[k].multipliers])
+            np.testing.assert_array_equal(got[k], want)
