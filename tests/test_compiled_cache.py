@@ -22,7 +22,7 @@ def test_package_kernels_use_the_package_stamp(kernel):
 def test_the_stamp_covers_every_compiled_module():
     names = {p.relative_to(compiled.PACKAGE_DIR).as_posix() for p in compiled.compiled_modules()}
     assert {"hexapod/kernels.py", "hexapod/batch.py", "hexapod/fast.py",
-            "planar/kernels.py", "core/linear_kernels.py", "core/simulation.py",
+            "planar/kernels.py", "core/linear_kernels.py", "core/integrator_kernels.py",
             "core/constraint_views.py"} <= names
 
 

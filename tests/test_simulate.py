@@ -7,7 +7,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hexapod_pin.core.simulation import gauss_newton_pass, rk4_stage
+from hexapod_pin.core.integrator_kernels import gauss_newton_pass, rk4_stage
 from hexapod_pin.errors import ActuatorSaturationError, InputError, StrokeLimitError
 from hexapod_pin.hexapod.simulation import (
     CircleTrajectory,
@@ -196,7 +196,7 @@ def test_gauss_newton_pass_matches_pseudo_inverse():
 def test_euler_update_matches_pin_integrate():
     """The compiled semi-implicit Euler update of 1-DoF joints against numpy and
     ``pin.integrate`` (revolute and prismatic joints: ``q (+) dt v = q + dt v``)."""
-    from hexapod_pin.core.simulation import euler_update
+    from hexapod_pin.core.integrator_kernels import euler_update
 
     model = pin.Model()
     j = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "a")
@@ -215,7 +215,7 @@ def test_rk4_stage_matches_numpy():
     renormalised, ``v + h vdot``, the weighted rates accumulated; the combination
     ``q + h rates``; the configuration rate of a free-flyer against a finite difference
     of ``pin.integrate`` (1-DoF joints: ``qdot = v``)."""
-    from hexapod_pin.core.simulation import configuration_rate, rk4_combine
+    from hexapod_pin.core.integrator_kernels import configuration_rate, rk4_combine
 
     model = pin.Model()
     ff = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "base")

@@ -40,9 +40,16 @@ import pinocchio as pin
 
 from ..errors import AssemblyError, InputError, SolverError
 from .closed_loop import ClosedLoopModel
-from .compiled import jit
 from .constraint_views import ConstraintErrors, gather_negated
 from .dynamics import FORWARD_METHODS, dynamics_of, independent_rows
+from .integrator_kernels import (
+    configuration_rate,
+    errors_gauss_newton_pass,
+    euler_update,
+    gauss_newton_pass,
+    rk4_combine,
+    rk4_stage,
+)
 
 #: closure residual above which a step is projected back onto the closures (m)
 PROJECTION_TOL = 1e-10
@@ -381,189 +388,6 @@ class ClosedLoopIntegrator:
             v_new[:] = v - _lstsq(jac_r, jac_r @ v)
             out[0] = float(np.max(np.abs(self._err), initial=0.0))
         return float(out[0]) if self._residual_fn is None else float(self._residual_fn(q))
-
-
-@jit
-def configuration_rate(q, v, joints, out):
-    """``qdot`` (nq,) into ``out`` for the velocity ``v`` (nv,) at ``q``: per row
-    ``(kind, idx_q, idx_v)`` of ``joints``, a 1-DoF joint (kind 0) ``qdot = v``, a
-    free-flyer (kind 1, q = (p, x, y, z, w), v = (v_lin, w) in the body frame)
-    ``p' = R v_lin`` and ``Q' = 1/2 Q (x) (w, 0)``."""
-    for k in range(joints.shape[0]):
-        iq, iv = joints[k, 1], joints[k, 2]
-        if joints[k, 0] == 0:
-            out[iq] = v[iv]
-            continue
-        x, y, z, w = q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6]
-        vx, vy, vz = v[iv], v[iv + 1], v[iv + 2]
-        wx, wy, wz = v[iv + 3], v[iv + 4], v[iv + 5]
-        # p' = R v_lin (R of the unit quaternion)
-        tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
-        out[iq] = vx + w * tx + (y * tz - z * ty)
-        out[iq + 1] = vy + w * ty + (z * tx - x * tz)
-        out[iq + 2] = vz + w * tz + (x * ty - y * tx)
-        out[iq + 3] = 0.5 * (w * wx + y * wz - z * wy)
-        out[iq + 4] = 0.5 * (w * wy + z * wx - x * wz)
-        out[iq + 5] = 0.5 * (w * wz + x * wy - y * wx)
-        out[iq + 6] = -0.5 * (x * wx + y * wy + z * wz)
-
-
-@jit
-def _normalise_quaternions(q, quat):
-    for k in range(quat.shape[0]):
-        i = quat[k]
-        inv = 1.0 / math.sqrt(q[i] ** 2 + q[i + 1] ** 2 + q[i + 2] ** 2 + q[i + 3] ** 2)
-        for j in range(4):
-            q[i + j] *= inv
-
-
-@jit
-def rk4_stage(q, v, qs, vs, vdot, h, w, joints, quat, q_out, v_out, rates):
-    """One RK4 stage from the step's start ``(q, v)`` with the rates of the stage state
-    ``(qs, vs)``: ``q_out = q + h qdot(qs, vs)`` (nq,; the quaternions starting at the
-    indices ``quat`` renormalised) and ``v_out = v + h vdot`` (nv,); ``rates`` (nq + nv,)
-    accumulates ``w (qdot, vdot)``."""
-    nq = q.shape[0]
-    configuration_rate(qs, vs, joints, q_out)
-    for i in range(nq):
-        d = q_out[i]
-        rates[i] += w * d
-        q_out[i] = q[i] + h * d
-    for i in range(v.shape[0]):
-        rates[nq + i] += w * vdot[i]
-        v_out[i] = v[i] + h * vdot[i]
-    _normalise_quaternions(q_out, quat)
-
-
-@jit
-def euler_update(q, v, acc, dt, q_out, v_out):
-    """Semi-implicit Euler on 1-DoF joints (nq = nv): ``v_out = v + dt acc`` then
-    ``q_out = q + dt v_out``."""
-    for i in range(v.shape[0]):
-        v_out[i] = v[i] + dt * acc[i]
-        q_out[i] = q[i] + dt * v_out[i]
-
-
-@jit
-def rk4_combine(q, v, rates, h, quat, q_out, v_out):
-    """The RK4 update ``q_out = q + h rates[:nq]`` (quaternions renormalised) and
-    ``v_out = v + h rates[nq:]``."""
-    nq = q.shape[0]
-    for i in range(nq):
-        q_out[i] = q[i] + h * rates[i]
-    for i in range(v.shape[0]):
-        v_out[i] = v[i] + h * rates[nq + i]
-    _normalise_quaternions(q_out, quat)
-
-
-@jit
-def errors_gauss_newton_pass(views, jac, err, rows, v, step, v_new, out):
-    """:func:`gauss_newton_pass` on the errors gathered from the live views ``views``
-    (:func:`~hexapod_pin.core.constraint_views.gather_negated`, into ``err``)."""
-    gather_negated(views, err)
-    return gauss_newton_pass(jac, err, rows, v, step, v_new, out)
-
-
-@jit
-def gauss_newton_pass(jac, err, rows, v, step, v_new, out):
-    """One compiled projection pass on the rows ``rows`` of ``J`` (n_rows, nv) and of the
-    closure errors ``err``: ``step = -J_r^+ err_r`` and ``v_new = v - J_r^+ J_r v``
-    (minimum norm, one Cholesky factorisation of the Gram matrix ``J_r J_r^T`` for both).
-    ``out[0]`` = max-abs of ``err`` (all rows). Returns the larger relative miss of
-    ``J_r step = -err_r`` and ``J_r v_new = 0`` (small only when the solves were
-    accurate); ``inf`` when the Gram matrix is not numerically positive definite.
-
-    Each row's products run over the columns from its first to its last nonzero entry
-    (the entries outside are exact zeros: the same sums; a closure's row is zero on the
-    joints that move neither of its anchors)."""
-    n, nv = rows.shape[0], jac.shape[1]
-    lo = np.empty(n, dtype=np.int64)
-    hi = np.empty(n, dtype=np.int64)
-    rhs = np.empty((n, 2))
-    emax = 0.0
-    for k in range(err.shape[0]):
-        emax = max(emax, abs(err[k]))
-    out[0] = emax
-    jmax = 0.0
-    for i in range(n):
-        r = rows[i]
-        first, last = nv, 0
-        for k in range(nv):
-            a = jac[r, k]
-            if a != 0.0:
-                if first == nv:
-                    first = k
-                last = k + 1
-                jmax = max(jmax, abs(a))
-            elif math.isnan(a):                    # NaN: keep it in the sums
-                first = min(first, k)
-                last = max(last, k + 1)
-        lo[i], hi[i] = min(first, last), last
-        rhs[i, 0] = -err[r]
-        acc = 0.0
-        for k in range(lo[i], hi[i]):
-            acc += jac[r, k] * v[k]
-        rhs[i, 1] = acc
-    # lower Cholesky factor of the Gram matrix
-    low = np.empty((n, n))
-    for i in range(n):
-        ri = rows[i]
-        for j in range(i + 1):
-            rj = rows[j]
-            acc = 0.0
-            for k in range(max(lo[i], lo[j]), min(hi[i], hi[j])):
-                acc += jac[ri, k] * jac[rj, k]
-            for k in range(j):
-                acc -= low[i, k] * low[j, k]
-            if i == j:
-                if not acc > 0.0:
-                    return math.inf
-                low[i, i] = math.sqrt(acc)
-            else:
-                low[i, j] = acc / low[j, j]
-    # sol = G^-1 rhs: forward then backward substitution, both columns (in place)
-    sol = rhs.copy()
-    for c in range(2):
-        for i in range(n):
-            acc = sol[i, c]
-            for k in range(i):
-                acc -= low[i, k] * sol[k, c]
-            sol[i, c] = acc / low[i, i]
-        for i in range(n - 1, -1, -1):
-            acc = sol[i, c]
-            for k in range(i + 1, n):
-                acc -= low[k, i] * sol[k, c]
-            sol[i, c] = acc / low[i, i]
-    # step = J_r^T sol_0, v_new = v - J_r^T sol_1
-    for j in range(nv):
-        step[j] = 0.0
-        v_new[j] = v[j]
-    for i in range(n):
-        r = rows[i]
-        s0, s1 = sol[i, 0], sol[i, 1]
-        for k in range(lo[i], hi[i]):
-            step[k] += jac[r, k] * s0
-            v_new[k] -= jac[r, k] * s1
-    miss_s, miss_v, scale_s, scale_v = 0.0, 0.0, 0.0, 0.0
-    for i in range(n):
-        r = rows[i]
-        row_s = 0.0
-        row_v = 0.0
-        for k in range(lo[i], hi[i]):
-            row_s += jac[r, k] * step[k]
-            row_v += jac[r, k] * v_new[k]
-        miss_s = max(miss_s, abs(row_s - rhs[i, 0]))
-        miss_v = max(miss_v, abs(row_v))
-        scale_s = max(scale_s, abs(rhs[i, 0]))
-        scale_v = max(scale_v, abs(rhs[i, 1]))
-    vmax = 0.0
-    for j in range(nv):
-        vmax = max(vmax, abs(v[j]))
-    rel_s = miss_s / max(scale_s, 1e-300)
-    rel_v = miss_v / max(scale_v, jmax * vmax, 1e-300)
-    if not (math.isfinite(rel_s) and math.isfinite(rel_v)):
-        return math.inf
-    return max(rel_s, rel_v)
 
 
 def _lstsq(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
