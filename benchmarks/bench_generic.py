@@ -312,7 +312,7 @@ def bench_robot(name, clm, sample, n_states: int):
         if method == "pinocchio" and redundant:
             t_user, raw = paired(calls.raw_user, raw_fd)
             rows.append((name, clm.nv, f"{clm.n_rows}/{rank}", "raw, mu 1e-6, 5 iterations",
-                         t_user, raw, mj, err, 0, n_states))
+                         t_user, raw, mj, None, 0, n_states))
     # inverse dynamics
     sel = np.zeros((clm.nv, clm.n_actuated))
     sel[clm.actuated_v, np.arange(clm.n_actuated)] = 1.0

@@ -36,12 +36,12 @@ import numpy.typing as npt
 import pinocchio as pin
 import scipy.linalg
 
-from .closure_terms import ClosureFrames, closure_drift, weld_jacobian
-from .constraint_views import ConstraintErrors
-from .description import WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro, load_loops
 from ..errors import AssemblyError, DescriptionError, InputError
 from .checks import as_array, count, real_number
 from .closure_motion import complete, project
+from .closure_terms import ClosureFrames, closure_drift, weld_jacobian
+from .constraint_views import ConstraintErrors
+from .description import WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro, load_loops
 from .frame_ik import FrameIKResult, frame_inverse_kinematics
 
 _EPS = np.finfo(float).eps

@@ -56,9 +56,12 @@ def joint_wrenches(model: pin.Model, data: pin.Data, frames: Sequence[ClosureFra
                    q: np.ndarray, v: np.ndarray, a: np.ndarray, multipliers: np.ndarray,
                    fext: Mapping[int, pin.Force] | None = None
                    ) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """Spatial force transmitted by every joint of the tree (see
-    :meth:`hexapod_pin.core.dynamics.ClosedLoopDynamics.joint_wrenches`); runs on
-    ``data``."""
+    """Spatial force transmitted by every joint of the tree: ``data.f[j]`` after
+    ``pin.rnea`` with the closure forces and ``fext`` applied, the force (N) and moment
+    (N m) that the parent body exerts on the child body of joint ``j``, in the joint's
+    LOCAL frame (see :meth:`hexapod_pin.core.dynamics.ClosedLoopDynamics.joint_wrenches`,
+    which checks the inputs; none here). Runs on ``data``; returns the wrenches by joint
+    name and the generalised force ``tau`` (nv,) that rnea needs with those forces."""
     pin.forwardKinematics(model, data, q)
     pin.updateFramePlacements(model, data)
     forces = pin.StdVec_Force()

@@ -342,15 +342,15 @@ class ClosedLoopDynamics:
         with redundant rows, the minimum-norm ones (the proximal multipliers are
         minimum-norm only up to the conditioning of the regularised system)."""
         if rank == self.n_rows:
-            return TreeForwardDynamics(acc, LazyMultipliers(self.conversion.from_pinocchio, q, lam_pin), "pinocchio",
-                                       "solved", iters, rank, -1.0)
+            lazy = LazyMultipliers(self.conversion.from_pinocchio, q, lam_pin)
+            return TreeForwardDynamics(acc, lazy, "pinocchio", "solved", iters, rank, -1.0)
         status = _REDUNDANT_STATUS.get(iters)
         if status is None:
             status = _REDUNDANT_STATUS[iters] = (
                 f"solved (redundant rows: proximal mu={PIN_PROX_MU:g}, {iters} "
                 "iterations; minimum-norm multipliers)")
-        return TreeForwardDynamics(acc, LazyMultipliers(self.conversion.minimum_norm, q, v, acc, tau), "pinocchio",
-                                   status, iters, rank, -1.0)
+        lazy = LazyMultipliers(self.conversion.minimum_norm, q, v, acc, tau)
+        return TreeForwardDynamics(acc, lazy, "pinocchio", status, iters, rank, -1.0)
 
     def forward_actuated(self, q: npt.ArrayLike, v: npt.ArrayLike,
                          actuator_forces: npt.ArrayLike, tau_ext: npt.ArrayLike | None = None,
@@ -392,10 +392,11 @@ class ClosedLoopDynamics:
             if prox is not None:         # the short path: the result with lazy multipliers
                 rank = self.closure_rank(q)  # known: the model has a verified call
                 if rank == self.n_rows:      # Pinocchio's multipliers, converted when read
+                    lazy = LazyMultipliers(self.conversion.from_pinocchio, q.copy(),
+                                           self._v_lambda.copy())
                     return _FORWARD_NEW(TreeForwardDynamics, (
-                        self._v_ddq.copy(), LazyMultipliers(self.conversion.from_pinocchio, q.copy(),
-                                        self._v_lambda.copy()),
-                        "pinocchio", "solved", prox.iter, rank, -1.0))
+                        self._v_ddq.copy(), lazy, "pinocchio", "solved", prox.iter, rank,
+                        -1.0))
                 return self.pinocchio_result_of(q.copy(), v.copy(), tau.copy(),
                                                 self._v_ddq.copy(), self._v_lambda.copy(),
                                                 prox.iter, rank)
@@ -509,7 +510,8 @@ class ClosedLoopDynamics:
 
     # -- joint reaction wrenches ------------------------------------------------------------
     def joint_wrenches(self, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike,
-                       multipliers: np.ndarray, fext: Mapping[int, pin.Force] | None = None
+                       multipliers: npt.ArrayLike,
+                       fext: Mapping[int, pin.Force] | None = None
                        ) -> tuple[dict[str, np.ndarray], np.ndarray]:
         """Spatial force transmitted by every joint of the tree.
 

@@ -7,8 +7,9 @@ Gauss-Newton pass of the projection onto the closures (the step and the velocity
 projection on the independent rows, with one factorisation). Conventions: Pinocchio's
 ``q`` / ``v``; a free-flyer's ``q = (p, x, y, z, w)`` and ``v = (v_lin, w)`` in the body
 frame; ``joints`` rows ``(kind, idx_q, idx_v)`` with kind 0 a 1-DoF joint and 1 a
-free-flyer. Numba-compiled, allocation-free; they return statuses or residuals and the
-integrator raises.
+free-flyer. Numba-compiled; the updates write into the output arrays they are given, the
+Gauss-Newton passes return the relative miss of their solve (``inf`` when not finite) and
+the integrator verifies and raises.
 """
 
 from __future__ import annotations
