@@ -58,7 +58,9 @@ class TreeForwardDynamics(NamedTuple):
         method: the route used ("pinocchio", "qp" or "kkt").
         status: "solved", or a note on how it was solved (redundant rows, fallback,
             a ProxSuite status other than solved whose residuals were verified).
-        iterations: solver iterations (0 for a direct solve).
+        iterations: solver iterations: Pinocchio's proximal iterations for the
+            "pinocchio" route (1 for its direct solve), ProxSuite's for "qp", 0 for
+            "kkt" (and when the KKT route answered for the "pinocchio" route).
         rank: rank of ``J_c`` assumed by the solve.
         constraint_residual: max-abs of ``J_c a + gamma`` (m/s^2); -1.0 (not
             computed, never NaN) for the "pinocchio" route, which verifies the same
