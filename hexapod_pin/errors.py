@@ -90,7 +90,9 @@ class AssemblyError(HexapodPinError, RuntimeError):
 
 
 class UnreachablePoseError(HexapodPinError, ValueError):
-    """A leg cannot reach its platform point from its rail.
+    """A leg cannot reach its platform point from its rail (or, for a robot loaded from a
+    description, no configuration closes the loops at the pose: ``reason`` says why, and
+    ``carriages`` / ``shortfall`` are empty).
 
     Attributes:
         carriages: indices of the carriages whose leg cannot reach.
@@ -98,12 +100,14 @@ class UnreachablePoseError(HexapodPinError, ValueError):
             from the platform point to the rail line minus ``leg_length``.
     """
 
-    def __init__(self, carriages: Iterable[int], shortfall: Iterable[float]):
+    def __init__(self, carriages: Iterable[int], shortfall: Iterable[float],
+                 reason: str | None = None):
         self.carriages = [int(c) for c in carriages]
         self.shortfall = [float(s) for s in shortfall]
         parts = ", ".join(f"carriage {c} short by {s:.6g} m"
                           for c, s in zip(self.carriages, self.shortfall))
-        super().__init__(f"pose unreachable: {parts}")
+        super().__init__(f"pose unreachable: {parts}" if reason is None
+                         else f"pose unreachable: {reason}")
 
 
 class StrokeLimitError(HexapodPinError, ValueError):

@@ -82,3 +82,58 @@ def singularity_measures(jacobian: np.ndarray | None, cosines: np.ndarray,
     return SingularityMeasures(sv_j, condition_number(sv_j), float(cosines[worst]), worst,
                                float(sv_a[-1]), sv_a, float(characteristic_length),
                                TYPE_I_TOL, TYPE_II_TOL)
+
+
+#: the type-I threshold of a robot loaded from a description
+#: (:class:`~hexapod_pin.core.robot.ClosedLoopRobot`), on its own measure: the inverse
+#: condition number of the scaled map ``A_hat`` from the closures' null space to the
+#: platform twist (:func:`tree_singularity_measures`)
+TREE_TYPE_I_TOL = 1e-6
+#: the type-II threshold of such a robot: the inverse condition number of the scaled map
+#: ``B_hat`` from the closures' null space to the actuator velocities
+TREE_TYPE_II_TOL = 1e-6
+
+
+def _inverse_condition(mat: np.ndarray, columns: int) -> tuple[float, np.ndarray]:
+    """``sigma_min / sigma_max`` of ``mat`` as a map from ``R^columns`` (zero singular
+    values appended where ``mat`` has fewer rows than columns) and its singular values."""
+    sv = np.linalg.svd(mat, compute_uv=False) if mat.size else np.zeros(0)
+    full = np.concatenate([sv, np.zeros(max(0, columns - sv.size))])
+    if not full.size or full[0] <= 0.0:
+        return 0.0, full
+    return float(full[-1] / full[0]), full
+
+
+def tree_singularity_measures(a_hat: np.ndarray, b_hat: np.ndarray,
+                              jacobian: np.ndarray | None, characteristic_length: float
+                              ) -> SingularityMeasures:
+    """The measures of a robot loaded from a description (no closed form).
+
+    With ``N`` an orthonormal basis of the closures' null space in scaled coordinates
+    (every angular velocity coordinate times the characteristic length ``L``, so that all
+    are m/s), ``A_hat = W T N`` (dim, m) maps a null-space motion to the platform twist
+    (its angular rows times ``L``) and ``B_hat`` (n_act, m) to the actuator velocities
+    (revolute actuators times ``L``). Both are dimensionless; the measures are their
+    inverse condition numbers in [0, 1], as maps from ``R^m`` (a map with fewer rows than
+    ``m`` has zero singular values): ``type_one`` for ``A_hat`` (0: the actuators can move
+    with the platform held, a type-I singularity), ``type_two`` for ``B_hat`` (0: the
+    platform can move with the actuators locked, a type-II singularity).
+    ``type_one_actuator`` is the actuator that moves most along the motion that
+    ``A_hat`` loses. Thresholds: :data:`TREE_TYPE_I_TOL`, :data:`TREE_TYPE_II_TOL`.
+
+    Args:
+        a_hat: (dim, m).
+        b_hat: (n_act, m).
+        jacobian: ``J = B A^-1`` (n_act, dim), or None where ``A`` is not invertible.
+        characteristic_length: ``L`` (m).
+    """
+    columns = a_hat.shape[1]
+    type_one, _ = _inverse_condition(a_hat, columns)
+    type_two, sv_b = _inverse_condition(b_hat, columns)
+    worst = 0
+    if columns and a_hat.size:
+        _, _, vt = np.linalg.svd(a_hat, full_matrices=True)
+        worst = int(np.argmax(np.abs(b_hat @ vt[-1])))
+    sv_j = None if jacobian is None else np.linalg.svd(jacobian, compute_uv=False)
+    return SingularityMeasures(sv_j, condition_number(sv_j), type_one, worst, type_two, sv_b,
+                               float(characteristic_length), TREE_TYPE_I_TOL, TREE_TYPE_II_TOL)

@@ -1,0 +1,428 @@
+"""Dynamics of a robot loaded from a description, in platform coordinates, from the tree
+routes of :mod:`hexapod_pin.core.dynamics` and the maps of
+:mod:`hexapod_pin.core.platform_map` (no closed form).
+
+A platform state ``(pose, twist, twist_dot)`` becomes a tree state: ``q`` by the
+inverse kinematics, ``v = T twist`` (``T = N A^-1``), ``a = T twist_dot + a_0`` keeping
+the closures; a wrench ``W`` on the platform becomes ``tau_ext = P^T W`` with ``P`` the
+platform's selected twist rows. Then:
+
+* inverse dynamics: :func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree` ("kkt" or
+  "qp", with the robot's force bounds when ``bounded``);
+* forward dynamics: "nullspace" solves the reduced equation
+  ``M_x twist_dot + h_x = J^T u + W`` (``M_x = T^T M T``, ``h_x = T^T (M a_0 + h)``) and
+  is verified on the tree equation of motion with least-squares multipliers; "pinocchio",
+  "qp" and "kkt" are the tree routes of
+  :func:`~hexapod_pin.core.dynamics.forward_dynamics_tree`;
+* ``closure_forces``: per closure, the force (N, world axes) that the body of ``frame2``
+  exerts on the body of ``frame1`` (a weld: the force part of its spatial force), shape
+  (n_closures, 3);
+* inverse-dynamics derivatives: ``d tau / d twist_dot = J^-T M_x`` and
+  ``d tau / d wrench = -J^-T`` exactly; ``d tau / d pose`` and ``d tau / d twist`` by
+  Richardson-extrapolated central differences of the inverse dynamics, whose error
+  estimate is checked (numerical, about 1e-8 relative; the analytic derivatives of the
+  closed-loop dynamics are a later issue).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Mapping
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ..errors import (ActuatorSaturationError, BatchActuatorSaturationError,
+                      BatchSingularityError, BatchUnreachablePoseError, InputError,
+                      SingularityError, SolverError, UnreachablePoseError)
+from .checks import as_array, max_abs
+from .closed_loop import ClosedLoopModel
+from .closure_forces import closure_world_forces
+from .dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
+from .platform_map import VelocityMaps, solve_checked_square
+from .pose import euler_rates_matrix
+from .results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
+                      ComputedDetails, Energies, ForwardDynamicsResult,
+                      InverseDynamicsDerivatives, InverseDynamicsResult, LazyConditioning,
+                      ReducedDynamics)
+from .robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS
+from .robot_kinematics import RobotKinematics
+
+#: relative residual of the tree equation of motion accepted from the "nullspace" route
+NULLSPACE_RTOL = 1e-9
+#: relative error estimate accepted from the numerical derivatives
+DERIVATIVE_RTOL = 1e-6
+
+
+class TreeState(NamedTuple):
+    """A platform state on the tree: configuration, maps, velocity (see module doc)."""
+
+    q: np.ndarray
+    maps: VelocityMaps
+    v: np.ndarray
+    vmap: np.ndarray
+
+
+class TreeDetails:
+    """The parts of a result computed on first access (:class:`ResultDetails`)."""
+
+    def __init__(self, dyn: "RobotDynamics", q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                 multipliers: np.ndarray, residual: float, wrench: np.ndarray | None,
+                 wrenches: bool) -> None:
+        self.dyn, self.q, self.v, self.a = dyn, q, v, a
+        self.multipliers_, self.residual_ = multipliers, residual
+        self.wrench, self.wrenches = wrench, wrenches
+
+    def multipliers(self) -> np.ndarray:
+        return self.multipliers_
+
+    def closure_forces(self) -> np.ndarray:
+        return self.dyn.closure_forces(self.q, self.multipliers_)
+
+    def joint_wrenches(self) -> Mapping[str, np.ndarray]:
+        if not self.wrenches:
+            return {}
+        return self.dyn.joint_wrenches(self.q, self.v, self.a, self.multipliers_, self.wrench)
+
+    def residual(self) -> float:
+        return float(self.residual_)
+
+
+class RobotDynamics:
+    """Dynamics of a :class:`~hexapod_pin.core.robot.ClosedLoopRobot` (module docstring).
+
+    Args:
+        clm: the closed-loop model.
+        kinematics: the robot's :class:`RobotKinematics`.
+        max_force: actuator force bound (N or N m), scalar or (n_act,); inf: none.
+        lock: the robot's lock (results compute their conditioning under it).
+    """
+
+    def __init__(self, clm: ClosedLoopModel, kinematics: RobotKinematics,
+                 max_force: float | np.ndarray, lock: threading.RLock) -> None:
+        self.clm = clm
+        self.kin = kinematics
+        self.platform = kinematics.platform
+        self.model = clm.model
+        self.data = self.model.createData()
+        self.max_force = max_force
+        self.lock = lock
+        self.dim = self.platform.dim
+        self.n_act = clm.actuated_v.size
+
+    # -- states -------------------------------------------------------------------------
+    def state(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+              branch: npt.ArrayLike | None) -> TreeState:
+        """The tree state of a platform state, refusing singular poses."""
+        twist = as_array(twist, (self.dim,), "twist")
+        q = self.kin.configuration(pose, branch)
+        maps, _ = self.kin.regular_maps(q)
+        vmap = self.kin.velocity_map(maps)
+        return TreeState(q, maps, vmap @ twist, vmap)
+
+    def external(self, state: TreeState, wrench: npt.ArrayLike | None
+                 ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """``(W, tau_ext)``: the checked wrench (dim,) and ``P^T W`` (nv,) (None, None)."""
+        if wrench is None:
+            return None, None
+        w = as_array(wrench, (self.dim,), "wrench")
+        return w, state.maps.twist_rows.T @ w
+
+    def conditioning(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None
+                     ) -> LazyConditioning:
+        pose = as_array(pose, (self.dim,), "pose").copy()
+        seed = None if branch is None else self.kin.seed(branch).copy()
+        return LazyConditioning(lambda p, b: self.kin.singularity(p, b), pose, seed,
+                                self.lock)       # type: ignore[arg-type]
+
+    def bounds(self, bounded: bool) -> np.ndarray | None:
+        bound = np.broadcast_to(np.asarray(self.max_force, dtype=float), (self.n_act,))
+        if not bounded or not np.isfinite(bound).any():
+            return None
+        return np.array(bound)
+
+    # -- inverse dynamics -----------------------------------------------------------------
+    def inverse_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
+                         branch: npt.ArrayLike | None = None, method: str = "kkt",
+                         bounded: bool = True,
+                         joint_wrenches: bool = True) -> InverseDynamicsResult:
+        """Actuator forces (n_act,) that produce a platform motion (module docstring).
+
+        Args:
+            pose: (dim,) (m, rad).
+            twist: (dim,), world axes.
+            twist_dot: (dim,) its time derivative.
+            wrench: (dim,) ON the platform, world axes, moment about its origin; None: 0.
+            branch: None or a start configuration (nq,) (see :mod:`robot_kinematics`).
+            method: "kkt" or "qp" (:func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree`).
+            bounded: enforce ``|u| <= geometry.max_actuator_force``.
+            joint_wrenches: whether ``result.joint_wrenches`` is computed on access.
+
+        Raises:
+            InputError: bad shapes, NaN / inf, unknown method.
+            UnreachablePoseError, SingularityError: see the kinematics.
+            ActuatorSaturationError: the bounds cannot be met (carries the needed forces).
+            SolverError: an answer misses its equations.
+        """
+        if method not in INVERSE_DYNAMICS_METHODS:
+            raise InputError("method", method, f"expected one of {INVERSE_DYNAMICS_METHODS}")
+        twist_dot = as_array(twist_dot, (self.dim,), "twist_dot")
+        st = self.state(pose, twist, branch)
+        w, tau_ext = self.external(st, wrench)
+        a, _ = self.kin.tree_acceleration(st.maps, st.v, twist_dot)
+        res = inverse_dynamics_tree(self.clm, st.q, st.v, a, tau_ext, self.bounds(bounded),
+                                    method)
+        details = TreeDetails(self, st.q, st.v, a, res.multipliers, res.residual, w,
+                              joint_wrenches)
+        return InverseDynamicsResult(res.actuator_forces.copy(), st.q, st.v, a, method,
+                                     res.status, res.iterations, details,
+                                     self.conditioning(pose, branch))
+
+    def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
+                      branch: npt.ArrayLike | None = None,
+                      bounded: bool = True) -> npt.NDArray[np.float64]:
+        """Actuator forces (n_act,) holding the platform at rest against gravity and
+        ``wrench`` (:meth:`inverse_dynamics` at zero twist and twist_dot)."""
+        zero = np.zeros(self.dim)
+        return self.inverse_dynamics(pose, zero, zero, wrench, branch=branch,
+                                     bounded=bounded, joint_wrenches=False).actuator_forces
+
+    # -- forward dynamics -----------------------------------------------------------------
+    def forward_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         actuator_forces: npt.ArrayLike, wrench: npt.ArrayLike | None = None,
+                         *, branch: npt.ArrayLike | None = None,
+                         method: str = "nullspace") -> ForwardDynamicsResult:
+        """Platform acceleration produced by actuator forces (n_act,) (module docstring).
+
+        Raises:
+            InputError: bad shapes, NaN / inf, unknown method.
+            UnreachablePoseError, SingularityError: see the kinematics.
+            SolverError: the answer misses the equation of motion or the closures.
+        """
+        if method not in FORWARD_DYNAMICS_METHODS:
+            raise InputError("method", method, f"expected one of {FORWARD_DYNAMICS_METHODS}")
+        u = as_array(actuator_forces, (self.n_act,), "actuator_forces")
+        st = self.state(pose, twist, branch)
+        w, tau_ext = self.external(st, wrench)
+        if method == "nullspace":
+            a, lam, status, iterations = self._nullspace(st, u, w, tau_ext)
+        else:
+            res = forward_dynamics_tree(self.clm, st.q, st.v, u, tau_ext, method)
+            a, lam, status, iterations = res.a.copy(), res.multipliers, res.status, \
+                res.iterations
+        _, bias = self.platform.frame_bias(st.q, st.v)
+        twist_dot = st.maps.twist_rows @ a + bias
+        details = ComputedDetails(lam, self.closure_forces(st.q, lam))
+        return ForwardDynamicsResult(twist_dot, a[self.clm.actuated_v].copy(), a, method,
+                                     status, iterations, details,
+                                     self.conditioning(pose, branch))
+
+    def _nullspace(self, st: TreeState, u: np.ndarray, w: np.ndarray | None,
+                   tau_ext: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, str, int]:
+        mass, bias_x, jac, a0, mmat, nle = self._reduced(st)
+        rhs = jac.T @ u - bias_x + (0.0 if w is None else w)
+        twist_dot = solve_checked_square(mass, rhs, "reduced dynamics")
+        a = st.vmap @ twist_dot + a0
+        # verified on the tree equation of motion: M a + h - S^T u - tau_ext = J_c^T lam
+        force = mmat @ a + nle
+        force[self.clm.actuated_v] -= u
+        if tau_ext is not None:
+            force -= tau_ext
+        jac_c = st.maps.jac_c
+        lam = np.linalg.lstsq(jac_c.T, force, rcond=None)[0] if jac_c.size else \
+            np.zeros(0)
+        miss = max_abs(jac_c.T @ lam - force)
+        closure = max_abs(jac_c @ a + self.platform.frame_bias(st.q, st.v)[0])
+        scale = max(1.0, max_abs(mmat @ a), max_abs(nle), max_abs(u))
+        if not (miss <= NULLSPACE_RTOL * scale and closure <= NULLSPACE_RTOL
+                * max(1.0, max_abs(a))):
+            raise SolverError("nullspace", "unverified",
+                              f"equation of motion residual {miss / scale:.3e} (relative), "
+                              f"closure residual {closure:.3e}")
+        return a, lam, "solved", 0
+
+    # -- reduced dynamics and energies -------------------------------------------------------
+    def _reduced(self, st: TreeState):
+        model, data = self.model, self.data
+        mmat = pin.crba(model, data, st.q)
+        mmat = np.triu(mmat) + np.triu(mmat, 1).T
+        nle = pin.nonLinearEffects(model, data, st.q, st.v).copy()
+        _, a0 = self.kin.tree_acceleration(st.maps, st.v, np.zeros(self.dim))
+        vmap = st.vmap
+        mass = vmap.T @ mmat @ vmap
+        mass = 0.5 * (mass + mass.T)
+        bias = vmap.T @ (mmat @ a0 + nle)
+        jac = vmap[self.clm.actuated_v]
+        return mass, bias, jac, a0, mmat, nle
+
+    def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         branch: npt.ArrayLike | None = None) -> ReducedDynamics:
+        """``J^T u + wrench = M_x twist_dot + h_x`` at a platform state (module docstring);
+        ``velocity_map`` is ``T`` (nv, dim)."""
+        st = self.state(pose, twist, branch)
+        mass, bias, jac, _, _, _ = self._reduced(st)
+        return ReducedDynamics(mass, bias, jac, st.vmap)
+
+    def energies(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                 branch: npt.ArrayLike | None = None) -> Energies:
+        """Kinetic ``1/2 v^T M v`` and gravity potential energy of the whole mechanism (J)
+        at a platform state (Pinocchio's potential: zero with every centre of mass at
+        height zero)."""
+        st = self.state(pose, twist, branch)
+        kinetic = float(pin.computeKineticEnergy(self.model, self.data, st.q, st.v))
+        potential = float(pin.computePotentialEnergy(self.model, self.data, st.q))
+        return Energies(kinetic, potential, kinetic + potential)
+
+    # -- forces ----------------------------------------------------------------------------
+    def closure_forces(self, q: np.ndarray, multipliers: np.ndarray) -> np.ndarray:
+        """(n_closures, 3): the force of each closure (module docstring)."""
+        pin.framesForwardKinematics(self.model, self.data, q)
+        forces = closure_world_forces(self.clm.closure_frames, multipliers, self.data)
+        return np.array([f.linear for f in forces]).reshape(len(forces), 3)
+
+    def joint_wrenches(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                       multipliers: np.ndarray,
+                       wrench: np.ndarray | None) -> dict[str, np.ndarray]:
+        """Joint reaction wrenches (see ``ClosedLoopDynamics.joint_wrenches``), with the
+        platform wrench applied."""
+        fext = None
+        if wrench is not None:
+            full = np.zeros(6)
+            full[self.platform.sel] = wrench
+            pin.framesForwardKinematics(self.model, self.data, q)
+            frame = self.model.frames[self.platform.frame]
+            origin = self.data.oMf[self.platform.frame].translation
+            world = pin.Force(full[:3], full[3:] + np.cross(origin, full[:3]))
+            fext = {frame.parentJoint: self.data.oMi[frame.parentJoint].actInv(world)}
+        out, _ = dynamics_of(self.clm).joint_wrenches(q, v, a, multipliers, fext)
+        return out
+
+    # -- derivatives -----------------------------------------------------------------------
+    def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                                     twist_dot: npt.ArrayLike,
+                                     wrench: npt.ArrayLike | None = None
+                                     ) -> InverseDynamicsDerivatives:
+        """Derivatives of the (unbounded) inverse-dynamics forces (module docstring).
+
+        Raises:
+            SolverError: the error estimate of a numerical derivative exceeds
+                :data:`DERIVATIVE_RTOL` (relative).
+        """
+        pose = as_array(pose, (self.dim,), "pose")
+        twist = as_array(twist, (self.dim,), "twist")
+        twist_dot = as_array(twist_dot, (self.dim,), "twist_dot")
+        w = np.zeros(self.dim) if wrench is None else as_array(wrench, (self.dim,), "wrench")
+        q0 = self.kin.configuration(pose)
+        st = self.state(pose, twist, None)
+        mass, _, jac, _, _, _ = self._reduced(st)
+        jt_inv = solve_checked_square(jac.T, np.eye(self.dim), "J^T")
+
+        def tau(p: np.ndarray, t: np.ndarray) -> np.ndarray:
+            return self.inverse_dynamics(p, t, twist_dot, w, branch=q0, bounded=False,
+                                         joint_wrenches=False).actuator_forces
+
+        base = tau(pose, twist)
+        step_p = 1e-4 * max(1.0, self.platform.length)
+        d_pose = self._richardson(lambda h, k: tau(pose + h * np.eye(self.dim)[k], twist),
+                                  step_p, base)
+        d_twist = self._richardson(lambda h, k: tau(pose, twist + h * np.eye(self.dim)[k]),
+                                   1e-3 * max(1.0, max_abs(twist)), base)
+        d_world = d_pose.copy()
+        if self.dim == 6:
+            rates = np.eye(6)
+            rates[3:, 3:] = euler_rates_matrix(pose[3:])
+            d_world = np.linalg.solve(rates.T, d_pose.T).T
+        return InverseDynamicsDerivatives(base, d_pose, d_world, d_twist, jt_inv @ mass,
+                                          -jt_inv)
+
+    def _richardson(self, value, step: float, base: np.ndarray) -> np.ndarray:
+        out = np.empty((self.n_act, self.dim))
+        for k in range(self.dim):
+            wide = (value(step, k) - value(-step, k)) / (2 * step)
+            fine = (value(step / 2, k) - value(-step / 2, k)) / step
+            out[:, k] = (4.0 * fine - wide) / 3.0
+            error = max_abs(fine - wide) / 3.0 ** 2      # O(h^4) after extrapolation
+            scale = max(1.0, max_abs(base), max_abs(out[:, k]))
+            if error > DERIVATIVE_RTOL * scale:
+                raise SolverError("inverse_dynamics_derivatives", "unverified",
+                                  f"error estimate {error:.3e} of column {k}")
+        return out
+
+    # -- batches -------------------------------------------------------------------------
+    def _each(self, name: str, n: int, call):
+        out = []
+        for k in range(n):
+            try:
+                out.append(call(k))
+            except ActuatorSaturationError as exc:
+                raise BatchActuatorSaturationError(k, exc.needed, exc.limit) from exc
+            except UnreachablePoseError as exc:
+                raise BatchUnreachablePoseError(k, exc.carriages, exc.shortfall) from exc
+            except SingularityError as exc:
+                raise BatchSingularityError(k, exc.what, exc.sigma_min, exc.threshold) from exc
+        return out
+
+    def _arrays(self, n_or_first, *arrays):
+        first = as_array(n_or_first, (self.dim,), "poses", batch=True)
+        n = len(first)
+        out = [first]
+        for name, value in arrays:
+            if value is None:
+                out.append(None)
+                continue
+            arr = as_array(value, (self.dim,), name, batch=True)
+            if len(arr) != n:
+                raise InputError(name, value, f"expected {n} rows, got {len(arr)}")
+            out.append(arr)
+        return n, out
+
+    def inverse_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                               twist_dots: npt.ArrayLike, wrenches: npt.ArrayLike | None = None,
+                               *, bounded: bool = True) -> BatchInverseDynamics:
+        """:meth:`inverse_dynamics` of N states (rows of (N, dim) arrays); errors name the
+        first offending row (``index``)."""
+        n, (p, t, td, w) = self._arrays(poses, ("twists", twists), ("twist_dots", twist_dots),
+                                        ("wrenches", wrenches))
+        res = self._each("inverse_dynamics", n, lambda k: self.inverse_dynamics(
+            p[k], t[k], td[k], None if w is None else w[k], bounded=bounded,
+            joint_wrenches=False))
+        forces = np.array([r.actuator_forces for r in res]).reshape(n, self.n_act)
+        closure = np.array([r.closure_forces for r in res]).reshape(
+            n, len(self.clm.closures), 3)
+        return BatchInverseDynamics(forces, closure, np.array([r.residual for r in res]))
+
+    def forward_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                               actuator_forces: npt.ArrayLike,
+                               wrenches: npt.ArrayLike | None = None) -> BatchForwardDynamics:
+        """:meth:`forward_dynamics` ("nullspace") of N states."""
+        n, (p, t, w) = self._arrays(poses, ("twists", twists), ("wrenches", wrenches))
+        u = as_array(actuator_forces, (self.n_act,), "actuator_forces", batch=True)
+        if len(u) != n:
+            raise InputError("actuator_forces", actuator_forces, f"expected {n} rows")
+        res = self._each("forward_dynamics", n, lambda k: self.forward_dynamics(
+            p[k], t[k], u[k], None if w is None else w[k]))
+        return BatchForwardDynamics(
+            np.array([r.twist_dot for r in res]).reshape(n, self.dim),
+            np.array([r.actuator_accelerations for r in res]).reshape(n, self.n_act),
+            np.array([r.closure_forces for r in res]).reshape(n, len(self.clm.closures), 3))
+
+    def static_forces_batch(self, poses: npt.ArrayLike, wrenches: npt.ArrayLike | None = None,
+                            *, bounded: bool = True) -> npt.NDArray[np.float64]:
+        """:meth:`static_forces` of N poses: (N, n_act)."""
+        n, (p, w) = self._arrays(poses, ("wrenches", wrenches))
+        res = self._each("static_forces", n, lambda k: self.static_forces(
+            p[k], None if w is None else w[k], bounded=bounded))
+        return np.array(res).reshape(n, self.n_act)
+
+    def reduced_dynamics_batch(self, poses: npt.ArrayLike,
+                               twists: npt.ArrayLike) -> BatchReducedDynamics:
+        """:meth:`reduced_dynamics` of N states."""
+        n, (p, t) = self._arrays(poses, ("twists", twists))
+        res = self._each("reduced_dynamics", n, lambda k: self.reduced_dynamics(p[k], t[k]))
+        return BatchReducedDynamics(
+            np.array([r.mass_matrix for r in res]).reshape(n, self.dim, self.dim),
+            np.array([r.bias for r in res]).reshape(n, self.dim),
+            np.array([r.jacobian for r in res]).reshape(n, self.n_act, self.dim))
