@@ -23,6 +23,7 @@ from .core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchRedu
                            Energies, ForwardDynamicsResult, InverseDynamicsDerivatives,
                            InverseDynamicsResult, InverseKinematicsBatch, JacobianBatch,
                            ReducedDynamics, SingularityMeasures)
+from .core.robot import ClosedLoopRobot, RobotSpec
 from .core.robot_api import ParallelRobot
 from .errors import (ActuatorSaturationError, ArgumentTypeError, AssemblyError,
                      BatchActuatorSaturationError, BatchSingularityError, BatchUnreachablePoseError, DescriptionError,
@@ -34,6 +35,7 @@ from .hexapod.geometry import ChainGeometry, HexapodGeometry
 from .hexapod.kinematics import LegMotion
 from .hexapod.robot import Hexapod
 from .loaders import robots
+from .loaders.any_robot import load_robot
 from .loaders.parallel_robots import load_parallel_robot
 from .planar.assembly_modes import AssemblyPolynomial
 from .planar.geometry import PlanarGeometry
@@ -45,6 +47,7 @@ __all__ = [
     # robots
     "Hexapod", "HexapodGeometry", "ChainGeometry", "LegMotion", "Planar3PRR", "PlanarGeometry",
     "AssemblyPolynomial", "ParallelRobot", "load_parallel_robot", "robots",
+    "ClosedLoopRobot", "RobotSpec", "load_robot",
     # the generic core
     "ClosedLoopModel", "AssemblyResult", "RankInfo", "ClosureSpec", "LoopsSpec",
     "expand_xacro", "load_loops", "parse_loops", "urdf_dir",

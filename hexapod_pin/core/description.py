@@ -68,11 +68,34 @@ class ClosureSpec:
 
 
 @dataclass(frozen=True)
+class RobotSection:
+    """The optional ``robot:`` section of a loops file: how
+    :func:`hexapod_pin.load_robot` makes the model a parallel robot (each entry may be
+    overridden by the call's arguments).
+
+    Attributes:
+        platform: the platform frame's name, or None.
+        pose_axes: the pose components (a subset of ``x, y, z, roll, pitch, yaw`` in that
+            order), or None (all six).
+        home: the home configuration (nq,) as numbers, or None.
+        max_actuator_force: a bound (N or N m), a list of one per actuator, or None (the
+            effort limits of the description).
+    """
+
+    platform: str | None = None
+    pose_axes: tuple[str, ...] | None = None
+    home: tuple[float, ...] | None = None
+    max_actuator_force: float | tuple[float, ...] | None = None
+
+
+@dataclass(frozen=True)
 class LoopsSpec:
-    """A parsed loops description: closures and actuated joint names."""
+    """A parsed loops description: closures, actuated joint names and the optional
+    ``robot:`` section (:class:`RobotSection`)."""
 
     closures: tuple[ClosureSpec, ...]
     actuated: tuple[str, ...]
+    robot: RobotSection | None = None
 
 
 def urdf_dir() -> Path:
@@ -293,7 +316,7 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
         raise DescriptionError(source, f"malformed YAML: {exc}") from None
     if not isinstance(data, dict):
         raise DescriptionError(source, "the loops description must be a YAML mapping")
-    unknown = set(data) - {"closures", "actuated"}
+    unknown = set(data) - {"closures", "actuated", "robot"}
     if unknown:
         raise DescriptionError(source, f"unknown keys {sorted(unknown)}", sorted(unknown)[0])
     raw_closures = data.get("closures", [])
@@ -330,7 +353,45 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
     duplicated = sorted({n for n in names if names.count(n) > 1})
     if duplicated:
         raise DescriptionError(source, "duplicate closure names", duplicated[0])
-    return LoopsSpec(tuple(closures), tuple(actuated))
+    return LoopsSpec(tuple(closures), tuple(actuated), _robot_section(data.get("robot"), source))
+
+
+def _numbers(value: object, source: str, key: str) -> tuple[float, ...]:
+    """A list of real numbers, as floats (DescriptionError otherwise)."""
+    if not isinstance(value, list) or not value or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
+        raise DescriptionError(source, f"robot.{key} must be a list of numbers", f"robot.{key}")
+    return tuple(float(x) for x in value)
+
+
+def _robot_section(raw: object, source: str) -> RobotSection | None:
+    """Check the ``robot:`` mapping of a loops file (types only; the names and sizes are
+    checked when the robot is built)."""
+    if raw is None:
+        return None
+    if not isinstance(raw, dict):
+        raise DescriptionError(source, "'robot' must be a mapping", "robot")
+    unknown = set(raw) - {"platform", "pose_axes", "home", "max_actuator_force"}
+    if unknown:
+        raise DescriptionError(source, f"unknown keys {sorted(unknown)} in 'robot'",
+                               f"robot.{sorted(unknown)[0]}")
+    platform = raw.get("platform")
+    if platform is not None and not isinstance(platform, str):
+        raise DescriptionError(source, "robot.platform must be a frame name", "robot.platform")
+    axes = raw.get("pose_axes")
+    if isinstance(axes, str):
+        axes = [a.strip() for a in axes.split(",")]
+    if axes is not None and (not isinstance(axes, list)
+                             or not all(isinstance(a, str) for a in axes)):
+        raise DescriptionError(source, "robot.pose_axes must be a list of axis names",
+                               "robot.pose_axes")
+    home = raw.get("home")
+    force = raw.get("max_actuator_force")
+    if force is not None and not (isinstance(force, (int, float)) and not isinstance(force, bool)):
+        force = _numbers(force, source, "max_actuator_force")
+    bound = force if force is None or isinstance(force, tuple) else float(force)
+    return RobotSection(platform, None if axes is None else tuple(axes),
+                        None if home is None else _numbers(home, source, "home"), bound)
 
 
 def read_text(path: str | Path) -> str:

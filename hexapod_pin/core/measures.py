@@ -119,7 +119,8 @@ def tree_singularity_measures(a_hat: np.ndarray, b_hat: np.ndarray,
     with the platform held, a type-I singularity), ``type_two`` for ``B_hat`` (0: the
     platform can move with the actuators locked, a type-II singularity).
     ``type_one_actuator`` is the actuator that moves most along the motion that
-    ``A_hat`` loses. Thresholds: :data:`TREE_TYPE_I_TOL`, :data:`TREE_TYPE_II_TOL`.
+    ``A_hat`` loses; ``type_two_singular_values`` are those of ``B_hat`` divided by the
+    largest (so that ``type_two`` is the last). Thresholds: :data:`TREE_TYPE_I_TOL`, :data:`TREE_TYPE_II_TOL`.
 
     Args:
         a_hat: (dim, m).
@@ -130,6 +131,8 @@ def tree_singularity_measures(a_hat: np.ndarray, b_hat: np.ndarray,
     columns = a_hat.shape[1]
     type_one, _ = _inverse_condition(a_hat, columns)
     type_two, sv_b = _inverse_condition(b_hat, columns)
+    if sv_b.size and sv_b[0] > 0.0:
+        sv_b = sv_b / sv_b[0]
     worst = 0
     if columns and a_hat.size:
         _, _, vt = np.linalg.svd(a_hat, full_matrices=True)

@@ -101,7 +101,8 @@ class ClosedLoopRobot:
         max_actuator_force: bound on ``|u|`` (scalar or (n_act,), > 0, inf: none); default
             the effort limits of the actuated joints in the description.
         characteristic_length: (m) > 0; default the largest distance from the platform
-            origin to a joint origin at home.
+            origin to a joint origin in Pinocchio's neutral configuration (1 m when all
+            coincide).
 
     Attributes:
         geometry: the :class:`RobotSpec`.
@@ -134,7 +135,7 @@ class ClosedLoopRobot:
         self.lock = threading.RLock()
         candidates = self._home(model, home)
         probe = PlatformMap(model, platform, axes, 1.0)
-        length = self._length(model, probe.frame, candidates[0]) \
+        length = self._length(model, probe.frame, model.neutral()) \
             if characteristic_length is None \
             else real_number(characteristic_length, "characteristic_length", minimum=0.0)
         self.platform = PlatformMap(model, platform, axes, length)
@@ -213,9 +214,10 @@ class ClosedLoopRobot:
 
     # -- the shared API --------------------------------------------------------------------
     def default(self) -> "ClosedLoopRobot":
-        """A new robot on the same model with the default options (home, bounds, length
-        from the description)."""
-        return ClosedLoopRobot(self.model, self.geometry.platform, self.geometry.pose_axes)
+        """A new robot on the same model, platform, pose axes and home configuration, with
+        the default bounds and characteristic length (from the description)."""
+        return ClosedLoopRobot(self.model, self.geometry.platform, self.geometry.pose_axes,
+                               home=self.kinematics.home_q)
 
     def __repr__(self) -> str:
         return (f"ClosedLoopRobot({self.model.name!r}, platform={self.geometry.platform!r}, "
@@ -252,6 +254,7 @@ class ClosedLoopRobot:
     inverse_kinematics = delegate("kinematics", RobotKinematics.inverse_kinematics)
     forward_kinematics = delegate("kinematics", RobotKinematics.forward_kinematics)
     assembly_modes = delegate("kinematics", RobotKinematics.assembly_modes)
+    search_assembly_modes = delegate("kinematics", RobotKinematics.search_assembly_modes)
     jacobian = delegate("kinematics", RobotKinematics.jacobian)
     twist_from_actuator_velocities = delegate(
         "kinematics", RobotKinematics.twist_from_actuator_velocities)

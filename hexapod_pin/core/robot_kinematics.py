@@ -269,11 +269,21 @@ class RobotKinematics:
                 failure = exc
         raise failure
 
-    def assembly_modes(self, actuators: npt.ArrayLike, n_starts: int = 64,
-                       seed: int = 0) -> npt.NDArray[np.float64]:
+    def assembly_modes(self, actuators: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Assembly modes found for the actuator positions (n_act,): poses (n_modes, dim),
-        nearest the home pose first (module docstring: a multi-start search, not proven
-        complete; ``n_starts`` random starts drawn from ``seed``, plus home)."""
+        nearest the home pose first (:meth:`search_assembly_modes` with 64 starts, seed 0:
+        a multi-start search, not proven complete)."""
+        return self.search_assembly_modes(actuators)
+
+    def search_assembly_modes(self, actuators: npt.ArrayLike, n_starts: int = 64,
+                              seed: int = 0) -> npt.NDArray[np.float64]:
+        """Assembly modes found for the actuator positions (n_act,) from the home
+        configuration and ``n_starts`` random starts drawn from ``seed`` (each a random
+        displacement of home: up to pi on angular coordinates, the characteristic length
+        on linear ones), each assembled with the actuators held, verified (closures and
+        actuators to :attr:`tol`) and de-duplicated by pose (1e-7 relative): poses
+        (n_modes, dim), nearest the home pose first. Not proven complete: a mode no start
+        reaches is missed."""
         target = as_array(actuators, (self._n_act,), "actuators")
         n_starts = count(n_starts, "n_starts", minimum=0)
         rng = np.random.default_rng(count(seed, "seed", minimum=0))
