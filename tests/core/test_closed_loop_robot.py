@@ -366,3 +366,51 @@ def test_hypothesis_bad_poses_are_input_errors(five_bar, values):
         return
     with pytest.raises(InputError):
         five_bar.inverse_kinematics(values)
+
+
+# -- the library's two closed-form robots, loaded as trees -------------------------------------
+@pytest.mark.parametrize("which", ["hexapod", "planar"])
+def test_closed_forms_equal_the_same_tree_loaded(which):
+    """The hexapod and the planar 3-PRR, each loaded as a ClosedLoopRobot from its own
+    tree (platform frame "platform"), give the numbers of their closed forms: two
+    independent routes (closed-form kernels against Newton on the tree, null-space maps
+    and the tree dynamics)."""
+    if which == "hexapod":
+        closed, axes = hp.Hexapod.default(), ("x", "y", "z", "roll", "pitch", "yaw")
+        scale = np.array([0.02, 0.02, 0.02, 0.05, 0.05, 0.05])
+    else:
+        closed, axes = hp.Planar3PRR.default(), ("x", "y", "yaw")
+        scale = np.array([0.02, 0.02, 0.1])
+    tree = hp.ClosedLoopRobot(closed.model, "platform", axes, home=closed.home_configuration,
+                              max_actuator_force=closed.geometry.max_actuator_force)
+    rng = np.random.default_rng(5)
+    dim = closed.pose_dim
+    for _ in range(4):
+        pose = closed.home_pose + rng.uniform(-1, 1, dim) * scale
+        twist, twist_dot, wrench = (rng.uniform(-1, 1, dim) * s for s in (0.1, 0.5, 1.0))
+        np.testing.assert_allclose(tree.inverse_kinematics(pose),
+                                   closed.inverse_kinematics(pose), atol=1e-12)
+        np.testing.assert_allclose(tree.configuration(pose), closed.configuration(pose),
+                                   atol=1e-10)
+        jac = closed.jacobian(pose)
+        np.testing.assert_allclose(tree.jacobian(pose), jac, atol=1e-10 * np.abs(jac).max())
+        jd = closed.jacobian_derivative(pose, twist)
+        np.testing.assert_allclose(tree.jacobian_derivative(pose, twist), jd,
+                                   atol=1e-9 * max(1.0, np.abs(jd).max()))
+        ref = closed.inverse_dynamics(pose, twist, twist_dot, wrench, bounded=False)
+        got = tree.inverse_dynamics(pose, twist, twist_dot, wrench, bounded=False)
+        size = max(1.0, np.abs(ref.actuator_forces).max())
+        np.testing.assert_allclose(got.actuator_forces, ref.actuator_forces, atol=1e-10 * size)
+        fd = tree.forward_dynamics(pose, twist, ref.actuator_forces, wrench)
+        np.testing.assert_allclose(fd.twist_dot, twist_dot, atol=1e-10)
+        m_ref, h_ref = closed.reduced_dynamics(pose, twist)
+        m_got, h_got = tree.reduced_dynamics(pose, twist)
+        np.testing.assert_allclose(m_got, m_ref, atol=1e-10 * np.abs(m_ref).max())
+        np.testing.assert_allclose(h_got, h_ref, atol=1e-10 * max(1.0, np.abs(h_ref).max()))
+        e_ref, e_got = closed.energies(pose, twist), tree.energies(pose, twist)
+        assert e_got.kinetic == pytest.approx(e_ref.kinetic, rel=1e-10, abs=1e-14)
+        assert e_got.potential - e_ref.potential == pytest.approx(
+            tree.energies(closed.home_pose, 0 * twist).potential
+            - closed.energies(closed.home_pose, 0 * twist).potential, abs=1e-9)
+        np.testing.assert_allclose(tree.forward_kinematics(closed.inverse_kinematics(pose),
+                                                           guess=pose), pose, atol=1e-10)
