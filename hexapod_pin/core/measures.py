@@ -99,7 +99,7 @@ TREE_TYPE_I_TOL = 2e-3
 TREE_TYPE_II_TOL = 5e-4
 
 
-def _inverse_condition(mat: np.ndarray, columns: int) -> tuple[float, np.ndarray]:
+def inverse_condition(mat: np.ndarray, columns: int) -> tuple[float, np.ndarray]:
     """``sigma_min / sigma_max`` of ``mat`` as a map from ``R^columns`` (zero singular
     values appended where ``mat`` has fewer rows than columns) and its singular values."""
     sv = np.linalg.svd(mat, compute_uv=False) if mat.size else np.zeros(0)
@@ -134,8 +134,8 @@ def tree_singularity_measures(a_hat: np.ndarray, b_hat: np.ndarray,
         characteristic_length: ``L`` (m).
     """
     columns = a_hat.shape[1]
-    type_one, _ = _inverse_condition(a_hat, columns)
-    type_two, sv_b = _inverse_condition(b_hat, columns)
+    type_one, _ = inverse_condition(a_hat, columns)
+    type_two, sv_b = inverse_condition(b_hat, columns)
     if sv_b.size and sv_b[0] > 0.0:
         sv_b = sv_b / sv_b[0]
     worst = 0

@@ -118,7 +118,7 @@ class RobotDynamics:
         """The tree state of a platform state, refusing singular poses."""
         twist = as_array(twist, (self.dim,), "twist")
         q = self.kin.configuration(pose, branch)
-        maps, _ = self.kin.regular_maps(q)
+        maps = self.kin.regular_maps(q)
         vmap = self.kin.velocity_map(maps)
         return TreeState(q, maps, vmap @ twist, vmap)
 

@@ -34,7 +34,8 @@ from ..errors import (AssemblyError, InconsistentMotionError, InputError, Singul
                       SolverError, StrokeLimitError, UnreachablePoseError)
 from .checks import as_array, count
 from .closed_loop import ClosedLoopModel
-from .measures import tree_singularity_measures
+from .measures import (TREE_TYPE_I_TOL, TREE_TYPE_II_TOL, inverse_condition,
+                       tree_singularity_measures)
 from .platform_map import PlatformMap, VelocityMaps, solve_checked_square
 from .results import InverseKinematicsBatch, JacobianBatch, SingularityMeasures
 
@@ -326,28 +327,30 @@ class RobotKinematics:
                 jac = None
         return tree_singularity_measures(a_hat, b_hat, jac, plat.length)
 
-    def regular_maps(self, q: np.ndarray) -> tuple[VelocityMaps, SingularityMeasures]:
-        """The maps at ``q`` and their measures, refusing a singular configuration.
+    def regular_maps(self, q: np.ndarray) -> VelocityMaps:
+        """The maps at ``q``, refusing a singular configuration (the two measures of
+        :meth:`measures`, from the singular values only).
 
         Raises:
             SingularityError: ``type_one`` or ``type_two`` below its threshold, or a
                 closure mobility that differs from the pose dimension.
         """
         maps = self.maps(q)
-        meas = self.measures(maps)
         if maps.a_map.shape[1] != self.platform.dim:
             raise SingularityError(
                 f"closure Jacobian of {self.clm.name} (mobility {maps.a_map.shape[1]} at "
                 f"this configuration, pose dimension {self.platform.dim})", 0.0)
-        if meas.type_one < meas.type_one_threshold:
-            raise SingularityError("the map from the closures' motion to the platform twist "
-                                   "(type I, inverse condition number)", meas.type_one,
-                                   meas.type_one_threshold)
-        if meas.type_two < meas.type_two_threshold:
-            raise SingularityError("the map from the closures' motion to the actuators "
-                                   "(type II, inverse condition number)", meas.type_two,
-                                   meas.type_two_threshold)
-        return maps, meas
+        plat = self.platform
+        for what, mat, tol in (
+                ("the map from the closures' motion to the platform twist (type I, inverse "
+                 "condition number)", plat.twist_scale[:, None] * maps.a_map, TREE_TYPE_I_TOL),
+                ("the map from the closures' motion to the actuators (type II, inverse "
+                 "condition number)", plat.actuator_scale[:, None] * maps.b_map,
+                 TREE_TYPE_II_TOL)):
+            measure, _ = inverse_condition(mat, mat.shape[1])
+            if not measure >= tol:
+                raise SingularityError(what, measure, tol)
+        return maps
 
     def jacobian(self, pose: npt.ArrayLike,
                  branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
@@ -356,7 +359,7 @@ class RobotKinematics:
         Raises:
             SingularityError: a singular pose (:meth:`regular_maps`).
         """
-        maps, _ = self.regular_maps(self.configuration(pose, branch))
+        maps = self.regular_maps(self.configuration(pose, branch))
         return self.jacobian_of(maps)
 
     def jacobian_of(self, maps: VelocityMaps) -> np.ndarray:
@@ -380,7 +383,7 @@ class RobotKinematics:
                 (redundant actuation).
         """
         qdot = as_array(actuator_velocities, (self._n_act,), "actuator_velocities")
-        maps, _ = self.regular_maps(self.configuration(pose, branch))
+        maps = self.regular_maps(self.configuration(pose, branch))
         if maps.b_map.shape[0] == maps.b_map.shape[1]:
             z = solve_checked_square(maps.b_map, qdot, "twist from actuator velocities")
         else:
@@ -422,7 +425,7 @@ class RobotKinematics:
             SolverError: the verification fails.
         """
         twist = as_array(twist, (self.platform.dim,), "twist")
-        maps, _ = self.regular_maps(self.configuration(pose, branch))
+        maps = self.regular_maps(self.configuration(pose, branch))
         vmap = self.velocity_map(maps)
         v = vmap @ twist
         stacked = np.vstack([maps.jac_c, maps.twist_rows])
