@@ -35,10 +35,16 @@ def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False)
     if type(value) is np.ndarray and value.dtype == np.float64 and value.flags.c_contiguous:
         arr = value                       # what np.ascontiguousarray would return
     else:
-        raw = np.asarray(value) if not isinstance(value, np.ndarray) else value
+        try:
+            raw = np.asarray(value) if not isinstance(value, np.ndarray) else value
+        except (TypeError, ValueError):        # ragged nesting, unconvertible objects
+            raise InputError(name, value, "not a regular array of numbers") from None
         if raw.dtype.kind in "cbOSUV" and not (raw.dtype.kind == "O" and _all_real(raw)):
             # complex (its imaginary part would be dropped), bool, text, bytes or objects
             raise InputError(name, value, f"expected real numbers, got dtype {raw.dtype}")
+        if isinstance(value, (list, tuple)) and _has_bool(value):
+            # a bool among numbers (numpy makes it 0.0 or 1.0)
+            raise InputError(name, value, "expected real numbers, got a bool among them")
         try:
             arr = np.ascontiguousarray(raw, dtype=float)
         except (TypeError, ValueError):
@@ -176,6 +182,12 @@ def owned_copy(checked: np.ndarray, given) -> np.ndarray:
     """``checked`` (an input after :func:`vec6`), copied when it is the caller's own
     array, so that results computed on first access cannot change with it."""
     return checked.copy() if checked is given else checked
+
+
+def _has_bool(value: list | tuple) -> bool:
+    """Whether a (nested) list or tuple holds a bool (Python's or numpy's)."""
+    return any(isinstance(x, (bool, np.bool_)) or (isinstance(x, (list, tuple))
+                                                   and _has_bool(x)) for x in value)
 
 
 def _all_real(raw: np.ndarray) -> bool:

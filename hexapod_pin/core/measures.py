@@ -36,15 +36,19 @@ TYPE_II_TOL = 1e-8
 def condition_number(singular_values: np.ndarray | None) -> float:
     """``sigma_max / sigma_min`` from singular values in descending order (last axis).
 
-    ``inf`` where ``sigma_min == 0`` or the values are None (a type-I singularity).
+    ``inf`` where ``sigma_min`` is zero to round-off (at most ``n eps sigma_max``, ``n``
+    the number of values) or the values are None (a type-I singularity).
     Works on one set (returns a float) or a stack (returns an array).
     """
     if singular_values is None:
         return math.inf
     sv = np.asarray(singular_values, dtype=float)
     top, low = sv[..., 0], sv[..., -1]
+    # a smallest value at round-off of the largest is a zero (LAPACK builds differ in
+    # whether an exact rank drop gives 0 or 1e-50: both are a singular matrix)
+    zero = low <= top * sv.shape[-1] * np.finfo(float).eps
     with np.errstate(divide="ignore", invalid="ignore"):
-        out = np.where(low > 0.0, top / np.where(low > 0.0, low, 1.0), np.inf)
+        out = np.where(~zero, top / np.where(zero, 1.0, low), np.inf)
     return float(out) if out.ndim == 0 else out
 
 

@@ -63,15 +63,15 @@ def check_pose_axes(pose_axes: object) -> tuple[str, ...]:
         pose_axes = tuple(part.strip() for part in pose_axes.split(",") if part.strip())
     expected = f"a non-empty subset of {POSE_AXES}, in that order"
     try:
-        axes = tuple(pose_axes)       # type: ignore[call-overload]
+        axes: tuple[object, ...] = tuple(pose_axes)      # type: ignore[arg-type]
     except TypeError:
         raise InputError("pose_axes", pose_axes, expected) from None
     if not axes or any(a not in POSE_AXES for a in axes):
         raise InputError("pose_axes", pose_axes, expected)
-    idx = [POSE_AXES.index(a) for a in axes]
+    idx = [POSE_AXES.index(str(a)) for a in axes]
     if idx != sorted(set(idx)):
         raise InputError("pose_axes", pose_axes, expected + " (no repeats)")
-    return axes
+    return tuple(str(a) for a in axes)
 
 
 def velocity_scales(model: pin.Model, length: float) -> np.ndarray:

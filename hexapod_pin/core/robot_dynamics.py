@@ -134,8 +134,9 @@ class RobotDynamics:
                      ) -> LazyConditioning:
         pose = as_array(pose, (self.dim,), "pose").copy()
         seed = None if branch is None else self.kin.seed(branch).copy()
-        return LazyConditioning(lambda p, b: self.kin.singularity(p, b), pose, seed,
-                                self.lock)       # type: ignore[arg-type]
+        # LazyConditioning keeps the branch as given (None: the home working mode)
+        return LazyConditioning(self.kin.singularity, pose, seed,   # type: ignore[arg-type]
+                                self.lock)
 
     def bounds(self, bounded: bool) -> np.ndarray | None:
         bound = np.broadcast_to(np.asarray(self.max_force, dtype=float), (self.n_act,))

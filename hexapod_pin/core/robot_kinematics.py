@@ -278,13 +278,23 @@ class RobotKinematics:
 
     def search_assembly_modes(self, actuators: npt.ArrayLike, n_starts: int = 64,
                               seed: int = 0) -> npt.NDArray[np.float64]:
+        """Assembly modes found for the actuator positions (n_act,): poses (n_modes, dim),
+        nearest the home pose first (:meth:`assembly_configurations`, poses only)."""
+        return self.assembly_configurations(actuators, n_starts, seed)[0]
+
+    def assembly_configurations(self, actuators: npt.ArrayLike, n_starts: int = 64,
+                                seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Assembly modes found for the actuator positions (n_act,) from the home
         configuration and ``n_starts`` random starts drawn from ``seed`` (each a random
         displacement of home: up to pi on angular coordinates, the characteristic length
         on linear ones), each assembled with the actuators held, verified (closures and
-        actuators to :attr:`tol`) and de-duplicated by pose (1e-7 relative): poses
-        (n_modes, dim), nearest the home pose first. Not proven complete: a mode no start
-        reaches is missed."""
+        actuators to :attr:`tol`) and de-duplicated by pose (1e-7 relative). Not proven
+        complete: a mode no start reaches is missed.
+
+        Returns:
+            ``(poses, configurations)``: (n_modes, dim) and (n_modes, nq), nearest the
+            home pose first.
+        """
         target = as_array(actuators, (self._n_act,), "actuators")
         n_starts = count(n_starts, "n_starts", minimum=0)
         rng = np.random.default_rng(count(seed, "seed", minimum=0))
@@ -292,7 +302,8 @@ class RobotKinematics:
         starts = [self.home_q] + [pin.integrate(self.model, self.home_q,
                                                 rng.uniform(-1, 1, self.model.nv) * spread)
                                   for _ in range(n_starts)]
-        poses: list[np.ndarray] = []
+        found: list[tuple[np.ndarray, np.ndarray]] = []
+        same = 1e-7 * max(1.0, self.platform.length)
         for start in starts:
             try:
                 q = self.clm.assemble(self.with_actuators(start, target), tol=self.tol,
@@ -302,12 +313,14 @@ class RobotKinematics:
             if np.max(np.abs(self.actuator_positions(q) - target)) > self.tol:
                 continue
             pose = self.platform.pose(q)
-            if all(np.max(np.abs(self.platform.pose_error(pose.copy(), p))) > 1e-7
-                   * max(1.0, self.platform.length) for p in poses):
-                poses.append(pose)
-        poses.sort(key=lambda p: float(np.linalg.norm(self.platform.pose_error(p.copy(),
-                                                                               self.home_pose))))
-        return np.array(poses).reshape(len(poses), self.platform.dim)
+            if all(np.max(np.abs(self.platform.pose_error(pose.copy(), p))) > same
+                   for p, _ in found):
+                found.append((pose, q))
+        found.sort(key=lambda item: float(np.linalg.norm(
+            self.platform.pose_error(item[0].copy(), self.home_pose))))
+        poses = np.array([p for p, _ in found]).reshape(len(found), self.platform.dim)
+        qs = np.array([q for _, q in found]).reshape(len(found), self.model.nq)
+        return poses, qs
 
     # -- velocity maps ---------------------------------------------------------------------
     def maps(self, q: np.ndarray) -> VelocityMaps:
