@@ -17,6 +17,9 @@ The names below are the public entry points; every robot implements
 """
 
 from .core.closed_loop import AssemblyResult, ClosedLoopModel, RankInfo
+from .core.controllers import ActuatorPID, ComputedTorque
+from .core.energy import model_energies
+from .core.simulate import Trajectory, simulate
 from .core.description import (ClosureSpec, LoopsSpec, expand_xacro, load_loops, parse_loops,
                                urdf_dir)
 from .core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
@@ -51,6 +54,7 @@ __all__ = [
     # the generic core
     "ClosedLoopModel", "AssemblyResult", "RankInfo", "ClosureSpec", "LoopsSpec",
     "expand_xacro", "load_loops", "parse_loops", "urdf_dir",
+    "simulate", "Trajectory", "ActuatorPID", "ComputedTorque", "model_energies",
     # results shared by every robot
     "InverseDynamicsResult", "ForwardDynamicsResult", "ReducedDynamics", "Energies",
     "SingularityMeasures", "InverseDynamicsDerivatives", "InverseKinematicsBatch",

@@ -1,27 +1,34 @@
 """Sampled platform motions: motion files, their rates, a reference circle, inverse
 dynamics along a motion, and a simulation tracking the circle.
 
-A :class:`Motion` holds N samples of the platform: times ``t`` (s), poses
-``(x, y, z, roll, pitch, yaw)`` (m, rad; ``R = Rz(yaw) Ry(pitch) Rx(roll)``) and,
-optionally, twists ``(v, w)`` of the platform origin (m/s, rad/s, world axes), their
-time derivatives, the wrench ``(f, m)`` applied on the platform (N, N m, world axes,
-moment about the platform origin), the actuator positions ``q`` (m), the actuator
-forces (N) and the max-abs closure residual (m).
+A :class:`Motion` holds N samples of the platform of a robot: times ``t`` (s), poses
+(the robot's ``pose_axes`` of ``(x, y, z, roll, pitch, yaw)``, m, rad; ``R = Rz(yaw)
+Ry(pitch) Rx(roll)``; all six for the hexapod) and, optionally, twists (the same selection
+of ``(v, w)`` of the platform origin, m/s, rad/s, world axes), their time derivatives, the
+wrench (the same selection of ``(f, m)``) applied on the platform (N, N m, world axes,
+moment about the platform origin), the actuator positions ``q`` (m or rad), the actuator
+forces (N or N m) and the max-abs closure residual (m).
 
 Motion files (``hexapod-pin id``, ``view --trajectory``, ``plot``; written by
-``simulate --out``):
+``simulate --out``), their columns named by :func:`motion_columns` from the robot's pose
+axes and number of actuators (without a robot: the hexapod's, as below):
 
 * CSV: a header row naming the columns, ``#`` comment lines allowed. Required: ``t``
   and the pose ``x, y, z, roll, pitch, yaw``. Optional groups (all columns of a group
   together): the twist ``vx, vy, vz, wx, wy, wz``, its derivative ``ax, ay, az,
   alphax, alphay, alphaz``, the wrench ``fx, fy, fz, mx, my, mz``, the actuator
-  positions ``q0 .. q5``, the actuator forces ``tau0 .. tau5``; and ``residual``.
-* JSON: ``{"t": [...], "pose": [[6], ...], "twist": ..., "twist_dot": ...,
-  "wrench": ..., "q": ..., "actuator_forces": ..., "closure_residual": ...}``.
+  positions ``q0 .. q5``, the actuator forces ``tau0 .. tau5``; and ``residual``. A
+  robot with other pose axes names the same selection of each group, e.g. a five-bar
+  with pose axes ``("x", "z")`` and two actuators: ``t, x, z, vx, vz, ax, az, fx, fz,
+  q0, q1, tau0, tau1``.
+* JSON: ``{"t": [...], "pose": [[dim], ...], "twist": ..., "twist_dot": ...,
+  "wrench": ..., "q": [[n_act], ...], "actuator_forces": ..., "closure_residual": ...}``.
 
 Where the twist (or its derivative) is absent, :func:`motion_rates` computes it from
 the poses by second-order finite differences (``numpy.gradient``, angles unwrapped),
-with ``w = E(rpy) d(rpy)/dt`` (:func:`hexapod_pin.core.pose.euler_rates_matrix`).
+with ``w = E(rpy) d(rpy)/dt`` (:func:`hexapod_pin.core.pose.euler_rates_matrix`) when
+the pose has all three angles, each angle's rate otherwise
+(:meth:`hexapod_pin.core.robot_api.PoseLayout.twists_from_poses`).
 
 Files are written atomically (:func:`hexapod_pin.files.write_text_atomic`).
 """
@@ -40,8 +47,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .core.pose import euler_rates_matrix
-from .core.robot_api import INVERSE_DYNAMICS_METHODS, ParallelRobot
+from .core.robot_api import INVERSE_DYNAMICS_METHODS, ParallelRobot, PoseLayout, pose_layout
 from .errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
 from .files import read_text, write_text_atomic
 from .hexapod import simulation
@@ -73,14 +79,18 @@ MAX_STEPS = 2_000_000
 class Motion:
     """A sampled platform motion (see the module doc for units and frames).
 
+    ``dim`` is the robot's ``pose_dim`` (6 for the hexapod) and ``n_act`` its
+    ``n_actuators``; :meth:`check` validates the shapes against a robot (the functions
+    of this module taking a robot call it).
+
     Attributes:
         t: (N,) times (s), strictly increasing.
-        poses: (N, 6) platform poses (m, rad).
-        twists: (N, 6) twists (m/s, rad/s, world axes), or None.
-        twist_dots: (N, 6) their time derivatives, or None.
-        wrenches: (N, 6) wrenches on the platform (N, N m), or None.
-        q: (N, 6) actuator positions (m), or None.
-        actuator_forces: (N, 6) actuator forces (N), or None.
+        poses: (N, dim) platform poses (m, rad), the robot's ``pose_axes``.
+        twists: (N, dim) twists (m/s, rad/s, world axes), or None.
+        twist_dots: (N, dim) their time derivatives, or None.
+        wrenches: (N, dim) wrenches on the platform (N, N m), or None.
+        q: (N, n_act) actuator positions (m or rad), or None.
+        actuator_forces: (N, n_act) actuator forces (N or N m), or None.
         closure_residual: (N,) max-abs closure residual (m), or None.
     """
 
@@ -97,6 +107,42 @@ class Motion:
     def times(self) -> np.ndarray:
         """Alias of ``t`` (the name simulation results and the viewer use)."""
         return self.t
+
+    def check(self, robot: ParallelRobot | None = None) -> Motion:
+        """This motion, its shapes checked against ``robot`` (default: the hexapod's 6
+        pose components and 6 actuators).
+
+        Returns:
+            ``self``.
+
+        Raises:
+            InputError: ``t`` not (N,) strictly increasing, a field of another shape than
+                (N, dim) (poses, twists, twist_dots, wrenches), (N, n_act) (q,
+                actuator_forces) or (N,) (closure_residual), or NaN / inf; the error names
+                the field and the shapes.
+        """
+        t = np.asarray(self.t, dtype=float)
+        n = len(t) if t.ndim == 1 else -1
+        if n < 1 or np.any(np.diff(t) <= 0) or not np.all(np.isfinite(t)):
+            raise InputError("motion.t", self.t, "expected (N,) strictly increasing finite "
+                                                 "times")
+        columns = motion_columns(robot)
+        dim, n_act = len(columns.pose), len(columns.q)
+        expected = {"poses": (n, dim), "twists": (n, dim), "twist_dots": (n, dim),
+                    "wrenches": (n, dim), "q": (n, n_act), "actuator_forces": (n, n_act),
+                    "closure_residual": (n,)}
+        for field, shape in expected.items():
+            value = getattr(self, field)
+            if value is None:
+                continue
+            arr = np.asarray(value, dtype=float)
+            if arr.shape != shape:
+                raise InputError(f"motion.{field}", value,
+                                 f"expected shape {shape} (pose axes {columns.pose}, "
+                                 f"{n_act} actuators), got {arr.shape}")
+            if not np.all(np.isfinite(arr)):
+                raise InputError(f"motion.{field}", value, "contains NaN or inf")
+        return self
 
     @classmethod
     def from_trajectory(cls, trajectory: simulation.Trajectory | FastTrajectory) -> Motion:
@@ -119,7 +165,7 @@ class Motion:
 
 
 class Rates(NamedTuple):
-    """Twists (N, 6) (m/s, rad/s, world axes) and their time derivatives (N, 6)."""
+    """Twists (N, dim) (m/s, rad/s, world axes) and their time derivatives (N, dim)."""
 
     twists: np.ndarray
     twist_dots: np.ndarray
@@ -129,51 +175,115 @@ class MotionForces(NamedTuple):
     """Forces along a motion.
 
     Attributes:
-        actuator_forces: (N, n_actuated) (N).
-        closure_forces: (N, n_closures, 3) force of each leg on the platform at its
-            platform joint, world axes (N).
+        actuator_forces: (N, n_actuated) (N or N m).
+        closure_forces: (N, n_chains, d) force of each chain (leg) on the platform at its
+            platform joint, world axes (N): the ``closure_forces`` of the robot's
+            inverse-dynamics result (``d = 3`` for the hexapod).
     """
 
     actuator_forces: np.ndarray
     closure_forces: np.ndarray
 
 
+class MotionColumns(NamedTuple):
+    """The CSV column names of a robot's motion files (:func:`motion_columns`).
+
+    Attributes:
+        pose: the pose columns, the robot's ``pose_axes`` (e.g. ``("x", "z")``).
+        twists: the same selection of ``vx, vy, vz, wx, wy, wz``.
+        twist_dots: the same selection of ``ax, ay, az, alphax, alphay, alphaz``.
+        wrenches: the same selection of ``fx, fy, fz, mx, my, mz``.
+        q: ``q0 .. q{n_act - 1}``.
+        actuator_forces: ``tau0 .. tau{n_act - 1}``.
+    """
+
+    pose: tuple[str, ...]
+    twists: tuple[str, ...]
+    twist_dots: tuple[str, ...]
+    wrenches: tuple[str, ...]
+    q: tuple[str, ...]
+    actuator_forces: tuple[str, ...]
+
+    def groups(self) -> dict[str, tuple[str, ...]]:
+        """The optional groups: :class:`Motion` field -> its columns."""
+        return {"twists": self.twists, "twist_dots": self.twist_dots,
+                "wrenches": self.wrenches, "q": self.q,
+                "actuator_forces": self.actuator_forces}
+
+
+def motion_columns(robot: ParallelRobot | None = None) -> MotionColumns:
+    """The column names of ``robot``'s motion files: its pose axes (selecting the twist,
+    twist-derivative and wrench columns) and one ``q`` and ``tau`` column per actuator;
+    default (no robot): the hexapod's :data:`POSE_NAMES`, ..., ``q0 .. q5``,
+    ``tau0 .. tau5``.
+
+    Example:
+        >>> motion_columns(five_bar).pose, motion_columns(five_bar).twists
+        (('x', 'z'), ('vx', 'vz'))
+    """
+    layout: PoseLayout = pose_layout(POSE_NAMES if robot is None else robot)
+    n_act = 6 if robot is None else int(robot.n_actuators)
+    return MotionColumns(layout.axes, layout.names(TWIST_NAMES), layout.names(TWIST_DOT_NAMES),
+                         layout.names(WRENCH_NAMES), tuple(f"q{i}" for i in range(n_act)),
+                         tuple(f"tau{i}" for i in range(n_act)))
+
+
 _JSON_KEYS = {"twist": "twists", "twist_dot": "twist_dots", "wrench": "wrenches", "q": "q",
               "actuator_forces": "actuator_forces"}
-_CSV_GROUPS = {"twists": TWIST_NAMES, "twist_dots": TWIST_DOT_NAMES, "wrenches": WRENCH_NAMES,
-               "q": Q_NAMES, "actuator_forces": TAU_NAMES}
 
 
 # -- files ------------------------------------------------------------------------------
-def read_motion(path: str | os.PathLike) -> Motion:
+def read_motion(path: str | os.PathLike[str], robot: ParallelRobot | None = None) -> Motion:
     """Read a motion file (.csv / .txt or .json, see the module doc).
+
+    Args:
+        path: the file.
+        robot: the robot whose motion it is: its pose axes and number of actuators name
+            the CSV columns and fix the JSON shapes (:func:`motion_columns`); default the
+            hexapod's (6 pose columns, 6 actuators), as files written before robots had
+            pose axes.
+
+    Returns:
+        the :class:`Motion` (poses (N, dim), q and actuator forces (N, n_act)).
 
     Raises:
         DescriptionError: missing file, unknown suffix, missing or malformed columns,
-            times not increasing, NaN / inf (the message names the file and column).
+            times not increasing, a shape that does not fit the robot, NaN / inf (the
+            message names the file and column).
     """
     path = Path(path)
+    columns = motion_columns(robot)
     if not path.is_file():
         raise DescriptionError(str(path), "motion file not found")
     suffix = path.suffix.lower()
     if suffix == ".json":
-        return _motion_from_json(path)
+        return _motion_from_json(path, columns)
     if suffix in (".csv", ".txt"):
-        return _motion_from_csv(path)
+        return _motion_from_csv(path, columns)
     raise DescriptionError(str(path), "motion file must be .csv or .json")
 
 
-def write_motion(path: str | os.PathLike, motion: Motion) -> Path:
+def write_motion(path: str | os.PathLike[str], motion: Motion,
+                 robot: ParallelRobot | None = None) -> Path:
     """Write a motion file (CSV or JSON by suffix) with every field that is set.
+
+    Args:
+        path: the file (.csv or .json).
+        motion: the samples.
+        robot: the robot whose motion it is: its pose axes and number of actuators name
+            the CSV columns (:func:`motion_columns`); default the hexapod's.
 
     Returns:
         the path. The file is replaced atomically.
 
     Raises:
-        InputError: a suffix other than .csv / .json, or a folder that does not exist.
+        InputError: a suffix other than .csv / .json, a folder that does not exist, a
+            motion whose shapes do not fit the robot (:meth:`Motion.check`).
     """
     path = Path(path)
-    fields = {field: getattr(motion, field) for field in _CSV_GROUPS}
+    columns = motion_columns(robot)
+    motion.check(robot)
+    fields = {field: getattr(motion, field) for field in columns.groups()}
     suffix = path.suffix.lower()
     if suffix == ".json":
         payload = {"t": motion.t.tolist(), "pose": motion.poses.tolist()}
@@ -183,33 +293,33 @@ def write_motion(path: str | os.PathLike, motion: Motion) -> Path:
             payload["closure_residual"] = motion.closure_residual.tolist()
         text = json.dumps(payload)
     elif suffix == ".csv":
-        header = ["t", *POSE_NAMES]
-        columns = [motion.t[:, None], motion.poses]
-        for field, names in _CSV_GROUPS.items():
+        header = ["t", *columns.pose]
+        blocks = [motion.t[:, None], motion.poses]
+        for field, names in columns.groups().items():
             if fields[field] is not None:
                 header += names
-                columns.append(fields[field])
+                blocks.append(fields[field])
         if motion.closure_residual is not None:
             header.append("residual")
-            columns.append(motion.closure_residual[:, None])
+            blocks.append(motion.closure_residual[:, None])
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
         writer.writerow(header)
-        writer.writerows(np.hstack(columns).tolist())
+        writer.writerows(np.hstack(blocks).tolist())
         text = buffer.getvalue()
     else:
         raise InputError("path", str(path), "motion files are .csv or .json")
     return write_text_atomic(path, text)
 
 
-def _motion_from_csv(path: Path) -> Motion:
+def _motion_from_csv(path: Path, columns: MotionColumns) -> Motion:
     numbered = [(n, ln) for n, ln in enumerate(read_text(path).splitlines(), 1)
                 if ln.strip() and not ln.lstrip().startswith("#")]
     if len(numbered) < 2:
         raise DescriptionError(str(path), "needs a header row and at least one data row")
     rows = list(csv.reader([ln for _, ln in numbered]))
     header = [h.strip() for h in rows[0]]
-    missing = [c for c in ("t",) + POSE_NAMES if c not in header]
+    missing = [c for c in ("t",) + columns.pose if c not in header]
     if missing:
         raise DescriptionError(str(path), f"missing columns {missing} (header: {header})")
     values = []
@@ -228,13 +338,14 @@ def _motion_from_csv(path: Path) -> Motion:
     data = np.array(values, dtype=float)
     col = {name: data[:, i] for i, name in enumerate(header)}
     groups = {}
-    for field, names in _CSV_GROUPS.items():
+    for field, names in columns.groups().items():
         present = [n for n in names if n in col]
         if present and len(present) != len(names):
             raise DescriptionError(str(path), f"columns {list(names)} must come together",
                                    present[0])
         groups[field] = np.stack([col[n] for n in names], axis=1) if present else None
-    return _checked_motion(path, col["t"], np.stack([col[n] for n in POSE_NAMES], axis=1),
+    return _checked_motion(path, columns, col["t"],
+                           np.stack([col[n] for n in columns.pose], axis=1),
                            residual=col.get("residual"), **groups)
 
 
@@ -246,7 +357,7 @@ def _is_number(text: str) -> bool:
     return True
 
 
-def _motion_from_json(path: Path) -> Motion:
+def _motion_from_json(path: Path, columns: MotionColumns) -> Motion:
     try:
         data = json.loads(read_text(path))
     except json.JSONDecodeError as exc:
@@ -262,10 +373,10 @@ def _motion_from_json(path: Path) -> Motion:
         residual = None if residual is None else np.asarray(residual, dtype=float)
     except (TypeError, ValueError) as exc:
         raise DescriptionError(str(path), f"non-numeric entries: {exc}") from None
-    return _checked_motion(path, t, poses, residual=residual, **arrays)
+    return _checked_motion(path, columns, t, poses, residual=residual, **arrays)
 
 
-def _checked_motion(path: Path, t: np.ndarray, poses: np.ndarray,
+def _checked_motion(path: Path, columns: MotionColumns, t: np.ndarray, poses: np.ndarray,
                     residual: np.ndarray | None = None, **arrays: np.ndarray | None) -> Motion:
     n = len(t) if t.ndim == 1 else 0
     if n == 0:
@@ -273,9 +384,11 @@ def _checked_motion(path: Path, t: np.ndarray, poses: np.ndarray,
     if n > 1 and np.any(np.diff(t) <= 0):
         raise DescriptionError(str(path), "t must be strictly increasing", "t")
     checks = {"pose": poses, **{k: v for k, v in arrays.items() if v is not None}}
+    widths = {"pose": len(columns.pose), **{field: len(names)
+                                            for field, names in columns.groups().items()}}
     for key, value in checks.items():
-        if value.shape != (n, 6):
-            raise DescriptionError(str(path), f"{key} must have shape ({n}, 6), "
+        if value.shape != (n, widths[key]):
+            raise DescriptionError(str(path), f"{key} must have shape ({n}, {widths[key]}), "
                                               f"got {value.shape}", key)
     if residual is not None:
         residual = np.max(np.abs(residual), axis=1) if residual.ndim == 2 else residual
@@ -290,27 +403,35 @@ def _checked_motion(path: Path, t: np.ndarray, poses: np.ndarray,
 
 
 # -- rates and reference motions ---------------------------------------------------------
-def motion_rates(motion: Motion) -> Rates:
-    """Twists and their derivatives (N, 6): from the motion, or by finite differences.
+def motion_rates(motion: Motion, robot: ParallelRobot | None = None) -> Rates:
+    """Twists and their derivatives (N, dim): from the motion, or by finite differences.
 
-    Missing twists come from the poses: ``v = dp/dt`` and ``w = E(rpy) d(rpy)/dt``
-    (world axes), each derivative by ``numpy.gradient`` (second order, also at the
-    ends) after unwrapping the angles; missing twist derivatives from the twists
-    the same way.
+    Missing twists come from the poses (in the robot's pose axes): ``v = dp/dt`` and,
+    when the pose has all three angles, ``w = E(rpy) d(rpy)/dt`` (world axes), else each
+    angle's rate (:meth:`~hexapod_pin.core.robot_api.PoseLayout.twists_from_poses`), each
+    derivative by ``numpy.gradient`` (second order, also at the ends) after unwrapping the
+    angles; missing twist derivatives from the twists the same way.
+
+    Args:
+        motion: the samples.
+        robot: the robot whose motion it is (its ``pose_axes``); default from the poses'
+            width: 6 ``(x, y, z, roll, pitch, yaw)``, 3 ``(x, y, theta)``.
 
     Raises:
         DescriptionError: fewer than 3 samples where a derivative is needed.
+        InputError: no robot and a pose width other than 6 or 3, or shapes that do not
+            fit the robot (:meth:`Motion.check`).
     """
+    if robot is not None:
+        motion.check(robot)
     twists, twist_dots = motion.twists, motion.twist_dots
     if (twists is None or twist_dots is None) and len(motion.t) < 3:
         raise DescriptionError("motion", "at least 3 samples are needed to differentiate "
                                          "the poses (or give the twist columns)")
     if twists is None:
-        angles = np.unwrap(motion.poses[:, 3:], axis=0)
-        vel = np.gradient(motion.poses[:, :3], motion.t, axis=0, edge_order=2)
-        rates = np.gradient(angles, motion.t, axis=0, edge_order=2)
-        omega = np.einsum("nij,nj->ni", euler_rates_matrix(motion.poses[:, 3:]), rates)
-        twists = np.hstack([vel, omega])
+        layout = pose_layout(int(np.shape(motion.poses)[1]) if robot is None else robot)
+        twists = layout.twists_from_poses(np.asarray(motion.t, dtype=float),
+                                          np.asarray(motion.poses, dtype=float))
     if twist_dots is None:
         twist_dots = np.gradient(twists, motion.t, axis=0, edge_order=2)
     return Rates(twists, twist_dots)
@@ -364,13 +485,21 @@ def circle_motion(robot: Hexapod, radius: float, period: float, duration: float 
 
 # -- kinematics and dynamics along a motion ----------------------------------------------
 def actuators_along(robot: ParallelRobot, motion: Motion, check_limits: bool = False) -> np.ndarray:
-    """Actuator positions (N, n_act) of the motion's poses, by ``robot.inverse_kinematics``
-    (home branch), or ``motion.q`` when the motion has them.
+    """Actuator positions (N, n_act) of the motion's poses (N, dim), by
+    ``robot.inverse_kinematics`` (home branch), or ``motion.q`` when the motion has them.
+
+    Args:
+        robot: any robot with the shared API (its ``pose_axes`` and ``n_actuators`` fix
+            the shapes).
+        motion: the samples.
+        check_limits: raise for a pose beyond the actuators' strokes.
 
     Raises:
+        InputError: a motion whose shapes do not fit the robot (:meth:`Motion.check`).
         MotionSampleError: a pose out of reach (or beyond the strokes with
             ``check_limits``); it names the row and time and carries the library error.
     """
+    motion.check(robot)
     if motion.q is not None:
         return motion.q
     out = []
@@ -391,12 +520,13 @@ def inverse_dynamics_along(robot: ParallelRobot, motion: Motion,
     Every pose is checked to be within reach first (``robot.inverse_kinematics``), so a
     pose out of reach is reported at its own row (the finite-difference rates of its
     neighbours would otherwise fail first). The twists and their derivatives are those
-    of :func:`motion_rates`; the wrench of each sample is ``motion.wrenches[n]`` when
-    given. Bounds on the actuator forces as the robot's default.
+    of :func:`motion_rates` (in the robot's pose axes); the wrench of each sample is
+    ``motion.wrenches[n]`` when given. Bounds on the actuator forces as the robot's
+    default.
 
     Args:
-        robot: a robot with ``inverse_dynamics(pose, twist, twist_dot, wrench=, method=)``
-            (a :class:`hexapod_pin.Hexapod` or :class:`hexapod_pin.Planar3PRR`).
+        robot: any robot with the shared API (a :class:`hexapod_pin.Hexapod`, a
+            :class:`hexapod_pin.Planar3PRR`, a :class:`hexapod_pin.ClosedLoopRobot`).
         motion: the samples.
         method: one of :data:`hexapod_pin.core.robot_api.INVERSE_DYNAMICS_METHODS`
             ("kkt", the default, or "qp").
@@ -406,7 +536,8 @@ def inverse_dynamics_along(robot: ParallelRobot, motion: Motion,
         :class:`MotionForces`.
 
     Raises:
-        InputError: an unknown method (before any sample is computed).
+        InputError: an unknown method, or a motion whose shapes do not fit the robot
+            (:meth:`Motion.check`), before any sample is computed.
         DescriptionError: too few samples to differentiate the poses.
         MotionSampleError: a sample fails; it names the row and time, and carries the
             library error (e.g. :class:`UnreachablePoseError`,
@@ -416,7 +547,7 @@ def inverse_dynamics_along(robot: ParallelRobot, motion: Motion,
         raise InputError("method", method,
                          f"expected one of {', '.join(INVERSE_DYNAMICS_METHODS)}")
     actuators_along(robot, dataclasses.replace(motion, q=None))
-    twists, twist_dots = motion_rates(motion)
+    twists, twist_dots = motion_rates(motion, robot)
     total = len(motion.t)
     taus, closures = [], []
     for n in range(total):

@@ -23,7 +23,7 @@ from hexapod_pin.core.dynamics import (
     forward_dynamics_tree,
     inverse_dynamics_tree,
 )
-from hexapod_pin.errors import ActuatorSaturationError, SolverError
+from hexapod_pin.errors import ActuatorSaturationError, InputError, SolverError
 
 RTOL = 1e-9
 STATES = 4
@@ -154,8 +154,13 @@ def test_gamma_outside_the_range_of_the_jacobian_raises():
     gamma = clm.constraint_drift(q, v)
     assert np.max(np.abs(gamma)) > 1.0
     for method in FORWARD_METHODS:
-        with pytest.raises(SolverError):
+        # the public route refuses the velocity first (it breaks the closures) ...
+        with pytest.raises(InputError, match="breaks the closures") as err:
             forward_dynamics_tree(clm, q, v, np.zeros(2), method=method)
+        assert err.value.name == "v"
+        # ... and the solvers below it refuse the inconsistent system themselves
+        with pytest.raises(SolverError):
+            dynamics_of(clm).forward_unchecked(q, v, np.zeros(2), method)
 
 
 def test_pinocchio_route_reports_its_fallback_on_massless_links():

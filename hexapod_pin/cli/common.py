@@ -3,9 +3,16 @@ command line, turning library and usage errors into one-line messages (a JSON ob
 with ``--json``), and the output helpers (JSON, tables, notes and progress bars on
 stderr).
 
+The robot of a command: the hexapod of ``--geometry`` / ``--set`` (default), or any
+closed-loop robot of ``--robot PATH [--platform FRAME] [--pose-axes x,z]``
+(:func:`load_cli_robot`, :func:`hexapod_pin.load_robot`). Poses, twists, wrenches and
+actuator values are read and printed in that robot's own axes and actuator order
+(:func:`pose_axes_of`, :func:`actuator_names`).
+
 Exit codes: 0 success; 1 an error of the library or of the input (a value that is not a
 number, an unreachable pose, a malformed file, ...); 2 a usage error (an unknown
-option, a missing argument). Every error is one line on stderr, ``error: <message>``,
+option, a missing argument, options that do not go together such as ``--robot`` with
+``--geometry``). Every error is one line on stderr, ``error: <message>``,
 or with ``--json`` one JSON object on stdout, ``{"error": {"type": ..., "message":
 ...}}``; never a traceback.
 """
@@ -39,9 +46,11 @@ from rich.table import Table
 from rich.text import Text
 from typer.core import TyperCommand, TyperGroup
 
+from ..core.robot import ClosedLoopRobot
 from ..errors import HexapodPinError, InputError
 from ..files import load_geometry
 from ..hexapod.robot import Hexapod
+from ..loaders.any_robot import load_robot
 from ..motion import POSE_NAMES
 
 #: lets "-0.1" through as a value (commands taking numbers)
@@ -81,9 +90,111 @@ Degrees = Annotated[bool, typer.Option("--degrees", help="pose angles in degrees
 Values = Annotated[list[str] | None, typer.Argument(show_default=False, metavar="NUMBERS")]
 
 
+RobotFile = Annotated[Path | None, typer.Option(
+    "--robot", metavar="PATH", help="any closed-loop robot: a URDF with <name>.loops.yaml "
+    "beside it, an SDF, or a folder (default: the hexapod of --geometry / --set)",
+    show_default=False)]
+PlatformFrame = Annotated[str | None, typer.Option(
+    "--platform", metavar="FRAME", help="with --robot: the platform frame (default: the "
+    "loops file's robot.platform)", show_default=False)]
+PoseAxes = Annotated[str | None, typer.Option(
+    "--pose-axes", metavar="AXES", help="with --robot: the pose components, a subset of "
+    "x,y,z,roll,pitch,yaw in that order (default: the loops file's, else all six)",
+    show_default=False)]
+
+#: the robot of a command: the hexapod, or a robot loaded with ``--robot``
+CliRobot = Hexapod | ClosedLoopRobot
+#: angular pose components (``--degrees`` converts them)
+ANGLES = ("roll", "pitch", "yaw")
+#: the twist and wrench component of each pose component
+TWIST_OF = {"x": "vx", "y": "vy", "z": "vz", "roll": "wx", "pitch": "wy", "yaw": "wz"}
+WRENCH_OF = {"x": "fx", "y": "fy", "z": "fz", "roll": "mx", "pitch": "my", "yaw": "mz"}
+
+
+class CliUsageError(Exception):
+    """Options that do not go together (exit code 2, like any usage error: see
+    :func:`is_usage_error`)."""
+
+    exit_code = 2
+
+    def format_message(self) -> str:
+        """The message (click's usage-error interface)."""
+        return str(self)
+
+
 def robot_of(geometry_file: Path | None, overrides: list[str] | None) -> Hexapod:
     """The hexapod of ``--geometry`` and ``--set`` (see :func:`hexapod_pin.files.load_geometry`)."""
     return Hexapod(load_geometry(geometry_file, overrides))
+
+
+def load_cli_robot(robot: Path | None, platform: str | None, pose_axes: str | None,
+                   geometry: Path | None, set_: list[str] | None) -> CliRobot:
+    """The robot of a command: with ``robot`` (``--robot PATH``) the
+    :class:`~hexapod_pin.ClosedLoopRobot` of :func:`hexapod_pin.load_robot` (``--platform``,
+    ``--pose-axes``), else the hexapod of ``--geometry`` / ``--set`` (:func:`robot_of`).
+
+    Raises:
+        CliUsageError: ``--robot`` with ``--geometry`` or ``--set``, or ``--platform`` /
+            ``--pose-axes`` without ``--robot``.
+        DescriptionError: a missing or malformed description, no loops file, an unknown
+            frame, pose axes that do not match the mechanism's mobility.
+    """
+    if robot is None:
+        if platform is not None or pose_axes is not None:
+            raise CliUsageError("--platform and --pose-axes need --robot PATH")
+        return robot_of(geometry, set_)
+    if geometry is not None or set_:
+        raise CliUsageError("--robot cannot be combined with --geometry or --set (they "
+                            "set the fields of the hexapod's geometry)")
+    return load_robot(robot, platform, pose_axes)
+
+
+def robot_urdf(robot: CliRobot, path: Path | None) -> Path | None:
+    """The URDF the viewer draws a robot loaded from ``path`` with, when its model does not
+    carry its URDF text (an example-parallel-robots folder: its ``robot.urdf``); None
+    otherwise (the model's own)."""
+    if path is None or getattr(robot.model, "urdf_xml", None):
+        return None
+    candidate = path / "robot.urdf" if path.is_dir() else path
+    return candidate if candidate.suffix == ".urdf" and candidate.is_file() else None
+
+
+def hexapod_only(robot: CliRobot, **options: object) -> None:
+    """Refuse options of the hexapod (given: not None / not False) for a robot loaded with
+    ``--robot``.
+
+    Raises:
+        CliUsageError: one of ``options`` was given for a loaded robot.
+    """
+    if isinstance(robot, Hexapod):
+        return
+    given = [name for name, value in options.items() if value not in (None, False, [])]
+    if given:
+        flags = ", ".join("--" + name.replace("_", "-") for name in given)
+        raise CliUsageError(f"{flags}: an option of the hexapod, not of --robot "
+                            f"({robot.geometry.name})")
+
+
+def pose_axes_of(robot: CliRobot) -> tuple[str, ...]:
+    """The pose components of the robot, e.g. ``("x", "z")`` (the hexapod: all six)."""
+    return robot.geometry.pose_axes if isinstance(robot, ClosedLoopRobot) else POSE_NAMES
+
+
+def actuator_names(robot: CliRobot) -> tuple[str, ...]:
+    """The actuators in order: the actuated joints of a loaded robot, ``q0 .. q5`` for
+    the hexapod's carriages."""
+    if isinstance(robot, ClosedLoopRobot):
+        return tuple(robot.model.actuated_joints)
+    return tuple(f"q{i}" for i in range(robot.n_actuators))
+
+
+def robot_fields(robot: CliRobot) -> dict[str, Any]:
+    """What ``--json`` adds for a loaded robot: its name, pose axes and actuators (nothing
+    for the hexapod)."""
+    if not isinstance(robot, ClosedLoopRobot):
+        return {}
+    return {"robot": robot.geometry.name, "platform": robot.geometry.platform,
+            "pose_axes": list(pose_axes_of(robot)), "actuators": list(actuator_names(robot))}
 
 
 # -- errors ---------------------------------------------------------------------------------
@@ -220,20 +331,61 @@ def parse_numbers(tokens: Sequence[str] | None, count: int | None, name: str,
     return array
 
 
-def pose_in(tokens: Sequence[str] | None, degrees: bool, name: str = "pose") -> np.ndarray:
-    """A pose (6,) from the command line (angles in degrees with ``degrees``) in m, rad."""
-    pose = parse_numbers(tokens, 6, name, "x y z roll pitch yaw")
+def pose_in(tokens: Sequence[str] | None, degrees: bool, name: str = "pose",
+            axes: tuple[str, ...] = POSE_NAMES) -> np.ndarray:
+    """A pose (len(axes),) from the command line in m, rad (angles in degrees with
+    ``degrees``); ``axes`` the robot's pose components (:func:`pose_axes_of`)."""
+    pose = parse_numbers(tokens, len(axes), name, ", ".join(axes))
     if degrees:
-        pose[3:] = np.radians(pose[3:])
+        angular = _angular(axes)
+        pose[angular] = np.radians(pose[angular])
     return pose
 
 
-def pose_out(pose: ArrayLike, degrees: bool) -> list[float]:
-    """A pose as plain floats for output (angles in degrees with ``degrees``)."""
+def pose_out(pose: ArrayLike, degrees: bool, axes: tuple[str, ...] = POSE_NAMES
+             ) -> list[float]:
+    """A pose of components ``axes`` (default the hexapod's) as plain floats for output
+    (angles in degrees with ``degrees``)."""
     pose = np.array(pose, dtype=float)
     if degrees:
-        pose[3:] = np.degrees(pose[3:])
+        angular = _angular(axes)
+        pose[angular] = np.degrees(pose[angular])
     return [float(v) for v in pose]
+
+
+def robot_pose_out(robot: CliRobot, pose: ArrayLike, degrees: bool) -> list[float]:
+    """A pose of ``robot`` as plain floats (its angular components in degrees with
+    ``degrees``)."""
+    return pose_out(pose, degrees, pose_axes_of(robot))
+
+
+def _angular(axes: tuple[str, ...]) -> np.ndarray:
+    return np.array([axis in ANGLES for axis in axes], dtype=bool)
+
+
+def robot_pose_in(robot: CliRobot, tokens: Sequence[str] | None, degrees: bool,
+                  name: str = "pose") -> np.ndarray:
+    """A pose of ``robot`` from the command line (:func:`pose_in` in its axes); no tokens:
+    its home pose."""
+    return pose_in(tokens, degrees, name, pose_axes_of(robot)) if tokens else robot.home_pose
+
+
+def actuators_in(robot: CliRobot, tokens: Sequence[str] | None, name: str = "q") -> np.ndarray:
+    """Actuator values (n_act,) of ``robot`` from the command line (m or rad, actuator
+    order)."""
+    names = actuator_names(robot)
+    meaning = "q0 .. q5" if isinstance(robot, Hexapod) else ", ".join(names)
+    return parse_numbers(tokens, len(names), name, meaning)
+
+
+def component_values(robot: CliRobot, text: str | None, name: str,
+                     names: dict[str, str]) -> np.ndarray | None:
+    """A twist or wrench of ``robot`` from ``'a,b,...'`` (one value per pose component,
+    ``names`` maps each to its component name, e.g. :data:`WRENCH_OF`); None stays None."""
+    if text is None:
+        return None
+    parts = [names[axis] for axis in pose_axes_of(robot)]
+    return parse_numbers([text], len(parts), name, ", ".join(parts))
 
 
 def check_suffix(name: str, path: Path | None, suffixes: tuple[str, ...]) -> None:
@@ -302,15 +454,31 @@ def progress_bar(quiet: bool, label: str, total: int | None = None) -> Iterator[
         yield lambda done=0, total=None: bar.update(task, completed=done)
 
 
-def pose_table(title: str, poses: Sequence[np.ndarray] | np.ndarray, degrees: bool) -> Table:
-    """A table of poses, one row each, with units in the column names."""
+def pose_table(title: str, poses: Sequence[np.ndarray] | np.ndarray, degrees: bool,
+               axes: tuple[str, ...] = POSE_NAMES) -> Table:
+    """A table of poses of components ``axes``, one row each, with units in the column
+    names."""
     unit = "deg" if degrees else "rad"
     table = Table(title=title)
     table.add_column("#", justify="right")
-    for name in POSE_NAMES:
-        table.add_column(f"{name} ({'m' if name in 'xyz' else unit})", justify="right")
+    for name in axes:
+        table.add_column(f"{name} ({unit if name in ANGLES else 'm'})", justify="right")
     for n, pose in enumerate(poses):
-        table.add_row(str(n), *(f"{v:+.6f}" for v in pose_out(pose, degrees)))
+        table.add_row(str(n), *(f"{v:+.6f}" for v in pose_out(pose, degrees, axes)))
+    return table
+
+
+def actuator_table(robot: CliRobot, title: str, columns: dict[str, np.ndarray]) -> Table:
+    """A table with one row per actuator and the given columns (the hexapod:
+    :func:`carriage_table`, with each carriage's rail)."""
+    if isinstance(robot, Hexapod):
+        return carriage_table(title, columns)
+    table = Table(title=title)
+    table.add_column("actuator", justify="right")
+    for name in columns:
+        table.add_column(name, justify="right")
+    for i, name in enumerate(actuator_names(robot)):
+        table.add_row(Text(name), *(f"{float(v[i]):+.6f}" for v in columns.values()))
     return table
 
 

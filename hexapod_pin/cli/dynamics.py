@@ -1,37 +1,61 @@
-"""Dynamics commands: ``statics``, ``id`` (inverse dynamics along a motion file),
-``simulate`` (closed-loop simulation tracking a circle)."""
+"""Dynamics commands: ``statics``, ``fd`` (forward dynamics of one state), ``id`` (inverse
+dynamics along a motion file), ``simulate`` (the hexapod: closed-loop simulation tracking
+a circle; any robot of ``--robot``: :func:`hexapod_pin.core.simulate.simulate` under
+constant forces or computed torque holding home)."""
 
 from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, cast
 
 import numpy as np
 import typer
 
 from .. import motion as motions
-from ..viz import hexapod_scenes, plotting
+from ..core.controllers import ComputedTorque
+from ..core.robot import ClosedLoopRobot
+from ..core.robot_api import ParallelRobot
+from ..core.simulate import STATUSES, Trajectory
+from ..core.simulate import simulate as simulate_robot
+from ..core.simulation import INTEGRATORS
+from ..errors import InputError
+from ..viz import hexapod_scenes, plotting, scenes
 from .common import (
+    TWIST_OF,
+    WRENCH_OF,
     AsJson,
     Degrees,
     GeometryFile,
+    PlatformFrame,
+    PoseAxes,
     Quiet,
+    RobotFile,
     SetFields,
     Values,
+    actuator_table,
     carriage_table,
     check_suffix,
+    component_values,
     console,
     emit_json,
     guard,
+    hexapod_only,
+    load_cli_robot,
     note,
     parse_numbers,
-    pose_in,
-    pose_out,
+    pose_axes_of,
     progress_bar,
     quantity_table,
+    robot_fields,
     robot_of,
+    robot_pose_in,
+    robot_pose_out,
+    robot_urdf,
 )
+
+#: the controllers of ``simulate --robot``
+ROBOT_CONTROLLERS = ("none", "computed-torque")
 
 
 @guard
@@ -39,17 +63,75 @@ def statics(pose: Values = None,
             wrench: Annotated[str | None, typer.Option(
                 help="wrench on the platform 'fx,fy,fz,mx,my,mz' (N, N m, world axes)")] = None,
             degrees: Degrees = False, as_json: AsJson = False,
+            robot: RobotFile = None, platform: PlatformFrame = None,
+            pose_axes: PoseAxes = None,
             geometry: GeometryFile = None, set_: SetFields = None) -> None:
-    """Actuator forces (N) holding the platform at rest at a pose (default home)."""
-    robot = robot_of(geometry, set_)
-    p = pose_in(pose, degrees) if pose else robot.home_pose
-    w = None if wrench is None else parse_numbers([wrench], 6, "wrench", "fx fy fz mx my mz")
-    tau = robot.static_forces(p, wrench=w)
+    """Actuator forces (N) holding the platform at rest at a pose (default home).
+
+    With `--robot`: in its pose axes; `--wrench` has one value per pose axis (fx for x,
+    mx for roll, ...); forces in N or N m along each actuated joint."""
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
+    p = robot_pose_in(bot, pose, degrees)
+    w = component_values(bot, wrench, "wrench", WRENCH_OF)
+    tau = bot.static_forces(p, wrench=w)
     if as_json:
-        emit_json({"pose": pose_out(p, degrees), "wrench": w, "actuator_forces": tau})
+        emit_json({"pose": robot_pose_out(bot, p, degrees), "wrench": w,
+                   "actuator_forces": tau, **robot_fields(bot)})
         return
-    console.print(carriage_table("static actuator forces (+ along the rail direction u_k)",
-                                 {"tau (N)": tau}))
+    title = ("static actuator forces (+ along the rail direction u_k)"
+             if not isinstance(bot, ClosedLoopRobot) else
+             "static actuator forces (+ along each actuated joint)")
+    console.print(actuator_table(bot, title, {force_unit(bot): tau}))
+
+
+def force_unit(robot: object) -> str:
+    """The column name of actuator forces: ``tau (N)`` for the hexapod, ``tau (N | N m)``
+    for a loaded robot (each in its joint's unit)."""
+    return "tau (N | N m)" if isinstance(robot, ClosedLoopRobot) else "tau (N)"
+
+
+@guard
+def fd(pose: Values = None,
+       twist: Annotated[str | None, typer.Option(
+           help="platform twist 'vx,vy,vz,wx,wy,wz' (m/s, rad/s, world axes; with --robot "
+                "one value per pose axis); default rest")] = None,
+       forces: Annotated[str | None, typer.Option(
+           help="actuator forces 'u0,u1,...' (N or N m, actuator order); default the "
+                "static forces of the pose (the platform then stays at rest)")] = None,
+       wrench: Annotated[str | None, typer.Option(
+           help="wrench on the platform 'fx,fy,fz,mx,my,mz' (N, N m, world axes; with "
+                "--robot one value per pose axis)")] = None,
+       method: Annotated[str, typer.Option(
+           help="nullspace, pinocchio, qp or kkt (every route agrees to 1e-10)")
+       ] = "nullspace",
+       degrees: Degrees = False, as_json: AsJson = False,
+       robot: RobotFile = None, platform: PlatformFrame = None, pose_axes: PoseAxes = None,
+       geometry: GeometryFile = None, set_: SetFields = None) -> None:
+    """Forward dynamics of one state: the platform acceleration (twist derivative) and
+    the actuator accelerations produced by actuator forces at a pose (default home) and
+    twist (default rest)."""
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
+    p = robot_pose_in(bot, pose, degrees)
+    v = component_values(bot, twist, "twist", TWIST_OF)
+    w = component_values(bot, wrench, "wrench", WRENCH_OF)
+    u = bot.static_forces(p, wrench=w, bounded=False) if forces is None else \
+        parse_numbers([forces], bot.n_actuators, "forces", f"{bot.n_actuators} actuator forces")
+    v = np.zeros(bot.pose_dim) if v is None else v
+    result = bot.forward_dynamics(p, v, u, wrench=w, method=method)
+    if as_json:
+        emit_json({"pose": robot_pose_out(bot, p, degrees), "twist": v, "wrench": w,
+                   "actuator_forces": u, "twist_dot": result.twist_dot,
+                   "actuator_accelerations": result.actuator_accelerations,
+                   "method": result.method, **robot_fields(bot)})
+        return
+    axes = pose_axes_of(bot)
+    console.print(quantity_table("forward dynamics: twist derivative (world axes)", {
+        f"d{TWIST_OF[a]}/dt ({'rad' if TWIST_OF[a][0] == 'w' else 'm'}/s^2)": f"{value:+.6g}"
+        for a, value in zip(axes, result.twist_dot)}))
+    console.print(actuator_table(bot, f"actuator forces and accelerations ({result.method})",
+                                 {force_unit(bot): u,
+                                  "acceleration (m/s^2 | rad/s^2)":
+                                      result.actuator_accelerations}))
 
 
 @guard
@@ -98,15 +180,25 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
              dt: Annotated[float | None, typer.Option(
                  help="time step (s); default 0.25 ms for pid, 1 ms otherwise",
                  show_default=False)] = None,
-             controller: Annotated[str, typer.Option(
-                 help="pid (Quanser gains), computed-torque, or none (no actuator force)")
-             ] = "pid",
-             engine: Annotated[str, typer.Option(
+             controller: Annotated[str | None, typer.Option(
+                 help="pid (Quanser gains), computed-torque, or none (no actuator force); "
+                      "default pid; with --robot: none (the forces of --forces) or "
+                      "computed-torque (holding home)", show_default=False)] = None,
+             engine: Annotated[str | None, typer.Option(
                  help="fast (compiled, PID or none), python (Pinocchio tree route, every "
-                      "controller), auto (fast unless computed-torque)")] = "auto",
-             radius: Annotated[float, typer.Option(
-                 help="radius of the reference circle of the platform about home (m)")] = 0.02,
-             period: Annotated[float, typer.Option(help="period of the circle (s)")] = 2.0,
+                      "controller), auto (fast unless computed-torque); default auto",
+                 show_default=False)] = None,
+             radius: Annotated[float | None, typer.Option(
+                 help="radius of the reference circle of the platform about home (m); "
+                      "default 0.02", show_default=False)] = None,
+             period: Annotated[float | None, typer.Option(
+                 help="period of the circle (s); default 2", show_default=False)] = None,
+             forces: Annotated[str | None, typer.Option(
+                 help="with --robot and no controller: constant actuator forces "
+                      "'u0,u1,...' (N or N m, actuator order); default zero")] = None,
+             integrator: Annotated[str | None, typer.Option(
+                 help="with --robot: rk4 or semi_implicit_euler; default rk4",
+                 show_default=False)] = None,
              out: Annotated[Path | None, typer.Option(
                  help="write the trajectory (.csv / .json motion file)")] = None,
              html: Annotated[Path | None, typer.Option(
@@ -114,27 +206,46 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
              plot: Annotated[Path | None, typer.Option(
                  help="write a figure (.png / .svg / .pdf) of q, forces, residual")] = None,
              as_json: AsJson = False, quiet: Quiet = False,
+             robot: RobotFile = None, platform: PlatformFrame = None,
+             pose_axes: PoseAxes = None,
              geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Simulate the closed-loop dynamics tracking a circle of the platform about home.
 
     Exit code 1 unless the run completed and tracked the circle (status `completed`):
-    a stop at a stroke limit, a failure, or a tracking error above the circle's radius
-    (status `tracking_lost`, e.g. a step too long for the PID gains) are failures.
+    a stop at a stroke limit, a failure, a tracking error above the circle's radius
+    (status `tracking_lost`, e.g. a step too long for the PID gains) or commands clipped
+    to the force bound (status `saturated`, with a warning) are failures.
     With `--json` the summary is printed with exit code 0 and its `status` says what
     happened.
-    """
+
+    With `--robot`: the generic simulation (`hexapod_pin.simulate`) from home at rest,
+    under constant actuator forces (`--forces`, default zero) or computed torque holding
+    the home pose; statuses `completed`, `saturated` (exit code 1) or `failed` (exit
+    code 1)."""
     quiet = quiet or as_json
-    robot = robot_of(geometry, set_)
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     check_suffix("out", out, motions.MOTION_SUFFIXES)
     check_suffix("html", html, (".html", ".htm"))
     check_suffix("plot", plot, plotting.IMAGE_SUFFIXES)
+    if isinstance(bot, ClosedLoopRobot):
+        hexapod_only(bot, engine=engine, radius=radius, period=period, plot=plot, out=out)
+        _simulate_loaded(bot, duration, dt, controller or "none", forces,
+                         integrator or "rk4", html, as_json, quiet, robot_urdf(bot, robot))
+        return
+    for name, value in (("forces", forces), ("integrator", integrator)):
+        if value is not None:
+            raise InputError(name, value, f"--{name} is an option of simulate --robot")
+    controller = controller or "pid"
+    engine = engine or "auto"
+    radius = 0.02 if radius is None else radius
+    period = 2.0 if period is None else period
     compiled = engine == "fast" or (engine == "auto" and controller != "computed-torque")
     steps = round(duration / (dt or motions.DEFAULT_DT.get(controller, 1e-3))) \
         if np.isfinite(duration) and duration > 0 and not compiled else None
     # the compiled loop reports nothing until it ends: a spinner instead of a bar
     with progress_bar(quiet, f"simulating {duration:g} s",
                       total=None if steps is None else max(steps, 1)) as progress:
-        run = motions.simulate_circle(robot, duration, dt, controller, radius, period,
+        run = motions.simulate_circle(bot, duration, dt, controller, radius, period,
                                       progress, engine=engine)
     traj = run.trajectory
     motion = motions.Motion.from_trajectory(traj)
@@ -144,7 +255,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
     if html is not None:
         with progress_bar(quiet, "writing HTML"):
             hexapod_scenes.write_simulation_html(
-                html, robot, traj,
+                html, bot, traj,
                 caption=f"simulation: {controller} control, circle r = {radius:g} m, "
                         f"{motion.t[-1]:g} s ({run.status})")
         note(quiet, f"wrote {html}")
@@ -170,5 +281,79 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
          for key, value in summary.items() if value not in (None, "")}))
     if run.status == "saturated":
         note(False, f"warning: {run.message}")
-    if not run.ok:
+    if run.status != "completed":
         raise typer.Exit(code=1)
+
+
+def _simulate_loaded(robot: ClosedLoopRobot, duration: float, dt: float | None,
+                     controller: str, forces: str | None, integrator: str,
+                     html: Path | None, as_json: bool, quiet: bool,
+                     urdf: Path | None) -> None:
+    """``simulate --robot``: the generic simulation from home at rest, its summary, and
+    exit code 1 unless it completed."""
+    if controller not in ROBOT_CONTROLLERS:
+        raise InputError("controller", controller,
+                         f"with --robot expected one of {', '.join(ROBOT_CONTROLLERS)}")
+    if integrator not in INTEGRATORS:
+        raise InputError("integrator", integrator, f"expected one of {', '.join(INTEGRATORS)}")
+    n = robot.n_actuators
+    ctrl = None
+    u: np.ndarray | None = None
+    if controller == "computed-torque":
+        if forces is not None:
+            raise InputError("forces", forces, "not with --controller computed-torque")
+        home, rest = robot.home_pose, np.zeros(robot.pose_dim)
+        ctrl = ComputedTorque(lambda t: (home, rest, rest))
+    else:
+        u = np.zeros(n) if forces is None else parse_numbers(
+            [forces], n, "forces", ", ".join(robot.model.actuated_joints))
+    with progress_bar(quiet, f"simulating {duration:g} s", total=100) as progress:
+        # ClosedLoopRobot serves the protocol at run time (default() and n_actuators are
+        # instance members there): cast until core.robot_api says so
+        traj = simulate_robot(cast(ParallelRobot, robot), duration,
+                              1e-3 if dt is None else dt, controller=ctrl,
+                              actuator_forces=u, integrator=integrator,
+                              progress=lambda done: progress(round(100 * done), 100))
+    if html is not None:
+        with progress_bar(quiet, "writing HTML"):
+            scenes.write_trajectory_html(
+                html, robot, traj.times, traj.q, actuator_forces=traj.actuator_forces, urdf=urdf,
+                caption=f"simulation of {robot.geometry.name}: {controller} control, "
+                        f"{traj.times[-1]:g} s ({traj.status})")
+        note(quiet, f"wrote {html}")
+    summary = loaded_summary(robot, traj, controller, integrator, html)
+    if as_json:
+        emit_json(summary)
+        return
+    console.print(quantity_table(
+        f"simulation of {robot.geometry.name}: {controller} control",
+        {key: shown(value) for key, value in summary.items() if value not in (None, "", [])}))
+    if traj.status == "saturated":
+        note(False, f"warning: {traj.message}")
+    if traj.status != STATUSES[0]:
+        raise typer.Exit(code=1)
+
+
+def shown(value: object) -> str:
+    """A summary value as table text: floats to 4 digits, lists joined."""
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, list):
+        return " ".join(f"{v:+.6g}" if isinstance(v, float) else str(v) for v in value)
+    return str(value)
+
+
+def loaded_summary(robot: ClosedLoopRobot, traj: Trajectory, controller: str,
+                   integrator: str, html: Path | None) -> dict:
+    """The summary of ``simulate --robot`` (the ``--json`` object)."""
+    final = None if traj.poses is None else robot_pose_out(robot, traj.poses[-1], False)
+    balance = traj.energies - traj.energies[0] - traj.work
+    return {"status": traj.status, "message": traj.message, "controller": controller,
+            "integrator": integrator, "dt_s": traj.dt,
+            "duration_s": float(traj.times[-1] - traj.times[0]),
+            "samples": len(traj.times), "wall_time_s": float(traj.wall_time),
+            "max_abs_actuator_force": float(np.max(np.abs(traj.actuator_forces))),
+            "saturated_fraction": float(np.mean(traj.saturated)),
+            "max_closure_residual": float(np.max(traj.closure_residual)),
+            "max_energy_balance_error_j": float(np.max(np.abs(balance))),
+            "final_pose": final, "html": html, **robot_fields(robot)}

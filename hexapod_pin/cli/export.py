@@ -1,6 +1,8 @@
-"""The ``urdf`` command: write the URDF of the hexapod (or of the planar 3-PRR) for a
+"""Export commands: ``urdf`` writes the URDF of the hexapod (or of the planar 3-PRR) for a
 geometry, the tree a Pinocchio, ROS or MuJoCo user loads (the loop closures are in the
-matching ``urdf/*.loops.yaml``)."""
+matching ``urdf/*.loops.yaml``); ``mjcf`` writes the MuJoCo model of the hexapod or of
+any robot of ``--robot`` (:func:`hexapod_pin.core.mujoco_export.closed_loop_mjcf`: the
+tree, closures as equality constraints, one motor per actuated joint)."""
 
 from __future__ import annotations
 
@@ -9,6 +11,8 @@ from typing import Annotated
 
 import typer
 
+from ..core.mujoco_export import closed_loop_mjcf
+from ..core.robot import ClosedLoopRobot
 from ..errors import InputError
 from ..files import load_geometry, write_text_atomic
 from ..planar.geometry import PlanarGeometry
@@ -16,11 +20,15 @@ from ..planar.robot import Planar3PRR
 from .common import (
     AsJson,
     GeometryFile,
+    PlatformFrame,
+    PoseAxes,
     Quiet,
+    RobotFile,
     SetFields,
     check_suffix,
     emit_json,
     guard,
+    load_cli_robot,
     note,
     robot_of,
 )
@@ -56,3 +64,30 @@ def urdf(out: Annotated[Path | None, typer.Option(
     note(quiet, f"wrote {out}")
     if as_json:
         emit_json({"robot": robot, "out": out, "characters": len(text)})
+
+
+@guard
+def mjcf(out: Annotated[Path | None, typer.Option(
+             "--out", "-o", help="MJCF file to write (.xml / .mjcf); default: stdout",
+             show_default=False)] = None,
+         timestep: Annotated[float, typer.Option(help="MuJoCo time step (s)")] = 1e-3,
+         as_json: AsJson = False, quiet: Quiet = False,
+         robot: RobotFile = None, platform: PlatformFrame = None, pose_axes: PoseAxes = None,
+         geometry: GeometryFile = None, set_: SetFields = None) -> None:
+    """The MuJoCo model (MJCF) of the hexapod, or of any robot with `--robot`: the tree,
+    every loop closure as an equality constraint, one motor per actuated joint."""
+    quiet = quiet or as_json
+    check_suffix("out", out, (".xml", ".mjcf"))
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
+    text = closed_loop_mjcf(bot.model, timestep=timestep)
+    name = bot.geometry.name if isinstance(bot, ClosedLoopRobot) else "hexapod"
+    if out is None:
+        if as_json:
+            emit_json({"robot": name, "mjcf": text})
+        else:
+            typer.echo(text, nl=not text.endswith("\n"))
+        return
+    write_text_atomic(out, text)
+    note(quiet, f"wrote {out}")
+    if as_json:
+        emit_json({"robot": name, "out": out, "characters": len(text)})

@@ -5,9 +5,9 @@ functions:
 
 * ``demo`` (:mod:`.demo`);
 * ``ik``, ``fk``, ``modes``, ``jacobian`` (:mod:`.kinematics`);
-* ``statics``, ``id``, ``simulate`` (:mod:`.dynamics`);
+* ``statics``, ``fd``, ``id``, ``simulate`` (:mod:`.dynamics`);
 * ``view``, ``plot`` (:mod:`.views`);
-* ``urdf`` (:mod:`.export`);
+* ``urdf``, ``mjcf`` (:mod:`.export`);
 * ``retime``, ``check`` (:mod:`.planning`);
 * ``calibrate`` (:mod:`.calibrate`).
 
@@ -17,6 +17,13 @@ Common options (:mod:`.common`):
   (at the top level or under a ``geometry`` table), e.g. ``leg_length = 0.5``;
   ``--set FIELD=VALUE`` (repeatable) overrides one field. Default: the defaults
   (:func:`hexapod_pin.files.load_geometry`).
+* ``--robot PATH [--platform FRAME] [--pose-axes x,z]`` (``ik``, ``fk``, ``modes``,
+  ``jacobian``, ``statics``, ``fd``, ``simulate``, ``view``, ``mjcf``): any closed-loop
+  robot instead of the hexapod (:func:`hexapod_pin.load_robot`: a URDF with
+  ``<name>.loops.yaml`` beside it, an SDF, or a folder; platform and pose axes default to
+  the loops file's ``robot:`` section). Poses then have the robot's pose axes, actuator
+  values its actuated joints; ``--robot`` with ``--geometry`` / ``--set`` or a hexapod
+  option (``--branch``, ``--radius``, ...) is a usage error (exit code 2).
 * ``--json``: machine-readable output on stdout (nothing else is written then).
 * ``--quiet``: no progress bars or notes (results are still printed).
 * ``--degrees``: angles of poses in degrees, in and out (default rad).
@@ -74,11 +81,13 @@ app.command(cls=Command, context_settings=NUMBERS)(kinematics.fk)
 app.command(cls=Command, context_settings=NUMBERS)(kinematics.modes)
 app.command(cls=Command, context_settings=NUMBERS)(kinematics.jacobian)
 app.command(cls=Command, context_settings=NUMBERS)(dynamics.statics)
+app.command(cls=Command, context_settings=NUMBERS)(dynamics.fd)
 app.command("id", cls=Command)(dynamics.inverse_dynamics)
 app.command(cls=Command)(dynamics.simulate)
 app.command(cls=Command, context_settings=NUMBERS)(views.view)
 app.command(cls=Command)(views.plot)
 app.command(cls=Command)(export.urdf)
+app.command(cls=Command)(export.mjcf)
 app.command(cls=Command)(planning.retime)
 app.command(cls=Command)(planning.check)
 app.command(cls=Command, context_settings=NUMBERS)(calibrate.calibrate)

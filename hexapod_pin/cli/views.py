@@ -10,6 +10,7 @@ import numpy as np
 import typer
 
 from .. import motion as motions
+from ..core.robot import ClosedLoopRobot
 from ..errors import InputError
 from ..hexapod.robot import Hexapod
 from ..viz import hexapod_scenes, plotting, scenes, workspace_plots
@@ -17,19 +18,29 @@ from .common import (
     AsJson,
     Degrees,
     GeometryFile,
+    PlatformFrame,
+    PoseAxes,
     Quiet,
+    RobotFile,
     SetFields,
     Values,
+    actuators_in,
     check_suffix,
     emit_json,
     fmt,
     guard,
+    hexapod_only,
+    load_cli_robot,
     note,
     parse_numbers,
     pose_in,
     pose_out,
     progress_bar,
+    robot_fields,
     robot_of,
+    robot_pose_in,
+    robot_pose_out,
+    robot_urdf,
 )
 from .kinematics import NoLimits, assembly_modes_of, write_modes
 
@@ -57,41 +68,89 @@ def view(values: Values = None,
          fps: Annotated[float, typer.Option(help="key frames per second")] = 30.0,
          no_limits: NoLimits = False,
          degrees: Degrees = False, as_json: AsJson = False, quiet: Quiet = False,
+         robot: RobotFile = None, platform: PlatformFrame = None, pose_axes: PoseAxes = None,
          geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Write a self-contained HTML view (meshcat): a pose (default home), the pose of
-    carriage positions, all assembly modes, or an animated motion."""
+    carriage positions, all assembly modes, or an animated motion.
+
+    With `--robot`: a pose in its pose axes (default home), the pose of its actuator
+    positions (`-c`), or its assembly modes (`--modes`)."""
     quiet = quiet or as_json
-    robot = robot_of(geometry, set_)
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     check_suffix("out", out, (".html", ".htm"))
     carriages = carriages or all_modes
     if sum([trajectory is not None, circle is not None, bool(values) or carriages]) > 1:
         raise InputError("view", values, "give one of: values, --trajectory, --circle")
+    if isinstance(bot, ClosedLoopRobot):
+        hexapod_only(bot, trajectory=trajectory, circle=circle)
+        if out == Path("hexapod.html"):
+            out = Path(f"{Path(bot.geometry.name).stem}.html")
+        detail = _view_loaded(out, bot, values, carriages, all_modes, layout, forces,
+                              no_limits, degrees, quiet, robot_urdf(bot, robot))
+        note(quiet, f"wrote {out}")
+        if as_json:
+            emit_json({"html": out, **detail, **robot_fields(bot)})
+        return
     if trajectory is not None or circle is not None:
         motion = (motions.read_motion(trajectory) if trajectory is not None
-                  else motions.circle_motion(robot, float(circle or 0.0), period))
+                  else motions.circle_motion(bot, float(circle or 0.0), period))
         label = trajectory or f"circle r = {circle:g} m"
-        detail = _view_motion(out, robot, motion, forces, fps, quiet, label)
+        detail = _view_motion(out, bot, motion, forces, fps, quiet, label)
         kind = "trajectory"
     elif all_modes:
-        q = robot.home_q if not values else parse_numbers(values, 6, "q", "q0 .. q5")
+        q = bot.home_q if not values else parse_numbers(values, 6, "q", "q0 .. q5")
         with progress_bar(quiet, "solving the assembly modes"):
-            poses = assembly_modes_of(robot, q, not no_limits)
-            write_modes(out, robot, q, poses, layout)
+            poses = assembly_modes_of(bot, q, not no_limits)
+            write_modes(out, bot, q, poses, layout)
         kind, detail = "modes", {"modes": [pose_out(p, degrees) for p in poses]}
     else:
         if carriages:
             q = parse_numbers(values, 6, "q", "q0 .. q5")
             if not no_limits:
-                robot.check_stroke(q)
-            pose = robot.forward_kinematics(q)
+                bot.check_stroke(q)
+            pose = bot.forward_kinematics(q)
         else:
-            pose = pose_in(values, degrees) if values else robot.home_pose
-            q = robot.inverse_kinematics(pose, check_limits=False)
-        _view_pose(out, robot, pose, q, forces)
+            pose = pose_in(values, degrees) if values else bot.home_pose
+            q = bot.inverse_kinematics(pose, check_limits=False)
+        _view_pose(out, bot, pose, q, forces)
         kind, detail = "pose", {"pose": pose_out(pose, degrees), "q": q}
     note(quiet, f"wrote {out}")
     if as_json:
         emit_json({"html": out, "kind": kind, **detail})
+
+
+def _view_loaded(out: Path, robot: ClosedLoopRobot, values: list[str] | None,
+                 carriages: bool, all_modes: bool, layout: str, forces: bool,
+                 no_limits: bool, degrees: bool, quiet: bool, urdf: Path | None) -> dict:
+    """``view --robot``: one pose (of a pose, or of actuator positions with
+    ``carriages``), or the assembly modes of actuator positions (default home); with
+    ``forces`` the actuator and closure forces holding the pose at rest."""
+    if all_modes:
+        act = robot.home_actuators if not values else actuators_in(robot, values)
+        with progress_bar(quiet, "solving the assembly modes"):
+            poses = assembly_modes_of(robot, act, not no_limits)
+            write_modes(out, robot, act, poses, layout, degrees, urdf)
+        return {"kind": "modes", "q": act,
+                "modes": [robot_pose_out(robot, p, degrees) for p in poses]}
+    if carriages:
+        act = actuators_in(robot, values)
+        if not no_limits:
+            robot.check_stroke(act)
+        pose = robot.forward_kinematics(act)
+    else:
+        pose = robot_pose_in(robot, values, degrees)
+    q_tree = robot.configuration(pose)
+    tau = closures = None
+    caption = f"{robot.geometry.name}: pose " + fmt(pose, "+.3f")
+    if forces:
+        rest = robot.inverse_dynamics(pose, np.zeros(robot.pose_dim), np.zeros(robot.pose_dim))
+        tau, closures = rest.actuator_forces, rest.closure_forces
+        caption += " | arrows: actuator forces (magenta), closure forces (teal)"
+    with progress_bar(quiet, "writing HTML"):
+        scenes.write_pose_html(out, robot, q_tree, actuator_forces=tau,
+                               closure_forces=closures, caption=caption, urdf=urdf)
+    return {"kind": "pose", "pose": robot_pose_out(robot, pose, degrees),
+            "q": robot.actuator_positions(q_tree)}
 
 
 def _view_motion(out: Path, robot: Hexapod, motion: motions.Motion, forces: bool, fps: float,

@@ -53,6 +53,45 @@ FRAME_TYPE_ORDER = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FI
                     pin.FrameType.JOINT, pin.FrameType.SENSOR)
 
 
+def fixed_coordinates(fixed: Any, nv: int, name: str = "fixed") -> np.ndarray:
+    """Velocity coordinates held fixed, as sorted int indices into ``v``, from integer
+    indices (a 1-D sequence, each in ``[0, nv)``, no duplicates) or a boolean mask of
+    length ``nv``.
+
+    Raises:
+        InputError: anything else (floats, text, nested or ragged sequences, booleans mixed
+            with integers, a mask of another length, an index out of range or repeated),
+            naming the value.
+    """
+    expected = (f"expected integer indices into v (in [0, {nv}), no duplicates) or a "
+                f"boolean mask of length {nv}")
+    if isinstance(fixed, (str, bytes)):
+        raise InputError(name, fixed, expected)
+    try:
+        arr = np.asarray(fixed)
+    except (TypeError, ValueError):
+        raise InputError(name, fixed, f"{expected} (ragged or not numeric)") from None
+    if arr.ndim != 1:
+        raise InputError(name, fixed, f"{expected}, got an array of shape {arr.shape}")
+    if arr.size == 0:
+        return np.zeros(0, dtype=int)
+    if arr.dtype.kind == "b":
+        if arr.shape != (nv,):
+            raise InputError(name, fixed, f"a boolean mask must have length {nv}, got "
+                             f"{arr.size}")
+        return np.flatnonzero(arr)
+    if arr.dtype.kind not in "iu" or (not isinstance(fixed, np.ndarray) and any(
+            isinstance(x, (bool, np.bool_)) for x in fixed)):
+        raise InputError(name, fixed, f"{expected}, got dtype {arr.dtype}" if arr.dtype.kind
+                         not in "iu" else f"{expected} (booleans mixed with integers)")
+    idx = arr.astype(int)
+    if idx.min() < 0 or idx.max() >= nv:
+        raise InputError(name, fixed, f"indices must lie in [0, {nv})")
+    if np.unique(idx).size != idx.size:
+        raise InputError(name, fixed, "repeated indices")
+    return np.sort(idx)
+
+
 @dataclass(frozen=True)
 class RankInfo:
     """Rank of the constraint Jacobian at a configuration.
@@ -397,22 +436,24 @@ class ClosedLoopModel:
 
         Args:
             q0: starting configuration (nq,).
-            fixed: indices into ``v`` held fixed; default the actuated ones.
+            fixed: the velocity coordinates held fixed, either integer indices into ``v``
+                (a 1-D sequence, each in ``[0, nv)``, no duplicates; empty: none fixed) or
+                a boolean mask of length ``nv`` (True: held); default the actuated ones.
             tol: convergence threshold on the max-abs residual (m / rad).
             max_iter: maximum Newton iterations.
 
         Raises:
-            InputError: a bad ``q0``, ``fixed``, ``tol`` or ``max_iter``, or a ``q0`` whose
-                closure residual overflows (not finite).
+            InputError: a bad ``q0``, ``tol`` or ``max_iter``; a ``fixed`` that is neither
+                (floats, text, nested or ragged sequences, booleans mixed with integers,
+                a mask of another length, an index out of range or repeated); or a ``q0``
+                whose closure residual overflows (not finite).
             AssemblyError: no convergence within ``max_iter`` or a step that cannot
                 decrease the residual (a singular or unreachable configuration).
         """
         q = self.check_q(q0, "q0").copy()
         tol = real_number(tol, "tol", minimum=0.0)
         max_iter = count(max_iter, "max_iter", minimum=0)
-        fixed_idx = self.actuated_v if fixed is None else np.asarray(fixed, dtype=int)
-        if fixed_idx.size and (fixed_idx.min() < 0 or fixed_idx.max() >= self.model.nv):
-            raise InputError("fixed", fixed, f"indices must lie in [0, {self.model.nv})")
+        fixed_idx = self.actuated_v if fixed is None else fixed_coordinates(fixed, self.model.nv)
         free = np.setdiff1d(np.arange(self.model.nv), fixed_idx)
         res = self.residual(q)
         err = float(np.max(np.abs(res), initial=0.0))

@@ -47,6 +47,17 @@ that ``a`` keeps the closures (to 1e-8) and that ``S^T u + J_c^T lambda = M a + 
 tau_ext`` (:func:`~hexapod_pin.core.linear_kernels.linear_residual`).
 A failed check raises :class:`~hexapod_pin.errors.SolverError` naming the equation and
 its relative residual, after the retries documented on each route.
+
+State check: the public routes (:func:`forward_dynamics_tree`, :func:`inverse_dynamics_tree`,
+:meth:`ClosedLoopDynamics.forward`, :meth:`ClosedLoopDynamics.inverse`,
+:meth:`ClosedLoopDynamics.joint_wrenches`) refuse a ``q`` off the closures and a ``v``
+with ``J_c v != 0`` beyond :data:`CLOSURE_QTOL` / :data:`CLOSURE_VTOL` (relative to the
+model's reach and to ``|v|``; defined in :mod:`~hexapod_pin.core.dynamics_common`) with
+:class:`~hexapod_pin.errors.InputError`. The errors are read from Pinocchio's constraint
+datas after the route's own ``constraintDynamics`` call (the verified "pinocchio" path)
+or after one cheap proximal pass (the other paths). The internal paths
+(``forward_unchecked``, ``pinocchio_call``, ``pinocchio_verified``,
+``inverse_from_force``: integrators at RK4 stage states, batch drivers) do not check.
 """
 
 from __future__ import annotations
@@ -61,6 +72,7 @@ import pinocchio as pin
 
 from ..errors import InputError
 from .checks import as_array, solve_checked, vector
+from .compiled import all_finite
 from .closed_loop import ClosedLoopModel
 from .closure_forces import LazyMultipliers, MultiplierConversion, joint_wrenches
 from .closure_terms import (  # ClosureFrames re-exported
@@ -69,10 +81,13 @@ from .closure_terms import (  # ClosureFrames re-exported
     closure_jacobian,
 )
 from .dynamics_common import (  # re-exported: other modules and users import them from here
+    CLOSURE_QTOL,
+    CLOSURE_VTOL,
     QP_SOLVED,
     QP_STATUS,
     RESIDUAL_RTOL,
     TINY,
+    ClosureStateCheck,
     TreeForwardDynamics,
     TreeInverseDynamics,
     independent_rows,
@@ -82,7 +97,8 @@ from .inverse_routes import INVERSE_METHODS, InverseDynamicsRoutes
 from .linear_kernels import kkt_residuals
 
 __all__ = [
-    "FORWARD_METHODS", "INVERSE_METHODS", "PIN_PROX_ITERS", "PIN_PROX_MU", "QP_SOLVED",
+    "CLOSURE_QTOL", "CLOSURE_VTOL", "FORWARD_METHODS", "INVERSE_METHODS", "PIN_PROX_ITERS",
+    "PIN_PROX_MU", "QP_SOLVED",
     "QP_STATUS", "RESIDUAL_RTOL", "ClosedLoopDynamics", "ClosureFrames", "TreeForwardDynamics",
     "TreeInverseDynamics", "dynamics_of", "forward_dynamics_tree", "independent_rows",
     "inverse_dynamics_tree",
@@ -222,12 +238,14 @@ class ClosedLoopDynamics:
     # -- forward dynamics -----------------------------------------------------------------
     def forward(self, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike,
                 method: str = "pinocchio") -> TreeForwardDynamics:
-        """Constrained forward dynamics; see :func:`forward_dynamics_tree`."""
+        """Constrained forward dynamics; see :func:`forward_dynamics_tree` (the state
+        checked the same way; raises InputError, SolverError)."""
         q = vector(q, self.model.nq, "q")
         v = vector(v, self.nv, "v")
         tau = vector(tau, self.nv, "tau")
         if method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
+        self.check_state(q, v)
         return solve_checked(lambda: self.forward_unchecked(q, v, tau, method),
                               ("q", q), ("v", v), ("tau", tau))
 
@@ -265,6 +283,52 @@ class ClosedLoopDynamics:
         self._v_mass, self._v_nle, self._v_lambda = data.M, data.nle, data.lambda_c
         self._v_rhs = data.primal_rhs_contact[:self.n_rows]
         self._pin_ready = True
+        #: the closure check of the public routes (reads the constraint datas)
+        self.state_check = ClosureStateCheck(self.model, self.pin_datas, self._probe)
+
+    def _probe(self, q: np.ndarray, v: np.ndarray) -> None:
+        """One cheap proximal ``pin.constraintDynamics`` pass at ``(q, v)`` (zero force):
+        the constraint datas' errors and Jacobian terms at that state."""
+        pin.constraintDynamics(self.model, self.data, q, v, self._zero_v, self.pin_models,
+                               self.pin_datas, self._prox_probe)
+
+    def check_state(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Refuse a state off the closures (tolerances :data:`CLOSURE_QTOL`,
+        :data:`CLOSURE_VTOL`): one cheap proximal ``constraintDynamics`` pass at ``(q, v)``
+        (contiguous float64 arrays of the right sizes), then
+        :meth:`~hexapod_pin.core.dynamics_common.ClosureStateCheck.check`. Nothing to check
+        without closures.
+
+        Raises:
+            InputError: a NaN / inf entry, ``q`` off the closures or ``v`` breaking them
+                (the message names the residual and the tolerance).
+        """
+        if not self.n_rows:
+            return
+        if not self._pin_ready:
+            self._init_pinocchio()
+        self._finite(q, v)
+        self._probe(q, v)
+        self.check_after_call(q, v)
+
+    @staticmethod
+    def _finite(q: np.ndarray, v: np.ndarray) -> None:
+        for name, x in (("q", q), ("v", v)):
+            if not all_finite(x):
+                as_array(x, x.shape, name)
+
+    def check_after_call(self, q: np.ndarray, v: np.ndarray) -> None:
+        """:meth:`check_state` on the constraint datas as the last ``constraintDynamics``
+        call of this workspace (at ``(q, v)``) left them: no kinematic pass.
+
+        Raises:
+            InputError: see :meth:`check_state`.
+        """
+        try:
+            self.state_check.check(q, v)
+        except InputError:
+            self._finite(q, v)          # a NaN / inf entry is named as such
+            raise
 
     def pinocchio_call(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                        redundant: bool) -> tuple[np.ndarray | None, Any]:
@@ -363,7 +427,9 @@ class ClosedLoopDynamics:
         ``pin.constraintDynamics`` call, its verification on Pinocchio's own ``M``,
         ``nle``, constraint Jacobian and drift (one compiled kernel), and the result with
         lazy multipliers. A call that fails the verification (or a non-finite input) takes
-        the full route, which retries, falls back or raises.
+        the full route, which retries, falls back or raises. Both paths refuse a state off
+        the closures (:meth:`check_after_call` on the short path, :meth:`check_state`
+        before the full one).
         """
         nd = np.ndarray
         if not (type(q) is nd and type(v) is nd and q.dtype is _F64 and v.dtype is _F64
@@ -390,6 +456,7 @@ class ClosedLoopDynamics:
         if method == "pinocchio":
             prox = self.pinocchio_verified(q, v, tau)
             if prox is not None:         # the short path: the result with lazy multipliers
+                self.check_after_call(q, v)  # the closure errors of that call
                 rank = self.closure_rank(q)  # known: the model has a verified call
                 if rank == self.n_rows:      # Pinocchio's multipliers, converted when read
                     lazy = LazyMultipliers(self.conversion.from_pinocchio, q.copy(),
@@ -402,6 +469,7 @@ class ClosedLoopDynamics:
                                                 prox.iter, rank)
         elif method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
+        self.check_state(q, v)
         tau = tau.copy()
         return solve_checked(lambda: self.forward_unchecked(q, v, tau, method), ("q", q),
                               ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
@@ -535,12 +603,14 @@ class ClosedLoopDynamics:
             ``tau`` (nv,) that rnea needs with those forces (``S^T u`` if consistent).
 
         Raises:
-            InputError: an input that is not real, of the wrong shape, or not finite.
+            InputError: an input that is not real, of the wrong shape, or not finite; a
+                ``q`` off the closures or a ``v`` breaking them (:meth:`check_state`).
         """
         q = as_array(q, (self.model.nq,), "q")
         v = as_array(v, (self.nv,), "v")
         a = as_array(a, (self.nv,), "a")
         multipliers = as_array(multipliers, (self.n_rows,), "multipliers")
+        self.check_state(q, v)
         return joint_wrenches(self.model, self.data, self.closure_frames, q, v, a,
                               multipliers, fext)
 
@@ -576,9 +646,12 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
 
     Args:
         clm: the closed-loop model.
-        q: tree configuration (nq,), the closures satisfied.
-        v: tree velocity (nv,) with ``J_c v = 0`` (Pinocchio convention: free-flyer
-            velocities in the body frame).
+        q: tree configuration (nq,), the closures satisfied (each closure's position
+            error at most ``CLOSURE_QTOL * L`` m, ``L = max(1 m, reach of the tree)``,
+            a weld's rotation error at most ``CLOSURE_QTOL`` rad).
+        v: tree velocity (nv,) with ``J_c v = 0`` (to ``CLOSURE_VTOL * max(1, |v|_inf)
+            * L`` m/s per closure, see :data:`CLOSURE_QTOL`; Pinocchio convention:
+            free-flyer velocities in the body frame).
         actuator_forces: ``u`` (n_act,), generalised forces of the actuated joints in
             ``clm.actuated_joints`` order (N for prismatic, N m for revolute joints).
         tau_ext: generalised external force on the tree (nv,) (N, N m); default zero.
@@ -600,7 +673,9 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
         :class:`TreeForwardDynamics`.
 
     Raises:
-        InputError: bad shapes, NaN / inf, unknown method.
+        InputError: bad shapes, NaN / inf, unknown method; a ``q`` off the closures or a
+            ``v`` breaking them beyond :data:`CLOSURE_QTOL` / :data:`CLOSURE_VTOL` (the
+            message names the residual and the tolerance).
         SolverError: the answer misses an equation (e.g. ``gamma`` outside the range of
             ``J_c``, a mass matrix not positive on the closures' null space); the
             message names the equation and its relative residual.
@@ -620,8 +695,9 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
 
     Args:
         clm: the closed-loop model.
-        q: tree configuration (nq,), Pinocchio conventions, closures assembled.
-        v: tree velocity (nv,), consistent with the closures.
+        q: tree configuration (nq,), Pinocchio conventions, closures assembled (to
+            :data:`CLOSURE_QTOL`, as in :func:`forward_dynamics_tree`).
+        v: tree velocity (nv,), consistent with the closures (to :data:`CLOSURE_VTOL`).
         a: tree acceleration (nv,), consistent with the closures.
         tau_ext: generalised external force on the tree (nv,) (N, N m); default zero.
         bounds: ``abs(u) <= bounds`` (scalar or (n_act,), N or N m); None (or inf): none.
@@ -645,7 +721,8 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
         ActuatorSaturationError: no ``abs(u) <= bounds`` meets the equation of motion
             (certified by the structure or by box-constrained least squares); carries
             the needed (unbounded, minimum-norm) forces. No clipped answer is returned.
-        InputError: bad shapes, NaN / inf, non-positive bounds, unknown method.
+        InputError: bad shapes, NaN / inf, non-positive bounds, unknown method; a ``q``
+            off the closures or a ``v`` breaking them (as :func:`forward_dynamics_tree`).
         SolverError: ``a`` does not keep the closures, or the answer misses the
             equation of motion (the message names it and its relative residual).
     """

@@ -13,14 +13,20 @@ Conventions (tree coordinates, Pinocchio's ``q``, ``v``, ``a``; see
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
+import numba
 import numpy as np
+import pinocchio as pin
 import proxsuite
 import scipy.linalg
+from numba import types
+from numba.extending import intrinsic
 
-from ..errors import SolverError
+from ..errors import InputError, SolverError
+from .compiled import jit
 from .linear_kernels import forward_residuals
 
 #: relative tolerance on equation residuals before a route is declared failed
@@ -31,6 +37,27 @@ QP_EPS = 1e-12
 QP_MAX_ITER = 1000
 #: a floor for scales (avoids dividing by zero on all-zero data)
 TINY = 1e-300
+#: Closure tolerances of the public tree routes (``forward_dynamics_tree``,
+#: ``inverse_dynamics_tree``, ``ClosedLoopDynamics.forward`` / ``inverse`` /
+#: ``joint_wrenches``): a state is refused with :class:`~hexapod_pin.errors.InputError`
+#: when, with ``L = max(1 m, characteristic_length(model))`` (the reach of the tree,
+#: :func:`characteristic_length`),
+#:
+#: * a closure's position error (the Euclidean norm of ``p_1 - p_2`` of a point closure,
+#:   of the translation part of ``log6`` of a weld) exceeds ``CLOSURE_QTOL * L`` (m), or a
+#:   weld's rotation error (the angle of ``log6``) exceeds ``CLOSURE_QTOL`` (rad);
+#: * a closure's velocity error (the norm of the linear / angular part of its rows of
+#:   ``J_c v``) exceeds ``CLOSURE_VTOL * max(1, |v|_inf) * L`` (m/s) /
+#:   ``CLOSURE_VTOL * max(1, |v|_inf)`` (rad/s).
+#:
+#: 1e-6 is far above what the library's own states carry (assembly to 1e-12, the
+#: integrator's projection to 1e-10, velocities from the closure Jacobian to round-off)
+#: and far below an error that changes the dynamics visibly (the routes assume
+#: ``J_c v = 0`` in the drift and the Jacobian of an assembled ``q``). Internal paths
+#: (RK4 stage states of the integrator, batch drivers) are not checked.
+CLOSURE_QTOL = 1e-6
+#: see :data:`CLOSURE_QTOL` (relative velocity tolerance, 1/s per unit speed)
+CLOSURE_VTOL = 1e-6
 
 QP_SOLVED = proxsuite.proxqp.PROXQP_SOLVED
 QP_STATUS = {
@@ -141,6 +168,183 @@ def verify_forward(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: np.
         raise SolverError(route, "unverified", "closure equation J_c a = -gamma missed by "
                           f"{con:.3e} (relative)")
     return eom, con
+
+
+def characteristic_length(model: pin.Model) -> float:
+    """The reach of a tree (m): the longest path, summing the lengths of the joint
+    placements' translations from the root, to any joint or frame origin (prismatic
+    strokes not counted; a floating base contributes nothing). A configuration-free length
+    scale of the model, for the closure tolerances (:data:`CLOSURE_QTOL`)."""
+    reach = np.zeros(model.njoints)
+    for j in range(1, model.njoints):
+        reach[j] = reach[model.parents[j]] + float(
+            np.linalg.norm(model.jointPlacements[j].translation))
+    best = float(np.max(reach, initial=0.0))
+    for frame in model.frames:
+        best = max(best, float(reach[frame.parentJoint])
+                   + float(np.linalg.norm(frame.placement.translation)))
+    return best
+
+
+@intrinsic
+def _float64_pointer(typingctx, address):
+    """The ``float64*`` at the integer ``address`` (a numba intrinsic, for
+    :func:`closure_state_status`)."""
+    sig = types.CPointer(types.float64)(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
+    return sig, codegen
+
+
+@jit
+def closure_state_errors(addresses, v, out):
+    """The closure errors that Pinocchio's ``constraintDynamics`` leaves in its constraint
+    datas, read at ``addresses`` (int64 (2 n,): per closure the address of its
+    ``contact_placement_error`` then of its ``contact_velocity_error``, each 6 contiguous
+    float64, linear then angular; zero angular part for a point closure):
+    ``out = (max linear position error norm (m), max angular position error norm (rad),
+    max linear velocity error norm (m/s), max angular velocity error norm (rad/s),
+    max-abs of v)``. A NaN propagates to its entry."""
+    pl, pa, vl, va = 0.0, 0.0, 0.0, 0.0
+    for k in range(addresses.shape[0] // 2):
+        p = numba.carray(_float64_pointer(addresses[2 * k]), (6,))
+        s = numba.carray(_float64_pointer(addresses[2 * k + 1]), (6,))
+        a = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+        b = math.sqrt(p[3] * p[3] + p[4] * p[4] + p[5] * p[5])
+        c = math.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])
+        d = math.sqrt(s[3] * s[3] + s[4] * s[4] + s[5] * s[5])
+        pl = a if not a <= pl else pl              # NaN wins
+        pa = b if not b <= pa else pa
+        vl = c if not c <= vl else vl
+        va = d if not d <= va else va
+    vmax = 0.0
+    for i in range(v.shape[0]):
+        x = abs(v[i])
+        vmax = x if not x <= vmax else vmax
+    out[0], out[1], out[2], out[3], out[4] = pl, pa, vl, va, vmax
+
+
+@jit
+def closure_state_status(addresses, v, tols, out):
+    """:func:`closure_state_errors` into ``out`` compared with ``tols = (position (m),
+    rotation (rad), relative velocity (1/s), length scale (m))``: whether every error is
+    within its tolerance (see :data:`CLOSURE_QTOL`; False for a NaN)."""
+    closure_state_errors(addresses, v, out)
+    speed = tols[2] * max(1.0, out[4])
+    return (out[0] <= tols[0] and out[1] <= tols[1] and out[2] <= speed * tols[3]
+            and out[3] <= speed)
+
+
+class ClosureStateCheck:
+    """The closure check of the public tree routes (tolerances :data:`CLOSURE_QTOL`,
+    :data:`CLOSURE_VTOL`), reading the errors that a ``pin.constraintDynamics`` call on
+    ``constraint_datas`` left there (``contact_placement_error``,
+    ``contact_velocity_error``: no kinematic pass of its own).
+
+    One compiled call reads them at the addresses of their memory when the bindings give
+    views of it that later calls update in place (a property of the bindings, checked
+    here: ``probe(q, v)``, a ``constraintDynamics`` call on the datas, at two states,
+    against fresh property reads), else they are read through the properties (same
+    values, slower). The datas must stay where they are (the caller keeps them, and
+    appends nothing to their vector).
+
+    Args:
+        model: the tree model.
+        constraint_datas: Pinocchio's constraint datas of the closures (kept alive by the
+            caller).
+        probe: ``probe(q, v)`` runs ``pin.constraintDynamics`` at ``(q, v)`` on those datas.
+    """
+
+    def __init__(self, model: pin.Model, constraint_datas: Sequence[Any],
+                 probe: Callable[[np.ndarray, np.ndarray], Any]) -> None:
+        #: the length scale ``L = max(1, characteristic_length(model))`` (m)
+        self.scale = max(1.0, characteristic_length(model))
+        #: position tolerance (m); the rotation tolerance is CLOSURE_QTOL (rad)
+        self.q_tol = CLOSURE_QTOL * self.scale
+        self._tols = np.array([self.q_tol, CLOSURE_QTOL, CLOSURE_VTOL, self.scale])
+        self._cds = constraint_datas
+        self._out = np.empty(5)
+        self._views = tuple(view for cd in constraint_datas for view in
+                            (cd.contact_placement_error.vector, cd.contact_velocity_error.vector))
+        self._addresses: np.ndarray | None = None
+        if self._views and all(view.dtype == np.float64 and view.shape == (6,)
+                               and view.flags.c_contiguous for view in self._views):
+            addresses = np.array([view.ctypes.data for view in self._views], dtype=np.int64)
+            neutral = pin.neutral(model)
+            live = True
+            for q, v in ((neutral, np.linspace(-0.5, 0.7, model.nv)),
+                         (pin.integrate(model, neutral, np.linspace(0.1, 0.3, model.nv)),
+                          np.linspace(0.7, -0.4, model.nv))):
+                probe(q, v)
+                fresh = [vec for cd in constraint_datas for vec in (
+                    cd.contact_placement_error.vector.copy(),
+                    cd.contact_velocity_error.vector.copy())]
+                live = live and all(np.array_equal(view, vec)
+                                    for view, vec in zip(self._views, fresh))
+            self._addresses = addresses if live else None
+
+    def _fresh(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """:meth:`errors` through the properties (fresh objects)."""
+        placement = [cd.contact_placement_error.vector for cd in self._cds]
+        velocity = [cd.contact_velocity_error.vector for cd in self._cds]
+        out[:] = 0.0
+        for p, s in zip(placement, velocity):
+            out[:4] = np.fmax(out[:4], [np.linalg.norm(p[:3]), np.linalg.norm(p[3:]),
+                                        np.linalg.norm(s[:3]), np.linalg.norm(s[3:])])
+            out[:4][np.isnan([p[:3].sum(), p[3:].sum(), s[:3].sum(), s[3:].sum()])] = np.nan
+        out[4] = float(np.max(np.abs(v), initial=0.0))
+        return out
+
+    @property
+    def live(self) -> bool:
+        """Whether the errors are read in place (else through the properties)."""
+        return self._addresses is not None
+
+    def errors(self, v: np.ndarray) -> np.ndarray:
+        """``(position error (m), rotation error (rad), linear velocity error (m/s),
+        angular velocity error (rad/s), |v|_inf)`` (5,) as the last ``constraintDynamics``
+        on the datas left them (a new array)."""
+        out = np.empty(5)
+        if self._addresses is None:
+            return self._fresh(v, out)
+        closure_state_errors(self._addresses, v, out)
+        return out
+
+    def check(self, q: np.ndarray, v: np.ndarray, q_name: str = "q",
+              v_name: str = "v") -> None:
+        """Refuse ``(q, v)`` (the state of the last ``constraintDynamics`` call on the
+        datas) when it is off the closures beyond the tolerances.
+
+        Raises:
+            InputError: naming ``q`` (the closure residual and its tolerance) or ``v``
+                (the closure velocity ``J_c v`` and its tolerance).
+        """
+        addresses = self._addresses
+        if addresses is not None and closure_state_status(addresses, v, self._tols, self._out):
+            return
+        pos, rot, lin, ang, vmax = (float(x) for x in self.errors(v))
+        if not pos <= self.q_tol:
+            raise InputError(q_name, q, f"off the closures: closure residual {pos:.3e} m "
+                             f"exceeds the tolerance {self.q_tol:.3e} m (CLOSURE_QTOL = "
+                             f"{CLOSURE_QTOL:g} x length scale {self.scale:.3g} m); "
+                             "assemble it first (ClosedLoopModel.assemble)")
+        if not rot <= CLOSURE_QTOL:
+            raise InputError(q_name, q, f"off the closures: weld rotation residual {rot:.3e} "
+                             f"rad exceeds the tolerance {CLOSURE_QTOL:.3e} rad "
+                             "(CLOSURE_QTOL); assemble it first (ClosedLoopModel.assemble)")
+        speed = CLOSURE_VTOL * max(1.0, vmax)
+        if not lin <= speed * self.scale:
+            raise InputError(v_name, v, f"breaks the closures: |J_c v| = {lin:.3e} m/s "
+                             f"exceeds the tolerance {speed * self.scale:.3e} m/s "
+                             f"(CLOSURE_VTOL = {CLOSURE_VTOL:g} x max(1, |v|_inf) x length "
+                             f"scale {self.scale:.3g} m); project it first "
+                             "(ClosedLoopModel.project_velocity)")
+        if not ang <= speed:
+            raise InputError(v_name, v, f"breaks the closures: weld angular rate |J_c v| = "
+                             f"{ang:.3e} rad/s exceeds the tolerance {speed:.3e} rad/s "
+                             f"(CLOSURE_VTOL = {CLOSURE_VTOL:g} x max(1, |v|_inf)); project "
+                             "it first (ClosedLoopModel.project_velocity)")
 
 
 def cached_qp(cache: dict, key: Any, n_in: int, args: tuple,

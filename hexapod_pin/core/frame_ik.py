@@ -345,6 +345,8 @@ def _fixed_indices(clm, fixed) -> np.ndarray:
         return np.zeros(0, dtype=int)
     out: list[int] = []
     for item in fixed:
+        if isinstance(item, (bool, np.bool_)):    # not an index (True is not 1 here)
+            raise InputError("fixed", item, "a joint name or an index into v, not a bool")
         if isinstance(item, str):
             start = clm.joint_v_index(item)
             nv = clm.model.joints[clm.model.getJointId(item)].nv

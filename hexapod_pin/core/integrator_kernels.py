@@ -1,13 +1,22 @@
 """Compiled kernels of the generic closed-loop integrator
 (:class:`~hexapod_pin.core.simulation.ClosedLoopIntegrator`).
 
-The configuration rate of 1-DoF and free-flyer joints, the RK4 stage update and weighted
-sum of the stage rates, the semi-implicit Euler update of 1-DoF models, and the
-Gauss-Newton pass of the projection onto the closures (the step and the velocity
+The configuration rate of the supported joints, the RK4 stage update and weighted sum of
+the stage rates, the renormalisation of unit quaternions and of unit ``(cos, sin)`` pairs,
+the semi-implicit Euler update of vector-space models, the finiteness check of a state,
+and the Gauss-Newton pass of the projection onto the closures (the step and the velocity
 projection on the independent rows, with one factorisation). Conventions: Pinocchio's
-``q`` / ``v``; a free-flyer's ``q = (p, x, y, z, w)`` and ``v = (v_lin, w)`` in the body
-frame; ``joints`` rows ``(kind, idx_q, idx_v)`` with kind 0 a 1-DoF joint and 1 a
-free-flyer. Numba-compiled; the updates write into the output arrays they are given, the
+``q`` / ``v``; ``joints`` rows ``(kind, idx_q, idx_v)`` with kind
+
+* :data:`VECTOR` (0): one coordinate with ``qdot = v`` (1-DoF revolute / prismatic, and
+  each coordinate of a ``SphericalZYX`` or ``Translation`` joint);
+* :data:`FREE_FLYER` (1): ``q = (p, x, y, z, w)``, ``v = (v_lin, w)`` in the body frame;
+* :data:`UNBOUNDED` (2): a continuous revolute joint, ``q = (cos t, sin t)``, ``v = t'``;
+* :data:`SPHERICAL` (3): a ball joint, ``q = (x, y, z, w)``, ``v = w`` in the body frame;
+* :data:`PLANAR` (4): ``q = (x, y, cos t, sin t)``, ``v = (v_x, v_y, t')`` in the joint's
+  moving frame.
+
+Numba-compiled; the updates write into the output arrays they are given, the
 Gauss-Newton passes return the relative miss of their solve (``inf`` when not finite) and
 the integrator verifies and raises.
 """
@@ -21,30 +30,56 @@ import numpy as np
 from .compiled import jit
 from .constraint_views import gather_negated
 
+#: joint kinds of the ``joints`` table (see the module docstring)
+VECTOR, FREE_FLYER, UNBOUNDED, SPHERICAL, PLANAR = 0, 1, 2, 3, 4
+
 
 @jit
 def configuration_rate(q, v, joints, out):
-    """``qdot`` (nq,) into ``out`` for the velocity ``v`` (nv,) at ``q``: per row
-    ``(kind, idx_q, idx_v)`` of ``joints``, a 1-DoF joint (kind 0) ``qdot = v``, a
+    """``qdot`` (nq,) into ``out`` for the velocity ``v`` (nv,) at ``q``, per row
+    ``(kind, idx_q, idx_v)`` of ``joints``: a vector coordinate (kind 0) ``qdot = v``; a
     free-flyer (kind 1, q = (p, x, y, z, w), v = (v_lin, w) in the body frame)
-    ``p' = R v_lin`` and ``Q' = 1/2 Q (x) (w, 0)``."""
+    ``p' = R v_lin`` and ``Q' = 1/2 Q (x) (w, 0)``; an unbounded revolute (kind 2,
+    q = (c, s)) ``(c, s)' = (-s, c) v``; a ball joint (kind 3, q = (x, y, z, w), v = w in
+    the body frame) ``Q' = 1/2 Q (x) (w, 0)``; a planar joint (kind 4, q = (x, y, c, s),
+    v = (v_x, v_y, w) in its moving frame) ``(x, y)' = R(c, s) (v_x, v_y)``,
+    ``(c, s)' = (-s, c) w``."""
     for k in range(joints.shape[0]):
-        iq, iv = joints[k, 1], joints[k, 2]
-        if joints[k, 0] == 0:
+        kind, iq, iv = joints[k, 0], joints[k, 1], joints[k, 2]
+        if kind == 0:
             out[iq] = v[iv]
             continue
-        x, y, z, w = q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6]
-        vx, vy, vz = v[iv], v[iv + 1], v[iv + 2]
-        wx, wy, wz = v[iv + 3], v[iv + 4], v[iv + 5]
-        # p' = R v_lin (R of the unit quaternion)
-        tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
-        out[iq] = vx + w * tx + (y * tz - z * ty)
-        out[iq + 1] = vy + w * ty + (z * tx - x * tz)
-        out[iq + 2] = vz + w * tz + (x * ty - y * tx)
-        out[iq + 3] = 0.5 * (w * wx + y * wz - z * wy)
-        out[iq + 4] = 0.5 * (w * wy + z * wx - x * wz)
-        out[iq + 5] = 0.5 * (w * wz + x * wy - y * wx)
-        out[iq + 6] = -0.5 * (x * wx + y * wy + z * wz)
+        if kind == 2:
+            c, s, w = q[iq], q[iq + 1], v[iv]
+            out[iq] = -s * w
+            out[iq + 1] = c * w
+            continue
+        if kind == 4:
+            c, s = q[iq + 2], q[iq + 3]
+            vx, vy, w = v[iv], v[iv + 1], v[iv + 2]
+            out[iq] = c * vx - s * vy
+            out[iq + 1] = s * vx + c * vy
+            out[iq + 2] = -s * w
+            out[iq + 3] = c * w
+            continue
+        iw, ir = iv + 3, iq + 3          # a free-flyer: its angular part, its quaternion
+        if kind == 3:
+            iw, ir = iv, iq
+        else:
+            x, y, z, w = q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6]
+            vx, vy, vz = v[iv], v[iv + 1], v[iv + 2]
+            # p' = R v_lin (R of the unit quaternion)
+            tx, ty = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz)
+            tz = 2.0 * (x * vy - y * vx)
+            out[iq] = vx + w * tx + (y * tz - z * ty)
+            out[iq + 1] = vy + w * ty + (z * tx - x * tz)
+            out[iq + 2] = vz + w * tz + (x * ty - y * tx)
+        x, y, z, w = q[ir], q[ir + 1], q[ir + 2], q[ir + 3]
+        wx, wy, wz = v[iw], v[iw + 1], v[iw + 2]
+        out[ir] = 0.5 * (w * wx + y * wz - z * wy)
+        out[ir + 1] = 0.5 * (w * wy + z * wx - x * wz)
+        out[ir + 2] = 0.5 * (w * wz + x * wy - y * wx)
+        out[ir + 3] = -0.5 * (x * wx + y * wy + z * wz)
 
 
 @jit
@@ -54,6 +89,27 @@ def _normalise_quaternions(q, quat):
         inv = 1.0 / math.sqrt(q[i] ** 2 + q[i + 1] ** 2 + q[i + 2] ** 2 + q[i + 3] ** 2)
         for j in range(4):
             q[i + j] *= inv
+
+
+@jit
+def normalise_pairs(q, pairs):
+    """Renormalise in place the unit ``(cos, sin)`` pairs of ``q`` starting at the indices
+    ``pairs`` (unbounded revolute and planar joints)."""
+    for k in range(pairs.shape[0]):
+        i = pairs[k]
+        inv = 1.0 / math.sqrt(q[i] ** 2 + q[i + 1] ** 2)
+        q[i] *= inv
+        q[i + 1] *= inv
+
+
+@jit
+def finite_state(q, v, tau):
+    """Whether every entry of the 1-D arrays ``q``, ``v`` and ``tau`` is finite."""
+    for x in (q, v, tau):
+        for i in range(x.shape[0]):
+            if not math.isfinite(x[i]):
+                return False
+    return True
 
 
 @jit

@@ -86,6 +86,8 @@ class Workspace(Protocol):
     def lazy_multipliers(self, q: np.ndarray, lam_pin: np.ndarray,
                          jac: np.ndarray | None = None) -> Callable[[], np.ndarray]: ...
 
+    def check_after_call(self, q: np.ndarray, v: np.ndarray) -> None: ...
+
 
 class InverseDynamicsRoutes:
     """The inverse-dynamics routes of one workspace, with the buffers and the ProxSuite
@@ -119,7 +121,8 @@ class InverseDynamicsRoutes:
                 tau_ext: npt.ArrayLike | None = None, bounds: npt.ArrayLike | None = None,
                 method: str = "qp") -> TreeInverseDynamics:
         """Closed-loop inverse dynamics; see
-        :func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree`."""
+        :func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree` (the state is checked
+        against the closure tolerances: InputError)."""
         q = vector(q, self.model.nq, "q")
         v = vector(v, self.nv, "v")
         a = vector(a, self.nv, "a")
@@ -127,21 +130,26 @@ class InverseDynamicsRoutes:
         bounds = self.check_bounds(bounds)
         if method not in INVERSE_METHODS:
             raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
-        return solve_checked(lambda: self.inverse_unchecked(q, v, a, tau_ext, bounds, method),
+        return solve_checked(lambda: self.inverse_unchecked(q, v, a, tau_ext, bounds, method,
+                                                            check_state=True),
                               ("q", q), ("v", v), ("a", a), ("tau_ext", tau_ext))
 
     def inverse_unchecked(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
                           tau_ext: np.ndarray, bounds: np.ndarray | None,
-                          method: str) -> TreeInverseDynamics:
-        """:meth:`inverse` without the input checks (``bounds`` None or (n_act,) array)."""
+                          method: str, check_state: bool = False) -> TreeInverseDynamics:
+        """:meth:`inverse` without the input checks (``bounds`` None or (n_act,) array);
+        with ``check_state`` the closure check of :meth:`inverse_from_force`."""
         force = pin.rnea(self.model, self.data, q, v, a)
-        return self.inverse_from_force(q, v, a, force, tau_ext, bounds, method)
+        return self.inverse_from_force(q, v, a, force, tau_ext, bounds, method, check_state)
 
     def inverse_from_force(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
                            force: np.ndarray, tau_ext: np.ndarray, bounds: np.ndarray | None,
-                           method: str) -> TreeInverseDynamics:
+                           method: str, check_state: bool = False) -> TreeInverseDynamics:
         """Inverse dynamics given ``force = M a + h`` (nv,) (e.g. from a pooled
-        ``rneaInParallel``); no input checks.
+        ``rneaInParallel``); no input checks, and no closure check of ``(q, v)`` unless
+        ``check_state`` (then on the constraint datas of the call below, no extra pass:
+        InputError for a state off the closures, see
+        :data:`~hexapod_pin.core.dynamics_common.CLOSURE_QTOL`).
 
         Works in Pinocchio's LOCAL constraint rows: one ``pin.constraintDynamics`` call
         with ``tau = force`` evaluates ``J_pin`` and the drift (its acceleration is not
@@ -151,9 +159,11 @@ class InverseDynamicsRoutes:
         the minimum norm do not depend on the row convention: the rows differ by
         rotations, and by ``Jlog6 = I`` for a weld at an assembled configuration).
         """
-        rank = self.ws.closure_rank(q)
         rhs = force - tau_ext
         jac, target = self.ws.pinocchio_constraint_terms(q, v, force)
+        if check_state and self.n_rows:
+            self.ws.check_after_call(q, v)
+        rank = self.ws.closure_rank(q)      # after the check: the first call fixes the rank
         if self.n_rows:
             # Pinocchio's J a = primal_rhs (its drift with the sign flipped)
             miss = linear_residual(jac, a, target, self._res_out)

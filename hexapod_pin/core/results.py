@@ -232,15 +232,25 @@ class ReducedDynamics:
 class Energies:
     """Mechanical energies of the whole mechanism (J).
 
+    The per-body parts are optional (empty / None unless the route computes them, e.g.
+    :func:`hexapod_pin.core.energy.model_energies`); they take no part in ``==``.
+
     Attributes:
         kinetic: ``1/2 v^T M v``.
         potential: gravity potential, zero when every centre of mass is at height zero.
         total: their sum.
+        bodies: the name of each body of the tree (one per joint, the link it moves with
+            every link welded to it), or ``()``.
+        kinetic_per_body: (n_bodies,) kinetic energy of each body, or None.
+        potential_per_body: (n_bodies,) gravity potential of each body, or None.
     """
 
     kinetic: float
     potential: float
     total: float
+    bodies: tuple[str, ...] = ()
+    kinetic_per_body: np.ndarray | None = field(default=None, compare=False)
+    potential_per_body: np.ndarray | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)

@@ -107,6 +107,8 @@ class ClosedLoopRobot:
     Attributes:
         geometry: the :class:`RobotSpec`.
         model: the :class:`ClosedLoopModel`.
+        pose_dim: the number of pose components.
+        n_actuators: the number of actuated joints.
         platform: the :class:`~hexapod_pin.core.platform_map.PlatformMap`.
         kinematics: the :class:`~hexapod_pin.core.robot_kinematics.RobotKinematics`.
         dynamics: the :class:`~hexapod_pin.core.robot_dynamics.RobotDynamics`.
@@ -161,6 +163,10 @@ class ClosedLoopRobot:
         self.geometry = RobotSpec(model.name, self.platform.frame_name, axes, force, gravity,
                                   length)
         self.dynamics = RobotDynamics(model, self.kinematics, force, self.lock)
+        #: number of pose components
+        self.pose_dim: int = self.platform.dim
+        #: number of actuated joints
+        self.n_actuators: int = model.n_actuated
 
     # -- construction helpers ------------------------------------------------------------
     @staticmethod
@@ -179,7 +185,7 @@ class ClosedLoopRobot:
     def _best(self, candidates: list[np.ndarray]) -> np.ndarray:
         """The best-conditioned candidate home (largest ``min(type_one, type_two)``) of the
         right mobility."""
-        scored = []
+        scored: list[tuple[float, int, np.ndarray]] = []
         for q in candidates:
             maps = self.platform.velocity_maps(q)
             if maps.basis.shape[1] != self.platform.dim:
@@ -224,14 +230,10 @@ class ClosedLoopRobot:
                 f"pose_axes={self.geometry.pose_axes})")
 
     @property
-    def pose_dim(self) -> int:
-        """Number of pose components."""
-        return self.platform.dim
-
-    @property
-    def n_actuators(self) -> int:
-        """Number of actuated joints."""
-        return self.model.n_actuated
+    def pose_axes(self) -> tuple[str, ...]:
+        """The pose components, ``geometry.pose_axes`` (a subset of ``("x", "y", "z",
+        "roll", "pitch", "yaw")`` in that order)."""
+        return self.geometry.pose_axes
 
     @property
     def home_pose(self) -> npt.NDArray[np.float64]:
@@ -255,6 +257,7 @@ class ClosedLoopRobot:
     forward_kinematics = delegate("kinematics", RobotKinematics.forward_kinematics)
     assembly_modes = delegate("kinematics", RobotKinematics.assembly_modes)
     search_assembly_modes = delegate("kinematics", RobotKinematics.search_assembly_modes)
+    assembly_configurations = delegate("kinematics", RobotKinematics.assembly_configurations)
     jacobian = delegate("kinematics", RobotKinematics.jacobian)
     twist_from_actuator_velocities = delegate(
         "kinematics", RobotKinematics.twist_from_actuator_velocities)

@@ -7,13 +7,15 @@ defaults and result types (:mod:`hexapod_pin.core.results`); one parametrised te
 
 Conventions (robot-neutral; each robot's README section gives its numbers):
 
-* ``pose``: the platform's pose, shape ``(dim,)``: ``(x, y, z, roll, pitch, yaw)`` in space
-  (m, rad; ``R = Rz(yaw) Ry(pitch) Rx(roll)``), ``(x, y, theta)`` in the plane;
-* ``twist``: the platform's velocity ``(v, w)``, linear velocity of the platform origin and
-  angular velocity, both in world axes, shape ``(dim,)``; ``twist_dot`` its plain time
-  derivative;
-* ``wrench``: ``(f, m)`` applied ON the platform by the environment, world axes, moment
-  about the platform origin, shape ``(dim,)``;
+* ``pose``: the platform's pose, shape ``(dim,)``: the selection ``robot.pose_axes`` of
+  ``(x, y, z, roll, pitch, yaw)`` (m, rad; ``R = Rz(yaw) Ry(pitch) Rx(roll)``), in that
+  order: all six for the hexapod, ``("x", "y", "yaw")`` (``(x, y, theta)``) for the planar
+  robot, e.g. ``("x", "z")`` for a five-bar in the x-z plane;
+* ``twist``: the platform's velocity, the same selection of ``(v, w)``: linear velocity of
+  the platform origin and angular velocity, both in world axes, shape ``(dim,)``;
+  ``twist_dot`` its plain time derivative;
+* ``wrench``: the same selection of ``(f, m)`` applied ON the platform by the environment,
+  world axes, moment about the platform origin, shape ``(dim,)``;
 * actuator positions, velocities, accelerations and forces: shape ``(n_act,)``, actuator
   order, each along the actuator's own positive direction (m or rad; N or N m);
 * ``branch``: the inverse-kinematics root of each chain, ``n_act`` values +1 / -1; None: the
@@ -30,15 +32,18 @@ Conventions (robot-neutral; each robot's README section gives its numbers):
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, Concatenate, Generic, ParamSpec, Protocol, TypeVar, overload, \
-    runtime_checkable
+from collections.abc import Callable, Sequence
+from typing import Any, Concatenate, Generic, NamedTuple, ParamSpec, Protocol, TypeVar, \
+    overload, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
 
 from .checks import check_finite_result
+from ..errors import InputError
 from .closed_loop import ClosedLoopModel
+from .platform_map import POSE_AXES, check_pose_axes
+from .pose import euler_rates_matrix
 from .results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                       Energies, ForwardDynamicsResult, InverseDynamicsDerivatives,
                       InverseDynamicsResult,
@@ -52,9 +57,9 @@ FORWARD_DYNAMICS_METHODS = ("nullspace", "pinocchio", "qp", "kkt")
 
 #: every name of the shared API (the parametrised test suite checks each robot has them)
 SHARED_NAMES = (
-    "default", "geometry", "model", "pose_dim", "n_actuators", "home_pose", "home_actuators",
-    "home_configuration", "configuration", "pose_from_configuration", "actuator_positions",
-    "inverse_kinematics", "forward_kinematics", "assembly_modes", "jacobian",
+    "default", "geometry", "model", "pose_dim", "pose_axes", "n_actuators", "home_pose",
+    "home_actuators", "home_configuration", "configuration", "pose_from_configuration",
+    "actuator_positions", "inverse_kinematics", "forward_kinematics", "assembly_modes", "jacobian",
     "twist_from_actuator_velocities", "jacobian_derivative", "singularity",
     "inverse_dynamics", "forward_dynamics", "static_forces", "reduced_dynamics", "energies",
     "inverse_dynamics_derivatives", "inverse_kinematics_batch", "jacobian_batch",
@@ -71,7 +76,10 @@ class ParallelRobot(Protocol):
         geometry: the robot's design parameters (a frozen dataclass with, at least,
             ``max_actuator_force`` (N or N m; ``inf``: unbounded) and ``gravity`` (m/s^2)).
         model: the :class:`ClosedLoopModel` (Pinocchio tree + loop closures).
-        pose_dim: 6 in space, 3 in the plane.
+        pose_dim: number of pose components (6 in space, 3 in the plane, ...).
+        pose_axes: (read-only) the pose components, a subset of ``("x", "y", "z", "roll",
+            "pitch", "yaw")`` in that order, ``pose_dim`` of them; the twist and the
+            wrench are the same selection of ``(v, w)`` and ``(f, m)`` (world axes).
         n_actuators: number of actuated joints.
         home_pose: (dim,) the home pose.
         home_actuators: (n_act,) its actuator positions.
@@ -82,6 +90,9 @@ class ParallelRobot(Protocol):
     model: ClosedLoopModel
     pose_dim: int
     n_actuators: int
+
+    @property
+    def pose_axes(self) -> tuple[str, ...]: ...
 
     @classmethod
     def default(cls) -> "ParallelRobot":
@@ -189,6 +200,111 @@ class ParallelRobot(Protocol):
 
     def reduced_dynamics_batch(self, poses: npt.ArrayLike,
                                twists: npt.ArrayLike) -> BatchReducedDynamics: ...
+
+
+# -- the layout of a pose ------------------------------------------------------------------
+#: the pose axes of a robot in space (the hexapod's; a pose of 6 values without axes)
+SPACE_POSE_AXES = POSE_AXES
+#: the pose axes of a robot in the plane (the planar 3-PRR's ``(x, y, theta)``; a pose of 3
+#: values without axes)
+PLANE_POSE_AXES = ("x", "y", "yaw")
+#: the pose axes assumed from a pose's width alone (the two robots with a closed form)
+DEFAULT_POSE_AXES = {6: SPACE_POSE_AXES, 3: PLANE_POSE_AXES}
+
+
+class PoseLayout(NamedTuple):
+    """Where the components of a robot's pose (and twist, twist derivative, wrench) sit.
+
+    Attributes:
+        axes: the pose axes, a subset of ``("x", "y", "z", "roll", "pitch", "yaw")`` in that
+            order (``dim`` of them).
+        linear: indices (into the pose) of the linear components ``x, y, z`` (m; twist:
+            m/s, wrench: N), int array, possibly empty.
+        angular: indices (into the pose) of the angles ``roll, pitch, yaw`` (rad; twist:
+            the world angular velocity components ``wx, wy, wz``, rad/s; wrench: N m),
+            possibly empty. Every linear index precedes every angular one.
+        full_rotation: all three angles are in the pose: the orientation is a rotation in
+            SO(3) (``R = Rz(yaw) Ry(pitch) Rx(roll)``) and the angular velocity is
+            ``w = E(rpy) d(rpy)/dt``; otherwise each selected angle is a scalar whose rate
+            is the matching component of ``w`` (exact for a rotation about that fixed
+            world axis, the case of planar mechanisms).
+        components: the index of each pose component in ``(x, y, z, roll, pitch, yaw)``
+            (dim,): ``components[linear]`` are world axes 0..2 of the linear components,
+            ``components[angular] - 3`` those of the angular ones.
+    """
+
+    axes: tuple[str, ...]
+    linear: np.ndarray
+    angular: np.ndarray
+    full_rotation: bool
+    components: np.ndarray
+
+    @property
+    def dim(self) -> int:
+        """Number of pose components."""
+        return len(self.axes)
+
+    def names(self, full: Sequence[str]) -> tuple[str, ...]:
+        """The selection of six names given in the order of ``(x, y, z, roll, pitch,
+        yaw)``, e.g. ``("vx", "vy", "vz", "wx", "wy", "wz")`` -> ``("vx", "vz")`` for
+        pose axes ``("x", "z")``."""
+        return tuple(full[i] for i in self.components)
+
+    def twists_from_poses(self, t: np.ndarray, poses: np.ndarray) -> np.ndarray:
+        """Twists (N, dim) (m/s, rad/s, world axes) of poses (N, dim) sampled at times
+        ``t`` (N,) (s), N >= 3, by second-order finite differences (``numpy.gradient``,
+        also at the ends): ``v = dp/dt``; the angles unwrapped, then ``w = E(rpy)
+        d(rpy)/dt`` with a full rotation, each angle's rate otherwise."""
+        out = np.empty_like(poses, dtype=float)
+        out[:, self.linear] = np.gradient(poses[:, self.linear], t, axis=0, edge_order=2)
+        if self.angular.size:
+            angles = np.unwrap(poses[:, self.angular], axis=0)
+            rates = np.gradient(angles, t, axis=0, edge_order=2)
+            if self.full_rotation:
+                rates = np.einsum("nij,nj->ni", euler_rates_matrix(angles), rates)
+            out[:, self.angular] = rates
+        return out
+
+
+#: what :func:`pose_layout` reads a layout from
+PoseAxesSource = PoseLayout | ParallelRobot | Sequence[str] | str | int
+
+
+def pose_layout(source: PoseAxesSource) -> PoseLayout:
+    """The :class:`PoseLayout` of a robot, of its pose axes, or of a pose width.
+
+    Args:
+        source: a robot (its ``pose_axes``; a robot without them: the default axes of its
+            ``pose_dim``), a sequence of pose axes (or a comma-separated string, checked
+            as in :func:`~hexapod_pin.core.platform_map.check_pose_axes`), a pose width
+            6 (:data:`SPACE_POSE_AXES`) or 3 (:data:`PLANE_POSE_AXES`), or a
+            :class:`PoseLayout` (returned as it is).
+
+    Raises:
+        InputError: axes that are not a subset of ``(x, y, z, roll, pitch, yaw)`` in that
+            order, or a width with no default axes (named ``pose_axes``).
+
+    Example:
+        >>> pose_layout(("x", "z")).linear, pose_layout(("x", "z")).components
+        (array([0, 1]), array([0, 2]))
+    """
+    if isinstance(source, PoseLayout):
+        return source
+    axes_source: object = source
+    if not isinstance(source, (str, Sequence, int, np.integer)):
+        axes_source = getattr(source, "pose_axes", None)
+        if axes_source is None:
+            axes_source = getattr(source, "pose_dim", source)
+    if isinstance(axes_source, (int, np.integer)) and not isinstance(axes_source, bool):
+        if int(axes_source) not in DEFAULT_POSE_AXES:
+            raise InputError("pose_axes", source, "no default pose axes for a pose of "
+                             f"{int(axes_source)} values: give the robot or its pose axes")
+        axes_source = DEFAULT_POSE_AXES[int(axes_source)]
+    axes = check_pose_axes(axes_source)
+    components = np.array([POSE_AXES.index(a) for a in axes], dtype=int)
+    angular = np.flatnonzero(components >= 3)
+    return PoseLayout(axes, np.flatnonzero(components < 3), angular, angular.size == 3,
+                      components)
 
 
 #: the parameters (after ``self``) and the result of a delegated method

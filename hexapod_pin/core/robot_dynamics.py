@@ -96,7 +96,8 @@ class RobotDynamics:
     Args:
         clm: the closed-loop model.
         kinematics: the robot's :class:`RobotKinematics`.
-        max_force: actuator force bound (N or N m), scalar or (n_act,); inf: none.
+        max_force: the actuator force bound (N or N m), a scalar or an (n_act,) array
+            (inf for none).
         lock: the robot's lock (results compute their conditioning under it).
     """
 
@@ -164,7 +165,8 @@ class RobotDynamics:
 
         Raises:
             InputError: bad shapes, NaN / inf, unknown method.
-            UnreachablePoseError, SingularityError: see the kinematics.
+            UnreachablePoseError: see the kinematics.
+            SingularityError: see the kinematics.
             ActuatorSaturationError: the bounds cannot be met (carries the needed forces).
             SolverError: an answer misses its equations.
         """
@@ -200,7 +202,8 @@ class RobotDynamics:
 
         Raises:
             InputError: bad shapes, NaN / inf, unknown method.
-            UnreachablePoseError, SingularityError: see the kinematics.
+            UnreachablePoseError: see the kinematics.
+            SingularityError: see the kinematics.
             SolverError: the answer misses the equation of motion or the closures.
         """
         if method not in FORWARD_DYNAMICS_METHODS:

@@ -8,8 +8,8 @@ Conventions: :mod:`hexapod_pin.core.platform_map` (pose, twist, the maps ``A`` a
   components together, ``[J_c; P] dq = -[r(q); pose(q) - target]`` (``P`` the pose rows,
   minimum-norm steps on ``pin.integrate``, halved while they do not decrease the error),
   started from the home configuration. Where the direct iteration does not converge it is
-  repeated by continuation along the straight segment from the home pose (4, 16 then 64
-  sub-steps). The **branch** of a pose (its working mode) is therefore the one reached
+  repeated by continuation along the straight segment from the home pose (sub-steps
+  halved where a solve fails, down to 1/64 of the way, and doubled after a success). The **branch** of a pose (its working mode) is therefore the one reached
   from home; ``branch`` may instead be a configuration (nq,) to start from, which
   selects the working mode nearest it. Every answer closes the loops and meets the pose
   to :attr:`RobotKinematics.tol` or raises.
@@ -39,12 +39,15 @@ from .measures import (TREE_TYPE_I_TOL, TREE_TYPE_II_TOL, inverse_condition,
 from .platform_map import PlatformMap, VelocityMaps, solve_checked_square
 from .results import InverseKinematicsBatch, JacobianBatch, SingularityMeasures
 
-#: continuation sub-steps tried, in turn, when a direct Newton solve does not converge
-CONTINUATION_STEPS = (4, 16, 64)
+#: the smallest continuation sub-step, as a fraction of the way (inverse kinematics and
+#: assembly)
+MIN_FRACTION = 64
+#: step halvings of one Gauss-Newton line search
+LINE_SEARCH = 12
 #: Gauss-Newton iterations of one solve
 MAX_ITER = 40
 #: configurations kept by the inverse-kinematics cache
-CACHE_SIZE = 256
+CACHE_SIZE = 4096
 
 
 class RobotKinematics:
@@ -147,65 +150,73 @@ class RobotKinematics:
             return hit.copy()
         q = self._solve(start, target)
         if q is None:
-            base = self.platform.pose(start)
-            for steps in CONTINUATION_STEPS:
-                q = self._continue(start, base, target, steps)
-                if q is not None:
-                    break
+            q = self._continue(start, self.platform.pose(start), target)
         if q is None:
             raise UnreachablePoseError([], [], reason=(
                 f"no configuration of {self.clm.name} closes the loops at pose "
                 f"{np.array2string(target, precision=6)} (Gauss-Newton from the start and "
-                f"continuation in up to {CONTINUATION_STEPS[-1]} steps did not converge: "
-                "out of reach or across a singularity)"))
+                f"continuation in steps down to 1/{MIN_FRACTION} of the way did not "
+                "converge: out of reach or across a singularity)"))
         if len(self._cache) >= CACHE_SIZE:
             self._cache.clear()
         self._cache[key] = q
         return q.copy()
 
-    def _continue(self, start: np.ndarray, base: np.ndarray, target: np.ndarray,
-                  steps: int) -> np.ndarray | None:
+    def _continue(self, start: np.ndarray, base: np.ndarray,
+                  target: np.ndarray) -> np.ndarray | None:
+        """Continuation from ``start`` (at pose ``base``) to ``target`` along the straight
+        pose segment: each sub-step a Gauss-Newton solve from the last configuration, the
+        step halved where a solve fails (down to 1/:data:`MIN_FRACTION` of the segment)
+        and doubled after a success; None when it cannot get through."""
         delta = self.platform.pose_error(target.copy(), base)
-        q = start
-        for k in range(1, steps + 1):
-            nxt = self._solve(q, base + delta * (k / steps))
+        q, done, step = start, 0.0, 0.5
+        while done < 1.0:
+            step = min(step, 1.0 - done)
+            nxt = self._solve(q, base + delta * (done + step))
             if nxt is None:
-                return None
-            q = nxt
+                step *= 0.5
+                if step < 1.0 / MIN_FRACTION:
+                    return None
+                continue
+            q, done, step = nxt, done + step, 2.0 * step
         return q
 
+    def _evaluate(self, q: np.ndarray, target: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(F, rows, max|F|)`` at ``q``: the stacked closure residual and pose error and
+        their Jacobian ``[J_c; P]``, from one kinematic pass."""
+        clm, plat = self.clm, self.platform
+        res_c, jac_c = clm.residual_and_jacobian(q)
+        pin.updateFramePlacement(self.model, clm.data, plat.frame)
+        full = plat.full_pose(clm.data)
+        pose_err = plat.pose_error(full[plat.sel], target)
+        value = np.concatenate([res_c, pose_err])
+        err = float(np.max(np.abs(value)))
+        return value, np.vstack([jac_c, plat.pose_rows(clm.data, full)]), err
+
     def _solve(self, q: np.ndarray, target: np.ndarray) -> np.ndarray | None:
-        """Gauss-Newton on the closures and the pose; None when it does not converge."""
-        clm, plat, model = self.clm, self.platform, self.model
-        err_max, q_cur = math.inf, q
-        res_c = pose_err = None
-        for _ in range(MAX_ITER + 1):
-            if res_c is None:
-                res_c, jac_c = clm.residual_and_jacobian(q_cur)
-                pin.updateFramePlacement(model, clm.data, plat.frame)
-                full = plat.full_pose(clm.data)
-                pose_err = plat.pose_error(full[plat.sel], target)
-                err_max = max(float(np.max(np.abs(res_c), initial=0.0)),
-                              float(np.max(np.abs(pose_err))))
-            if err_max <= self.tol:
-                return q_cur
-            rows = np.vstack([jac_c, plat.pose_rows(clm.data, full)])
-            step = np.linalg.lstsq(rows, -np.concatenate([res_c, pose_err]), rcond=None)[0]
+        """Gauss-Newton on the closures and the pose (steps halved while they do not
+        decrease the max-abs error); None when it does not converge."""
+        value, rows, err = self._evaluate(q, target)
+        for _ in range(MAX_ITER):
+            if err <= self.tol:
+                return q
+            step = np.linalg.lstsq(rows, -value, rcond=None)[0]
             alpha = 1.0
-            for _ in range(30):
-                trial = pin.integrate(model, q_cur, alpha * step)
-                t_res = clm.residual(trial)
-                pin.framesForwardKinematics(model, plat.data, trial)
-                t_pose = plat.pose_error(plat.full_pose(plat.data)[plat.sel], target)
-                t_err = max(float(np.max(np.abs(t_res), initial=0.0)),
-                            float(np.max(np.abs(t_pose))))
-                if math.isfinite(t_err) and t_err < err_max:
+            for _ in range(LINE_SEARCH):
+                trial = pin.integrate(self.model, q, alpha * step)
+                t_value, t_rows, t_err = self._evaluate(trial, target)
+                if math.isfinite(t_err) and t_err < err:
                     break
                 alpha *= 0.5
             else:
                 return None
-            q_cur, res_c = trial, None
-        return None
+            q, value, rows, err = trial, t_value, t_rows, t_err
+        return q if err <= self.tol else None
+
+    def clear_cache(self) -> None:
+        """Forget the configurations of :meth:`configuration` (benchmarks time misses)."""
+        self._cache.clear()
 
     # -- kinematics ----------------------------------------------------------------------
     def inverse_kinematics(self, pose: npt.ArrayLike, branch: npt.ArrayLike | None = None,
@@ -213,7 +224,8 @@ class RobotKinematics:
         """Actuator positions (n_act,) (m or rad) of a pose (:meth:`configuration`).
 
         Raises:
-            InputError, UnreachablePoseError: see :meth:`configuration`.
+            InputError: see :meth:`configuration`.
+            UnreachablePoseError: see :meth:`configuration`.
             StrokeLimitError: with ``check_limits``, an actuator outside the position
                 limits of its joint in the description.
         """
@@ -252,23 +264,34 @@ class RobotKinematics:
 
     def assemble(self, start: np.ndarray, actuators: np.ndarray) -> np.ndarray:
         """The configuration (nq,) with the actuators at ``actuators`` and the loops closed,
-        reached from ``start`` (directly, else by continuation in actuator space)."""
+        reached from ``start``: directly, else by continuation in actuator space (the
+        sub-steps of :meth:`_continue`).
+
+        Raises:
+            AssemblyError: no sub-step down to 1/:data:`MIN_FRACTION` of the way closes.
+        """
         clm, act0 = self.clm, self.actuator_positions(start)
-        try:
-            return clm.assemble(self.with_actuators(start, actuators), tol=self.tol,
+
+        def close(q: np.ndarray, values: np.ndarray) -> np.ndarray:
+            return clm.assemble(self.with_actuators(q, values), tol=self.tol,
                                 max_iter=MAX_ITER).q
+
+        try:
+            return close(start, actuators)
         except AssemblyError as exc:
             failure = exc
-        for steps in CONTINUATION_STEPS:
-            q = start
+        q, done, step = start, 0.0, 0.5
+        while done < 1.0:
+            step = min(step, 1.0 - done)
             try:
-                for k in range(1, steps + 1):
-                    q = clm.assemble(self.with_actuators(q, act0 + (actuators - act0) * k / steps),
-                                     tol=self.tol, max_iter=MAX_ITER).q
-                return q
+                q = close(q, act0 + (actuators - act0) * (done + step))
             except AssemblyError as exc:
-                failure = exc
-        raise failure
+                failure, step = exc, 0.5 * step
+                if step < 1.0 / MIN_FRACTION:
+                    raise failure from None
+                continue
+            done, step = done + step, 2.0 * step
+        return q
 
     def assembly_modes(self, actuators: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Assembly modes found for the actuator positions (n_act,): poses (n_modes, dim),

@@ -1,17 +1,23 @@
 """Time integration of any closed-loop mechanism on its Pinocchio tree.
 
 :class:`ClosedLoopIntegrator`, generic over a :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`
-whose joints are 1-DoF or free-flyers:
+whose joints are 1-DoF revolute / prismatic, continuous (unbounded revolute), ball
+(spherical, quaternion), ``SphericalZYX``, ``Translation``, planar or free-flyers:
 
 * the state is the tree's ``(q, v)`` (Pinocchio conventions);
 * classical fourth-order Runge-Kutta on ``q`` as a vector of ``R^nq`` and ``v``:
-  ``qdot`` from ``v`` through the joint kinematics (1-DoF joints ``qdot = v``; a
-  free-flyer ``p' = R v_lin``, quaternion ``Q' = 1/2 Q (x) (w_body, 0)``), ``vdot``
+  ``qdot`` from ``v`` through the joint kinematics (vector-space coordinates
+  ``qdot = v``; a continuous joint ``(cos, sin)' = (-sin, cos) v``; a ball joint
+  ``Q' = 1/2 Q (x) (w_body, 0)``; a planar joint ``p' = R v_lin``,
+  ``(cos, sin)' = (-sin, cos) w``; a free-flyer ``p' = R v_lin``, quaternion
+  ``Q' = 1/2 Q (x) (w_body, 0)``; the unit quaternions and ``(cos, sin)`` pairs
+  renormalised after every stage and step), ``vdot``
   from the constrained forward dynamics (``pin.constraintDynamics`` by default);
   the actuator forces and the wrench are held constant over a step (zero-order hold);
   with redundant closure rows the stage states are put back on the closures (one
   Gauss-Newton pass each) before their dynamics are solved;
-* or semi-implicit Euler, ``v' = v + dt a(q, v)``, ``q' = q (+) dt v'``;
+* or semi-implicit Euler, ``v' = v + dt a(q, v)``, ``q' = q (+) dt v'`` (``pin.integrate``
+  when a joint is not a vector space);
 * after each step, drift control by projection onto the constraint manifold: the
   quaternions are renormalised; when the closure residual ``r`` exceeds ``projection_tol``
   (default 1e-10 m), ``q`` gets Gauss-Newton corrections ``q <- q (+) (-J_c^+ r)``
@@ -27,6 +33,13 @@ whose joints are 1-DoF or free-flyers:
   closures and projects the velocity. Every returned state has its closure residual
   measured at the returned ``q`` (at most ``projection_tol``, or
   :class:`~hexapod_pin.errors.AssemblyError`).
+
+:meth:`ClosedLoopIntegrator.step` checks its inputs (``dt`` and ``projection_tol`` real,
+finite, > 0; ``q`` (nq,), ``v`` (nv,), ``tau`` (nv,) real and finite: else
+:class:`~hexapod_pin.errors.InputError`). Its stage states are off the closures by
+O(dt^2) and go through the unchecked dynamics paths (not the closure check of the public
+routes of :mod:`~hexapod_pin.core.dynamics`); the step's start state is not checked
+against the closures either (the returned state is projected onto them).
 """
 
 
@@ -39,14 +52,22 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import AssemblyError, InputError, SolverError
+from .checks import as_array, real_number
 from .closed_loop import ClosedLoopModel
 from .constraint_views import ConstraintErrors, gather_negated
 from .dynamics import FORWARD_METHODS, dynamics_of, independent_rows
 from .integrator_kernels import (
+    FREE_FLYER,
+    PLANAR,
+    SPHERICAL,
+    UNBOUNDED,
+    VECTOR,
     configuration_rate,
     errors_gauss_newton_pass,
     euler_update,
+    finite_state,
     gauss_newton_pass,
+    normalise_pairs,
     rk4_combine,
     rk4_stage,
 )
@@ -56,6 +77,15 @@ PROJECTION_TOL = 1e-10
 _SUPPORTED_1DOF = {"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelPX",
                    "JointModelPY", "JointModelPZ", "JointModelRevoluteUnaligned",
                    "JointModelPrismaticUnaligned"}
+#: joints whose configuration is a vector space of dimension nv (``qdot = v``)
+_VECTOR_JOINTS = _SUPPORTED_1DOF | {"JointModelSphericalZYX", "JointModelTranslation"}
+#: the other supported joints, by kind of the compiled joint table
+_LIE_JOINTS = {"JointModelFreeFlyer": FREE_FLYER, "JointModelRUBX": UNBOUNDED,
+               "JointModelRUBY": UNBOUNDED, "JointModelRUBZ": UNBOUNDED,
+               "JointModelRevoluteUnboundedUnaligned": UNBOUNDED,
+               "JointModelSpherical": SPHERICAL, "JointModelPlanar": PLANAR}
+_INF = math.inf
+_F64 = np.dtype(np.float64)
 INTEGRATORS = ("rk4", "semi_implicit_euler")
 STATUSES = ("completed", "stroke_limit", "carriage_gap", "failed")
 
@@ -67,7 +97,9 @@ class ClosedLoopIntegrator:
     """Fixed-step integrator of a closed-loop tree with projection onto the closures.
 
     Args:
-        clm: the closed-loop model (joints: 1-DoF revolute / prismatic, or free-flyer).
+        clm: the closed-loop model (joints: 1-DoF revolute / prismatic, continuous
+            (unbounded revolute), ball (spherical), ``SphericalZYX``, ``Translation``,
+            planar, free-flyer).
         method: forward-dynamics route, "pinocchio" (default), "qp" or "kkt".
         integrator: "rk4" (classical Runge-Kutta, four dynamics calls per step) or
             "semi_implicit_euler" (one call per step; fast, first order, energy not
@@ -93,26 +125,38 @@ class ClosedLoopIntegrator:
         self.integrator = integrator
         self._residual_fn = residual
         model = clm.model
-        self._ff: list[tuple[int, int]] = []      # (idx_q, idx_v) of free-flyers
-        vec_q, vec_v = [], []
+        rows: list[tuple[int, int, int]] = []     # (kind, idx_q, idx_v)
+        quat: list[int] = []                      # starts of the unit quaternions in q
+        pairs: list[int] = []                     # starts of the unit (cos, sin) pairs
         for jid in range(1, model.njoints):
             joint = model.joints[jid]
             name = joint.shortname()
-            if name == "JointModelFreeFlyer":
-                self._ff.append((joint.idx_q, joint.idx_v))
-            elif name in _SUPPORTED_1DOF:
-                vec_q.append(joint.idx_q)
-                vec_v.append(joint.idx_v)
-            else:
+            iq, iv = joint.idx_q, joint.idx_v
+            if name in _VECTOR_JOINTS:
+                rows += [(VECTOR, iq + k, iv + k) for k in range(joint.nv)]
+                continue
+            kind = _LIE_JOINTS.get(name)
+            if kind is None:
                 raise InputError("clm", name, "the integrator supports 1-DoF revolute / "
-                                              "prismatic joints and free-flyers only")
-        #: start of each free-flyer's quaternion (x, y, z, w) in q (RK4 stage kernels)
-        self._quat = np.array([iq + 3 for iq, _ in self._ff], dtype=np.int64)
-        #: (kind, idx_q, idx_v) of every joint, kind 0 a 1-DoF joint, 1 a free-flyer (the
-        #: compiled configuration rate and RK4 stage kernels)
-        self._joints = np.array([(0, iq, iv) for iq, iv in zip(vec_q, vec_v)]
-                                + [(1, iq, iv) for iq, iv in self._ff],
-                                dtype=np.int64).reshape(-1, 3)
+                                 "prismatic, continuous, ball (spherical), SphericalZYX, "
+                                 "translation, planar and free-flyer joints only")
+            rows.append((kind, iq, iv))
+            if kind in (FREE_FLYER, SPHERICAL):
+                quat.append(iq + 3 if kind == FREE_FLYER else iq)
+            else:
+                pairs.append(iq if kind == UNBOUNDED else iq + 2)
+        #: start of each unit quaternion (x, y, z, w) in q: free-flyers' and ball joints'
+        #: (RK4 stage kernels)
+        self._quat = np.array(quat, dtype=np.int64)
+        #: start of each unit (cos, sin) pair in q: continuous and planar joints'
+        self._pairs = np.array(pairs, dtype=np.int64)
+        #: whether a joint is not a vector space (the Euler step then uses pin.integrate)
+        self._lie = bool(quat or pairs)
+        #: (kind, idx_q, idx_v) of every joint (coordinate, for vector-space joints), kinds
+        #: of :mod:`~hexapod_pin.core.integrator_kernels` (the compiled configuration rate
+        #: and RK4 stage kernels)
+        self._joints = np.array(rows, dtype=np.int64).reshape(-1, 3)
+        self._shapes = ((model.nq,), (model.nv,))
         self._redundant: bool | None = None
         self._rows: np.ndarray | None = None     # independent closure rows (projection)
         # the projection's own Pinocchio data and constraint data (Pinocchio's LOCAL rows)
@@ -139,8 +183,10 @@ class ClosedLoopIntegrator:
 
     # -- kinematics of the configuration vector -------------------------------------------
     def qdot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Time derivative of ``q`` as a vector of ``R^nq`` for the velocity ``v`` (1-DoF
-        joints ``qdot = v``; a free-flyer ``p' = R v_lin``, ``Q' = 1/2 Q (x) (w_body, 0)``)."""
+        """Time derivative of ``q`` as a vector of ``R^nq`` for the velocity ``v`` (see the
+        module docstring: vector coordinates ``qdot = v``; continuous joints
+        ``(cos, sin)' = (-sin, cos) v``; ball joints ``Q' = 1/2 Q (x) (w_body, 0)``; planar
+        joints and free-flyers ``p' = R v_lin`` and their rotation's rate)."""
         out = np.empty_like(q)
         configuration_rate(q, v, self._joints, out)
         return out
@@ -183,22 +229,55 @@ class ClosedLoopIntegrator:
              projection_tol: float = PROJECTION_TOL) -> tuple[np.ndarray, np.ndarray, float]:
         """One step of length ``dt`` (s) with ``tau`` (nv,) held; returns ``(q, v, residual)``.
 
+        Args:
+            q: tree configuration (nq,) (unit quaternions and ``(cos, sin)`` pairs).
+            v: tree velocity (nv,).
+            tau: generalised force (nv,) held over the step (N, N m).
+            dt: step length (s), a real number, finite and > 0.
+            projection_tol: closure residual above which the step is projected back onto
+                the closures (m / rad), a real number, finite and > 0.
+
         ``residual`` is the max-abs closure residual after the projection (m).
 
         Raises:
+            InputError: a ``dt`` or ``projection_tol`` that is not a finite real number
+                > 0 (None, text, bool, NaN, inf, <= 0); a ``q``, ``v`` or ``tau`` of the
+                wrong shape, not real, or with NaN / inf entries (naming the argument and
+                its values).
             AssemblyError: the projection does not converge.
         """
+        if not (type(dt) is float and 0.0 < dt < _INF):
+            dt = real_number(dt, "dt", minimum=0.0)
+        if projection_tol is not PROJECTION_TOL and not (
+                type(projection_tol) is float and 0.0 < projection_tol < _INF):
+            projection_tol = real_number(projection_tol, "projection_tol", minimum=0.0)
+        nd, (shape_q, shape_v) = np.ndarray, self._shapes
+        if not (type(q) is nd and type(v) is nd and type(tau) is nd and q.dtype == _F64
+                and v.dtype == _F64 and tau.dtype == _F64
+                and q.shape == shape_q and v.shape == shape_v and tau.shape == shape_v
+                and q.flags.c_contiguous and v.flags.c_contiguous
+                and tau.flags.c_contiguous and finite_state(q, v, tau)):
+            q, v = as_array(q, shape_q, "q"), as_array(v, shape_v, "v")
+            tau = as_array(tau, shape_v, "tau")
+        return self.advance(q, v, tau, dt, projection_tol)
+
+    def advance(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
+                projection_tol: float = PROJECTION_TOL) -> tuple[np.ndarray, np.ndarray,
+                                                                 float]:
+        """:meth:`step` without its input checks (contiguous float64 ``q`` (nq,), ``v``
+        (nv,), ``tau`` (nv,), finite; ``dt``, ``projection_tol`` finite floats > 0), for
+        drivers that checked them once."""
         if self.integrator == "rk4":
             q_new, v_new = self._rk4(q, v, tau, dt, projection_tol)
             return self.project(q_new, v_new, projection_tol, velocity=True)
         # semi-implicit Euler: v' = v + dt a(q, v), q' = q (+) dt v'
         model = self._model
         acc = self._verified_acceleration(q, v, tau)
-        if self._quat.size:                      # free-flyers: the exponential map
+        if self._lie:                 # rotations, (cos, sin) pairs: the exponential map
             v_new = np.multiply(acc, dt)
             v_new += v
             q_new = pin.integrate(model, q, dt * v_new)
-        else:                                    # 1-DoF joints: q (+) dt v' = q + dt v'
+        else:                         # vector-space joints: q (+) dt v' = q + dt v'
             q_new, v_new = np.empty_like(q), np.empty_like(v)
             euler_update(q, v, acc, dt, q_new, v_new)
         jac0, rows = self._jac0, self._rows
@@ -269,7 +348,7 @@ class ClosedLoopIntegrator:
 
             def acc(qs, vs, _):
                 return verified(qs, vs, tau), qs, vs
-        joints, quat, nq = self._joints, self._quat, q.shape[0]
+        joints, quat, pairs, nq = self._joints, self._quat, self._pairs, q.shape[0]
         # the weighted sums of the stage rates, (qdot_1 + 2 qdot_2 + 2 qdot_3 + qdot_4,
         # a_1 + 2 a_2 + 2 a_3 + a_4), accumulated by the stage kernel
         rates = np.zeros(nq + v.shape[0])
@@ -278,11 +357,15 @@ class ClosedLoopIntegrator:
             a_s, qs, vs = acc(qs, vs, qs is q)
             q_next, v_next = np.empty_like(q), np.empty_like(v)
             rk4_stage(q, v, qs, vs, a_s, h, w, joints, quat, q_next, v_next, rates)
+            if pairs.size:
+                normalise_pairs(q_next, pairs)
             qs, vs = project(q_next, v_next, projection_tol)
         a_s, qs, vs = acc(qs, vs, False)
         q_new, v_new = np.empty_like(q), np.empty_like(v)
         rk4_stage(q, v, qs, vs, a_s, 0.0, 1.0, joints, quat, q_new, v_new, rates)
         rk4_combine(q, v, rates, dt / 6.0, quat, q_new, v_new)
+        if pairs.size:
+            normalise_pairs(q_new, pairs)
         return q_new, v_new
 
     def _project_stage(self, q: np.ndarray, v: np.ndarray, trigger: float):

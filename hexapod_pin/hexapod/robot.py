@@ -76,6 +76,7 @@ class Hexapod:
         model: the :class:`ClosedLoopModel` (tree + closures) built from the geometry.
         indices: where the hexapod's coordinates sit in the tree (:class:`HexapodIndices`).
         pose_dim: 6.
+        pose_axes: ``("x", "y", "z", "roll", "pitch", "yaw")``.
         n_actuators: 6.
 
     Example:
@@ -85,6 +86,11 @@ class Hexapod:
 
     pose_dim = 6
     n_actuators = 6
+
+    @property
+    def pose_axes(self) -> tuple[str, ...]:
+        """The pose components ``("x", "y", "z", "roll", "pitch", "yaw")`` (m, rad)."""
+        return ("x", "y", "z", "roll", "pitch", "yaw")
 
     def __init__(self, geometry: HexapodGeometry | None = None) -> None:
         self.geometry = HexapodGeometry() if geometry is None else geometry

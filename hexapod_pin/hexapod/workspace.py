@@ -43,6 +43,7 @@ import numpy.typing as npt
 
 from ..core.checks import as_array
 from ..core.measures import condition_number
+from ..core.workspace_maps import VolumeEstimate, volume_estimate
 from ..errors import InputError
 from . import batch
 from . import kernels as K
@@ -85,25 +86,6 @@ class WorkspaceMeasures:
     type_two: np.ndarray
     static_forces: np.ndarray
     branch: np.ndarray
-
-
-@dataclass(frozen=True)
-class VolumeEstimate:
-    """A sampled volume (m^3) and its standard error.
-
-    Attributes:
-        volume: estimate (m^3).
-        std_error: one-sigma sampling error (m^3).
-        n_samples: samples used.
-        fraction: fraction of the sampled box inside the set.
-        box_volume: volume of the sampled box (m^3).
-    """
-
-    volume: float
-    std_error: float
-    n_samples: int
-    fraction: float
-    box_volume: float
 
 
 def constant_orientation_grid(center: npt.ArrayLike, half_extent: npt.ArrayLike,
@@ -377,19 +359,3 @@ def volume(robot: Hexapod, n_samples: int, center: npt.ArrayLike, half_extent: n
     if max_condition is not None:
         inside = inside & (measures.condition_number <= max_condition)
     return volume_estimate(inside, float(np.prod(2 * half)))
-
-
-def volume_estimate(inside: np.ndarray, box: float) -> VolumeEstimate:
-    """Monte-Carlo volume of a region from uniform samples of a box.
-
-    Args:
-        inside: (N,) bool, which samples lie in the region.
-        box: the box's volume (m^3).
-
-    Returns:
-        :class:`VolumeEstimate`: ``box * p`` with the binomial standard error
-        ``box sqrt(p (1 - p) / N)``, ``p`` the fraction inside.
-    """
-    n = inside.size
-    p = float(np.count_nonzero(inside)) / n
-    return VolumeEstimate(box * p, box * math.sqrt(p * (1 - p) / n), n, p, box)

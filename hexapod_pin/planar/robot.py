@@ -58,6 +58,12 @@ class Planar3PRR:
     pose_dim = 3
     n_actuators = N_ACTUATORS
 
+    @property
+    def pose_axes(self) -> tuple[str, ...]:
+        """The pose components ``("x", "y", "yaw")``: the pose ``(x, y, theta)`` (m, m,
+        rad), ``theta`` the rotation about the world z axis."""
+        return ("x", "y", "yaw")
+
     def __init__(self, geometry: PlanarGeometry | None = None) -> None:
         self.geometry = PlanarGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, PlanarGeometry):

@@ -22,8 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.pose import euler_rates_matrix
-from ..core.robot_api import ParallelRobot
+from ..core.robot_api import ParallelRobot, pose_layout
 from ..errors import InputError
 from ..motion import Motion, read_motion
 from .limits import Limits, Payload
@@ -91,15 +90,19 @@ def motion_arrays(robot: ParallelRobot, motion: MotionSource
     """``(t, poses, twists, twist_dots, wrenches)`` of a motion given as a
     :class:`TimedTrajectory`, a :class:`~hexapod_pin.motion.Motion`, a motion file
     (:func:`~hexapod_pin.motion.read_motion`) or a mapping with ``t``, ``poses`` and
-    optionally ``twists``, ``twist_dots``, ``wrenches``. Missing rates come from the poses
-    by second-order finite differences (angles unwrapped; in space ``w = E(rpy) d(rpy)/dt``).
+    optionally ``twists``, ``twist_dots``, ``wrenches``, each (N, dim) in the robot's pose
+    axes. Missing rates come from the poses by second-order finite differences
+    (:meth:`~hexapod_pin.core.robot_api.PoseLayout.twists_from_poses`: angles unwrapped;
+    ``w = E(rpy) d(rpy)/dt`` when all three angles are in the pose, each angle's rate
+    otherwise); a motion file is read with the robot's columns
+    (:func:`~hexapod_pin.motion.read_motion` with ``robot``).
 
     Raises:
         InputError: missing keys, wrong shapes, fewer than 3 samples without rates.
         DescriptionError: a malformed motion file.
     """
     if isinstance(motion, (str, os.PathLike)):
-        motion = read_motion(motion)
+        motion = read_motion(motion, robot)
     if isinstance(motion, (TimedTrajectory, Motion)):
         fields = {"t": motion.t, "poses": motion.poses, "twists": motion.twists,
                   "twist_dots": motion.twist_dots,
@@ -128,12 +131,7 @@ def motion_arrays(robot: ParallelRobot, motion: MotionSource
     if (twists is None or twist_dots is None) and len(t) < 3:
         raise InputError("motion", motion, "at least 3 samples are needed to differentiate")
     if twists is None:
-        lin = 3 if dim == 6 else 2
-        angles = np.unwrap(poses[:, lin:], axis=0)
-        rates = np.gradient(angles, t, axis=0, edge_order=2)
-        if dim == 6:
-            rates = np.einsum("nij,nj->ni", euler_rates_matrix(angles), rates)
-        twists = np.hstack([np.gradient(poses[:, :lin], t, axis=0, edge_order=2), rates])
+        twists = pose_layout(robot).twists_from_poses(t, poses)
     if twist_dots is None:
         twist_dots = np.gradient(twists, t, axis=0, edge_order=2)
     return t, poses, twists, twist_dots, arrays.get("wrenches")
@@ -169,8 +167,7 @@ def check_feasibility(robot: ParallelRobot, motion: MotionSource, *, limits: Lim
     if not (np.isfinite(tolerance) and tolerance >= 0):
         raise InputError("tolerance", tolerance, "must be finite and >= 0")
     t, poses, twists, twist_dots, extra = motion_arrays(robot, motion)
-    n, dim = len(t), robot.pose_dim
-    lin = 3 if dim == 6 else 2
+    n, layout = len(t), pose_layout(robot)
     bounds = limits.per_actuator(robot)
 
     def wrench(tdots):
@@ -187,8 +184,8 @@ def check_feasibility(robot: ParallelRobot, motion: MotionSource, *, limits: Lim
     jac = robot.jacobian_batch(poses)
     velocities = np.einsum("nij,nj->ni", jac.jacobian, twists)
     values = {"actuator_force": np.abs(forces), "actuator_velocity": np.abs(velocities),
-              "linear_speed": np.linalg.norm(twists[:, :lin], axis=1)[:, None],
-              "angular_speed": np.linalg.norm(twists[:, lin:], axis=1)[:, None]}
+              "linear_speed": np.linalg.norm(twists[:, layout.linear], axis=1)[:, None],
+              "angular_speed": np.linalg.norm(twists[:, layout.angular], axis=1)[:, None]}
     limit_of = {"actuator_force": bounds["force"], "actuator_velocity": bounds["velocity"],
                 "linear_speed": bounds["linear_speed"],
                 "angular_speed": bounds["angular_speed"]}

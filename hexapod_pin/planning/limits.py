@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.robot_api import ParallelRobot
+from ..core.robot_api import ParallelRobot, pose_layout
 from ..errors import HexapodPinError, InfeasiblePathError, InputError
 from .path import PathSamples
 
@@ -42,8 +42,10 @@ class Limits:
             ``geometry.max_actuator_force``.
         actuator_velocity: m/s (or rad/s), scalar or per actuator.
         actuator_acceleration: m/s^2 (or rad/s^2), scalar or per actuator.
-        linear_speed: speed of the platform origin (m/s).
-        angular_speed: norm of the platform's angular velocity (rad/s).
+        linear_speed: speed of the platform origin (m/s): the norm of the linear
+            components of the twist (ignored by a robot with none in its pose).
+        angular_speed: norm of the angular components of the twist (rad/s; ignored by a
+            robot with no angle in its pose).
         strokes: reject a path that leaves the actuators' strokes (else only reachability
             is required).
         margin: the planner keeps every bound times ``1 - margin`` (0 <= margin < 1), so
@@ -98,9 +100,11 @@ class Payload:
 
     Attributes:
         mass: a point mass at the platform origin (kg), >= 0: its weight and inertial
-            force act on the platform.
-        wrench: a constant wrench ``(f, m)`` ON the platform (world axes, moment about the
-            platform origin; N, N m), shape (dim,), or None.
+            force act on the platform (their components along the robot's linear pose
+            axes).
+        wrench: a constant wrench ON the platform, the selection ``pose_axes`` of ``(f,
+            m)`` (world axes, moment about the platform origin; N, N m), shape (dim,), or
+            None.
     """
 
     mass: float = 0.0
@@ -121,17 +125,19 @@ class Payload:
 
     def wrenches(self, robot: ParallelRobot, twist_dots: np.ndarray) -> np.ndarray | None:
         """The payload's wrench on the platform (N, dim) for platform accelerations
-        ``twist_dots`` (N, dim): ``wrench + m (g - dv/dt)`` (no moment: the mass sits at
-        the platform origin); None for no payload."""
+        ``twist_dots`` (N, dim): ``wrench + m (g - dv/dt)`` on the linear components (the
+        world axes of the robot's linear pose axes, e.g. ``g[[0, 2]]`` for ``("x",
+        "z")``; no moment: the mass sits at the platform origin); None for no payload."""
         if self.is_zero:
             return None
-        dim = robot.pose_dim
-        lin = 3 if dim == 6 else 2
-        out = np.zeros((len(twist_dots), dim))
+        layout = pose_layout(robot)
+        lin = layout.linear
+        out = np.zeros((len(twist_dots), layout.dim))
         if self.wrench is not None:
             out += np.asarray(self.wrench, dtype=float)
-        gravity = np.asarray(robot.model.model.gravity.linear, dtype=float)[:lin]
-        out[:, :lin] += self.mass * (gravity - np.asarray(twist_dots)[:, :lin])
+        gravity = np.asarray(robot.model.model.gravity.linear,
+                             dtype=float)[layout.components[lin]]
+        out[:, lin] += self.mass * (gravity - np.asarray(twist_dots)[:, lin])
         return out
 
 
@@ -207,11 +213,13 @@ def path_coefficients(robot: ParallelRobot, samples: PathSamples, limits: Limits
         acc_b = robot.forward_dynamics_batch(
             samples.poses, xi, forces[2 * n:],
             None if wrenches is None else wrenches[2 * n:]).actuator_accelerations
-    lin = 3 if dim == 6 else 2
+    layout = pose_layout(robot)
     with np.errstate(divide="ignore"):
         ratios = [np.abs(velocity_ratio) / bounds["velocity"],
-                  np.linalg.norm(xi[:, :lin], axis=1)[:, None] / bounds["linear_speed"],
-                  np.linalg.norm(xi[:, lin:], axis=1)[:, None] / bounds["angular_speed"]]
+                  np.linalg.norm(xi[:, layout.linear], axis=1)[:, None]
+                  / bounds["linear_speed"],
+                  np.linalg.norm(xi[:, layout.angular], axis=1)[:, None]
+                  / bounds["angular_speed"]]
         worst = np.max(np.hstack(ratios), axis=1)
         speed_bound = np.where(worst > 0, 1.0 / worst ** 2, np.inf)
     return PathCoefficients(samples, forces[n:2 * n] - c, forces[2 * n:] - c, c,

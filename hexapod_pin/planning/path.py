@@ -8,19 +8,23 @@ timing law ``s(t)``::
     twist     = xi(s) s_dot
     twist_dot = xi(s) s_ddot + xi'(s) s_dot^2
 
-Interpolation (each a natural cubic spline: C2 in ``s``, no curvature at the ends):
+The pose is the selection ``pose_axes`` of ``(x, y, z, roll, pitch, yaw)`` of the robot
+(:func:`~hexapod_pin.core.robot_api.pose_layout`; without axes, a pose of 6 values is
+``(x, y, z, roll, pitch, yaw)`` and one of 3 values ``(x, y, theta)``). Interpolation (each
+a natural cubic spline: C2 in ``s``, no curvature at the ends):
 
-* positions: componentwise cubic spline through the waypoint positions;
-* rotations in space (``(x, y, z, roll, pitch, yaw)`` poses, ``R = Rz(yaw) Ry(pitch)
-  Rx(roll)``): a cubic spline of the exponential coordinates relative to the first
-  waypoint, ``R(s) = R_0 exp([phi(s)]x)`` with ``phi_k = log(R_0^T R_k)``. It is C2 on
-  SO(3) (``exp`` is smooth), passes through every waypoint, does not depend on the
-  Euler-angle chart, and between two waypoints only it is the geodesic (constant axis).
-  Every waypoint must lie less than pi (rad) from the first one. The world angular velocity
+* linear components: componentwise cubic spline through the waypoint positions;
+* a full rotation (all three angles in the pose, ``R = Rz(yaw) Ry(pitch) Rx(roll)``): a
+  cubic spline of the exponential coordinates relative to the first waypoint,
+  ``R(s) = R_0 exp([phi(s)]x)`` with ``phi_k = log(R_0^T R_k)``. It is C2 on SO(3)
+  (``exp`` is smooth), passes through every waypoint, does not depend on the Euler-angle
+  chart, and between two waypoints only it is the geodesic (constant axis). Every
+  waypoint must lie less than pi (rad) from the first one. The world angular velocity
   per unit ``s`` is ``omega_s = R_0 J_l(phi) phi'`` with ``J_l`` the left Jacobian of
   SO(3); its derivative is computed in closed form (series near ``|phi| = 0``);
-* rotations in the plane (``(x, y, theta)``): a cubic spline of ``theta``, the waypoint
-  angles unwrapped first (consecutive differences below pi).
+* otherwise each selected angle (e.g. ``theta`` in the plane): a cubic spline of the
+  angle, the waypoint angles unwrapped first (consecutive differences below pi); its rate
+  is the matching component of the angular velocity.
 
 The parameter ``s`` runs over ``[0, length]`` with knots at the cumulative chord length
 ``sqrt(|dp|^2 + (rotation_length |dphi|)^2)`` between waypoints (m), where
@@ -43,8 +47,8 @@ from scipy.spatial.transform import Rotation
 
 from ..core.checks import as_array
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
+from ..core.robot_api import SPACE_POSE_AXES, PoseAxesSource, PoseLayout, pose_layout
 from ..errors import DescriptionError, InputError
-from ..motion import POSE_NAMES
 
 #: below this rotation angle (rad) the SO(3) Jacobian coefficients use their series
 _SERIES_ANGLE = 1e-2
@@ -58,8 +62,8 @@ class PathSamples:
 
     Attributes:
         s: (N,) path parameter (m).
-        poses: (N, dim) platform poses (m, rad); in space the Euler angles are unwrapped
-            along the samples.
+        poses: (N, dim) platform poses (m, rad); with a full rotation the Euler angles are
+            unwrapped along the samples.
         tangents: (N, dim) ``xi(s)``: the twist per unit path speed (world axes; m/m and
             rad/m).
         curvatures: (N, dim) ``xi'(s) = d xi / ds`` (1/m, rad/m^2).
@@ -75,45 +79,54 @@ class GeometricPath:
     """A C2 path of the platform through waypoints (see the module docstring).
 
     Args:
-        waypoints: (K, dim) poses, K >= 2, dim 6 (space) or 3 (plane).
+        waypoints: (K, dim) poses (m, rad), K >= 2, one column per pose axis in the order
+            of ``pose_axes``.
         rotation_length: length (m) weighting rotations in the knot spacing; > 0.
+        pose_axes: the pose components: a robot (its ``pose_axes``), a sequence of axes
+            (e.g. ``("x", "z")``) or a :class:`~hexapod_pin.core.robot_api.PoseLayout`;
+            default from the waypoints' width: 6 ``(x, y, z, roll, pitch, yaw)``, 3
+            ``(x, y, theta)``.
 
     Attributes:
         waypoints: (K, dim) the waypoints as given.
         knots: (K,) the parameter of each waypoint (m), ``knots[0] = 0``.
         length: ``knots[-1]`` (m).
-        pose_dim: 6 or 3.
+        pose_dim: the number of pose components ``dim``.
+        pose_axes: the pose axes (dim names).
+        layout: the :class:`~hexapod_pin.core.robot_api.PoseLayout` of the pose.
 
     Raises:
-        InputError: a wrong shape, NaN / inf, fewer than two waypoints, two consecutive
-            equal waypoints, a rotation pi or more from the first waypoint.
+        InputError: a wrong shape (a width other than the pose axes'; without axes, other
+            than 6 or 3), NaN / inf, fewer than two waypoints, two consecutive equal
+            waypoints, a rotation pi or more from the first waypoint, bad pose axes.
     """
 
-    def __init__(self, waypoints: npt.ArrayLike, rotation_length: float) -> None:
-        pts = np.asarray(waypoints, dtype=float)
-        if pts.ndim != 2 or pts.shape[1] not in (3, 6):
-            raise InputError("waypoints", waypoints, "expected shape (K, 6) or (K, 3)")
-        pts = as_array(pts, (pts.shape[1],), "waypoints", batch=True)
+    def __init__(self, waypoints: npt.ArrayLike, rotation_length: float,
+                 pose_axes: PoseAxesSource | None = None) -> None:
+        layout = _layout_of(waypoints, pose_axes)
+        pts = as_array(waypoints, (layout.dim,), "waypoints", batch=True)
         if len(pts) < 2:
             raise InputError("waypoints", waypoints, "need at least two waypoints")
         if not (np.isfinite(rotation_length) and rotation_length > 0):
             raise InputError("rotation_length", rotation_length, "must be > 0 (m)")
         self.waypoints = pts.copy()
-        self.pose_dim = pts.shape[1]
+        self.layout = layout
+        self.pose_axes = layout.axes
+        self.pose_dim = layout.dim
         self.rotation_length = float(rotation_length)
-        lin = 3 if self.pose_dim == 6 else 2
-        positions = pts[:, :lin]
-        if self.pose_dim == 6:
-            self._r0: np.ndarray = rotation_from_rpy(pts[0, 3:])
-            rel = np.einsum("ji,njk->nik", self._r0, rotation_from_rpy(pts[:, 3:]))
+        lin, ang = layout.linear, layout.angular
+        positions = pts[:, lin]
+        if layout.full_rotation:
+            self._r0: np.ndarray = rotation_from_rpy(pts[0, ang])
+            rel = np.einsum("ji,njk->nik", self._r0, rotation_from_rpy(pts[:, ang]))
             angles = Rotation.from_matrix(rel).as_rotvec()
             far = np.flatnonzero(np.linalg.norm(angles, axis=1) >= _MAX_ANGLE)
             if far.size:
                 raise InputError("waypoints", pts[far[0]],
                                  f"waypoint {far[0]} is pi or more from the first rotation")
         else:
-            self._r0 = np.eye(3)                  # unused in the plane
-            angles = np.unwrap(pts[:, 2])[:, None]
+            self._r0 = np.eye(3)                  # unused: each angle is a scalar
+            angles = np.unwrap(pts[:, ang], axis=0)
         steps = np.sqrt(np.sum(np.diff(positions, axis=0) ** 2, axis=1)
                         + (rotation_length ** 2) * np.sum(np.diff(angles, axis=0) ** 2, axis=1))
         same = np.flatnonzero(steps <= 1e-12)
@@ -122,7 +135,6 @@ class GeometricPath:
                              f"waypoints {same[0]} and {same[0] + 1} are equal")
         self.knots = np.concatenate([[0.0], np.cumsum(steps)])
         self.length = float(self.knots[-1])
-        self._lin = lin
         self._positions = CubicSpline(self.knots, positions, axis=0, bc_type="natural")
         self._angles = CubicSpline(self.knots, angles, axis=0, bc_type="natural")
 
@@ -134,28 +146,66 @@ class GeometricPath:
         """
         s = np.clip(as_array(np.ravel(np.asarray(s, dtype=float)), (), "s", batch=True),
                     0.0, self.length)
+        layout = self.layout
         p = [self._positions(s, nu) for nu in range(3)]
         f = [self._angles(s, nu) for nu in range(3)]
-        if self.pose_dim == 3:
-            return PathSamples(s, np.hstack([p[0], f[0]]), np.hstack([p[1], f[1]]),
-                               np.hstack([p[2], f[2]]))
-        rot = np.einsum("ij,njk->nik", self._r0, Rotation.from_rotvec(f[0]).as_matrix())
-        omega, omega_s = _left_jacobian_terms(f[0], f[1], f[2])
-        rpy = np.unwrap(rpy_from_rotation(rot), axis=0)
-        return PathSamples(s, np.hstack([p[0], rpy]), np.hstack([p[1], omega @ self._r0.T]),
-                           np.hstack([p[2], omega_s @ self._r0.T]))
+        if layout.full_rotation:
+            rot = np.einsum("ij,njk->nik", self._r0, Rotation.from_rotvec(f[0]).as_matrix())
+            omega, omega_s = _left_jacobian_terms(f[0], f[1], f[2])
+            f = [np.unwrap(rpy_from_rotation(rot), axis=0), omega @ self._r0.T,
+                 omega_s @ self._r0.T]
+        out = []
+        for lin_part, ang_part in zip(p, f):
+            arr = np.empty((len(s), layout.dim))
+            arr[:, layout.linear] = lin_part
+            arr[:, layout.angular] = ang_part
+            out.append(arr)
+        return PathSamples(s, out[0], out[1], out[2])
 
 
-def read_waypoints(path: str | os.PathLike) -> np.ndarray:
-    """Platform waypoints (K, 6) (m, rad) from a file: a CSV with a header naming at
-    least the pose columns ``x, y, z, roll, pitch, yaw`` (other columns, e.g. ``t``, are
-    ignored; ``#`` comment lines allowed), or a JSON object with ``"pose"`` (K x 6), as in
+def _layout_of(waypoints: npt.ArrayLike, pose_axes: PoseAxesSource | None) -> PoseLayout:
+    """The layout of ``pose_axes``, or (None) the default of the waypoints' width, with
+    the waypoints' shape checked against it.
+
+    Raises:
+        InputError: a shape that is not (K, dim) (named ``waypoints``), bad axes.
+    """
+    try:
+        shape = np.shape(waypoints)
+    except ValueError:                   # ragged rows
+        shape = ()
+    if pose_axes is None:
+        if len(shape) != 2 or shape[1] not in (3, 6):
+            raise InputError("waypoints", waypoints, "expected shape (K, 6) or (K, 3); give "
+                                                     "pose_axes for other poses")
+        return pose_layout(int(shape[1]))
+    layout = pose_layout(pose_axes)
+    if len(shape) != 2 or shape[1] != layout.dim:
+        raise InputError("waypoints", waypoints,
+                         f"expected shape (K, {layout.dim}): one column per pose axis "
+                         f"{layout.axes}, got shape {shape}")
+    return layout
+
+
+def read_waypoints(path: str | os.PathLike[str],
+                   pose_axes: PoseAxesSource = SPACE_POSE_AXES) -> np.ndarray:
+    """Platform waypoints (K, dim) (m, rad) from a file: a CSV with a header naming at
+    least the pose columns, one per pose axis (e.g. ``x, y, z, roll, pitch, yaw`` for the
+    hexapod, ``x, z`` for a five-bar in the x-z plane; other columns, e.g. ``t``, are
+    ignored; ``#`` comment lines allowed), or a JSON object with ``"pose"`` (K x dim), as in
     the motion files of :mod:`hexapod_pin.motion`.
+
+    Args:
+        path: the file (.csv / .txt or .json).
+        pose_axes: the pose components (a robot, a sequence of axes or a
+            :class:`~hexapod_pin.core.robot_api.PoseLayout`); default the hexapod's six.
 
     Raises:
         DescriptionError: a missing file, another suffix, missing columns, a value that is
-            not a finite number.
+            not a finite number, rows of another width.
+        InputError: bad pose axes.
     """
+    names = pose_layout(pose_axes).axes
     path = Path(path)
     if not path.is_file():
         raise DescriptionError(str(path), "waypoint file not found")
@@ -169,17 +219,18 @@ def read_waypoints(path: str | os.PathLike) -> np.ndarray:
                      if ln.strip() and not ln.lstrip().startswith("#")]
             rows = list(csv.reader(lines))
             header = [h.strip() for h in rows[0]]
-            missing = [name for name in POSE_NAMES if name not in header]
+            missing = [name for name in names if name not in header]
             if missing:
                 raise DescriptionError(str(path), f"missing columns {missing}")
-            cols = [header.index(name) for name in POSE_NAMES]
+            cols = [header.index(name) for name in names]
             poses = np.array([[float(row[c]) for c in cols] for row in rows[1:]])
         else:
             raise DescriptionError(str(path), "waypoint files are .csv or .json")
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         raise DescriptionError(str(path), f"malformed waypoints: {exc}") from None
-    if poses.ndim != 2 or poses.shape[1] != 6 or not np.all(np.isfinite(poses)):
-        raise DescriptionError(str(path), "expected rows of 6 finite pose values")
+    if poses.ndim != 2 or poses.shape[1] != len(names) or not np.all(np.isfinite(poses)):
+        raise DescriptionError(str(path), f"expected rows of {len(names)} finite pose values "
+                                          f"{names}")
     return poses
 
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..core.robot_api import ParallelRobot
+from ..core.robot_api import ParallelRobot, pose_layout
 from ..errors import InfeasiblePathError, InputError
 from . import solver
 from .limits import Limits, Payload, constraint_rows, path_coefficients
@@ -57,8 +57,9 @@ class TimedTrajectory:
 
     Attributes:
         t: (N,) times (s) from 0.
-        poses: (N, dim) platform poses (m, rad).
-        twists: (N, dim) twists ``(v, w)``, world axes (m/s, rad/s).
+        poses: (N, dim) platform poses (m, rad), the robot's ``pose_axes``.
+        twists: (N, dim) twists, the same selection of ``(v, w)``, world axes (m/s,
+            rad/s).
         twist_dots: (N, dim) their time derivatives (m/s^2, rad/s^2).
         actuator_forces: (N, n_act) (N or N m), the payload included.
         actuator_velocities: (N, n_act) (m/s or rad/s).
@@ -141,10 +142,12 @@ def time_optimal(robot: ParallelRobot, waypoints: npt.ArrayLike, *, limits: Limi
 
     Args:
         robot: a robot with the shared API (:class:`hexapod_pin.Hexapod`,
-            :class:`hexapod_pin.Planar3PRR`), on its home inverse-kinematics branch (that
-            of its batch routes).
-        waypoints: (K, dim) poses (m, rad), K >= 2; the path is C2 through them
-            (:mod:`hexapod_pin.planning.path`).
+            :class:`hexapod_pin.Planar3PRR`, a :class:`hexapod_pin.ClosedLoopRobot` of any
+            pose axes), on its home inverse-kinematics branch (that of its batch routes).
+        waypoints: (K, dim) poses (m, rad), K >= 2, one column per axis of
+            ``robot.pose_axes`` in that order; the path is C2 through them
+            (:mod:`hexapod_pin.planning.path`: a full rotation on SO(3) when the pose has
+            all three angles, each angle as a scalar otherwise).
         limits: :class:`Limits`; default: the robot's actuator force bound only.
         payload: :class:`Payload` carried by the platform; default none.
         start_speed: path speed ``s_dot`` (m/s) at the start; default rest.
@@ -157,7 +160,8 @@ def time_optimal(robot: ParallelRobot, waypoints: npt.ArrayLike, *, limits: Limi
         :class:`TimedTrajectory` at the N grid points.
 
     Raises:
-        InputError: malformed waypoints, limits or speeds; no finite limit at all.
+        InputError: malformed waypoints (a width other than ``robot.pose_dim``, NaN /
+            inf: the error names the values), limits or speeds; no finite limit at all.
         InfeasiblePathError: a pose the robot cannot hold statically within its force
             limits, a pose out of reach or out of its strokes, a singular pose, an end
             or start speed the limits do not allow; it names the grid point.
@@ -172,7 +176,7 @@ def time_optimal(robot: ParallelRobot, waypoints: npt.ArrayLike, *, limits: Limi
             raise InputError(name, value, "must be finite and >= 0 (m/s)")
     if rotation_length is None:
         rotation_length = robot.singularity(robot.home_pose).characteristic_length
-    path = GeometricPath(waypoints, rotation_length)
+    path = GeometricPath(waypoints, rotation_length, pose_layout(robot))
     if path.pose_dim != robot.pose_dim:
         raise InputError("waypoints", waypoints, f"expected poses of {robot.pose_dim} values")
     samples = path.sample(np.linspace(0.0, path.length, int(grid_points)))
