@@ -414,3 +414,17 @@ def test_closed_forms_equal_the_same_tree_loaded(which):
             - closed.energies(closed.home_pose, 0 * twist).potential, abs=1e-9)
         np.testing.assert_allclose(tree.forward_kinematics(closed.inverse_kinematics(pose),
                                                            guess=pose), pose, atol=1e-10)
+
+
+def test_stewart_example_runs(capsys):
+    """examples/stewart_platform.py runs and its checks hold (leg lengths to 1e-12, FD of ID
+    to 1e-9, the time-optimal forces within their bound)."""
+    import re
+    import runpy
+
+    runpy.run_path(str(DATA.parents[1] / "examples" / "stewart_platform.py"), run_name="__main__")
+    out = capsys.readouterr().out
+    number = r"([-+0-9.e]+)"
+    assert float(re.search(r"closed form miss " + number, out).group(1)) < 1e-12
+    assert float(re.search(r"FD\(ID\) miss " + number, out).group(1)) < 1e-9
+    assert float(re.search(r"max \|force\| \(N\) " + number, out).group(1)) < 400 * (1 + 1e-9)
