@@ -131,6 +131,8 @@ class SingularityError(HexapodPinError, RuntimeError):
         sigma_min: the singularity measure of the matrix at fault (its smallest singular
             value, or the measure ``what`` names, e.g. ``|cos|`` for a type-I singularity).
         what: which matrix (e.g. "workspace Jacobian").
+        measure: what ``sigma_min`` is, as the message names it ("smallest singular
+            value", "|cos|", "inverse condition number", ...).
         threshold: the value of the measure below which the routes refuse the pose (the
             answer's accuracy could no longer be guaranteed:
             :data:`hexapod_pin.core.measures.ACCURACY`), or None. A closed form that
@@ -139,14 +141,15 @@ class SingularityError(HexapodPinError, RuntimeError):
             "near the threshold").
     """
 
-    def __init__(self, what: str, sigma_min: float, threshold: float | None = None):
+    def __init__(self, what: str, sigma_min: float, threshold: float | None = None,
+                 measure: str = "smallest singular value"):
         self.what = what
         self.sigma_min = float(sigma_min)
         self.threshold = None if threshold is None else float(threshold)
+        self.measure = measure
         below = "" if threshold is None else \
             f", {'below' if sigma_min < threshold else 'near'} the threshold {threshold:.3g}"
-        super().__init__(f"{what} is singular (smallest singular value "
-                         f"{sigma_min:.3e}{below})")
+        super().__init__(f"{what} is singular ({measure} {sigma_min:.3e}{below})")
 
 
 class ActuatorSaturationError(HexapodPinError, RuntimeError):
@@ -249,9 +252,9 @@ class BatchSingularityError(SingularityError):
     """A state of a batch is singular (``index``: the first such state)."""
 
     def __init__(self, index: int, what: str, sigma_min: float,
-                 threshold: float | None = None):
+                 threshold: float | None = None, measure: str = "smallest singular value"):
         self.index = int(index)
-        super().__init__(what, sigma_min, threshold)
+        super().__init__(what, sigma_min, threshold, measure)
         self.args = (f"state {self.index}: {self.args[0]}",)
 
 

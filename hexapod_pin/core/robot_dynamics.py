@@ -366,7 +366,8 @@ class RobotDynamics:
             except UnreachablePoseError as exc:
                 raise BatchUnreachablePoseError(k, exc.carriages, exc.shortfall) from exc
             except SingularityError as exc:
-                raise BatchSingularityError(k, exc.what, exc.sigma_min, exc.threshold) from exc
+                raise BatchSingularityError(k, exc.what, exc.sigma_min, exc.threshold,
+                                            exc.measure) from exc
         return out
 
     def _arrays(self, n_or_first, *arrays):

@@ -378,14 +378,13 @@ class RobotKinematics:
                 f"this configuration, pose dimension {self.platform.dim})", 0.0)
         plat = self.platform
         for what, mat, tol in (
-                ("the map from the closures' motion to the platform twist (type I, inverse "
-                 "condition number)", plat.twist_scale[:, None] * maps.a_map, TREE_TYPE_I_TOL),
-                ("the map from the closures' motion to the actuators (type II, inverse "
-                 "condition number)", plat.actuator_scale[:, None] * maps.b_map,
-                 TREE_TYPE_II_TOL)):
+                ("type-I singularity: the map from the closures' motion to the platform twist",
+                 plat.twist_scale[:, None] * maps.a_map, TREE_TYPE_I_TOL),
+                ("type-II singularity: the map from the closures' motion to the actuators",
+                 plat.actuator_scale[:, None] * maps.b_map, TREE_TYPE_II_TOL)):
             measure, _ = inverse_condition(mat, mat.shape[1])
             if not measure >= tol:
-                raise SingularityError(what, measure, tol)
+                raise SingularityError(what, measure, tol, "inverse condition number")
         return maps
 
     def jacobian(self, pose: npt.ArrayLike,

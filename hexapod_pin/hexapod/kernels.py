@@ -1393,21 +1393,24 @@ def error_of(code: int, geo: np.ndarray, wk: np.ndarray, scratch: np.ndarray | N
     if code == TYPE_I:
         worst = int(np.argmin(np.abs(wk[NU, :6]) / length))
         what = (f"workspace Jacobian: type-I singularity, the leg of carriage {worst} is "
-                "perpendicular to its rail (|cos|)")
+                "perpendicular to its rail")
+        measure = "|cos| of the leg and its rail"
         value = abs(wk[NU, worst]) / length[worst]
     elif code == GIMBAL:
         cosine2 = (wk[NU, :6] / length) ** 2
         worst = int(np.argmax(cosine2))
         what = (f"leg of carriage {worst} lies along its rail (universal joint in gimbal "
-                "lock; 1 - cos^2)")
+                "lock)")
+        measure = "1 - cos^2 of the leg and its rail"
         value = 1.0 - cosine2[worst]
     elif code == TYPE_II:
         what = ("leg matrix A_hat = [e_i, (r_k x e_i) / platform_radius] (type-II "
-                "singularity; sigma_min(A_hat))")
+                "singularity)")
+        measure = "smallest singular value"
         value = type_two_measure(geo, wk, np.empty((6, 6)) if scratch is None else scratch)
     else:
         return HexapodPinError(f"{prefix}internal: kernel status {code} for validated inputs")
     tol = {TYPE_I: TYPE_I_TOL, GIMBAL: GIMBAL_TOL, TYPE_II: TYPE_II_TOL}[code]
     if index is None:
-        return SingularityError(what, value, tol)
-    return BatchSingularityError(index, what, value, tol)
+        return SingularityError(what, value, tol, measure)
+    return BatchSingularityError(index, what, value, tol, measure)

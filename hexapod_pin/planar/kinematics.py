@@ -31,6 +31,7 @@ from .geometry import HOME_BRANCH, N_ACTUATORS, PlanarGeometry, PlanarIndices, c
 #: scaled by the robot's size above (round-off grows with the coordinates)
 CLOSED_FORM_TOL = 1e-12
 _TYPE_I_WHAT = "inverse kinematic Jacobian (a link perpendicular to its rail)"
+_TYPE_I_MEASURE = "|cos| of a link and its rail"
 _TYPE_II_WHAT = ("leg matrix A_hat = [e_k, (r_k x e_k) / platform_radius] (type-II "
                  "singularity; sigma_min(A_hat))")
 
@@ -119,8 +120,10 @@ class PlanarWorkspace:
             if index is not None:
                 raise BatchUnreachablePoseError(index, bad, short)
             raise UnreachablePoseError(bad, short)
+        measure = "smallest singular value"
         if status == kernels.TYPE_I:
             what, value, tol = _TYPE_I_WHAT, info[kernels.X_WORST], kernels.TYPE_I_TOL
+            measure = _TYPE_I_MEASURE
         elif status == kernels.TYPE_II:
             what, value, tol = _TYPE_II_WHAT, info[kernels.X_TYPE_TWO], kernels.TYPE_II_TOL
         else:
@@ -133,14 +136,14 @@ class PlanarWorkspace:
                 f"{info[kernels.X_RES]:.3e}, beyond {kernels.RESIDUAL_RTOL:.0e} of the " \
                 "terms' magnitude) near a "
             if measures.type_one / TYPE_I_TOL <= measures.type_two / TYPE_II_TOL:
-                what = label + "type-I singularity (|cos| of a link and its rail)"
-                value, tol = measures.type_one, TYPE_I_TOL
+                what = label + "type-I singularity"
+                value, tol, measure = measures.type_one, TYPE_I_TOL, _TYPE_I_MEASURE
             else:
-                what = label + "type-II singularity (sigma_min(A_hat))"
+                what = label + "type-II singularity (A_hat)"
                 value, tol = measures.type_two, TYPE_II_TOL
         if index is not None:
-            raise BatchSingularityError(index, what, value, tol)
-        raise SingularityError(what, value, tol)
+            raise BatchSingularityError(index, what, value, tol, measure)
+        raise SingularityError(what, value, tol, measure)
 
     def legs(self, level: int, singular: bool, branch: npt.ArrayLike | None,
              inputs: Sequence[tuple[Any, str]], pose: npt.ArrayLike,
@@ -220,7 +223,7 @@ class PlanarKinematics:
         dots = np.einsum("ki,ki->k", links, self.dirs)
         worst = float(np.min(np.abs(dots))) / self.geometry.link_length
         if worst < kernels.TYPE_I_TOL:
-            raise SingularityError(_TYPE_I_WHAT, worst, kernels.TYPE_I_TOL)
+            raise SingularityError(_TYPE_I_WHAT, worst, kernels.TYPE_I_TOL, _TYPE_I_MEASURE)
         with np.errstate(over="ignore"):
             err = np.abs(np.linalg.norm(links, axis=1) - self.geometry.link_length)
         if not np.max(err) <= 1e-9 * max(1.0, self.size()):

@@ -428,3 +428,15 @@ def test_stewart_example_runs(capsys):
     assert float(re.search(r"closed form miss " + number, out).group(1)) < 1e-12
     assert float(re.search(r"FD\(ID\) miss " + number, out).group(1)) < 1e-9
     assert float(re.search(r"max \|force\| \(N\) " + number, out).group(1)) < 400 * (1 + 1e-9)
+
+
+def test_singularity_errors_name_their_measure(five_bar):
+    """The message says what the number is (issue 32: a |cos| was called a singular
+    value): here the inverse condition number, with its threshold."""
+    motor = MOTORS[0]
+    direction = (five_bar.home_pose - motor) / np.linalg.norm(five_bar.home_pose - motor)
+    with pytest.raises(SingularityError) as err:
+        five_bar.jacobian(motor + (L1 + L2 - 1e-9) * direction)
+    assert err.value.measure == "inverse condition number"
+    assert "type-I" in str(err.value) and "inverse condition number" in str(err.value)
+    assert err.value.sigma_min < err.value.threshold == 2e-3
