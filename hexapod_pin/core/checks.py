@@ -161,6 +161,41 @@ def real_number(value, name: str, *, minimum: float | None = None,
     return out
 
 
+def bounds(value, n: int, name: str) -> np.ndarray:
+    """A positive bound (scalar, broadcast) or ``n`` positive bounds as an (n,) array;
+    ``inf`` means none.
+
+    Raises:
+        InputError: not real numbers (text, bools, complex, ragged), NaN, a bound <= 0, or
+            the wrong length.
+    """
+    expected = f"expected a bound > 0 or {n} bounds > 0 (inf: none)"
+    if isinstance(value, (bool, np.bool_, str, bytes)) or value is None:
+        raise InputError(name, value, expected)
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError):
+        raise InputError(name, value, expected) from None
+    if raw.dtype.kind not in "iuf" or (isinstance(value, (list, tuple)) and _has_bool(value)):
+        raise InputError(name, value, expected)
+    arr = np.full(n, float(raw)) if raw.ndim == 0 else raw.astype(float)
+    if arr.shape != (n,) or np.isnan(arr).any() or (arr <= 0).any():
+        raise InputError(name, value, expected)
+    return arr
+
+
+def flag(value, name: str) -> bool:
+    """A yes / no option as a bool (``True``, ``False`` or numpy's bools only).
+
+    Raises:
+        InputError: anything else (a string such as "no" would be truthy, a number
+            ambiguous).
+    """
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise InputError(name, value, "expected True or False")
+
+
 def count(value, name: str, minimum: int = 1) -> int:
     """An integer option (an iteration count, a recording period) as an int.
 

@@ -32,6 +32,7 @@ import pinocchio as pin
 from ..errors import InputError
 from .checks import as_array, real_number
 from .pose import rotation_from_rpy
+from .robot_api import PoseLayout, pose_layout, state_branch
 
 
 @dataclass(frozen=True)
@@ -230,29 +231,41 @@ class ComputedTorque:
                                              "(a ParallelRobot), not a bare model")
         dim = state.pose.shape[0]
         pose_ref, twist_ref, twist_dot_ref = self.targets(state.t, dim)
-        err = platform_error(pose_ref, state.pose)
+        err = platform_error(pose_ref, state.pose, pose_layout(robot))
         command = twist_dot_ref + self.kp * err + self.kd * (twist_ref - state.twist)
+        # the dynamics of the simulated configuration's working mode
         result = robot.inverse_dynamics(state.pose, state.twist, command, method=self.method,
-                                        bounded=False, joint_wrenches=False)
+                                        bounded=False, joint_wrenches=False,
+                                        branch=state_branch(robot, state.pose, state.q))
         return np.asarray(result.actuator_forces, dtype=float)
 
 
-def platform_error(pose_ref: np.ndarray, pose: np.ndarray) -> np.ndarray:
-    """The platform error (dim,) from ``pose`` to ``pose_ref``.
+def platform_error(pose_ref: np.ndarray, pose: np.ndarray,
+                   layout: PoseLayout | None = None) -> np.ndarray:
+    """The platform error (dim,) from ``pose`` to ``pose_ref``, in twist coordinates.
 
     Args:
         pose_ref: the reference pose (dim,) (m, rad).
         pose: the actual pose (dim,).
+        layout: the robot's :class:`~hexapod_pin.core.robot_api.PoseLayout`; default that
+            of a 6-D pose (x, y, z, roll, pitch, yaw) or a planar (x, y, yaw) one.
 
     Returns:
-        For 6-D poses ``(p_ref - p, log3(R_ref R^T))``: the position error (m) and the
-        rotation vector (rad) taking ``R`` to ``R_ref``, world axes (``R = Rz(yaw)
-        Ry(pitch) Rx(roll)``); otherwise ``pose_ref - pose``.
+        The linear components ``p_ref - p`` (m); with all three angles in the pose, the
+        rotation vector ``log3(R_ref R^T)`` (rad) taking ``R`` to ``R_ref``, world axes
+        (``R = Rz(yaw) Ry(pitch) Rx(roll)``); otherwise each angle's difference wrapped to
+        (-pi, pi].
     """
-    if pose.shape[0] != 6:
-        return pose_ref - pose
-    rot, rot_ref = rotation_from_rpy(pose[3:]), rotation_from_rpy(pose_ref[3:])
-    return np.concatenate([pose_ref[:3] - pose[:3], pin.log3(rot_ref @ rot.T)])
+    layout = pose_layout(pose.shape[0] if layout is None else layout)
+    err = np.asarray(pose_ref, dtype=float) - pose
+    ang = layout.angular
+    if layout.full_rotation:
+        rot = rotation_from_rpy(pose[ang])
+        rot_ref = rotation_from_rpy(np.asarray(pose_ref, dtype=float)[ang])
+        err[ang] = pin.log3(rot_ref @ rot.T)
+    elif ang.size:
+        err[ang] = np.remainder(err[ang] + np.pi, 2.0 * np.pi) - np.pi
+    return err
 
 
 def _gain(value, name: str) -> np.ndarray:

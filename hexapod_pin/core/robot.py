@@ -24,7 +24,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import ArgumentTypeError, AssemblyError, DescriptionError, InputError
-from .checks import real_number
+from .checks import bounds, real_number
 from .closed_loop import ClosedLoopModel
 from .platform_map import PlatformMap, check_pose_axes
 from .robot_api import delegate
@@ -85,6 +85,9 @@ def _home_candidates(model: ClosedLoopModel, n: int = 32) -> list[np.ndarray]:
 class ClosedLoopRobot:
     """A closed-loop model as a parallel robot (see the module docstring).
 
+    ``branch`` (every platform-level method) is None (the working mode reached from home)
+    or a tree configuration (nq,) to start from: :data:`branch_is_configuration`.
+
     Args:
         model: the :class:`ClosedLoopModel` (tree + closures + actuated joints).
         platform: the frame whose placement is the robot's pose.
@@ -123,6 +126,9 @@ class ClosedLoopRobot:
         >>> robot = ClosedLoopRobot(model, platform="tip", pose_axes=("x", "z"))
         >>> robot.inverse_kinematics(robot.home_pose + [0.01, 0.0])
     """
+
+    #: ``branch`` arguments are start configurations (nq,), not +-1 signs
+    branch_is_configuration = True
 
     def __init__(self, model: ClosedLoopModel, platform: str,
                  pose_axes: object = ("x", "y", "z", "roll", "pitch", "yaw"), *,
@@ -211,11 +217,7 @@ class ClosedLoopRobot:
             raw = np.array(model.model.effortLimit)[model.actuated_v]
             arr = np.where((raw > 0.0) & (raw < _NO_LIMIT), raw, math.inf)
         else:
-            arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy() \
-                if np.ndim(value) == 0 else np.asarray(value, dtype=float)
-            if arr.shape != (n,) or np.isnan(arr).any() or (arr <= 0).any():
-                raise InputError("max_actuator_force", value,
-                                 f"expected a bound > 0 or {n} bounds > 0 (inf: none)")
+            arr = bounds(value, n, "max_actuator_force")
         return float(arr[0]) if np.all(arr == arr[0]) else arr
 
     # -- the shared API --------------------------------------------------------------------

@@ -377,3 +377,22 @@ class delegate(Generic[P, R]):
                                       if key != "self"}
         obj.__dict__[self.name] = serialized     # later lookups skip this descriptor
         return serialized
+
+
+def state_branch(robot: object, pose: np.ndarray, q: np.ndarray) -> object:
+    """The ``branch`` under which ``robot``'s platform routes use the tree configuration
+    ``q`` (nq,) at ``pose`` (its working mode): ``q`` itself for a robot whose branches are
+    configurations (``branch_is_configuration``, a
+    :class:`~hexapod_pin.core.robot.ClosedLoopRobot`), else ``robot.branch_of(pose,
+    actuators)`` (the hexapod's and planar robot's +-1 signs), else None (home).
+
+    Raises:
+        InputError: ``q`` does not solve the inverse kinematics of ``pose`` (from
+            ``branch_of``).
+    """
+    if getattr(robot, "branch_is_configuration", False):
+        return q
+    branch_of = getattr(robot, "branch_of", None)
+    if branch_of is None:
+        return None
+    return branch_of(pose, robot.actuator_positions(q))     # type: ignore[attr-defined]

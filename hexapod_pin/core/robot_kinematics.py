@@ -32,7 +32,7 @@ import pinocchio as pin
 
 from ..errors import (AssemblyError, InconsistentMotionError, InputError, SingularityError,
                       SolverError, StrokeLimitError, UnreachablePoseError)
-from .checks import as_array, count
+from .checks import as_array, count, flag
 from .closed_loop import ClosedLoopModel
 from .measures import (TREE_TYPE_I_TOL, TREE_TYPE_II_TOL, inverse_condition,
                        tree_singularity_measures)
@@ -121,7 +121,7 @@ class RobotKinematics:
         if branch is None:
             return self.home_q
         try:
-            return as_array(branch, (self.model.nq,), "branch")
+            return as_array(branch, (self.model.nq,), "branch").copy()
         except InputError:
             raise InputError("branch", branch, "a ClosedLoopRobot takes None (the home "
                              "working mode) or a tree configuration (nq,) to start "
@@ -159,7 +159,7 @@ class RobotKinematics:
                 "converge: out of reach or across a singularity)"))
         if len(self._cache) >= CACHE_SIZE:
             self._cache.clear()
-        self._cache[key] = q
+        self._cache[key] = q = q.copy()          # owned: never the caller's array
         return q.copy()
 
     def _continue(self, start: np.ndarray, base: np.ndarray,
@@ -230,12 +230,18 @@ class RobotKinematics:
                 limits of its joint in the description.
         """
         act = self.actuator_positions(self.configuration(pose, branch))
-        if check_limits:
+        if flag(check_limits, "check_limits"):
             self.check_stroke(act)
         return act
 
-    def stroke_violations(self, actuators: np.ndarray) -> list[str]:
-        """The violated actuator limits, human-readable (empty when within)."""
+    def stroke_violations(self, actuators: npt.ArrayLike) -> list[str]:
+        """The violated actuator limits (n_act,) (m or rad), human-readable (empty when
+        within).
+
+        Raises:
+            InputError: not (n_act,) real finite numbers.
+        """
+        actuators = as_array(actuators, (self._n_act,), "actuators")
         out = []
         for k, (value, lo, hi) in enumerate(zip(actuators, self.lower, self.upper)):
             if value < lo or value > hi:
@@ -243,11 +249,15 @@ class RobotKinematics:
                            f"[{lo:.6g}, {hi:.6g}]")
         return out
 
-    def check_stroke(self, actuators: np.ndarray) -> None:
-        """Raise :class:`StrokeLimitError` when an actuator leaves its limits."""
+    def check_stroke(self, actuators: npt.ArrayLike) -> None:
+        """Raise :class:`StrokeLimitError` when an actuator leaves its limits.
+
+        Raises:
+            InputError: not (n_act,) real finite numbers.
+        """
         bad = self.stroke_violations(actuators)
         if bad:
-            raise StrokeLimitError(actuators, bad)
+            raise StrokeLimitError(np.asarray(actuators, dtype=float), bad)
 
     def forward_kinematics(self, actuators: npt.ArrayLike,
                            guess: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:

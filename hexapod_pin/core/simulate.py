@@ -27,6 +27,7 @@ The library never prints: pass ``progress`` to follow a long run.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time as _time
 from collections.abc import Callable
@@ -43,7 +44,7 @@ from .closed_loop import ClosedLoopModel
 from .controllers import Controller, SimState
 from .dynamics import FORWARD_METHODS
 from .energy import energy_totals
-from .robot_api import ParallelRobot
+from .robot_api import ParallelRobot, state_branch
 from .simulation import INTEGRATORS, PROJECTION_TOL, ClosedLoopIntegrator
 
 #: the most steps (``round(duration / dt)``) one run may take
@@ -185,7 +186,10 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
     if not steps <= MAX_STEPS:
         raise InputError("dt", dt, f"duration / dt = {steps:.3g} steps (duration "
                          f"{duration:g} s), more than MAX_STEPS = {MAX_STEPS:.0e}")
-    n_steps = max(1, round(steps))
+    if round(steps) < 1:
+        raise InputError("duration", duration, f"shorter than half a step (dt = {dt:g} s): "
+                         "no step to take")
+    n_steps = round(steps)
     n_rec = n_steps // record_every + 1 + (1 if n_steps % record_every else 0)
     if n_rec > MAX_SAMPLES:
         raise InputError("record_every", record_every, f"{n_rec} recorded samples, more "
@@ -296,10 +300,15 @@ def _checked_forces(value, n_act: int, name: str, t: float) -> np.ndarray:
     NonFiniteResultError (naming the time) for NaN / inf."""
     label = f"{name} at t = {t:.6g} s"
     try:
-        arr = np.array(value, dtype=float)
+        raw = np.asarray(value)
+        arr = np.array(raw, dtype=float)
     except (TypeError, ValueError):
         raise InputError(label, value, "not real numbers") from None
-    if np.iscomplexobj(value) or arr.shape != (n_act,):
+    if raw.dtype.kind not in "iuf" and not (raw.dtype.kind == "O" and all(
+            isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
+            for x in raw.ravel())):
+        raise InputError(label, value, f"expected real numbers, got dtype {raw.dtype}")
+    if arr.shape != (n_act,):
         raise InputError(label, value, f"expected real numbers of shape ({n_act},), got "
                          f"shape {arr.shape}")
     if not np.isfinite(arr).all():
@@ -346,6 +355,13 @@ def _initial_state(robot, clm: ClosedLoopModel, platform: bool, initial
         raise InputError("initial", initial, "expected a (q, v) pair")
     q = clm.check_q(initial[0], "initial q").copy()
     v = clm.check_v(initial[1], "initial v").copy()
+    with getattr(robot, "lock", contextlib.nullcontext()):     # the model's shared data
+        return _checked_initial(clm, q, v)
+
+
+def _checked_initial(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """``(q, v)`` after checking that they keep the closures (InputError otherwise)."""
     res = max_abs(clm.residual(q))
     if not res <= INITIAL_TOL:
         raise InputError("initial q", q, f"closure residual {res:.3e} above {INITIAL_TOL:g} "
@@ -401,8 +417,11 @@ class _Run:
 
     def _platform(self, q, qa, va):
         try:
-            pose = np.asarray(self.robot.pose_from_configuration(q), dtype=float)
-            twist = np.asarray(self.robot.twist_from_actuator_velocities(pose, va), dtype=float)
+            robot = self.robot
+            pose = np.asarray(robot.pose_from_configuration(q), dtype=float)
+            # the twist of this configuration's working mode (not the one reached from home)
+            twist = np.asarray(robot.twist_from_actuator_velocities(
+                pose, va, branch=state_branch(robot, pose, q)), dtype=float)
         except HexapodPinError as exc:
             raise _Failure(f"platform state: {exc}") from exc
         return pose, twist

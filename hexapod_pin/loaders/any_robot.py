@@ -25,7 +25,7 @@ import numpy.typing as npt
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import RobotSection, load_loops
 from ..core.robot import ClosedLoopRobot
-from ..errors import DescriptionError
+from ..errors import ArgumentTypeError, DescriptionError
 from .parallel_robots import load_parallel_robot
 from .sdf import closed_loop_from_sdf, load_sdf
 
@@ -94,6 +94,9 @@ def load_model(path: str | os.PathLike[str], actuated: tuple[str, ...] = ()
     Raises:
         DescriptionError: a missing file, an unknown format, or a malformed description.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ArgumentTypeError("path", path, "expected a file or folder path, got "
+                                f"{type(path).__name__}")
     path = Path(path)
     if not path.exists():
         raise DescriptionError(str(path), "file not found")
@@ -124,7 +127,12 @@ def load_robot(path: str | os.PathLike[str], platform: str | None = None,
         DescriptionError: see :func:`load_model`; no platform frame given or named; the
             robot cannot be built (see :class:`ClosedLoopRobot`).
         InputError: bad options.
+        ArgumentTypeError: a path that is not a path, an unknown option.
     """
+    unknown = sorted(set(options) - {"max_actuator_force", "characteristic_length"})
+    if unknown:
+        raise ArgumentTypeError(unknown[0], options[unknown[0]], "unknown option of "
+                                "load_robot (max_actuator_force, characteristic_length)")
     model, section = load_model(path, actuated)
     section = section or RobotSection()
     platform = platform if platform is not None else section.platform

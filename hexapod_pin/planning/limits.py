@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.robot_api import ParallelRobot, pose_layout
+from ..core.checks import bounds, real_number
 from ..errors import HexapodPinError, InfeasiblePathError, InputError
 from .path import PathSamples
 
@@ -71,7 +72,8 @@ class Limits:
             InputError: a bound that is not positive or of the wrong length, a margin
                 outside [0, 1).
         """
-        if not (np.ndim(self.margin) == 0 and 0.0 <= float(self.margin) < 1.0):
+        margin = real_number(self.margin, "margin", minimum=0.0, strict=False)
+        if not margin < 1.0:
             raise InputError("margin", self.margin, "expected 0 <= margin < 1")
         scale = 1.0 - float(self.margin) if planning else 1.0
         n = robot.n_actuators
@@ -80,17 +82,9 @@ class Limits:
         out = {}
         for name, value in (("force", force), ("velocity", self.actuator_velocity),
                             ("acceleration", self.actuator_acceleration)):
-            arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)) \
-                if np.ndim(value) == 0 else np.asarray(value, dtype=float)
-            if arr.shape != (n,) or np.any(np.isnan(arr)) or np.any(arr <= 0):
-                raise InputError(f"actuator_{name}", value,
-                                 f"expected a positive bound or {n} positive bounds")
-            out[name] = arr * scale
+            out[name] = bounds(value, n, f"actuator_{name}") * scale
         for name in ("linear_speed", "angular_speed"):
-            value = getattr(self, name)
-            if not (np.ndim(value) == 0 and float(value) > 0):
-                raise InputError(name, value, "expected a positive bound")
-            out[name] = np.array([float(value) * scale])
+            out[name] = bounds(getattr(self, name), 1, name) * scale
         return out
 
 

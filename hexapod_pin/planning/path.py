@@ -45,7 +45,7 @@ import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
-from ..core.checks import as_array
+from ..core.checks import as_array, real_number
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
 from ..core.robot_api import SPACE_POSE_AXES, PoseAxesSource, PoseLayout, pose_layout
 from ..errors import DescriptionError, InputError
@@ -107,8 +107,7 @@ class GeometricPath:
         pts = as_array(waypoints, (layout.dim,), "waypoints", batch=True)
         if len(pts) < 2:
             raise InputError("waypoints", waypoints, "need at least two waypoints")
-        if not (np.isfinite(rotation_length) and rotation_length > 0):
-            raise InputError("rotation_length", rotation_length, "must be > 0 (m)")
+        rotation_length = real_number(rotation_length, "rotation_length", minimum=0.0)
         self.waypoints = pts.copy()
         self.layout = layout
         self.pose_axes = layout.axes

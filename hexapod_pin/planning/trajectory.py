@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core.robot_api import ParallelRobot, pose_layout
+from ..core.checks import real_number
 from ..errors import InfeasiblePathError, InputError
 from . import solver
 from .limits import Limits, Payload, constraint_rows, path_coefficients
@@ -171,11 +172,11 @@ def time_optimal(robot: ParallelRobot, waypoints: npt.ArrayLike, *, limits: Limi
     payload.check(robot.pose_dim)
     if not (isinstance(grid_points, (int, np.integer)) and grid_points >= 3):
         raise InputError("grid_points", grid_points, "must be an integer >= 3")
-    for name, value in (("start_speed", start_speed), ("end_speed", end_speed)):
-        if not (np.isfinite(value) and value >= 0):
-            raise InputError(name, value, "must be finite and >= 0 (m/s)")
+    start_speed = real_number(start_speed, "start_speed", minimum=0.0, strict=False)
+    end_speed = real_number(end_speed, "end_speed", minimum=0.0, strict=False)
     if rotation_length is None:
         rotation_length = robot.singularity(robot.home_pose).characteristic_length
+    rotation_length = real_number(rotation_length, "rotation_length", minimum=0.0)
     path = GeometricPath(waypoints, rotation_length, pose_layout(robot))
     if path.pose_dim != robot.pose_dim:
         raise InputError("waypoints", waypoints, f"expected poses of {robot.pose_dim} values")

@@ -440,3 +440,73 @@ def test_singularity_errors_name_their_measure(five_bar):
     assert err.value.measure == "inverse condition number"
     assert "type-I" in str(err.value) and "inverse condition number" in str(err.value)
     assert err.value.sigma_min < err.value.threshold == 2e-3
+
+
+# -- review findings (each a reproducer) --------------------------------------------------------
+def test_the_cache_never_returns_the_callers_array(five_bar):
+    q = five_bar.configuration(five_bar.home_pose + [0.01, 0.0])
+    pose = five_bar.pose_from_configuration(q)
+    seed, kept = q.copy(), q.copy()
+    five_bar.configuration(pose, branch=seed)
+    seed[:] = 0.0                                    # the caller reuses its buffer
+    again = five_bar.configuration(pose, branch=kept)
+    assert np.abs(five_bar.model.residual(again)).max() < 1e-12
+    again[:] = 1.0                                   # nor hands out its own entry
+    assert np.abs(five_bar.model.residual(five_bar.configuration(pose, branch=kept))
+                  ).max() < 1e-12
+
+
+def test_simulation_of_another_working_mode_records_its_own_twist(five_bar):
+    """A state in the other working mode (left elbow flipped): the recorded twist is the
+    platform frame's velocity at the simulated (q, v), computed here from Pinocchio."""
+    pose = five_bar.home_pose
+    home_act = five_bar.inverse_kinematics(pose)
+    roots = five_bar_roots(pose)
+    gaps = np.abs(np.angle(np.exp(1j * (roots - home_act[:, None]))))
+    mine = roots[np.arange(2), np.argmin(gaps, axis=1)]
+    other = roots[np.arange(2), np.argmax(gaps, axis=1)]
+    q = five_bar_configuration(pose, [other[0], mine[1]])
+    jac_c, p_rows, _ = raw_terms(five_bar, q)
+    v = scipy.linalg.null_space(jac_c, rcond=1e-10) @ np.array([0.3, -0.2])
+    run = hp.simulate(five_bar, 0.002, 1e-3, initial=(q, v))
+    model, data = five_bar.model.model, five_bar.model.model.createData()
+    for k in range(len(run.times)):
+        pin.computeJointJacobians(model, data, run.q[k])
+        pin.updateFramePlacements(model, data)
+        jac = pin.getFrameJacobian(model, data, five_bar.platform.frame, LWA)
+        np.testing.assert_allclose(run.twists[k], (jac @ run.v[k])[five_bar.platform.sel],
+                                   atol=1e-9)
+
+
+def test_platform_error_wraps_angles_and_uses_the_layout():
+    from hexapod_pin.core.controllers import platform_error
+    from hexapod_pin.core.robot_api import pose_layout
+
+    err = platform_error(np.array([0, 0, np.pi - 0.01]), np.array([0, 0, -np.pi + 0.01]))
+    np.testing.assert_allclose(err, [0, 0, -0.02], atol=1e-12)
+    err = platform_error(np.array([0.1, 3.1]), np.array([0.0, -3.1]), pose_layout(("x", "pitch")))
+    np.testing.assert_allclose(err, [0.1, 6.2 - 2 * np.pi], atol=1e-12)
+
+
+def test_bad_options_are_library_errors(five_bar, stewart):
+    path = DATA / "stewart" / "stewart.urdf"
+    for bad in (None, 3):
+        with pytest.raises(hp.ArgumentTypeError):
+            hp.load_robot(bad)
+    with pytest.raises(hp.ArgumentTypeError):
+        hp.load_robot(path, colour="red")
+    for force in ("abc", [[1, 2], [3]], True, [1.0, True, 1, 1, 1, 1], -1.0, [1.0] * 5):
+        with pytest.raises(InputError) as err:
+            hp.load_robot(path, max_actuator_force=force)
+        assert err.value.name == "max_actuator_force"
+    for call in (lambda: five_bar.stroke_violations("ab"),
+                 lambda: five_bar.check_stroke([np.nan, 0.0]),
+                 lambda: five_bar.check_stroke([0.0]),
+                 lambda: five_bar.inverse_kinematics(five_bar.home_pose, check_limits="no"),
+                 lambda: five_bar.inverse_dynamics(five_bar.home_pose, [0, 0], [0, 0],
+                                                   bounded="no"),
+                 lambda: hp.simulate(five_bar, 1e-9, 1e-3),
+                 lambda: hp.simulate(five_bar, 0.01, 1e-3,
+                                     actuator_forces=lambda t: [True, False])):
+        with pytest.raises(InputError):
+            call()
