@@ -28,6 +28,7 @@ from .checks import bounds, real_number
 from .closed_loop import ClosedLoopModel
 from .platform_map import PlatformMap, check_pose_axes
 from .robot_api import delegate
+from .robot_base import RobotBase
 from .robot_dynamics import RobotDynamics
 from .robot_kinematics import RobotKinematics
 
@@ -82,7 +83,7 @@ def _home_candidates(model: ClosedLoopModel, n: int = 32) -> list[np.ndarray]:
     return out
 
 
-class ClosedLoopRobot:
+class ClosedLoopRobot(RobotBase):
     """A closed-loop model as a parallel robot (see the module docstring).
 
     ``branch`` (every platform-level method) is None (the working mode reached from home)
@@ -139,8 +140,7 @@ class ClosedLoopRobot:
             raise ArgumentTypeError("model", model, "expected a ClosedLoopModel, got "
                                     f"{type(model).__name__}")
         axes = check_pose_axes(pose_axes)
-        self.model = model
-        self.lock = threading.RLock()
+        self._init_facade(model)
         candidates = self._home(model, home)
         probe = PlatformMap(model, platform, axes, 1.0)
         length = self._length(model, probe.frame, model.neutral()) \
@@ -236,6 +236,11 @@ class ClosedLoopRobot:
         """The pose components, ``geometry.pose_axes`` (a subset of ``("x", "y", "z",
         "roll", "pitch", "yaw")`` in that order)."""
         return self.geometry.pose_axes
+
+    @property
+    def platform_frame(self) -> str:
+        """The platform frame's name, ``geometry.platform``."""
+        return self.geometry.platform
 
     @property
     def home_pose(self) -> npt.NDArray[np.float64]:

@@ -60,7 +60,8 @@ SHARED_NAMES = (
     "default", "geometry", "model", "pose_dim", "pose_axes", "n_actuators", "home_pose",
     "home_actuators", "home_configuration", "configuration", "pose_from_configuration",
     "actuator_positions", "inverse_kinematics", "forward_kinematics", "assembly_modes", "jacobian",
-    "twist_from_actuator_velocities", "jacobian_derivative", "singularity",
+    "twist_from_actuator_velocities", "twist_from_configuration", "jacobian_derivative",
+    "singularity",
     "inverse_dynamics", "forward_dynamics", "static_forces", "reduced_dynamics", "energies",
     "inverse_dynamics_derivatives", "inverse_kinematics_batch", "jacobian_batch",
     "inverse_dynamics_batch", "forward_dynamics_batch", "static_forces_batch",
@@ -139,6 +140,11 @@ class ParallelRobot(Protocol):
                                        branch: npt.ArrayLike | None = None
                                        ) -> npt.NDArray[np.float64]:
         """The twist (dim,) that gives the actuator velocities (``J^-1``)."""
+
+    def twist_from_configuration(self, q: npt.ArrayLike,
+                                 v: npt.ArrayLike) -> npt.NDArray[np.float64]:
+        """The platform twist (dim,) of a tree state ``(q, v)`` (no inverse kinematics:
+        the twist of ``q``'s own working mode)."""
 
     def jacobian_derivative(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                             branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:

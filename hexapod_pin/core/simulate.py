@@ -412,16 +412,18 @@ class _Run:
         va = v[self.act_v].copy()
         pose = twist = None
         if need_platform and self.platform:
-            pose, twist = self._platform(q, qa, va)
+            pose, twist = self._platform(q, v, va)
         return SimState(t, q, v, qa, va, pose, twist)
 
-    def _platform(self, q, qa, va):
+    def _platform(self, q, v, va):
         try:
             robot = self.robot
             pose = np.asarray(robot.pose_from_configuration(q), dtype=float)
             # the twist of this configuration's working mode (not the one reached from home)
-            twist = np.asarray(robot.twist_from_actuator_velocities(
-                pose, va, branch=state_branch(robot, pose, q)), dtype=float)
+            twist_of = getattr(robot, "twist_from_configuration", None)
+            twist = np.asarray(twist_of(q, v) if twist_of is not None else
+                               robot.twist_from_actuator_velocities(
+                                   pose, va, branch=state_branch(robot, pose, q)), dtype=float)
         except HexapodPinError as exc:
             raise _Failure(f"platform state: {exc}") from exc
         return pose, twist
@@ -437,8 +439,7 @@ class _Run:
         if self.platform and self.poses is not None and self.twists is not None:
             pose, twist = state.pose, state.twist
             if pose is None or twist is None:
-                pose, twist = self._platform(state.q, state.actuator_positions,
-                                             state.actuator_velocities)
+                pose, twist = self._platform(state.q, state.v, state.actuator_velocities)
             self.poses[k], self.twists[k] = pose, twist
         kinetic, potential = energy_totals(self.clm, state.q, state.v)
         self.t[k], self.q[k], self.v[k] = state.t, state.q, state.v

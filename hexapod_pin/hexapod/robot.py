@@ -9,10 +9,7 @@ dynamics) as methods. Conventions: see :mod:`hexapod_pin.hexapod.geometry` and
 
 from __future__ import annotations
 
-import threading
-from typing import cast
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 import numpy.typing as npt
@@ -22,6 +19,7 @@ from ..core.checks import as_array
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import build_model, load_loops, urdf_dir
 from ..core.robot_api import delegate
+from ..core.robot_base import RobotBase
 from .dynamics import HexapodDynamics
 from ..errors import ArgumentTypeError, AssemblyError
 from .geometry import HexapodGeometry, hexapod_urdf
@@ -59,7 +57,7 @@ class HexapodIndices:
     platform_v: slice
 
 
-class Hexapod:
+class Hexapod(RobotBase):
     """The rail-driven 6-DoF hexapod: a facade over its components (composition).
 
     It implements the shared API of every parallel robot
@@ -86,11 +84,7 @@ class Hexapod:
 
     pose_dim = 6
     n_actuators = 6
-
-    @property
-    def pose_axes(self) -> tuple[str, ...]:
-        """The pose components ``("x", "y", "z", "roll", "pitch", "yaw")`` (m, rad)."""
-        return ("x", "y", "z", "roll", "pitch", "yaw")
+    POSE_AXES = ("x", "y", "z", "roll", "pitch", "yaw")
 
     def __init__(self, geometry: HexapodGeometry | None = None) -> None:
         self.geometry = HexapodGeometry() if geometry is None else geometry
@@ -99,14 +93,12 @@ class Hexapod:
                                     f"expected a HexapodGeometry, got {type(geometry).__name__}")
         xml = hexapod_urdf(self.geometry)
         tree = build_model(xml, source="hexapod.urdf.xacro")
-        self.model = ClosedLoopModel(tree, load_loops(urdf_dir() / "hexapod.loops.yaml"),
-                                     name="hexapod", urdf_xml=xml)
+        self._init_facade(ClosedLoopModel(tree, load_loops(urdf_dir() / "hexapod.loops.yaml"),
+                                          name="hexapod", urdf_xml=xml))
         # the URDF carries no gravity: gravity along -z with the geometry's magnitude
         self.model.model.gravity = pin.Motion(np.array([0.0, 0.0, -self.geometry.gravity,
                                                         0.0, 0.0, 0.0]))
         self.indices = self._indices()
-        #: serialises the robot's calls (its components share scratch and Pinocchio data)
-        self.lock = threading.RLock()
         self.closed_form = kernels.ClosedForm(self.geometry, self.indices)
         self.kinematics = HexapodKinematics(self.geometry, self.closed_form)
         self.dynamics = HexapodDynamics(self.geometry, self.model, self.indices,
@@ -153,14 +145,6 @@ class Hexapod:
         """The hexapod with the default (placeholder) geometry."""
         return cls(HexapodGeometry())
 
-    def __repr__(self) -> str:
-        return f"Hexapod({self.geometry!r})"
-
-    def urdf(self) -> str:
-        """The URDF text of the tree (the xacro expanded with this geometry; the loops are
-        in ``urdf/hexapod.loops.yaml``): ``robot.model.urdf_xml``."""
-        return cast(str, self.model.urdf_xml)    # the model is built from URDF text
-
     def _indices(self) -> HexapodIndices:
         m = self.model
         names = [f"carriage_{i}" for i in range(6)]
@@ -188,11 +172,6 @@ class Hexapod:
         """Home pose (m, rad), shape (6,): ``geometry.home_pose`` (the level platform at
         ``home_height``; as built, the forward kinematics of ``home_q``)."""
         return self.geometry.home_pose
-
-    @cached_property
-    def home_configuration(self) -> npt.NDArray[np.float64]:
-        """Pinocchio configuration at home (nq,), every closure satisfied."""
-        return self.configuration(self.home_pose)
 
     # -- pose <-> tree configuration -----------------------------------------------------
     def configuration(self, pose: npt.ArrayLike,

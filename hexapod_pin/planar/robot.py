@@ -19,15 +19,13 @@ reports them (rank 6 of 9, mobility 3) and every tree route tolerates them
 
 from __future__ import annotations
 
-import threading
-from typing import cast
-from functools import cached_property
 
 import numpy as np
 import numpy.typing as npt
 
 from ..core.results import (InverseDynamicsDerivatives)
 from ..core.robot_api import delegate
+from ..core.robot_base import RobotBase
 from ..errors import ArgumentTypeError
 from .assembly_modes import PlanarAssembly
 from .derivatives import inverse_dynamics_derivatives
@@ -36,7 +34,7 @@ from .geometry import N_ACTUATORS, PlanarGeometry, planar_model
 from .kinematics import PlanarKinematics, PlanarWorkspace
 
 
-class Planar3PRR:
+class Planar3PRR(RobotBase):
     """The planar 3-PRR robot (see the module docstring).
 
     Args:
@@ -57,21 +55,15 @@ class Planar3PRR:
 
     pose_dim = 3
     n_actuators = N_ACTUATORS
-
-    @property
-    def pose_axes(self) -> tuple[str, ...]:
-        """The pose components ``("x", "y", "yaw")``: the pose ``(x, y, theta)`` (m, m,
-        rad), ``theta`` the rotation about the world z axis."""
-        return ("x", "y", "yaw")
+    #: the pose ``(x, y, theta)`` (m, m, rad), ``theta`` the rotation about the world z axis
+    POSE_AXES = ("x", "y", "yaw")
 
     def __init__(self, geometry: PlanarGeometry | None = None) -> None:
         self.geometry = PlanarGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, PlanarGeometry):
             raise ArgumentTypeError("geometry", geometry,
                                     f"expected a PlanarGeometry, got {type(geometry).__name__}")
-        self.model = planar_model(self.geometry)
-        #: serialises the robot's calls (its components share scratch and Pinocchio data)
-        self.lock = threading.RLock()
+        self._init_facade(planar_model(self.geometry))
         self.workspace = PlanarWorkspace(self.geometry, self.model)
         self.indices = self.workspace.indices
         self.kinematics = PlanarKinematics(self.geometry, self.model, self.workspace)
@@ -84,14 +76,6 @@ class Planar3PRR:
         """The planar robot with the default geometry."""
         return cls(PlanarGeometry())
 
-    def __repr__(self) -> str:
-        return f"Planar3PRR({self.geometry!r})"
-
-    def urdf(self) -> str:
-        """The URDF text of the tree (the xacro expanded with this geometry; the loops are
-        in ``urdf/planar_3prr.loops.yaml``): ``robot.model.urdf_xml``."""
-        return cast(str, self.model.urdf_xml)    # the model is built from URDF text
-
     # -- home ---------------------------------------------------------------------------------
     @property
     def home_pose(self) -> npt.NDArray[np.float64]:
@@ -102,11 +86,6 @@ class Planar3PRR:
     def home_actuators(self) -> npt.NDArray[np.float64]:
         """Slider positions at home (m), shape (3,)."""
         return self.geometry.home_actuators
-
-    @cached_property
-    def home_configuration(self) -> npt.NDArray[np.float64]:
-        """Pinocchio configuration at home (nq,), every closure satisfied."""
-        return self.configuration(self.home_pose)
 
     # -- configurations (PlanarKinematics) --------------------------------------------------
     configuration = delegate("kinematics", PlanarKinematics.configuration)

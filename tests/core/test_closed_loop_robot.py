@@ -510,3 +510,20 @@ def test_bad_options_are_library_errors(five_bar, stewart):
                                      actuator_forces=lambda t: [True, False])):
         with pytest.raises(InputError):
             call()
+
+
+@pytest.mark.parametrize("which", ["hexapod", "planar", "stewart", "five-bar", "delta"])
+def test_twist_from_configuration_is_the_platform_twist(which, robots):
+    """RobotBase.twist_from_configuration (one frame Jacobian) gives back the twist the
+    robot's own inverse dynamics mapped to the tree (its closed form for the hexapod and
+    the planar robot)."""
+    robot = {"hexapod": hp.Hexapod.default, "planar": hp.Planar3PRR.default}.get(
+        which, lambda: robots[which])()
+    rng = np.random.default_rng(8)
+    dim = robot.pose_dim
+    pose = robot.home_pose + rng.uniform(-1, 1, dim) * 0.01
+    twist = rng.uniform(-1, 1, dim) * 0.1
+    res = robot.inverse_dynamics(pose, twist, np.zeros(dim), bounded=False)
+    np.testing.assert_allclose(robot.twist_from_configuration(res.configuration, res.velocity),
+                               twist, atol=1e-12)
+    assert isinstance(robot, hp.core.robot_base.RobotBase)
