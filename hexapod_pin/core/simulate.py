@@ -28,6 +28,7 @@ The library never prints: pass ``progress`` to follow a long run.
 from __future__ import annotations
 
 import contextlib
+import importlib
 import math
 import time as _time
 from collections.abc import Callable
@@ -47,6 +48,8 @@ from .energy import energy_totals
 from .robot_api import ParallelRobot, state_branch
 from .simulation import INTEGRATORS, PROJECTION_TOL, ClosedLoopIntegrator
 
+#: simulation backends: the Pinocchio tree (every robot) or a robot's compiled simulator
+BACKENDS = ("tree", "compiled")
 #: the most steps (``round(duration / dt)``) one run may take
 MAX_STEPS = 10 ** 8
 #: the most samples one run may record (each holds the tree state, a few hundred bytes)
@@ -127,7 +130,7 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
              integrator: str = "rk4", method: str = "pinocchio",
              initial: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
              record_every: int = 1, progress: Callable[[float], Any] | None = None,
-             projection_tol: float = PROJECTION_TOL) -> Trajectory:
+             projection_tol: float = PROJECTION_TOL, backend: str = "tree") -> Trajectory:
     """Integrate the closed-loop dynamics of any robot or closed-loop model.
 
     Args:
@@ -150,6 +153,13 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
             state is always recorded).
         progress: called as ``progress(fraction_done)`` at most about 100 times.
         projection_tol: closure residual (m / rad) above which a state is projected back.
+        backend: "tree" (default: the Pinocchio tree with its closures, every robot) or
+            "compiled": the robot's own compiled simulator, named by its class attribute
+            ``COMPILED_SIMULATOR`` (``"module:function"``; the hexapod's integrates in
+            platform coordinates, :func:`hexapod_pin.hexapod.fast.compiled_trajectory`),
+            from home at rest under constant actuator forces (no controller, force
+            function or ``initial``; ``method`` and ``projection_tol`` do not apply), the
+            same :class:`Trajectory` returned.
 
     Returns:
         :class:`Trajectory`. A step, controller or platform-state failure (a library
@@ -162,6 +172,8 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
             an ``initial`` state of the wrong shape, with NaN / inf or off the closures, a
             ``record_every`` that is not a positive integer, a controller's or force
             function's output of the wrong shape.
+        InputError: ``backend`` unknown, "compiled" for a robot without a compiled
+            simulator or with options it does not take.
         ArgumentTypeError: ``robot`` is neither a robot nor a closed-loop model, or a
             ``controller`` / ``progress`` that is not callable.
         NonFiniteResultError: a controller or force function returned NaN / inf (the
@@ -172,6 +184,11 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
     dt = real_number(dt, "dt", minimum=0.0)
     record_every = count(record_every, "record_every")
     projection_tol = real_number(projection_tol, "projection_tol", minimum=0.0)
+    if backend not in BACKENDS:
+        raise InputError("backend", backend, f"expected one of {BACKENDS}")
+    if backend == "compiled":
+        return _compiled(robot, duration, dt, controller, actuator_forces, integrator, method,
+                         initial, record_every, progress)
     if integrator not in INTEGRATORS:
         raise InputError("integrator", integrator, f"expected one of {INTEGRATORS}")
     if method not in FORWARD_METHODS:
@@ -258,6 +275,30 @@ class _Failure(HexapodPinError):
     """A library error of the controller (other than InputError) or of the robot's
     platform maps during a run (the run ends "failed"), wrapped so that it is told apart
     from the run's own checks (InputError, NonFiniteResultError: raised)."""
+
+
+def _compiled(robot, duration: float, dt: float, controller, actuator_forces,
+              integrator: str, method: str, initial, record_every: int, progress
+              ) -> Trajectory:
+    """The robot's compiled simulator (``COMPILED_SIMULATOR``), after checking that the
+    run asks for nothing it does not do."""
+    target = getattr(type(robot), "COMPILED_SIMULATOR", None)
+    if not isinstance(target, str):
+        raise InputError("backend", "compiled", f"{type(robot).__name__} has no compiled "
+                         "simulator (backend='tree' works for every robot)")
+    given = [name for name, value, default in (
+        ("controller", controller, None), ("initial", initial, None),
+        ("progress", progress, None), ("method", method, "pinocchio"))
+        if value is not default and value != default]
+    if callable(actuator_forces):
+        given.append("actuator_forces (a function)")
+    if given:
+        raise InputError("backend", "compiled", "the compiled simulator runs from home at "
+                         f"rest under constant forces: {', '.join(given)} not supported")
+    module, _, name = target.partition(":")
+    run = getattr(importlib.import_module(module), name)
+    return run(robot, duration, dt, actuator_forces=actuator_forces, integrator=integrator,
+               record_every=record_every)
 
 
 def _resolve(robot) -> tuple[ClosedLoopModel, bool]:

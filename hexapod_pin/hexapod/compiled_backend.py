@@ -1,0 +1,60 @@
+"""The hexapod's compiled simulator as a backend of ``hexapod_pin.simulate``.
+
+``hp.simulate(hexapod, duration, dt, backend="compiled")`` runs
+:func:`~hexapod_pin.hexapod.fast.simulate_fast` (the dynamics in platform coordinates, in
+compiled code, the closures held by construction) and returns the generic
+:class:`~hexapod_pin.core.simulate.Trajectory`: each recorded platform state mapped to the
+tree in closed form (``q``, ``v``), the energies from Pinocchio on that tree state, the
+work of the (constant) actuator forces, the closure residual of each configuration. The
+run starts at home at rest; the stroke limits and the carriage gap stop it (status
+"failed", the message naming the limit).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import numpy.typing as npt
+
+from ..core.checks import as_array
+from ..core.energy import energy_totals
+from ..core.simulate import Trajectory
+from .fast import simulate_fast
+from .robot import Hexapod
+
+
+def compiled_trajectory(robot: Hexapod, duration: float, dt: float, *,
+                        actuator_forces: npt.ArrayLike | None = None,
+                        integrator: str = "rk4", record_every: int = 1) -> Trajectory:
+    """:func:`~hexapod_pin.hexapod.fast.simulate_fast` from home at rest under constant
+    actuator forces (6,) (N; default zero), as a :class:`~hexapod_pin.core.simulate.Trajectory`
+    (see the module docstring).
+
+    Raises:
+        InputError: bad forces, or what :func:`simulate_fast` refuses.
+    """
+    forces = None if actuator_forces is None else as_array(actuator_forces, (6,),
+                                                           "actuator_forces")
+    start = time.perf_counter()
+    fast = simulate_fast(robot, duration, dt, actuator_forces=forces, integrator=integrator,
+                         record_every=record_every)
+    n = len(fast.times)
+    clm = robot.model
+    q, v = np.empty((n, clm.nq)), np.empty((n, clm.nv))
+    kinetic, potential, residual = np.empty(n), np.empty(n), np.empty(n)
+    with robot.lock:
+        for k in range(n):
+            q[k], v[k] = robot.dynamics.tree_state(fast.poses[k], fast.twists[k])
+            kinetic[k], potential[k] = energy_totals(clm, q[k], v[k])
+            residual[k] = robot.closed_form.closure_residual(q[k])
+    steps = np.diff(fast.q, axis=0)
+    work = np.concatenate([[0.0], np.cumsum(np.einsum("ni,ni->n", fast.actuator_forces[:-1],
+                                                      steps))])
+    status = fast.status if fast.status in ("completed", "saturated") else "failed"
+    message = fast.message if status == fast.status else \
+        f"{fast.status}: {fast.message}".rstrip(": ")
+    return Trajectory(fast.times, q, v, fast.poses, fast.twists, fast.q, fast.qdot,
+                      fast.actuator_forces, fast.saturated, kinetic + potential, kinetic,
+                      potential, work, residual, status, message, fast.dt,
+                      time.perf_counter() - start)
