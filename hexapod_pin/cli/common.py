@@ -20,14 +20,16 @@ or with ``--json`` one JSON object on stdout, ``{"error": {"type": ..., "message
 from __future__ import annotations
 
 import contextlib
+import csv
 import dataclasses
 import functools
 import json
 import math
+import re
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, cast
 
 import numpy as np
 import typer
@@ -46,9 +48,11 @@ from rich.table import Table
 from rich.text import Text
 from typer.core import TyperCommand, TyperGroup
 
+from .. import motion as motions
 from ..core.robot import ClosedLoopRobot
-from ..errors import HexapodPinError, InputError
-from ..files import load_geometry
+from ..core.robot_api import ParallelRobot
+from ..errors import DescriptionError, HexapodPinError, InputError
+from ..files import load_geometry, read_text
 from ..hexapod.robot import Hexapod
 from ..loaders.any_robot import load_robot
 from ..motion import POSE_NAMES
@@ -195,6 +199,86 @@ def robot_fields(robot: CliRobot) -> dict[str, Any]:
         return {}
     return {"robot": robot.geometry.name, "platform": robot.geometry.platform,
             "pose_axes": list(pose_axes_of(robot)), "actuators": list(actuator_names(robot))}
+
+
+#: the column names a motion file of some robot may have (:func:`motion_columns`)
+_MOTION_NAMES = frozenset(motions.POSE_NAMES + motions.TWIST_NAMES
+                          + motions.TWIST_DOT_NAMES + motions.WRENCH_NAMES)
+_ACTUATOR_COLUMN = re.compile(r"(q|tau)\d+")
+
+
+def as_parallel(robot: CliRobot) -> ParallelRobot:
+    """``robot`` typed as the shared robot API (a loaded robot serves the protocol at run
+    time; its ``default`` and ``n_actuators`` are instance members, so mypy needs the cast
+    until :mod:`hexapod_pin.core.robot_api` says so)."""
+    return cast(ParallelRobot, robot)
+
+
+def expected_columns(robot: CliRobot) -> str:
+    """The motion-file columns of ``robot`` as one line: ``t`` and the pose, then the
+    optional groups, e.g. ``t, x, z; optional vx, vz | ax, az | fx, fz | q0, q1 | tau0,
+    tau1 | residual`` (:func:`hexapod_pin.motion.motion_columns`)."""
+    columns = motions.motion_columns(None if isinstance(robot, Hexapod)
+                                     else as_parallel(robot))
+    groups = " | ".join(", ".join(names) for names in columns.groups().values())
+    return f"{', '.join(('t', *columns.pose))}; optional {groups} | residual"
+
+
+def read_robot_motion(path: Path, robot: CliRobot) -> motions.Motion:
+    """The motion file of a command's robot (:func:`hexapod_pin.motion.read_motion`): the
+    hexapod's columns, or those of a robot loaded with ``--robot``.
+
+    A CSV file of a loaded robot is refused when its header lacks a pose column of the
+    robot or has motion columns of another robot (a pose, twist, wrench, ``qN`` or
+    ``tauN`` column the robot does not have: a hexapod file given to a five-bar); a JSON
+    file when a field has another width. Other columns are ignored, as for the hexapod.
+
+    Raises:
+        DescriptionError: a malformed file, or one of another robot (the message names
+            the columns expected, :func:`expected_columns`).
+    """
+    if isinstance(robot, Hexapod):
+        return motions.read_motion(path)
+    columns = motions.motion_columns(as_parallel(robot))
+    own = {"t", *columns.pose, *(n for names in columns.groups().values() for n in names)}
+    fits = f"does not fit {robot.geometry.name}"
+    if path.suffix.lower() in (".csv", ".txt") and path.is_file():
+        header = _csv_header(path)
+        if header is not None:
+            missing = [c for c in ("t", *columns.pose) if c not in header]
+            foreign = [c for c in header if c not in own
+                       and (c in _MOTION_NAMES or _ACTUATOR_COLUMN.fullmatch(c))]
+            if missing or foreign:
+                what = "; ".join(part for part in (
+                    f"missing columns {', '.join(missing)}" if missing else "",
+                    f"columns {', '.join(foreign)} are not its own" if foreign else "")
+                    if part)
+                raise DescriptionError(str(path), f"{fits} ({what}); expected columns "
+                                                  f"{expected_columns(robot)}")
+    try:
+        return motions.read_motion(path, as_parallel(robot))
+    except DescriptionError as exc:
+        if exc.culprit not in ("pose", *columns.groups()):
+            raise
+        raise DescriptionError(str(path), f"{fits}: {exc.reason}; expected columns "
+                                          f"{expected_columns(robot)}", exc.culprit) from None
+
+
+def _csv_header(path: Path) -> list[str] | None:
+    """The header row of a CSV motion file (its first line that is neither blank nor a
+    ``#`` comment), None when it has none (read_motion says so)."""
+    for line in read_text(path).splitlines():
+        if line.strip() and not line.lstrip().startswith("#"):
+            return [name.strip() for name in next(csv.reader([line]))]
+    return None
+
+
+def write_robot_motion(path: Path, motion: motions.Motion, robot: CliRobot) -> Path:
+    """Write ``motion`` in the columns of the command's robot
+    (:func:`hexapod_pin.motion.write_motion`; the hexapod's without ``--robot``)."""
+    if isinstance(robot, Hexapod):
+        return motions.write_motion(path, motion)
+    return motions.write_motion(path, motion, as_parallel(robot))
 
 
 # -- errors ---------------------------------------------------------------------------------

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Annotated, cast
+from typing import Annotated, NamedTuple
 
 import numpy as np
 import typer
@@ -15,11 +15,11 @@ import typer
 from .. import motion as motions
 from ..core.controllers import ComputedTorque
 from ..core.robot import ClosedLoopRobot
-from ..core.robot_api import ParallelRobot
 from ..core.simulate import STATUSES, Trajectory
 from ..core.simulate import simulate as simulate_robot
 from ..core.simulation import INTEGRATORS
 from ..errors import InputError
+from ..hexapod.robot import Hexapod
 from ..viz import hexapod_scenes, plotting, scenes
 from .common import (
     TWIST_OF,
@@ -34,7 +34,7 @@ from .common import (
     SetFields,
     Values,
     actuator_table,
-    carriage_table,
+    as_parallel,
     check_suffix,
     component_values,
     console,
@@ -47,11 +47,13 @@ from .common import (
     pose_axes_of,
     progress_bar,
     quantity_table,
+    read_robot_motion,
     robot_fields,
     robot_of,
     robot_pose_in,
     robot_pose_out,
     robot_urdf,
+    write_robot_motion,
 )
 
 #: the controllers of ``simulate --robot``
@@ -143,6 +145,8 @@ def inverse_dynamics(motion_file: Annotated[Path, typer.Argument(
                          help="kkt (the square system solved exactly) or qp (ProxSuite, "
                               "certifying the force bounds)")] = "kkt",
                      as_json: AsJson = False, quiet: Quiet = False,
+                     robot: RobotFile = None, platform: PlatformFrame = None,
+                     pose_axes: PoseAxes = None,
                      geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Inverse dynamics along a motion file: actuator forces (N) at every sample.
 
@@ -152,27 +156,34 @@ def inverse_dynamics(motion_file: Annotated[Path, typer.Argument(
     (wrench on the platform, N, N m), `q0..q5`, `tau0..tau5`, `residual`. JSON: keys
     `t`, `pose` (N x 6), optional `twist`, `twist_dot`, `wrench`, `q`, `actuator_forces`,
     `closure_residual`. A missing twist is computed from the poses by finite differences.
+
+    With `--robot`: the same selection of each group for its pose axes, one `qN` and
+    `tauN` per actuator (a five-bar in x, z: `t, x, z, vx, vz, ..., q0, q1, tau0, tau1`);
+    forces in N or N m along each actuated joint.
     """
     quiet = quiet or as_json
     check_suffix("out", out, motions.MOTION_SUFFIXES)
-    robot = robot_of(geometry, set_)
-    motion = motions.read_motion(motion_file)
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
+    motion = read_robot_motion(motion_file, bot)
+    rates_of = None if isinstance(bot, Hexapod) else as_parallel(bot)
     with progress_bar(quiet, "inverse dynamics", total=len(motion.t)) as progress:
-        tau = motions.inverse_dynamics_along(robot, motion, method, progress).actuator_forces
+        tau = motions.inverse_dynamics_along(as_parallel(bot), motion, method,
+                                             progress).actuator_forces
     if out is not None:
-        twists, dots = motions.motion_rates(motion)
-        motions.write_motion(out, dataclasses.replace(motion, twists=twists, twist_dots=dots,
-                                                      actuator_forces=tau))
+        twists, dots = motions.motion_rates(motion, rates_of)
+        write_robot_motion(out, dataclasses.replace(motion, twists=twists, twist_dots=dots,
+                                                    actuator_forces=tau), bot)
         note(quiet, f"wrote {out}")
     peak = np.max(np.abs(tau), axis=0)
     if as_json:
         emit_json({"t": motion.t, "actuator_forces": tau, "max_abs_actuator_forces": peak,
-                   "out": out})
+                   "out": out, **robot_fields(bot)})
         return
-    console.print(carriage_table(
-        f"inverse dynamics over {len(motion.t)} samples, {motion.t[-1] - motion.t[0]:g} s",
-        {"max |tau| (N)": peak, "at t (s)": motion.t[np.argmax(np.abs(tau), axis=0)],
-         "mean tau (N)": tau.mean(axis=0)}))
+    unit = "N" if isinstance(bot, Hexapod) else "N | N m"
+    console.print(actuator_table(
+        bot, f"inverse dynamics over {len(motion.t)} samples, {motion.t[-1] - motion.t[0]:g} s",
+        {f"max |tau| ({unit})": peak, "at t (s)": motion.t[np.argmax(np.abs(tau), axis=0)],
+         f"mean tau ({unit})": tau.mean(axis=0)}))
 
 
 @guard
@@ -228,9 +239,10 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
     check_suffix("html", html, (".html", ".htm"))
     check_suffix("plot", plot, plotting.IMAGE_SUFFIXES)
     if isinstance(bot, ClosedLoopRobot):
-        hexapod_only(bot, engine=engine, radius=radius, period=period, plot=plot, out=out)
+        hexapod_only(bot, engine=engine, radius=radius, period=period)
         _simulate_loaded(bot, duration, dt, controller or "none", forces,
-                         integrator or "rk4", html, as_json, quiet, robot_urdf(bot, robot))
+                         integrator or "rk4", SimulateFiles(out, html, plot), as_json, quiet,
+                         robot_urdf(bot, robot))
         return
     for name, value in (("forces", forces), ("integrator", integrator)):
         if value is not None:
@@ -285,12 +297,48 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
         raise typer.Exit(code=1)
 
 
+class SimulateFiles(NamedTuple):
+    """The files ``simulate --robot`` writes (None: not asked for).
+
+    Attributes:
+        out: the motion file (:func:`trajectory_motion`). html: the animated view.
+        plot: the figure of actuator positions, forces and closure residual.
+    """
+
+    out: Path | None
+    html: Path | None
+    plot: Path | None
+
+
+def trajectory_motion(traj: Trajectory) -> motions.Motion:
+    """The motion-file samples of a generic simulation
+    (:func:`hexapod_pin.core.simulate.simulate`): times, poses, twists, actuator positions
+    and forces (N or N m), max-abs closure residual (m / rad).
+
+    (:meth:`hexapod_pin.motion.Motion.from_trajectory` takes its ``q`` from the
+    trajectory's ``q``, which here are the tree configurations, not the actuators.)
+
+    Raises:
+        InputError: a trajectory without poses (a bare model has no platform).
+    """
+    if traj.poses is None or traj.twists is None:
+        raise InputError("trajectory", None, "has no platform poses to write")
+    return motions.Motion(np.asarray(traj.times, dtype=float),
+                          np.asarray(traj.poses, dtype=float),
+                          twists=np.asarray(traj.twists, dtype=float),
+                          q=np.asarray(traj.actuator_positions, dtype=float),
+                          actuator_forces=np.asarray(traj.actuator_forces, dtype=float),
+                          closure_residual=np.abs(np.asarray(traj.closure_residual,
+                                                             dtype=float)))
+
+
 def _simulate_loaded(robot: ClosedLoopRobot, duration: float, dt: float | None,
                      controller: str, forces: str | None, integrator: str,
-                     html: Path | None, as_json: bool, quiet: bool,
+                     files: SimulateFiles, as_json: bool, quiet: bool,
                      urdf: Path | None) -> None:
-    """``simulate --robot``: the generic simulation from home at rest, its summary, and
-    exit code 1 unless it completed."""
+    """``simulate --robot``: the generic simulation from home at rest, its files, its
+    summary, and exit code 1 unless it completed."""
+    html = files.html
     if controller not in ROBOT_CONTROLLERS:
         raise InputError("controller", controller,
                          f"with --robot expected one of {', '.join(ROBOT_CONTROLLERS)}")
@@ -308,9 +356,7 @@ def _simulate_loaded(robot: ClosedLoopRobot, duration: float, dt: float | None,
         u = np.zeros(n) if forces is None else parse_numbers(
             [forces], n, "forces", ", ".join(robot.model.actuated_joints))
     with progress_bar(quiet, f"simulating {duration:g} s", total=100) as progress:
-        # ClosedLoopRobot serves the protocol at run time (default() and n_actuators are
-        # instance members there): cast until core.robot_api says so
-        traj = simulate_robot(cast(ParallelRobot, robot), duration,
+        traj = simulate_robot(as_parallel(robot), duration,
                               1e-3 if dt is None else dt, controller=ctrl,
                               actuator_forces=u, integrator=integrator,
                               progress=lambda done: progress(round(100 * done), 100))
@@ -321,7 +367,17 @@ def _simulate_loaded(robot: ClosedLoopRobot, duration: float, dt: float | None,
                 caption=f"simulation of {robot.geometry.name}: {controller} control, "
                         f"{traj.times[-1]:g} s ({traj.status})")
         note(quiet, f"wrote {html}")
-    summary = loaded_summary(robot, traj, controller, integrator, html)
+    if files.out is not None or files.plot is not None:
+        motion = trajectory_motion(traj)
+        if files.out is not None:
+            write_robot_motion(files.out, motion, robot)
+            note(quiet, f"wrote {files.out}")
+        if files.plot is not None:
+            plotting.plot_simulation(motion, path=files.plot,
+                                     title=f"simulation of {robot.geometry.name}, "
+                                           f"{controller} control")
+            note(quiet, f"wrote {files.plot}")
+    summary = loaded_summary(robot, traj, controller, integrator, files)
     if as_json:
         emit_json(summary)
         return
@@ -344,7 +400,7 @@ def shown(value: object) -> str:
 
 
 def loaded_summary(robot: ClosedLoopRobot, traj: Trajectory, controller: str,
-                   integrator: str, html: Path | None) -> dict:
+                   integrator: str, files: SimulateFiles) -> dict:
     """The summary of ``simulate --robot`` (the ``--json`` object)."""
     final = None if traj.poses is None else robot_pose_out(robot, traj.poses[-1], False)
     balance = traj.energies - traj.energies[0] - traj.work
@@ -356,4 +412,5 @@ def loaded_summary(robot: ClosedLoopRobot, traj: Trajectory, controller: str,
             "saturated_fraction": float(np.mean(traj.saturated)),
             "max_closure_residual": float(np.max(traj.closure_residual)),
             "max_energy_balance_error_j": float(np.max(np.abs(balance))),
-            "final_pose": final, "html": html, **robot_fields(robot)}
+            "final_pose": final, "out": files.out, "html": files.html, "plot": files.plot,
+            **robot_fields(robot)}

@@ -1,5 +1,7 @@
 """Planning commands: ``retime`` (the fastest timing of a path within the limits) and
-``check`` (margins of a timed motion against the limits), over :mod:`hexapod_pin.planning`."""
+``check`` (margins of a timed motion against the limits), over :mod:`hexapod_pin.planning`,
+for the hexapod or any robot of ``--robot`` (poses, waypoints and motion files in its pose
+axes, one bound or value per actuator)."""
 
 from __future__ import annotations
 
@@ -11,33 +13,45 @@ import numpy as np
 import typer
 
 from .. import motion as motions
-from ..planning import Limits, Payload, time_optimal
+from ..hexapod.robot import Hexapod
+from ..planning import Limits, Payload, TimedTrajectory, time_optimal
 from ..planning.feasibility import check_feasibility
 from ..planning.path import read_waypoints
-from ..viz import hexapod_scenes, planning_plots, plotting
+from ..viz import hexapod_scenes, planning_plots, plotting, scenes
 from .common import (
+    WRENCH_OF,
     AsJson,
+    CliRobot,
     GeometryFile,
+    PlatformFrame,
+    PoseAxes,
     Quiet,
+    RobotFile,
     SetFields,
+    as_parallel,
     check_suffix,
     console,
     emit_json,
     guard,
+    load_cli_robot,
     note,
     parse_numbers,
     quantity_table,
-    robot_of,
+    read_robot_motion,
+    robot_fields,
+    robot_urdf,
+    write_robot_motion,
 )
 
 # -- the limit options shared by both commands ------------------------------------------------
 MaxForce = Annotated[float | None, typer.Option(
-    "--max-force", help="bound on |actuator force| (N); default the geometry's "
-                        "max_actuator_force", show_default=False)]
+    "--max-force", help="bound on |actuator force| (N; N m for a revolute actuator of "
+                        "--robot); default the geometry's max_actuator_force",
+    show_default=False)]
 MaxVelocity = Annotated[float, typer.Option(
-    "--max-velocity", help="bound on |actuator velocity| (m/s)")]
+    "--max-velocity", help="bound on |actuator velocity| (m/s or rad/s)")]
 MaxAcceleration = Annotated[float, typer.Option(
-    "--max-acceleration", help="bound on |actuator acceleration| (m/s^2)")]
+    "--max-acceleration", help="bound on |actuator acceleration| (m/s^2 or rad/s^2)")]
 MaxLinear = Annotated[float, typer.Option(
     "--max-linear-speed", help="bound on the platform origin's speed (m/s)")]
 MaxAngular = Annotated[float, typer.Option(
@@ -46,7 +60,8 @@ PayloadMass = Annotated[float, typer.Option(
     "--payload-mass", help="point mass carried at the platform origin (kg)")]
 PayloadWrench = Annotated[str | None, typer.Option(
     "--payload-wrench", help="constant wrench on the platform 'fx,fy,fz,mx,my,mz' "
-                             "(N, N m, world axes)", show_default=False)]
+                             "(N, N m, world axes; with --robot one value per pose axis)",
+    show_default=False)]
 NoStrokes = Annotated[bool, typer.Option(
     "--no-strokes", help="do not reject poses outside the actuator strokes")]
 
@@ -58,10 +73,17 @@ def _limits(max_force: float | None, max_velocity: float, max_acceleration: floa
                   angular_speed=max_angular, strokes=not no_strokes)
 
 
-def _payload(mass: float, wrench: str | None) -> Payload:
-    values = None if wrench is None else tuple(parse_numbers([wrench], 6, "payload-wrench",
-                                                             "fx fy fz mx my mz"))
-    return Payload(mass=mass, wrench=values)
+def _payload(robot: CliRobot, mass: float, wrench: str | None) -> Payload:
+    """The payload of ``--payload-mass`` and ``--payload-wrench`` (one value per pose axis
+    of the robot, :data:`~hexapod_pin.cli.common.WRENCH_OF`)."""
+    if wrench is None:
+        return Payload(mass=mass)
+    if isinstance(robot, Hexapod):
+        values = parse_numbers([wrench], 6, "payload-wrench", "fx fy fz mx my mz")
+    else:
+        values = parse_numbers([wrench], robot.pose_dim, "payload-wrench",
+                               ", ".join(WRENCH_OF[a] for a in robot.geometry.pose_axes))
+    return Payload(mass=mass, wrench=tuple(values))
 
 
 @guard
@@ -90,25 +112,33 @@ def retime(path_file: Annotated[Path, typer.Argument(
            html: Annotated[Path | None, typer.Option(
                help="write an animated HTML view")] = None,
            as_json: AsJson = False, quiet: Quiet = False,
+           robot: RobotFile = None, platform: PlatformFrame = None, pose_axes: PoseAxes = None,
            geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Fastest timing of the path through the waypoints within the actuator limits
     (time-optimal path parameterisation on the closed-loop inverse dynamics), from rest
-    to rest. The path is C2 through the waypoints, rotations interpolated on SO(3)."""
+    to rest. The path is C2 through the waypoints, rotations interpolated on SO(3).
+
+    With `--robot`: waypoints with one column per pose axis (e.g. `x, z`), the output
+    motion file in its columns (`hexapod-pin id --help`), bounds per actuator in its
+    joint's unit."""
     quiet = quiet or as_json
     check_suffix("out", out, motions.MOTION_SUFFIXES)
     check_suffix("plot", plot, plotting.IMAGE_SUFFIXES)
     check_suffix("html", html, (".html", ".htm"))
-    robot = robot_of(geometry, set_)
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     limits = dataclasses.replace(_limits(max_force, max_velocity, max_acceleration,
                                          max_linear_speed, max_angular_speed, no_strokes),
                                  margin=margin)
-    traj = time_optimal(robot, read_waypoints(path_file), limits=limits,
-                        payload=_payload(payload_mass, payload_wrench), grid_points=grid)
+    planned = as_parallel(bot)
+    waypoints = read_waypoints(path_file) if isinstance(bot, Hexapod) else \
+        read_waypoints(path_file, pose_axes=bot.geometry.pose_axes)
+    traj = time_optimal(planned, waypoints, limits=limits,
+                        payload=_payload(bot, payload_mass, payload_wrench), grid_points=grid)
     timed = traj if rate is None else traj.resample(rate)
     if out is not None:
-        motions.write_motion(out, motions.Motion(
+        write_robot_motion(out, motions.Motion(
             timed.t, timed.poses, timed.twists, timed.twist_dots, q=timed.actuator_positions,
-            actuator_forces=timed.actuator_forces))
+            actuator_forces=timed.actuator_forces), bot)
         note(quiet, f"wrote {out}")
     if plot is not None:
         planning_plots.plot_forces_against_limits(traj, path=plot)
@@ -116,23 +146,43 @@ def retime(path_file: Annotated[Path, typer.Argument(
         planning_plots.plot_phase_plane(traj, path=phase)
         note(quiet, f"wrote {plot} and {phase}")
     if html is not None:
-        hexapod_scenes.write_hexapod_trajectory_html(
-            html, robot, timed.t, timed.poses, carriages=timed.actuator_positions,
-            actuator_forces=timed.actuator_forces,
-            caption=f"time-optimal motion, {traj.duration:.4g} s")
+        _retime_html(html, bot, timed, f"time-optimal motion, {traj.duration:.4g} s",
+                     robot_urdf(bot, robot))
         note(quiet, f"wrote {html}")
+    peak_force = float(np.max(np.abs(traj.actuator_forces)))
+    peak_velocity = float(np.max(np.abs(traj.actuator_velocities)))
+    if isinstance(bot, Hexapod):
+        peaks = {"max_abs_actuator_force_n": peak_force,
+                 "max_abs_actuator_velocity_m_s": peak_velocity}
+    else:                               # N or N m, m/s or rad/s: each actuator its unit
+        peaks = {"max_abs_actuator_force": peak_force,
+                 "max_abs_actuator_velocity": peak_velocity}
     summary = {"duration_s": traj.duration, "grid_points": len(traj.t),
                "samples_written": len(timed.t),
-               "path_length_m": traj.path.length,
-               "max_abs_actuator_force_n": float(np.max(np.abs(traj.actuator_forces))),
-               "max_abs_actuator_velocity_m_s": float(np.max(np.abs(traj.actuator_velocities))),
+               "path_length_m": traj.path.length, **peaks,
                "out": out, "plot": plot, "html": html}
     if as_json:
+        summary.update(robot_fields(bot))
         emit_json(summary)
         return
     console.print(quantity_table("time-optimal retiming", {
         key: f"{value:.6g}" if isinstance(value, float) else str(value)
         for key, value in summary.items() if value is not None}))
+
+
+def _retime_html(html: Path, robot: CliRobot, timed: TimedTrajectory, caption: str,
+                 urdf: Path | None) -> None:
+    """The animation of a retimed motion with its actuator forces: the hexapod's view, or
+    the tree configurations of a loaded robot's poses (``robot.configuration``)."""
+    if isinstance(robot, Hexapod):
+        hexapod_scenes.write_hexapod_trajectory_html(
+            html, robot, timed.t, timed.poses, carriages=timed.actuator_positions,
+            actuator_forces=timed.actuator_forces, caption=caption)
+        return
+    qs = np.array([robot.configuration(pose) for pose in timed.poses])
+    scenes.write_trajectory_html(html, robot, timed.t, qs,
+                                 actuator_forces=timed.actuator_forces, caption=caption,
+                                 urdf=urdf)
 
 
 @guard
@@ -149,15 +199,21 @@ def check(motion_file: Annotated[Path, typer.Argument(
                    "resampled between its grid points may exceed by a fraction of a "
                    "percent)")] = 1e-9,
           as_json: AsJson = False,
+          robot: RobotFile = None, platform: PlatformFrame = None, pose_axes: PoseAxes = None,
           geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """Margins of a timed motion against the limits: the worst sample, and the smallest
     uniform slow-down factor that makes it feasible (< 1: it could run faster). Exit code
-    1 when a limit is violated."""
-    robot = robot_of(geometry, set_)
+    1 when a limit is violated.
+
+    With `--robot`: a motion file in its columns (`hexapod-pin id --help`); a file of
+    another robot is an error naming the columns expected."""
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     limits = _limits(max_force, max_velocity, max_acceleration, max_linear_speed,
                      max_angular_speed, no_strokes)
-    report = check_feasibility(robot, motion_file, limits=limits,
-                               payload=_payload(payload_mass, payload_wrench),
+    motion: Path | motions.Motion = motion_file if isinstance(bot, Hexapod) else \
+        read_robot_motion(motion_file, bot)
+    report = check_feasibility(as_parallel(bot), motion, limits=limits,
+                               payload=_payload(bot, payload_mass, payload_wrench),
                                tolerance=tolerance)
     largest = {key: float(np.max(report.values[key] / report.bounds[key]))
                for key in report.values if np.any(np.isfinite(report.bounds[key]))}
@@ -166,7 +222,7 @@ def check(motion_file: Annotated[Path, typer.Argument(
                "largest_ratio_to_limit": largest,
                "samples_outside_strokes": int(np.sum(~report.within_stroke))}
     if as_json:
-        emit_json(summary)
+        emit_json({**summary, **robot_fields(bot)})
     else:
         rows = {"feasible": str(report.feasible),
                 "uniform slow-down factor": f"{report.slow_down:.6g}"}

@@ -25,6 +25,7 @@ from .common import (
     SetFields,
     Values,
     actuators_in,
+    as_parallel,
     check_suffix,
     emit_json,
     fmt,
@@ -36,6 +37,7 @@ from .common import (
     pose_in,
     pose_out,
     progress_bar,
+    read_robot_motion,
     robot_fields,
     robot_of,
     robot_pose_in,
@@ -74,7 +76,8 @@ def view(values: Values = None,
     carriage positions, all assembly modes, or an animated motion.
 
     With `--robot`: a pose in its pose axes (default home), the pose of its actuator
-    positions (`-c`), or its assembly modes (`--modes`)."""
+    positions (`-c`), its assembly modes (`--modes`), or a motion file in its columns
+    (`--trajectory`, see `hexapod-pin id --help`)."""
     quiet = quiet or as_json
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     check_suffix("out", out, (".html", ".htm"))
@@ -82,11 +85,15 @@ def view(values: Values = None,
     if sum([trajectory is not None, circle is not None, bool(values) or carriages]) > 1:
         raise InputError("view", values, "give one of: values, --trajectory, --circle")
     if isinstance(bot, ClosedLoopRobot):
-        hexapod_only(bot, trajectory=trajectory, circle=circle)
+        hexapod_only(bot, circle=circle)
         if out == Path("hexapod.html"):
             out = Path(f"{Path(bot.geometry.name).stem}.html")
-        detail = _view_loaded(out, bot, values, carriages, all_modes, layout, forces,
-                              no_limits, degrees, quiet, robot_urdf(bot, robot))
+        if trajectory is not None:
+            detail = _view_loaded_motion(out, bot, trajectory, forces, fps, quiet,
+                                         robot_urdf(bot, robot))
+        else:
+            detail = _view_loaded(out, bot, values, carriages, all_modes, layout, forces,
+                                  no_limits, degrees, quiet, robot_urdf(bot, robot))
         note(quiet, f"wrote {out}")
         if as_json:
             emit_json({"html": out, **detail, **robot_fields(bot)})
@@ -151,6 +158,29 @@ def _view_loaded(out: Path, robot: ClosedLoopRobot, values: list[str] | None,
                                closure_forces=closures, caption=caption, urdf=urdf)
     return {"kind": "pose", "pose": robot_pose_out(robot, pose, degrees),
             "q": robot.actuator_positions(q_tree)}
+
+
+def _view_loaded_motion(out: Path, robot: ClosedLoopRobot, path: Path, forces: bool,
+                        fps: float, quiet: bool, urdf: Path | None) -> dict:
+    """``view --trajectory --robot``: the animation of a motion file of the robot, its
+    tree configurations those of the poses (``robot.configuration``, the home working
+    mode); with ``forces``, the file's actuator forces, or those of inverse dynamics
+    (with the closure forces) when it has none."""
+    motion = read_robot_motion(path, robot)
+    tau = closures = None
+    if forces:
+        tau = motion.actuator_forces
+        if tau is None:
+            with progress_bar(quiet, "inverse dynamics", total=len(motion.t)) as progress:
+                tau, closures = motions.inverse_dynamics_along(
+                    as_parallel(robot), motion, progress=progress)
+    qs = np.array([robot.configuration(pose) for pose in motion.poses])
+    span = float(motion.t[-1] - motion.t[0])
+    with progress_bar(quiet, "writing HTML"):
+        scenes.write_trajectory_html(out, robot, motion.t, qs, actuator_forces=tau,
+                                     closure_forces=closures, fps=fps, urdf=urdf,
+                                     caption=f"{robot.geometry.name}: {path}, {span:g} s")
+    return {"kind": "trajectory", "samples": len(motion.t), "duration_s": span}
 
 
 def _view_motion(out: Path, robot: Hexapod, motion: motions.Motion, forces: bool, fps: float,

@@ -156,7 +156,8 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
         backend: "tree" (default: the Pinocchio tree with its closures, every robot) or
             "compiled": the robot's own compiled simulator, named by its class attribute
             ``COMPILED_SIMULATOR`` (``"module:function"``; the hexapod's integrates in
-            platform coordinates, :func:`hexapod_pin.hexapod.compiled_backend.compiled_trajectory`),
+            platform coordinates,
+            :func:`hexapod_pin.hexapod.compiled_backend.compiled_trajectory`),
             from home at rest under constant actuator forces (no controller, force
             function or ``initial``; ``method`` and ``projection_tol`` do not apply), the
             same :class:`Trajectory` returned.

@@ -3,7 +3,9 @@ four-bar (its loops file names the platform: ``--robot PATH`` alone), a five-bar
 example-parallel-robots folder, ``--platform end_1 --pose-axes x,z``) and a Gough-Stewart
 platform. Answers are checked against independent routes: the Stewart platform's
 leg-length closed form, finite differences of the inverse kinematics and of the potential
-energy, forward dynamics against inverse dynamics, the energy balance of a simulation."""
+energy, forward dynamics against inverse dynamics, the energy balance of a simulation;
+motion files (``id``, ``retime``, ``check``, ``view --trajectory``, ``simulate --out``)
+against the robot's own inverse dynamics and simulation at their samples."""
 
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 import hexapod_pin as hp
+from hexapod_pin.motion import read_motion
 from hexapod_pin.cli import app
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -298,7 +301,200 @@ def test_options_of_the_hexapod_are_usage_errors(tmp_path):
                    "--robot")
 
 
+def test_view_circle_is_an_option_of_the_hexapod():
+    one_line_error(invoke("view", "--circle", "0.01", *OPTIONS["four_bar"][0]), 2, "--circle")
+
+
 def test_errors_as_json():
     result = invoke("ik", "0.3", *OPTIONS["five_bar"][0], "--json")
     assert result.exit_code == 1
     assert json.loads(result.stdout)["error"]["type"] == "InputError"
+
+
+# -- motion files: id, retime, check, view --trajectory, simulate --out -------------------
+#: a translation of each robot's platform about home: amplitude (m) per pose axis; the
+#: Stewart platform keeps its orientation, so the twist is the pose's derivative
+AMPLITUDES = {"four_bar": [0.002], "five_bar": [0.004, -0.003],
+              "stewart": [0.004, -0.003, 0.002, 0.0, 0.0, 0.0]}
+
+
+def sine_motion(robot, name: str, n: int = 41, period: float = 1.0) -> dict:
+    """Samples of ``home + A sin(w t)`` with their exact rates, written independently of
+    hexapod_pin.motion: columns t, the pose axes, their twists and derivatives."""
+    t = np.linspace(0.0, 0.5, n)
+    w = 2 * np.pi / period
+    amp = np.array(AMPLITUDES[name])
+    return {"t": t, "poses": robot.home_pose + np.sin(w * t)[:, None] * amp,
+            "twists": w * np.cos(w * t)[:, None] * amp,
+            "twist_dots": -w * w * np.sin(w * t)[:, None] * amp}
+
+
+TWIST_DOT_OF = {"x": "ax", "y": "ay", "z": "az", "roll": "alphax", "pitch": "alphay",
+                "yaw": "alphaz"}
+
+
+def write_csv(path: Path, robot, samples: dict, rates: bool = True) -> Path:
+    axes = robot.geometry.pose_axes
+    names = ["t", *axes]
+    blocks = [samples["t"][:, None], samples["poses"]]
+    if rates:
+        names += [f"v{a}" if a in "xyz" else "w" + {"roll": "x", "pitch": "y", "yaw": "z"}[a]
+                  for a in axes] + [TWIST_DOT_OF[a] for a in axes]
+        blocks += [samples["twists"], samples["twist_dots"]]
+    np.savetxt(path, np.hstack(blocks), delimiter=",", header=",".join(names), comments="")
+    return path
+
+
+@pytest.mark.parametrize("name", OPTIONS)
+def test_id_is_the_inverse_dynamics_at_the_samples(tmp_path, robots, name):
+    robot = robots[name]
+    samples = sine_motion(robot, name)
+    motion_file = write_csv(tmp_path / "motion.csv", robot, samples)
+    out = ok_json("id", name, motion_file, "--out", tmp_path / "forces.csv")
+    expected = np.array([robot.inverse_dynamics(p, v, a).actuator_forces for p, v, a in
+                         zip(samples["poses"], samples["twists"], samples["twist_dots"])])
+    assert out["actuators"] == list(robot.model.actuated_joints)
+    np.testing.assert_allclose(out["actuator_forces"], expected, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(out["max_abs_actuator_forces"], np.abs(expected).max(0),
+                               rtol=1e-9, atol=1e-9)
+    back = read_motion(tmp_path / "forces.csv", robot)
+    np.testing.assert_allclose(back.actuator_forces, expected, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(back.poses, samples["poses"], atol=1e-15)
+    table = invoke("id", motion_file, *OPTIONS[name][0])
+    assert table.exit_code == 0 and robot.model.actuated_joints[0] in table.stdout
+
+
+def test_id_differentiates_the_poses_of_a_file_without_rates(tmp_path, robots):
+    """Poses only: the rates by finite differences agree with the exact ones in the
+    interior to O(h^2)."""
+    robot = robots["five_bar"]
+    samples = sine_motion(robot, "five_bar", n=201)
+    out = ok_json("id", "five_bar", write_csv(tmp_path / "poses.csv", robot, samples,
+                                              rates=False))
+    expected = np.array([robot.inverse_dynamics(p, v, a).actuator_forces for p, v, a in
+                         zip(samples["poses"], samples["twists"], samples["twist_dots"])])
+    np.testing.assert_allclose(np.array(out["actuator_forces"])[5:-5], expected[5:-5],
+                               rtol=1e-3, atol=1e-3)
+
+
+FIVE_BAR_WAYPOINTS = "x,z\n0.333,-0.050\n0.343,-0.045\n0.350,-0.055\n"
+
+
+def test_retime_stays_within_the_force_bound_and_check_agrees(tmp_path, robots):
+    robot = robots["five_bar"]
+    waypoints = tmp_path / "waypoints.csv"
+    waypoints.write_text(FIVE_BAR_WAYPOINTS)
+    timed, html = tmp_path / "timed.csv", tmp_path / "timed.html"
+    out = ok_json("retime", "five_bar", waypoints, "--max-force", "20", "--grid", "100",
+                  "--out", timed, "--html", html)
+    assert out["duration_s"] > 0 and out["pose_axes"] == ["x", "z"]
+    motion = read_motion(timed, robot)
+    np.testing.assert_allclose(motion.poses[[0, -1]], [[0.333, -0.050], [0.350, -0.055]],
+                               atol=1e-12)
+    np.testing.assert_allclose(motion.twists[[0, -1]], 0.0, atol=1e-9)     # rest to rest
+    # the forces of the file are the robot's inverse dynamics at its samples, within the bound
+    forces = np.array([robot.inverse_dynamics(p, v, a, bounded=False).actuator_forces
+                       for p, v, a in zip(motion.poses, motion.twists, motion.twist_dots)])
+    np.testing.assert_allclose(motion.actuator_forces, forces, rtol=1e-8, atol=1e-8)
+    assert np.abs(forces).max() <= 20 * (1 + 1e-6)
+    assert np.abs(forces).max() > 0.9 * 20                 # time-optimal: a bound is active
+    np.testing.assert_allclose(motion.q, [robot.inverse_kinematics(p) for p in motion.poses],
+                               atol=1e-9)
+    np.testing.assert_allclose(motion.twists[1:-1], np.gradient(
+        motion.poses, motion.t, axis=0)[1:-1], rtol=0.05, atol=0.02)
+    assert "proximal_1" in object_paths(html)
+    check = ok_json("check", "five_bar", timed, "--max-force", "20", "--tolerance", "1e-6")
+    assert check["feasible"] and check["samples"] == len(motion.t)
+    assert check["slow_down"] == pytest.approx(1.0, abs=1e-3)
+    tight = invoke("check", timed, "--max-force", "10", *OPTIONS["five_bar"][0], "--json")
+    assert tight.exit_code == 1 and json.loads(tight.stdout)["feasible"] is False
+
+
+def test_check_of_a_slow_motion_finds_its_slow_down(tmp_path, robots):
+    """The slow-down factor k of a motion run k times faster (twists / k, their
+    derivatives / k^2) puts the largest force on its bound."""
+    robot = robots["four_bar"]
+    samples = sine_motion(robot, "four_bar")
+    out = ok_json("check", "four_bar", write_csv(tmp_path / "slow.csv", robot, samples))
+    bound = robot.geometry.max_actuator_force
+
+    def peak(k: float) -> float:
+        return max(np.abs(robot.inverse_dynamics(p, v / k, a / k ** 2, bounded=False)
+                          .actuator_forces).max() for p, v, a in
+                   zip(samples["poses"], samples["twists"], samples["twist_dots"]))
+
+    assert out["feasible"] and 0 < out["slow_down"] < 1.0
+    assert out["largest_ratio_to_limit"]["actuator_force"] == pytest.approx(
+        peak(1.0) / bound, rel=1e-9)
+    assert peak(out["slow_down"]) == pytest.approx(bound, rel=1e-6)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".json"])
+def test_simulate_out_is_the_trajectory(tmp_path, robots, suffix):
+    robot = robots["four_bar"]
+    path, plot = tmp_path / f"sim{suffix}", tmp_path / "sim.png"
+    out = ok_json("simulate", "four_bar", "--duration", "0.1", "--out", path, "--plot", plot)
+    assert out["status"] == "completed" and out["out"] == str(path)
+    traj = hp.simulate(robot, 0.1, 1e-3, actuator_forces=np.zeros(robot.n_actuators))
+    motion = read_motion(path, robot)
+    np.testing.assert_allclose(motion.t, traj.times, atol=1e-15)
+    np.testing.assert_allclose(motion.poses, traj.poses, atol=1e-13)
+    np.testing.assert_allclose(motion.twists, traj.twists, atol=1e-12)
+    np.testing.assert_allclose(motion.q, traj.actuator_positions, atol=1e-13)
+    np.testing.assert_allclose(motion.actuator_forces, traj.actuator_forces, atol=1e-13)
+    np.testing.assert_allclose(motion.closure_residual, traj.closure_residual, atol=1e-15)
+    # the actuator positions are those of the poses (forward kinematics of the crank)
+    np.testing.assert_allclose([robot.inverse_kinematics(p) for p in motion.poses[::20]],
+                               motion.q[::20], atol=1e-8)
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("name,links", [("five_bar", ("proximal_1", "distal_2")),
+                                        ("stewart", ("platform", "leg_0_upper"))])
+def test_view_trajectory_draws_the_robot_along_the_motion(tmp_path, robots, name, links):
+    robot = robots[name]
+    motion_file = write_csv(tmp_path / "motion.csv", robot, sine_motion(robot, name),
+                            rates=False)
+    html = tmp_path / "motion.html"
+    out = ok_json("view", name, "--trajectory", motion_file, "--forces", "-o", html)
+    assert out["kind"] == "trajectory" and out["samples"] == 41
+    assert out["duration_s"] == pytest.approx(0.5)
+    paths = object_paths(html)
+    for link in links:
+        assert link in paths, link
+    assert "animations" in html.read_text().lower()
+
+
+def hexapod_motion_file(tmp_path: Path) -> Path:
+    """A motion file of the hexapod (its 6 pose columns, q0..q5, tau0..tau5)."""
+    result = invoke("simulate", "--duration", "0.02", "--out", tmp_path / "hexapod.csv",
+                    "--quiet")
+    assert result.exit_code == 0, result.output
+    return tmp_path / "hexapod.csv"
+
+
+@pytest.mark.parametrize("command", ["id", "check", "view"])
+def test_a_motion_file_of_another_robot_names_the_columns_expected(tmp_path, command):
+    """A hexapod file has x and z columns, q0 and q1: the five-bar refuses it rather than
+    reading those and ignoring the rest."""
+    hexapod_csv = hexapod_motion_file(tmp_path)
+    args = {"id": [hexapod_csv], "check": [hexapod_csv],
+            "view": ["--trajectory", hexapod_csv, "-o", tmp_path / "v.html"]}[command]
+    result = invoke(command, *args, *OPTIONS["five_bar"][0])
+    one_line_error(result, 1, "five_bar_3d", "expected columns t, x, z", "q0, q1",
+                   "roll, pitch, yaw")
+    assert not (tmp_path / "v.html").exists()
+
+
+def test_a_motion_file_of_another_width_names_the_columns_expected(tmp_path, robots):
+    pose = np.tile(robots["stewart"].home_pose, (3, 1))
+    as_json = tmp_path / "stewart.json"
+    as_json.write_text(json.dumps({"t": [0.0, 0.1, 0.2], "pose": pose.tolist()}))
+    one_line_error(invoke("id", as_json, *OPTIONS["five_bar"][0]), 1,
+                   "expected columns t, x, z", "(3, 2)")
+    five_bar_csv = write_csv(tmp_path / "five.csv", robots["five_bar"],
+                             sine_motion(robots["five_bar"], "five_bar"))
+    one_line_error(invoke("id", five_bar_csv, *OPTIONS["four_bar"][0]), 1,
+                   "expected columns t, x;", "z")
+    one_line_error(invoke("id", five_bar_csv, *OPTIONS["stewart"][0]), 1,
+                   "missing columns y, roll, pitch, yaw")
