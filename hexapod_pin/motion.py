@@ -43,7 +43,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -145,21 +145,33 @@ class Motion:
         return self
 
     @classmethod
-    def from_trajectory(cls, trajectory: simulation.Trajectory | FastTrajectory) -> Motion:
-        """The samples of a simulation result: times, poses, twists, actuator
-        positions and forces, closure residual (its max abs per sample; None for a
-        :class:`~hexapod_pin.hexapod.fast.FastTrajectory`, which integrates in platform
-        coordinates where the closures hold by construction)."""
+    def from_trajectory(cls, trajectory: simulation.Trajectory | FastTrajectory | Any
+                        ) -> Motion:
+        """The samples of a simulation result (the hexapod's, or the generic
+        :class:`~hexapod_pin.core.simulate.Trajectory` of any robot): times, poses,
+        twists, actuator positions and forces, closure residual (its max abs per sample;
+        None for a :class:`~hexapod_pin.hexapod.fast.FastTrajectory`, which integrates in
+        platform coordinates where the closures hold by construction).
+
+        Raises:
+            InputError: a run without platform poses (a bare model's).
+        """
         residual = getattr(trajectory, "closure_residual", None)
         if residual is not None:
             residual = np.asarray(residual, dtype=float)
             if residual.ndim == 2:
                 residual = np.max(np.abs(residual), axis=1)
             residual = np.abs(residual)
+        if trajectory.poses is None or trajectory.twists is None:
+            raise InputError("trajectory", trajectory, "a run of a bare ClosedLoopModel has "
+                             "no platform poses: a motion needs a robot's run")
+        # the generic hexapod_pin.simulate Trajectory keeps the tree q apart from the
+        # actuator positions; the hexapod's own results call the carriage positions q
+        actuators = getattr(trajectory, "actuator_positions", None)
         return cls(np.asarray(trajectory.times, dtype=float),
                    np.asarray(trajectory.poses, dtype=float),
                    twists=np.asarray(trajectory.twists, dtype=float),
-                   q=np.asarray(trajectory.q, dtype=float),
+                   q=np.asarray(trajectory.q if actuators is None else actuators, dtype=float),
                    actuator_forces=np.asarray(trajectory.actuator_forces, dtype=float),
                    closure_residual=residual)
 
