@@ -1,4 +1,5 @@
-"""Shared fixtures: the default hexapod, a second geometry, the reference states."""
+"""Shared fixtures: the robots of ``tests/robot_registry.py`` (the default hexapod, a second
+geometry, each robot of the shared suites), the reference states."""
 
 import json
 from pathlib import Path
@@ -9,25 +10,32 @@ import pytest
 
 import hexapod_pin as hp
 from hexapod_pin.core.dynamics import forward_dynamics_tree
+import robot_registry
+from robot_registry import SECOND_GEOMETRY  # noqa: F401 (imported from here by the tests)
 
-SECOND_GEOMETRY = dict(rail_radius=0.40, platform_radius=0.10, leg_length=0.50, carriage_home=0.18)
 # copy of shared/reference/reference_states.json (states computed by an independent implementation)
 REFERENCE = Path(__file__).resolve().parent / "data" / "reference_states.json"
 
 
 @pytest.fixture(scope="session")
 def robot():
-    return hp.Hexapod.default()
+    return robot_registry.get("hexapod")
 
 
 @pytest.fixture(scope="session")
 def robot2():
-    return hp.Hexapod(hp.HexapodGeometry(**SECOND_GEOMETRY))
+    return robot_registry.get("hexapod-second")
 
 
 @pytest.fixture(scope="session", params=["default", "second"])
 def any_robot(request, robot, robot2):
     return robot if request.param == "default" else robot2
+
+
+@pytest.fixture(scope="module", params=robot_registry.names("shared"))
+def shared_robot(request):
+    """Each robot of the shared suites in turn (``robot_registry.names("shared")``)."""
+    return robot_registry.get(request.param)
 
 
 @pytest.fixture

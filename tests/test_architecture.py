@@ -4,6 +4,9 @@
   (function-local ones included: a local import must not hide a cycle);
 * ``hexapod_pin/core`` imports no robot package, no viewer and no command line;
 * robots do not import each other, and nothing below ``cli`` imports ``cli``;
+* every import between the package's parts (subpackages and top-level modules) is allowed
+  by one table, :data:`LAYOUT` (part -> parts it may import, after the README's layout),
+  or is one of the few module edges of :data:`EXCEPTIONS`;
 * no private name (leading underscore) is imported from another module of the package;
 * the library never prints.
 """
@@ -71,6 +74,88 @@ def _edges(module: str) -> set[str]:
             out.add(target)
     out.discard(module)
     return {m for m in out if m in MODULES}
+
+
+#: part of the package -> the parts it may import (its own modules are always allowed).
+#: A part is a subpackage, a top-level module, ``hexapod_pin`` (the package's __init__) or
+#: ``__main__``. Data flow one way: core -> robots and loaders -> the rest -> cli.
+_ALL = {"errors", "core", "hexapod", "planar", "loaders", "planning", "calibration", "viz",
+        "files", "motion"}
+LAYOUT: dict[str, set[str]] = {
+    "errors": set(),
+    "core": {"errors"},
+    "hexapod": {"core", "errors"},
+    "planar": {"core", "errors"},
+    "loaders": {"core", "errors"},
+    "planning": {"core", "errors"},
+    "calibration": {"core", "hexapod", "errors"},
+    "viz": {"core", "errors"},
+    "files": {"core", "hexapod", "errors"},             # geometry files (HexapodGeometry)
+    "motion": {"core", "hexapod", "files", "errors"},   # motion files, the hexapod's circle
+    "hexapod_pin": _ALL,                                # the public names, no cli
+    "cli": _ALL | {"hexapod_pin"},
+    "__main__": {"cli"},
+}
+#: module -> module edges outside LAYOUT that the code has today (issue 26, item 7: to be
+#: moved or accepted into the table); a new edge of the same kind fails the test.
+EXCEPTIONS: set[tuple[str, str]] = {
+    ("hexapod_pin.planning.feasibility", "hexapod_pin.motion"),          # reads motion files
+    ("hexapod_pin.calibration.measurements", "hexapod_pin.files"),       # write_text_atomic
+    ("hexapod_pin.calibration.plots", "hexapod_pin.viz.plotting"),       # figure helpers
+    ("hexapod_pin.viz.meshcat_scene", "hexapod_pin.files"),              # write_text_atomic
+    ("hexapod_pin.viz.workspace_plots", "hexapod_pin.hexapod.workspace"),  # WorkspaceMaps
+    ("hexapod_pin.viz.planning_plots", "hexapod_pin.planning.trajectory"),  # TimedTrajectory
+}
+
+
+def part(module: str) -> str:
+    """The part of the package a module belongs to (``hexapod_pin.core.pose`` -> ``core``)."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else parts[0]
+
+
+def layout_violations(graph: dict[str, set[str]], layout: dict[str, set[str]],
+                      exceptions: set[tuple[str, str]]) -> list[tuple[str, str]]:
+    """The edges of the module import ``graph`` that ``layout`` forbids and ``exceptions``
+    does not list; a module of a part missing from ``layout`` may import no other part."""
+    return sorted((src, dst) for src, targets in graph.items() for dst in targets
+                  if part(dst) != part(src) and part(dst) not in layout.get(part(src), set())
+                  and (src, dst) not in exceptions)
+
+
+def test_the_layout_table_names_every_part():
+    assert {part(m) for m in MODULES} == set(LAYOUT)
+    assert set().union(*LAYOUT.values()) <= set(LAYOUT)
+
+
+@pytest.mark.parametrize("name", sorted(LAYOUT))
+def test_imports_follow_the_layout_table(name):
+    graph = {m: _edges(m) for m in MODULES if part(m) == name}
+    bad = layout_violations(graph, LAYOUT, EXCEPTIONS)
+    assert not bad, f"{name} may import only {sorted(LAYOUT[name])}: {bad}"
+
+
+def test_every_exception_is_still_an_import():
+    """An exception that the code no longer has is removed from the list, not kept."""
+    stale = [(src, dst) for src, dst in sorted(EXCEPTIONS) if dst not in _edges(src)]
+    assert not stale, f"no longer imported: {stale}"
+
+
+def test_the_layout_check_finds_a_forbidden_edge():
+    """A test that cannot fail is a defect: planted edges against a small table."""
+    layout = {"core": {"errors"}, "errors": set(), "viz": {"core"}}
+    graph = {"hexapod_pin.core.a": {"hexapod_pin.core.b", "hexapod_pin.errors"},
+             "hexapod_pin.viz.v": {"hexapod_pin.core.a", "hexapod_pin.hexapod.h"},
+             "hexapod_pin.errors": set()}
+    assert layout_violations(graph, layout, set()) == [("hexapod_pin.viz.v",
+                                                        "hexapod_pin.hexapod.h")]
+    assert layout_violations(graph, layout, {("hexapod_pin.viz.v", "hexapod_pin.hexapod.h")}) == []
+    graph["hexapod_pin.core.a"].add("hexapod_pin.viz.v")             # core reaching up
+    graph["hexapod_pin.newpkg.m"] = {"hexapod_pin.core.a"}           # a part not in the table
+    assert layout_violations(graph, layout, set()) == [
+        ("hexapod_pin.core.a", "hexapod_pin.viz.v"),
+        ("hexapod_pin.newpkg.m", "hexapod_pin.core.a"),
+        ("hexapod_pin.viz.v", "hexapod_pin.hexapod.h")]
 
 
 def test_the_layout_exists():

@@ -27,13 +27,14 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 import hexapod_pin as hp
+import robot_registry
 from hexapod_pin.cli import app
 from hexapod_pin.core.description import build_model
 from hexapod_pin.core.measures import ACCURACY
 from hexapod_pin.hexapod.fast import simulate_fast
 from hexapod_pin.hexapod.simulation import simulate
 
-ROBOTS = {"hexapod": hp.Hexapod.default(), "planar": hp.Planar3PRR.default()}
+ROBOTS = {name: robot_registry.get(name) for name in robot_registry.names("closed_form")}
 PROFILE = settings(max_examples=60, deadline=None, database=None, derandomize=True,
                    suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow])
 SMALL = settings(PROFILE, max_examples=25)

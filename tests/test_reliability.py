@@ -28,7 +28,7 @@ from hexapod_pin.motion import circle_reference
 TYPE_I_HEIGHT = math.sqrt(0.45 ** 2 - 0.23 ** 2)
 TWIST = np.array([0.05, -0.02, 0.03, 0.1, -0.2, 0.15])
 TWIST_DOT = np.array([0.5, -0.3, 1.0, 0.8, -1.0, 0.5])
-# a type-II pose of the default hexapod (tests/test_kinematics.py) and of the 3-PRR (issue)
+# a type-II pose of the default hexapod (tests/hexapod/test_kinematics.py) and of the 3-PRR (issue)
 HEX_TYPE_II = np.array([-0.020475341567368716, -0.013968434364764802, 0.31024850589967956,
                         0.2754338045906446, -0.7399207239621679, -0.13470940466330802])
 PLANAR_TYPE_II = np.array([0.0020209507676428916, 0.002521242674892949, 0.5855816720810173])

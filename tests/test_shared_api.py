@@ -6,7 +6,8 @@ loaded from descriptions as ``hp.ClosedLoopRobot``: a 6-UPS Gough-Stewart platfo
 planar five-bar and a 3-RUU delta from ``tests/data``): the same names, signatures and
 result types, and round trips checked against independent routes (the Pinocchio tree
 routes, finite differences, the platform's own Newton-Euler written here from Pinocchio's
-body inertia). A new robot joins every test with one line in ``ROBOTS``.
+body inertia). The robots are those of ``robot_registry.names("shared")``
+(``tests/robot_registry.py``): a new robot joins every test with one line there.
 """
 
 from __future__ import annotations
@@ -23,8 +24,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hexapod_pin as hp
-from pathlib import Path
-
+import robot_registry
 from hexapod_pin.core import results as shared
 from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
 from hexapod_pin.core.pose import rotation_from_rpy, rpy_from_rotation
@@ -34,33 +34,11 @@ from hexapod_pin.errors import (ActuatorSaturationError, BatchActuatorSaturation
                                 BatchUnreachablePoseError, SingularityError,
                                 StrokeLimitError, UnreachablePoseError)
 
-ROBOTS = {
-    "hexapod": lambda: hp.Hexapod.default(),
-    "hexapod-other": lambda: hp.Hexapod(dataclasses.replace(
-        hp.HexapodGeometry(), platform_mass=1.7, leg_mass=0.15)),
-    "planar": lambda: hp.Planar3PRR.default(),
-    "planar-other": lambda: hp.Planar3PRR(hp.PlanarGeometry(
-        rail_radius=0.4, platform_radius=0.15, link_length=0.33, slider_mass=0.7,
-        link_mass=0.35, platform_mass=1.6, platform_inertia=0.005, gravity=9.5)),
-    "stewart": lambda: hp.load_robot(DATA / "stewart" / "stewart.urdf"),
-    "five-bar": lambda: hp.load_robot(DATA / "parallel" / "five_bar_3d", platform="end_1",
-                                      pose_axes=("x", "z")),
-    "delta": lambda: hp.load_robot(DATA / "parallel" / "delta", platform="platform_center",
-                                   pose_axes=("x", "y", "z")),
-}
-_CACHE: dict = {}
-DATA = Path(__file__).resolve().parent / "data"
 
-
-def _robot(name):
-    if name not in _CACHE:
-        _CACHE[name] = ROBOTS[name]()
-    return _CACHE[name]
-
-
-@pytest.fixture(scope="module", params=sorted(ROBOTS))
-def robot(request):
-    return _robot(request.param)
+@pytest.fixture(scope="module")
+def robot(shared_robot):
+    """Each robot of ``robot_registry.names("shared")`` in turn."""
+    return shared_robot
 
 
 # -- helpers -------------------------------------------------------------------------------
@@ -533,9 +511,9 @@ def test_batch_errors_name_the_first_bad_state(robot):
 
 
 @settings(max_examples=15, deadline=None)
-@given(which=st.sampled_from(sorted(ROBOTS)), seed=st.integers(0, 2 ** 16))
+@given(which=st.sampled_from(robot_registry.names("shared")), seed=st.integers(0, 2 ** 16))
 def test_batch_equals_single_hypothesis(which, seed):
-    robot = _robot(which)
+    robot = robot_registry.get(which)
     pose, twist, twist_dot, wrench = states(robot, 1, seed)[0]
     bid = robot.inverse_dynamics_batch(pose[None], twist[None], twist_dot[None], wrench[None])
     res = robot.inverse_dynamics(pose, twist, twist_dot, wrench)

@@ -4,7 +4,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_kinematics.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_kinematics.py"
 
 
 def test_bench_kinematics_smoke():

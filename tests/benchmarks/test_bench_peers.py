@@ -16,7 +16,7 @@ import pytest
 
 from conftest import geometry_from_reference, import_benchmarks, load_reference
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "benchmarks"
 HAVE_MUJOCO = importlib.util.find_spec("mujoco") is not None
 

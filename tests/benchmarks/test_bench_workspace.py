@@ -2,7 +2,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-BENCH = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_workspace.py"
+BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_workspace.py"
 
 
 def test_workspace_benchmark_smoke_run_agrees():

@@ -18,7 +18,7 @@ mujoco = pytest.importorskip("mujoco")
 
 from hexapod_pin.planar.robot import Planar3PRR, PlanarGeometry
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "benchmarks"
 
 

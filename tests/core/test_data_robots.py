@@ -12,7 +12,7 @@ import pytest
 
 import hexapod_pin as hp
 
-DATA = Path(__file__).resolve().parent / "data"
+DATA = Path(__file__).resolve().parents[1] / "data"
 
 # -- Stewart platform (6-UPS) constants, tests/data/stewart/README.md -----------------------
 BASE_RADIUS, PLATFORM_RADIUS, HOME_Z = 0.5, 0.3, 0.6

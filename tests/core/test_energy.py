@@ -17,12 +17,13 @@ import pinocchio as pin
 import pytest
 
 import hexapod_pin as hp
+import robot_registry
 from hexapod_pin.core.energy import body_names, model_energies
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "parallel"
 MODELS = {
-    "hexapod": lambda: hp.Hexapod.default().model,
-    "planar": lambda: hp.Planar3PRR.default().model,
+    **{name: (lambda name=name: robot_registry.get(name).model)
+       for name in robot_registry.names("closed_form")},
     "five_bar": lambda: hp.load_parallel_robot(DATA / "five_bar_3d"),
 }
 

@@ -456,7 +456,7 @@ def test_example_runs(script, expected, capsys):
     import runpy
     from pathlib import Path
 
-    runpy.run_path(str(Path(__file__).resolve().parent.parent / "examples" / script),
+    runpy.run_path(str(Path(__file__).resolve().parents[2] / "examples" / script),
                    run_name="__main__")
     out = capsys.readouterr().out
     assert expected in out

@@ -19,6 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import hexapod_pin as hp
+import robot_registry
 from hexapod_pin.core import simulate as simulate_module
 from hexapod_pin.core.controllers import ActuatorPID, ComputedTorque, SimState, platform_error
 from hexapod_pin.core.pose import rotation_from_rpy
@@ -32,12 +33,12 @@ PROFILE = settings(max_examples=40, deadline=None, database=None, derandomize=Tr
 
 @pytest.fixture(scope="module")
 def hexapod():
-    return hp.Hexapod.default()
+    return robot_registry.get("hexapod")
 
 
 @pytest.fixture(scope="module")
 def planar():
-    return hp.Planar3PRR.default()
+    return robot_registry.get("planar")
 
 
 @pytest.fixture(scope="module")

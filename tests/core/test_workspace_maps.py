@@ -13,8 +13,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import scipy.optimize
@@ -22,12 +20,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import hexapod_pin as hp
+import robot_registry
 from hexapod_pin.core import workspace_maps as wm
 from hexapod_pin.core.pose import rotation_from_rpy
 from hexapod_pin.errors import ArgumentTypeError, InputError, SolverError
 from hexapod_pin.hexapod import workspace as hexapod_workspace
-
-DATA = Path(__file__).resolve().parents[1] / "data"
 
 # the five-bar (tests/data/parallel/five_bar_3d): motors at x = -0.1, 0.1, links 0.25, 0.3
 MOTORS = np.array([[-0.1, 0.0], [0.1, 0.0]])
@@ -42,19 +39,17 @@ LEG_OFFSET, STROKE = 0.65, 0.15
 
 @pytest.fixture(scope="module")
 def five_bar():
-    return hp.load_robot(DATA / "parallel" / "five_bar_3d", platform="end_1",
-                         pose_axes=("x", "z"))
+    return robot_registry.get("five-bar")
 
 
 @pytest.fixture(scope="module")
 def delta():
-    return hp.load_robot(DATA / "parallel" / "delta", platform="platform_center",
-                         pose_axes=("x", "y", "z"))
+    return robot_registry.get("delta")
 
 
 @pytest.fixture(scope="module")
 def stewart():
-    return hp.load_robot(DATA / "stewart" / "stewart.urdf")
+    return robot_registry.get("stewart")
 
 
 @pytest.fixture(scope="module")
@@ -254,7 +249,7 @@ def test_force_capability_is_inf_without_bounds(five_bar, maps):
 # -- the hexapod: the same numbers as its compiled maps --------------------------------------
 @pytest.fixture(scope="module")
 def hexapod():
-    return hp.Hexapod.default()
+    return robot_registry.get("hexapod")
 
 
 def near_home_hexapod(robot, n, seed):
@@ -353,7 +348,7 @@ def test_progress_reports_increasing_fractions(hexapod):
 
 
 def test_works_on_the_planar_robot():
-    robot = hp.Planar3PRR.default()
+    robot = robot_registry.get("planar")
     poses = wm.grid(robot, robot.home_pose, [0.05, 0.05, 0.2], 3)
     m = wm.evaluate(robot, poses)
     assert m.ok.any()

@@ -23,7 +23,7 @@ from hexapod_pin.hexapod import fast
 from hexapod_pin.errors import InputError, SingularityError, StrokeLimitError, UnreachablePoseError
 from hexapod_pin.hexapod.simulation import CircleTrajectory, PIDController, simulate
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

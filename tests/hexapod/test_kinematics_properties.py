@@ -8,10 +8,9 @@ from hypothesis import strategies as st
 import hexapod_pin as hp
 from hexapod_pin.hexapod.kinematics import RAIL_OF
 
-from conftest import SECOND_GEOMETRY
+import robot_registry
 
-ROBOTS = {"default": hp.Hexapod.default(),
-          "second": hp.Hexapod(hp.HexapodGeometry(**SECOND_GEOMETRY))}
+ROBOTS = {"default": robot_registry.get("hexapod"), "second": robot_registry.get("hexapod-second")}
 PROFILE = settings(max_examples=40, deadline=None, database=None,
                    suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow])
 

@@ -11,7 +11,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import scipy.linalg
-from test_robots_sdf import homogeneous
+from test_sdf import homogeneous
 
 from hexapod_pin.loaders import robots
 from conftest import forward_dynamics_full_tau
@@ -245,7 +245,7 @@ def test_example_runs(capsys):
     import runpy
     from pathlib import Path
 
-    runpy.run_path(str(Path(__file__).resolve().parent.parent / "examples" / "cassie_leg.py"),
+    runpy.run_path(str(Path(__file__).resolve().parents[2] / "examples" / "cassie_leg.py"),
                    run_name="__main__")
     out = capsys.readouterr().out
     assert "inverse dynamics recovers the motor torques" in out

@@ -162,7 +162,7 @@ def test_example_runs(capsys):
     import runpy
     from pathlib import Path
 
-    runpy.run_path(str(Path(__file__).resolve().parent.parent / "examples" / "solo12_standing.py"),
+    runpy.run_path(str(Path(__file__).resolve().parents[2] / "examples" / "solo12_standing.py"),
                    run_name="__main__")
     out = capsys.readouterr().out
     assert "sum of vertical contact forces" in out

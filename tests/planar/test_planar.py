@@ -22,8 +22,8 @@ from hexapod_pin.planar.robot import Planar3PRR
 
 from conftest import fd_constraint_jacobian, random_configuration
 
-ROOT = Path(__file__).resolve().parent.parent
-REFERENCE = Path(__file__).resolve().parent / "data" / "reference_states.json"
+ROOT = Path(__file__).resolve().parents[2]
+REFERENCE = Path(__file__).resolve().parents[1] / "data" / "reference_states.json"
 #: a geometry with six real assembly modes at SIX_MODE_S (found by a random search)
 SIX_MODE_GEOMETRY = dict(rail_radius=0.35, platform_radius=0.25, link_length=0.4,
                          rail_half_length=0.6)

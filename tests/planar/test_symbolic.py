@@ -120,7 +120,7 @@ def test_symbolic_and_pinocchio_energies_agree(pair):
 def test_symbolic_statics_match_the_reference_home_state():
     """At rest the Lagrangian model alone (no Pinocchio in the numbers) gives the
     reference state's static forces."""
-    entry = json.loads((Path(__file__).parent / "data" / "reference_states.json")
+    entry = json.loads((Path(__file__).resolve().parents[1] / "data" / "reference_states.json")
                        .read_text())["planar"][0]
     robot = Planar3PRR(PlanarGeometry(**entry["geometry"]))
     sym = PlanarSymbolicDynamics(robot.geometry)

@@ -23,18 +23,19 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import hexapod_pin as hp
+import robot_registry
 from hexapod_pin.core.pose import euler_rates_matrix, rotation_from_rpy
 from hexapod_pin.errors import InfeasiblePathError, InputError
 from hexapod_pin.planning import GeometricPath, Limits, Payload, time_optimal
 from hexapod_pin.planning.feasibility import check_feasibility
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 GRID = 200
 
 
 @pytest.fixture(scope="module")
 def robots():
-    return {"hexapod": hp.Hexapod.default(), "planar": hp.Planar3PRR.default()}
+    return {name: robot_registry.get(name) for name in robot_registry.names("closed_form")}
 
 
 def _heavier(robot, mass):

@@ -15,7 +15,6 @@ written before robots had pose axes.
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,6 +23,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 import hexapod_pin as hp
+import robot_registry
 from hexapod_pin import motion as motions
 from hexapod_pin.core.pose import rotation_from_rpy
 from hexapod_pin.core.robot_api import pose_layout
@@ -31,36 +31,23 @@ from hexapod_pin.errors import DescriptionError, InputError
 from hexapod_pin.planning import (GeometricPath, Limits, Payload, check_feasibility,
                                   read_waypoints, time_optimal)
 
-DATA = Path(__file__).resolve().parents[1] / "data"
 GRID = 120
 
-#: name -> (loader, waypoint offsets from home, pose axes)
+#: robot (of tests/robot_registry.py) -> (waypoint offsets from home, pose axes)
 ROBOTS = {
-    "five-bar": (lambda: hp.load_robot(DATA / "parallel" / "five_bar_3d", platform="end_1",
-                                       pose_axes=("x", "z")),
-                 [[0.0, 0.0], [0.02, 0.01], [-0.01, 0.03]], ("x", "z")),
-    "delta": (lambda: hp.load_robot(DATA / "parallel" / "delta", platform="platform_center",
-                                    pose_axes=("x", "y", "z")),
-              [[0.0, 0.0, 0.0], [0.02, 0.0, 0.01], [0.0, 0.02, -0.01]], ("x", "y", "z")),
-    "stewart": (lambda: hp.load_robot(DATA / "stewart" / "stewart.urdf"),
-                [[0.0] * 6, [0.02, 0.0, 0.01, 0.03, 0.0, 0.05],
+    "five-bar": ([[0.0, 0.0], [0.02, 0.01], [-0.01, 0.03]], ("x", "z")),
+    "delta": ([[0.0, 0.0, 0.0], [0.02, 0.0, 0.01], [0.0, 0.02, -0.01]], ("x", "y", "z")),
+    "stewart": ([[0.0] * 6, [0.02, 0.0, 0.01, 0.03, 0.0, 0.05],
                  [0.0, 0.02, -0.01, 0.0, 0.04, -0.05]],
                 ("x", "y", "z", "roll", "pitch", "yaw")),
-    "four-bar": (lambda: hp.load_robot(DATA / "four_bar" / "four_bar.urdf"),
-                 [[0.0], [0.01], [-0.01]], ("x",)),
+    "four-bar": ([[0.0], [0.01], [-0.01]], ("x",)),
 }
-_CACHE: dict = {}
-
-
-def _robot(name):
-    if name not in _CACHE:
-        _CACHE[name] = ROBOTS[name][0]()
-    return _CACHE[name]
+_robot = robot_registry.get
 
 
 def _waypoints(name):
     robot = _robot(name)
-    return robot.home_pose + np.array(ROBOTS[name][1], dtype=float)
+    return robot.home_pose + np.array(ROBOTS[name][0], dtype=float)
 
 
 def _force_bound(name) -> float:
@@ -117,7 +104,7 @@ def _reference_forces(robot, mass, poses, twists, twist_dots):
 @pytest.mark.parametrize("name", sorted(ROBOTS))
 def test_loaded_robots_have_their_pose_axes(name):
     robot = _robot(name)
-    assert robot.pose_axes == ROBOTS[name][2] == robot.geometry.pose_axes
+    assert robot.pose_axes == ROBOTS[name][1] == robot.geometry.pose_axes
     layout = pose_layout(robot)
     assert len(layout.linear) + len(layout.angular) == robot.pose_dim
     assert layout.full_rotation == (name == "stewart")

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from test_visualize import needs_chromium, render
+from test_scenes import needs_chromium, render
 
 from hexapod_pin.errors import InputError, MissingDependencyError
 from hexapod_pin.hexapod import sweeps
