@@ -9,6 +9,7 @@ functions:
 * ``view``, ``plot`` (:mod:`.views`);
 * ``urdf``, ``mjcf`` (:mod:`.export`);
 * ``retime``, ``check`` (:mod:`.planning`);
+* ``workspace`` (:mod:`.workspace`);
 * ``calibrate`` (:mod:`.calibrate`).
 
 Common options (:mod:`.common`):
@@ -53,7 +54,7 @@ from typing import Annotated
 import typer
 
 from .. import __version__
-from . import calibrate, demo, dynamics, export, kinematics, planning, views
+from . import calibrate, demo, dynamics, export, kinematics, planning, views, workspace
 from .common import NUMBERS, Command, Group
 
 app = typer.Typer(help="Kinematics and dynamics of the rail-driven hexapod.", no_args_is_help=True,
@@ -90,6 +91,7 @@ app.command(cls=Command)(export.urdf)
 app.command(cls=Command)(export.mjcf)
 app.command(cls=Command)(planning.retime)
 app.command(cls=Command)(planning.check)
+app.command(cls=Command)(workspace.workspace)
 app.command(cls=Command, context_settings=NUMBERS)(calibrate.calibrate)
 
 

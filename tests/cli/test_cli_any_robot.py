@@ -498,3 +498,34 @@ def test_a_motion_file_of_another_width_names_the_columns_expected(tmp_path, rob
                    "expected columns t, x;", "z")
     one_line_error(invoke("id", five_bar_csv, *OPTIONS["stewart"][0]), 1,
                    "missing columns y, roll, pitch, yaw")
+
+
+# -- workspace ---------------------------------------------------------------------------------
+def five_bar_reachable(poses: np.ndarray) -> np.ndarray:
+    """Both arms reach (the annulus |L1 - L2| <= |tip - motor| <= L1 + L2, motors at
+    x = -0.1 and 0.1 m, links 0.25 and 0.3 m)."""
+    motors = np.array([[-0.1, 0.0], [0.1, 0.0]])
+    dist = np.linalg.norm(poses[:, None, :] - motors[None], axis=2)
+    return np.all((dist >= 0.05) & (dist <= 0.55), axis=1)
+
+
+def test_workspace_of_a_loaded_robot(robots):
+    """The five-bar in a box that reaches past its arms' reach: the fraction counted is at
+    most the annulus fraction of the same samples (computed here) and near it (the rest is
+    the singular rim and the motors' stroke), and it equals the library's estimate."""
+    robot = robots["five_bar"]
+    out = ok_json("workspace", "five_bar", "--samples", 400, "--half-extent", "0.3,0.3",
+                  "--seed", 3)
+    est = out["estimates"]["workspace"]
+    low, high = np.array(out["low"]), np.array(out["high"])
+    poses = hp.core.workspace_maps.sample_box(robot, 400, low, high, 3)
+    annulus = five_bar_reachable(poses).mean()
+    assert 0.05 < est["fraction"] <= annulus + 1e-12
+    assert est["fraction"] > annulus - 0.15
+    assert out["units"] == "m^2" and out["pose_axes"] == ["x", "z"]
+    ref = hp.core.workspace_maps.volume(robot, 400, low, high, 3)
+    assert est["volume"] == pytest.approx(ref.volume) and est["fraction"] == ref.fraction
+    table = invoke("workspace", *OPTIONS["five_bar"][0], "--samples", 50)
+    assert table.exit_code == 0 and "m^2" in table.stdout
+    one_line_error(invoke("workspace", *OPTIONS["five_bar"][0], "--half-extent", "0.1"),
+                   1, "x, z")
