@@ -82,6 +82,8 @@ from ..core.pose import quaternion_rpy, rotation_quat, rotation_rpy, rpy_of
 from ..errors import (BatchSingularityError, BatchUnreachablePoseError, HexapodPinError,
                       SingularityError, UnreachablePoseError)
 from .geometry import HOME_SIGNS, carriage_frames
+from ..core.kernel_status import (GAP, GIMBAL, NONFINITE, NOT_PD, OK, SATURATED, STROKE,
+                                  TYPE_I, TYPE_II, UNREACHABLE)  # one numbering: every robot
 
 #: the home IK branch: even carriages on the smaller root
 HOME_BRANCH = HOME_SIGNS
@@ -93,8 +95,6 @@ GIMBAL_TOL = 1e-10
 #: relative slack of the actuator bounds
 BOUND_RTOL = 1e-9
 
-#: status codes of the kernels
-OK, UNREACHABLE, TYPE_I, GIMBAL, TYPE_II, NOT_PD, NONFINITE, STROKE, GAP, SATURATED = range(10)
 
 # -- packed geometry: per carriage i a block of BLOCK values at BLOCK i, then scalars ---
 # M (line point with the sensor offset folded in), the carriage frame (u, l, w), the

@@ -55,12 +55,12 @@ import numpy as np
 
 from ..core.batching import CHUNK, n_chunks, prange_jit
 from ..core.compiled import all_finite, jit
+from ..core.kernel_status import (NONFINITE, OK, RESIDUAL, TYPE_I,  # one numbering: every robot
+                                  TYPE_II, UNREACHABLE)
 from ..core.layouts import rail_angles
 from ..core.measures import TYPE_I_TOL, TYPE_II_TOL
 from .geometry import N_ACTUATORS, PlanarGeometry
 
-#: status codes
-OK, NONFINITE, UNREACHABLE, TYPE_I, TYPE_II, RESIDUAL = 0, -1, 1, 2, 3, 4
 
 #: relative residual above which a closed-form solve is refused
 RESIDUAL_RTOL = 1e-9
