@@ -37,6 +37,7 @@ from .errors import (ActuatorSaturationError, ArgumentTypeError, AssemblyError,
 from .hexapod.geometry import ChainGeometry, HexapodGeometry
 from .hexapod.kinematics import LegMotion
 from .hexapod.robot import Hexapod
+from .hexapod import compiled_backend  # noqa: F401  (registers simulate's backend="compiled")
 from .loaders import robots
 from .loaders.any_robot import load_robot
 from .loaders.parallel_robots import load_parallel_robot

@@ -154,7 +154,8 @@ class Motion:
         platform coordinates where the closures hold by construction).
 
         Raises:
-            InputError: a run without platform poses (a bare model's).
+            InputError: not a simulation result, or a run without platform poses (a bare
+                model's).
         """
         residual = getattr(trajectory, "closure_residual", None)
         if residual is not None:
@@ -162,6 +163,11 @@ class Motion:
             if residual.ndim == 2:
                 residual = np.max(np.abs(residual), axis=1)
             residual = np.abs(residual)
+        missing = [name for name in ("times", "poses", "twists", "q", "actuator_forces")
+                   if not hasattr(trajectory, name)]
+        if missing:
+            raise InputError("trajectory", trajectory, f"not a simulation result (no "
+                             f"{', '.join(missing)})")
         if trajectory.poses is None or trajectory.twists is None:
             raise InputError("trajectory", trajectory, "a run of a bare ClosedLoopModel has "
                              "no platform poses: a motion needs a robot's run")

@@ -312,24 +312,14 @@ class SimulateFiles(NamedTuple):
 
 def trajectory_motion(traj: Trajectory) -> motions.Motion:
     """The motion-file samples of a generic simulation
-    (:func:`hexapod_pin.core.simulate.simulate`): times, poses, twists, actuator positions
-    and forces (N or N m), max-abs closure residual (m / rad).
-
-    (:meth:`hexapod_pin.motion.Motion.from_trajectory` takes its ``q`` from the
-    trajectory's ``q``, which here are the tree configurations, not the actuators.)
+    (:func:`hexapod_pin.core.simulate.simulate`):
+    :meth:`hexapod_pin.motion.Motion.from_trajectory` (times, poses, twists, actuator
+    positions and forces, max-abs closure residual).
 
     Raises:
         InputError: a trajectory without poses (a bare model has no platform).
     """
-    if traj.poses is None or traj.twists is None:
-        raise InputError("trajectory", None, "has no platform poses to write")
-    return motions.Motion(np.asarray(traj.times, dtype=float),
-                          np.asarray(traj.poses, dtype=float),
-                          twists=np.asarray(traj.twists, dtype=float),
-                          q=np.asarray(traj.actuator_positions, dtype=float),
-                          actuator_forces=np.asarray(traj.actuator_forces, dtype=float),
-                          closure_residual=np.abs(np.asarray(traj.closure_residual,
-                                                             dtype=float)))
+    return motions.Motion.from_trajectory(traj)
 
 
 def _simulate_loaded(robot: ClosedLoopRobot, duration: float, dt: float | None,

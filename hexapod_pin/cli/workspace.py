@@ -10,6 +10,8 @@ import numpy as np
 import typer
 
 from ..core import workspace_maps
+from ..core.checks import count, real_number
+from ..errors import InputError
 from .common import (AsJson, GeometryFile, PlatformFrame, PoseAxes, Quiet, RobotFile,
                      SetFields, as_parallel, component_values, console, emit_json, guard,
                      load_cli_robot, pose_axes_of, progress_bar, quantity_table, robot_fields)
@@ -42,13 +44,21 @@ def workspace(samples: Annotated[int, typer.Option("--samples", help="uniform sa
     where cond(J) stays below the bound. Volumes are in the product of the pose
     components' units (m^3 rad^3 for a 6-D pose), with their one-sigma sampling error."""
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
+    count(samples, "--samples")
+    if samples > workspace_maps.MAX_POSES:
+        raise InputError("--samples", samples,
+                         f"at most {workspace_maps.MAX_POSES:.0e} samples")
+    if max_condition is not None:
+        real_number(max_condition, "--max-condition", minimum=0.0)
     axes = pose_axes_of(bot)
     angular = np.array([a in ("roll", "pitch", "yaw") for a in axes])
     half = component_values(bot, half_extent, "half-extent", {a: a for a in axes})
     if half is None:
         half = np.where(angular, DEFAULT_HALF["angular"], DEFAULT_HALF["linear"])
+    elif not np.all(half > 0.0):
+        raise InputError("--half-extent", half_extent, "half-widths must be > 0 (m, rad)")
     home = np.asarray(bot.home_pose, dtype=float)
-    low, high = home - np.abs(half), home + np.abs(half)
+    low, high = home - half, home + half
     units = " ".join(f"{u}^{n}" for u, n in (("m", int((~angular).sum())),
                                              ("rad", int(angular.sum()))) if n)
     runs = {"workspace": None} if max_condition is None else \

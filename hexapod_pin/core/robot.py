@@ -243,6 +243,11 @@ class ClosedLoopRobot(RobotBase):
         return self.geometry.platform
 
     @property
+    def platform_frame_id(self) -> int:
+        """The Pinocchio id of the platform frame, as resolved when the robot was built."""
+        return self.platform.frame
+
+    @property
     def home_pose(self) -> npt.NDArray[np.float64]:
         """The pose (dim,) of the home configuration."""
         return self.kinematics.home_pose.copy()

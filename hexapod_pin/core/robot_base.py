@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..errors import DescriptionError
+from ..errors import DescriptionError, InputError
 from .closed_loop import ClosedLoopModel
 from .robot_api import PoseLayout, pose_layout
 
@@ -88,7 +88,9 @@ class RobotBase:
 
     # -- configuration-level maps ----------------------------------------------------------
     @cached_property
-    def _platform_frame_id(self) -> int:
+    def platform_frame_id(self) -> int:
+        """The Pinocchio id of the platform frame (a robot that resolved its frame itself
+        overrides this, so that a name shared by two frames cannot pick another)."""
         return self.model.frame_id(self.platform_frame)
 
     def twist_from_configuration(self, q: npt.ArrayLike,
@@ -98,17 +100,26 @@ class RobotBase:
         axes; Pinocchio's ``LOCAL_WORLD_ALIGNED``), ``T(q) v``. Needs no inverse
         kinematics, so it is the twist of ``q``'s own working and assembly mode.
 
+        The frame velocity is defined for any tree state: ``q`` need not close the loops
+        nor ``v`` keep them (the twist is then that of the platform body in the tree).
+
         Args:
-            q: tree configuration (nq,).
+            q: tree configuration (nq,), its quaternions (free-flyer, ball joints) unit to
+                1e-10.
             v: tree velocity (nv,) (Pinocchio conventions).
 
         Raises:
-            InputError: bad shapes, NaN / inf.
+            InputError: bad shapes, NaN / inf, a quaternion that is not unit (the rotation
+                Pinocchio would use is not the one ``q`` means).
         """
         q, v = self.model.check_q(q), self.model.check_v(v)
+        model = self.model.model
+        if not pin.isNormalized(model, q, 1e-10):
+            raise InputError("q", q, "its quaternions are not unit (to 1e-10): normalise "
+                             "them (pin.normalize)")
         with self.lock:
-            model, data = self.model.model, self._base_data
+            data = self._base_data
             pin.forwardKinematics(model, data, q, v)
-            vel = pin.getFrameVelocity(model, data, self._platform_frame_id,
+            vel = pin.getFrameVelocity(model, data, self.platform_frame_id,
                                        pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
             return np.asarray(vel.vector, dtype=float)[self.pose_layout.components].copy()

@@ -28,7 +28,6 @@ The library never prints: pass ``progress`` to follow a long run.
 from __future__ import annotations
 
 import contextlib
-import importlib
 import math
 import time as _time
 from collections.abc import Callable
@@ -50,6 +49,8 @@ from .simulation import INTEGRATORS, PROJECTION_TOL, ClosedLoopIntegrator
 
 #: simulation backends: the Pinocchio tree (every robot) or a robot's compiled simulator
 BACKENDS = ("tree", "compiled")
+#: robot class -> its compiled simulator (:func:`register_compiled_simulator`)
+COMPILED_SIMULATORS: dict[type, Callable[..., "Trajectory"]] = {}
 #: the most steps (``round(duration / dt)``) one run may take
 MAX_STEPS = 10 ** 8
 #: the most samples one run may record (each holds the tree state, a few hundred bytes)
@@ -154,13 +155,14 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
         progress: called as ``progress(fraction_done)`` at most about 100 times.
         projection_tol: closure residual (m / rad) above which a state is projected back.
         backend: "tree" (default: the Pinocchio tree with its closures, every robot) or
-            "compiled": the robot's own compiled simulator, named by its class attribute
-            ``COMPILED_SIMULATOR`` (``"module:function"``; the hexapod's integrates in
-            platform coordinates,
-            :func:`hexapod_pin.hexapod.compiled_backend.compiled_trajectory`),
+            "compiled": the robot's own compiled simulator
+            (:func:`register_compiled_simulator`; the hexapod's integrates in platform
+            coordinates, :func:`hexapod_pin.hexapod.compiled_backend.compiled_trajectory`),
             from home at rest under constant actuator forces (no controller, force
             function or ``initial``; ``method`` and ``projection_tol`` do not apply), the
-            same :class:`Trajectory` returned.
+            same :class:`Trajectory` returned. The two integrate different coordinates:
+            they agree to the integrator's accuracy, and the compiled one also stops at
+            the robot's stroke limits (status "failed", the message says which).
 
     Returns:
         :class:`Trajectory`. A step, controller or platform-state failure (a library
@@ -185,21 +187,12 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
     dt = real_number(dt, "dt", minimum=0.0)
     record_every = count(record_every, "record_every")
     projection_tol = real_number(projection_tol, "projection_tol", minimum=0.0)
-    if backend not in BACKENDS:
+    if not (isinstance(backend, str) and backend in BACKENDS):
         raise InputError("backend", backend, f"expected one of {BACKENDS}")
-    if backend == "compiled":
-        return _compiled(robot, duration, dt, controller, actuator_forces, integrator, method,
-                         initial, record_every, progress)
-    if integrator not in INTEGRATORS:
+    if not (isinstance(integrator, str) and integrator in INTEGRATORS):
         raise InputError("integrator", integrator, f"expected one of {INTEGRATORS}")
-    if method not in FORWARD_METHODS:
+    if not (isinstance(method, str) and method in FORWARD_METHODS):
         raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
-    for name, fn in (("controller", controller), ("progress", progress)):
-        if fn is not None and not callable(fn):
-            raise ArgumentTypeError(name, fn, "expected a callable or None")
-    if controller is not None and actuator_forces is not None:
-        raise InputError("actuator_forces", actuator_forces,
-                         "give actuator forces or a controller, not both")
     steps = duration / dt
     if not steps <= MAX_STEPS:
         raise InputError("dt", dt, f"duration / dt = {steps:.3g} steps (duration "
@@ -207,6 +200,15 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
     if round(steps) < 1:
         raise InputError("duration", duration, f"shorter than half a step (dt = {dt:g} s): "
                          "no step to take")
+    if backend == "compiled":
+        return _compiled(robot, duration, dt, controller, actuator_forces, integrator, method,
+                         initial, record_every, progress)
+    for name, fn in (("controller", controller), ("progress", progress)):
+        if fn is not None and not callable(fn):
+            raise ArgumentTypeError(name, fn, "expected a callable or None")
+    if controller is not None and actuator_forces is not None:
+        raise InputError("actuator_forces", actuator_forces,
+                         "give actuator forces or a controller, not both")
     n_steps = round(steps)
     n_rec = n_steps // record_every + 1 + (1 if n_steps % record_every else 0)
     if n_rec > MAX_SAMPLES:
@@ -278,26 +280,36 @@ class _Failure(HexapodPinError):
     from the run's own checks (InputError, NonFiniteResultError: raised)."""
 
 
+def register_compiled_simulator(kind: type, run: Callable[..., Trajectory]) -> None:
+    """Register a robot class's compiled simulator for ``simulate(..., backend="compiled")``
+    (called by the robot's own package when it is imported: core names no robot).
+
+    ``run(robot, duration, dt, *, actuator_forces, integrator, record_every)`` must return
+    a :class:`Trajectory` sampled every ``record_every`` steps and at the end, starting
+    at the robot's home at rest.
+    """
+    COMPILED_SIMULATORS[kind] = run
+
+
 def _compiled(robot, duration: float, dt: float, controller, actuator_forces,
               integrator: str, method: str, initial, record_every: int, progress
               ) -> Trajectory:
-    """The robot's compiled simulator (``COMPILED_SIMULATOR``), after checking that the
-    run asks for nothing it does not do."""
-    target = getattr(type(robot), "COMPILED_SIMULATOR", None)
-    if not isinstance(target, str):
+    """The robot's registered compiled simulator, after checking that the run asks for
+    nothing it does not do."""
+    run = next((COMPILED_SIMULATORS[kind] for kind in type(robot).__mro__
+                if kind in COMPILED_SIMULATORS), None)
+    if run is None:
         raise InputError("backend", "compiled", f"{type(robot).__name__} has no compiled "
                          "simulator (backend='tree' works for every robot)")
-    given = [name for name, value, default in (
-        ("controller", controller, None), ("initial", initial, None),
-        ("progress", progress, None), ("method", method, "pinocchio"))
-        if value is not default and value != default]
+    given = [name for name, value in (("controller", controller), ("initial", initial),
+                                      ("progress", progress)) if value is not None]
+    if method != "pinocchio":
+        given.append(f"method={method!r}")
     if callable(actuator_forces):
         given.append("actuator_forces (a function)")
     if given:
         raise InputError("backend", "compiled", "the compiled simulator runs from home at "
                          f"rest under constant forces: {', '.join(given)} not supported")
-    module, _, name = target.partition(":")
-    run = getattr(importlib.import_module(module), name)
     return run(robot, duration, dt, actuator_forces=actuator_forces, integrator=integrator,
                record_every=record_every)
 

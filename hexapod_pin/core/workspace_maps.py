@@ -53,6 +53,9 @@ CHUNK = 64
 #: a progress callback: called with the fraction of poses done, in (0, 1]
 Progress = Callable[[float], object]
 
+#: the most poses one call samples (memory: a few hundred bytes per pose)
+MAX_POSES = 10 ** 7
+
 
 @dataclass(frozen=True, eq=False)
 class WorkspaceMap:
@@ -457,6 +460,8 @@ def sample_box(robot: ParallelRobot, n: int, low: npt.ArrayLike, high: npt.Array
     """
     robot = _robot(robot)
     n = count(n, "n", minimum=1)
+    if n > MAX_POSES:
+        raise InputError("n", n, f"more than MAX_POSES = {MAX_POSES:.0e} poses")
     lo, hi = _box(robot, low, high)
     return _rng(seed).uniform(lo, hi, size=(n, robot.pose_dim))
 
@@ -545,10 +550,15 @@ def volume(robot: ParallelRobot, n_samples: int, low: npt.ArrayLike, high: npt.A
     lo, hi = _box(robot, low, high)
     if np.any(hi <= lo):
         raise InputError("high", high, f"must be > low {lo.tolist()} componentwise")
+    with np.errstate(over="ignore"):
+        box = float(np.prod(hi - lo))
+    if not (math.isfinite(box) and box > 0.0):
+        raise InputError("high", high, f"the box from low {lo.tolist()} has volume {box:g} "
+                         "(overflow or underflow): a box of finite, non-zero volume")
     limit = None if max_condition is None else real_number(max_condition, "max_condition",
                                                            minimum=0.0)
     poses = sample_box(robot, n_samples, lo, hi, seed)
     measures = evaluate(robot, poses, statics=False, singularity=False, progress=progress)
     inside = measures.ok if limit is None else measures.ok & (measures.condition_number
                                                               <= limit)
-    return volume_estimate(inside, float(np.prod(hi - lo)))
+    return volume_estimate(inside, box)

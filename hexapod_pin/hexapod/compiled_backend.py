@@ -1,6 +1,8 @@
 """The hexapod's compiled simulator as a backend of ``hexapod_pin.simulate``.
 
-``hp.simulate(hexapod, duration, dt, backend="compiled")`` runs
+``hp.simulate(hexapod, duration, dt, backend="compiled")`` (registered with
+:func:`~hexapod_pin.core.simulate.register_compiled_simulator` when this module is
+imported, as ``hexapod_pin`` does) runs
 :func:`~hexapod_pin.hexapod.fast.simulate_fast` (the dynamics in platform coordinates, in
 compiled code, the closures held by construction) and returns the generic
 :class:`~hexapod_pin.core.simulate.Trajectory`: each recorded platform state mapped to the
@@ -19,7 +21,7 @@ import numpy.typing as npt
 
 from ..core.checks import as_array
 from ..core.energy import energy_totals
-from ..core.simulate import Trajectory
+from ..core.simulate import Trajectory, register_compiled_simulator
 from .fast import simulate_fast
 from .robot import Hexapod
 
@@ -37,24 +39,32 @@ def compiled_trajectory(robot: Hexapod, duration: float, dt: float, *,
     forces = None if actuator_forces is None else as_array(actuator_forces, (6,),
                                                            "actuator_forces")
     start = time.perf_counter()
-    fast = simulate_fast(robot, duration, dt, actuator_forces=forces, integrator=integrator,
-                         record_every=record_every)
-    n = len(fast.times)
+    # every step recorded, then every record_every-th and the last kept (the Trajectory's
+    # sampling: the final state is always a sample)
+    fast = simulate_fast(robot, duration, dt, actuator_forces=forces, integrator=integrator)
+    keep = np.unique(np.concatenate([np.arange(0, len(fast.times), record_every),
+                                     [len(fast.times) - 1]]))
+    times, poses, twists = fast.times[keep], fast.poses[keep], fast.twists[keep]
+    qa, qd, applied, saturated = (fast.q[keep], fast.qdot[keep], fast.actuator_forces[keep],
+                                  fast.saturated[keep])
+    n = len(keep)
     clm = robot.model
     q, v = np.empty((n, clm.nq)), np.empty((n, clm.nv))
     kinetic, potential, residual = np.empty(n), np.empty(n), np.empty(n)
     with robot.lock:
         for k in range(n):
-            q[k], v[k] = robot.dynamics.tree_state(fast.poses[k], fast.twists[k])
+            q[k], v[k] = robot.dynamics.tree_state(poses[k], twists[k])
             kinetic[k], potential[k] = energy_totals(clm, q[k], v[k])
             residual[k] = robot.closed_form.closure_residual(q[k])
-    steps = np.diff(fast.q, axis=0)
-    work = np.concatenate([[0.0], np.cumsum(np.einsum("ni,ni->n", fast.actuator_forces[:-1],
-                                                      steps))])
+    # the work of the held forces over every step, summed up to each kept sample
+    steps = np.einsum("ni,ni->n", fast.actuator_forces[:-1], np.diff(fast.q, axis=0))
+    work = np.concatenate([[0.0], np.cumsum(steps)])[keep]
     status = fast.status if fast.status in ("completed", "saturated") else "failed"
     message = fast.message if status == fast.status else \
         f"{fast.status}: {fast.message}".rstrip(": ")
-    return Trajectory(fast.times, q, v, fast.poses, fast.twists, fast.q, fast.qdot,
-                      fast.actuator_forces, fast.saturated, kinetic + potential, kinetic,
-                      potential, work, residual, status, message, fast.dt,
-                      time.perf_counter() - start)
+    return Trajectory(times, q, v, poses, twists, qa, qd, applied, saturated,
+                      kinetic + potential, kinetic, potential, work, residual, status, message,
+                      fast.dt, time.perf_counter() - start)
+
+
+register_compiled_simulator(Hexapod, compiled_trajectory)

@@ -85,8 +85,6 @@ class Hexapod(RobotBase):
     pose_dim = 6
     n_actuators = 6
     POSE_AXES = ("x", "y", "z", "roll", "pitch", "yaw")
-    #: ``hexapod_pin.simulate(..., backend="compiled")``
-    COMPILED_SIMULATOR = "hexapod_pin.hexapod.compiled_backend:compiled_trajectory"
 
     def __init__(self, geometry: HexapodGeometry | None = None) -> None:
         self.geometry = HexapodGeometry() if geometry is None else geometry

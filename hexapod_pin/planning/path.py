@@ -47,6 +47,7 @@ from scipy.spatial.transform import Rotation
 
 from ..core.checks import as_array, real_number
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
+from ..core.platform_map import POSE_AXES
 from ..core.robot_api import SPACE_POSE_AXES, PoseAxesSource, PoseLayout, pose_layout
 from ..errors import DescriptionError, InputError
 
@@ -200,8 +201,9 @@ def read_waypoints(path: str | os.PathLike[str],
             :class:`~hexapod_pin.core.robot_api.PoseLayout`); default the hexapod's six.
 
     Raises:
-        DescriptionError: a missing file, another suffix, missing columns, a value that is
-            not a finite number, rows of another width.
+        DescriptionError: a missing file, another suffix, missing columns, pose columns
+            of axes the robot does not have, repeated columns, a value that is not a finite
+            number, rows of another width.
         InputError: bad pose axes.
     """
     names = pose_layout(pose_axes).axes
@@ -221,6 +223,13 @@ def read_waypoints(path: str | os.PathLike[str],
             missing = [name for name in names if name not in header]
             if missing:
                 raise DescriptionError(str(path), f"missing columns {missing}")
+            foreign = [h for h in header if h in POSE_AXES and h not in names]
+            if foreign:         # another robot's pose: refused, not silently dropped
+                raise DescriptionError(str(path), f"pose columns {foreign} are not this "
+                                       f"robot's (its pose axes: {', '.join(names)})")
+            repeated = sorted({h for h in header if header.count(h) > 1})
+            if repeated:
+                raise DescriptionError(str(path), f"repeated columns {repeated}")
             cols = [header.index(name) for name in names]
             poses = np.array([[float(row[c]) for c in cols] for row in rows[1:]])
         else:

@@ -529,3 +529,13 @@ def test_workspace_of_a_loaded_robot(robots):
     assert table.exit_code == 0 and "m^2" in table.stdout
     one_line_error(invoke("workspace", *OPTIONS["five_bar"][0], "--half-extent", "0.1"),
                    1, "x, z")
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--samples", "10000000000000"], ["--samples"]),
+    (["--half-extent", "-0.1,0.1"], ["--half-extent"]),
+    (["--half-extent", "1e200,1e200"], ["volume inf"]),
+    (["--max-condition", "0"], ["--max-condition"]),
+])
+def test_workspace_bad_options_are_one_line_errors(args, words):
+    one_line_error(invoke("workspace", *OPTIONS["five_bar"][0], *args), 1, *words)

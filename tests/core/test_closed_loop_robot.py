@@ -527,3 +527,23 @@ def test_twist_from_configuration_is_the_platform_twist(which, robots):
     np.testing.assert_allclose(robot.twist_from_configuration(res.configuration, res.velocity),
                                twist, atol=1e-12)
     assert isinstance(robot, hp.core.robot_base.RobotBase)
+
+
+def test_twist_from_configuration_reads_the_robots_own_frame(delta, stewart):
+    """The delta's "platform_center" names two frames (a fixed joint and a body): the twist
+    is read from the one the robot resolved; a quaternion that is not unit is refused."""
+    model = delta.model.model
+    same = [k for k in range(model.nframes) if model.frames[k].name == "platform_center"]
+    assert len(same) == 2
+    assert delta.platform_frame_id == delta.platform.frame
+    by_id = hp.ClosedLoopRobot(delta.model, same[0], ("x", "y", "z"),
+                               home=delta.home_configuration)
+    assert by_id.platform_frame_id == same[0]
+    twist = np.array([0.05, -0.02, 0.03])
+    res = by_id.inverse_dynamics(by_id.home_pose, twist, np.zeros(3), bounded=False)
+    np.testing.assert_allclose(by_id.twist_from_configuration(res.configuration, res.velocity),
+                               twist, atol=1e-12)
+    q = stewart.home_configuration.copy()
+    q[-4:] *= 3.0                                   # the platform quaternion, not unit
+    with pytest.raises(InputError, match="not unit"):
+        stewart.twist_from_configuration(q, np.zeros(stewart.model.nv))

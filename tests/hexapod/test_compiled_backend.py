@@ -48,3 +48,19 @@ def test_compiled_backend_refuses_what_it_does_not_do(hexapod):
         hp.simulate(hp.Planar3PRR.default(), 0.01, 1e-3, backend="compiled")
     with pytest.raises(hp.InputError):
         hp.simulate(hexapod, 0.01, 1e-3, backend="gpu")
+
+
+def test_compiled_sampling_work_and_duration_match_the_tree_backend(hexapod):
+    forces = np.array([5.0, -3.0, 4.0, 2.0, -1.0, 6.0])
+    for every in (1, 3, 20):
+        tree = hp.simulate(hexapod, 0.05, 1e-3, actuator_forces=forces, record_every=every)
+        fast = hp.simulate(hexapod, 0.05, 1e-3, actuator_forces=forces, record_every=every,
+                           backend="compiled")
+        np.testing.assert_allclose(fast.times, tree.times, atol=1e-15)   # the end included
+        np.testing.assert_allclose(fast.work, tree.work, atol=1e-9)
+        np.testing.assert_allclose(fast.energies, tree.energies, atol=1e-8)
+    with pytest.raises(hp.InputError) as err:
+        hp.simulate(hexapod, 1e-4, 1e-3, backend="compiled")
+    assert err.value.name == "duration"
+    with pytest.raises(hp.InputError):
+        hp.simulate(hexapod, 0.01, 1e-3, backend=np.array(["compiled"]))

@@ -389,3 +389,22 @@ def test_a_hexapod_motion_file_from_before_still_reads(tmp_path):
     json_path = tmp_path / "old.json"
     json_path.write_text('{"t": [0, 1, 2], "pose": %s}' % np.tile(home, (3, 1)).tolist())
     np.testing.assert_array_equal(motions.read_motion(json_path).poses, np.tile(home, (3, 1)))
+
+
+def test_waypoints_of_another_robot_are_refused(tmp_path):
+    """A waypoint file with pose columns the robot does not have (another robot's pose) is
+    refused naming them, not planned on the columns that match (review finding)."""
+    from hexapod_pin.planning import read_waypoints
+    from hexapod_pin.errors import DescriptionError
+
+    bad = tmp_path / "w.csv"
+    bad.write_text("x,y,z\n0.3,0.5,0.0\n0.31,0.5,0.01\n")
+    with pytest.raises(DescriptionError, match=r"\['y'\]"):
+        read_waypoints(bad, pose_axes=("x", "z"))
+    bad.write_text("t,x,z,x\n0,0.3,0.0,0.2\n1,0.31,0.01,0.2\n")
+    with pytest.raises(DescriptionError, match="repeated"):
+        read_waypoints(bad, pose_axes=("x", "z"))
+    good = tmp_path / "g.csv"
+    good.write_text("t,x,z\n0,0.3,0.0\n1,0.31,0.01\n")
+    np.testing.assert_allclose(read_waypoints(good, pose_axes=("x", "z")),
+                               [[0.3, 0.0], [0.31, 0.01]])
