@@ -57,7 +57,7 @@ ROBOTS: dict[str, Entry] = {
                       "loaded"),
     "delta": Entry(_loaded("parallel/delta", platform="platform_center",
                            pose_axes=("x", "y", "z")), "loaded"),
-    "four-bar": Entry(_loaded("four_bar/four_bar.urdf"), "loaded", shared=False),
+    "four-bar": Entry(_loaded("four_bar/four_bar.urdf"), "loaded"),
 }
 _BUILT: dict[str, Any] = {}
 
