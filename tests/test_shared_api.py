@@ -4,9 +4,9 @@ The way qpsolvers runs one suite over every solver, each test here runs on every
 (``hp.Hexapod`` and ``hp.Planar3PRR``, the default geometry and another one, and robots
 loaded from descriptions as ``hp.ClosedLoopRobot``: a 6-UPS Gough-Stewart platform, a
 planar five-bar, a 3-RUU delta and a crank-rocker four-bar from ``tests/data``): the same
-names, signatures and result types, and round trips checked against independent routes (the Pinocchio tree
-routes, finite differences, the platform's own Newton-Euler written here from Pinocchio's
-body inertia). The robots are those of ``robot_registry.names("shared")``
+names, signatures and result types, and round trips checked against independent routes
+(the Pinocchio tree routes, finite differences, the platform's own Newton-Euler written
+here from Pinocchio's body inertia). The robots are those of ``robot_registry.names("shared")``
 (``tests/robot_registry.py``): a new robot joins every test with one line there.
 """
 
