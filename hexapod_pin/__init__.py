@@ -1,10 +1,14 @@
 """hexapod_pin: kinematics and dynamics of closed-loop mechanisms on Pinocchio and ProxSuite.
 
-The rail-driven 6-DoF hexapod is the first and best-supported robot::
+The rail-driven 6-DoF hexapod is the first and best-supported robot; any closed-loop
+robot described as a URDF + loops file, an SDF or an example-parallel-robots folder gets
+the same API with no code of its own (:class:`~hexapod_pin.core.robot.ClosedLoopRobot`)::
 
     import hexapod_pin
     robot = hexapod_pin.Hexapod.default()
     q = robot.configuration(robot.home_pose)      # Pinocchio q, every closure holds
+    other = hexapod_pin.load_robot("stewart.urdf")        # its loops file names the platform
+    run = hexapod_pin.simulate(other, duration=0.5)       # any robot, one Trajectory
 
 Layout: :mod:`hexapod_pin.core` (any tree + loop closures: description, closed-loop model,
 dynamics, simulation, the shared robot API and result types), :mod:`hexapod_pin.loaders`
