@@ -54,16 +54,7 @@ def urdf(out: Annotated[Path | None, typer.Option(
         text = robot_of(geometry, set_).urdf()
     else:
         text = Planar3PRR(load_geometry(geometry, set_, geometry_type=PlanarGeometry)).urdf()
-    if out is None:
-        if as_json:
-            emit_json({"robot": robot, "urdf": text})
-        else:
-            typer.echo(text, nl=not text.endswith("\n"))
-        return
-    write_text_atomic(out, text)
-    note(quiet, f"wrote {out}")
-    if as_json:
-        emit_json({"robot": robot, "out": out, "characters": len(text)})
+    _deliver(text, "urdf", robot, out, as_json, quiet)
 
 
 @guard
@@ -81,9 +72,16 @@ def mjcf(out: Annotated[Path | None, typer.Option(
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     text = closed_loop_mjcf(bot.model, timestep=timestep)
     name = bot.geometry.name if isinstance(bot, ClosedLoopRobot) else "hexapod"
+    _deliver(text, "mjcf", name, out, as_json, quiet)
+
+
+def _deliver(text: str, kind: str, name: str, out: Path | None, as_json: bool,
+             quiet: bool) -> None:
+    """A description's text to ``out`` (atomic write, a note) or to stdout; with
+    ``--json``, ``{"robot", kind: text}`` or ``{"robot", "out", "characters"}``."""
     if out is None:
         if as_json:
-            emit_json({"robot": name, "mjcf": text})
+            emit_json({"robot": name, kind: text})
         else:
             typer.echo(text, nl=not text.endswith("\n"))
         return

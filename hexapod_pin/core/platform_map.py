@@ -74,20 +74,19 @@ def check_pose_axes(pose_axes: object) -> tuple[str, ...]:
     return tuple(str(a) for a in axes)
 
 
-def velocity_scales(model: pin.Model, length: float) -> np.ndarray:
-    """Per velocity coordinate (nv,): ``length`` (m) for an angular coordinate, 1 for a
-    linear one, so that ``scale * v`` is a velocity in m/s throughout (a free-flyer: its
-    three linear then three angular coordinates)."""
-    out = np.full(model.nv, float(length))
+def angular_coordinates(model: pin.Model) -> np.ndarray:
+    """Which velocity coordinates (nv,) are angular (rad/s); the others are linear (m/s)
+    (a free-flyer: its three linear then three angular coordinates)."""
+    out = np.ones(model.nv, dtype=bool)
     for jid in range(1, model.njoints):
         joint = model.joints[jid]
         name = joint.shortname()
         if name in _LINEAR_JOINTS:
-            out[joint.idx_v] = 1.0
+            out[joint.idx_v] = False
         elif name in ("JointModelFreeFlyer", "JointModelTranslation"):
-            out[joint.idx_v:joint.idx_v + 3] = 1.0
+            out[joint.idx_v:joint.idx_v + 3] = False
         elif name == "JointModelPlanar":
-            out[joint.idx_v:joint.idx_v + 2] = 1.0
+            out[joint.idx_v:joint.idx_v + 2] = False
     return out
 
 
@@ -148,7 +147,11 @@ class PlatformMap:
         #: which selected components are angles (wrapped to (-pi, pi] in differences)
         self.angular = self.sel >= 3
         self.length = float(length)
-        self.v_scale = velocity_scales(self.model, self.length)
+        #: which velocity coordinates are angular (nv,) bool
+        self.angular_v = angular_coordinates(self.model)
+        #: per velocity coordinate: ``length`` for an angular one, 1 for a linear one, so
+        #: that ``v_scale * v`` is a velocity in m/s throughout
+        self.v_scale = np.where(self.angular_v, self.length, 1.0)
         self.v_unscale = 1.0 / self.v_scale
         #: scale of each selected twist component (1 for linear, ``length`` for angular)
         self.twist_scale = np.where(self.angular, self.length, 1.0)

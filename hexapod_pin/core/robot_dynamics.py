@@ -42,6 +42,7 @@ from .checks import as_array, flag, max_abs
 from .closed_loop import ClosedLoopModel
 from .closure_forces import closure_world_forces
 from .dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
+from .energy import energy_totals
 from .platform_map import VelocityMaps, solve_checked_square
 from .pose import euler_rates_matrix
 from .results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
@@ -58,12 +59,15 @@ DERIVATIVE_RTOL = 1e-6
 
 
 class TreeState(NamedTuple):
-    """A platform state on the tree: configuration, maps, velocity (see module doc)."""
+    """A platform state on the tree: configuration, maps, velocity, velocity map, and the
+    closures' drift ``gamma`` with the platform's acceleration bias (one kinematic pass,
+    :meth:`PlatformMap.frame_bias`) that every route of the state reuses."""
 
     q: np.ndarray
     maps: VelocityMaps
     v: np.ndarray
     vmap: np.ndarray
+    terms: tuple[np.ndarray, np.ndarray]
 
 
 class TreeDetails:
@@ -125,7 +129,8 @@ class RobotDynamics:
         q = self.kin.configuration(pose, branch)
         maps = self.kin.regular_maps(q)
         vmap = self.kin.velocity_map(maps)
-        return TreeState(q, maps, vmap @ twist, vmap)
+        v = vmap @ twist
+        return TreeState(q, maps, v, vmap, self.platform.frame_bias(q, v))
 
     def external(self, state: TreeState, wrench: npt.ArrayLike | None
                  ) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -179,7 +184,7 @@ class RobotDynamics:
         twist_dot = as_array(twist_dot, (self.dim,), "twist_dot")
         st = self.state(pose, twist, branch)
         w, tau_ext = self.external(st, wrench)
-        a, _ = self.kin.tree_acceleration(st.maps, st.v, twist_dot)
+        a, _ = self.kin.tree_acceleration(st.maps, st.v, twist_dot, st.terms)
         res = inverse_dynamics_tree(self.clm, st.q, st.v, a, tau_ext,
                                     self.bounds(flag(bounded, "bounded")), method)
         details = TreeDetails(self, st.q, st.v, a, res.multipliers, res.residual, w,
@@ -221,7 +226,7 @@ class RobotDynamics:
             res = forward_dynamics_tree(self.clm, st.q, st.v, u, tau_ext, method)
             a, lam, status, iterations = res.a.copy(), res.multipliers, res.status, \
                 res.iterations
-        _, bias = self.platform.frame_bias(st.q, st.v)
+        _, bias = st.terms
         twist_dot = st.maps.twist_rows @ a + bias
         details = ComputedDetails(lam, self.closure_forces(st.q, lam))
         return ForwardDynamicsResult(twist_dot, a[self.clm.actuated_v].copy(), a, method,
@@ -243,7 +248,7 @@ class RobotDynamics:
         lam = np.linalg.lstsq(jac_c.T, force, rcond=None)[0] if jac_c.size else \
             np.zeros(0)
         miss = max_abs(jac_c.T @ lam - force)
-        closure = max_abs(jac_c @ a + self.platform.frame_bias(st.q, st.v)[0])
+        closure = max_abs(jac_c @ a + st.terms[0])
         scale = max(1.0, max_abs(mmat @ a), max_abs(nle), max_abs(u))
         if not (miss <= NULLSPACE_RTOL * scale and closure <= NULLSPACE_RTOL
                 * max(1.0, max_abs(a))):
@@ -258,7 +263,7 @@ class RobotDynamics:
         mmat = pin.crba(model, data, st.q)
         mmat = np.triu(mmat) + np.triu(mmat, 1).T
         nle = pin.nonLinearEffects(model, data, st.q, st.v).copy()
-        _, a0 = self.kin.tree_acceleration(st.maps, st.v, np.zeros(self.dim))
+        _, a0 = self.kin.tree_acceleration(st.maps, st.v, np.zeros(self.dim), st.terms)
         vmap = st.vmap
         mass = vmap.T @ mmat @ vmap
         mass = 0.5 * (mass + mass.T)
@@ -278,10 +283,9 @@ class RobotDynamics:
                  branch: npt.ArrayLike | None = None) -> Energies:
         """Kinetic ``1/2 v^T M v`` and gravity potential energy of the whole mechanism (J)
         at a platform state (Pinocchio's potential: zero with every centre of mass at
-        height zero)."""
+        height zero; :func:`~hexapod_pin.core.energy.energy_totals`)."""
         st = self.state(pose, twist, branch)
-        kinetic = float(pin.computeKineticEnergy(self.model, self.data, st.q, st.v))
-        potential = float(pin.computePotentialEnergy(self.model, self.data, st.q))
+        kinetic, potential = energy_totals(self.clm, st.q, st.v)
         return Energies(kinetic, potential, kinetic + potential)
 
     # -- forces ----------------------------------------------------------------------------

@@ -85,7 +85,6 @@ class RobotKinematics:
         self.lower, self.upper = np.array(lower), np.array(upper)
         self._cache: dict[bytes, np.ndarray] = {}
         self._n_act = act.size
-        self._angular_v = platform.v_scale != 1.0
 
     # -- configurations ----------------------------------------------------------------
     def actuator_positions(self, q: npt.ArrayLike) -> npt.NDArray[np.float64]:
@@ -331,7 +330,7 @@ class RobotKinematics:
         target = as_array(actuators, (self._n_act,), "actuators")
         n_starts = count(n_starts, "n_starts", minimum=0)
         rng = np.random.default_rng(count(seed, "seed", minimum=0))
-        spread = np.where(self._angular_v, math.pi, self.platform.length)
+        spread = np.where(self.platform.angular_v, math.pi, self.platform.length)
         starts = [self.home_q] + [pin.integrate(self.model, self.home_q,
                                                 rng.uniform(-1, 1, self.model.nv) * spread)
                                   for _ in range(n_starts)]
@@ -442,12 +441,14 @@ class RobotKinematics:
         """The tree velocity (nv,) of a twist (dim,): ``v = N A^-1 twist``."""
         return maps.basis @ solve_checked_square(maps.a_map, twist, "tree velocity")
 
-    def tree_acceleration(self, maps: VelocityMaps, v: np.ndarray,
-                          twist_dot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def tree_acceleration(self, maps: VelocityMaps, v: np.ndarray, twist_dot: np.ndarray,
+                          terms: tuple[np.ndarray, np.ndarray] | None = None
+                          ) -> tuple[np.ndarray, np.ndarray]:
         """``(a, a0)``: the tree acceleration (nv,) of ``twist_dot`` (dim,) and the one at
-        ``twist_dot = 0``, both keeping the closures (``J_c a = -gamma``)."""
+        ``twist_dot = 0``, both keeping the closures (``J_c a = -gamma``); ``terms``: the
+        state's ``(gamma, bias)`` of :meth:`PlatformMap.frame_bias` when already known."""
         plat = self.platform
-        gamma, bias = plat.frame_bias(maps.q, v)
+        gamma, bias = plat.frame_bias(maps.q, v) if terms is None else terms
         a_p = plat.particular(maps, -gamma, "closure drift")
         free = bias + maps.twist_rows @ a_p
         a0 = a_p + maps.basis @ solve_checked_square(maps.a_map, -free, "tree acceleration")

@@ -120,9 +120,15 @@ class Trajectory:
 
     @property
     def real_time_factor(self) -> float:
-        """Simulated time divided by wall time."""
-        span = float(self.times[-1] - self.times[0]) if self.times.size else 0.0
-        return span / self.wall_time if self.wall_time > 0 else float("inf")
+        """Simulated time divided by wall time (:func:`real_time_factor`)."""
+        return real_time_factor(self.times, self.wall_time)
+
+
+def real_time_factor(times: np.ndarray, wall_time: float) -> float:
+    """Simulated time (the span of ``times``, s) divided by ``wall_time`` (s); inf for a
+    zero wall time. One formula for every simulation result of the library."""
+    span = float(times[-1] - times[0]) if times.size else 0.0
+    return span / wall_time if wall_time > 0 else float("inf")
 
 
 def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float = 1e-3, *,
@@ -370,29 +376,30 @@ def _checked_forces(value, n_act: int, name: str, t: float) -> np.ndarray:
     return arr
 
 
+def _checked_source(produce: Callable[[SimState], Any], what: str, label: str, n_act: int
+                    ) -> Callable[[SimState], np.ndarray]:
+    """``produce`` with its output checked (:func:`_checked_forces`) and its library
+    errors, other than bad input, ending the run as a failure that names ``what``."""
+    def command(state: SimState) -> np.ndarray:
+        try:
+            out = produce(state)
+        except InputError:
+            raise
+        except HexapodPinError as exc:
+            raise _Failure(f"{what}: {exc}") from exc
+        return _checked_forces(out, n_act, label, state.t)
+    return command
+
+
 def _command_source(controller, actuator_forces, robot, n_act: int
                     ) -> Callable[[SimState], np.ndarray]:
     """``state -> u`` (n_act,) for a controller, a force function, constant forces or none."""
     if controller is not None:
-        def from_controller(state: SimState) -> np.ndarray:
-            try:
-                out = controller(state, robot)
-            except InputError:
-                raise
-            except HexapodPinError as exc:
-                raise _Failure(f"controller: {exc}") from exc
-            return _checked_forces(out, n_act, "controller output", state.t)
-        return from_controller
+        return _checked_source(lambda state: controller(state, robot), "controller",
+                               "controller output", n_act)
     if callable(actuator_forces):
-        def from_function(state: SimState) -> np.ndarray:
-            try:
-                out = actuator_forces(state.t)
-            except InputError:
-                raise
-            except HexapodPinError as exc:
-                raise _Failure(f"actuator_forces: {exc}") from exc
-            return _checked_forces(out, n_act, "actuator_forces(t)", state.t)
-        return from_function
+        return _checked_source(lambda state: actuator_forces(state.t), "actuator_forces",
+                               "actuator_forces(t)", n_act)
     const = np.zeros(n_act) if actuator_forces is None else \
         as_array(actuator_forces, (n_act,), "actuator_forces")
     return lambda state: const

@@ -14,6 +14,7 @@ run starts at home at rest; the stroke limits and the carriage gap stop it (stat
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -21,7 +22,8 @@ import numpy.typing as npt
 
 from ..core.checks import as_array
 from ..core.energy import energy_totals
-from ..core.simulate import Trajectory, register_compiled_simulator
+from ..core.simulate import MAX_SAMPLES, Trajectory, register_compiled_simulator
+from ..errors import InputError
 from .fast import simulate_fast
 from .robot import Hexapod
 
@@ -34,15 +36,26 @@ def compiled_trajectory(robot: Hexapod, duration: float, dt: float, *,
     (see the module docstring).
 
     Raises:
-        InputError: bad forces, or what :func:`simulate_fast` refuses.
+        InputError: bad forces, more than :data:`~hexapod_pin.core.simulate.MAX_SAMPLES`
+            samples to record, or what :func:`simulate_fast` refuses.
     """
     forces = None if actuator_forces is None else as_array(actuator_forces, (6,),
                                                            "actuator_forces")
     start = time.perf_counter()
-    # every step recorded, then every record_every-th and the last kept (the Trajectory's
-    # sampling: the final state is always a sample)
-    fast = simulate_fast(robot, duration, dt, actuator_forces=forces, integrator=integrator)
-    keep = np.unique(np.concatenate([np.arange(0, len(fast.times), record_every),
+    # the Trajectory's sampling (every record_every-th step and the final state) from a
+    # run that records every g-th step, g = gcd(record_every, steps): the last step is a
+    # multiple of g, so it is recorded, and every record_every-th step is one of them
+    n_steps = round(duration / dt)
+    every = math.gcd(record_every, n_steps)
+    if n_steps // every + 1 > MAX_SAMPLES:
+        raise InputError("record_every", record_every,
+                         f"the compiled run would record {n_steps // every + 1} samples "
+                         f"(every gcd(record_every, steps) = {every} steps), more than "
+                         f"MAX_SAMPLES = {MAX_SAMPLES:.0e}: a record_every dividing the "
+                         f"{n_steps} steps")
+    fast = simulate_fast(robot, duration, dt, actuator_forces=forces, integrator=integrator,
+                         record_every=every)
+    keep = np.unique(np.concatenate([np.arange(0, len(fast.times), record_every // every),
                                      [len(fast.times) - 1]]))
     times, poses, twists = fast.times[keep], fast.poses[keep], fast.twists[keep]
     qa, qd, applied, saturated = (fast.q[keep], fast.qdot[keep], fast.actuator_forces[keep],

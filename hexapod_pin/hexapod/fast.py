@@ -58,6 +58,7 @@ from . import kernels as K
 from ..core.compiled import jit_inline, jit_lean
 from ..core.compiled import jit_fast as jit
 from ..core.pose import quaternion_rpy, rotation_quat, rpy_of
+from ..core.simulate import real_time_factor
 from .kernels import (GAP, GIMBAL, NONFINITE, NOT_PD, OK, SATURATED, STROKE, TYPE_I, TYPE_II,
                       UNREACHABLE)
 from .robot import Hexapod
@@ -468,9 +469,9 @@ class FastTrajectory:
 
     @property
     def real_time_factor(self) -> float:
-        """Simulated time divided by wall time (that of
-        :attr:`hexapod_pin.hexapod.simulation.Trajectory.real_time_factor`, shared)."""
-        return Trajectory.real_time_factor.fget(self)  # type: ignore[attr-defined]
+        """Simulated time divided by wall time
+        (:func:`hexapod_pin.core.simulate.real_time_factor`)."""
+        return real_time_factor(self.times, self.wall_time)
 
 
 def _sample_reference(reference, n_steps: int, dt: float):

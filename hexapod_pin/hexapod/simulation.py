@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from ..core.simulate import real_time_factor
 from ..core.simulation import ClosedLoopIntegrator
 from ..errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
 from ..core.pose import rotation_from_quaternion, rotation_from_rpy, rpy_from_rotation
@@ -262,9 +263,9 @@ class Trajectory:
 
     @property
     def real_time_factor(self) -> float:
-        """Simulated time divided by wall time."""
-        span = float(self.times[-1] - self.times[0]) if self.times.size else 0.0
-        return span / self.wall_time if self.wall_time > 0 else float("inf")
+        """Simulated time divided by wall time
+        (:func:`hexapod_pin.core.simulate.real_time_factor`)."""
+        return real_time_factor(self.times, self.wall_time)
 
 
 def check_run_arguments(duration: float, dt: float, on_limit: str, saturation: str,
