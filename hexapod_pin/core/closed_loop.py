@@ -42,6 +42,7 @@ from .closure_motion import complete, project
 from .closure_terms import ClosureFrames, closure_drift, weld_jacobian
 from .constraint_views import ConstraintErrors
 from .description import WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro, load_loops
+from .effects import JointEffects, resolve_effects
 from .frame_ik import FrameIKResult, frame_inverse_kinematics
 
 _EPS = np.finfo(float).eps
@@ -138,6 +139,11 @@ class ClosedLoopModel:
         loops: the parsed loops description.
         name: a label for messages.
         urdf_xml: the URDF text of the tree, kept for drawing (optional).
+        effects: the joint and drive effects (:class:`~hexapod_pin.core.effects.JointEffects`
+            of this tree); default: read from the tree (``model.armature``,
+            ``model.damping`` and ``model.friction`` as the Coulomb friction, as a URDF's
+            ``<dynamics damping friction>`` fills them; no springs; unit gears; the
+            ``effortLimit`` of the actuated joints, a non-positive one meaning none).
 
     Raises:
         DescriptionError: a frame or actuated joint that is not in the tree, an
@@ -146,8 +152,10 @@ class ClosedLoopModel:
     """
 
     def __init__(self, model: pin.Model, loops: LoopsSpec, name: str = "closed-loop model",
-                 urdf_xml: str | None = None) -> None:
+                 urdf_xml: str | None = None, effects: JointEffects | None = None) -> None:
         self.name = name
+        #: the loops description the model was built from
+        self.loops = loops
         #: per-thread workspaces of other modules, keyed by (kind, thread id) (e.g. the
         #: dynamics workspace of :func:`~hexapod_pin.core.dynamics.dynamics_of`): held by
         #: the model, so that they are collected with it
@@ -199,6 +207,76 @@ class ClosedLoopModel:
         mask = np.ones(self.model.nv, dtype=bool)
         mask[self.actuated_v] = False
         self.passive_v = np.flatnonzero(mask)
+        self._effects = self._initial_effects(model) if effects is None else effects
+        self._check_effects_shape(self._effects)
+        self._write_effects()
+
+    # -- joint and drive effects ---------------------------------------------------
+    def _initial_effects(self, model: pin.Model) -> JointEffects:
+        rigid = JointEffects.rigid(self.model, self.n_actuated)
+        limit = np.array([model.effortLimit[i] for i in self.actuated_v], dtype=float)
+        limit[~(limit > 0)] = np.inf
+        return rigid.replace(armature=np.array(model.armature, dtype=float),
+                             damping=np.array(model.damping, dtype=float),
+                             coulomb=np.array(model.friction, dtype=float),
+                             effort_limit=limit)
+
+    def _check_effects_shape(self, effects: JointEffects) -> None:
+        if not isinstance(effects, JointEffects):
+            raise InputError("effects", effects, "expected a JointEffects")
+        sizes = {"armature": self.nv, "damping": self.nv, "coulomb": self.nv,
+                 "stiffness": self.nv, "spring_reference": self.nq, "gear": self.n_actuated,
+                 "effort_limit": self.n_actuated}
+        for field, size in sizes.items():
+            if getattr(effects, field).shape != (size,):
+                raise InputError("effects", effects, f"{field} has shape "
+                                 f"{getattr(effects, field).shape}, this tree needs ({size},)")
+
+    def _write_effects(self) -> None:
+        """Pinocchio's fields follow the record (``armature`` enters its algorithms)."""
+        for model in (self.model, self.tree_model):
+            model.armature[:] = self._effects.armature
+            model.damping[:] = self._effects.damping
+            model.friction[:] = self._effects.coulomb
+        self._armature_seen = np.array(self._effects.armature)
+
+    @property
+    def effects(self) -> JointEffects:
+        """The joint and drive effects (:class:`~hexapod_pin.core.effects.JointEffects`).
+
+        An armature written into ``model.armature`` by hand is adopted (Pinocchio's
+        algorithms already follow it): every route, closed form and batch reads this
+        record, so all of them agree."""
+        arm = self.model.armature
+        if not np.array_equal(arm, self._armature_seen):
+            self._effects = self._effects.replace(armature=np.array(arm, dtype=float))
+            self.tree_model.armature[:] = arm
+            self._armature_seen = np.array(arm)
+        return self._effects
+
+    def with_effects(self, effects: JointEffects | None = None, **values: Any
+                     ) -> "ClosedLoopModel":
+        """A new model of the same tree and closures with other joint and drive effects.
+
+        Args:
+            effects: a complete record to start from (default: this model's).
+            **values: fields to change, each checked (see
+                :func:`~hexapod_pin.core.effects.resolve_effects`: ``armature``,
+                ``damping``, ``coulomb``, ``stiffness`` as (nv,) arrays or ``{joint name:
+                value}``, ``spring_reference``, ``gear``, ``effort_limit``,
+                ``rotor_inertia``, ``velocity_threshold``).
+
+        Returns:
+            A new :class:`ClosedLoopModel` (this one is unchanged).
+
+        Raises:
+            InputError: a bad field (see ``resolve_effects``) or a record of another tree.
+        """
+        base = self.effects if effects is None else effects
+        self._check_effects_shape(base)
+        new = resolve_effects(self.tree_model, self.actuated_joints, base, **values)
+        return type(self)(self.tree_model, self.loops, name=self.name, urdf_xml=self.urdf_xml,
+                          effects=new)
 
     # -- construction ---------------------------------------------------------
     @classmethod

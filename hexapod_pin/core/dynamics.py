@@ -69,8 +69,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+import proxsuite
 
-from ..errors import InputError
+from ..errors import InputError, SolverError
 from .checks import as_array, solve_checked, vector
 from .compiled import all_finite
 from .closed_loop import ClosedLoopModel
@@ -80,6 +81,7 @@ from .closure_terms import (  # ClosureFrames re-exported
     closure_drift,
     closure_jacobian,
 )
+from .effects import at_rest, effect_forces, friction_forces, passive_forces
 from .dynamics_common import (  # re-exported: other modules and users import them from here
     CLOSURE_QTOL,
     CLOSURE_VTOL,
@@ -252,7 +254,21 @@ class ClosedLoopDynamics:
     def forward_unchecked(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                           method: str) -> TreeForwardDynamics:
         """:meth:`forward` without the input checks (contiguous float64 arrays of the right
-        sizes, a known method); for batch drivers and integrators."""
+        sizes, a known method); for batch drivers and integrators. ``tau`` is the applied
+        generalised force; the joint effects are added here (:meth:`effect_terms`), and
+        the friction of the coordinates at rest is solved (:meth:`_stick_slip`)."""
+        force, rest = self.effect_terms(q, v)
+        if force is None:
+            return self.forward_total(q, v, tau, method)
+        total = tau + force
+        if rest.size:
+            return self._stick_slip(q, v, total, rest, method)
+        return self.forward_total(q, v, total, method)
+
+    def forward_total(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
+                      method: str) -> TreeForwardDynamics:
+        """:meth:`forward_unchecked` for a ``tau`` that already holds the effects' force
+        (the rigid solve of ``M a + h = tau + J_c^T lambda``)."""
         rank = self.closure_rank(q)
         if method == "pinocchio":
             return self._forward_pinocchio(q, v, tau, rank)
@@ -260,6 +276,72 @@ class ClosedLoopDynamics:
         if method == "kkt":
             return self.forward_routes.kkt(mass, bias, jac, gamma, tau, rank)
         return self.forward_routes.qp(mass, bias, jac, gamma, tau, rank)
+
+    # -- joint and drive effects (core.effects) ----------------------------------------------
+    def effect_terms(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+        """``(force, rest)`` at ``(q, v)`` for forward dynamics: the generalised force (nv,)
+        of damping, springs and the friction of the sliding coordinates (None when the
+        model has no such effect), and the indices of the coordinates with Coulomb
+        friction at rest (their friction is solved for)."""
+        eff = self.clm.effects
+        if not eff.has_forces:
+            return None, _NO_INDEX
+        force = passive_forces(self.model, eff, q, v)
+        if not eff.has_coulomb:
+            return force, _NO_INDEX
+        force += friction_forces(eff, v)
+        return force, at_rest(eff, v)
+
+    def effect_force_of_motion(self, q: np.ndarray, v: np.ndarray,
+                               a: np.ndarray) -> np.ndarray | None:
+        """The generalised force (nv,) of every effect for the known motion ``(q, v, a)``
+        (:func:`~hexapod_pin.core.effects.effect_forces`: what inverse dynamics
+        balances); None when the model has none."""
+        eff = self.clm.effects
+        if not eff.has_forces:
+            return None
+        return effect_forces(self.model, eff, q, v, a)
+
+    def _stick_slip(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, rest: np.ndarray,
+                    method: str) -> TreeForwardDynamics:
+        """Forward dynamics with the Coulomb friction of the coordinates ``rest`` at rest
+        solved exactly: their friction forces ``f`` (``|f_i| <= coulomb_i``) make each
+        either stick (``a_i = 0``) or slip against its friction (``f_i = -coulomb_i
+        sign(a_i)``). With ``G`` the response of ``a[rest]`` to unit forces on those
+        coordinates (through the closures: ``G = N_r (N^T M N)^-1 N_r^T``, ``N`` a basis
+        of ``null(J_c)``) and ``a0`` their acceleration without that friction, ``f``
+        solves the box QP ``min 1/2 f^T G f + a0^T f, -c <= f <= c`` (ProxSuite, then
+        polished on its active set); its KKT conditions are exactly stick / slip. The
+        answer is the verified rigid solve with ``tau + f`` and is checked for
+        stick / slip before it is returned (SolverError otherwise)."""
+        base = self.forward_total(q, v, tau, method)
+        eff = self.clm.effects
+        c = eff.coulomb[rest]
+        a0 = base.a[rest]
+        scale = float(np.max(np.abs(base.a))) + 1.0
+        tol = 1e-9 * scale
+        mass, _, jac, _ = self._terms(q, v)
+        basis = _null_space(jac, self.closure_rank(q))
+        reduced = basis.T @ mass @ basis
+        rows = basis[rest]
+        response = rows @ np.linalg.solve(reduced, rows.T)
+        f = _box_qp(response, a0, c)
+        total = tau.copy()
+        total[rest] += f
+        res = self.forward_total(q, v, total, method)
+        a = res.a[rest]
+        inner = np.abs(f) < c * (1.0 - 1e-9)
+        bad = (inner & (np.abs(a) > tol)) | ((f >= c * (1.0 - 1e-9)) & (a > tol)) | \
+            ((f <= -c * (1.0 - 1e-9)) & (a < -tol))
+        if np.any(bad):
+            raise SolverError("forward dynamics with Coulomb friction", "stick-slip",
+                              f"coordinates {rest[bad].tolist()} miss stick / slip: "
+                              f"friction {f[bad].tolist()} (bounds {c[bad].tolist()}), "
+                              f"accelerations {a[bad].tolist()}")
+        n_stick = int(np.count_nonzero(inner))
+        return res._replace(status=f"{res.status}; Coulomb friction at rest on "
+                                   f"{rest.size} coordinates: {n_stick} stick, "
+                                   f"{rest.size - n_stick} slip")
 
     def pinocchio_arguments(self) -> tuple:
         """``((model, data), (constraint models, constraint datas, proximal settings))``: the
@@ -381,16 +463,6 @@ class ClosedLoopDynamics:
                                  self._v_lambda, self._res_out)
         return eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL
 
-    def pinocchio_acceleration(self, q: np.ndarray, v: np.ndarray,
-                               tau: np.ndarray) -> np.ndarray:
-        """Tree acceleration (nv,) only (no multipliers), verified; for integrators; no
-        input checks."""
-        rank = self.closure_rank(q)
-        acc, _ = self.pinocchio_call(q, v, tau, rank < self.n_rows)
-        if acc is None:
-            return self._forward_pinocchio(q, v, tau, rank).a
-        return acc.copy()
-
     def _pinocchio_result(self, q, v, tau, acc, iters, rank) -> TreeForwardDynamics:
         """The result of a verified Pinocchio solve (``acc``: Pinocchio's buffer; ``tau``:
         possibly the caller's array): :meth:`pinocchio_result_of` on copies."""
@@ -453,7 +525,11 @@ class ClosedLoopDynamics:
             self._tau_zero = False
             tau[:] = tau_ext
             tau[self._act_index] += u
-        if method == "pinocchio":
+        applied = tau
+        if self.clm.effects.has_forces:  # the joint effects' force joins the applied one
+            force, rest = self.effect_terms(q, v)
+            tau = None if rest.size else applied + force   # friction at rest: full route
+        if method == "pinocchio" and tau is not None:
             prox = self.pinocchio_verified(q, v, tau)
             if prox is not None:         # the short path: the result with lazy multipliers
                 self.check_after_call(q, v)  # the closure errors of that call
@@ -470,8 +546,8 @@ class ClosedLoopDynamics:
         elif method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
         self.check_state(q, v)
-        tau = tau.copy()
-        return solve_checked(lambda: self.forward_unchecked(q, v, tau, method), ("q", q),
+        applied = applied.copy()
+        return solve_checked(lambda: self.forward_unchecked(q, v, applied, method), ("q", q),
                               ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
 
     def pinocchio_verified(self, q: np.ndarray, v: np.ndarray,
@@ -732,3 +808,50 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
 # --------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------
+_NO_INDEX = np.zeros(0, dtype=int)
+
+
+def _null_space(jac: np.ndarray, rank: int) -> np.ndarray:
+    """An orthonormal basis (nv, nv - rank) of ``null(jac)`` (SVD)."""
+    if jac.shape[0] == 0:
+        return np.eye(jac.shape[1])
+    _, _, vt = np.linalg.svd(jac)
+    return vt[rank:].T
+
+
+def _box_qp(hess: np.ndarray, grad: np.ndarray, bound: np.ndarray) -> np.ndarray:
+    """``argmin 1/2 f^T H f + g^T f`` s.t. ``-bound <= f <= bound`` (H symmetric positive
+    semi-definite, small): ProxSuite's dense solver with box constraints, then polished on
+    its active set (the free coordinates solve ``H_ff f_f = -(g_f + H_fb f_b)`` exactly;
+    a polish that leaves the box keeps ProxSuite's answer)."""
+    n = grad.size
+    qp = proxsuite.proxqp.dense.QP(n, 0, 0, True)
+    qp.settings.eps_abs = 1e-13
+    qp.settings.eps_rel = 0.0
+    qp.settings.max_iter = 10_000
+    qp.settings.verbose = False
+    hess = 0.5 * (hess + hess.T)
+    qp.init(hess, grad, None, None, None, None, None, -bound, bound)
+    qp.solve()
+    f = np.clip(np.asarray(qp.results.x, dtype=float), -bound, bound)
+    for _ in range(4):
+        at_bound = np.abs(f) >= bound * (1.0 - 1e-7)
+        free = ~at_bound
+        if not free.any():
+            break
+        f_b = np.where(at_bound, np.sign(f) * bound, 0.0)
+        rhs = -(grad[free] + hess[np.ix_(free, at_bound)] @ f_b[at_bound])
+        f_free = np.linalg.lstsq(hess[np.ix_(free, free)], rhs, rcond=None)[0]
+        if np.any(np.abs(f_free) > bound[free]):
+            break
+        f = f_b
+        f[free] = f_free
+        # a bound whose multiplier has the wrong sign is released
+        grad_full = hess @ f + grad
+        wrong = at_bound & (np.sign(f) * grad_full > 0)
+        if not wrong.any():
+            break
+        f[wrong] = np.clip(f[wrong] - grad_full[wrong] / np.maximum(np.diag(hess)[wrong],
+                                                                     TINY), -bound[wrong],
+                           bound[wrong])
+    return f

@@ -88,6 +88,9 @@ class Workspace(Protocol):
 
     def check_after_call(self, q: np.ndarray, v: np.ndarray) -> None: ...
 
+    def effect_force_of_motion(self, q: np.ndarray, v: np.ndarray,
+                               a: np.ndarray) -> np.ndarray | None: ...
+
 
 class InverseDynamicsRoutes:
     """The inverse-dynamics routes of one workspace, with the buffers and the ProxSuite
@@ -160,6 +163,9 @@ class InverseDynamicsRoutes:
         rotations, and by ``Jlog6 = I`` for a weld at an assembled configuration).
         """
         rhs = force - tau_ext
+        effects = self.ws.effect_force_of_motion(q, v, a)
+        if effects is not None:          # the joint effects' force is balanced too
+            rhs = rhs - effects
         jac, target = self.ws.pinocchio_constraint_terms(q, v, force)
         if check_state and self.n_rows:
             self.ws.check_after_call(q, v)

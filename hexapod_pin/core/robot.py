@@ -227,6 +227,14 @@ class ClosedLoopRobot(RobotBase):
         return ClosedLoopRobot(self.model, self.geometry.platform, self.geometry.pose_axes,
                                home=self.kinematics.home_q)
 
+    def _with_model(self, model: ClosedLoopModel) -> "ClosedLoopRobot":
+        """This robot (platform, pose axes, home, bounds, characteristic length) on
+        ``model``."""
+        spec = self.geometry
+        return ClosedLoopRobot(model, spec.platform, spec.pose_axes, home=self.kinematics.home_q,
+                               max_actuator_force=spec.max_actuator_force,
+                               characteristic_length=spec.characteristic_length)
+
     def __repr__(self) -> str:
         return (f"ClosedLoopRobot({self.model.name!r}, platform={self.geometry.platform!r}, "
                 f"pose_axes={self.geometry.pose_axes})")

@@ -22,6 +22,7 @@ import pinocchio as pin
 
 from ..errors import DescriptionError, InputError
 from .closed_loop import ClosedLoopModel
+from .effects import JointEffects
 from .robot_api import PoseLayout, pose_layout
 
 
@@ -85,6 +86,36 @@ class RobotBase:
         if text is None:
             raise DescriptionError(self.model.name, "the model was not built from URDF text")
         return str(text)
+
+    # -- joint and drive effects (core.effects) ----------------------------------------------
+    @property
+    def effects(self) -> JointEffects:
+        """The joint and drive effects of the robot's model
+        (:class:`~hexapod_pin.core.effects.JointEffects`, ``robot.model.effects``)."""
+        return self.model.effects
+
+    def with_effects(self, effects: JointEffects | None = None, **values: Any) -> Any:
+        """The same robot with other joint and drive effects (armature, damping, Coulomb
+        friction, springs, gears, effort limits): a new robot of the same class, geometry,
+        pose axes and home; this one is unchanged. Every route of the new robot (closed
+        forms, tree routes, batches, simulation) includes them.
+
+        Args:
+            effects: a complete record to start from (default: this robot's).
+            **values: fields to change, as
+                :meth:`ClosedLoopModel.with_effects
+                <hexapod_pin.core.closed_loop.ClosedLoopModel.with_effects>` takes them
+                (arrays in the tree's order or ``{joint name: value}``).
+
+        Raises:
+            InputError: a bad field (see :func:`~hexapod_pin.core.effects.resolve_effects`).
+        """
+        return self._with_model(self.model.with_effects(effects, **values))
+
+    def _with_model(self, model: ClosedLoopModel) -> Any:
+        """A robot like this one on ``model`` (the same tree with other effects); each
+        robot class supplies it."""
+        raise NotImplementedError(f"{type(self).__name__} cannot be rebuilt on another model")
 
     # -- configuration-level maps ----------------------------------------------------------
     @cached_property

@@ -211,6 +211,12 @@ class ClosedLoopIntegrator:
         Pinocchio's own buffer (overwritten by the next call: read it, do not keep it),
         falling back to the exact KKT route when that answer is refused."""
         dyn = self.dyn
+        if dyn.clm.effects.has_forces:   # the joint effects' force joins the applied one
+            force, rest = dyn.effect_terms(q, v)
+            if rest.size:                # Coulomb friction at rest: solved for
+                self._jac0 = None
+                return dyn.forward_unchecked(q, v, tau, self.method).a
+            tau = tau + force
         if self.method == "pinocchio":
             if dyn.pinocchio_verified(q, v, tau) is not None:      # the short path
                 self._jac0 = dyn.last_jacobian
@@ -223,7 +229,7 @@ class ClosedLoopIntegrator:
                 self._jac0 = dyn.last_jacobian
                 return acc
         self._jac0 = None
-        return dyn.forward_unchecked(q, v, tau, self.method).a
+        return dyn.forward_total(q, v, tau, self.method).a
 
     def step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
              projection_tol: float = PROJECTION_TOL) -> tuple[np.ndarray, np.ndarray, float]:

@@ -156,13 +156,22 @@ def forward_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarr
     if verified is not None:
         q, v = q.copy(), v.copy()          # the results keep views of their rows
         ddq, lam_pin = dyn.data.ddq, dyn.data.lambda_c
+    effects = clm.effects.has_forces
     for i in range(n):
-        prox = None if verified is None else verified(q[i], v[i], tau[i])
+        solve = dyn.forward_total
+        if effects:                        # the joint effects' force joins the applied one
+            force, rest = dyn.effect_terms(q[i], v[i])
+            if rest.size:                  # Coulomb friction at rest: the full route
+                solve = dyn.forward_unchecked
+            else:
+                tau[i] += force
+        prox = None if verified is None or solve is not dyn.forward_total else \
+            verified(q[i], v[i], tau[i])
         if prox is not None:
             acc[i], lam[i], iters[i] = ddq, lam_pin, prox.iter
             continue
         try:
-            res = dyn.forward_unchecked(q[i], v[i], tau[i], method)
+            res = solve(q[i], v[i], tau[i], method)
         except SolverError as exc:
             raise _state_error(i, exc) from None
         acc[i] = res.a

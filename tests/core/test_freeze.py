@@ -29,8 +29,11 @@ LOCKS = {
 
 
 def full_kkt_with_locked_joints(clm, q, v, tau, locked_v):
-    """Reference: ``M a + h = tau + J^T lambda`` with ``J = [J_c; S_locked]`` and
-    ``J a = [-gamma; 0]``, least squares (redundant rows), written here."""
+    """Reference: ``M a + h = tau - D v + J^T lambda`` with ``J = [J_c; S_locked]`` and
+    ``J a = [-gamma; 0]``, least squares (redundant rows), written here (``D``: the joint
+    damping of the description, as Pinocchio's parser stores it in ``model.damping``;
+    ``crba`` adds ``model.armature``)."""
+    tau = tau - np.asarray(clm.model.damping) * v
     data = clm.model.createData()
     mass = pin.crba(clm.model, data, q)
     mass = np.triu(mass) + np.triu(mass, 1).T

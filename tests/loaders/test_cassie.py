@@ -156,7 +156,8 @@ def _kkt_forward(cassie, q, v, tau, jac, gamma):
     model, data = cassie.model, cassie.model.createData()
     mass = pin.crba(model, data, q)
     mass = np.triu(mass) + np.triu(mass, 1).T
-    bias = pin.rnea(model, data, q, v, np.zeros(cassie.nv))
+    # the joint damping of the SDF (Pinocchio's model.damping) acts as -D v
+    bias = pin.rnea(model, data, q, v, np.zeros(cassie.nv)) + np.asarray(model.damping) * v
     n, m = cassie.nv, jac.shape[0]
     kkt = np.block([[mass, -jac.T], [jac, np.zeros((m, m))]])
     sol = np.linalg.solve(kkt, np.concatenate([tau - bias, -gamma]))
