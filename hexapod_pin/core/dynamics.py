@@ -20,7 +20,14 @@ Equations and sign conventions (tree coordinates, Pinocchio's ``q``, ``v``, ``a`
 
     M(q) a + h(q, v) = tau + J_c(q)^T lambda          (equation of motion)
     J_c(q) a = -gamma(q, v)                            (closures at acceleration level)
-    tau = S^T u + tau_ext                              (actuation + external loads)
+    tau = S^T u + tau_ext + tau_e(q, v, a)             (actuation + external loads +
+                                                        joint effects)
+
+``M`` includes the armature and ``tau_e`` is the force of the model's joint and drive
+effects (``clm.effects``, :mod:`~hexapod_pin.core.effects`: damping, springs, Coulomb
+friction, whose force on a coordinate at rest is solved for: stick or slip); a model
+without effects has ``tau_e = 0``. The ``tau`` arguments of the routes below are the
+applied ``S^T u + tau_ext``; the effects are added inside.
 
 ``J_c`` and ``gamma`` are those of :meth:`ClosedLoopModel.constraint_jacobian` and
 :meth:`ClosedLoopModel.constraint_drift` (point-closure rows in world axes). With that

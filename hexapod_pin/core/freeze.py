@@ -132,8 +132,18 @@ def freeze_joints(clm: ClosedLoopModel, joints: Sequence[str],
         full = clm.model.joints[clm.model.getJointId(jname)]
         q_index.extend(range(full.idx_q, full.idx_q + full.nq))
         v_index.extend(range(full.idx_v, full.idx_v + full.nv))
-    return FrozenModel(reduced, clm, names, q_locked, np.array(q_index, dtype=int),
-                       np.array(v_index, dtype=int), tuple(dropped))
+    q_idx, v_idx = np.array(q_index, dtype=int), np.array(v_index, dtype=int)
+    effects = clm.effects
+    if not effects.is_rigid or np.any(effects.gear != 1) or np.isfinite(effects.effort_limit).any():
+        # the kept coordinates keep their effects (a locked joint's spring or friction acts
+        # on the lock, not on the motion)
+        kept_act = [clm.actuated_joints.index(j) for j in reduced.actuated_joints]
+        reduced = reduced.with_effects(effects.replace(
+            armature=effects.armature[v_idx], damping=effects.damping[v_idx],
+            coulomb=effects.coulomb[v_idx], stiffness=effects.stiffness[v_idx],
+            spring_reference=effects.spring_reference[q_idx], gear=effects.gear[kept_act],
+            effort_limit=effects.effort_limit[kept_act]))
+    return FrozenModel(reduced, clm, names, q_locked, q_idx, v_idx, tuple(dropped))
 
 
 def _reduced_tree(tree: pin.Model, ids: list[int], q_locked: np.ndarray) -> pin.Model:

@@ -10,8 +10,10 @@ platform's selected twist rows. Then:
 * inverse dynamics: :func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree` ("kkt" or
   "qp", with the robot's force bounds when ``bounded``);
 * forward dynamics: "nullspace" solves the reduced equation
-  ``M_x twist_dot + h_x = J^T u + W`` (``M_x = T^T M T``, ``h_x = T^T (M a_0 + h)``) and
-  is verified on the tree equation of motion with least-squares multipliers; "pinocchio",
+  ``M_x twist_dot + h_x = J^T u + W`` (``M_x = T^T M T``, ``h_x = T^T (M a_0 + h -
+  tau_e)``, ``M`` with the armature, ``tau_e`` the joint effects' force of
+  :mod:`~hexapod_pin.core.effects`; with Coulomb friction at rest the tree's stick / slip
+  solve answers instead) and is verified on the tree equation of motion with least-squares multipliers; "pinocchio",
   "qp" and "kkt" are the tree routes of
   :func:`~hexapod_pin.core.dynamics.forward_dynamics_tree`;
 * ``closure_forces``: per closure, the force (N, world axes) that the body of ``frame2``
@@ -220,7 +222,12 @@ class RobotDynamics:
         u = as_array(actuator_forces, (self.n_act,), "actuator_forces")
         st = self.state(pose, twist, branch)
         w, tau_ext = self.external(st, wrench)
-        if method == "nullspace":
+        if method == "nullspace" and self._friction_at_rest(st):
+            # Coulomb friction at rest is set-valued: the tree's stick / slip solve answers
+            res = forward_dynamics_tree(self.clm, st.q, st.v, u, tau_ext, "kkt")
+            a, lam, iterations = res.a.copy(), res.multipliers, res.iterations
+            status = f"{res.status} (nullspace: Coulomb friction at rest, solved on the tree)"
+        elif method == "nullspace":
             a, lam, status, iterations = self._nullspace(st, u, w, tau_ext)
         else:
             res = forward_dynamics_tree(self.clm, st.q, st.v, u, tau_ext, method)
@@ -232,6 +239,11 @@ class RobotDynamics:
         return ForwardDynamicsResult(twist_dot, a[self.clm.actuated_v].copy(), a, method,
                                      status, iterations, details,
                                      self.conditioning(pose, branch))
+
+    def _friction_at_rest(self, st: TreeState) -> bool:
+        """Whether a coordinate with Coulomb friction is at rest in this state."""
+        return bool(self.clm.effects.has_coulomb
+                    and dynamics_of(self.clm).effect_terms(st.q, st.v)[1].size)
 
     def _nullspace(self, st: TreeState, u: np.ndarray, w: np.ndarray | None,
                    tau_ext: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, str, int]:
@@ -263,6 +275,9 @@ class RobotDynamics:
         mmat = pin.crba(model, data, st.q)
         mmat = np.triu(mmat) + np.triu(mmat, 1).T
         nle = pin.nonLinearEffects(model, data, st.q, st.v).copy()
+        effects, _ = dynamics_of(self.clm).effect_terms(st.q, st.v)
+        if effects is not None:      # damping, springs, sliding friction: part of h
+            nle -= effects
         _, a0 = self.kin.tree_acceleration(st.maps, st.v, np.zeros(self.dim), st.terms)
         vmap = st.vmap
         mass = vmap.T @ mmat @ vmap
