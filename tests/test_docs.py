@@ -131,6 +131,15 @@ def test_derivations_name_tests_that_exist():
     assert covered == set(range(1, 41))
 
 
+def test_drive_model_page_names_tests_that_exist():
+    text = (DOCS / "drives.md").read_text(encoding="utf-8")
+    named = re.findall(r"`(tests/[\w/]+\.py)::(\w+)`", text)
+    assert len(named) >= 8
+    for path, test in named:
+        source = (ROOT / path).read_text(encoding="utf-8")
+        assert re.search(rf"^def {test}\(", source, re.MULTILINE), f"{path}::{test}"
+
+
 def test_readme_links_into_the_docs():
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     links = re.findall(r"\]\((docs/[^)#]+)", readme)
