@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import dataclasses
+import difflib
 import functools
 import json
 import math
@@ -337,10 +338,38 @@ def is_usage_error(exc: BaseException) -> bool:
 
 
 class Command(TyperCommand):
-    """A command whose ``--help`` shows no value type after its flags."""
+    """A command whose ``--help`` shows no value type after its flags, and whose numeric
+    arguments (negative numbers: ``ignore_unknown_options``) do not swallow an unknown
+    option: ``--jsn`` is a usage error (exit code 2, "No such option", with the close
+    matches), not a bad number."""
 
     def get_params(self, ctx: Any) -> list:
         return flags_without_type(super().get_params(ctx))
+
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        known = sorted({opt for param in self.get_params(ctx)
+                        for opt in (*param.opts, *getattr(param, "secondary_opts", ()))
+                        if opt.startswith("-")})
+        for token in args:
+            if token == "--":
+                break
+            name = token.split("=", 1)[0]
+            if name.startswith("-") and name not in known and not _numeric(name):
+                close = difflib.get_close_matches(name, known, n=3)
+                hint = f" (Possible options: {', '.join(close)})" if close else ""
+                ctx.fail(f"No such option: {name}{hint}")
+        return list(super().parse_args(ctx, args))
+
+
+def _numeric(token: str) -> bool:
+    """Whether a token is a number or a comma-separated list of numbers (``-0.1,0.2``)."""
+    try:
+        for piece in token.split(","):
+            if piece:
+                float(piece)
+    except ValueError:
+        return False
+    return True
 
 
 class Group(TyperGroup):

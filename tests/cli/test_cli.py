@@ -149,7 +149,7 @@ def test_bad_input_is_one_line_nonzero_and_names_the_cause(tmp_path, robot):
     one_line_error(invoke("ik", *robot.home_pose, "--geometry", tmp_path / "none.yaml"),
                    "not found")
     one_line_error(invoke("plot", "spiral"), "kind")
-    assert invoke("ik", "--no-such-option-value").exit_code == 1   # a value, not a number
+    assert invoke("ik", "--no-such-option-value").exit_code == 2   # a usage error
 
 
 def test_subprocess_error_has_no_traceback():
