@@ -218,14 +218,16 @@ def check(motion_file: Annotated[Path, typer.Argument(
     largest = {key: float(np.max(report.values[key] / report.bounds[key]))
                for key in report.values if np.any(np.isfinite(report.bounds[key]))}
     summary = {"feasible": report.feasible, "samples": len(report.t),
-               "slow_down": report.slow_down, "worst": report.worst,
+               "slow_down": report.slow_down, "slow_down_reason": report.slow_down_reason,
+               "worst": report.worst,
                "largest_ratio_to_limit": largest,
                "samples_outside_strokes": int(np.sum(~report.within_stroke))}
     if as_json:
         emit_json({**summary, **robot_fields(bot)})
     else:
         rows = {"feasible": str(report.feasible),
-                "uniform slow-down factor": f"{report.slow_down:.6g}"}
+                "uniform slow-down factor": f"{report.slow_down:.6g}" if
+                not report.slow_down_reason else f"none: {report.slow_down_reason}"}
         if report.worst is not None:
             w = report.worst
             rows["worst"] = (f"{w.limit} at sample {w.index} (t = {w.time:.6g} s), "

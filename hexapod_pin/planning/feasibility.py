@@ -73,6 +73,9 @@ class FeasibilityReport:
         slow_down: the smallest uniform slow-down factor ``k`` (``t -> k t``) that meets
             every limit (``< 1``: could be played faster; ``inf``: a pose cannot be held
             statically, or a stroke is left).
+        slow_down_reason: why no slow-down helps when ``slow_down`` is ``inf`` (the sample,
+            the actuator and the forces at rest that exceed the bound, or the sample that
+            leaves a stroke); ``""`` otherwise.
     """
 
     feasible: bool
@@ -83,6 +86,7 @@ class FeasibilityReport:
     within_stroke: np.ndarray
     worst: Violation | None
     slow_down: float
+    slow_down_reason: str = ""
 
 
 def motion_arrays(robot: ParallelRobot, motion: MotionSource
@@ -199,9 +203,9 @@ def check_feasibility(robot: ParallelRobot, motion: MotionSource, *, limits: Lim
     margins = {key: limit_of[key] - values[key] for key in values}
     feasible = bool(np.all(within)) and all(
         np.all(values[key] <= limit_of[key] * (1 + tolerance)) for key in values)
+    slow, reason = _slow_down(t, forces, static, values, limit_of, within)
     return FeasibilityReport(feasible, t, values, limit_of, margins, within,
-                             _worst(t, values, limit_of, within),
-                             _slow_down(forces, static, values, limit_of, within))
+                             _worst(t, values, limit_of, within), slow, reason)
 
 
 def _worst(t, values, bounds, within) -> Violation | None:
@@ -222,16 +226,24 @@ def _worst(t, values, bounds, within) -> Violation | None:
     return best
 
 
-def _slow_down(forces, static, values, bounds, within) -> float:
+def _slow_down(t, forces, static, values, bounds, within) -> tuple[float, str]:
+    """The smallest uniform slow-down factor and, when none helps, why."""
     if not np.all(within):
-        return float("inf")
+        k = int(np.argmin(within))
+        return float("inf"), f"sample {k} (t = {t[k]:.6g} s) leaves an actuator's stroke"
     needed = 0.0
     force_bound = bounds["actuator_force"]
     finite = np.isfinite(force_bound)
     if np.any(finite):
         c, d, f = static[:, finite], (forces - static)[:, finite], force_bound[finite]
-        if np.any(np.abs(c) > f):
-            return float("inf")
+        over = np.abs(c) > f
+        if np.any(over):
+            k, j = np.unravel_index(int(np.argmax(np.abs(c) / f)), c.shape)
+            actuator = int(np.flatnonzero(finite)[j])
+            return float("inf"), (f"holding the pose at rest (gravity and the payload, no "
+                                  f"motion) already needs {abs(c[k, j]):.6g} on actuator "
+                                  f"{actuator} at sample {k} (t = {t[k]:.6g} s), above its "
+                                  f"bound {f[j]:.6g}: no slow-down helps")
         # |c + lam d| <= f for lam = 1 / k^2 in (0, lam_max]
         with np.errstate(divide="ignore", invalid="ignore"):
             lam = np.where(d > 0, (f - c) / d, np.where(d < 0, (-f - c) / d, np.inf))
@@ -243,4 +255,4 @@ def _slow_down(forces, static, values, bounds, within) -> float:
             with np.errstate(divide="ignore"):
                 ratio = np.max(values[key] / bounds[key]) if values[key].size else 0.0
             needed = max(needed, float(ratio) ** (1.0 / power))
-    return float(needed)
+    return float(needed), ""

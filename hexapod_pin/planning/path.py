@@ -231,14 +231,28 @@ def read_waypoints(path: str | os.PathLike[str],
             if repeated:
                 raise DescriptionError(str(path), f"repeated columns {repeated}")
             cols = [header.index(name) for name in names]
-            poses = np.array([[float(row[c]) for c in cols] for row in rows[1:]])
+            values = []
+            for number, row in enumerate(rows[1:], start=1):
+                try:
+                    values.append([float(row[c]) for c in cols])
+                except (ValueError, IndexError):
+                    raise DescriptionError(str(path), f"waypoint {number} (data row {number}"
+                                           f" after the header): expected {len(names)} "
+                                           f"numbers in columns {', '.join(names)}, got {row}") from None
+            poses = np.array(values, dtype=float).reshape(len(values), len(names))
         else:
             raise DescriptionError(str(path), "waypoint files are .csv or .json")
+    except DescriptionError:
+        raise
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         raise DescriptionError(str(path), f"malformed waypoints: {exc}") from None
-    if poses.ndim != 2 or poses.shape[1] != len(names) or not np.all(np.isfinite(poses)):
-        raise DescriptionError(str(path), f"expected rows of {len(names)} finite pose values "
-                                          f"{names}")
+    if poses.ndim != 2 or poses.shape[1] != len(names):
+        raise DescriptionError(str(path), f"expected rows of {len(names)} pose values "
+                                          f"{names}, got shape {poses.shape}")
+    bad = np.flatnonzero(~np.all(np.isfinite(poses), axis=1))
+    if bad.size:
+        raise DescriptionError(str(path), f"waypoint {bad[0] + 1} has a value that is not "
+                                          f"finite: {poses[bad[0]].tolist()} ({', '.join(names)})")
     return poses
 
 

@@ -386,6 +386,21 @@ def test_feasibility_report(robots, planned, case):
     assert report.values[worst.limit][worst.index, worst.component] == pytest.approx(worst.value)
 
 
+def test_no_slow_down_helps_when_holding_the_pose_already_exceeds_the_bound(robots, planned):
+    """A force bound below the static forces: ``slow_down`` is inf and the reason names the
+    actuator, the sample and the static force, which the test computes with statics."""
+    traj = planned["hexapod"]
+    robot = robots["hexapod"]
+    static = np.abs(robot.static_forces_batch(traj.poses, bounded=False))
+    bound = 0.5 * float(np.max(static))
+    report = check_feasibility(robot, traj, limits=Limits(actuator_force=bound))
+    assert report.slow_down == np.inf and not report.feasible
+    k, j = np.unravel_index(int(np.argmax(static)), static.shape)
+    assert f"needs {static[k, j]:.6g} on actuator {j} at sample {k}" in report.slow_down_reason
+    fine = check_feasibility(robot, traj, limits=Limits(actuator_force=1e3))
+    assert fine.slow_down_reason == "" and fine.slow_down < np.inf
+
+
 def test_feasibility_of_a_motion_file(robots, planned, tmp_path):
     from hexapod_pin.motion import Motion, write_motion
 

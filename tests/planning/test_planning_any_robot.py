@@ -272,6 +272,23 @@ def test_read_waypoints_by_the_robots_axes(tmp_path):
         read_waypoints(tmp_path / "w.json", robot)
 
 
+def test_bad_waypoint_files_name_the_file_once_and_the_row(tmp_path):
+    """A missing column names the file once; a NaN or a word names its waypoint."""
+    cols = tmp_path / "cols.csv"
+    cols.write_text("t,x,y,z,roll,pitch\n0,0,0,0.35,0,0\n")
+    with pytest.raises(DescriptionError) as err:
+        read_waypoints(cols)
+    assert str(err.value).count("cols.csv") == 1 and "missing columns ['yaw']" in str(err.value)
+    nan = tmp_path / "nan.csv"
+    nan.write_text("x,y,z,roll,pitch,yaw\n0,0,0.35,0,0,0\n0,0,0.35,0,0,0\n0.01,nan,0.35,0,0,0\n")
+    with pytest.raises(DescriptionError, match="waypoint 3 has a value that is not finite"):
+        read_waypoints(nan)
+    word = tmp_path / "word.csv"
+    word.write_text("x,y,z,roll,pitch,yaw\n0,0,0.35,0,0,0\n0.01,abc,0.35,0,0,0\n")
+    with pytest.raises(DescriptionError, match=r"waypoint 2 \(data row 2.*'abc'"):
+        read_waypoints(word)
+
+
 # -- bad waypoints ------------------------------------------------------------------------------
 @settings(max_examples=15, deadline=None)
 @given(name=st.sampled_from(sorted(ROBOTS)), width=st.integers(1, 7),
