@@ -10,12 +10,15 @@ import numpy as np
 import typer
 
 from .. import motion as motions
+from ..core.platform_map import angular_coordinates
 from ..core.robot import ClosedLoopRobot
 from ..errors import InputError
 from ..hexapod.robot import Hexapod
 from ..viz import hexapod_scenes, plotting, scenes, workspace_plots
 from .common import (
     AsJson,
+    CliRobot,
+    CliUsageError,
     Degrees,
     GeometryFile,
     PlatformFrame,
@@ -24,6 +27,7 @@ from .common import (
     RobotFile,
     SetFields,
     Values,
+    actuator_names,
     actuators_in,
     as_parallel,
     check_suffix,
@@ -34,12 +38,12 @@ from .common import (
     load_cli_robot,
     note,
     parse_numbers,
+    pose_axes_of,
     pose_in,
     pose_out,
     progress_bar,
     read_robot_motion,
     robot_fields,
-    robot_of,
     robot_pose_in,
     robot_pose_out,
     robot_urdf,
@@ -216,75 +220,167 @@ def _view_pose(out: Path, robot: Hexapod, pose: np.ndarray, q: np.ndarray, force
                            caption=caption)
 
 
+PlotAxes = Annotated[str | None, typer.Option(
+    "--axes", metavar="A,B", help="workspace: the two pose axes of the slice (default: the "
+    "first two position axes, x,y for the hexapod); conditioning: the first is the axis "
+    "swept (default: z, else the first pose axis)", show_default=False)]
+
+
 @guard
 def plot(kind: Annotated[str, typer.Argument(
              help="trajectory | residual | conditioning | workspace")],
          motion_file: Annotated[Path | None, typer.Argument(
              help="motion file (trajectory, residual; conditioning: its poses)")] = None,
-         out: Annotated[Path, typer.Option("--out", "-o", help=".png / .svg / .pdf")] = Path(
-             "hexapod.png"),
-         z: Annotated[float | None, typer.Option(help="workspace: slice height (m)")] = None,
+         out: Annotated[Path, typer.Option(
+             "--out", "-o", help=".png / .svg / .pdf (with --robot, default <robot>.png)")
+         ] = Path("hexapod.png"),
+         z: Annotated[float | None, typer.Option(
+             help="workspace: slice height (m), the z of the centre pose")] = None,
          rpy: Annotated[str | None, typer.Option(
-             help="workspace: orientation 'roll,pitch,yaw'")] = None,
-         half_width: Annotated[float | None, typer.Option(
-             help="workspace: half width of the square (m)")] = None,
+             help="workspace: orientation 'roll,pitch,yaw' (with --robot: the angles of its "
+                  "pose, 0 for the others)")] = None,
+         half_width: Annotated[str | None, typer.Option(
+             "--half-width", metavar="W[,W2]",
+             help="workspace: half width of the slice around its centre (m, rad; one value, "
+                  "or one per axis); conditioning: of the sweep (default: framed "
+                  "automatically)", show_default=False)] = None,
          resolution: Annotated[int, typer.Option(help="workspace: samples per side")] = 61,
+         axes: PlotAxes = None,
+         at: Annotated[str | None, typer.Option(
+             "--at", metavar="POSE", help="workspace, conditioning: the centre pose "
+             "'a,b,...' (one value per pose component; default home)",
+             show_default=False)] = None,
          forces: Annotated[bool, typer.Option(
              "--forces", help="trajectory: compute actuator forces by inverse dynamics "
                               "when the file has none")] = False,
          degrees: Degrees = False, as_json: AsJson = False, quiet: Quiet = False,
+         robot: RobotFile = None, platform: PlatformFrame = None, pose_axes: PoseAxes = None,
          geometry: GeometryFile = None, set_: SetFields = None) -> None:
-    """Write a figure: carriage positions / forces along a motion, closure residual,
-    cond(J) (J unscaled: m and rad columns) along a motion (default: a vertical sweep),
-    a workspace slice coloured by cond(J)."""
+    """Write a figure: actuator positions / forces along a motion, closure residual,
+    cond(J) (J unscaled: m and rad columns) along a motion (default: a sweep of one pose
+    axis, the hexapod's vertical), a workspace slice over two pose axes coloured by cond(J).
+
+    With `--robot`: its motion files (`hexapod-pin id --help`), its actuators, and slices
+    and sweeps of its own pose axes (`--axes`), through its home pose or `--at`."""
     quiet = quiet or as_json
-    robot = robot_of(geometry, set_)
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     if kind not in PLOT_KINDS:
         raise InputError("kind", kind, f"expected one of {', '.join(PLOT_KINDS)}")
     check_suffix("out", out, plotting.IMAGE_SUFFIXES)
     if kind in ("trajectory", "residual") and motion_file is None:
         raise InputError("motion_file", None, f"plot {kind} needs a motion file")
+    if isinstance(bot, ClosedLoopRobot) and out == Path("hexapod.png"):
+        out = Path(f"{Path(bot.geometry.name).stem}.png")
+    center = None if at is None else robot_pose_in(bot, [at], degrees, "at")
+    detail: dict = {}
     if kind == "trajectory" and motion_file is not None:
-        _plot_trajectory(out, robot, motions.read_motion(motion_file), forces, quiet,
+        _plot_trajectory(out, bot, read_robot_motion(motion_file, bot), forces, quiet,
                          str(motion_file))
     elif kind == "residual" and motion_file is not None:
-        motion = motions.read_motion(motion_file)
+        motion = read_robot_motion(motion_file, bot)
         if motion.closure_residual is None:
             raise InputError("motion_file", str(motion_file),
                              "has no closure residual (column 'residual')")
         plotting.plot_closure_residual(motion.t, motion.closure_residual, path=out)
     elif kind == "conditioning":
-        if motion_file is not None:
-            motion = motions.read_motion(motion_file)
-            workspace_plots.plot_conditioning(robot, motion.poses, motion.t, path=out,
-                                              s_label="time (s)")
-        else:
-            zs = np.linspace(0.3, 1.2, 200) * robot.home_pose[2]
-            poses = np.tile(robot.home_pose, (len(zs), 1))
-            poses[:, 2] = zs
-            workspace_plots.plot_conditioning(robot, poses, zs, path=out,
-                                              s_label="height z (m)")
+        _plot_conditioning(out, bot, motion_file, axes, center, _widths(half_width, 1))
     else:
-        orientation = np.zeros(3) if rpy is None else parse_numbers(
-            [rpy], 3, "rpy", "roll pitch yaw")
-        if degrees:
+        widths = _widths(half_width, 2)
+        orientation = None if rpy is None else parse_numbers([rpy], 3, "rpy",
+                                                             "roll pitch yaw")
+        if orientation is not None and degrees:
             orientation = np.radians(orientation)
+        if orientation is None and center is None and isinstance(bot, Hexapod):
+            orientation = np.zeros(3)                     # the hexapod: level by default
         with progress_bar(quiet, "sampling the workspace slice"):
-            ws = workspace_plots.workspace_slice(robot, z=z, orientation=orientation,
-                                                 half_width=half_width, resolution=resolution)
+            ws = workspace_plots.workspace_slice(bot, z=z, orientation=orientation,
+                                                 half_width=widths, resolution=resolution,
+                                                 axes=axes, center=center)
         workspace_plots.plot_workspace_slice(ws, path=out)
+        detail = {"axes": list(ws.axes), "reachable_fraction": ws.reachable_fraction}
     note(quiet, f"wrote {out}")
     if as_json:
-        emit_json({"figure": out, "kind": kind})
+        emit_json({"figure": out, "kind": kind, **detail, **robot_fields(bot)})
 
 
-def _plot_trajectory(out: Path, robot: Hexapod, motion: motions.Motion, forces: bool, quiet: bool,
-                     title: str) -> None:
-    """Carriage positions (from the file, else inverse kinematics of the poses) and
-    actuator forces (from the file, else inverse dynamics with ``forces``)."""
-    q = motions.actuators_along(robot, motion)       # a pose out of reach names its row
+def _widths(text: str | None, most: int) -> np.ndarray | None:
+    """``--half-width``: one value, or up to ``most`` (one per axis), each > 0 (m, rad)."""
+    if text is None:
+        return None
+    values = parse_numbers([text], None, "half-width")
+    if not 1 <= len(values) <= most or not np.all(values > 0):
+        count = "one value" if most == 1 else f"1 to {most} values"
+        raise InputError("half-width", text, f"expected {count} > 0 (m, rad)")
+    return values
+
+
+def _swept_axis(robot: CliRobot, axes: str | None) -> str:
+    """The pose axis of a conditioning sweep: the first of ``--axes``, else z, else the
+    robot's first pose axis."""
+    own = pose_axes_of(robot)
+    if axes is None:
+        return "z" if "z" in own else own[0]
+    axis = axes.split(",")[0].strip()
+    if axis not in own:
+        raise InputError("axes", axes, f"the axis swept must be a pose axis of the robot "
+                                       f"({', '.join(own)})")
+    return axis
+
+
+def _plot_conditioning(out: Path, robot: CliRobot, motion_file: Path | None,
+                       axes: str | None, center: np.ndarray | None,
+                       widths: np.ndarray | None) -> None:
+    """cond(J) along the poses of a motion file, or along a sweep of one pose axis through
+    ``center`` (default home) over +- the half width (default the reach scale); the
+    hexapod's default: the vertical sweep from 0.3 to 1.2 times the home height."""
+    if motion_file is not None:
+        if axes is not None or center is not None or widths is not None:
+            raise CliUsageError("plot conditioning MOTION_FILE: the poses are the file's "
+                                "(--axes, --at and --half-width sweep without a file)")
+        motion = read_robot_motion(motion_file, robot)
+        workspace_plots.plot_conditioning(robot, motion.poses, motion.t, path=out,
+                                          s_label="time (s)")
+        return
+    if isinstance(robot, Hexapod) and axes is None and center is None and widths is None:
+        zs = np.linspace(0.3, 1.2, 200) * robot.home_pose[2]
+        poses = np.tile(robot.home_pose, (len(zs), 1))
+        poses[:, 2] = zs
+        workspace_plots.plot_conditioning(robot, poses, zs, path=out,
+                                          s_label="height z (m)")
+        return
+    axis = _swept_axis(robot, axes)
+    mid = np.array(robot.home_pose if center is None else center, dtype=float)
+    width = workspace_plots.reach_scale(robot, axis) if widths is None else float(widths[0])
+    k = pose_axes_of(robot).index(axis)
+    values = mid[k] + np.linspace(-width, width, 200)
+    poses = np.tile(mid, (len(values), 1))
+    poses[:, k] = values
+    workspace_plots.plot_conditioning(robot, poses, values, path=out,
+                                      s_label=f"{axis} ({workspace_plots.axis_unit(axis)})")
+
+
+def _plot_trajectory(out: Path, robot: CliRobot, motion: motions.Motion, forces: bool,
+                     quiet: bool, title: str) -> None:
+    """Actuator positions (from the file, else inverse kinematics of the poses) and
+    actuator forces (from the file, else inverse dynamics with ``forces``), labelled with
+    the robot's actuators (the hexapod's carriages, m and N)."""
+    q = motions.actuators_along(as_parallel(robot), motion)  # a pose out of reach names its row
     tau = motion.actuator_forces
     if tau is None and forces:
         with progress_bar(quiet, "inverse dynamics", total=len(motion.t)) as progress:
-            tau = motions.inverse_dynamics_along(robot, motion, progress=progress).actuator_forces
-    plotting.plot_trajectory(motion.t, q, tau, path=out, title=title)
+            tau = motions.inverse_dynamics_along(as_parallel(robot), motion,
+                                                 progress=progress).actuator_forces
+    if isinstance(robot, Hexapod):
+        plotting.plot_trajectory(motion.t, q, tau, path=out, title=title)
+        return
+    plotting.plot_trajectory(motion.t, q, tau, path=out, title=title, actuator="actuator",
+                             names=actuator_names(robot), units=_actuator_units(robot))
+
+
+def _actuator_units(robot: ClosedLoopRobot) -> tuple[str, str]:
+    """The units of a loaded robot's actuator positions and forces: m and N (prismatic
+    joints), rad and N m (revolute), ``m | rad`` and ``N | N m`` for a mix."""
+    angular = angular_coordinates(robot.model.model)[robot.model.actuated_v]
+    if np.all(angular):
+        return "rad", "N m"
+    return ("m", "N") if not np.any(angular) else ("m | rad", "N | N m")

@@ -1,4 +1,4 @@
-"""Matplotlib figures along a motion: carriage positions, actuator forces, closure residual,
+"""Matplotlib figures along a motion: actuator positions and forces, closure residual,
 simulation results; and the figure helpers the other figure modules share.
 
 matplotlib is optional (the ``plot`` extra: ``pip install "hexapod-pin[plot]"``) and
@@ -8,15 +8,16 @@ each function returns the figure and, given ``path``, saves it (PNG, SVG, PDF:
 from the suffix). Workspace figures (conditioning, slices, force capability, design
 sweeps): :mod:`hexapod_pin.viz.workspace_plots`.
 
-Units: time s, carriage positions m, forces N, residual m (point closures) /
-m, rad (welds). Carriage order and sign conventions as everywhere in hexapod_pin:
-``q_i`` along ``+u_k`` from the rail midpoint, ``tau_i`` the force on carriage i
-along ``+u_k``.
+Units: time s, the hexapod's carriage positions m and forces N (another robot's actuators:
+the ``units`` given, m or rad, N or N m), residual m (point closures) / m, rad (welds).
+Actuator order and sign conventions as everywhere in hexapod_pin (the hexapod: ``q_i``
+along ``+u_k`` from the rail midpoint, ``tau_i`` the force on carriage i along ``+u_k``).
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -101,36 +102,44 @@ def checked_series(value: Any, name: str, n: int | None = None,
 # -- along a trajectory ----------------------------------------------------------------------
 def plot_trajectory(times: ArrayLike, q: ArrayLike | None = None,
                     actuator_forces: ArrayLike | None = None, *,
-                    path: str | os.PathLike | None = None, title: str = "") -> Any:
-    """Carriage positions and actuator forces against time.
+                    path: str | os.PathLike | None = None, title: str = "",
+                    actuator: str = "carriage", names: Sequence[str] | None = None,
+                    units: tuple[str, str] = ("m", "N")) -> Any:
+    """Actuator (carriage) positions and actuator forces against time.
 
     Args:
         times: (N,) s.
-        q: carriage positions (N, n) (m), or ``None``.
-        actuator_forces: actuator forces (N, n) (N), or ``None``.
+        q: actuator positions (N, n) (``units[0]``), or ``None``.
+        actuator_forces: actuator forces (N, n) (``units[1]``), or ``None``.
         path: where to save the figure (optional).
         title: figure title.
+        actuator: what an actuator is called in the labels (the hexapod's ``"carriage"``;
+            e.g. ``"actuator"`` for another robot).
+        names: the legend entry of each actuator (n,); default ``"<actuator> i"``.
+        units: the units of the positions and of the forces in the labels (the
+            hexapod's ``("m", "N")``; e.g. ``("rad", "N m")`` for revolute actuators).
 
     Returns:
         the ``matplotlib.figure.Figure`` (one axes per given quantity).
 
     Raises:
-        InputError: mismatched shapes, NaN / inf, nothing to plot.
+        InputError: mismatched shapes, NaN / inf, nothing to plot, names of another
+            count.
         MissingDependencyError: matplotlib is not installed.
     """
     t = checked_series(times, "times")
+    position, force = _labels(actuator, units)
     panels = [(name, checked_series(v, name, len(t), -1), label)
-              for name, v, label in (("q", q, "carriage position q (m)"),
-                                     ("actuator_forces", actuator_forces,
-                                      "actuator force tau (N)"))
+              for name, v, label in (("q", q, position),
+                                     ("actuator_forces", actuator_forces, force))
               if v is not None]
     if not panels:
         raise InputError("q", None, "give q and/or actuator_forces")
     fig = figure_class()(figsize=(7.5, 2.6 * len(panels) + 0.6))
     axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
+    legend = _legend(actuator, names, panels[0][1].shape[1])
     for ax, (_, data, label) in zip(axes, panels):
-        for i in range(data.shape[1]):
-            ax.plot(t, data[:, i], color=CARRIAGE_COLORS[i % 6], label=f"carriage {i}")
+        _actuator_lines(ax, t, data, legend)
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
     axes[0].legend(ncol=3, fontsize="small")
@@ -138,6 +147,26 @@ def plot_trajectory(times: ArrayLike, q: ArrayLike | None = None,
     if title:
         fig.suptitle(title)
     return finish_figure(fig, path)
+
+
+def _labels(actuator: str, units: tuple[str, str]) -> tuple[str, str]:
+    """The axis labels of actuator positions and forces."""
+    return f"{actuator} position q ({units[0]})", f"actuator force tau ({units[1]})"
+
+
+def _legend(actuator: str, names: Sequence[str] | None, n: int) -> list[str]:
+    """One legend entry per actuator (``names``, or ``"<actuator> i"``)."""
+    if names is None:
+        return [f"{actuator} {i}" for i in range(n)]
+    if len(names) != n:
+        raise InputError("names", list(names), f"expected {n} names, one per actuator")
+    return [str(name) for name in names]
+
+
+def _actuator_lines(ax: Any, t: np.ndarray, data: np.ndarray, legend: list[str]) -> None:
+    for i in range(data.shape[1]):
+        ax.plot(t, data[:, i], color=CARRIAGE_COLORS[i % 6],
+                label=legend[i] if i < len(legend) else f"{i}")
 
 
 def plot_closure_residual(times: ArrayLike, residual: ArrayLike, *,
@@ -168,15 +197,30 @@ def plot_closure_residual(times: ArrayLike, residual: ArrayLike, *,
 
 
 def plot_simulation(trajectory: Any, *, path: str | os.PathLike | None = None,
-                    title: str = "") -> Any:
-    """Carriage positions, actuator forces and closure residual of a simulation result.
+                    title: str = "", actuator: str = "carriage",
+                    names: Sequence[str] | None = None,
+                    units: tuple[str, str] = ("m", "N")) -> Any:
+    """Actuator (carriage) positions, actuator forces and closure residual of a simulation
+    result.
 
     Reads ``times``, ``q``, ``actuator_forces`` and ``closure_residual`` from
     ``trajectory`` (``hexapod_pin.hexapod.simulation.Trajectory`` or any object with them;
     missing ones are left out).
 
+    Args:
+        trajectory: the result.
+        path: where to save the figure (optional).
+        title: figure title.
+        actuator: what an actuator is called in the labels (see :func:`plot_trajectory`).
+        names: the legend entry of each actuator; default ``"<actuator> i"``.
+        units: the units of the positions and of the forces in the labels.
+
+    Returns:
+        the ``matplotlib.figure.Figure``.
+
     Raises:
         InputError: none of them present, or wrong shapes.
+        MissingDependencyError: matplotlib is not installed.
     """
     t = getattr(trajectory, "times", None)
     if t is None:
@@ -185,12 +229,12 @@ def plot_simulation(trajectory: Any, *, path: str | os.PathLike | None = None,
     q = getattr(trajectory, "q", None)
     tau = getattr(trajectory, "actuator_forces", None)
     res = getattr(trajectory, "closure_residual", None)
+    position, force = _labels(actuator, units)
     panels = []
     if q is not None:
-        panels.append(("carriage position q (m)", checked_series(q, "q", len(t), -1), False))
+        panels.append((position, checked_series(q, "q", len(t), -1), False))
     if tau is not None:
-        panels.append(("actuator force tau (N)", checked_series(tau, "actuator_forces", len(t), -1),
-                       False))
+        panels.append((force, checked_series(tau, "actuator_forces", len(t), -1), False))
     if res is not None:
         res = np.asarray(res, dtype=float)
         res = np.max(np.abs(res), axis=1) if res.ndim == 2 else np.abs(res)
@@ -201,12 +245,12 @@ def plot_simulation(trajectory: Any, *, path: str | os.PathLike | None = None,
                                                    "closure_residual")
     fig = figure_class()(figsize=(7.5, 2.4 * len(panels) + 0.6))
     axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
+    legend = [] if panels[0][2] else _legend(actuator, names, panels[0][1].shape[1])
     for ax, (label, data, log) in zip(axes, panels):
         if log:
             ax.semilogy(t, np.maximum(data[:, 0], np.finfo(float).tiny), color="#1b9e77")
         else:
-            for i in range(data.shape[1]):
-                ax.plot(t, data[:, i], color=CARRIAGE_COLORS[i % 6], label=f"carriage {i}")
+            _actuator_lines(ax, t, data, legend)
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
     if not panels[0][2]:

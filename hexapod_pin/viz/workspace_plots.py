@@ -1,65 +1,70 @@
-"""Matplotlib figures of the hexapod's workspace: ``cond(J)`` along a path, horizontal
-slices (reachability, strokes, ``cond(J)``), force capability, design sweeps.
+"""Matplotlib figures of a robot's workspace: ``cond(J)`` along a path, slices over two pose
+axes (reachability, strokes, ``cond(J)``), force capability, design sweeps.
 
 Every quantity plotted comes from the library, never from a formula written here:
 reachability, strokes and the condition number from
-:func:`hexapod_pin.hexapod.workspace.evaluate`, the coarse framing pass from
-``robot.inverse_kinematics_batch``, force capability from
+:func:`hexapod_pin.core.workspace_maps.evaluate` (any robot of the shared API: the hexapod,
+the planar 3-PRR, a :class:`~hexapod_pin.core.robot.ClosedLoopRobot`), the coarse framing
+pass from ``robot.inverse_kinematics_batch``, the hexapod's force capability from
 :func:`hexapod_pin.hexapod.workspace.force_capability`, sweeps from
-:func:`hexapod_pin.hexapod.sweeps.design_sweep`. The condition number is the one the
+:func:`hexapod_pin.core.sweeps.design_sweep`. The condition number is the one the
 library reports everywhere, labelled :data:`CONDITION_LABEL`: ``sigma_max / sigma_min``
-of the workspace Jacobian ``J`` (``qdot = J @ twist``) with its columns in m/s and
-rad/s as :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.jacobian` returns it (no
-characteristic length).
+of the workspace Jacobian ``J`` (``actuator velocities = J @ twist``) with its columns in
+m/s and rad/s as ``robot.jacobian`` returns it (no characteristic length).
 
 matplotlib is optional (the ``plot`` extra); see :mod:`hexapod_pin.viz.plotting` for how
-figures are made and saved. Lengths in m, angles in rad (titles in degrees).
+figures are made and saved. Poses in the robot's pose axes (``robot.pose_axes``); lengths
+in m, angles in rad (titles in degrees).
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..core import workspace_maps
 from ..core.checks import as_array
-from ..errors import InputError
+from ..core.robot_api import ParallelRobot
+from ..errors import ArgumentTypeError, InputError
 from ..hexapod import workspace
 from .plotting import checked_series, figure_class, finish_figure
 
 CONDITION_LABEL = "condition number cond(J), J unscaled (m and rad columns)"
 """What every figure and command calls the condition number: that of
-``hexapod_pin.hexapod.workspace.evaluate`` and ``Hexapod.singularity`` (one definition,
+:func:`hexapod_pin.core.workspace_maps.evaluate` and ``robot.singularity`` (one definition,
 :mod:`hexapod_pin.core.measures`)."""
+
+#: the angular pose components (rad; the others are lengths, m)
+ANGLES = ("roll", "pitch", "yaw")
 
 
 # -- conditioning along a path -----------------------------------------------------------------
 @dataclass(frozen=True)
 class Conditioning:
     """Conditioning of the workspace Jacobian along a path of poses, as
-    :func:`hexapod_pin.hexapod.workspace.evaluate` reports it.
+    :func:`hexapod_pin.core.workspace_maps.evaluate` reports it.
 
     ``condition_number`` is :data:`CONDITION_LABEL`: ``sigma_max / sigma_min`` of ``J``
-    (``qdot = J @ twist``) as
-    :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.jacobian` returns it, columns in
-    m/s and rad/s, no characteristic length; the number
-    :meth:`hexapod_pin.hexapod.kinematics.HexapodKinematics.singularity` and
-    ``workspace.evaluate`` report.
+    (``actuator velocities = J @ twist``) as ``robot.jacobian`` returns it, columns in
+    m/s and rad/s, no characteristic length; the number ``robot.singularity`` and
+    ``workspace_maps.evaluate`` report.
 
     Attributes:
         s: path parameter (N,) (as given, or the sample index).
         condition_number: (N,) ``cond(J)`` where ``ok``; ``inf`` elsewhere (out of
-            reach, beyond a stroke limit, or a leg perpendicular to its rail).
+            reach, beyond a stroke limit, or at a singularity).
         inverse_condition: (N,) ``1 / condition_number`` in [0, 1]: a distance-like
             measure, 0 at a (type II) singularity and where not ``ok``.
         sigma_min: (N,) smallest singular value of ``J`` where ``ok`` (0 elsewhere).
-        reachable: (N,) every leg reaches its platform point.
-        within_stroke: (N,) the carriages respect their strokes and gap.
-        ok: (N,) reachable, within the strokes, and no leg perpendicular to its rail.
+        reachable: (N,) every chain reaches the platform.
+        within_stroke: (N,) the actuators respect their position limits.
+        ok: (N,) reachable, within the strokes, and regular (no singularity below the
+            robot's thresholds).
     """
 
     s: np.ndarray
@@ -72,23 +77,23 @@ class Conditioning:
 
 
 def conditioning(robot: Any, poses: ArrayLike, s: ArrayLike | None = None) -> Conditioning:
-    """Condition number of the hexapod's workspace Jacobian along poses (N, 6).
+    """Condition number of a robot's workspace Jacobian along poses (N, dim).
 
     Args:
-        robot: a :class:`hexapod_pin.Hexapod`.
-        poses: (N, 6) poses (m, rad), home branch.
+        robot: any robot of the shared API (:class:`hexapod_pin.Hexapod`,
+            :class:`hexapod_pin.Planar3PRR`, a :class:`hexapod_pin.ClosedLoopRobot`).
+        poses: (N, dim) poses in the robot's pose axes (m, rad), home branch.
         s: path parameter (N,); default ``0..N-1``.
 
     Raises:
-        InputError: bad shapes.
+        InputError: bad shapes, NaN / inf.
+        ArgumentTypeError: ``robot`` is not a parallel robot.
     """
-    poses = as_array(poses, (6,), "poses", batch=True)
+    poses = as_array(poses, (_robot(robot).pose_dim,), "poses", batch=True)
     s = np.arange(len(poses), dtype=float) if s is None else checked_series(s, "s", len(poses))
-    m = workspace.evaluate(robot, poses, singularity=False, statics=False)
-    with np.errstate(divide="ignore"):
-        inverse = np.where(np.isfinite(m.condition_number), 1.0 / m.condition_number, 0.0)
-    return Conditioning(s, m.condition_number, inverse, m.sigma_min, m.reachable,
-                        m.within_stroke, m.ok)
+    m = workspace_maps.evaluate(robot, poses, singularity=False, statics=False)
+    return Conditioning(s, m.condition_number, workspace_maps.dexterity(m), m.sigma_min,
+                        m.reachable, m.within_stroke, m.ok)
 
 
 def plot_conditioning(robot: Any, poses: ArrayLike, s: ArrayLike | None = None, *,
@@ -98,6 +103,21 @@ def plot_conditioning(robot: Any, poses: ArrayLike, s: ArrayLike | None = None, 
 
     Samples out of reach are shaded dark grey, those beyond a stroke limit light grey
     (no condition number is reported there).
+
+    Args:
+        robot: any robot of the shared API.
+        poses: (N, dim) poses (m, rad).
+        s: path parameter (N,) of the x axis; default ``0..N-1``.
+        path: where to save the figure (optional; .png, .svg, .pdf).
+        s_label: the x-axis label.
+        title: the title (default: what the shading means).
+
+    Returns:
+        the ``matplotlib.figure.Figure``.
+
+    Raises:
+        InputError: bad shapes, NaN / inf, a bad ``path``.
+        MissingDependencyError: matplotlib is not installed.
     """
     cond = conditioning(robot, poses, s)
     fig = figure_class()(figsize=(7.5, 5.0))
@@ -126,6 +146,53 @@ def _runs(mask: np.ndarray, s: np.ndarray) -> list:
     return [(s[a], s[min(b, len(s)) - 1]) for a, b in zip(edges[::2], edges[1::2])]
 
 
+def _robot(robot: Any) -> Any:
+    if not isinstance(robot, ParallelRobot):
+        raise ArgumentTypeError("robot", robot, "expected a robot of the shared API "
+                                f"(hexapod_pin.core.robot_api.ParallelRobot), got "
+                                f"{type(robot).__name__}")
+    return robot
+
+
+def axis_unit(axis: str) -> str:
+    """The unit of a pose component: ``"rad"`` for roll, pitch, yaw, ``"m"`` otherwise."""
+    return "rad" if axis in ANGLES else "m"
+
+
+def reach_scale(robot: Any, axis: str) -> float:
+    """How far from its centre a slice or sweep of ``axis`` first looks (m or rad): pi for
+    an angle; for a length the geometry's ``rail_radius`` (the hexapod, the planar 3-PRR),
+    else its ``characteristic_length`` (a loaded robot), else 1 m."""
+    if axis in ANGLES:
+        return float(np.pi)
+    g = robot.geometry
+    return float(getattr(g, "rail_radius", None) or getattr(g, "characteristic_length", None)
+                 or 1.0)
+
+
+def slice_axes(robot: Any, axes: Sequence[str] | str | None = None) -> tuple[str, str]:
+    """The two pose axes of a workspace slice of ``robot``: ``axes`` checked (a pair, or
+    ``"a,b"``), or by default its first two position axes (``("x", "y")`` for the
+    hexapod), else its first two pose axes.
+
+    Raises:
+        InputError: not two distinct pose axes of the robot, or a robot of one pose axis.
+    """
+    own = tuple(robot.pose_axes)
+    if axes is None:
+        linear = [a for a in own if a not in ANGLES]
+        picked = tuple(linear[:2] if len(linear) >= 2 else own[:2])
+        if len(picked) < 2:
+            raise InputError("axes", own, "a workspace slice needs two pose axes; the "
+                             f"robot has one ({own[0]})")
+    else:
+        picked = tuple(a.strip() for a in axes.split(",")) if isinstance(axes, str) \
+            else tuple(axes)
+    if len(picked) != 2 or picked[0] == picked[1] or any(a not in own for a in picked):
+        raise InputError("axes", axes, f"expected two distinct pose axes of the robot {own}")
+    return picked[0], picked[1]
+
+
 # -- workspace slice -----------------------------------------------------------------------------
 #: status codes of :class:`WorkspaceSlice`
 REACHABLE, OUT_OF_REACH, STROKE_LIMIT = 0, 1, 2
@@ -133,21 +200,26 @@ REACHABLE, OUT_OF_REACH, STROKE_LIMIT = 0, 1, 2
 
 @dataclass(frozen=True)
 class WorkspaceSlice:
-    """Reachability of a horizontal slice of platform positions at a fixed orientation.
+    """Reachability of a slice of poses: a grid over two pose axes, the other components
+    fixed.
 
     Attributes:
-        x: grid coordinates (nx,) of the platform origin (m).
-        y: grid coordinates (ny,) of the platform origin (m).
-        z: the slice height (m).
-        orientation: (roll, pitch, yaw) (rad).
-        status: (ny, nx) ints: ``REACHABLE`` (0), ``OUT_OF_REACH`` (1: a leg cannot
-            reach its platform point), ``STROKE_LIMIT`` (2: reachable, but a
-            carriage leaves its stroke or two carriages of a rail come closer than
-            ``carriage_min_gap``).
+        x: grid coordinates (nx,) along the first slice axis (``axes[0]``; the platform
+            origin's x for the hexapod's default slice) (m or rad).
+        y: grid coordinates (ny,) along the second slice axis (``axes[1]``) (m or rad).
+        z: the z component of the slice's centre pose (m), 0 when z is not a pose axis.
+        orientation: (roll, pitch, yaw) of the centre pose (rad; 0 for the angles that
+            are not pose axes).
+        status: (ny, nx) ints: ``REACHABLE`` (0), ``OUT_OF_REACH`` (1: a chain cannot
+            reach the platform), ``STROKE_LIMIT`` (2: reachable, but an actuator leaves
+            its position limits, e.g. two carriages of a rail of the hexapod come closer
+            than ``carriage_min_gap``).
         condition_number: (ny, nx) ``cond(J)`` of
-            :func:`hexapod_pin.hexapod.workspace.evaluate` (:data:`CONDITION_LABEL`)
-            where status is 0 (``inf`` where a leg is perpendicular to its rail), NaN
-            elsewhere.
+            :func:`hexapod_pin.core.workspace_maps.evaluate` (:data:`CONDITION_LABEL`)
+            where status is 0 (``inf`` at a singularity), NaN elsewhere.
+        axes: the two pose axes of the grid.
+        center: the centre pose (dim,) in the robot's pose axes: the fixed components
+            and the grid's centre (None: the hexapod's ``(0, 0, z, orientation)``).
     """
 
     x: np.ndarray
@@ -156,6 +228,9 @@ class WorkspaceSlice:
     orientation: np.ndarray
     status: np.ndarray
     condition_number: np.ndarray
+    axes: tuple[str, str] = ("x", "y")
+    pose_axes: tuple[str, ...] = ("x", "y", "z", *ANGLES)
+    center: np.ndarray | None = None
 
     @property
     def reachable_fraction(self) -> float:
@@ -163,79 +238,170 @@ class WorkspaceSlice:
         return float(np.mean(self.status == REACHABLE))
 
 
+def _center(robot: Any, z: float | None,
+            orientation: ArrayLike | None, center: ArrayLike | None) -> np.ndarray:
+    """The slice's centre pose (dim,): ``center`` (default home), then ``z`` and the
+    angles of ``orientation`` where they are pose axes."""
+    own = tuple(robot.pose_axes)
+    mid = np.array(robot.home_pose if center is None
+                   else as_array(center, (robot.pose_dim,), "center"), dtype=float)
+    if z is not None:
+        if "z" not in own:
+            raise InputError("z", z, f"z is not a pose axis of the robot {own}")
+        height = float(z)
+        if not np.isfinite(height):
+            raise InputError("z", z, "must be finite")
+        mid[own.index("z")] = height
+    if orientation is not None:
+        rpy = as_array(orientation, (3,), "orientation")
+        for axis, value in zip(ANGLES, rpy):
+            if axis in own:
+                mid[own.index(axis)] = value
+            elif value != 0.0:
+                raise InputError("orientation", orientation, f"{axis} is not a pose axis "
+                                 f"of the robot {own}: give 0")
+    return mid
+
+
+def _half_widths(robot: Any, axes: tuple[str, str], mid: np.ndarray,
+                 half_width: float | Sequence[float] | np.ndarray | None) -> np.ndarray:
+    """The half sides (2,) of the slice: ``half_width`` checked, or the coarse framing."""
+    if half_width is None:
+        return _auto_half_widths(robot, axes, mid)
+    given = np.ravel(np.asarray(half_width, dtype=object))
+    width = as_array(np.repeat(given, 2) if given.size == 1 else given, (2,), "half_width")
+    if not np.all(width > 0):
+        raise InputError("half_width", half_width, "must be finite and > 0 (m, rad)")
+    return np.array(width, dtype=float)
+
+
 def workspace_slice(robot: Any, z: float | None = None,
-                    orientation: Sequence[float] | np.ndarray = (0, 0, 0),
-                    half_width: float | None = None, resolution: int = 61) -> WorkspaceSlice:
-    """Sample the reachable platform positions on a horizontal plane (home branch).
+                    orientation: Sequence[float] | np.ndarray | None = None,
+                    half_width: float | Sequence[float] | np.ndarray | None = None,
+                    resolution: int = 61,
+                    *, axes: Sequence[str] | str | None = None,
+                    center: ArrayLike | None = None) -> WorkspaceSlice:
+    """Sample the reachable poses on a grid over two pose axes (home branch).
+
+    The hexapod's default is the horizontal slice of platform positions ``x, y`` at the
+    home height, level; another robot's, the slice over its first two position axes
+    through its home pose.
 
     Args:
-        robot: a :class:`hexapod_pin.Hexapod`.
-        z: height of the platform origin (m); default the home height.
-        orientation: (roll, pitch, yaw) of the platform (rad).
-        half_width: the square ``[-w, w]^2`` sampled (m); default: framing the
-            reachable region found by a coarse 25 x 25 pass over the rail radius.
+        robot: any robot of the shared API (:class:`hexapod_pin.Hexapod`,
+            :class:`hexapod_pin.Planar3PRR`, a :class:`hexapod_pin.ClosedLoopRobot`).
+        z: the z component of the centre pose (m); default the centre's (the home
+            height).
+        orientation: (roll, pitch, yaw) of the centre pose (rad): the angles that are
+            pose axes of the robot are set, the others must be 0; default the centre's.
+        half_width: half sides of the grid around the centre (m or rad), one value for
+            both axes or one per axis; default: framing the reachable region found by a
+            coarse 25 x 25 pass over +- :func:`reach_scale`.
         resolution: samples per side (>= 2).
+        axes: the two pose axes of the grid (a pair or ``"a,b"``); default
+            :func:`slice_axes`.
+        center: the pose (dim,) the slice passes through (its fixed components and the
+            grid's centre); default the home pose.
+
+    Returns:
+        :class:`WorkspaceSlice`.
 
     Raises:
-        InputError: bad numbers, or no reachable position on the slice (nothing to draw).
+        InputError: bad numbers or axes, ``z`` or a non-zero angle the robot's pose has
+            not, or no reachable pose on the slice (nothing to draw).
+        ArgumentTypeError: ``robot`` is not a parallel robot.
     """
-    g = robot.geometry
-    z = g.home_height if z is None else float(z)
-    rpy = as_array(orientation, (3,), "orientation")
-    if not np.isfinite(z):
-        raise InputError("z", z, "must be finite")
-    if int(resolution) != resolution or resolution < 2:
+    pair = slice_axes(_robot(robot), axes)
+    mid = _center(robot, z, orientation, center)
+    if isinstance(resolution, bool) or int(resolution) != resolution or resolution < 2:
         raise InputError("resolution", resolution, "must be an integer >= 2")
-    if half_width is None:
-        width = _auto_half_width(robot, z, rpy)
-    else:
-        width = float(half_width)
-        if not (np.isfinite(width) and width > 0):
-            raise InputError("half_width", half_width, "must be finite and > 0 (m)")
-    xs = np.linspace(-width, width, int(resolution))
-    m = workspace.evaluate(robot, _slice_poses(xs, z, rpy), singularity=False, statics=False)
-    status = _status(m.reachable, m.within_stroke).reshape(len(xs), len(xs))
+    widths = _half_widths(robot, pair, mid, half_width)
+    own = tuple(robot.pose_axes)
+    cols = [own.index(a) for a in pair]
+    xs, ys = (mid[c] + np.linspace(-w, w, int(resolution)) for c, w in zip(cols, widths))
+    m = workspace_maps.evaluate(robot, _grid_poses(mid, cols, xs, ys), singularity=False,
+                                statics=False)
     if not np.any(m.reachable):
-        raise InputError("z", z, f"no platform position of this slice is reachable "
-                                 f"(orientation {np.round(rpy, 4).tolist()} rad, square "
-                                 f"half width {width:g} m; home height {g.home_height:.4g} m)")
+        where = ", ".join(f"{a} = {v:.4g}" for a, v in zip(own, mid))
+        raise InputError("z" if z is not None else "center", z if z is not None else mid,
+                         f"no platform position of this slice ({pair[0]}, {pair[1]}) is "
+                         f"reachable (centre pose {where}; half widths "
+                         f"{np.round(widths, 4).tolist()}; home pose "
+                         f"{np.round(robot.home_pose, 4).tolist()})")
+    status = _status(m.reachable, m.within_stroke).reshape(len(ys), len(xs))
     cond = np.where(status == REACHABLE, m.condition_number.reshape(status.shape), np.nan)
-    return WorkspaceSlice(xs, xs.copy(), z, rpy, status, cond)
+    full = dict(zip(own, mid))
+    rpy = np.array([full.get(a, 0.0) for a in ANGLES])
+    return WorkspaceSlice(xs, ys, float(full.get("z", 0.0)), rpy, status, cond, pair, own, mid)
 
 
-def _slice_poses(xs: np.ndarray, z: float, rpy: np.ndarray) -> np.ndarray:
-    """Poses (len(xs)^2, 6) on the grid ``xs x xs`` at height z, y varying slowest (so
-    that ``reshape(ny, nx)`` gives rows of constant y)."""
-    gx, gy = np.meshgrid(xs, xs)
-    n = gx.size
-    return np.column_stack([gx.ravel(), gy.ravel(), np.full(n, z), np.tile(rpy, (n, 1))])
+def _grid_poses(mid: np.ndarray, cols: list[int], xs: np.ndarray,
+                ys: np.ndarray) -> np.ndarray:
+    """Poses (len(xs) len(ys), dim) on the grid ``xs x ys`` of components ``cols`` through
+    ``mid``, the second axis varying slowest (``reshape(ny, nx)`` gives rows of constant
+    second coordinate)."""
+    gx, gy = np.meshgrid(xs, ys)
+    poses = np.tile(mid, (gx.size, 1))
+    poses[:, cols[0]], poses[:, cols[1]] = gx.ravel(), gy.ravel()
+    return poses
 
 
 def _status(reachable: np.ndarray, within_stroke: np.ndarray) -> np.ndarray:
     return np.where(~reachable, OUT_OF_REACH, np.where(within_stroke, REACHABLE, STROKE_LIMIT))
 
 
-def _auto_half_width(robot: Any, z: float, rpy: np.ndarray) -> float:
-    """Half width framing the reachable region: a coarse pass over the rail radius."""
-    g = robot.geometry
-    coarse = np.linspace(-g.rail_radius, g.rail_radius, 25)
-    ik = robot.inverse_kinematics_batch(_slice_poses(coarse, z, rpy))
-    iy, ix = np.nonzero(ik.ok.reshape(len(coarse), len(coarse)))
+def _auto_half_widths(robot: Any, axes: tuple[str, str], mid: np.ndarray) -> np.ndarray:
+    """Half sides framing the reachable region: a coarse pass over +- the reach scale
+    (two axes of one kind, both lengths or both angles, share the larger: a square)."""
+    own = tuple(robot.pose_axes)
+    cols = [own.index(a) for a in axes]
+    scales = np.array([reach_scale(robot, a) for a in axes])
+    offsets = [np.linspace(-r, r, 25) for r in scales]
+    ik = robot.inverse_kinematics_batch(_grid_poses(mid, cols, mid[cols[0]] + offsets[0],
+                                                    mid[cols[1]] + offsets[1]))
+    iy, ix = np.nonzero(np.asarray(ik.ok).reshape(25, 25))
     if len(ix) == 0:
-        return g.rail_radius
-    step = coarse[1] - coarse[0]
-    reach = max(np.abs(coarse[ix]).max(), np.abs(coarse[iy]).max()) + step
-    return float(min(1.25 * reach, g.rail_radius))
+        return scales
+    step = np.array([o[1] - o[0] for o in offsets])
+    reach = np.array([np.abs(offsets[0][ix]).max(), np.abs(offsets[1][iy]).max()]) + step
+    widths = np.minimum(1.25 * reach, scales)
+    if (axes[0] in ANGLES) == (axes[1] in ANGLES):
+        widths[:] = widths.max()
+    return widths
+
+
+def _slice_title(ws: WorkspaceSlice) -> str:
+    share = f"reachable {100 * ws.reachable_fraction:.0f} % (grey: stroke limit, white: out " \
+            "of reach)"
+    if ws.axes == ("x", "y") and len(ws.pose_axes) == 6:
+        r, p, yw = np.degrees(ws.orientation) + 0.0        # no "-0"
+        return (f"workspace slice z = {ws.z:.3f} m, rpy = ({r:.0f}, {p:.0f}, {yw:.0f}) deg\n"
+                + share)
+    center = ws.center if ws.center is not None else np.zeros(len(ws.pose_axes))
+    fixed = [f"{a} = {np.degrees(v) + 0.0:.0f} deg" if a in ANGLES else f"{a} = {v:.3f} m"
+             for a, v in zip(ws.pose_axes, center) if a not in ws.axes]
+    return f"workspace slice ({ws.axes[0]}, {ws.axes[1]})" + \
+        (f" at {', '.join(fixed)}" if fixed else "") + "\n" + share
 
 
 def plot_workspace_slice(robot_or_slice: Any, *, path: str | os.PathLike | None = None,
                          title: str = "", **slice_options: Any) -> Any:
     """Map of a workspace slice: ``log10 cond(J)`` where reachable, grey where a stroke
-    limit is hit, white where a leg cannot reach.
+    limit is hit, white where a chain cannot reach.
 
     Args:
-        robot_or_slice: a :class:`WorkspaceSlice`, or a hexapod (then
-            ``slice_options`` go to :func:`workspace_slice`).
+        robot_or_slice: a :class:`WorkspaceSlice`, or a robot (then ``slice_options``
+            go to :func:`workspace_slice`).
+        path: where to save the figure (optional; .png, .svg, .pdf).
+        title: the title (default: the slice and its reachable share).
+        **slice_options: arguments of :func:`workspace_slice`.
+
+    Returns:
+        the ``matplotlib.figure.Figure``.
+
+    Raises:
+        InputError: see :func:`workspace_slice`, or a bad ``path``.
+        MissingDependencyError: matplotlib is not installed.
     """
     ws = robot_or_slice if isinstance(robot_or_slice, WorkspaceSlice) \
         else workspace_slice(robot_or_slice, **slice_options)
@@ -244,23 +410,21 @@ def plot_workspace_slice(robot_or_slice: Any, *, path: str | os.PathLike | None 
     extent = (ws.x[0], ws.x[-1], ws.y[0], ws.y[-1])
     limits = np.where(ws.status == STROKE_LIMIT, 1.0, np.nan)
     ax.imshow(limits, origin="lower", extent=extent, cmap="Greys", vmin=0, vmax=3,
-              interpolation="nearest")
+              interpolation="nearest", aspect="auto")
     shown = np.log10(np.where(np.isfinite(ws.condition_number), ws.condition_number, np.nan))
     image = ax.imshow(shown, origin="lower", extent=extent, cmap="viridis",
-                      interpolation="nearest")
+                      interpolation="nearest", aspect="auto")
     bar = fig.colorbar(image, ax=ax)
     bar.set_label(f"log10 {CONDITION_LABEL}", fontsize="small")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_aspect("equal")
-    r, p, yw = np.degrees(ws.orientation)
-    ax.set_title(title or f"workspace slice z = {ws.z:.3f} m, rpy = ({r:.0f}, {p:.0f}, "
-                          f"{yw:.0f}) deg\nreachable {100 * ws.reachable_fraction:.0f} %"
-                          " (grey: stroke limit, white: out of reach)", fontsize="medium")
+    ax.set_xlabel(f"{ws.axes[0]} ({axis_unit(ws.axes[0])})")
+    ax.set_ylabel(f"{ws.axes[1]} ({axis_unit(ws.axes[1])})")
+    if axis_unit(ws.axes[0]) == axis_unit(ws.axes[1]):
+        ax.set_aspect("equal")
+    ax.set_title(title or _slice_title(ws), fontsize="medium")
     return finish_figure(fig, path)
 
 
-# -- workspace analysis maps (hexapod_pin.hexapod.workspace, hexapod_pin.hexapod.sweeps) ------
+# -- force capability of the hexapod, design sweeps of any robot ------------------------------
 def plot_force_capability_slice(robot: Any, direction: ArrayLike | None = None, *,
                                 z: float | None = None,
                                 orientation: Sequence[float] = (0, 0, 0),
@@ -320,22 +484,32 @@ COLUMN_UNITS = {
 }
 
 
-def column_label(name: str) -> str:
-    """An axis label: the column's name with its unit (:data:`COLUMN_UNITS`)."""
-    unit = COLUMN_UNITS.get(name)
+def column_label(name: str, units: Mapping[str, str] | None = None) -> str:
+    """An axis label: the column's name with its unit (``units``, else
+    :data:`COLUMN_UNITS`)."""
+    unit = (units or {}).get(name) or COLUMN_UNITS.get(name)
     return f"{name} ({unit})" if unit else name
 
 
 def plot_design_sweep(table: Any, x: str, y: str, value: str = "reachable_volume", *,
                       path: str | os.PathLike | None = None,
-                      title: str = "") -> Any:
+                      title: str = "", units: Mapping[str, str] | None = None) -> Any:
     """Heat map of one summary column of a design sweep over two swept parameters.
 
     Args:
-        table: the DataFrame of :func:`hexapod_pin.hexapod.sweeps.design_sweep`.
+        table: the DataFrame of :func:`hexapod_pin.core.sweeps.design_sweep` (or of the
+            hexapod's :func:`hexapod_pin.hexapod.sweeps.design_sweep`).
         x: a swept parameter column (its values and those of ``y`` form the grid).
         y: another swept parameter column.
         value: the summary column coloured (invalid designs are left white).
+        path: where to save the figure (optional; .png, .svg, .pdf).
+        title: the title (default: the column shown).
+        units: column -> unit of the axis labels, over :data:`COLUMN_UNITS` (the
+            hexapod's: volumes in m³; e.g. ``{"reachable_volume": "m²"}`` for a sweep
+            over x and y).
+
+    Returns:
+        the ``matplotlib.figure.Figure``.
 
     Raises:
         InputError: a column that is not in the table, or duplicate (x, y) cells
@@ -357,15 +531,15 @@ def plot_design_sweep(table: Any, x: str, y: str, value: str = "reachable_volume
     fig = figure_class()(figsize=(6.4, 5.0))
     ax = fig.subplots()
     shown = ax.pcolormesh(_edges(xs), _edges(ys), grid, cmap="viridis", shading="flat")
-    fig.colorbar(shown, ax=ax).set_label(column_label(value))
+    fig.colorbar(shown, ax=ax).set_label(column_label(value, units))
     for (j, i), cell in np.ndenumerate(grid):
         if np.isfinite(cell):
             red, green, blue, _ = shown.cmap(shown.norm(cell))
             light = 0.299 * red + 0.587 * green + 0.114 * blue > 0.5
             ax.text(xs[i], ys[j], f"{cell:.3g}", ha="center", va="center", fontsize=7,
                     color="black" if light else "white")
-    ax.set_xlabel(column_label(x))
-    ax.set_ylabel(column_label(y))
+    ax.set_xlabel(column_label(x, units))
+    ax.set_ylabel(column_label(y, units))
     ax.set_title(title or f"design sweep: {value}")
     return finish_figure(fig, path)
 
