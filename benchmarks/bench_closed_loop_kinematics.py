@@ -100,7 +100,8 @@ def cases() -> list[Case]:
 
 
 def kkt_with_locked(clm, q, v, tau, locked_v):
-    """Full-model forward dynamics with ``a[locked_v] = 0`` added (numpy least squares)."""
+    """Full-model forward dynamics with ``a[locked_v] = 0`` added (numpy least squares; the
+    description's joint damping, Pinocchio's ``model.damping``, acts as ``-D v``)."""
     data = clm.model.createData()
     mass = pin.crba(clm.model, data, q)
     mass = np.triu(mass) + np.triu(mass, 1).T
@@ -110,7 +111,8 @@ def kkt_with_locked(clm, q, v, tau, locked_v):
     rhs = np.concatenate([-clm.constraint_drift(q, v), np.zeros(len(locked_v))])
     n = jac.shape[0]
     kkt = np.block([[mass, -jac.T], [jac, np.zeros((n, n))]])
-    sol = np.linalg.lstsq(kkt, np.concatenate([tau - pin.nle(clm.model, data, q, v), rhs]),
+    sol = np.linalg.lstsq(kkt, np.concatenate([tau - np.asarray(clm.model.damping) * v
+                                              - pin.nle(clm.model, data, q, v), rhs]),
                           rcond=None)[0]
     return sol[:clm.nv]
 

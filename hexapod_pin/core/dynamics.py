@@ -109,8 +109,8 @@ __all__ = [
     "CLOSURE_QTOL", "CLOSURE_VTOL", "FORWARD_METHODS", "INVERSE_METHODS", "PIN_PROX_ITERS",
     "PIN_PROX_MU", "QP_SOLVED",
     "QP_STATUS", "RESIDUAL_RTOL", "ClosedLoopDynamics", "ClosureFrames", "TreeForwardDynamics",
-    "TreeInverseDynamics", "dynamics_of", "forward_dynamics_tree", "independent_rows",
-    "inverse_dynamics_tree",
+    "TreeInverseDynamics", "box_qp", "dynamics_of", "forward_dynamics_tree", "independent_rows",
+    "inverse_dynamics_tree", "null_space_basis",
 ]
 
 FORWARD_METHODS = ("pinocchio", "qp", "kkt")
@@ -328,11 +328,11 @@ class ClosedLoopDynamics:
         scale = float(np.max(np.abs(base.a))) + 1.0
         tol = 1e-9 * scale
         mass, _, jac, _ = self._terms(q, v)
-        basis = _null_space(jac, self.closure_rank(q))
+        basis = null_space_basis(jac, self.closure_rank(q))
         reduced = basis.T @ mass @ basis
         rows = basis[rest]
         response = rows @ np.linalg.solve(reduced, rows.T)
-        f = _box_qp(response, a0, c)
+        f = box_qp(response, a0, c)
         total = tau.copy()
         total[rest] += f
         res = self.forward_total(q, v, total, method)
@@ -818,17 +818,19 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
 _NO_INDEX = np.zeros(0, dtype=int)
 
 
-def _null_space(jac: np.ndarray, rank: int) -> np.ndarray:
-    """An orthonormal basis (nv, nv - rank) of ``null(jac)`` (SVD)."""
+def null_space_basis(jac: np.ndarray, rank: int) -> np.ndarray:
+    """An orthonormal basis (nv, nv - rank) of ``null(jac)`` (SVD; ``rank`` the rank of the
+    (rows, nv) ``jac``; the identity without rows)."""
     if jac.shape[0] == 0:
         return np.eye(jac.shape[1])
     _, _, vt = np.linalg.svd(jac)
     return vt[rank:].T
 
 
-def _box_qp(hess: np.ndarray, grad: np.ndarray, bound: np.ndarray) -> np.ndarray:
-    """``argmin 1/2 f^T H f + g^T f`` s.t. ``-bound <= f <= bound`` (H symmetric positive
-    semi-definite, small): ProxSuite's dense solver with box constraints, then polished on
+def box_qp(hess: np.ndarray, grad: np.ndarray, bound: np.ndarray) -> np.ndarray:
+    """``argmin 1/2 f^T H f + g^T f`` s.t. ``-bound <= f <= bound`` (``H`` (k, k) symmetric
+    positive semi-definite, small; ``g``, ``bound`` (k,), ``bound >= 0``; returns ``f`` (k,);
+    the callers verify the answer): ProxSuite's dense solver with box constraints, then polished on
     its active set (the free coordinates solve ``H_ff f_f = -(g_f + H_fb f_b)`` exactly;
     a polish that leaves the box keeps ProxSuite's answer)."""
     n = grad.size

@@ -164,12 +164,19 @@ def spring_displacement(model: pin.Model, effects: JointEffects, q: np.ndarray) 
 def passive_forces(model: pin.Model, effects: JointEffects, q: np.ndarray,
                    v: np.ndarray) -> np.ndarray:
     """The generalised force of damping and springs (nv,) (N, N m): ``-damping * v -
-    stiffness * dq`` (see :func:`spring_displacement`); the force the joints apply to the
+    D^T (stiffness * dq)`` with ``dq`` of :func:`spring_displacement` and ``D = d dq / d q``
+    (``pin.dDifference``: the identity on vector-space joints, so ``-stiffness * dq``
+    there; on a ball or free joint the exact gradient of :func:`spring_energy`, which
+    keeps the energy balance); the force the joints apply to the
     mechanism, added to ``S^T u + tau_ext``. Coulomb friction is set-valued and is
     :func:`friction_forces`."""
     out = -effects.damping * v
     if effects.stiffness.any():
-        out -= effects.stiffness * spring_displacement(model, effects, q)
+        dq = spring_displacement(model, effects, q)
+        # the gradient of sum(K dq^2) / 2: dDifference is the identity on vector-space
+        # joints and the inverse right Jacobian of SO(3) / SE(3) on ball and free joints
+        jac = pin.dDifference(model, effects.spring_reference, q, pin.ArgumentPosition.ARG1)
+        out -= jac.T @ (effects.stiffness * dq)
     return out
 
 

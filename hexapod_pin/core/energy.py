@@ -1,20 +1,24 @@
 """Mechanical energies of any closed-loop model, whole and per body.
 
 :func:`model_energies` reads a tree state ``(q, v)`` (Pinocchio conventions) of any
-:class:`~hexapod_pin.core.closed_loop.ClosedLoopModel` and returns its kinetic and gravity
-potential energies (J) with the part of each body.
+:class:`~hexapod_pin.core.closed_loop.ClosedLoopModel` and returns its kinetic and
+potential energies (J) with the part of each body, of the rotors and of the springs.
 
 Conventions:
 
 * a *body* is what one joint of the tree moves: its child link with every link welded to it
   (Pinocchio's ``model.inertias[i]``, ``i = 1 .. njoints - 1``), named after the first
   BODY frame of that joint (the joint's own name when it has none);
-* kinetic energy ``1/2 v^T M(q) v``; per body ``1/2 m |v_c|^2 + 1/2 w^T I_c w`` with ``v_c``
-  the velocity of its centre of mass and ``I_c`` its rotational inertia about it;
-* gravity potential with Pinocchio's convention: ``-sum_i m_i g . c_i`` (``g`` =
+* kinetic energy ``1/2 v^T M(q) v``, ``M`` with the armature of the drives
+  (``clm.effects.armature``, which Pinocchio's ``crba`` and ``computeKineticEnergy``
+  include); per body ``1/2 m |v_c|^2 + 1/2 w^T I_c w`` with ``v_c`` the velocity of its
+  centre of mass and ``I_c`` its rotational inertia about it; the rotors' part
+  ``1/2 sum(armature v^2)``;
+* potential energy: gravity with Pinocchio's convention, ``-sum_i m_i g . c_i`` (``g`` =
   ``model.gravity.linear``, ``c_i`` the world position of body ``i``'s centre of mass),
   zero when every centre of mass is at height zero (on the plane through the world origin
-  normal to gravity), positive above it.
+  normal to gravity), positive above it; plus the joint springs'
+  ``1/2 sum(stiffness dq^2)`` (:func:`~hexapod_pin.core.effects.spring_energy`).
 
 The closures do not enter: the energies are those of the tree's state as given (a state on
 the closures is the mechanism's state).
@@ -30,11 +34,13 @@ import pinocchio as pin
 
 from .checks import check_finite_result
 from .closed_loop import ClosedLoopModel
+from .effects import spring_energy
 from .results import Energies
 
 
 def model_energies(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike) -> Energies:
-    """Kinetic, gravity potential and total energy of a tree state, with each body's part.
+    """Kinetic, potential and total energy of a tree state, with the part of each body,
+    of the rotors and of the springs.
 
     Args:
         clm: any closed-loop model (its Pinocchio tree ``clm.model``).
@@ -43,11 +49,14 @@ def model_energies(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike) -> 
             own frame).
 
     Returns:
-        :class:`~hexapod_pin.core.results.Energies` (J): ``kinetic`` ``1/2 v^T M v``,
-        ``potential`` ``-sum m_i g . c_i`` (zero when every centre of mass is at height
-        zero), ``total`` their sum, ``bodies`` (n_bodies,) names,
-        ``kinetic_per_body`` and ``potential_per_body`` (n_bodies,) arrays whose sums are
-        the totals (``n_bodies = model.njoints - 1``).
+        :class:`~hexapod_pin.core.results.Energies` (J): ``kinetic`` ``1/2 v^T M v`` (the
+        armature included), ``potential`` ``-sum m_i g . c_i`` (zero when every centre of
+        mass is at height zero) plus the springs', ``total`` their sum, ``bodies``
+        (n_bodies,) names, ``kinetic_per_body`` and ``potential_per_body`` (n_bodies,)
+        arrays, ``rotor_kinetic`` ``1/2 sum(armature v^2)`` and ``spring_potential``
+        ``1/2 sum(stiffness dq^2)``: ``sum(kinetic_per_body) + rotor_kinetic = kinetic``
+        and ``sum(potential_per_body) + spring_potential = potential``
+        (``n_bodies = model.njoints - 1``).
 
     Raises:
         InputError: ``q`` or ``v`` of the wrong shape, not real, or with NaN / inf.
@@ -73,17 +82,19 @@ def model_energies(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike) -> 
         placement = data.oMi[i]
         com = np.asarray(placement.rotation) @ lever + np.asarray(placement.translation)
         potential[i - 1] = -mass * (gravity @ com)
-    kin = float(pin.computeKineticEnergy(model, data, q, v))
-    pot = float(pin.computePotentialEnergy(model, data, q))
+    kin, pot = _totals(clm, model, data, q, v)
+    effects = clm.effects
+    rotor = float(0.5 * np.dot(effects.armature * v, v))
+    springs = spring_energy(model, effects, q)
     return check_finite_result("model_energies", Energies(kin, pot, kin + pot, names,
-                                                          kinetic, potential))
+                                                          kinetic, potential, rotor, springs))
 
 
 def energy_totals(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike
                   ) -> tuple[float, float]:
-    """``(kinetic, potential)`` (J) of :func:`model_energies` without the per-body parts
-    (Pinocchio's ``computeKineticEnergy`` and ``computePotentialEnergy``: for a simulation's
-    every sample).
+    """``(kinetic, potential)`` (J) of :func:`model_energies` without the parts
+    (Pinocchio's ``computeKineticEnergy``, the armature included, and
+    ``computePotentialEnergy`` plus the springs' energy: for a simulation's every sample).
 
     Args:
         clm: any closed-loop model.
@@ -96,8 +107,16 @@ def energy_totals(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike
     q = clm.check_q(q)
     v = clm.check_v(v)
     model, data, _ = _workspace(clm)
+    return _totals(clm, model, data, q, v)
+
+
+def _totals(clm: ClosedLoopModel, model: pin.Model, data: pin.Data, q: np.ndarray,
+            v: np.ndarray) -> tuple[float, float]:
+    """``(kinetic with the armature, gravity + spring potential)`` (J) of checked
+    ``q``, ``v``."""
     return (float(pin.computeKineticEnergy(model, data, q, v)),
-            float(pin.computePotentialEnergy(model, data, q)))
+            float(pin.computePotentialEnergy(model, data, q))
+            + spring_energy(model, clm.effects, q))
 
 
 def body_names(clm: ClosedLoopModel) -> tuple[str, ...]:

@@ -233,16 +233,27 @@ class Energies:
     """Mechanical energies of the whole mechanism (J).
 
     The per-body parts are optional (empty / None unless the route computes them, e.g.
-    :func:`hexapod_pin.core.energy.model_energies`); they take no part in ``==``.
+    :func:`hexapod_pin.core.energy.model_energies`); they take no part in ``==``. With
+    them, ``sum(kinetic_per_body) + rotor_kinetic = kinetic`` and
+    ``sum(potential_per_body) + spring_potential = potential``.
 
     Attributes:
-        kinetic: ``1/2 v^T M v``.
-        potential: gravity potential, zero when every centre of mass is at height zero.
+        kinetic: ``1/2 v^T M v``, ``M`` with the drives' armature (the rotors' energy
+            included).
+        potential: gravity potential (zero when every centre of mass is at height zero)
+            plus the joint springs' energy.
         total: their sum.
         bodies: the name of each body of the tree (one per joint, the link it moves with
             every link welded to it), or ``()``.
-        kinetic_per_body: (n_bodies,) kinetic energy of each body, or None.
+        kinetic_per_body: (n_bodies,) kinetic energy of each body (its links only, no
+            rotor), or None.
         potential_per_body: (n_bodies,) gravity potential of each body, or None.
+        rotor_kinetic: the rotors' kinetic energy ``1/2 sum(armature v^2)`` (part of
+            ``kinetic``; 0.0 when the route does not split it out or there is no
+            armature).
+        spring_potential: the springs' energy ``1/2 sum(stiffness dq^2)`` (part of
+            ``potential``; 0.0 when the route does not split it out or there are no
+            springs).
     """
 
     kinetic: float
@@ -251,6 +262,8 @@ class Energies:
     bodies: tuple[str, ...] = ()
     kinetic_per_body: np.ndarray | None = field(default=None, compare=False)
     potential_per_body: np.ndarray | None = field(default=None, compare=False)
+    rotor_kinetic: float = 0.0
+    spring_potential: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -16,11 +16,23 @@ Conventions:
 * actuator positions are ``robot.actuator_positions(q)`` (a bare model: the tree
   coordinates of the actuated joints), actuator velocities the tree velocity at the
   actuated joints, ``v[clm.actuated_v]``;
-* energies are those of :func:`~hexapod_pin.core.energy.model_energies` (gravity potential
-  zero when every centre of mass is at height zero); the actuators' work is exact for the
-  zero-order hold, ``sum_k u_k . (q_act(t_{k+1}) - q_act(t_k))`` (the integral of ``u . qdot_act``
-  with ``u`` held over each step, displacements by ``pin.difference``), so that
-  ``E(t) - E(0) = work(t)`` up to the integrator's error (``O(dt^4)`` for RK4).
+* the joint and drive effects of the model (``clm.effects``,
+  :mod:`~hexapod_pin.core.effects`: armature, damping, springs, Coulomb friction) act in
+  every step; the integrator is :func:`~hexapod_pin.core.simulation.resolve_integrator`'s
+  (``"auto"``: ``"stick_slip"``, exact stick-slip at velocity level, for a model with
+  Coulomb friction, else RK4; RK4 and plain Euler refuse exact Coulomb friction, a
+  ``friction_regularisation`` makes it smooth for any integrator);
+* energies are those of :func:`~hexapod_pin.core.energy.model_energies`: kinetic with the
+  rotors' (armature), potential of gravity (zero when every centre of mass is at height
+  zero) and of the springs; the actuators' work is exact for the zero-order hold,
+  ``sum_k u_k . (q_act(t_{k+1}) - q_act(t_k))`` (the integral of ``u . qdot_act`` with
+  ``u`` held over each step, displacements by ``pin.difference``); the dissipated work is
+  the integral of the power of damping and friction, ``sum(damping v^2 + coulomb |v|)``
+  (:attr:`~hexapod_pin.core.simulation.ClosedLoopIntegrator.dissipated` of each step: the
+  RK4 quadrature over its stage velocities, or the work of the held forces of an Euler
+  step). So ``E(t) + dissipated_work(t) - work(t) = E(0)``
+  (:attr:`Trajectory.energy_residual`) up to the integrator's error (``O(dt^4)`` for RK4,
+  ``O(dt)`` for the Euler schemes).
 
 The library never prints: pass ``progress`` to follow a long run.
 """
@@ -31,8 +43,8 @@ import contextlib
 import math
 import time as _time
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -45,12 +57,24 @@ from .controllers import Controller, SimState
 from .dynamics import FORWARD_METHODS
 from .energy import energy_totals
 from .robot_api import ParallelRobot, state_branch
-from .simulation import INTEGRATORS, PROJECTION_TOL, ClosedLoopIntegrator
+from .simulation import PROJECTION_TOL, ClosedLoopIntegrator, resolve_integrator
 
 #: simulation backends: the Pinocchio tree (every robot) or a robot's compiled simulator
 BACKENDS = ("tree", "compiled")
+
+
+class CompiledSimulator(NamedTuple):
+    """A robot class's compiled simulator (:func:`register_compiled_simulator`)."""
+
+    #: ``run(robot, duration, dt, *, actuator_forces, integrator, record_every)``
+    run: Callable[..., "Trajectory"]
+    #: whether it models the joint and drive effects (``robot.effects``); when False,
+    #: ``simulate`` refuses a robot whose effects are not rigid
+    supports_effects: bool = False
+
+
 #: robot class -> its compiled simulator (:func:`register_compiled_simulator`)
-COMPILED_SIMULATORS: dict[type, Callable[..., "Trajectory"]] = {}
+COMPILED_SIMULATORS: dict[type, CompiledSimulator] = {}
 #: the most steps (``round(duration / dt)``) one run may take
 MAX_STEPS = 10 ** 8
 #: the most samples one run may record (each holds the tree state, a few hundred bytes)
@@ -85,10 +109,11 @@ class Trajectory:
             (after clipping; N or N m); the last row: the command computed at the final
             state.
         saturated: (N,) True where that row's command was clipped.
-        energies: (N,) total mechanical energy (J).
-        kinetic: (N,) kinetic energy (J).
-        potential: (N,) gravity potential energy (J).
-        work: (N,) cumulative work done by the actuators since t = 0 (J).
+        energies: (N,) total mechanical energy, ``kinetic + potential`` (J).
+        kinetic: (N,) kinetic energy ``1/2 v^T M v``, the rotors' (armature) included (J).
+        potential: (N,) potential energy of gravity and of the joint springs (J).
+        work: (N,) cumulative work done by the actuators since t = 0 (J; the only
+            applied forces of this simulator).
         closure_residual: (N,) max-abs closure residual of each sample (m / rad).
         status: "completed", "saturated" (completed, some commands clipped to the
             bound: ``message`` gives the fraction of steps) or "failed" (a step, the
@@ -97,6 +122,16 @@ class Trajectory:
         message: details of the status ("" when completed).
         dt: the step (s).
         wall_time: seconds spent in the integration loop.
+        dissipated_power: (N,) power dissipated by damping and Coulomb friction at each
+            sample, ``sum(damping v^2 + coulomb |v|)`` (W, >= 0; with a
+            ``friction_regularisation`` the friction's ``coulomb v tanh(v / v_eps)``).
+            Zeros when a backend leaves it out (a model without these effects).
+        dissipated_work: (N,) energy dissipated by damping and friction since t = 0 (J),
+            the integral of the dissipated power by the integrator's own quadrature
+            (module docstring): ``energies + dissipated_work - work`` stays at
+            ``energies[0]`` (:attr:`energy_residual`). Zeros when a backend leaves it out.
+        integrator: the integrator that ran ("rk4", "semi_implicit_euler",
+            "stick_slip", a compiled backend's name; "" when the backend does not say).
     """
 
     times: np.ndarray
@@ -117,6 +152,22 @@ class Trajectory:
     message: str
     dt: float
     wall_time: float
+    dissipated_power: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    dissipated_work: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    integrator: str = ""
+
+    def __post_init__(self) -> None:
+        for name in ("dissipated_power", "dissipated_work"):   # left out: no dissipation
+            if getattr(self, name).size == 0 and self.times.size:
+                object.__setattr__(self, name, np.zeros(self.times.size))
+
+    @property
+    def energy_residual(self) -> np.ndarray:
+        """(N,) ``energies + dissipated_work - work - energies[0]`` (J): the miss of the
+        energy balance, zero up to the integrator's error."""
+        if not self.times.size:
+            return np.zeros(0)
+        return self.energies + self.dissipated_work - self.work - self.energies[0]
 
     @property
     def real_time_factor(self) -> float:
@@ -134,10 +185,11 @@ def real_time_factor(times: np.ndarray, wall_time: float) -> float:
 def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float = 1e-3, *,
              controller: Controller | None = None,
              actuator_forces: npt.ArrayLike | ForceFunction | None = None,
-             integrator: str = "rk4", method: str = "pinocchio",
+             integrator: str = "auto", method: str = "pinocchio",
              initial: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
              record_every: int = 1, progress: Callable[[float], Any] | None = None,
-             projection_tol: float = PROJECTION_TOL, backend: str = "tree") -> Trajectory:
+             projection_tol: float = PROJECTION_TOL, backend: str = "tree",
+             friction_regularisation: float | None = None) -> Trajectory:
     """Integrate the closed-loop dynamics of any robot or closed-loop model.
 
     Args:
@@ -151,7 +203,10 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
             final state); its ``reset()`` is called first when it has one.
         actuator_forces: without a controller: (n_act,) constant, or a callable
             ``t -> (n_act,)`` (N or N m); default zero (unactuated).
-        integrator: "rk4" (default) or "semi_implicit_euler".
+        integrator: "auto" (default: "stick_slip" for a model with Coulomb friction and
+            no ``friction_regularisation``, else "rk4"), "rk4", "semi_implicit_euler" or
+            "stick_slip" (semi-implicit Euler with exact stick-slip friction at velocity
+            level); see :func:`~hexapod_pin.core.simulation.resolve_integrator`.
         method: forward-dynamics route, "pinocchio" (default), "qp" or "kkt".
         initial: the initial tree state ``(q (nq,), v (nv,))``, on the closures (residual
             and ``J_c v`` within :data:`INITIAL_TOL`); None: the robot's
@@ -168,7 +223,15 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
             function or ``initial``; ``method`` and ``projection_tol`` do not apply), the
             same :class:`Trajectory` returned. The two integrate different coordinates:
             they agree to the integrator's accuracy, and the compiled one also stops at
-            the robot's stroke limits (status "failed", the message says which).
+            the robot's stroke limits (status "failed", the message says which). A robot
+            with joint effects runs there only if its simulator was registered with
+            ``supports_effects=True``.
+        friction_regularisation: ``v_eps`` (m/s or rad/s, > 0): Coulomb friction becomes
+            the smooth ``-coulomb tanh(v / v_eps)`` (an approximation: a joint under a load
+            below its friction creeps at ``v_eps atanh(load / coulomb)`` instead of
+            sticking; any integrator; stiff: RK4 needs ``dt`` below about ``2.8 m v_eps /
+            coulomb``, ``m`` the joint's effective inertia). None (default): the exact
+            friction.
 
     Returns:
         :class:`Trajectory`. A step, controller or platform-state failure (a library
@@ -177,12 +240,16 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
     Raises:
         InputError: a ``duration`` or ``dt`` that is not a positive finite real number,
             more than :data:`MAX_STEPS` steps or :data:`MAX_SAMPLES` samples, an unknown
-            integrator or method, both ``controller`` and ``actuator_forces``, forces or
+            integrator or method, an integrator that does not take the model's Coulomb
+            friction ("rk4" / "semi_implicit_euler" without a regularisation,
+            "stick_slip" with one), a ``friction_regularisation`` that is not a finite
+            number > 0, both ``controller`` and ``actuator_forces``, forces or
             an ``initial`` state of the wrong shape, with NaN / inf or off the closures, a
             ``record_every`` that is not a positive integer, a controller's or force
             function's output of the wrong shape.
         InputError: ``backend`` unknown, "compiled" for a robot without a compiled
-            simulator or with options it does not take.
+            simulator, with options it does not take, or with joint effects it does not
+            model.
         ArgumentTypeError: ``robot`` is neither a robot nor a closed-loop model, or a
             ``controller`` / ``progress`` that is not callable.
         NonFiniteResultError: a controller or force function returned NaN / inf (the
@@ -195,8 +262,10 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
     projection_tol = real_number(projection_tol, "projection_tol", minimum=0.0)
     if not (isinstance(backend, str) and backend in BACKENDS):
         raise InputError("backend", backend, f"expected one of {BACKENDS}")
-    if not (isinstance(integrator, str) and integrator in INTEGRATORS):
-        raise InputError("integrator", integrator, f"expected one of {INTEGRATORS}")
+    if friction_regularisation is not None:
+        friction_regularisation = real_number(friction_regularisation,
+                                              "friction_regularisation", minimum=0.0)
+    integrator = resolve_integrator(clm, integrator, friction_regularisation)
     if not (isinstance(method, str) and method in FORWARD_METHODS):
         raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
     steps = duration / dt
@@ -208,7 +277,7 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
                          "no step to take")
     if backend == "compiled":
         return _compiled(robot, duration, dt, controller, actuator_forces, integrator, method,
-                         initial, record_every, progress)
+                         initial, record_every, progress, friction_regularisation)
     for name, fn in (("controller", controller), ("progress", progress)):
         if fn is not None and not callable(fn):
             raise ArgumentTypeError(name, fn, "expected a callable or None")
@@ -224,9 +293,10 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
     limit = _force_limit(robot, n_act) if platform else np.full(n_act, math.inf)
     forces_of = _command_source(controller, actuator_forces, robot, n_act)
     q, v = _initial_state(robot, clm, platform, initial)
-    integ = ClosedLoopIntegrator(clm, method, integrator)
+    integ = ClosedLoopIntegrator(clm, method, integrator,
+                                 friction_regularisation=friction_regularisation)
     q, v, res = integ.project(q, v, projection_tol, velocity=True)
-    run = _Run(robot, clm, platform, n_rec, n_act)
+    run = _Run(robot, clm, platform, n_rec, n_act, integ)
     reset = getattr(controller, "reset", None)
     if callable(reset):
         reset()
@@ -254,7 +324,7 @@ def simulate(robot: ParallelRobot | ClosedLoopModel, duration: float, dt: float 
         except HexapodPinError as exc:
             status, message = "failed", f"step at t = {t:.6g} s: {exc}"
             break
-        run.add_work(forces, q, q_new)
+        run.add_step(forces, q, q_new)
         clipped += sat
         step += 1
         q, v, t = q_new, v_new, step * dt
@@ -286,27 +356,42 @@ class _Failure(HexapodPinError):
     from the run's own checks (InputError, NonFiniteResultError: raised)."""
 
 
-def register_compiled_simulator(kind: type, run: Callable[..., Trajectory]) -> None:
+def register_compiled_simulator(kind: type, run: Callable[..., Trajectory], *,
+                                supports_effects: bool = False) -> None:
     """Register a robot class's compiled simulator for ``simulate(..., backend="compiled")``
     (called by the robot's own package when it is imported: core names no robot).
 
-    ``run(robot, duration, dt, *, actuator_forces, integrator, record_every)`` must return
-    a :class:`Trajectory` sampled every ``record_every`` steps and at the end, starting
-    at the robot's home at rest.
+    Args:
+        kind: the robot class (its subclasses use the same simulator).
+        run: ``run(robot, duration, dt, *, actuator_forces, integrator, record_every)``
+            returning a :class:`Trajectory` sampled every ``record_every`` steps and at the
+            end, starting at the robot's home at rest; ``integrator`` is the one
+            :func:`~hexapod_pin.core.simulation.resolve_integrator` picked. With
+            ``supports_effects`` it also takes ``friction_regularisation`` (None or
+            ``v_eps``) and fills the trajectory's ``dissipated_power`` and
+            ``dissipated_work``.
+        supports_effects: whether ``run`` models the joint and drive effects
+            (``robot.effects``: armature, damping, springs, Coulomb friction). When False
+            (default), ``simulate`` refuses a robot whose effects are not rigid.
     """
-    COMPILED_SIMULATORS[kind] = run
+    COMPILED_SIMULATORS[kind] = CompiledSimulator(run, bool(supports_effects))
 
 
 def _compiled(robot, duration: float, dt: float, controller, actuator_forces,
-              integrator: str, method: str, initial, record_every: int, progress
-              ) -> Trajectory:
+              integrator: str, method: str, initial, record_every: int, progress,
+              friction_regularisation: float | None) -> Trajectory:
     """The robot's registered compiled simulator, after checking that the run asks for
     nothing it does not do."""
-    run = next((COMPILED_SIMULATORS[kind] for kind in type(robot).__mro__
+    sim = next((COMPILED_SIMULATORS[kind] for kind in type(robot).__mro__
                 if kind in COMPILED_SIMULATORS), None)
-    if run is None:
+    if sim is None:
         raise InputError("backend", "compiled", f"{type(robot).__name__} has no compiled "
                          "simulator (backend='tree' works for every robot)")
+    effects = robot.model.effects
+    if not (sim.supports_effects or effects.is_rigid):
+        raise InputError("backend", "compiled", f"the compiled simulator of "
+                         f"{type(robot).__name__} does not model joint effects and this "
+                         f"robot has {effects!r} (backend='tree' includes them)")
     given = [name for name, value in (("controller", controller), ("initial", initial),
                                       ("progress", progress)) if value is not None]
     if method != "pinocchio":
@@ -316,8 +401,13 @@ def _compiled(robot, duration: float, dt: float, controller, actuator_forces,
     if given:
         raise InputError("backend", "compiled", "the compiled simulator runs from home at "
                          f"rest under constant forces: {', '.join(given)} not supported")
-    return run(robot, duration, dt, actuator_forces=actuator_forces, integrator=integrator,
-               record_every=record_every)
+    options = {"friction_regularisation": friction_regularisation} \
+        if sim.supports_effects else {}
+    if friction_regularisation is not None and not sim.supports_effects:
+        raise InputError("friction_regularisation", friction_regularisation,
+                         "the compiled simulator does not model friction")
+    return sim.run(robot, duration, dt, actuator_forces=actuator_forces,
+                   integrator=integrator, record_every=record_every, **options)
 
 
 def _resolve(robot) -> tuple[ClosedLoopModel, bool]:
@@ -438,12 +528,13 @@ class _Run:
     """The recorded samples of one run and the actuators' work."""
 
     def __init__(self, robot, clm: ClosedLoopModel, platform: bool, n_rec: int,
-                 n_act: int) -> None:
-        self.robot, self.clm, self.platform = robot, clm, platform
+                 n_act: int, integ: ClosedLoopIntegrator) -> None:
+        self.robot, self.clm, self.platform, self.integ = robot, clm, platform, integ
         self.act_v = clm.actuated_v
         self.act_q = np.array([clm.model.joints[clm.model.getJointId(j)].idx_q
                                for j in clm.actuated_joints], dtype=int)
         self.work = 0.0
+        self.dissipated = 0.0
         self.k = 0
         dim = robot.pose_dim if platform else 0
         self.t = np.empty(n_rec)
@@ -459,6 +550,8 @@ class _Run:
         self.pot = np.empty(n_rec)
         self.w = np.empty(n_rec)
         self.res = np.empty(n_rec)
+        self.power = np.empty(n_rec)
+        self.lost = np.empty(n_rec)
 
     def state(self, t: float, q: np.ndarray, v: np.ndarray, need_platform: bool) -> SimState:
         """The controller's view of ``(q, v)`` (the platform state only when asked)."""
@@ -489,10 +582,12 @@ class _Run:
             raise _Failure(f"platform state: {exc}") from exc
         return pose, twist
 
-    def add_work(self, forces: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> None:
-        """Add ``u . (q_act(t_1) - q_act(t_0))``, the work of the held command over a step."""
+    def add_step(self, forces: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> None:
+        """Add the work of the held command over a step, ``u . (q_act(t_1) -
+        q_act(t_0))``, and the energy the integrator's step dissipated."""
         step = pin.difference(self.clm.model, q0, q1)
         self.work += float(forces @ step[self.act_v])
+        self.dissipated += self.integ.dissipated
 
     def record(self, state: SimState, forces: np.ndarray, sat: bool, res: float) -> None:
         """Store one sample (its platform state and energies computed here)."""
@@ -507,6 +602,7 @@ class _Run:
         self.qa[k], self.va[k] = state.actuator_positions, state.actuator_velocities
         self.u[k], self.sat[k], self.res[k] = forces, sat, res
         self.kin[k], self.pot[k], self.w[k] = kinetic, potential, self.work
+        self.power[k], self.lost[k] = self.integ.dissipated_power(state.v), self.dissipated
         self.k = k + 1
 
     def trajectory(self, status: str, message: str, dt: float, wall: float) -> Trajectory:
@@ -520,4 +616,5 @@ class _Run:
                           cut(self.twists), cut(self.qa), cut(self.va), cut(self.u),
                           cut(self.sat), self.kin[:n] + self.pot[:n], cut(self.kin),
                           cut(self.pot), cut(self.w), cut(self.res), status, message,
-                          float(dt), wall)
+                          float(dt), wall, cut(self.power), cut(self.lost),
+                          self.integ.integrator)

@@ -18,6 +18,36 @@ whose joints are 1-DoF revolute / prismatic, continuous (unbounded revolute), ba
   Gauss-Newton pass each) before their dynamics are solved;
 * or semi-implicit Euler, ``v' = v + dt a(q, v)``, ``q' = q (+) dt v'`` (``pin.integrate``
   when a joint is not a vector space);
+* or ``"stick_slip"``: semi-implicit Euler with the Coulomb friction of the step solved at
+  velocity level (a time-stepping scheme): damping and springs explicit at ``(q, v)``,
+  ``v_free = v + dt a(q, v, tau + passive)``, then the friction forces ``f`` of the
+  coordinates with Coulomb friction (``|f_i| <= coulomb_i``) chosen so that each next
+  velocity ``v'_i`` is zero (stick) or opposed by its friction (slip, ``f_i = -coulomb_i
+  sign(v'_i)``): with ``G`` the response of those velocities to unit forces through the
+  closures (``G = N_r (N^T M N)^-1 N_r^T``, ``N`` a basis of ``null(J_c)``), ``f``
+  solves the box QP ``min 1/2 f^T G f + (v_free_r / dt)^T f``, ``-c <= f <= c``
+  (ProxSuite, polished; its KKT conditions are exactly stick / slip), checked after the
+  verified solve with ``tau + passive + f`` (:class:`~hexapod_pin.errors.SolverError`
+  otherwise); ``v' = v + dt a``, the stuck velocities set to exactly zero and kept there
+  by the velocity projection (minimum norm over the other coordinates);
+* Coulomb friction and the integrators (:func:`resolve_integrator`): ``sign(v)`` is
+  discontinuous, and RK4 or plain Euler steps across ``v = 0`` flip it every step (the
+  velocity chatters about zero by ``dt c / m`` and a load below the friction never
+  holds). So a model with Coulomb friction runs ``"stick_slip"`` (``"auto"`` picks it; an
+  explicit ``"rk4"`` or ``"semi_implicit_euler"`` raises
+  :class:`~hexapod_pin.errors.InputError`), unless ``friction_regularisation`` =
+  ``v_eps`` (m/s or rad/s) replaces the friction by the smooth force ``-coulomb
+  tanh(v / v_eps)`` (any integrator; an approximation: a joint under a load ``|u| <
+  coulomb`` creeps at ``v_eps atanh(|u| / coulomb)`` instead of sticking; the force is
+  stiff near ``v = 0``, with slope ``coulomb / v_eps``: RK4 is stable for ``dt`` below
+  about ``2.8 m v_eps / coulomb``, ``m`` the joint's effective inertia, and chatters
+  beyond);
+* the energy dissipated by damping and friction over each step is left in
+  :attr:`ClosedLoopIntegrator.dissipated` (J): for RK4, the RK4 quadrature of the
+  dissipated power ``sum(damping v^2 + friction power)`` over the stage velocities (the
+  same fourth order as the state); for the Euler schemes, the work of the dissipative
+  forces held over the step along its displacement ``dt v'``, ``-dt (f_damping(v) +
+  f_friction) . v'``;
 * after each step, drift control by projection onto the constraint manifold: the
   quaternions are renormalised; when the closure residual ``r`` exceeds ``projection_tol``
   (default 1e-10 m), ``q`` gets Gauss-Newton corrections ``q <- q (+) (-J_c^+ r)``
@@ -55,7 +85,8 @@ from ..errors import AssemblyError, InputError, SolverError
 from .checks import as_array, real_number
 from .closed_loop import ClosedLoopModel
 from .constraint_views import ConstraintErrors, gather_negated
-from .dynamics import FORWARD_METHODS, dynamics_of, independent_rows
+from .dynamics import FORWARD_METHODS, box_qp, null_space_basis, dynamics_of, independent_rows
+from .effects import dissipated_power, passive_forces
 from .integrator_kernels import (
     FREE_FLYER,
     PLANAR,
@@ -86,13 +117,56 @@ _LIE_JOINTS = {"JointModelFreeFlyer": FREE_FLYER, "JointModelRUBX": UNBOUNDED,
                "JointModelSpherical": SPHERICAL, "JointModelPlanar": PLANAR}
 _INF = math.inf
 _F64 = np.dtype(np.float64)
-INTEGRATORS = ("rk4", "semi_implicit_euler")
+#: the integrators (:func:`resolve_integrator`: "auto" picks one by the model's effects)
+INTEGRATORS = ("auto", "rk4", "semi_implicit_euler", "stick_slip")
+#: relative margin inside the friction bound below which a friction force counts as
+#: sticking (``|f| < (1 - STICK_MARGIN) coulomb``)
+STICK_MARGIN = 1e-9
 STATUSES = ("completed", "stroke_limit", "carriage_gap", "failed")
 
 
 # --------------------------------------------------------------------------------------
 # generic integrator
 # --------------------------------------------------------------------------------------
+def resolve_integrator(clm: ClosedLoopModel, integrator: str = "auto",
+                       friction_regularisation: float | None = None) -> str:
+    """The integrator a run of ``clm`` uses (see the module docstring).
+
+    Args:
+        clm: the closed-loop model (its :attr:`~ClosedLoopModel.effects`).
+        integrator: one of :data:`INTEGRATORS`. "auto": "stick_slip" when the model has
+            Coulomb friction and no ``friction_regularisation`` is given, else "rk4".
+        friction_regularisation: ``v_eps`` (m/s or rad/s) of the smooth friction
+            ``-coulomb tanh(v / v_eps)``, or None for the exact (set-valued) friction.
+
+    Returns:
+        "rk4", "semi_implicit_euler" or "stick_slip".
+
+    Raises:
+        InputError: an unknown integrator; "rk4" or "semi_implicit_euler" for a model with
+            exact Coulomb friction (they chatter: use "stick_slip", "auto" or a
+            ``friction_regularisation``); "stick_slip" with a ``friction_regularisation``
+            (choose one friction model).
+    """
+    if not (isinstance(integrator, str) and integrator in INTEGRATORS):
+        raise InputError("integrator", integrator, f"expected one of {INTEGRATORS}")
+    exact = clm.effects.has_coulomb and friction_regularisation is None
+    if integrator == "auto":
+        return "stick_slip" if exact else "rk4"
+    if exact and integrator != "stick_slip":
+        coords = np.flatnonzero(clm.effects.coulomb).tolist()
+        raise InputError("integrator", integrator, f"the model has Coulomb friction on the "
+                         f"velocity coordinates {coords}: {integrator} steps across v = 0 "
+                         "flip sign(v) and chatter; use 'stick_slip' (or 'auto': exact "
+                         "stick-slip at velocity level) or friction_regularisation=v_eps "
+                         "(smooth approximation, any integrator)")
+    if integrator == "stick_slip" and friction_regularisation is not None:
+        raise InputError("friction_regularisation", friction_regularisation,
+                         "'stick_slip' solves the exact Coulomb friction: give no "
+                         "regularisation, or another integrator")
+    return integrator
+
+
 class ClosedLoopIntegrator:
     """Fixed-step integrator of a closed-loop tree with projection onto the closures.
 
@@ -101,29 +175,56 @@ class ClosedLoopIntegrator:
             (unbounded revolute), ball (spherical), ``SphericalZYX``, ``Translation``,
             planar, free-flyer).
         method: forward-dynamics route, "pinocchio" (default), "qp" or "kkt".
-        integrator: "rk4" (classical Runge-Kutta, four dynamics calls per step) or
+        integrator: "auto" (default: "stick_slip" for a model with exact Coulomb friction,
+            else "rk4"), "rk4" (classical Runge-Kutta, four dynamics calls per step),
             "semi_implicit_euler" (one call per step; fast, first order, energy not
-            conserved to better than O(dt)).
+            conserved to better than O(dt)) or "stick_slip" (semi-implicit Euler with
+            exact stick-slip friction at velocity level: two dynamics calls and a box QP
+            per step); see :func:`resolve_integrator`.
         residual: optional callable ``q -> max-abs closure residual`` (m) replacing the
             generic evaluation through Pinocchio's frames (e.g. the hexapod's closed form
             :meth:`~hexapod_pin.hexapod.kernels.ClosedForm.closure_residual`); it must
             return the same quantity as :meth:`ClosedLoopModel.residual`.
+        friction_regularisation: ``v_eps`` (m/s or rad/s, > 0): Coulomb friction becomes
+            the smooth ``-coulomb tanh(v / v_eps)`` (an approximation, any integrator);
+            None (default): the exact friction.
 
     Raises:
-        InputError: an unsupported joint type, method or integrator.
+        InputError: an unsupported joint type, method or integrator, an integrator that
+            does not take the model's friction (:func:`resolve_integrator`), a
+            ``friction_regularisation`` that is not a finite real number > 0.
     """
 
-    def __init__(self, clm: ClosedLoopModel, method: str = "pinocchio", integrator: str = "rk4",
-                 residual: Callable[[np.ndarray], float] | None = None) -> None:
+    def __init__(self, clm: ClosedLoopModel, method: str = "pinocchio", integrator: str = "auto",
+                 residual: Callable[[np.ndarray], float] | None = None,
+                 friction_regularisation: float | None = None) -> None:
         if method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
-        if integrator not in INTEGRATORS:
-            raise InputError("integrator", integrator, f"expected one of {INTEGRATORS}")
+        if friction_regularisation is not None:
+            friction_regularisation = real_number(friction_regularisation,
+                                                  "friction_regularisation", minimum=0.0)
         self.clm = clm
         self.dyn = dynamics_of(clm)
         self.method = method
-        self.integrator = integrator
+        #: the integrator used ("auto" resolved)
+        self.integrator = resolve_integrator(clm, integrator, friction_regularisation)
+        #: ``v_eps`` of the smooth friction, or None (exact friction)
+        self.friction_regularisation = friction_regularisation
         self._residual_fn = residual
+        effects = self._effects = clm.effects
+        #: the velocity coordinates with Coulomb friction
+        self._friction = np.flatnonzero(effects.coulomb)
+        self._dissipative = bool(effects.damping.any() or self._friction.size)
+        #: the coordinates with friction that slipped at the last "stick_slip" step, with
+        #: ``f = +coulomb`` and with ``f = -coulomb`` (the others stuck)
+        self._slipping = (np.zeros(self._friction.size, dtype=bool),
+                          np.zeros(self._friction.size, dtype=bool))
+        #: the energy (J) dissipated by damping and friction over the last step (see the
+        #: module docstring); 0 for a model without them
+        self.dissipated = 0.0
+        smooth = friction_regularisation is not None and self._friction.size
+        self._acceleration = self._smooth_acceleration if smooth else \
+            self._verified_acceleration
         model = clm.model
         rows: list[tuple[int, int, int]] = []     # (kind, idx_q, idx_v)
         quat: list[int] = []                      # starts of the unit quaternions in q
@@ -194,7 +295,10 @@ class ClosedLoopIntegrator:
     # -- dynamics ---------------------------------------------------------------------------
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                      checked: bool = True) -> np.ndarray:
-        """Tree acceleration (nv,) for the generalised force ``tau`` (nv,), verified.
+        """Tree acceleration (nv,) for the applied generalised force ``tau`` (nv,),
+        verified; the joint effects added (damping, springs, Coulomb friction: sliding
+        ``-coulomb sign(v)`` and the stick / slip of the coordinates at rest, or the
+        smooth ``-coulomb tanh(v / v_eps)`` with a ``friction_regularisation``).
 
         Every answer satisfies the equation of motion and the closures at acceleration
         level to :data:`~hexapod_pin.core.dynamics.RESIDUAL_RTOL` (relative) or the
@@ -203,7 +307,7 @@ class ClosedLoopIntegrator:
         KKT route when it is refused. ``checked`` is kept for callers; every call is
         checked.
         """
-        acc = self._verified_acceleration(q, v, tau)
+        acc = self._acceleration(q, v, tau)
         return acc.copy() if self.method == "pinocchio" else acc
 
     def _verified_acceleration(self, q, v, tau):
@@ -217,6 +321,25 @@ class ClosedLoopIntegrator:
                 self._jac0 = None
                 return dyn.forward_unchecked(q, v, tau, self.method).a
             tau = tau + force
+        return self._rigid_acceleration(q, v, tau)
+
+    def _smooth_acceleration(self, q, v, tau):
+        """:meth:`_verified_acceleration` with the smooth friction ``-coulomb tanh(v /
+        v_eps)`` (``friction_regularisation``) in place of the exact one."""
+        total = tau + passive_forces(self._model, self._effects, q, v)
+        total[self._friction] += self._smooth_friction(v)
+        return self._rigid_acceleration(q, v, total)
+
+    def _smooth_friction(self, v: np.ndarray) -> np.ndarray:
+        """``-coulomb tanh(v / v_eps)`` on the coordinates with friction."""
+        idx = self._friction
+        return -self._effects.coulomb[idx] * np.tanh(v[idx] / self.friction_regularisation)
+
+    def _rigid_acceleration(self, q, v, tau):
+        """The verified acceleration for a ``tau`` that already holds the effects' force
+        (Pinocchio's buffer with the "pinocchio" method, see
+        :meth:`_verified_acceleration`)."""
+        dyn = self.dyn
         if self.method == "pinocchio":
             if dyn.pinocchio_verified(q, v, tau) is not None:      # the short path
                 self._jac0 = dyn.last_jacobian
@@ -276,9 +399,11 @@ class ClosedLoopIntegrator:
         if self.integrator == "rk4":
             q_new, v_new = self._rk4(q, v, tau, dt, projection_tol)
             return self.project(q_new, v_new, projection_tol, velocity=True)
+        if self.integrator == "stick_slip":
+            return self._stick_slip(q, v, tau, dt, projection_tol)
         # semi-implicit Euler: v' = v + dt a(q, v), q' = q (+) dt v'
         model = self._model
-        acc = self._verified_acceleration(q, v, tau)
+        acc = self._acceleration(q, v, tau)
         if self._lie:                 # rotations, (cos, sin) pairs: the exponential map
             v_new = np.multiply(acc, dt)
             v_new += v
@@ -286,6 +411,9 @@ class ClosedLoopIntegrator:
         else:                         # vector-space joints: q (+) dt v' = q + dt v'
             q_new, v_new = np.empty_like(q), np.empty_like(v)
             euler_update(q, v, acc, dt, q_new, v_new)
+        if self._dissipative:
+            friction = self._smooth_friction(v) if self.friction_regularisation else None
+            self.dissipated = self._held_dissipation(v, v_new, dt, friction)
         jac0, rows = self._jac0, self._rows
         if jac0 is None or rows is None or self._residual_fn is not None \
                 or not self._drifting:
@@ -333,7 +461,7 @@ class ClosedLoopIntegrator:
         makes them."""
         if self._rows is None:
             self._rows = independent_rows(self._closure_pass(q))
-        verified = self._verified_acceleration
+        verified = self._acceleration
         if self._rows.size < self.clm.n_rows:
             project = self._project_stage
 
@@ -358,21 +486,132 @@ class ClosedLoopIntegrator:
         # the weighted sums of the stage rates, (qdot_1 + 2 qdot_2 + 2 qdot_3 + qdot_4,
         # a_1 + 2 a_2 + 2 a_3 + a_4), accumulated by the stage kernel
         rates = np.zeros(nq + v.shape[0])
+        power = self.dissipated_power if self._dissipative else None
+        dissipated = 0.0                  # the stage-weighted dissipated power
         qs, vs = q, v
         for h, w in ((0.5 * dt, 1.0), (0.5 * dt, 2.0), (dt, 2.0)):
             a_s, qs, vs = acc(qs, vs, qs is q)
+            if power is not None:
+                dissipated += w * power(vs)
             q_next, v_next = np.empty_like(q), np.empty_like(v)
             rk4_stage(q, v, qs, vs, a_s, h, w, joints, quat, q_next, v_next, rates)
             if pairs.size:
                 normalise_pairs(q_next, pairs)
             qs, vs = project(q_next, v_next, projection_tol)
         a_s, qs, vs = acc(qs, vs, False)
+        if power is not None:
+            self.dissipated = dt / 6.0 * (dissipated + power(vs))
         q_new, v_new = np.empty_like(q), np.empty_like(v)
         rk4_stage(q, v, qs, vs, a_s, 0.0, 1.0, joints, quat, q_new, v_new, rates)
         rk4_combine(q, v, rates, dt / 6.0, quat, q_new, v_new)
         if pairs.size:
             normalise_pairs(q_new, pairs)
         return q_new, v_new
+
+    # -- joint effects: dissipation and the stick-slip step ----------------------------------
+    def dissipated_power(self, v: np.ndarray) -> float:
+        """Power dissipated by damping and Coulomb friction at the velocity ``v`` (nv,) (W,
+        >= 0): ``sum(damping v^2 + coulomb |v|)``, or ``coulomb v tanh(v / v_eps)`` for
+        the friction with a ``friction_regularisation``."""
+        eps = self.friction_regularisation
+        if eps is None or not self._friction.size:
+            return dissipated_power(self._effects, v)
+        vf = v[self._friction]
+        return float(np.dot(self._effects.damping * v, v)) - float(
+            np.dot(self._smooth_friction(v), vf))
+
+    def _held_dissipation(self, v: np.ndarray, v_new: np.ndarray, dt: float,
+                          friction: np.ndarray | None) -> float:
+        """``-dt (f_damping(v) + f_friction) . v'`` (J): the work against the dissipative
+        forces held over an Euler step (``friction``: the forces on the coordinates with
+        Coulomb friction, or None)."""
+        out = float(np.dot(self._effects.damping * v, v_new))
+        if friction is not None:
+            out -= float(np.dot(friction, v_new[self._friction]))
+        return dt * out
+
+    def _stick_slip(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
+                    projection_tol: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """One "stick_slip" step (module docstring): semi-implicit Euler with the Coulomb
+        friction solved at velocity level, then the projection onto the closures that
+        keeps the stuck coordinates at rest.
+
+        Raises:
+            SolverError: the friction forces miss stick / slip (or a dynamics solve fails).
+            AssemblyError: the projection does not converge.
+        """
+        effects, idx = self._effects, self._friction
+        force = tau + passive_forces(self._model, effects, q, v)
+        friction = None
+        stuck = idx[:0]
+        if idx.size:
+            a_free = np.array(self._rigid_acceleration(q, v, force))
+            bound = effects.coulomb[idx]
+            v_free = v[idx] + dt * a_free[idx]
+            response = self._friction_response(q)
+            friction = self._friction_forces(response, v_free / dt, bound)
+            force[idx] += friction
+        acc = self._rigid_acceleration(q, v, force)
+        v_new = v + dt * acc
+        if friction is not None:
+            # the velocity scale: the motion's and the change the friction can make
+            scale = float(np.max(np.abs(v))) + dt * (float(np.max(np.abs(a_free))) + float(
+                np.max(np.abs(response))) * float(np.max(bound)))
+            stuck = idx[_stick_or_slip(friction, bound, v_new[idx], 1e-9 * scale)]
+            v_new[stuck] = 0.0
+        q_new = pin.integrate(self._model, q, dt * v_new)
+        if self._dissipative:
+            self.dissipated = self._held_dissipation(v, v_new, dt, friction)
+        if not stuck.size:
+            return self.project(q_new, v_new, projection_tol, velocity=True)
+        q_out, _, res = self.project(q_new, v_new, projection_tol)
+        return q_out, self._project_velocity_keeping(q_out, v_new, stuck), res
+
+    def _friction_forces(self, response: np.ndarray, grad: np.ndarray,
+                         bound: np.ndarray) -> np.ndarray:
+        """The box QP ``min 1/2 f^T G f + g^T f``, ``-bound <= f <= bound``: first on the
+        last step's active set (which coordinates stuck, which slipped each way: exact
+        when its KKT conditions hold, the usual case), else ProxSuite
+        (:func:`~hexapod_pin.core.dynamics.box_qp`). The active set found is kept for the
+        next step."""
+        upper, lower = self._slipping
+        friction = _on_active_set(response, grad, bound, upper, lower)
+        if friction is None:
+            friction = box_qp(response, grad, bound)
+        edge = bound * (1.0 - STICK_MARGIN)
+        self._slipping = (friction >= edge, friction <= -edge)
+        return friction
+
+    def _friction_response(self, q: np.ndarray) -> np.ndarray:
+        """``G = N_r (N^T M N)^-1 N_r^T`` (k, k): the response of the velocities (per unit
+        time) of the k coordinates with Coulomb friction to unit forces on them, through
+        the closures (``N`` an orthonormal basis of ``null(J_c)``, ``M`` with the
+        armature)."""
+        dyn = self.dyn
+        basis = null_space_basis(dyn.constraint_jacobian(q), dyn.closure_rank(q))
+        rows = basis[self._friction]
+        return rows @ np.linalg.solve(basis.T @ dyn.mass_matrix(q) @ basis, rows.T)
+
+    def _project_velocity_keeping(self, q: np.ndarray, v: np.ndarray,
+                                  fixed: np.ndarray) -> np.ndarray:
+        """``v`` projected onto ``J_c(q) v = 0`` with the coordinates ``fixed`` left as
+        they are (minimum-norm change of the others); the plain minimum-norm projection
+        when the other coordinates cannot carry it (the fixed ones then move by the
+        closures' drift only)."""
+        if not self.clm.n_rows:
+            return v
+        jac = self._closure_pass(q)
+        if self._rows is not None:
+            jac = jac[self._rows]
+        free = np.ones(v.size, dtype=bool)
+        free[fixed] = False
+        miss = jac @ v
+        out = v.copy()
+        out[free] -= _lstsq(jac[:, free], miss)
+        scale = float(np.max(np.abs(jac), initial=0.0)) * float(np.max(np.abs(v))) + 1e-300
+        if float(np.max(np.abs(jac @ out), initial=0.0)) > 1e-12 * scale:
+            out = v - _lstsq(jac, miss)
+        return out
 
     def _project_stage(self, q: np.ndarray, v: np.ndarray, trigger: float):
         """An RK4 stage state put back on the closures: when its closure residual exceeds
@@ -439,6 +678,8 @@ class ClosedLoopIntegrator:
         Raises:
             AssemblyError: the residual stays above ``trigger`` after ``max_iter`` steps.
         """
+        if not self.clm.n_rows:         # a tree without closures: nothing to project
+            return q, v, 0.0 if self._residual_fn is None else float(self._residual_fn(q))
         model = self.clm.model
         jac = self._closure_pass(q)
         rows = self._rows
@@ -477,6 +718,57 @@ class ClosedLoopIntegrator:
             v_new[:] = v - _lstsq(jac_r, jac_r @ v)
             out[0] = float(np.max(np.abs(self._err), initial=0.0))
         return float(out[0]) if self._residual_fn is None else float(self._residual_fn(q))
+
+
+def _on_active_set(hess: np.ndarray, grad: np.ndarray, bound: np.ndarray,
+                   upper: np.ndarray, lower: np.ndarray) -> np.ndarray | None:
+    """The minimiser of ``1/2 f^T H f + g^T f`` over ``-bound <= f <= bound`` when the
+    active set is ``f = bound`` on ``upper``, ``f = -bound`` on ``lower`` (masks) and
+    interior elsewhere: the interior part solves ``H_ff f_f = -(g_f + H_fb f_b)``. None
+    unless that point satisfies the KKT conditions (interior inside the box, gradient
+    ``H f + g`` <= 0 on ``upper`` and >= 0 on ``lower``, to 1e-12 of the scale of ``g``
+    and ``H bound``) or the interior block is singular."""
+    fixed = upper | lower
+    free = ~fixed
+    f = np.where(upper, bound, np.where(lower, -bound, 0.0))
+    if free.any():
+        rhs = -(grad[free] + hess[np.ix_(free, fixed)] @ f[fixed])
+        try:
+            f[free] = np.linalg.solve(hess[np.ix_(free, free)], rhs)
+        except np.linalg.LinAlgError:
+            return None
+        if np.any(np.abs(f[free]) >= bound[free] * (1.0 - STICK_MARGIN)):
+            return None
+    gradient = hess @ f + grad
+    tol = 1e-12 * (float(np.max(np.abs(grad))) + float(np.max(np.abs(hess))) *
+                   float(np.max(bound)))
+    if np.any(gradient[upper] > tol) or np.any(gradient[lower] < -tol):
+        return None
+    return f
+
+
+def _stick_or_slip(friction: np.ndarray, bound: np.ndarray, v_new: np.ndarray,
+                   tol: float) -> np.ndarray:
+    """Mask of the coordinates at rest after the step (``|v'| <= tol``: those that stick,
+    ``|f| < bound``, and those at the bound that the friction just holds), after checking
+    that the others slip against their friction (``f = bound`` with ``v' <= tol``, ``f =
+    -bound`` with ``v' >= -tol``).
+
+    Raises:
+        SolverError: a coordinate that neither sticks nor slips, naming its force, bound
+            and velocity.
+    """
+    inner = np.abs(friction) < bound * (1.0 - STICK_MARGIN)
+    upper, lower = friction >= bound * (1.0 - STICK_MARGIN), \
+        friction <= -bound * (1.0 - STICK_MARGIN)
+    bad = (inner & (np.abs(v_new) > tol)) | (upper & (v_new > tol)) | \
+        (lower & (v_new < -tol))
+    if np.any(bad):
+        raise SolverError("velocity-level Coulomb friction", "stick-slip",
+                          f"coordinates {np.flatnonzero(bad).tolist()} of the friction ones "
+                          f"miss stick / slip: friction {friction[bad].tolist()} (bounds "
+                          f"{bound[bad].tolist()}), next velocities {v_new[bad].tolist()}")
+    return np.abs(v_new) <= tol
 
 
 def _lstsq(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:

@@ -38,9 +38,17 @@ def _reference_forward(clm, eff, q, v, u):
     mass = np.triu(mass) + np.triu(mass, 1).T + np.diag(eff["armature"])
     bias = pin.nonLinearEffects(model, data, q, v)
     dq = pin.difference(model, eff["spring_reference"], q)
+    # the spring force is minus the gradient of sum(K dq^2)/2, by central differences of
+    # the energy along pin.integrate (exact -K dq on vector-space joints)
+    energy = lambda x: 0.5 * np.sum(eff["stiffness"] * pin.difference(   # noqa: E731
+        model, eff["spring_reference"], x) ** 2)
+    step = 1e-6
+    grad = np.array([(energy(pin.integrate(model, q, step * e)) - energy(pin.integrate(
+        model, q, -step * e))) / (2 * step) for e in np.eye(clm.nv)])
     tau = np.zeros(clm.nv)
     tau[clm.actuated_v] = u
-    tau += -eff["damping"] * v - eff["stiffness"] * dq - eff["coulomb"] * np.sign(v)
+    tau += -eff["damping"] * v - grad - eff["coulomb"] * np.sign(v)
+    del dq
     jac, gamma = clm.constraint_jacobian(q), clm.constraint_drift(q, v)
     null = scipy.linalg.null_space(jac, rcond=1e-10)
     part = np.linalg.lstsq(jac, -gamma, rcond=None)[0]
