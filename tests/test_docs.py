@@ -118,13 +118,19 @@ def test_the_notebook_executes(tmp_path):
     assert any("image/png" in o.get("data", {}) for o in outputs)
 
 
-def test_derivations_name_tests_that_exist():
-    text = (DOCS / "derivations.md").read_text(encoding="utf-8")
+def named_tests_exist(page: str, at_least: int) -> str:
+    """Check that every ``tests/...py::test`` a docs page names exists; return its text."""
+    text = (DOCS / page).read_text(encoding="utf-8")
     named = re.findall(r"`(tests/[\w/]+\.py)::(\w+)`", text)
-    assert len(named) >= 40
+    assert len(named) >= at_least
     for path, test in named:
         source = (ROOT / path).read_text(encoding="utf-8")
         assert re.search(rf"^def {test}\(", source, re.MULTILINE), f"{path}::{test}"
+    return text
+
+
+def test_derivations_name_tests_that_exist():
+    text = named_tests_exist("derivations.md", 40)
     covered = set()                   # every equation of the seed report has a row
     for first, last in re.findall(r"^\| (\d+)(?:-(\d+))? \|", text, re.MULTILINE):
         covered.update(range(int(first), int(last or first) + 1))
@@ -132,12 +138,7 @@ def test_derivations_name_tests_that_exist():
 
 
 def test_drive_model_page_names_tests_that_exist():
-    text = (DOCS / "drives.md").read_text(encoding="utf-8")
-    named = re.findall(r"`(tests/[\w/]+\.py)::(\w+)`", text)
-    assert len(named) >= 8
-    for path, test in named:
-        source = (ROOT / path).read_text(encoding="utf-8")
-        assert re.search(rf"^def {test}\(", source, re.MULTILINE), f"{path}::{test}"
+    named_tests_exist("drives.md", 8)
 
 
 def test_readme_links_into_the_docs():
