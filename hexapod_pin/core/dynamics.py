@@ -88,7 +88,8 @@ from .closure_terms import (  # ClosureFrames re-exported
     closure_drift,
     closure_jacobian,
 )
-from .effects import at_rest, effect_forces, friction_forces, passive_forces
+from .effects import (STICK_MARGIN, at_rest, check_stick_slip, effect_forces, friction_forces,
+                      passive_forces)
 from .dynamics_common import (  # re-exported: other modules and users import them from here
     CLOSURE_QTOL,
     CLOSURE_VTOL,
@@ -309,6 +310,15 @@ class ClosedLoopDynamics:
             return None
         return effect_forces(self.model, eff, q, v, a)
 
+    def friction_response(self, q: np.ndarray, coordinates: np.ndarray) -> np.ndarray:
+        """``G = N_r (N^T M N)^-1 N_r^T`` (k, k): the response of the accelerations of the
+        k velocity ``coordinates`` to unit forces on them, through the closures (``N`` an
+        orthonormal basis of ``null(J_c)``, ``N_r`` its rows of those coordinates, ``M``
+        with the armature); symmetric positive semi-definite."""
+        basis = null_space_basis(self.constraint_jacobian(q), self.closure_rank(q))
+        rows = basis[coordinates]
+        return rows @ np.linalg.solve(basis.T @ self.mass_matrix(q) @ basis, rows.T)
+
     def _stick_slip(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, rest: np.ndarray,
                     method: str) -> TreeForwardDynamics:
         """Forward dynamics with the Coulomb friction of the coordinates ``rest`` at rest
@@ -322,30 +332,15 @@ class ClosedLoopDynamics:
         answer is the verified rigid solve with ``tau + f`` and is checked for
         stick / slip before it is returned (SolverError otherwise)."""
         base = self.forward_total(q, v, tau, method)
-        eff = self.clm.effects
-        c = eff.coulomb[rest]
-        a0 = base.a[rest]
-        scale = float(np.max(np.abs(base.a))) + 1.0
-        tol = 1e-9 * scale
-        mass, _, jac, _ = self._terms(q, v)
-        basis = null_space_basis(jac, self.closure_rank(q))
-        reduced = basis.T @ mass @ basis
-        rows = basis[rest]
-        response = rows @ np.linalg.solve(reduced, rows.T)
-        f = box_qp(response, a0, c)
+        c = self.clm.effects.coulomb[rest]
+        tol = 1e-9 * (float(np.max(np.abs(base.a))) + 1.0)
+        f = box_qp(self.friction_response(q, rest), base.a[rest], c)
         total = tau.copy()
         total[rest] += f
         res = self.forward_total(q, v, total, method)
-        a = res.a[rest]
-        inner = np.abs(f) < c * (1.0 - 1e-9)
-        bad = (inner & (np.abs(a) > tol)) | ((f >= c * (1.0 - 1e-9)) & (a > tol)) | \
-            ((f <= -c * (1.0 - 1e-9)) & (a < -tol))
-        if np.any(bad):
-            raise SolverError("forward dynamics with Coulomb friction", "stick-slip",
-                              f"coordinates {rest[bad].tolist()} miss stick / slip: "
-                              f"friction {f[bad].tolist()} (bounds {c[bad].tolist()}), "
-                              f"accelerations {a[bad].tolist()}")
-        n_stick = int(np.count_nonzero(inner))
+        check_stick_slip(f, c, res.a[rest], tol, "forward dynamics with Coulomb friction",
+                         rest, "accelerations")
+        n_stick = int(np.count_nonzero(np.abs(f) < c * (1.0 - STICK_MARGIN)))
         return res._replace(status=f"{res.status}; Coulomb friction at rest on "
                                    f"{rest.size} coordinates: {n_stick} stick, "
                                    f"{rest.size - n_stick} slip")

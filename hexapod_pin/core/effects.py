@@ -48,7 +48,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..errors import InputError
+from ..errors import InputError, SolverError
 
 #: default speed (m/s or rad/s) at or below which a joint with Coulomb friction counts
 #: as at rest (its friction force is then set by stick / slip instead of ``sign(v)``)
@@ -217,6 +217,45 @@ def effect_forces(model: pin.Model, effects: JointEffects, q: np.ndarray, v: np.
     if effects.has_coulomb:
         out += friction_forces(effects, v, a)
     return out
+
+
+#: relative margin below the friction bound inside which a friction force counts as
+#: sticking (``|f| < (1 - STICK_MARGIN) coulomb``), at or beyond it as slipping
+STICK_MARGIN = 1e-9
+
+
+def check_stick_slip(friction: np.ndarray, bound: np.ndarray, motion: np.ndarray,
+                     tol: float, solver: str, coordinates: np.ndarray,
+                     motion_name: str) -> None:
+    """Check that every coordinate's friction force and motion meet stick / slip.
+
+    A coordinate sticks when ``|f| < (1 - STICK_MARGIN) bound`` and its motion (the
+    acceleration, or the next velocity of a step) is within ``tol`` of zero; it slips when
+    ``f`` is at ``+bound`` with motion ``<= tol``, or at ``-bound`` with motion ``>= -tol``
+    (the friction opposes it).
+
+    Args:
+        friction: the friction forces (k,) (N, N m).
+        bound: their bounds (k,), >= 0.
+        motion: the accelerations or next velocities (k,).
+        tol: the tolerance of "at rest" in the units of ``motion``.
+        solver: the route, for the message.
+        coordinates: the coordinates' labels (k,) for the message (e.g. indices into v).
+        motion_name: what ``motion`` is, for the message.
+
+    Raises:
+        SolverError: a coordinate that neither sticks nor slips, naming its force, bound
+            and motion.
+    """
+    edge = bound * (1.0 - STICK_MARGIN)
+    inner = np.abs(friction) < edge
+    bad = (inner & (np.abs(motion) > tol)) | ((friction >= edge) & (motion > tol)) | \
+        ((friction <= -edge) & (motion < -tol))
+    if np.any(bad):
+        raise SolverError(solver, "stick-slip",
+                          f"coordinates {np.asarray(coordinates)[bad].tolist()} miss stick / "
+                          f"slip: friction {friction[bad].tolist()} (bounds "
+                          f"{bound[bad].tolist()}), {motion_name} {motion[bad].tolist()}")
 
 
 def spring_energy(model: pin.Model, effects: JointEffects, q: np.ndarray) -> float:

@@ -85,8 +85,8 @@ from ..errors import AssemblyError, InputError, SolverError
 from .checks import as_array, real_number
 from .closed_loop import ClosedLoopModel
 from .constraint_views import ConstraintErrors, gather_negated
-from .dynamics import FORWARD_METHODS, box_qp, null_space_basis, dynamics_of, independent_rows
-from .effects import dissipated_power, passive_forces
+from .dynamics import FORWARD_METHODS, box_qp, dynamics_of, independent_rows
+from .effects import STICK_MARGIN, dissipated_power, passive_forces, check_stick_slip
 from .integrator_kernels import (
     FREE_FLYER,
     PLANAR,
@@ -119,9 +119,6 @@ _INF = math.inf
 _F64 = np.dtype(np.float64)
 #: the integrators (:func:`resolve_integrator`: "auto" picks one by the model's effects)
 INTEGRATORS = ("auto", "rk4", "semi_implicit_euler", "stick_slip")
-#: relative margin inside the friction bound below which a friction force counts as
-#: sticking (``|f| < (1 - STICK_MARGIN) coulomb``)
-STICK_MARGIN = 1e-9
 STATUSES = ("completed", "stroke_limit", "carriage_gap", "failed")
 
 
@@ -548,7 +545,7 @@ class ClosedLoopIntegrator:
             a_free = np.array(self._rigid_acceleration(q, v, force))
             bound = effects.coulomb[idx]
             v_free = v[idx] + dt * a_free[idx]
-            response = self._friction_response(q)
+            response = self.dyn.friction_response(q, idx)
             friction = self._friction_forces(response, v_free / dt, bound)
             force[idx] += friction
         acc = self._rigid_acceleration(q, v, force)
@@ -581,16 +578,6 @@ class ClosedLoopIntegrator:
         edge = bound * (1.0 - STICK_MARGIN)
         self._slipping = (friction >= edge, friction <= -edge)
         return friction
-
-    def _friction_response(self, q: np.ndarray) -> np.ndarray:
-        """``G = N_r (N^T M N)^-1 N_r^T`` (k, k): the response of the velocities (per unit
-        time) of the k coordinates with Coulomb friction to unit forces on them, through
-        the closures (``N`` an orthonormal basis of ``null(J_c)``, ``M`` with the
-        armature)."""
-        dyn = self.dyn
-        basis = null_space_basis(dyn.constraint_jacobian(q), dyn.closure_rank(q))
-        rows = basis[self._friction]
-        return rows @ np.linalg.solve(basis.T @ dyn.mass_matrix(q) @ basis, rows.T)
 
     def _project_velocity_keeping(self, q: np.ndarray, v: np.ndarray,
                                   fixed: np.ndarray) -> np.ndarray:
@@ -758,16 +745,8 @@ def _stick_or_slip(friction: np.ndarray, bound: np.ndarray, v_new: np.ndarray,
         SolverError: a coordinate that neither sticks nor slips, naming its force, bound
             and velocity.
     """
-    inner = np.abs(friction) < bound * (1.0 - STICK_MARGIN)
-    upper, lower = friction >= bound * (1.0 - STICK_MARGIN), \
-        friction <= -bound * (1.0 - STICK_MARGIN)
-    bad = (inner & (np.abs(v_new) > tol)) | (upper & (v_new > tol)) | \
-        (lower & (v_new < -tol))
-    if np.any(bad):
-        raise SolverError("velocity-level Coulomb friction", "stick-slip",
-                          f"coordinates {np.flatnonzero(bad).tolist()} of the friction ones "
-                          f"miss stick / slip: friction {friction[bad].tolist()} (bounds "
-                          f"{bound[bad].tolist()}), next velocities {v_new[bad].tolist()}")
+    check_stick_slip(friction, bound, v_new, tol, "velocity-level Coulomb friction",
+                     np.arange(friction.size), "next velocities (of the friction coordinates)")
     return np.abs(v_new) <= tol
 
 
