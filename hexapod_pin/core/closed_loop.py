@@ -213,13 +213,17 @@ class ClosedLoopModel:
 
     # -- joint and drive effects ---------------------------------------------------
     def _initial_effects(self, model: pin.Model) -> JointEffects:
+        """The tree's effects, then the loops file's ``effects:`` section over them."""
         rigid = JointEffects.rigid(self.model, self.n_actuated)
         limit = np.array([model.effortLimit[i] for i in self.actuated_v], dtype=float)
         limit[~(limit > 0)] = np.inf
-        return rigid.replace(armature=np.array(model.armature, dtype=float),
+        tree = rigid.replace(armature=np.array(model.armature, dtype=float),
                              damping=np.array(model.damping, dtype=float),
                              coulomb=np.array(model.friction, dtype=float),
                              effort_limit=limit)
+        if self.loops.effects is None:
+            return tree
+        return self.loops.effects.apply(model, self.actuated_joints, tree)
 
     def _check_effects_shape(self, effects: JointEffects) -> None:
         if not isinstance(effects, JointEffects):

@@ -16,26 +16,36 @@ The loops format (see ``urdf/hexapod.loops.yaml``)::
         offset1: {xyz: [0, 0, 0], rpy: [0, 0, 0]}   # optional anchor in frame1
         offset2: {xyz: [0, 0, 0], rpy: [0, 0, 0]}   # optional anchor in frame2
     actuated: [carriage_0, ...]  # joint names
+    effects:                     # optional: joint and drive effects by joint name
+      velocity_threshold: 1.0e-9 # optional (m/s, rad/s): Coulomb's "at rest"
+      joints:
+        carriage_0: {armature: 0.02, damping: 1.5, coulomb: 0.8, stiffness: 100.0,
+                     spring_reference: 0.0, gear: 25, rotor_inertia: 1.0e-5,
+                     effort_limit: 100}
 
-Nothing here is specific to the hexapod.
+(the ``effects:`` section: :class:`EffectsSection`; a ``robot:`` section:
+:class:`RobotSection`). Nothing here is specific to the hexapod.
 """
 
 from __future__ import annotations
 
 import functools
 import io
+import math
 import re
 import warnings
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 import yaml
 import yourdfpy
 
-from ..errors import DescriptionError
+from ..errors import DescriptionError, InputError
+from .effects import JointEffects, resolve_effects
 
 WORLD = "world"
 CLOSURE_TYPES = {"point": 3, "weld": 6}
@@ -88,14 +98,133 @@ class RobotSection:
     max_actuator_force: float | tuple[float, ...] | None = None
 
 
+#: the keys of a joint's entry in the ``effects:`` section of a loops file (the fields of
+#: :func:`~hexapod_pin.core.effects.resolve_effects`; the last three on actuated joints only)
+EFFECT_KEYS = ("armature", "damping", "coulomb", "stiffness", "spring_reference", "gear",
+               "rotor_inertia", "effort_limit")
+#: one value of the ``effects:`` section: a number or a list of numbers
+EffectValue = float | tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class EffectsSection:
+    """The optional ``effects:`` section of a loops file: joint and drive effects by joint
+    name, which replace those the tree carries (a URDF's ``<dynamics damping friction>``,
+    Pinocchio's ``armature``) when the
+    :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel` is built.
+
+    The format (every key optional)::
+
+        effects:
+          velocity_threshold: 1.0e-9          # m/s or rad/s (write 1.0e-9: YAML reads 1e-9 as text)
+          joints:
+            <joint name>:
+              armature: 0.02                  # kg or kg m^2, >= 0
+              damping: 1.5                    # N s/m or N m s/rad, >= 0
+              coulomb: 0.8                    # N or N m, >= 0
+              stiffness: 100.0                # N/m or N m/rad, >= 0
+              spring_reference: 0.0           # m or rad (see below)
+              gear: 25                        # actuated joints: force per motor torque, != 0
+              rotor_inertia: 1.0e-5           # actuated joints: adds gear^2 rotor_inertia
+                                              # to the armature
+              effort_limit: 100               # actuated joints: N or N m, > 0 (.inf: none)
+
+    Per-coordinate values are a number (every velocity coordinate of the joint) or a
+    list of ``nv_joint`` numbers. ``spring_reference`` is the joint's ``nq_joint``
+    configuration values or, for a joint whose ``nq`` differs from its ``nv`` (a
+    continuous joint, a ball, a free flyer), its ``nv_joint`` displacement from the
+    neutral configuration (an angle, a rotation vector); joints not named keep the
+    neutral configuration as reference. Units and equations:
+    :mod:`hexapod_pin.core.effects`.
+
+    Attributes:
+        joints: ``(joint name, ((key, value), ...))`` in file order; keys from
+            :data:`EFFECT_KEYS`, values numbers or tuples of numbers (as written).
+        velocity_threshold: the Coulomb rest threshold (m/s or rad/s), or None (the
+            default of :mod:`~hexapod_pin.core.effects`).
+        source: the file it came from, for messages.
+        lines: ``(culprit, line)``: the 1-based line of the section, of each joint
+            (``effects.joints.<joint>``) and of each key (``...<joint>.<key>``) when
+            parsed from text.
+    """
+
+    joints: tuple[tuple[str, tuple[tuple[str, EffectValue], ...]], ...] = ()
+    velocity_threshold: float | None = None
+    source: str = "<loops>"
+    lines: tuple[tuple[str, int], ...] = ()
+
+    def culprit(self, joint: str | None = None, key: str | None = None) -> str:
+        """``effects[.joints.<joint>[.<key>]]``, with ``(line n)`` when known."""
+        name = "effects" if joint is None else f"effects.joints.{joint}"
+        name = name if key is None else f"{name}.{key}"
+        line = dict(self.lines).get(name)
+        return name if line is None else f"{name} (line {line})"
+
+    def apply(self, model: pin.Model, actuated: tuple[str, ...],
+              base: JointEffects) -> JointEffects:
+        """``base`` with this section's effects, joint by joint, checked by
+        :func:`~hexapod_pin.core.effects.resolve_effects`.
+
+        Args:
+            model: the tree (joint names and sizes).
+            actuated: its actuated joints' names.
+            base: the effects the tree carries.
+
+        Raises:
+            DescriptionError: an unknown joint, an actuator key on a joint that is not
+                actuated, a wrong number of values, NaN / inf, a negative coefficient, a
+                zero gear, a non-positive effort limit, a spring reference that is not a
+                configuration; naming :attr:`source`, the joint, the key and the line.
+        """
+        effects = base
+        for joint, entries in self.joints:
+            values = {key: {joint: _spring_configuration(model, joint, value)
+                            if key == "spring_reference" else value}
+                      for key, value in entries}
+            effects = self._resolve(model, actuated, effects, values, joint)
+        if self.velocity_threshold is not None:
+            effects = self._resolve(model, actuated, effects,
+                                    {"velocity_threshold": self.velocity_threshold}, None)
+        return effects
+
+    def _resolve(self, model: pin.Model, actuated: tuple[str, ...], base: JointEffects,
+                 values: dict[str, Any], joint: str | None) -> JointEffects:
+        try:
+            return resolve_effects(model, actuated, base, **values)
+        except InputError as exc:
+            key = exc.name.split("[")[0]
+            where = f"joint {joint!r}, {key}" if joint is not None else key
+            raise DescriptionError(self.source, f"{where}: {exc.reason}",
+                                   self.culprit(joint, key if key in values else None)
+                                   ) from None
+
+
+def _spring_configuration(model: pin.Model, joint: str, value: EffectValue) -> Any:
+    """A joint's spring reference as configuration values: ``nv_joint`` values of a joint
+    whose ``nq`` differs from its ``nv`` are a displacement from the neutral configuration
+    (anything else is passed on as written, for :func:`resolve_effects` to check)."""
+    if not model.existJointName(joint) or model.getJointId(joint) == 0:
+        return value
+    jmodel = model.joints[model.getJointId(joint)]
+    arr = np.atleast_1d(np.asarray(value, dtype=float))
+    if jmodel.nq == jmodel.nv or arr.shape != (jmodel.nv,):
+        return value
+    dv = np.zeros(model.nv)
+    dv[jmodel.idx_v:jmodel.idx_v + jmodel.nv] = arr
+    q = pin.integrate(model, pin.neutral(model), dv)
+    return q[jmodel.idx_q:jmodel.idx_q + jmodel.nq]
+
+
 @dataclass(frozen=True)
 class LoopsSpec:
-    """A parsed loops description: closures, actuated joint names and the optional
-    ``robot:`` section (:class:`RobotSection`)."""
+    """A parsed loops description: closures, actuated joint names, the optional
+    ``robot:`` section (:class:`RobotSection`) and the optional ``effects:`` section
+    (:class:`EffectsSection`)."""
 
     closures: tuple[ClosureSpec, ...]
     actuated: tuple[str, ...]
     robot: RobotSection | None = None
+    effects: EffectsSection | None = None
 
 
 def urdf_dir() -> Path:
@@ -159,7 +288,7 @@ def validate_urdf(urdf_xml: str, source: str = "<urdf>") -> None:
     its principal moments (``I1 + I2 >= I3``), to ``INERTIA_RTOL`` relative to its
     largest moment. Every joint: a finite origin within ``MAX_COORDINATE``; a finite,
     non-zero axis for revolute, continuous and prismatic joints; finite limits with
-    ``lower <= upper``.
+    ``lower <= upper``; ``<dynamics damping friction>`` finite and ``>= 0``.
 
     Raises:
         DescriptionError: naming the source, the element at fault and the problem.
@@ -181,6 +310,7 @@ def validate_urdf(urdf_xml: str, source: str = "<urdf>") -> None:
             _check_inertial(link.inertial, source, f"link {link.name}")
     for joint in robot.joints:
         _check_joint(joint, source)
+        _check_dynamics(joint, urdf_xml, source)
 
 
 def _check_inertial(inertial, source: str, where: str) -> None:
@@ -254,6 +384,35 @@ def _check_joint(joint, source: str) -> None:
                                                f"upper, got [{low}, {high}]", where)
 
 
+def _check_dynamics(joint: Any, urdf_xml: str, source: str) -> None:
+    """A joint's ``<dynamics damping friction>``: finite numbers ``>= 0`` (they become the
+    joint's viscous damping and Coulomb friction, :mod:`~hexapod_pin.core.effects`)."""
+    dynamics = joint.dynamics
+    if dynamics is None:
+        return
+    for attribute in ("damping", "friction"):
+        raw = getattr(dynamics, attribute, None)
+        if raw is None:
+            continue
+        try:
+            value = float(raw)
+        except (TypeError, ValueError):
+            value = math.nan
+        if not (math.isfinite(value) and value >= 0.0):
+            raise DescriptionError(source, f"<dynamics {attribute}> must be a finite number "
+                                           f">= 0, got {raw!r}",
+                                   _joint_culprit(joint.name, urdf_xml))
+
+
+def _joint_culprit(name: str, urdf_xml: str) -> str:
+    """``joint <name>``, with ``(line n)`` of its ``<joint>`` element when found."""
+    match = re.search(r"<joint\s[^>]*name\s*=\s*[\"']" + re.escape(name) + r"[\"']", urdf_xml)
+    if match is None:
+        return f"joint {name}"
+    line = urdf_xml.count("\n", 0, match.start()) + 1
+    return f"joint {name} (line {line})"
+
+
 def build_model(urdf_xml: str, source: str = "<urdf>", root_joint=None) -> pin.Model:
     """Build the Pinocchio tree model from URDF text, validated first (:func:`validate_urdf`).
 
@@ -316,7 +475,7 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
         raise DescriptionError(source, f"malformed YAML: {exc}") from None
     if not isinstance(data, dict):
         raise DescriptionError(source, "the loops description must be a YAML mapping")
-    unknown = set(data) - {"closures", "actuated", "robot"}
+    unknown = set(data) - {"closures", "actuated", "robot", "effects"}
     if unknown:
         raise DescriptionError(source, f"unknown keys {sorted(unknown)}", sorted(unknown)[0])
     raw_closures = data.get("closures", [])
@@ -353,7 +512,99 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
     duplicated = sorted({n for n in names if names.count(n) > 1})
     if duplicated:
         raise DescriptionError(source, "duplicate closure names", duplicated[0])
-    return LoopsSpec(tuple(closures), tuple(actuated), _robot_section(data.get("robot"), source))
+    effects = None if data.get("effects") is None else \
+        _effects_section(data["effects"], _effect_lines(text, source), source)
+    return LoopsSpec(tuple(closures), tuple(actuated), _robot_section(data.get("robot"), source),
+                     effects)
+
+
+def _effect_lines(text: str, source: str) -> dict[str, int]:
+    """The 1-based line of the ``effects:`` section, its keys, joints and their keys (see
+    :meth:`EffectsSection.culprit`); a joint or key written twice is refused (YAML would
+    keep the last one silently)."""
+    lines: dict[str, int] = {}
+
+    def walk(node: Any, prefix: str, depth: int) -> None:
+        if not isinstance(node, yaml.MappingNode):
+            return
+        seen: dict[str, int] = {}
+        for key_node, value_node in node.value:
+            name, line = f"{prefix}.{key_node.value}", key_node.start_mark.line + 1
+            if name in seen:
+                raise DescriptionError(source, f"{name} is written twice (lines {seen[name]} "
+                                               f"and {line})", f"{name} (line {line})")
+            seen[name] = lines[name] = line
+            if depth < 3:                             # effects.joints.<joint>.<key>
+                walk(value_node, name, depth + 1)
+
+    root = yaml.compose(text)
+    for key_node, value_node in root.value if isinstance(root, yaml.MappingNode) else ():
+        if key_node.value == "effects":
+            lines["effects"] = key_node.start_mark.line + 1
+            walk(value_node, "effects", 1)
+    return lines
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _effect_value(value: object, source: str, culprit: str) -> EffectValue:
+    """A number or a non-empty list of numbers (DescriptionError otherwise)."""
+    if _is_number(value):
+        return float(value)  # type: ignore[arg-type]
+    if isinstance(value, list) and value and all(_is_number(x) for x in value):
+        return tuple(float(x) for x in value)
+    hint = ""
+    if isinstance(value, str):
+        try:
+            float(value)
+            hint = " (YAML reads a number like 1e-9 as text: write 1.0e-9)"
+        except ValueError:
+            pass
+    raise DescriptionError(source, f"expected a number or a list of numbers, got {value!r}"
+                                   f"{hint}", culprit)
+
+
+def _effects_section(raw: object, lines: dict[str, int], source: str) -> EffectsSection:
+    """Check the ``effects:`` mapping of a loops file (types only; joint names, sizes and
+    ranges are checked against the tree by :meth:`EffectsSection.apply`)."""
+    section = EffectsSection(source=source, lines=tuple(lines.items()))
+    if not isinstance(raw, dict):
+        raise DescriptionError(source, "'effects' must be a mapping (keys joints, "
+                                       "velocity_threshold)", section.culprit())
+    unknown = sorted(set(map(str, raw)) - {"joints", "velocity_threshold"})
+    if unknown:
+        raise DescriptionError(source, f"unknown key {unknown[0]!r} in 'effects' (expected "
+                                       "joints, velocity_threshold)",
+                               section.culprit(key=unknown[0]))
+    threshold = raw.get("velocity_threshold")
+    if threshold is not None:
+        threshold = _effect_value(threshold, source, section.culprit(key="velocity_threshold"))
+        if isinstance(threshold, tuple):
+            raise DescriptionError(source, "expected one number",
+                                   section.culprit(key="velocity_threshold"))
+    joints = raw.get("joints") or {}
+    if not isinstance(joints, dict):
+        raise DescriptionError(source, "'effects.joints' must be a mapping {joint name: "
+                                       "{key: value}}", section.culprit(key="joints"))
+    out = []
+    for joint, entry in joints.items():
+        if not isinstance(joint, str):
+            raise DescriptionError(source, f"a joint name must be text, got {joint!r}",
+                                   section.culprit(key="joints"))
+        if not isinstance(entry, dict) or not entry:
+            raise DescriptionError(source, f"the effects of joint {joint!r} must be a "
+                                           f"mapping of {list(EFFECT_KEYS)}",
+                                   section.culprit(joint))
+        for key in entry:
+            if key not in EFFECT_KEYS:
+                raise DescriptionError(source, f"unknown key {key!r} (expected one of "
+                                               f"{list(EFFECT_KEYS)})",
+                                       section.culprit(joint, str(key)))
+        out.append((joint, tuple((key, _effect_value(value, source, section.culprit(joint, key)))
+                                 for key, value in entry.items())))
+    return EffectsSection(tuple(out), threshold, source, section.lines)
 
 
 def _numbers(value: object, source: str, key: str) -> tuple[float, ...]:

@@ -26,13 +26,23 @@ Conventions of the export:
   body; a point closure becomes ``<connect site1 site2>``, a weld ``<weld site1 site2>``
   (site frames kept coincident), both with the stiffest impedance MuJoCo allows
   (``solimp = 0.9999 0.9999 0.001 0.5 2``) and ``solref = (2 timestep, 1)``;
-* contacts are disabled; no damping, armature, friction or joint limits; gravity is
-  Pinocchio's ``model.gravity``;
+* the joint and drive effects (``clm.effects``, :mod:`~hexapod_pin.core.effects`) are the
+  joints' ``armature``, ``damping``, ``frictionloss`` (Coulomb friction), ``stiffness``
+  and ``springref`` (the spring reference; MuJoCo's ``qpos_spring``); a ball joint takes
+  one value per effect (equal on its three coordinates) and a spring relaxed at the
+  identity; a free flyer takes none (MuJoCo's free-joint damping and friction act on the
+  world-frame velocity, Pinocchio's on the body frame); otherwise
+  :class:`~hexapod_pin.errors.InputError`. MuJoCo's friction loss is a soft constraint of
+  its forward dynamics (not in ``qfrc_passive``; ``mjDSBL_FRICTIONLOSS`` turns it off);
+  ``qfrc_passive`` is :func:`~hexapod_pin.core.effects.passive_forces`;
+* contacts are disabled; no joint limits; gravity is Pinocchio's ``model.gravity``;
 * a body without mass or inertia (MuJoCo refuses them on moving bodies, below
   ``mjMINVAL``) gets ``tiny_inertia`` (kg and kg m^2; default 1e-12);
-* one ``<motor>`` (gear 1, unlimited) per actuated joint, in ``clm.actuated_joints``
-  order: ``ctrl`` is the actuator force ``u`` of
-  :func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree`.
+* one ``<motor>`` per actuated joint, in ``clm.actuated_joints`` order, with the
+  effects' ``gear``: ``ctrl`` is the motor torque, ``u / gear`` for the actuator force
+  ``u`` of :func:`~hexapod_pin.core.dynamics.inverse_dynamics_tree`; a finite
+  ``effort_limit`` becomes ``ctrlrange`` and ``forcerange`` ``+-effort_limit / |gear|``
+  (MuJoCo limits the motor side), else the motor is unlimited.
 
 MuJoCo's equality constraints are soft (regularised); its forward dynamics therefore
 differs from the rigid one by the regulariser (relative ~1e-4 of the smallest
@@ -78,15 +88,17 @@ def _site_name(frame_name: str) -> str:
     return frame_name.replace("/", "__")
 
 
-def _joint_xml(jmodel, name: str, parent: int, placement: pin.SE3) -> str:
+def _joint_kind(jmodel, name: str, parent: int,
+                placement: pin.SE3) -> tuple[str, tuple[float, ...] | None]:
+    """The MJCF joint type of a Pinocchio joint and its axis (None for free and ball)."""
     short = jmodel.shortname()
     if short == "JointModelFreeFlyer":
         if parent != 0 or not placement.isIdentity():
             raise InputError("clm", name, "the MuJoCo export supports a free flyer only as a "
                                           "child of the world with an identity placement")
-        return f'<freejoint name="{name}"/>'
+        return "free", None
     if short == "JointModelSpherical":
-        return f'<joint name="{name}" type="ball"/>'
+        return "ball", None
     if short.startswith("JointModelR") and short[-1] in _AXES and len(short) == 12:
         kind, axis = "hinge", _AXES[short[-1]]
     elif short.startswith("JointModelP") and short[-1] in _AXES and len(short) == 12:
@@ -99,7 +111,69 @@ def _joint_xml(jmodel, name: str, parent: int, placement: pin.SE3) -> str:
         raise InputError("clm", short, f"joint {name!r}: the MuJoCo export supports 1-DoF "
                                        "revolute and prismatic, spherical and free-flyer "
                                        "joints only")
-    return f'<joint name="{name}" type="{kind}" axis="{_vec(axis)}"/>'
+    return kind, axis
+
+
+def _joint_xml(clm: ClosedLoopModel, jid: int) -> str:
+    """The ``<joint>`` (or ``<freejoint>``) element of joint ``jid``, with its effects."""
+    model = clm.model
+    name = model.names[jid]
+    kind, axis = _joint_kind(model.joints[jid], name, model.parents[jid],
+                             model.jointPlacements[jid])
+    effects = _effects_xml(clm, jid, kind)
+    if kind == "free":
+        return f'<freejoint name="{name}"/>'
+    attributes = [f'name="{name}"', f'type="{kind}"']
+    attributes += [f'axis="{_vec(axis)}"'] if axis is not None else []
+    attributes += [effects] if effects else []
+    return f"<joint {' '.join(attributes)}/>"
+
+
+def _effects_xml(clm: ClosedLoopModel, jid: int, kind: str) -> str:
+    """The effect attributes of joint ``jid`` (``kind``: its MJCF type), "" when it has none.
+
+    Raises:
+        InputError: effects a MuJoCo joint of that kind cannot carry (see the module
+            docstring).
+    """
+    model, effects = clm.model, clm.effects
+    name, jm = model.names[jid], model.joints[jid]
+    coords = slice(jm.idx_v, jm.idx_v + jm.nv)
+    values = {attribute: getattr(effects, field)[coords] for attribute, field in
+              (("armature", "armature"), ("damping", "damping"),
+               ("frictionloss", "coulomb"), ("stiffness", "stiffness"))}
+    if kind == "free":
+        if any(v.any() for v in values.values()):
+            raise InputError("clm.effects", name, "the MuJoCo export carries no joint effects "
+                                                  "on a free flyer")
+        return ""
+    out = []
+    for attribute, value in values.items():
+        if np.any(value != value[0]):
+            raise InputError("clm.effects", name, f"a MuJoCo {kind} joint takes one "
+                                                  f"{attribute}, got {value.tolist()}")
+        if value[0]:
+            out.append(f'{attribute}="{_f(value[0])}"')
+    reference = effects.spring_reference[jm.idx_q:jm.idx_q + jm.nq]
+    if kind == "ball":
+        relaxed = np.max(np.abs(pin.difference(model, pin.neutral(model),
+                                               effects.spring_reference)[coords]))
+        if values["stiffness"][0] and relaxed > 1e-12:
+            raise InputError("clm.effects", name, "a MuJoCo ball joint's spring is relaxed "
+                                                  "at the identity only")
+    elif reference[0]:
+        out.append(f'springref="{_f(reference[0])}"')
+    return " ".join(out)
+
+
+def _motor_xml(joint: str, gear: float, limit: float) -> str:
+    """The ``<motor>`` of an actuated joint: its gear, its motor-side limit when finite."""
+    attributes = f'name="{joint}" joint="{joint}" gear="{_f(gear)}"'
+    if np.isfinite(limit):
+        bound = _f(limit / abs(gear))
+        attributes += (f' ctrllimited="true" ctrlrange="-{bound} {bound}" forcelimited="true" '
+                       f'forcerange="-{bound} {bound}"')
+    return f"<motor {attributes}/>"
 
 
 def _inertial_xml(inertia: pin.Inertia, tiny: float) -> str:
@@ -130,8 +204,9 @@ def closed_loop_mjcf(clm: ClosedLoopModel, timestep: float = 1e-3,
         The MJCF document (str).
 
     Raises:
-        InputError: a joint type the export does not support, or a non-positive
-            ``timestep`` / ``tiny_inertia``.
+        InputError: a joint type the export does not support, joint effects MuJoCo cannot
+            carry (on a free flyer; unequal on a ball joint's coordinates; a ball spring not
+            relaxed at the identity), or a non-positive ``timestep`` / ``tiny_inertia``.
     """
     if not isinstance(clm, ClosedLoopModel):
         raise InputError("clm", clm, "expected a ClosedLoopModel")
@@ -154,9 +229,8 @@ def closed_loop_mjcf(clm: ClosedLoopModel, timestep: float = 1e-3,
 
     def body(jid: int, indent: str) -> list[str]:
         name, placement = model.names[jid], model.jointPlacements[jid]
-        joint = _joint_xml(model.joints[jid], name, model.parents[jid], placement)
         lines = [f'{indent}<body name="{name}" {_pose(placement)}>',
-                 f"{indent}  {joint}",
+                 f"{indent}  {_joint_xml(clm, jid)}",
                  f"{indent}  {_inertial_xml(model.inertias[jid], tiny_inertia)}"]
         lines += [f"{indent}  {site}" for site in sites.get(jid, [])]
         for child in children.get(jid, []):
@@ -187,7 +261,9 @@ def closed_loop_mjcf(clm: ClosedLoopModel, timestep: float = 1e-3,
                      f'site1="{_site_name(closure.name + "/anchor1")}" '
                      f'site2="{_site_name(closure.name + "/anchor2")}"/>')
     lines += ["  </equality>", "  <actuator>"]
-    lines += [f'    <motor name="{j}" joint="{j}"/>' for j in clm.actuated_joints]
+    effects = clm.effects
+    lines += [f"    {_motor_xml(j, effects.gear[k], effects.effort_limit[k])}"
+              for k, j in enumerate(clm.actuated_joints)]
     lines += ["  </actuator>", "</mujoco>"]
     return "\n".join(lines) + "\n"
 

@@ -154,3 +154,102 @@ class RobotBase:
             vel = pin.getFrameVelocity(model, data, self.platform_frame_id,
                                        pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
             return np.asarray(vel.vector, dtype=float)[self.pose_layout.components].copy()
+
+    # -- derivatives, linearisation, stiffness (core.platform_derivatives, core.stiffness) --
+    def forward_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                                     actuator_forces: npt.ArrayLike,
+                                     wrench: npt.ArrayLike | None = None, *,
+                                     branch: Any = None) -> Any:
+        """Analytic derivatives of the platform acceleration with respect to the pose, the
+        twist, the actuator forces and the wrench (world axes; twist and wrench held in
+        world axes): a :class:`~hexapod_pin.core.platform_derivatives.ForwardDynamicsDerivatives`
+        from the tree's KKT derivatives
+        (:func:`~hexapod_pin.core.platform_derivatives.forward_dynamics_derivatives`, the
+        same implementation for every robot; the joint effects included).
+
+        Args:
+            pose: (dim,) (m, rad).
+            twist: (dim,) world axes (m/s, rad/s).
+            actuator_forces: (n_act,) (N, N m).
+            wrench: (dim,) on the platform, world axes, moment about its origin; None: 0.
+            branch: the working mode (as :meth:`configuration` takes it).
+
+        Raises:
+            InputError: bad shapes, NaN / inf, a coordinate with Coulomb friction at rest.
+            UnreachablePoseError: the pose is out of reach.
+            SingularityError: a singular pose.
+            SolverError: a solve misses its equations.
+        """
+        from .platform_derivatives import forward_dynamics_derivatives
+        return self._checked("forward_dynamics_derivatives", forward_dynamics_derivatives,
+                             pose, twist, actuator_forces, wrench, branch)
+
+    def linearize(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                  actuator_forces: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
+                  branch: Any = None) -> Any:
+        """The continuous-time linearised model ``dx/dt = A x + B du`` in ``x = (dp,
+        dtheta, twist)`` (world axes): a
+        :class:`~hexapod_pin.core.platform_derivatives.StateSpaceModel` (``A = [[0, I],
+        [d_world, d_twist]]`` at rest, ``B = [[0], [d_actuator_forces]]``). Arguments and
+        errors as :meth:`forward_dynamics_derivatives`.
+
+        Raises:
+            InputError: see :meth:`forward_dynamics_derivatives`.
+            UnreachablePoseError: see :meth:`forward_dynamics_derivatives`.
+            SingularityError: see :meth:`forward_dynamics_derivatives`.
+            SolverError: see :meth:`forward_dynamics_derivatives`.
+        """
+        from .platform_derivatives import linearize
+        return self._checked("linearize", linearize, pose, twist, actuator_forces, wrench,
+                             branch)
+
+    def cartesian_stiffness(self, pose: npt.ArrayLike, actuator_stiffness: npt.ArrayLike,
+                            wrench: npt.ArrayLike | None = None, *, branch: Any = None) -> Any:
+        """The Cartesian stiffness ``K_x = J^T K_a J + K_g`` at a static pose (the
+        geometric part from the static forces holding gravity and ``wrench``): a
+        :class:`~hexapod_pin.core.stiffness.CartesianStiffness` (world tangent ``(dp,
+        dtheta)``; :func:`~hexapod_pin.core.stiffness.cartesian_stiffness`).
+
+        Args:
+            pose: (dim,) (m, rad).
+            actuator_stiffness: scalar or (n_act,) (N/m, N m/rad), >= 0.
+            wrench: (dim,) held on the platform; None: gravity only.
+            branch: the working mode.
+
+        Raises:
+            InputError: bad shapes, NaN / inf, a negative stiffness, Coulomb friction.
+            UnreachablePoseError: the pose is out of reach.
+            SingularityError: a singular pose.
+            SolverError: the routes disagree.
+        """
+        from .stiffness import cartesian_stiffness
+        return self._checked("cartesian_stiffness", cartesian_stiffness, pose,
+                             actuator_stiffness, wrench, branch)
+
+    def vibration_modes(self, pose: npt.ArrayLike, actuator_stiffness: npt.ArrayLike, *,
+                        branch: Any = None) -> Any:
+        """Natural frequencies (Hz, ascending) and mode shapes of ``M_x`` and ``K_x`` about
+        a static pose under gravity: a :class:`~hexapod_pin.core.stiffness.VibrationModes`
+        (:func:`~hexapod_pin.core.stiffness.vibration_modes`).
+
+        Args:
+            pose: (dim,) (m, rad).
+            actuator_stiffness: scalar or (n_act,) (N/m, N m/rad), >= 0.
+            branch: the working mode.
+
+        Raises:
+            InputError: see :meth:`cartesian_stiffness`.
+            UnreachablePoseError: the pose is out of reach.
+            SingularityError: a singular pose or a statically unstable preload.
+            SolverError: see :meth:`cartesian_stiffness`.
+        """
+        from .stiffness import vibration_modes
+        return self._checked("vibration_modes", vibration_modes, pose, actuator_stiffness,
+                             branch)
+
+    def _checked(self, name: str, function: Any, *args: Any) -> Any:
+        """``function(self, *args)`` under the robot's lock, every number checked finite."""
+        from .checks import check_finite_result
+        with self.lock:
+            out = function(self, *args)
+        return check_finite_result(f"{type(self).__name__}.{name}", out)

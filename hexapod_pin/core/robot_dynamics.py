@@ -37,13 +37,12 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..errors import (ActuatorSaturationError, BatchActuatorSaturationError,
-                      BatchSingularityError, BatchUnreachablePoseError, InputError,
-                      SingularityError, SolverError, UnreachablePoseError)
+from ..errors import InputError, SolverError
 from .checks import as_array, flag, max_abs
 from .closed_loop import ClosedLoopModel
 from .closure_forces import closure_world_forces
 from .dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
+from .effects_projection import batch_of_states
 from .energy import energy_totals
 from .platform_map import VelocityMaps, solve_checked_square
 from .pose import euler_rates_matrix
@@ -386,18 +385,7 @@ class RobotDynamics:
 
     # -- batches -------------------------------------------------------------------------
     def _each(self, name: str, n: int, call):
-        out = []
-        for k in range(n):
-            try:
-                out.append(call(k))
-            except ActuatorSaturationError as exc:
-                raise BatchActuatorSaturationError(k, exc.needed, exc.limit) from exc
-            except UnreachablePoseError as exc:
-                raise BatchUnreachablePoseError(k, exc.carriages, exc.shortfall) from exc
-            except SingularityError as exc:
-                raise BatchSingularityError(k, exc.what, exc.sigma_min, exc.threshold,
-                                            exc.measure) from exc
-        return out
+        return batch_of_states(n, call)
 
     def _arrays(self, n_or_first, *arrays):
         first = as_array(n_or_first, (self.dim,), "poses", batch=True)

@@ -36,7 +36,7 @@ def _inverse(geo, signs, poses, twists, twist_dots, wrenches, bounded, tau, clos
     n = poses.shape[0]
     ss, ws = signs.shape[0] > 1, wrenches.shape[0] > 1
     for c in numba.prange(n_chunks(n)):
-        rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6))
+        rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((K.N_MATS, 6, 6))
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             code = K.inverse_dynamics(geo, signs[k if ss else 0], poses[k], twists[k],
                                       twist_dots[k], wrenches[k if ws else 0], bounded,
@@ -52,7 +52,7 @@ def _static(geo, signs, poses, wrenches, bounded, tau, codes):
     n = poses.shape[0]
     ss, ws = signs.shape[0] > 1, wrenches.shape[0] > 1
     for c in numba.prange(n_chunks(n)):
-        rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6))
+        rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((K.N_MATS, 6, 6))
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             codes[k] = K.static_forces(geo, signs[k if ss else 0], poses[k],
                                        wrenches[k if ws else 0], bounded, tau[k], rot, wk, mats)
@@ -63,7 +63,7 @@ def _forward(geo, signs, poses, twists, forces, wrenches, twist_dot, qddot, clos
     n = poses.shape[0]
     ss, ws = signs.shape[0] > 1, wrenches.shape[0] > 1
     for c in numba.prange(n_chunks(n)):
-        rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6))
+        rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((K.N_MATS, 6, 6))
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             code = K.forward_dynamics(geo, signs[k if ss else 0], poses[k], twists[k],
                                       forces[k], wrenches[k if ws else 0], twist_dot[k],
@@ -78,7 +78,7 @@ def _reduced(geo, signs, poses, twists, mass, bias, jac, codes):
     n = poses.shape[0]
     ss = signs.shape[0] > 1
     for c in numba.prange(n_chunks(n)):
-        rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6))
+        rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((K.N_MATS, 6, 6))
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             codes[k] = K.reduced_dynamics(geo, signs[k if ss else 0], poses[k], twists[k],
                                           mass[k], bias[k], jac[k], rot, wk, mats)

@@ -40,6 +40,13 @@ do); a first version differentiated the velocity closures ``J_c v = 0`` with the
 LOCAL variant (``d(R_f v_loc) = R_f d v_loc - [R_f v_loc]x R_f J_loc,ang dq``) and agreed
 with the closed form used here, which is faster.
 
+Joint and drive effects (``robot.effects``): the ID point balances ``rnea - tau_e`` and
+``FD`` runs with the tree force ``S^T tau + tau_ext + tau_e(q, v)`` (Pinocchio's partials
+hold the armature); the effects' own derivatives join the chain's ``dtau_tree`` rows:
+``dtau_e = -K dDifference(ref, q) dq - D dv`` (Coulomb friction is piecewise constant: its
+derivative is zero away from ``v = 0``), the free-flyer rows rotated to the chain's world
+axes.
+
 Everything is exact up to round-off: no finite differences inside. The tests check every
 block against central differences of ``robot.inverse_dynamics(..., method="kkt",
 bounded=False)`` on both geometries. The per-robot workspace (Pinocchio data, buffers)
@@ -63,6 +70,7 @@ from ..core.results import InverseDynamicsDerivatives
 from ..errors import HexapodPinError, SolverError
 from . import kernels
 from ..core.closed_loop import ClosedLoopModel
+from ..core.effects import effect_forces
 from .geometry import HexapodGeometry, carriage_frames
 
 __all__ = ["DerivativesWorkspace", "analytic_derivatives"]
@@ -87,6 +95,7 @@ class DerivativesWorkspace:
                  indices: Any, geometry: HexapodGeometry) -> None:
         model = clm.model
         self.model = model
+        self.clm = clm
         self.closed_form = closed_form
         self.scratch = kernels.Scratch()
         self.gmap = np.empty((24, 6))
@@ -182,6 +191,10 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose: npt.ArrayLike, twist: n
     if code != kernels.OK:
         raise kernels.error_of(code, ck.geo, scr.wk)
     force = pin.rnea(model, ws.kin, q, v, acc)
+    effects = ws.clm.effects
+    tau_e = effect_forces(model, effects, q, v, acc) if effects.has_forces else None
+    if tau_e is not None:
+        force -= tau_e
     rhs, tau = np.empty(6), np.empty(6)
     kernels.project(ck.geo, scr.rot, scr.wk, force, wrench_a, True, rhs)
     code = kernels.solve_forces(ck.geo, scr.wk, scr.mats, rhs, tau, np.empty(6),
@@ -201,7 +214,8 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose: npt.ArrayLike, twist: n
     tau_tree += (r00 * fx + r10 * fy + r20 * fz, r01 * fx + r11 * fy + r21 * fz,
                  r02 * fx + r12 * fy + r22 * fz, r00 * mx + r10 * my + r20 * mz,
                  r01 * mx + r11 * my + r21 * mz, r02 * mx + r12 * my + r22 * mz)
-    pin.constraintDynamics(model, data, q, v, np.array(tau_tree), ws.cms, ws.cds, ws.prox)
+    tau_full = np.array(tau_tree) if tau_e is None else np.array(tau_tree) + tau_e
+    pin.constraintDynamics(model, data, q, v, tau_full, ws.cms, ws.cds, ws.prox)
     pin.computeConstraintDynamicsDerivatives(model, data, ws.cms, ws.cds, ws.prox)
     # platform rows of (ddq_dq | ddq_dv | ddq_dtau) (6, 72); their free-flyer columns
     # times blockdiag(R^T, R^T), so that the free-flyer rows of the chain are world-axes
@@ -222,6 +236,9 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose: npt.ArrayLike, twist: n
     chain[ws.skew_rows, ws.skew_cols] = (-vz, vy, vz, -vx, -vy, vx, -wz, wy, wz, -wx, -wy,
                                          wx, -fz, fy, fz, -fx, -fy, fx, -mz, my, mz, -mx,
                                          -my, mx)
+    if tau_e is not None:
+        chain = chain.copy()
+        chain[48:72] += _effect_rows(ws, effects, q, np.array(rot).reshape(3, 3), chain)
     # d(twist_dot) (world) = blockdiag(R, R) d(a_ff) + the rotation of R a_ff along
     # dtheta (R a_ff = (vdot - w x v, wdot)) + d(w x v) / d twist
     rows = ws.rot6(rot) @ (partials @ chain)
@@ -242,6 +259,22 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose: npt.ArrayLike, twist: n
     d_pose[:, 3:] = neg[:, 3:6] @ euler_rates_matrix(np.array(pose[3:]))
     return InverseDynamicsDerivatives(tau, d_pose, neg[:, 0:6], neg[:, 6:12],
                                sol[:, 18:24], neg[:, 12:18])
+
+
+def _effect_rows(ws: DerivativesWorkspace, effects, q, rot, chain) -> np.ndarray:
+    """The chain's ``dtau_tree`` rows (24, 24) of the effects: ``dtau_e = -K
+    dDifference(ref, q) dq - D dv`` in the tree's local coordinates, with the free-flyer
+    rows of ``dq``, ``dv`` (chain rows 18:24, 42:48) and of the result in world axes
+    (``blockdiag(R, R)`` times the local ones, as the chain keeps them)."""
+    nv = ws.nv
+    rb = np.eye(nv)
+    rb[18:21, 18:21] = rb[21:24, 21:24] = rot
+    dq_local, dv_local = rb.T @ chain[0:nv], rb.T @ chain[nv:2 * nv]
+    out = -effects.damping[:, None] * dv_local
+    if effects.stiffness.any():
+        jd = pin.dDifference(ws.model, effects.spring_reference, q, pin.ArgumentPosition.ARG1)
+        out -= effects.stiffness[:, None] * (jd @ dq_local)
+    return rb @ out
 
 
 def _leg_rates(ws: DerivativesWorkspace, wk, gmap, twist, vel):

@@ -5,6 +5,18 @@ Single states build the tree state in closed form (the kernels of
 (``rnea``, ``computeGeneralizedGravity``, ``crba`` or ``constraintDynamics``) and a 6x6
 solve; the ``*_batch`` methods run the Newton-Euler kernels over N states
 (:mod:`hexapod_pin.hexapod.batch`). Generic tree dynamics: :mod:`hexapod_pin.core.dynamics`.
+
+Joint and drive effects (``robot.effects``, :mod:`hexapod_pin.core.effects`): the
+single-state routes are generic over every coordinate of the tree. Pinocchio's ``crba`` and
+``rnea`` carry the armature (``model.armature``), and the effects' generalised force
+``tau_e`` joins the tree force before it is projected with ``G^T`` (``G^T (rnea(q, v, a) -
+tau_e)``: inverse dynamics, statics with the springs; ``h_x = G^T (rnea(q, v, a_0) -
+tau_e)``: reduced and null-space forward dynamics, ``tau_e`` without the friction of the
+coordinates at rest). A coordinate with Coulomb friction at rest makes the "nullspace"
+forward dynamics answer on the tree (its stick / slip solve). The batches run the compiled
+closed form, which carries the carriages' drives; a robot whose passive coordinates
+(universal joints, the platform's free flyer) carry effects runs its batches state by state
+on the single-state routes (the same numbers).
 """
 
 from __future__ import annotations
@@ -33,6 +45,8 @@ from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchRed
                             SingularityMeasures)
 from ..core.dynamics import (INVERSE_METHODS, QP_SOLVED, QP_STATUS, RESIDUAL_RTOL,
                              ClosedLoopDynamics)
+from ..core.effects_projection import batch_of_states, batch_row, stacked
+from ..core.energy import energy_totals
 from .derivatives import DerivativesWorkspace, analytic_derivatives
 from .kinematics import HexapodKinematics, check_branch
 from ..errors import (
@@ -141,17 +155,19 @@ class _LazyTreeMultipliers:
     """Closure multipliers of a null-space forward-dynamics result, from the legs' tree
     rows at the computed motion (as the inverse dynamics does)."""
 
-    __slots__ = ("acc", "forces", "pose", "q", "signs", "v", "ws")
+    __slots__ = ("acc", "effect", "forces", "pose", "q", "signs", "v", "ws")
 
-    def __init__(self, ws, pose, q, v, acc, forces, signs):
+    def __init__(self, ws, pose, q, v, acc, forces, signs, effect=None):
         self.ws, self.pose, self.q, self.v, self.acc = ws, pose, q, v, acc
-        self.forces, self.signs = forces, signs
+        self.forces, self.signs, self.effect = forces, signs, effect
 
     def __call__(self) -> np.ndarray:
         ws = self.ws
-        # each leg's three tree rows (carriage, u_a, u_b) of rnea = S^T tau + J_c^T lambda
-        # (the wrench acts on the platform rows only)
+        # each leg's three tree rows (carriage, u_a, u_b) of rnea - tau_e = S^T tau +
+        # J_c^T lambda (the wrench acts on the platform rows only)
         force = pin.rnea(ws.dyn.model, ws.dyn.data, self.q, self.v, self.acc)
+        if self.effect is not None:
+            force = force - self.effect
         tips = ws.compiled.tip_forces(self.pose, force, self.forces, self.signs)
         return tips[ws.leg_of_closure].reshape(-1)
 
@@ -176,6 +192,9 @@ class _HexapodWorkspace:
     jac_t: np.ndarray = field(default_factory=lambda: np.empty((6, 6)))
     work: np.ndarray = field(default_factory=lambda: np.empty((36, 6)))
     qps: dict = field(default_factory=dict)
+    #: whether the joint effects give a force (damping, friction, springs): fixed for a
+    #: model (a hand-written armature changes the armature only, which Pinocchio reads)
+    forces: bool = False
 
 
 class HexapodDynamics:
@@ -265,7 +284,7 @@ class HexapodDynamics:
         bounds = None if not np.isfinite(limit) else np.full(6, limit)
         ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds,
                                clm.model.getJointId("platform_joint"), self.closed_form,
-                               self.lock)
+                               self.lock, forces=clm.effects.has_forces)
         home_q, _ = self.tree_state(self.geometry.home_pose, np.zeros(6), ws=ws)
         dyn.closure_rank(home_q)
         kernels.check_mass_structure(pin.crba(dyn.model, dyn.data, home_q))
@@ -358,13 +377,24 @@ class HexapodDynamics:
         if code != kernels.OK or (wrench_a is not None and not all_finite(wrench_a)):
             self._raise_code(ck, code, pose=pose, twist=twist, twist_dot=twist_dot,
                              wrench=wrench)
-        force = pin.rnea(dyn.model, dyn.data, q, v, a)
+        force = self._tree_force(ws, q, v, a)
         tau, status, iters, rhs = self._solve_tree(ws, force, wrench_a, method, bounds)
         details = _InverseDetails(ws, force, tau,
                                   None if wrench_a is None else owned_copy(wrench_a, wrench), q, v,
                                   a, joint_wrenches, owned_copy(pose_a, pose), signs)
         return InverseDynamicsResult(tau, q, v, a, method, status, iters, details,
                                      self._conditioning(details.pose, signs))
+
+    @staticmethod
+    def _tree_force(ws: _HexapodWorkspace, q: np.ndarray, v: np.ndarray,
+                    a: np.ndarray) -> np.ndarray:
+        """``rnea(q, v, a) - tau_e(q, v, a)`` (nv,): the tree force the actuators, the wrench
+        and the closures balance (``tau_e`` the joint effects' force of the motion)."""
+        dyn = ws.dyn
+        force = pin.rnea(dyn.model, dyn.data, q, v, a)
+        if not ws.forces:
+            return force
+        return force - dyn.effect_force_of_motion(q, v, a)
 
     def _conditioning(self, pose: np.ndarray, signs: np.ndarray) -> LazyConditioning:
         """The lazy conditioning of a result at ``pose`` (an owned copy) on ``signs``."""
@@ -460,17 +490,19 @@ class HexapodDynamics:
             raise ck.error(code)
         v, a = np.empty(24), np.empty(24)
         kernels.tree_motion(ck.geo, s.rot, s.wk, twist_a, tdot_a, 2, v, a)
-        force = pin.rnea(dyn.model, dyn.data, q, v, a)
-        return self._solve_tree(ws, force, wrench_a, method, None)[0]
+        return self._solve_tree(ws, self._tree_force(ws, q, v, a), wrench_a, method, None)[0]
 
     def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
                       branch: npt.ArrayLike | None = None,
                       bounded: bool = True) -> npt.NDArray[np.float64]:
         """Actuator forces holding the platform at rest at ``pose`` under gravity and a wrench.
 
-        ``J^T tau = G^T g(q) - wrench`` with ``g(q)`` the tree's generalised gravity
-        (``pin.computeGeneralizedGravity``). For the default geometry at home and no
-        load: about ``+1.651`` N on even carriages and ``-1.651`` N on odd ones.
+        ``J^T tau = G^T (g(q) + K dq) - wrench`` with ``g(q)`` the tree's generalised
+        gravity (``pin.computeGeneralizedGravity``) and ``K dq`` the springs of the joint
+        effects. For the default geometry at home and no load: about ``+1.651`` N on even
+        carriages and ``-1.651`` N on odd ones. Coulomb friction at rest holds any force
+        of the band ``tau + G^T f``, ``|f_j| <= coulomb_j`` (for a carriage's own friction:
+        ``tau_i +- coulomb_i``); the frictionless ``tau`` is returned.
 
         Args:
             pose: (6,) (m, rad).
@@ -499,6 +531,9 @@ class HexapodDynamics:
         if code != kernels.OK or (wrench_a is not None and not all_finite(wrench_a)):
             self._raise_code(ck, code, pose=pose, wrench=wrench)
         gravity = pin.computeGeneralizedGravity(dyn.model, dyn.data, q)
+        if ws.forces:                  # the springs: tau_e = -K dq at rest (damping 0)
+            gravity = gravity - dyn.effect_force_of_motion(q, np.zeros(dyn.nv),
+                                                           np.zeros(dyn.nv))
         rhs = np.empty(6)
         kernels.project(ck.geo, s.rot, s.wk, gravity, kernels.ZERO6 if wrench_a is None
                         else wrench_a, wrench_a is not None, rhs)
@@ -533,7 +568,9 @@ class HexapodDynamics:
         ``M_x = G^T M G`` (``pin.crba``) and ``h_x = G^T rnea(q, v, a_0)``, one 6x6
         Cholesky solve, then ``a = G twist_dot + a_0`` (closure multipliers from the
         legs' tree rows, on first access). The other routes solve the constrained tree
-        for ``a`` and return ``twist_dot = (R a_lin + w x v, R a_ang)``.
+        for ``a`` and return ``twist_dot = (R a_lin + w x v, R a_ang)``. The joint effects
+        enter every route (the module docstring); with Coulomb friction at rest
+        "nullspace" answers with the tree's stick / slip solve ("kkt", said in the status).
 
         Args:
             pose: (6,) (m, rad).
@@ -570,9 +607,16 @@ class HexapodDynamics:
             self._raise_code(ck, code, pose=pose, twist=twist, actuator_forces=actuator_forces,
                              wrench=wrench)
         twist_dot = np.empty(6)
+        effect, rest = dyn.effect_terms(q, v) if ws.forces else (None, ())
+        if method == "nullspace" and len(rest):
+            method, note = "kkt", " (nullspace: Coulomb friction at rest, solved on the tree)"
+        else:
+            note = ""
         if method == "nullspace":
             mass = pin.crba(dyn.model, dyn.data, q)
             bias = pin.rnea(dyn.model, dyn.data, q, v, acc0)
+            if effect is not None:
+                bias = bias - effect
             acc = np.empty(dyn.nv)
             code = kernels.nullspace_forward(
                 ck.geo, s.rot, s.wk, mass, bias, tau_a,
@@ -586,7 +630,7 @@ class HexapodDynamics:
                                   "definite", f"M_x = {ws.work[24:30].tolist()}")
             lazy = _LazyTreeMultipliers(
                 ws, owned_copy(pose_a, pose), q, v, acc, owned_copy(tau_a, actuator_forces),
-                signs)
+                signs, effect)
             details = _ForwardDetails(dyn, q, ws.leg_of_closure, ws.lock, rows=lazy)
             return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                          "solved", 0, details,
@@ -599,7 +643,7 @@ class HexapodDynamics:
         if wrench_a is not None:
             kernels.wrench_to_tree(s.rot, wrench_a, tau)
         acc = None
-        if method == "pinocchio" and dyn.redundant is False:
+        if method == "pinocchio" and dyn.redundant is False and effect is None:
             acc, prox = dyn.pinocchio_call(q, v, tau, False)
         if acc is not None:
             acc = acc.copy()
@@ -608,9 +652,10 @@ class HexapodDynamics:
             status, iters = "solved", int(prox.iter)
         else:
             res = dyn.forward(q, v, tau, method)
-            acc, status, iters = res.a, res.status, res.iterations
+            acc, status, iters = res.a, res.status + note, res.iterations
             details = _ForwardDetails(dyn, q, ws.leg_of_closure, ws.lock, rows=res.multipliers)
         kernels.twist_dot_of(s.rot, twist_a, acc[ws.ff_v], twist_dot)
+        method = "nullspace" if note else method
         return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                      status, iters, details,
                                      self._conditioning(owned_copy(pose_a, pose), signs))
@@ -629,7 +674,10 @@ class HexapodDynamics:
             M_x = T^T M T,   h_x = T^T (M a_0 + h) = T^T rnea(q, v, a_0)
 
         since ``S T = J`` and ``T^T`` maps the free-flyer generalised force of the
-        wrench back to ``(f, m)``.
+        wrench back to ``(f, m)``. With joint effects ``M`` holds the armature and
+        ``h_x = T^T (rnea(q, v, a_0) - tau_e)``, ``tau_e`` the force of damping, springs
+        and the friction of the sliding coordinates (that of a coordinate at rest is
+        set-valued: forward dynamics solves it).
 
         Args:
             pose: (6,) (m, rad).
@@ -650,6 +698,8 @@ class HexapodDynamics:
             self._raise_code(ck, code, pose=pose, twist=twist)
         mass = pin.crba(dyn.model, dyn.data, q)
         bias = pin.rnea(dyn.model, dyn.data, q, v, acc0)
+        if ws.forces:
+            bias = bias - dyn.effect_terms(q, v)[0]
         vmap, m_x, h_x = np.empty((dyn.nv, 6)), np.empty((6, 6)), np.empty(6)
         kernels.reduced_tree(ck.geo, s.rot, s.wk, mass, bias, vmap, m_x, h_x)
         return ReducedDynamics(m_x, h_x, vmap[self.indices.carriage_v].copy(), vmap)
@@ -659,7 +709,9 @@ class HexapodDynamics:
                  branch: npt.ArrayLike | None = None) -> Energies:
         """Kinetic and potential energy of the whole mechanism (J).
 
-        Potential: ``sum m_b g z_b`` over every body's centre of mass (zero at z = 0).
+        Kinetic ``1/2 v^T (M + A) v`` (the rotors' armature included); potential: ``sum
+        m_b g z_b`` over every body's centre of mass (zero at z = 0) plus the springs'
+        ``sum K dq^2 / 2`` (:func:`~hexapod_pin.core.energy.energy_totals`).
 
         Args:
             pose: (6,) (m, rad).
@@ -670,11 +722,8 @@ class HexapodDynamics:
 
     def tree_energies(self, q: npt.ArrayLike, v: npt.ArrayLike) -> Energies:
         """:meth:`energies` from a tree state ``q`` (nq,), ``v`` (nv,) (Pinocchio conventions)."""
-        dyn = self._workspace().dyn
-        q, v = dyn.clm.check_q(q), dyn.clm.check_v(v)
-        kin = float(pin.computeKineticEnergy(dyn.model, dyn.data, q, v))
-        pot = float(pin.computePotentialEnergy(dyn.model, dyn.data, q))
-        return Energies(kin, pot, kin + pot)
+        kinetic, potential = energy_totals(self.model, q, v)
+        return Energies(kinetic, potential, kinetic + potential)
 
     # -- batch ----------------------------------------------------------------------------
     def inverse_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
@@ -706,8 +755,15 @@ class HexapodDynamics:
         required(twists=twists, twist_dots=twist_dots)
         poses, twists, twist_dots, wrenches, _ = check_batch(poses, twists, twist_dots,
                                                              wrenches)
-        return batch.inverse_dynamics_batch(self.closed_form.geo, poses, twists, twist_dots,
-                                            wrenches, bounded)
+        geo = self.closed_form.dynamics_geo
+        if geo[kernels.PASSIVE]:                 # effects the kernels do not model
+            res = batch_of_states(len(poses), lambda k: self.inverse_dynamics(
+                poses[k], twists[k], twist_dots[k], batch_row(wrenches, k), bounded=bounded,
+                joint_wrenches=False))
+            return BatchInverseDynamics(stacked(res, "actuator_forces", (6,)),
+                                        stacked(res, "closure_forces", (6, 3)),
+                                        stacked(res, "residual", ()))
+        return batch.inverse_dynamics_batch(geo, poses, twists, twist_dots, wrenches, bounded)
 
     def forward_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
                                actuator_forces: npt.ArrayLike,
@@ -734,8 +790,14 @@ class HexapodDynamics:
         required(twists=twists, actuator_forces=actuator_forces)
         poses, twists, _, wrenches, forces = check_batch(poses, twists, None, wrenches,
                                                          actuator_forces)
-        return batch.forward_dynamics_batch(self.closed_form.geo, poses, twists, forces,
-                                            wrenches)
+        geo = self.closed_form.dynamics_geo
+        if geo[kernels.PASSIVE]:                 # effects the kernels do not model
+            res = batch_of_states(len(poses), lambda k: self.forward_dynamics(
+                poses[k], twists[k], forces[k], batch_row(wrenches, k)))
+            return BatchForwardDynamics(stacked(res, "twist_dot", (6,)),
+                                        stacked(res, "actuator_accelerations", (6,)),
+                                        stacked(res, "closure_forces", (6, 3)))
+        return batch.forward_dynamics_batch(geo, poses, twists, forces, wrenches)
 
     def static_forces_batch(self, poses: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
                             bounded: bool = True) -> npt.NDArray[np.float64]:
@@ -749,7 +811,11 @@ class HexapodDynamics:
                 ``geometry.max_actuator_force``.
         """
         poses, _, _, wrenches, _ = check_batch(poses, None, None, wrenches)
-        return batch.static_forces_batch(self.closed_form.geo, poses, wrenches, bounded)
+        geo = self.closed_form.dynamics_geo
+        if geo[kernels.PASSIVE]:                 # effects the kernels do not model
+            return np.array(batch_of_states(len(poses), lambda k: self.static_forces(
+                poses[k], batch_row(wrenches, k), bounded=bounded))).reshape(len(poses), 6)
+        return batch.static_forces_batch(geo, poses, wrenches, bounded)
 
     def reduced_dynamics_batch(self, poses: npt.ArrayLike,
                                twists: npt.ArrayLike) -> BatchReducedDynamics:
@@ -763,7 +829,14 @@ class HexapodDynamics:
         """
         required(twists=twists)
         poses, twists, _, _, _ = check_batch(poses, twists)
-        return batch.reduced_dynamics_batch(self.closed_form.geo, poses, twists)
+        geo = self.closed_form.dynamics_geo
+        if geo[kernels.PASSIVE]:                 # effects the kernels do not model
+            res = batch_of_states(len(poses), lambda k: self.reduced_dynamics(poses[k],
+                                                                              twists[k]))
+            return BatchReducedDynamics(stacked(res, "mass_matrix", (6, 6)),
+                                        stacked(res, "bias", (6,)),
+                                        stacked(res, "jacobian", (6, 6)))
+        return batch.reduced_dynamics_batch(geo, poses, twists)
 
     # -- derivatives ------------------------------------------------------------------------
     def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,

@@ -37,7 +37,15 @@ the loop; the law of :class:`~hexapod_pin.hexapod.simulation.PIDController`). In
     unactuated it slowly loses energy, also under an undamped P-law.
 
 Independent coordinates keep the closures exactly (the tree is rebuilt from the pose), so
-there is no drift to project. The result, :class:`FastTrajectory`, is a smaller
+there is no drift to project.
+
+Joint and drive effects (``robot.effects``): the kernels carry the carriages' drives
+(armature, damping, Coulomb friction with stick / slip at rest, springs: see
+:mod:`hexapod_pin.hexapod.kernels`), so :class:`FastDynamics` and the simulator include
+them. Effects on passive coordinates (universal joints, the platform's free flyer) are not
+modelled by the kernels: :class:`FastDynamics` then answers with the robot's Pinocchio
+routes, and the simulator refuses the robot (:func:`hexapod_pin.core.simulate.simulate`
+with ``backend="tree"`` integrates it). The result, :class:`FastTrajectory`, is a smaller
 :class:`~hexapod_pin.hexapod.simulation.Trajectory` (no tree configurations; rebuild one
 with ``robot.configuration(pose)``).
 """
@@ -46,7 +54,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -54,6 +62,7 @@ import numpy.typing as npt
 from ..core.checks import as_array, check_finite_result, real_number
 from ..core.compiled import all_finite
 from ..errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
+from ..core import effects_projection as drv
 from . import kernels as K
 from ..core.compiled import jit_inline, jit_lean
 from ..core.compiled import jit_fast as jit
@@ -65,7 +74,8 @@ from .robot import Hexapod
 from .simulation import (PID_KD, ReferenceTrajectory, Trajectory, check_run_arguments,
                          saturation_status)
 
-__all__ = ["FastDynamics", "FastStepper", "FastTrajectory", "fast_dynamics", "simulate_fast"]
+__all__ = ["FastDynamics", "FastStepper", "FastTrajectory", "compiled_geometry",
+           "fast_dynamics", "has_friction", "simulate_fast"]
 
 _STATUS_OF_CODE = {STROKE: "stroke_limit", GAP: "carriage_gap"}
 _ZERO6 = K.ZERO6
@@ -101,7 +111,7 @@ def _set_points(geo, ref_poses, ref_twists, feedforward, setpoints):
     (IK), ``qdot`` (``J twist``) and, with ``feedforward``, the static forces of the pose
     (zero wrench), else zero. Returns ``(first_bad_row, code)``; ``first_bad_row = m``
     when all succeed."""
-    rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6))
+    rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((K.N_MATS, 6, 6))
     n_rows = setpoints.shape[1]
     for row in range(n_rows):
         code = K.leg_state(geo, K.HOME_BRANCH, ref_poses[row], rot, wk)
@@ -150,12 +160,14 @@ def _command(geo, wk, k, mode, forces_in, ref_q, ref_qd, ref_ff, bad_row, bad_co
 
 
 @jit_inline
-def _record(rec_state, rec_q, rec_qd, rec_f, rec_sat, n, state, wk, forces, sat):
+def _record(record, n, state, wk, forces, sat, lost):
+    rec_state, rec_q, rec_qd, rec_f, rec_sat, rec_lost = record
     for j in range(13):
         rec_state[n, j] = state[j]
     for i in range(6):
         rec_q[n, i], rec_qd[n, i], rec_f[n, i] = wk[K.Q, i], wk[K.QD, i], forces[i]
     rec_sat[n] = sat
+    rec_lost[n] = lost
 
 
 @jit_inline
@@ -195,18 +207,23 @@ def simulate_kernel(geo: np.ndarray, n_steps: int, dt: float, record_every: int,
     on ``setpoints`` (3, m, 6) (carriage ``q``, ``qdot`` and feedforward forces of each
     reference row, from :func:`_set_points`; rows ``>= bad_row`` failed with
     ``bad_code``). ``saturation`` 0: clip, 1: raise (code SATURATED), 2: ignore.
-    ``work``: scratch ``(vecs (4, 13), rot (9,), wk, mats (3, 6, 6), small (3, 6))``,
-    ``vecs[0]`` the initial state. ``record``: ``(state, q, qdot, forces, saturated)``
-    arrays of the samples. ``last_forces`` gets the last command computed (before
-    clipping when it raised). One loop, one evaluation of the dynamics per pass (a step
-    boundary or a Runge-Kutta stage), so that each helper is inlined once; no
-    allocation (compiled without the reference-counting runtime).
+    ``work``: scratch ``(vecs (4, 13), rot (9,), wk, mats (N_MATS, 6, 6), small (3, 6))``,
+    ``vecs[0]`` the initial state. ``record``: ``(state, q, qdot, forces, saturated,
+    dissipated)`` arrays of the samples (``dissipated``: the energy the carriages' drives
+    dissipated since the start, J: the integrator's quadrature of their power, RK stages
+    weighted by the tableau, an Euler step the work of the forces held at its start along
+    the rates ``qdot + dt qddot``, as the tree simulator takes it). ``last_forces`` gets
+    the last command computed (before clipping when it raised). One loop, one evaluation of
+    the dynamics per pass (a step boundary or a Runge-Kutta stage), so that each helper is
+    inlined once; no allocation (compiled without the reference-counting runtime).
     """
     vecs, rot, wk, mats, small = work
     state, point, incr, deriv = vecs[0], vecs[1], vecs[2], vecs[3]
     twist, acc, integral = small[0], small[1], small[2]
-    rec_state, rec_q, rec_qd, rec_f, rec_sat = record
+    rec_f = record[3]
     ref_q, ref_qd, ref_ff = setpoints[0], setpoints[1], setpoints[2]
+    drives = geo[K.DRIVES + drv.FLAG] != 0.0
+    lost = 0.0
     forces = last_forces
     for j in range(13):
         point[j] = state[j]
@@ -230,19 +247,16 @@ def simulate_kernel(geo: np.ndarray, n_steps: int, dt: float, record_every: int,
                                      forces)
                 if code != OK:
                     if step == 0:
-                        _record(rec_state, rec_q, rec_qd, rec_f, rec_sat, 0, state, wk,
-                                _ZERO6, False)
+                        _record(record, 0, state, wk, _ZERO6, False, lost)
                     return code, step, n_rec + 1
             if step == 0:
-                _record(rec_state, rec_q, rec_qd, rec_f, rec_sat, 0, state, wk, forces, sat)
+                _record(record, 0, state, wk, forces, sat, lost)
             elif step % record_every == 0 or stop != OK:
                 n_rec += 1
                 if stop == OK:
-                    _record(rec_state, rec_q, rec_qd, rec_f, rec_sat, n_rec, state, wk,
-                            forces, sat)
+                    _record(record, n_rec, state, wk, forces, sat, lost)
                 else:                     # the stop state, with the previous command
-                    _record(rec_state, rec_q, rec_qd, rec_f, rec_sat, n_rec, state, wk,
-                            rec_f[n_rec - 1], False)
+                    _record(record, n_rec, state, wk, rec_f[n_rec - 1], False, lost)
             if stop != OK:
                 return stop, step, n_rec + 1
             if step == n_steps:
@@ -253,8 +267,18 @@ def simulate_kernel(geo: np.ndarray, n_steps: int, dt: float, record_every: int,
         if integrator == SEMI_IMPLICIT_EULER:
             _euler_update(state, acc, dt)
             stage = n_stages
+            if drives:     # the held forces along the end rates qdot + dt qddot
+                nxt = wk[K.STICK]
+                for i in range(6):
+                    s = wk[K.QDD0, i]
+                    for r in range(6):
+                        s += mats[0][r, i] * acc[r]
+                    nxt[i] = wk[K.QD, i] + dt * s
+                lost += dt * drv.dissipated_power(geo, K.DRIVES, 6, wk[K.QD], nxt)
         else:
             b = _RK_B[integrator, stage]
+            if drives:
+                lost += dt * b * drv.dissipated_power(geo, K.DRIVES, 6, wk[K.QD], wk[K.QD])
             qw, qx, qy, qz = point[3], point[4], point[5], point[6]
             wx, wy, wz = twist[3], twist[4], twist[5]
             deriv[0], deriv[1], deriv[2] = twist[0], twist[1], twist[2]
@@ -313,10 +337,15 @@ class FastDynamics:
     def __init__(self, robot: Hexapod) -> None:
         self.robot = robot
         self.closed_form = robot.closed_form
-        self.geo = self.closed_form.geo
         self.signs = K.HOME_BRANCH.copy()
         bound = float(robot.geometry.max_actuator_force)
         self._bounds = np.full(6, bound) if math.isfinite(bound) else None
+
+    @property
+    def geo(self) -> np.ndarray:
+        """The robot's packed geometry with its current drives
+        (``robot.closed_form.dynamics_geo``)."""
+        return self.closed_form.dynamics_geo
 
     @property
     def _scratch(self) -> K.Scratch:
@@ -357,9 +386,13 @@ class FastDynamics:
         """
         pose, twist, twist_dot = _vec6(pose, "pose"), _vec6(twist, "twist"), \
             _vec6(twist_dot, "twist_dot")
+        geo = self.closed_form.dynamics_geo
+        if geo[K.PASSIVE]:             # effects the kernels do not model: Pinocchio's route
+            return self.robot.inverse_dynamics(pose, twist, twist_dot, wrench, bounded=bounded,
+                                               joint_wrenches=False).actuator_forces
         wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")
         tau, s = np.empty(6), self._scratch
-        code = K.inverse_dynamics(self.geo, self.signs, pose, twist, twist_dot, wrench,
+        code = K.inverse_dynamics(geo, self.signs, pose, twist, twist_dot, wrench,
                                   bounded, tau, s.rot, s.wk, s.mats)
         if code:
             self._fail(code, {"pose": pose, "twist": twist, "twist_dot": twist_dot,
@@ -396,9 +429,13 @@ class FastDynamics:
         each (6,)."""
         pose, twist = _vec6(pose, "pose"), _vec6(twist, "twist")
         forces = _vec6(actuator_forces, "actuator_forces")
+        geo = self.closed_form.dynamics_geo
+        if geo[K.PASSIVE]:             # effects the kernels do not model: Pinocchio's route
+            res = self.robot.forward_dynamics(pose, twist, forces, wrench)
+            return res.twist_dot, res.actuator_accelerations
         wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")
         twist_dot, qddot, s = np.empty(6), np.empty(6), self._scratch
-        code = K.forward_dynamics(self.geo, self.signs, pose, twist, forces, wrench,
+        code = K.forward_dynamics(geo, self.signs, pose, twist, forces, wrench,
                                   twist_dot, qddot, s.rot, s.wk, s.mats)
         if code:
             self._fail(code, {"pose": pose, "twist": twist, "actuator_forces": forces,
@@ -414,13 +451,56 @@ class FastDynamics:
         As :meth:`Hexapod.static_forces`. Raises the same exceptions.
         """
         pose = _vec6(pose, "pose")
+        geo = self.closed_form.dynamics_geo
+        if geo[K.PASSIVE]:             # effects the kernels do not model: Pinocchio's route
+            return self.robot.static_forces(pose, wrench, bounded=bounded)
         wrench = _ZERO6 if wrench is None else _vec6(wrench, "wrench")
         tau, s = np.empty(6), self._scratch
-        code = K.static_forces(self.geo, self.signs, pose, wrench, bounded, tau, s.rot, s.wk,
+        code = K.static_forces(geo, self.signs, pose, wrench, bounded, tau, s.rot, s.wk,
                                s.mats)
         if code:
             self._fail(code, {"pose": pose, "wrench": wrench}, tau)
         return check_finite_result("FastDynamics.static_forces", tau, "actuator_forces")
+
+
+def compiled_geometry(robot: Hexapod, friction_regularisation: float | None = None
+                      ) -> np.ndarray:
+    """The packed geometry with the drives that the compiled simulator integrates
+    (``robot.closed_form.dynamics_geo``, a hand-written armature noticed), with the smooth
+    friction ``-c tanh(qd / v_eps)`` of a ``friction_regularisation`` ``v_eps`` (m/s, > 0).
+
+    Raises:
+        InputError: the robot's passive coordinates (universal joints, the platform's free
+            flyer) carry joint effects, which the kernels do not model; exact Coulomb
+            friction on the carriages without a ``friction_regularisation`` (explicit
+            steps across ``qdot = 0`` flip ``sign(qdot)`` and chatter: the tree
+            simulator's "stick_slip" integrator solves it); a ``friction_regularisation``
+            that is not a finite number > 0.
+    """
+    geo = robot.closed_form.dynamics_geo
+    if geo[K.PASSIVE]:
+        raise InputError("robot", robot, "joint effects on passive coordinates "
+                         f"{robot.model.effects.effective_coordinates().tolist()} (the "
+                         "compiled simulator models the carriages' drives only): use "
+                         "hexapod_pin.simulate(robot, ..., backend='tree')")
+    if friction_regularisation is None:
+        if has_friction(geo):
+            raise InputError("friction_regularisation", None, "the carriages have exact "
+                             "Coulomb friction, which the compiled integrators cannot step "
+                             "(sign(qdot) flips across qdot = 0): give friction_"
+                             "regularisation=v_eps, or simulate on the tree "
+                             "(hexapod_pin.simulate, integrator 'stick_slip')")
+        return geo
+    eps = real_number(friction_regularisation, "friction_regularisation", minimum=0.0)
+    geo = geo.copy()
+    geo[K.DRIVES + drv.SMOOTH] = eps
+    return geo
+
+
+def has_friction(geo: np.ndarray) -> bool:
+    """Whether the carriages' drives in a packed geometry have Coulomb friction."""
+    start = K.DRIVES + drv.HEAD + drv.COUL
+    return bool(np.any(geo[start:start + drv.BLOCK * 6:drv.BLOCK]))
 
 
 def fast_dynamics(robot: Hexapod) -> FastDynamics:
@@ -451,6 +531,9 @@ class FastTrajectory:
             the loop; the first call of a process also compiles it or loads it from the
             cache, see the benchmark).
         integrator: "rk4", "rk2" or "semi_implicit_euler".
+        dissipated_work: (n,) energy dissipated by the carriages' damping and friction since
+            t = 0 (J; the integrator's quadrature of their power, see
+            :func:`simulate_kernel`); zeros without them.
     """
 
     times: np.ndarray
@@ -466,6 +549,7 @@ class FastTrajectory:
     dt: float
     wall_time: float
     integrator: str = "rk4"
+    dissipated_work: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def real_time_factor(self) -> float:
@@ -500,7 +584,8 @@ def simulate_fast(robot: Hexapod, duration: float, dt: float = 1e-3, *,
                   reference: ReferenceTrajectory | None = None, kp: float = 30000.0,
                   ki: float = 40000.0, kd: float = PID_KD, feedforward: bool = False,
                   check_limits: bool = True, on_limit: str = "stop", saturation: str = "clip",
-                  record_every: int = 1, integrator: str = "rk4") -> FastTrajectory:
+                  record_every: int = 1, integrator: str = "rk4",
+                  friction_regularisation: float | None = None) -> FastTrajectory:
     """Integrate the hexapod's dynamics in compiled code (in platform coordinates).
 
     Args:
@@ -535,13 +620,17 @@ def simulate_fast(robot: Hexapod, duration: float, dt: float = 1e-3, *,
             (explicit midpoint; 2, second order) or "semi_implicit_euler" (1, first
             order; velocities first, then ``p += dt v``, ``Q = exp(dt w) Q``, as MuJoCo's
             Euler). Accuracy and energy behaviour: see the module docstring.
+        friction_regularisation: ``v_eps`` (m/s, > 0): the carriages' Coulomb friction
+            becomes ``-c tanh(qdot / v_eps)`` (an approximation; needed for exact friction,
+            which explicit steps cannot take: :func:`compiled_geometry`). None: exact.
 
     Returns:
         :class:`FastTrajectory`. A singular or unreachable state stops the run with
         status "failed" and the reference route's message.
 
     Raises:
-        InputError: bad shape, non-finite or non-real values.
+        InputError: bad shape, non-finite or non-real values; a robot whose passive
+            coordinates carry joint effects (:func:`compiled_geometry`).
         StrokeLimitError: an actuator beyond its stroke (``on_limit="raise"``).
         ActuatorSaturationError: with ``saturation="raise"``, a command beyond
             ``geometry.max_actuator_force``.
@@ -571,17 +660,17 @@ def simulate_fast(robot: Hexapod, duration: float, dt: float = 1e-3, *,
                       for gain, name in ((kp, "kp"), (ki, "ki"), (kd, "kd"))])
     feedforward = bool(feedforward)
     fd = fast_dynamics(robot)
-    geo = fd.geo
+    geo = compiled_geometry(robot, friction_regularisation)
     fd.static_forces(pose0, bounded=False)    # raises for an unreachable / singular pose0
     vecs = np.zeros((4, 13))
     vecs[0, :3] = pose0[:3]
     vecs[0, 3:7] = _quaternion_wxyz(pose0[3:])
     vecs[0, 7:] = twist0
-    work = (vecs, np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((3, 6, 6)),
+    work = (vecs, np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((K.N_MATS, 6, 6)),
             np.zeros((3, 6)))
     n_rec = n_steps // record_every + 2
     record = (np.empty((n_rec, 13)), np.empty((n_rec, 6)), np.empty((n_rec, 6)),
-              np.empty((n_rec, 6)), np.zeros(n_rec, dtype=np.bool_))
+              np.empty((n_rec, 6)), np.zeros(n_rec, dtype=np.bool_), np.zeros(n_rec))
     last_forces = np.zeros(6)
     setpoints = np.zeros((3, min(len(ref_poses), n_steps + 1) if mode else 1, 6))
     start = time.perf_counter()
@@ -592,7 +681,7 @@ def simulate_fast(robot: Hexapod, duration: float, dt: float = 1e-3, *,
                                     setpoints, bad_row, bad_code, gains, modes[saturation],
                                     bool(check_limits), work, record, last_forces)
     wall = time.perf_counter() - start
-    rec_state, rec_q, rec_qd, rec_f, rec_sat = record
+    rec_state, rec_q, rec_qd, rec_f, rec_sat, rec_lost = record
     if code == SATURATED:
         raise ActuatorSaturationError(last_forces, np.full(6, robot.geometry.max_actuator_force))
     if n == 0:              # the initial state itself failed (checked above: not expected)
@@ -619,7 +708,7 @@ def simulate_fast(robot: Hexapod, duration: float, dt: float = 1e-3, *,
         status, message = saturation_status(rec_sat[:n], times)
     return FastTrajectory(times, poses, quat.copy(), rec_state[:, 7:].copy(), rec_q[:n].copy(),
                           rec_qd[:n].copy(), rec_f[:n].copy(), rec_sat[:n].copy(), status,
-                          message, float(dt), wall, integrator)
+                          message, float(dt), wall, integrator, rec_lost[:n].copy())
 
 
 class FastStepper:
@@ -635,28 +724,33 @@ class FastStepper:
         integrator: "semi_implicit_euler" (default, one evaluation per step), "rk2" or
             "rk4" (see :func:`simulate_fast`).
         check_limits: stop at the stroke limits / carriage gap (checked after each step).
+        friction_regularisation: as in :func:`simulate_fast`.
 
     Raises:
-        InputError: bad ``dt``, ``integrator`` or initial state; UnreachablePoseError,
-            SingularityError: the initial pose (as the reference routes raise them).
+        InputError: bad ``dt``, ``integrator`` or initial state, or joint effects it cannot
+            step (:func:`compiled_geometry`).
+        UnreachablePoseError: the initial pose cannot be reached.
+        SingularityError: the initial pose is singular (as the reference routes raise it).
 
     Not thread-safe (the state and scratch arrays are reused).
     """
 
     def __init__(self, robot: Hexapod, dt: float = 1e-3, *, pose0: npt.ArrayLike | None = None,
                  twist0: npt.ArrayLike | None = None, integrator: str = "semi_implicit_euler",
-                 check_limits: bool = True) -> None:
+                 check_limits: bool = True,
+                 friction_regularisation: float | None = None) -> None:
         if not (np.isfinite(dt) and dt > 0):
             raise InputError("dt", dt, "must be a positive number")
         if integrator not in INTEGRATORS:
             raise InputError("integrator", integrator, f"expected one of {tuple(INTEGRATORS)}")
         self.robot, self.dt, self.integrator = robot, float(dt), integrator
         self.check_limits = bool(check_limits)
-        self._geo = fast_dynamics(robot).geo
+        self.friction_regularisation = friction_regularisation
+        compiled_geometry(robot, friction_regularisation)   # refuses what it cannot step
         self._work = (np.zeros((4, 13)), np.empty(9), np.zeros((K.WK_ROWS, 6)),
-                      np.empty((3, 6, 6)), np.zeros((3, 6)))
+                      np.empty((K.N_MATS, 6, 6)), np.zeros((3, 6)))
         self._record = (np.empty((3, 13)), np.empty((3, 6)), np.empty((3, 6)),
-                        np.empty((3, 6)), np.zeros(3, dtype=np.bool_))
+                        np.empty((3, 6)), np.zeros(3, dtype=np.bool_), np.zeros(3))
         self._setpoints = np.zeros((3, 1, 6))
         self._gains = np.zeros(3)
         self._last = np.zeros(6)
@@ -681,7 +775,8 @@ class FastStepper:
         (world axes, about its origin; default zero) held over the step.
 
         Raises:
-            InputError: non-finite or badly shaped forces / wrench.
+            InputError: non-finite or badly shaped forces / wrench; joint effects on passive
+                coordinates (an armature written there by hand since the start).
             StrokeLimitError: the step ends beyond a stroke limit or the carriage gap
                 (with ``check_limits``); the state is that end state.
             SingularityError: the step met a singular configuration (the state is left at the
@@ -698,7 +793,9 @@ class FastStepper:
             as_array(wrench, (6,), "wrench")
         state = self._work[0][0]
         start = state.copy()
-        code, _, n = simulate_kernel(self._geo, 1, self.dt, 1, INTEGRATORS[self.integrator],
+        geo = compiled_geometry(self.robot, self.friction_regularisation)
+        code, _, n = simulate_kernel(geo, 1, self.dt, 1,
+                                     INTEGRATORS[self.integrator],
                                      0, forces, wrench, self._setpoints, 1, OK, self._gains, 2,
                                      self.check_limits, self._work, self._record, self._last)
         if code == OK:

@@ -56,6 +56,18 @@ Forward dynamics solves the reduced equation ``M_x twist_dot = J^T tau + wrench 
 the platform is ``t_i n_i - F_i``. Each leg is a uniform rod of its own length ``L_i``
 (the point-mass split above holds for any length).
 
+Drives (:mod:`hexapod_pin.core.effects_projection`): the effects of the carriages'
+coordinates (``robot.effects``: armature ``a_i``, damping, Coulomb friction, springs) sit
+in the packed geometry after the chains and scalars (:data:`DRIVES`, :func:`pack_geometry`)
+and every dynamics kernel reads them there: inverse dynamics adds ``a_i qddot_i + d_i
+qdot_i + K_i (q_i - r_i) + c_i sign(qdot_i)`` to ``tau_i`` (the closure forces do not
+change: the drive acts on the carriage's own coordinate), the reduced dynamics add ``J^T
+diag(a) J`` to ``M_x`` and ``J^T (a qddot_0 - drive force)`` to ``h_x`` (the armature is
+inertia only: the weight along a tilted rail is the carriage's and the leg's, not the
+rotor's), forward dynamics solves the friction of the carriages at rest
+(:func:`~hexapod_pin.core.effects_projection.stick_slip`). A rigid robot (no drive effect)
+skips all of it, so its numbers are those of the rigid kernels bit for bit.
+
 Measures: type I where ``|n.u| / L_i < TYPE_I_TOL`` (a leg perpendicular to its rail); the
 universal joint's gimbal lock where ``rho^2 < GIMBAL_TOL``; type II where the smallest
 singular value of ``A_hat`` (rows ``[e_i, (r_k x e_i) / platform_radius]``, the measure of
@@ -64,7 +76,7 @@ singular value of ``A_hat`` (rows ``[e_i, (r_k x e_i) / platform_radius]``, the 
 
 Kernels never raise: they return a status code (:data:`OK`, ...), and :func:`error_of`
 turns a code into the library's exception with the offending values. Scratch arrays are
-passed in (``rot`` (9,), ``wk`` (WK_ROWS, 6), ``mats`` (3, 6, 6)), so that the kernels
+passed in (``rot`` (9,), ``wk`` (WK_ROWS, 6), ``mats`` (N_MATS, 6, 6)), so that the kernels
 allocate nothing and run inside ``prange`` loops and the simulator.
 """
 
@@ -75,15 +87,16 @@ import threading
 
 import numpy as np
 
+from ..core import effects_projection as drv
 from ..core.compiled import all_finite, jit_inline
 from ..core.compiled import jit_fast as jit
 from ..core.measures import TYPE_I_TOL, TYPE_II_TOL
 from ..core.pose import quaternion_rpy, rotation_quat, rotation_rpy, rpy_of
 from ..errors import (BatchSingularityError, BatchUnreachablePoseError, HexapodPinError,
-                      SingularityError, UnreachablePoseError)
+                      SingularityError, SolverError, UnreachablePoseError)
 from .geometry import HOME_SIGNS, carriage_frames
-from ..core.kernel_status import (GAP, GIMBAL, NONFINITE, NOT_PD, OK, SATURATED, STROKE,
-                                  TYPE_I, TYPE_II, UNREACHABLE)  # one numbering: every robot
+from ..core.kernel_status import (GAP, GIMBAL, NONFINITE, NOT_PD, OK, RESIDUAL,  # one numbering
+                                  SATURATED, STROKE, TYPE_I, TYPE_II, UNREACHABLE)
 
 #: the home IK branch: even carriages on the smaller root
 HOME_BRANCH = HOME_SIGNS
@@ -105,24 +118,39 @@ BLOCK = 18
 # LEN: the reference (nominal) leg length L_ref, the scale of the leg-matrix solves
 (LEN, MC, ML, MP, IA, IB, IC, GRAV, GIMB, TOL2, BOUND, HALF, GAP_MIN,
  RADIUS) = range(6 * BLOCK, 6 * BLOCK + 14)
-GEO_SIZE = 6 * BLOCK + 14
+#: 1.0 when passive coordinates (universal joints, the free flyer) carry effects, which the
+#: kernels do not model: the Python routes then answer on the Pinocchio tree
+PASSIVE = 6 * BLOCK + 14
+#: where the carriages' drive vector starts
+#: (:func:`~hexapod_pin.core.effects_projection.pack_drives`)
+DRIVES = PASSIVE + 1
+GEO_SIZE = DRIVES + drv.drive_size(6)
 
 # -- rows of the per-leg work array wk (WK_ROWS, 6), carriage order ------------------------
 (RX, RY, RZ, NX, NY, NZ, NU, Q, DISC, INV, QD, DNX, DNY, DNZ, DN2, A0X, A0Y, A0Z, QDD0,
  XA, YA, RHO2, EU, QDD, AX, AY, AZ, FX, FY, FZ, CC, AXIAL, RHS, RHS0, PERM, TMP,
- TMP2) = range(37)
-WK_ROWS = 37
+ TMP2, FRIC) = range(38)
+#: the eight rows of the stick / slip scratch
+#: (:func:`~hexapod_pin.core.effects_projection.stick_slip`)
+STICK = 38
+WK_ROWS = STICK + 8
+#: the matrices of the scratch ``mats``: three of the rigid kernels, four of stick / slip
+N_MATS = 7
 #: the zero 6-vector (twist, twist_dot or wrench at rest)
 ZERO6 = np.zeros(6)
 
 
-def pack_geometry(geometry) -> np.ndarray:
+def pack_geometry(geometry, drives: np.ndarray | None = None,
+                  passive: bool = False) -> np.ndarray:
     """The :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry` as the flat float64
     vector (GEO_SIZE,) that every kernel reads: per chain its block (the joint-centre
     line's point ``M_i = line_points[i] + sensor_offsets[i] u_i``, the carriage frame
     ``(u, l, w)`` of :func:`~hexapod_pin.hexapod.geometry.carriage_frames`, the platform
     joint, the leg length ``L_i``, ``L_ref / L_i`` and ``TYPE_I_TOL L_i``), then the
-    scalars (``L_ref`` the nominal ``leg_length``)."""
+    scalars (``L_ref`` the nominal ``leg_length``), the :data:`PASSIVE` flag (``passive``:
+    effects on passive coordinates), then the carriages' drive vector ``drives``
+    (:func:`~hexapod_pin.core.effects_projection.pack_drives`; default none: a rigid
+    robot)."""
     g = geometry
     chains = g.chain_geometry
     frames = carriage_frames(chains)
@@ -134,9 +162,12 @@ def pack_geometry(geometry) -> np.ndarray:
                                           *chains.platform_joints[i], length,
                                           g.leg_length / length, TYPE_I_TOL * length)
     ia, ib, ic = g.platform_inertia
-    out[LEN:GEO_SIZE] = (g.leg_length, g.carriage_mass, g.leg_mass, g.platform_mass, ia, ib,
+    out[LEN:PASSIVE] = (g.leg_length, g.carriage_mass, g.leg_mass, g.platform_mass, ia, ib,
                          ic, g.gravity, GIMBAL_TOL, TYPE_II_TOL, g.max_actuator_force,
                          g.rail_half_length, g.carriage_min_gap, g.platform_radius)
+    out[PASSIVE] = float(passive)
+    if drives is not None:
+        out[DRIVES:] = drives
     return out
 
 
@@ -151,27 +182,36 @@ class Scratch:
     def __init__(self):
         self.rot = np.empty(9)
         self.wk = np.zeros((WK_ROWS, 6))
-        self.mats = np.empty((3, 6, 6))
+        self.mats = np.empty((N_MATS, 6, 6))
 
 
 class ClosedForm:
-    """The closed form of one hexapod: its packed geometry, home branch and kernel scratch
-    (one per thread): the one cache object of the robot's compiled closed form, shared by
-    its kinematics, dynamics and compiled fast path.
+    """The closed form of one hexapod: its packed geometry (with the carriages' drives),
+    home branch and kernel scratch (one per thread): the one cache object of the robot's
+    compiled closed form, shared by its kinematics, dynamics and compiled fast path.
 
     Args:
         geometry: the :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry`.
         indices: the tree's ``HexapodIndices`` (optional): checked against the joint order
             the tree kernels assume, ``(carriage_i, u_i_a, u_i_b)`` for ``i = 0..5`` then
             the platform's free-flyer (``q`` 25, ``v`` 24).
+        model: the robot's :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`
+            (optional): its effects (``model.effects``) give the drives of :attr:`geo`;
+            an armature written into ``model.model.armature`` by hand is noticed at the
+            next access of :attr:`geo` (one comparison of 24 numbers). Without it the
+            robot is rigid.
 
     Raises:
         HexapodPinError: a tree of another layout.
     """
 
-    def __init__(self, geometry, indices=None):
+    def __init__(self, geometry, indices=None, model=None):
         self.geometry = geometry
-        self.geo = pack_geometry(geometry)
+        self._packed = None if model is None else drv.PackedDrives(
+            model, lambda drives, passive: pack_geometry(geometry, drives, passive))
+        #: the packed geometry as built (GEO_SIZE,): its geometry part is all that the
+        #: kinematic kernels read; the dynamics kernels take :attr:`dynamics_geo`
+        self.geo = pack_geometry(geometry) if self._packed is None else self._packed.vector
         self.signs = HOME_BRANCH.copy()
         self._local = threading.local()
         if indices is not None:
@@ -185,6 +225,13 @@ class ClosedForm:
                 raise HexapodPinError("the hexapod kernels expect the joint order of "
                                       "urdf/hexapod.urdf.xacro: (carriage_i, u_i_a, u_i_b) "
                                       f"for i = 0..5, then platform_joint; got {indices}")
+
+    @property
+    def dynamics_geo(self) -> np.ndarray:
+        """The packed geometry (GEO_SIZE,) with the current drives of the model's effects
+        (read-only use; a new array when the armature was written by hand since the last
+        access): what the dynamics kernels read."""
+        return self.geo if self._packed is None else self._packed.vector
 
     @property
     def scratch(self) -> Scratch:
@@ -690,6 +737,9 @@ def inverse_dynamics(geo, signs, pose, twist, twist_dot, wrench, bounded, tau, r
     code = _axial_and_forces(geo, wk, mats, tau)
     if code != OK:
         return code
+    if geo[DRIVES + drv.FLAG] != 0.0:
+        for i in range(6):
+            tau[i] += drv.inverse_load(geo, DRIVES, i, wk[Q, i], wk[QD, i], wk[QDD, i])
     return check_bound(geo, tau, bounded)
 
 
@@ -734,7 +784,9 @@ def reduced_core(geo, rot, twist, wk, mass, bias, jac_t):
 
     ``M_x = J^T diag(m_c + m_l/3) J + (m_l/6) (J^T U + U^T J) + M_p`` (``U`` rows
     ``[u_k, r_k x u_k]``, ``M_p`` the platform plus point masses ``m_l/3`` at the six tips
-    as one rigid body); ``h_x`` the right-hand side at ``twist_dot = 0``."""
+    as one rigid body); ``h_x`` the right-hand side at ``twist_dot = 0``; the carriages'
+    drives add ``J^T diag(a) J`` and ``J^T (a qddot_0 - drive force)``
+    (:func:`~hexapod_pin.core.effects_projection.add_reduced`)."""
     m_l, m_p, g = geo[ML], geo[MP], geo[GRAV]
     mu = m_l / 3.0
     m_leg, m_side = geo[MC] + m_l / 3.0, m_l / 6.0
@@ -827,6 +879,8 @@ def reduced_core(geo, rot, twist, wk, mass, bias, jac_t):
     bias[3] = h3 + wy * hz - wz * hy
     bias[4] = h4 + wz * hx - wx * hz
     bias[5] = h5 + wx * hy - wy * hx
+    if geo[DRIVES + drv.FLAG] != 0.0:
+        drv.add_reduced(geo, DRIVES, 6, 6, jac_t, wk[Q], wk[QD], wk[QDD0], mass, bias)
 
 
 @jit_inline
@@ -866,7 +920,9 @@ def cholesky_solve(mat, rhs, out, scratch):
 def forward_core(geo, rot, twist, forces, wrench, wk, mats, out):
     """Forward dynamics at the legs in ``wk`` (rates done): ``out`` = ``twist_dot`` (6,)
     from ``M_x twist_dot = J^T tau + wrench - h_x``; ``mats[2]`` holds ``M_x``,
-    ``mats[0]`` ``J^T``, wk[RHS] ``h_x``. Returns OK or NOT_PD."""
+    ``mats[0]`` ``J^T``, wk[RHS] ``h_x``. With drives, the friction of the carriages at
+    rest is solved (:func:`~hexapod_pin.core.effects_projection.stick_slip`; wk[FRIC]
+    gets it). Returns OK, NOT_PD or RESIDUAL (the stick / slip QP)."""
     jac_t, mass, bias = mats[0], mats[2], wk[RHS]
     reduced_core(geo, rot, twist, wk, mass, bias, jac_t)
     rhs = wk[RHS0]
@@ -875,6 +931,9 @@ def forward_core(geo, rot, twist, forces, wrench, wk, mats, out):
         for i in range(6):
             acc += jac_t[r, i] * forces[i]
         rhs[r] = acc
+    if geo[DRIVES + drv.FLAG] != 0.0 and drv.any_at_rest(geo, DRIVES, 6, wk[QD], wk[FRIC]):
+        return drv.stick_slip(geo, DRIVES, 6, 6, mass, jac_t, wk[QD], wk[QDD0], rhs, out,
+                              wk[FRIC], mats[3:], wk[STICK:])
     return cholesky_solve(mass, rhs, out, mats[1])
 
 
@@ -899,12 +958,19 @@ def forward_dynamics(geo, signs, pose, twist, forces, wrench, twist_dot, qddot, 
 
 @jit
 def forward_closure_forces(geo, wk, twist_dot, forces, out):
-    """Closure forces (6, 3) ON the platform of a forward-dynamics answer: the end loads
-    at the motion and the axial forces ``t_i = (tau_i - c_i) / (n.u)``."""
+    """Closure forces (6, 3) ON the platform of a forward-dynamics answer (after
+    :func:`forward_dynamics`): the end loads at the motion and the axial forces ``t_i =
+    (tau_i - c_i - load_i) / (n.u)``, ``load_i = a_i qddot_i - drive force - friction at
+    rest`` of the carriage's drive (zero without drives)."""
     tip_accelerations(wk, twist_dot)
     end_loads(geo, wk)
+    drives = geo[DRIVES + drv.FLAG] != 0.0
     for i in range(6):
-        wk[AXIAL, i] = (forces[i] - wk[CC, i]) * wk[INV, i]
+        load = 0.0
+        if drives:
+            load = (geo[DRIVES + drv.HEAD + drv.BLOCK * i + drv.ARM] * wk[QDD, i]
+                    - drv.drive_force(geo, DRIVES, i, wk[Q, i], wk[QD, i]) - wk[FRIC, i])
+        wk[AXIAL, i] = (forces[i] - wk[CC, i] - load) * wk[INV, i]
     closure_forces(wk, out)
 
 
@@ -1378,10 +1444,14 @@ def error_of(code: int, geo: np.ndarray, wk: np.ndarray, scratch: np.ndarray | N
 
     UNREACHABLE: the carriages that cannot reach and how short each leg is (m); TYPE_I:
     the leg nearest perpendicular to its rail and its ``|cos|``; GIMBAL: the leg along its
-    rail and ``1 - cos^2``; TYPE_II: ``sigma_min(A_hat)``; other codes: an internal
-    error (inputs are validated before the kernels run).
+    rail and ``1 - cos^2``; TYPE_II: ``sigma_min(A_hat)``; RESIDUAL: the stick / slip QP of
+    the carriages at rest did not converge (a :class:`SolverError`); other codes: an
+    internal error (inputs are validated before the kernels run).
     """
     prefix = "" if index is None else f"state {index}: "
+    if code == RESIDUAL:
+        return SolverError("stick / slip of the carriages at rest (box QP)", "no convergence",
+                           f"{prefix}Coulomb friction of the carriages at rest")
     length = geo[LENI:6 * BLOCK:BLOCK]
     if code == UNREACHABLE:
         bad = np.flatnonzero(~(wk[DISC] >= 0.0))

@@ -18,6 +18,7 @@ import pinocchio as pin
 from ..core.checks import as_array
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import build_model, load_loops, urdf_dir
+from ..core.effects import JointEffects
 from ..core.robot_api import delegate
 from ..core.robot_base import RobotBase
 from .dynamics import HexapodDynamics
@@ -68,6 +69,16 @@ class Hexapod(RobotBase):
 
     Args:
         geometry: design parameters; default :class:`HexapodGeometry` ().
+        effects: the joint and drive effects of the tree
+            (:class:`~hexapod_pin.core.effects.JointEffects` of this robot's tree, e.g.
+            ``other.effects``); default none (rigid). ``robot.with_effects(armature=...,
+            damping=..., ...)`` returns a robot with others; every route includes them (the
+            carriages' drives inside the compiled closed form, see
+            :mod:`hexapod_pin.core.effects_projection`).
+
+    Raises:
+        ArgumentTypeError: ``geometry`` is not a :class:`HexapodGeometry`.
+        InputError: ``effects`` is not a record of this tree.
 
     Attributes:
         geometry: the :class:`HexapodGeometry`.
@@ -86,20 +97,33 @@ class Hexapod(RobotBase):
     n_actuators = 6
     POSE_AXES = ("x", "y", "z", "roll", "pitch", "yaw")
 
-    def __init__(self, geometry: HexapodGeometry | None = None) -> None:
+    def __init__(self, geometry: HexapodGeometry | None = None,
+                 effects: JointEffects | None = None) -> None:
         self.geometry = HexapodGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, HexapodGeometry):
             raise ArgumentTypeError("geometry", geometry,
                                     f"expected a HexapodGeometry, got {type(geometry).__name__}")
         xml = hexapod_urdf(self.geometry)
         tree = build_model(xml, source="hexapod.urdf.xacro")
-        self._init_facade(ClosedLoopModel(tree, load_loops(urdf_dir() / "hexapod.loops.yaml"),
-                                          name="hexapod", urdf_xml=xml))
+        clm = ClosedLoopModel(tree, load_loops(urdf_dir() / "hexapod.loops.yaml"),
+                              name="hexapod", urdf_xml=xml)
+        self._assemble(clm if effects is None else clm.with_effects(effects))
+
+    def _with_model(self, model: ClosedLoopModel) -> "Hexapod":
+        """This robot (geometry) on ``model``, the same tree with other effects."""
+        robot = Hexapod.__new__(Hexapod)
+        robot.geometry = self.geometry
+        robot._assemble(model)
+        return robot
+
+    def _assemble(self, clm: ClosedLoopModel) -> None:
+        """The facade and its components on the hexapod's model ``clm``."""
+        self._init_facade(clm)
         # the URDF carries no gravity: gravity along -z with the geometry's magnitude
         self.model.model.gravity = pin.Motion(np.array([0.0, 0.0, -self.geometry.gravity,
                                                         0.0, 0.0, 0.0]))
         self.indices = self._indices()
-        self.closed_form = kernels.ClosedForm(self.geometry, self.indices)
+        self.closed_form = kernels.ClosedForm(self.geometry, self.indices, self.model)
         self.kinematics = HexapodKinematics(self.geometry, self.closed_form)
         self.dynamics = HexapodDynamics(self.geometry, self.model, self.indices,
                                         self.closed_form, self.lock,

@@ -30,7 +30,6 @@ PROJECTION_TOL = 1e-10
 _SUPPORTED_1DOF = {"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelPX",
                    "JointModelPY", "JointModelPZ", "JointModelRevoluteUnaligned",
                    "JointModelPrismaticUnaligned"}
-INTEGRATORS = ("rk4", "semi_implicit_euler")
 STATUSES = ("completed", "stroke_limit", "carriage_gap", "failed")
 
 
@@ -311,10 +310,11 @@ def simulate(robot: Hexapod, duration: float, dt: float = 1e-3, *,
              pose0: npt.ArrayLike | None = None, twist0: npt.ArrayLike | None = None,
              actuator_forces: npt.ArrayLike | None = None, controller: Controller | None = None,
              wrench: npt.ArrayLike | None = None, reference: ReferenceTrajectory | None = None,
-             method: str = "pinocchio", integrator: str = "rk4",
+             method: str = "pinocchio", integrator: str = "auto",
              projection_tol: float = PROJECTION_TOL, check_limits: bool = True,
              on_limit: str = "stop", saturation: str = "clip", record_every: int = 1,
-             progress: Callable[[int, int], None] | None = None) -> Trajectory:
+             progress: Callable[[int, int], None] | None = None,
+             friction_regularisation: float | None = None) -> Trajectory:
     """Integrate the closed-loop dynamics of the hexapod.
 
     Args:
@@ -333,7 +333,11 @@ def simulate(robot: Hexapod, duration: float, dt: float = 1e-3, *,
             constant or a callable ``SimState -> (6,)``; default none.
         reference: platform reference, only recorded (controllers carry their own).
         method: forward-dynamics route ("pinocchio", "qp", "kkt").
-        integrator: "rk4" (default) or "semi_implicit_euler" (see the module doc).
+        integrator: one of :data:`~hexapod_pin.core.simulation.INTEGRATORS`: "auto"
+            (default: "stick_slip" when the robot's joint effects have Coulomb friction,
+            else "rk4"), "rk4", "semi_implicit_euler" or "stick_slip" (see
+            :func:`~hexapod_pin.core.simulation.resolve_integrator`). The joint effects
+            (``robot.effects``) act in every step.
         projection_tol: closure residual (m) above which a step is projected.
         check_limits: check the strokes and the carriage gap after every step.
         on_limit: "stop" (return with status "stroke_limit" / "carriage_gap") or
@@ -343,6 +347,8 @@ def simulate(robot: Hexapod, duration: float, dt: float = 1e-3, *,
             (:class:`ActuatorSaturationError`) or "ignore".
         record_every: record one sample every this many steps.
         progress: called as ``progress(steps_done, steps_total)`` about 100 times.
+        friction_regularisation: ``v_eps`` (m/s or rad/s): Coulomb friction made smooth,
+            ``-coulomb tanh(v / v_eps)`` (an approximation, any integrator); None: exact.
 
     Returns:
         :class:`Trajectory`. A dynamics or projection failure stops the run with
@@ -376,7 +382,8 @@ def simulate(robot: Hexapod, duration: float, dt: float = 1e-3, *,
     geom = robot.geometry
     closed_form = robot.closed_form
     integ = ClosedLoopIntegrator(clm, method, integrator,
-                                 residual=closed_form.closure_residual)
+                                 residual=closed_form.closure_residual,
+                                 friction_regularisation=friction_regularisation)
     with robot.lock:
         q_tree, v_tree = robot.dynamics.tree_state(pose0, twist0)
     q_tree = q_tree.copy()

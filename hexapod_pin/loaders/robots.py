@@ -34,6 +34,7 @@ import scipy.linalg
 
 from ..core.closed_loop import AssemblyResult, ClosedLoopModel
 from ..core.description import WORLD, ClosureSpec, LoopsSpec, build_model, read_text
+from ..core.effects import spring_displacement
 from ..errors import HexapodPinError, InputError
 
 SOLO12_FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
@@ -272,8 +273,10 @@ def cassie(root: str = "fixed", sdf_name: str = "cassie_v2.sdf",
 
     Returns:
         The model; actuated = :data:`CASSIE_ACTUATED` (hip roll, yaw, pitch, knee and
-        foot of each leg). The knee-shin and tarsus (heel) spring joints are passive
-        (see :func:`cassie_spring_torques`).
+        foot of each leg). The knee-shin and tarsus (heel) spring joints are passive.
+        Its effects (``clm.effects``) are the SDF's joint dynamics: damping, and the
+        springs of the knee-shin and heel joints (see :func:`cassie_spring_torques`),
+        which every route applies.
     """
     from .sdf import build_tree, load_sdf
 
@@ -295,31 +298,32 @@ def cassie_urdf(sdf_name: str = "cassie_v2.sdf",
                 snap_angles: float = CASSIE_SNAP_ANGLES) -> tuple[str, LoopsSpec]:
     """Cassie's tree as URDF text (fixed pelvis) and its loops, via
     :func:`hexapod_pin.loaders.sdf.sdf_to_urdf`; mesh file names are resolved to the installed
-    STL files. Build the model to draw with ``cassie(via_urdf=True)``."""
+    STL files. The URDF's ``<dynamics>`` carry the damping, the loops' ``effects`` the
+    springs. Build the model to draw with ``cassie(via_urdf=True)``."""
     from .sdf import load_sdf, resolve_uri, sdf_to_urdf
 
     sdf = load_sdf(cassie_sdf_path(sdf_name), snap_angles=snap_angles)
     urdf, loops = sdf_to_urdf(sdf, mesh_resolver=lambda uri: resolve_uri(
         uri, sdf.base_dir, search=[package_dir()]) or uri)
-    return urdf, LoopsSpec(loops.closures, CASSIE_ACTUATED)
+    return urdf, LoopsSpec(loops.closures, CASSIE_ACTUATED, effects=loops.effects)
 
 
-def cassie_spring_torques(clm: ClosedLoopModel, q: npt.ArrayLike,
-                          sdf_name: str = "cassie_v2.sdf") -> np.ndarray:
-    """Generalised forces (nv,) of the SDF's joint springs: ``-k (q_j - q_ref)`` (N m).
+def cassie_spring_torques(clm: ClosedLoopModel, q: npt.ArrayLike) -> np.ndarray:
+    """Generalised forces (nv,) of the model's joint springs (``clm.effects``):
+    ``-stiffness * pin.difference(spring_reference, q)`` (N m), read from the SDF's
+    ``<spring_stiffness>`` / ``<spring_reference>`` by :func:`cassie`.
 
-    Zero on every joint without ``<spring_stiffness>`` (in ``cassie_v2.sdf``: the
-    knee-shin springs, 1500 N m/rad, and the heel springs, 1250 N m/rad).
+    Zero on every joint without a spring (in ``cassie_v2.sdf``: springs on the knee-shin
+    joints, 1500 N m/rad, and the heel joints, 1250 N m/rad, relaxed at 0). Every route
+    already applies them (they are part of ``clm.effects``): this is what they contribute,
+    for reports and checks, not a force to add to ``tau``.
+
+    Raises:
+        InputError: a ``q`` of the wrong shape or not finite.
     """
-    from .sdf import load_sdf
-
     q = clm.check_q(q)
-    tau = np.zeros(clm.nv)
-    for joint in load_sdf(cassie_sdf_path(sdf_name)).joints:
-        if joint.spring_stiffness and clm.model.existJointName(joint.name):
-            jmodel = clm.model.joints[clm.model.getJointId(joint.name)]
-            tau[jmodel.idx_v] = -joint.spring_stiffness * (q[jmodel.idx_q] - joint.spring_reference)
-    return tau
+    effects = clm.effects
+    return -effects.stiffness * spring_displacement(clm.model, effects, q)
 
 
 # ------------------------------------------------------------------ actuation report

@@ -35,8 +35,15 @@ every fixed joint a ``FIXED_JOINT`` frame, every ``<frame>`` an ``OP_FRAME``.
 A moving joint's Pinocchio frame is its SDF joint frame at the zero configuration
 (for a ``continuous`` joint, turned so that its z axis is the SDF axis: Pinocchio's
 unbounded revolute joint takes no arbitrary axis); ``pin.neutral`` reproduces the poses
-written in the file. Joint limits and damping go to the model (``lowerPositionLimit``,
-``effortLimit``, ``damping``, ...); friction and springs stay on :class:`SdfJoint`.
+written in the file. Joint limits go to the model (``lowerPositionLimit``,
+``effortLimit``, ...); the joint dynamics of each tree joint (``<axis><dynamics>``:
+``damping``, ``friction``, ``spring_stiffness``, ``spring_reference``) become its joint
+effects (:mod:`hexapod_pin.core.effects`: damping, Coulomb friction, stiffness and the
+spring reference, a displacement from the neutral configuration), carried by the loops
+(an ``effects`` section, :class:`~hexapod_pin.core.description.EffectsSection`) and also
+written into Pinocchio's ``model.damping`` / ``model.friction``. They apply to every
+velocity coordinate of the joint (a universal joint's ``<axis2>`` is not read); a cut
+joint (a closure) has no coordinate and keeps none.
 """
 
 from __future__ import annotations
@@ -52,7 +59,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.closed_loop import ClosedLoopModel
-from ..core.description import WORLD, ClosureSpec, LoopsSpec, check_inertia, read_text
+from ..core.description import (WORLD, ClosureSpec, EffectsSection, LoopsSpec, check_inertia,
+                                read_text)
 from ..errors import DescriptionError
 
 MODEL_FRAME = "__model__"
@@ -127,10 +135,10 @@ class SdfJoint:
         upper: upper position limit (rad or m; +inf when absent).
         effort: effort limit (N m or N; inf when absent or < 0).
         velocity: velocity limit (rad/s or m/s; inf when absent or < 0).
-        damping: viscous damping.
-        friction: Coulomb friction.
+        damping: viscous damping (N m s/rad or N s/m), >= 0.
+        friction: Coulomb friction (N m or N), >= 0.
         spring_reference: joint spring rest position (rad or m).
-        spring_stiffness: joint spring stiffness (N m/rad or N/m).
+        spring_stiffness: joint spring stiffness (N m/rad or N/m), >= 0.
     """
 
     name: str
@@ -475,6 +483,15 @@ class _ModelParser:
                 friction = _float(dyn, "friction", 0.0, self.source, name)
                 spring_ref = _float(dyn, "spring_reference", 0.0, self.source, name)
                 spring_k = _float(dyn, "spring_stiffness", 0.0, self.source, name)
+                for tag, value in (("damping", damping), ("friction", friction),
+                                   ("spring_stiffness", spring_k)):
+                    if not (math.isfinite(value) and value >= 0.0):
+                        raise DescriptionError(self.source, f"<dynamics><{tag}> must be "
+                                                            f"finite and >= 0, got {value!r}",
+                                               name)
+                if not math.isfinite(spring_ref):
+                    raise DescriptionError(self.source, "<dynamics><spring_reference> must "
+                                                        "be finite", name)
         if jtype == "continuous":
             lower, upper = -math.inf, math.inf
         return SdfJoint(name, jtype, parent, child, pose, axis, axis2, lower, upper, effort,
@@ -566,7 +583,8 @@ def build_tree(sdf: SdfModel, root_joint: pin.JointModel | None = None,
     if not model.check(model.createData()):
         raise DescriptionError(source, "built model fails Pinocchio's consistency check")
     closures = tuple(_closure(sdf, joint) for joint in cuts)
-    return SdfTree(model, LoopsSpec(closures, tuple(actuated)), root,
+    effects = sdf_effects(sdf, ([root_attachment] if root_attachment else []) + tree)
+    return SdfTree(model, LoopsSpec(closures, tuple(actuated), effects=effects), root,
                    tuple(([root_attachment.name] if root_attachment else []) + order),
                    tuple(j.name for j in cuts), sdf)
 
@@ -709,6 +727,7 @@ class _TreeBuilder:
                                   lower, upper)
         idx_v = self.model.joints[jid].idx_v
         self.model.damping[idx_v:idx_v + nv] = joint.damping
+        self.model.friction[idx_v:idx_v + nv] = joint.friction
         fid = self.model.addJointFrame(jid, parent_fid)
         self.joint_frame[jid] = joint.pose * turn  # joint frames are kept in the model frame
         self._attach_link(self.sdf.link(joint.child), jid, fid)
@@ -824,7 +843,34 @@ def sdf_to_urdf(sdf: SdfModel, root_link: str | None = None,
         else:
             frame2, off2 = joint.parent, frame_of[joint.parent].actInv(joint.pose)
         closures.append(ClosureSpec(spec.name, spec.type, spec.frame1, frame2, off1, off2))
-    return "\n".join(out) + "\n", LoopsSpec(tuple(closures), ())
+    return "\n".join(out) + "\n", LoopsSpec(tuple(closures), (),
+                                            effects=sdf_effects(sdf, tree))
+
+
+def sdf_effects(sdf: SdfModel, joints: Iterable[SdfJoint]) -> EffectsSection | None:
+    """The joint effects of the given (tree) joints: each one's nonzero ``damping``,
+    ``coulomb`` (SDF ``friction``), ``stiffness`` (``spring_stiffness``) and
+    ``spring_reference`` (rad or m, a displacement from the neutral configuration of
+    every coordinate of the joint), as the ``effects`` section of a loops description;
+    None when no joint has any. Fixed joints have none.
+
+    Args:
+        sdf: the parsed model (its source names the section).
+        joints: the joints of the tree.
+    """
+    entries = []
+    for joint in joints:
+        if joint.type == "fixed":
+            continue
+        nv = 2 if joint.type == "universal" else 3 if joint.type == "ball" else 1
+        values = (("damping", joint.damping), ("coulomb", joint.friction),
+                  ("stiffness", joint.spring_stiffness),
+                  ("spring_reference", joint.spring_reference if nv == 1
+                   else (joint.spring_reference,) * nv))
+        kept = tuple((key, value) for key, value in values if np.any(value))
+        if kept:
+            entries.append((joint.name, kept))
+    return EffectsSection(tuple(entries), source=sdf.source) if entries else None
 
 
 def loops_yaml(loops: LoopsSpec) -> str:
@@ -839,7 +885,27 @@ def loops_yaml(loops: LoopsSpec) -> str:
         lines.append(f"  - {{name: {c.name!r}, type: {c.type}, frame1: {c.frame1!r}, "
                      f"frame2: {c.frame2!r},\n     {off[0]},\n     {off[1]}}}")
     lines.append(f"actuated: {list(loops.actuated)!r}")
+    if loops.effects is not None:
+        lines.append("effects:")
+        if loops.effects.velocity_threshold is not None:
+            lines.append(f"  velocity_threshold: "
+                         f"{_yaml_number(loops.effects.velocity_threshold)}")
+        lines.append("  joints:")
+        for joint, entries in loops.effects.joints:
+            values = ", ".join(f"{key}: {_yaml_number(value)}" for key, value in entries)
+            lines.append(f"    {joint!r}: {{{values}}}")
     return "\n".join(lines) + "\n"
+
+
+def _yaml_number(value: float | tuple[float, ...]) -> str:
+    """A number or list of numbers as YAML (``.inf``; a float always with its dot or
+    exponent sign that YAML reads as a number)."""
+    if isinstance(value, tuple):
+        return "[" + ", ".join(_yaml_number(v) for v in value) + "]"
+    if math.isinf(value):
+        return ".inf" if value > 0 else "-.inf"
+    text = repr(float(value))
+    return text.replace("e", ".0e", 1) if "e" in text and "." not in text else text
 
 
 def resolve_uri(uri: str, base_dir: Path | None = None,

@@ -23,9 +23,13 @@ Pinocchio's ``computeRNEADerivatives`` gives ``d rnea``; then
 ``d(A^T lambda)`` ``-n_k . lambda_k dphi_k`` on link k's row and
 ``sum_k r_k . lambda_k dtheta`` on the theta row. The pose is ``(x, y, theta)``: its
 coordinates are world tangent coordinates, and the twist, twist_dot and wrench are held
-in world axes. The ID is linear in twist_dot and wrench, so those blocks are exact
-coefficients; the tests check every block against Richardson-extrapolated central
-differences of the inverse dynamics.
+in world axes. The joint effects (``robot.effects``) move ``tau_e(q, v, a)`` to the left,
+``rnea - tau_e``: its derivative adds ``diag(K)`` to ``d rnea / dq`` and ``diag(D)`` to
+``d rnea / dv`` (every joint of the planar tree has one coordinate, so ``dDifference`` is the
+identity; Coulomb friction is piecewise constant, the armature is in Pinocchio's ``M``). The
+ID is linear in twist_dot and wrench, so those blocks are exact coefficients; the tests
+check every block against Richardson-extrapolated central differences of the inverse
+dynamics.
 """
 
 from __future__ import annotations
@@ -66,6 +70,9 @@ def inverse_dynamics_derivatives(dynamics: PlanarDynamics, pose: npt.ArrayLike,
     model, data = clm.model, dynamics.data
     d_q, d_v, mass = pin.computeRNEADerivatives(model, data, q, v, a)
     d_q, d_v, mass = d_q.copy(), d_v.copy(), np.triu(mass) + np.triu(mass, 1).T
+    effects = clm.effects                # the springs' and dampers' share of rnea - tau_e
+    d_q[np.diag_indices(ws.nv)] += effects.stiffness
+    d_v[np.diag_indices(ws.nv)] += effects.damping
     rows = np.concatenate([[r, r + 1] for r in ws.rows])
     a_c = dynamics.dyn.constraint_jacobian(q)[rows]                # (6, nv) in-plane rows
     square = np.zeros((ws.nv, ws.nv))

@@ -15,6 +15,16 @@ z), ``lambda`` (9,) the closure multipliers (point closure k: the force of the p
 ON link k, world axes; the out-of-plane rows identically zero and their multipliers
 zero, the minimum-norm choice). ``closure_forces`` (3, 2) is the force of link k ON the
 platform: ``-lambda_k`` in x and y.
+
+Joint and drive effects (``robot.effects``, :mod:`hexapod_pin.core.effects`): the effects
+of the sliders' coordinates are inside the compiled closed form (its drives: the same
+numbers in the single states and the batches); effects on passive coordinates (the links,
+the platform's joints) are not: a robot with any answers its inverse and forward dynamics
+on the tree routes from the closed-form tree state (the status says so), its reduced
+dynamics add their share through the velocity map
+(:func:`~hexapod_pin.core.effects_projection.reduced_effects`), and its batches run state by
+state. Coulomb friction at rest: forward dynamics solves stick / slip; statics return the
+frictionless holding forces (any force within ``+-coulomb`` of them holds a slider).
 """
 
 from __future__ import annotations
@@ -31,6 +41,10 @@ import pinocchio as pin
 from ..core.checks import as_array, max_abs, owned_copy, required
 from ..core.closed_loop import ClosedLoopModel
 from ..core.dynamics import ClosedLoopDynamics, forward_dynamics_tree, inverse_dynamics_tree
+from ..core.effects_projection import (PASSIVE_STATUS, batch_of_states, batch_row,
+                                       passive_effect_coordinates, reduced_effects,
+                                       stacked)
+from ..core.energy import energy_totals
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                             ComputedDetails, Energies, ForwardDynamicsResult,
                             InverseDynamicsResult, LazyConditioning, ReducedDynamics,
@@ -110,6 +124,9 @@ class TreeDetails:
             dyn = self.dyn
             with self.lock:                 # the robot's Pinocchio data
                 full = pin.rnea(dyn.model, dyn.data, q, v, a) - self.tau_ext
+                effect = dyn.effect_force_of_motion(q, v, a)   # the joint effects' force
+                if effect is not None:
+                    full -= effect
                 jac = dyn.constraint_jacobian(q)
             full[dyn.clm.actuated_v] -= self.tau
             full -= jac.T @ self.multipliers()
@@ -246,8 +263,9 @@ class PlanarDynamics:
         nv = ws.nv
         q, v, a = np.empty(nv), np.empty(nv), np.empty(nv)
         tau, closure = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, 2))
+        geo = ws.dynamics_geo
         status = kernels.inverse_dynamics(
-            ws.geo, ws.idx, pose_a, twist_a, twist_dot_a,
+            geo, ws.idx, pose_a, twist_a, twist_dot_a,
             ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None,
             ws.signs(branch), q, v, a, tau, closure, ws.buf, ws.info)
         if status in (kernels.NONFINITE, kernels.UNREACHABLE, kernels.TYPE_I, kernels.TYPE_II):
@@ -265,7 +283,8 @@ class PlanarDynamics:
         wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
         tau_ext = self.tau_ext(wrench_kept)
         conditioning = self._conditioning(owned_copy(pose_a, pose), ws.signs(branch))
-        if method == "kkt" and status == kernels.OK:
+        passive = bool(geo[kernels.PASSIVE])
+        if method == "kkt" and status == kernels.OK and not passive:
             self.check_bounds(tau, bounds)
             details = TreeDetails(self.dyn, ws, (q, v, a), tau, tau_ext, wrench_kept,
                                   joint_wrenches, self.platform_joint, closure=closure,
@@ -281,8 +300,9 @@ class PlanarDynamics:
                               joint_wrenches, self.platform_joint,
                               multipliers=res.multipliers.copy(), residual=res.residual,
                               lock=self.lock)
-        return InverseDynamicsResult(tau, q, v, a, method, res.status, res.iterations, details,
-                                     conditioning)
+        status_text = f"{res.status} ({PASSIVE_STATUS})" if passive else res.status
+        return InverseDynamicsResult(tau, q, v, a, method, status_text, res.iterations,
+                                     details, conditioning)
 
     def _conditioning(self, pose: np.ndarray, signs: np.ndarray) -> LazyConditioning:
         """The lazy conditioning of a result at ``pose`` (an owned copy) on ``signs``."""
@@ -305,13 +325,17 @@ class PlanarDynamics:
                 ``geometry.max_actuator_force`` (see :meth:`inverse_dynamics`).
         """
         ws = self.ws
+        geo = ws.dynamics_geo
+        if geo[kernels.PASSIVE]:           # effects the kernels do not model: the tree route
+            return self.inverse_dynamics(pose, ws.zero3, ws.zero3, wrench, branch=branch,
+                                         bounded=bounded, joint_wrenches=False).actuator_forces
         pose_a = vec3(pose, "pose")
         wrench_a = None if wrench is None else vec3(wrench, "wrench")
         nv = ws.nv
         q, v, a = np.empty(nv), np.empty(nv), np.empty(nv)
         tau, closure = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, 2))
         status = kernels.inverse_dynamics(
-            ws.geo, ws.idx, pose_a, ws.zero3, ws.zero3,
+            geo, ws.idx, pose_a, ws.zero3, ws.zero3,
             ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None,
             ws.signs(branch), q, v, a, tau, closure, ws.buf, ws.info)
         if status != kernels.OK:
@@ -360,12 +384,16 @@ class PlanarDynamics:
         forces_a = vec3(actuator_forces, "actuator_forces")
         wrench_a = None if wrench is None else vec3(wrench, "wrench")
         signs = ws.signs(branch)
+        geo = ws.dynamics_geo
+        note = ""
+        if method == "nullspace" and geo[kernels.PASSIVE]:
+            method, note = "kkt", f" ({PASSIVE_STATUS})"
         if method == "nullspace":
             nv = ws.nv
             q, v, a = np.empty(nv), np.empty(nv), np.empty(nv)
             twist_dot, closure = np.empty(3), np.empty((N_ACTUATORS, 2))
             status = kernels.forward_dynamics(
-                ws.geo, ws.idx, pose_a, twist_a, forces_a,
+                geo, ws.idx, pose_a, twist_a, forces_a,
                 ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None, signs,
                 q, v, a, twist_dot, closure, ws.buf, ws.info)
             if status != kernels.OK:
@@ -383,7 +411,8 @@ class PlanarDynamics:
         self._tree_check(q, v, acc, branch, twist_a)
         details = ComputedDetails(res.multipliers.copy(), closure_of(ws, res.multipliers))
         return ForwardDynamicsResult(acc[ws.indices.platform], acc[ws.indices.slider], acc,
-                                     method, res.status, res.iterations, details,
+                                     "nullspace" if note else method, res.status + note,
+                                     res.iterations, details,
                                      self._conditioning(owned_copy(pose_a, pose), signs))
 
     # -- reduced dynamics and energies --------------------------------------------------------
@@ -394,7 +423,11 @@ class PlanarDynamics:
         ``M_x = G^T M G`` (3, 3) (kg, kg m, kg m^2) and ``h_x = G^T (M a_0 + h)`` (3,)
         (N, N m) in closed form (:func:`kernels.reduced`), with ``G`` the velocity map
         ``v = G twist`` (returned as ``velocity_map``, (nv, 3)) and ``a_0`` the tree
-        acceleration at ``twist_dot = 0``.
+        acceleration at ``twist_dot = 0``. With joint effects ``M`` holds the armature and
+        ``h_x`` the effects' force ``-G^T tau_e`` (damping, springs, the friction of the
+        sliding coordinates; that of a coordinate at rest is set-valued): the sliders' in
+        the closed form, the passive coordinates' through ``G``
+        (:func:`~hexapod_pin.core.effects_projection.reduced_effects`).
 
         Raises:
             InputError: bad shape, non-finite or non-real values.
@@ -402,19 +435,26 @@ class PlanarDynamics:
             SingularityError: at a singular configuration.
         """
         ws = self.ws
+        geo = ws.dynamics_geo
         m_x, h_x, jac = np.empty((3, 3)), np.empty(3), np.empty((3, 3))
-        status = kernels.reduced_dynamics(ws.geo, vec3(pose, "pose"), vec3(twist, "twist"),
+        status = kernels.reduced_dynamics(geo, vec3(pose, "pose"), vec3(twist, "twist"),
                                           ws.signs(branch), m_x, h_x, jac, ws.buf, ws.info)
         if status != kernels.OK:
             ws.raise_for(status, ((pose, "pose"), (twist, "twist")))
         vmap = np.empty((ws.nv, 3))
-        kernels.velocity_map(ws.geo, ws.idx, ws.buf, vmap)
+        kernels.velocity_map(geo, ws.idx, ws.buf, vmap)
+        if geo[kernels.PASSIVE]:           # the passive coordinates' share, through G
+            q, v, a0 = ws.state(2, True, branch, (), vec3(pose, "pose"), vec3(twist, "twist"))
+            d_mass, d_bias = reduced_effects(self.model, passive_effect_coordinates(self.model),
+                                             vmap, q, v, a0)
+            m_x, h_x = m_x + d_mass, h_x + d_bias
         return ReducedDynamics(m_x, h_x, jac, vmap)
 
     def energies(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                  branch: npt.ArrayLike | None = None) -> Energies:
-        """Kinetic and gravity potential energy of every body (J), by Pinocchio on the
-        closed-form tree state (potential zero when every centre of mass is at y = 0).
+        """Kinetic and potential energy of the mechanism (J) on the closed-form tree state
+        (:func:`~hexapod_pin.core.energy.energy_totals`: kinetic with the rotors' armature,
+        gravity potential zero when every centre of mass is at y = 0, plus the springs').
 
         Raises:
             InputError: bad shape, non-finite or non-real values.
@@ -424,9 +464,8 @@ class PlanarDynamics:
         inputs = ((pose, "pose"), (twist, "twist"))
         q, v, _ = self.ws.state(1, True, branch, inputs, vec3(pose, "pose"),
                                 vec3(twist, "twist"))
-        kin = float(pin.computeKineticEnergy(self.model.model, self.data, q, v))
-        pot = float(pin.computePotentialEnergy(self.model.model, self.data, q))
-        return Energies(kin, pot, kin + pot)
+        kinetic, potential = energy_totals(self.model, q, v)
+        return Energies(kinetic, potential, kinetic + potential)
 
     # -- batches --------------------------------------------------------------------------------
     def _raise_first(self, status: np.ndarray, infos: np.ndarray, poses: np.ndarray,
@@ -451,7 +490,7 @@ class PlanarDynamics:
         has_wrench = wrenches is not None
         tau, closure = np.empty((n, N_ACTUATORS)), np.empty((n, N_ACTUATORS, 2))
         status, infos = np.empty(n, np.int64), np.zeros((n, kernels.INFO_SIZE))
-        kernels.inverse_dynamics_batch(ws.geo, ws.idx, ws.home_signs, poses, twists,
+        kernels.inverse_dynamics_batch(ws.dynamics_geo, ws.idx, ws.home_signs, poses, twists,
                                        twist_dots, wrenches if has_wrench else np.zeros((n, 3)),
                                        has_wrench, tau, closure, status, infos)
         self._raise_first(status, infos, poses, tau, self.bounds(bounded))
@@ -480,6 +519,13 @@ class PlanarDynamics:
         """
         poses, twists, twist_dots, wrenches = check_batch(
             poses=poses, twists=twists, twist_dots=twist_dots, wrenches=wrenches)
+        if self.ws.dynamics_geo[kernels.PASSIVE]:   # effects the kernels do not model
+            res = batch_of_states(len(poses), lambda k: self.inverse_dynamics(
+                poses[k], twists[k], twist_dots[k], batch_row(wrenches, k), bounded=bounded,
+                joint_wrenches=False))
+            return BatchInverseDynamics(stacked(res, "actuator_forces", (N_ACTUATORS,)),
+                                        stacked(res, "closure_forces", (N_ACTUATORS, 2)),
+                                        stacked(res, "residual", ()))
         tau, closure, residual = self._batch_inverse(poses, twists, twist_dots, wrenches,
                                                      bounded)
         return BatchInverseDynamics(tau, closure, residual)
@@ -490,6 +536,9 @@ class PlanarDynamics:
         :meth:`inverse_dynamics_batch`."""
         poses, wrenches = check_batch(poses=poses, wrenches=wrenches)
         zero = np.zeros_like(poses)
+        if self.ws.dynamics_geo[kernels.PASSIVE]:   # effects the kernels do not model
+            return self.inverse_dynamics_batch(poses, zero, zero, wrenches,
+                                               bounded=bounded).actuator_forces
         return self._batch_inverse(poses, zero, zero, wrenches, bounded)[0]
 
     def forward_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
@@ -504,14 +553,20 @@ class PlanarDynamics:
         """
         poses, twists, forces, wrenches = check_batch(
             poses=poses, twists=twists, actuator_forces=actuator_forces, wrenches=wrenches)
+        if self.ws.dynamics_geo[kernels.PASSIVE]:   # effects the kernels do not model
+            res = batch_of_states(len(poses), lambda k: self.forward_dynamics(
+                poses[k], twists[k], forces[k], batch_row(wrenches, k)))
+            return BatchForwardDynamics(stacked(res, "twist_dot", (3,)),
+                                        stacked(res, "actuator_accelerations", (N_ACTUATORS,)),
+                                        stacked(res, "closure_forces", (N_ACTUATORS, 2)))
         ws = self.ws
         n = poses.shape[0]
         has_wrench = wrenches is not None
         twist_dot, acc = np.empty((n, 3)), np.empty((n, N_ACTUATORS))
         closure = np.empty((n, N_ACTUATORS, 2))
         status, infos = np.empty(n, np.int64), np.zeros((n, kernels.INFO_SIZE))
-        kernels.forward_dynamics_batch(ws.geo, ws.idx, ws.home_signs, poses, twists, forces,
-                                       wrenches if has_wrench else np.zeros((n, 3)),
+        kernels.forward_dynamics_batch(ws.dynamics_geo, ws.idx, ws.home_signs, poses, twists,
+                                       forces, wrenches if has_wrench else np.zeros((n, 3)),
                                        has_wrench, twist_dot, acc, closure, status, infos)
         self._raise_first(status, infos, poses)
         return BatchForwardDynamics(twist_dot, acc, closure)
@@ -527,11 +582,17 @@ class PlanarDynamics:
             BatchSingularityError: a singular state.
         """
         poses, twists = check_batch(poses=poses, twists=twists)
+        if self.ws.dynamics_geo[kernels.PASSIVE]:   # effects the kernels do not model
+            res = batch_of_states(len(poses), lambda k: self.reduced_dynamics(poses[k],
+                                                                              twists[k]))
+            return BatchReducedDynamics(stacked(res, "mass_matrix", (3, 3)),
+                                        stacked(res, "bias", (3,)),
+                                        stacked(res, "jacobian", (N_ACTUATORS, 3)))
         ws = self.ws
         n = poses.shape[0]
         m_x, h_x, jac = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3, 3))
         status, infos = np.empty(n, np.int64), np.zeros((n, kernels.INFO_SIZE))
-        kernels.reduced_dynamics_batch(ws.geo, ws.home_signs, poses, twists, m_x, h_x, jac,
+        kernels.reduced_dynamics_batch(ws.dynamics_geo, ws.home_signs, poses, twists, m_x, h_x, jac,
                                        status, infos)
         self._raise_first(status, infos, poses)
         return BatchReducedDynamics(m_x, h_x, jac)

@@ -191,5 +191,11 @@ def planar_model(geometry: PlanarGeometry) -> ClosedLoopModel:
     tree = build_model(xml, source="planar_3prr.urdf.xacro")
     model = ClosedLoopModel(tree, load_loops(urdf_dir() / "planar_3prr.loops.yaml"),
                             name="planar_3prr", urdf_xml=xml)
-    model.model.gravity = pin.Motion(np.array([0.0, -geometry.gravity, 0.0, 0.0, 0.0, 0.0]))
+    set_gravity(model, geometry)
     return model
+
+
+def set_gravity(model: ClosedLoopModel, geometry: PlanarGeometry) -> None:
+    """Set Pinocchio's gravity of ``model`` to ``-geometry.gravity`` along y (the URDF carries
+    none; a model rebuilt with other effects gets it again)."""
+    model.model.gravity = pin.Motion(np.array([0.0, -geometry.gravity, 0.0, 0.0, 0.0, 0.0]))

@@ -36,12 +36,22 @@ The equations (conventions of :mod:`hexapod_pin.planar.geometry`; ``z x w = (-w_
   ``J^T tau + wrench = M_x twist_dot + h_x``;
 * forward dynamics (:func:`forward`): that 3x3 solved, ``a = a_0 + G twist_dot``, the
   multipliers per loop from its slider and link rows (determinant ``nu_k``), the
-  platform rows and the closures at acceleration level as the checks.
+  platform rows and the closures at acceleration level as the checks;
+* drives (:mod:`hexapod_pin.core.effects_projection`): the effects of the sliders'
+  coordinates (``robot.effects``: armature, damping, Coulomb friction, springs), packed
+  after the geometry (:data:`DRIVES`), add ``a s'' + d s' + K (s - r) + c sign(s')`` to
+  ``tau`` (the closure forces do not change), ``J^T diag(a) J`` to ``M_x`` and ``J^T (a
+  s''_0 - drive force)`` to ``h_x`` (inertia only, never weight), and forward dynamics
+  solves the friction of the sliders at rest
+  (:func:`~hexapod_pin.core.effects_projection.stick_slip`); the slider rows of the
+  closure forces then read ``f_s = tau + drive force + friction``. A rigid robot skips it
+  all (the rigid kernels' numbers, bit for bit).
 
 Layouts: ``geo`` (:func:`pack_geometry`), the leg buffer ``legs`` (3, LEG_COLS) (one row
-per leg: s, n, r, nu, J row, s', phi', s'', phi''), the tree forces ``f`` (9,) in local
-order (sliders, links, platform x, y, theta), ``idx`` (12,) the tree indices (platform
-chain, sliders, links) and the first multiplier row of each closure. Kernels never
+per leg: s, n, r, nu, J row, s', phi', s'', phi'', the friction of a slider at rest), the
+tree forces ``f`` (9,) in local order (sliders, links, platform x, y, theta), ``idx`` (12,)
+the tree indices (platform chain, sliders, links) and the first multiplier row of each
+closure. Kernels never
 raise: they return a status (below) and leave the values the caller's exception needs
 in ``info``.
 """
@@ -53,6 +63,7 @@ import math
 import numba
 import numpy as np
 
+from ..core import effects_projection as drv
 from ..core.batching import CHUNK, n_chunks, prange_jit
 from ..core.compiled import all_finite, jit
 from ..core.kernel_status import (NONFINITE, OK, RESIDUAL, TYPE_I,  # one numbering: every robot
@@ -68,10 +79,15 @@ RESIDUAL_RTOL = 1e-9
 # geometry vector: per leg k, 7 values from 7 k: m (2), u (2), p (2), a_k; then scalars
 # (the singularity thresholds are packed, not read as globals: compiled code caches globals)
 _G_LEN, _G_TOL, _G_MS, _G_ML, _G_MP, _G_IP, _G_G, _G_RP, _G_TOL2 = range(21, 30)
-GEO_SIZE = 30
+#: 1.0 when passive coordinates (links, the platform's joints) carry effects, which the
+#: kernels do not model: the Python routes then answer on the tree
+PASSIVE = 30
+#: where the sliders' drive vector starts (:func:`~hexapod_pin.core.effects_projection.pack_drives`)
+DRIVES = 31
+GEO_SIZE = DRIVES + drv.drive_size(N_ACTUATORS)
 # leg buffer columns
-S, NX, NY, RX, RY, NU, J0, J1, J2, SD, PD, SDD, PDD = range(13)
-LEG_COLS = 13
+S, NX, NY, RX, RY, NU, J0, J1, J2, SD, PD, SDD, PDD, FR = range(14)
+LEG_COLS = 14
 # info vector: shortfalls (3), unreachable flags (3), worst |n.u| / L, max |s|, residual,
 # sigma_min(A_hat) of the type-II test
 INFO_SIZE = 10
@@ -81,9 +97,12 @@ I_PLAT, I_SLIDER, I_LINK, I_ROW = 0, 3, 6, 9
 IDX_SIZE = 12
 
 
-def pack_geometry(geometry: PlanarGeometry) -> np.ndarray:
-    """The constants of a :class:`PlanarGeometry` as the kernels' flat ``geo`` vector."""
-    geo = np.empty(GEO_SIZE)
+def pack_geometry(geometry: PlanarGeometry, drives: np.ndarray | None = None,
+                  passive: bool = False) -> np.ndarray:
+    """The constants of a :class:`PlanarGeometry` as the kernels' flat ``geo`` vector, the
+    :data:`PASSIVE` flag (``passive``: effects on passive coordinates) and the sliders'
+    drive vector ``drives`` (default none: a rigid robot)."""
+    geo = np.zeros(GEO_SIZE)
     for k, (mid, dirn, pt, angle) in enumerate(zip(
             geometry.rail_midpoints, geometry.rail_directions, geometry.platform_points,
             rail_angles())):
@@ -93,6 +112,9 @@ def pack_geometry(geometry: PlanarGeometry) -> np.ndarray:
     geo[_G_MP], geo[_G_IP] = geometry.platform_mass, geometry.platform_inertia
     geo[_G_G], geo[_G_RP] = geometry.gravity, geometry.platform_radius
     geo[_G_TOL2] = TYPE_II_TOL
+    geo[PASSIVE] = float(passive)
+    if drives is not None:
+        geo[DRIVES:] = drives
     return geo
 
 
@@ -443,6 +465,19 @@ def reduced(geo, buf, m_x, h_x):
         for j in range(i + 1, 3):
             m = 0.5 * (m_x[i, j] + m_x[j, i])
             m_x[i, j], m_x[j, i] = m, m
+    if geo[DRIVES + drv.FLAG] != 0.0:
+        drv.add_reduced(geo, DRIVES, N_ACTUATORS, 3, jacobian_t(buf), buf[:, S], buf[:, SD],
+                        buf[:, SDD], m_x, h_x)
+
+
+@jit
+def jacobian_t(buf):
+    """``J^T`` (3, N_ACTUATORS) of the legs in the buffer."""
+    out = np.empty((3, N_ACTUATORS))
+    for k in range(N_ACTUATORS):
+        for j in range(3):
+            out[j, k] = buf[k, J0 + j]
+    return out
 
 
 @jit
@@ -465,8 +500,14 @@ def forward(geo, buf, twist, forces, wrench, has_wrench, twist_dot, closure, inf
             rhs[j] += buf[k, J0 + j] * forces[k]
     if not (m_x[0, 0] > 0.0 and m_x[1, 1] > 0.0 and m_x[2, 2] > 0.0):
         return RESIDUAL
-    if solve3(m_x[0, 0], m_x[0, 1], m_x[0, 2], m_x[1, 0], m_x[1, 1], m_x[1, 2],
-              m_x[2, 0], m_x[2, 1], m_x[2, 2], rhs[0], rhs[1], rhs[2], twist_dot) == 0.0:
+    drives = geo[DRIVES + drv.FLAG] != 0.0
+    if drives and drv.any_at_rest(geo, DRIVES, N_ACTUATORS, buf[:, SD], buf[:, FR]):
+        if drv.stick_slip(geo, DRIVES, N_ACTUATORS, 3, m_x, jacobian_t(buf), buf[:, SD],
+                          buf[:, SDD], rhs, twist_dot, buf[:, FR], np.empty((4, 3, 3)),
+                          np.empty((8, 3))) != OK:
+            return RESIDUAL
+    elif solve3(m_x[0, 0], m_x[0, 1], m_x[0, 2], m_x[1, 0], m_x[1, 1], m_x[1, 2],
+                m_x[2, 0], m_x[2, 1], m_x[2, 2], rhs[0], rhs[1], rhs[2], twist_dot) == 0.0:
         return RESIDUAL
     ax, ay, alpha = twist_dot[0], twist_dot[1], twist_dot[2]
     for k in range(N_ACTUATORS):
@@ -484,6 +525,9 @@ def forward(geo, buf, twist, forces, wrench, has_wrench, twist_dot, closure, inf
         nx, ny, rx, ry, nu = leg[NX], leg[NY], leg[RX], leg[RY], leg[NU]
         ux, uy = geo[7 * k + 2], geo[7 * k + 3]
         fs, fl = force[k] - forces[k], force[3 + k]
+        if drives:                    # the slider's drive: a s'' - drive force - friction
+            fs += (geo[DRIVES + drv.HEAD + drv.BLOCK * k + drv.ARM] * leg[SDD]
+                   - drv.drive_force(geo, DRIVES, k, leg[S], leg[SD]) - leg[FR])
         lx, ly = (fs * nx - uy * fl) / nu, (ux * fl + ny * fs) / nu
         closure[k, 0], closure[k, 1] = -lx, -ly
         sum_x, sum_y, sum_m = sum_x + lx, sum_y + ly, sum_m + rx * ly - ry * lx
@@ -525,7 +569,12 @@ def inverse_dynamics(geo, idx, pose, twist, twist_dot, wrench, has_wrench, signs
         return status
     force = np.empty(9)
     motion_forces(geo, buf, twist_dot, 1.0, force)
-    return solve_inverse(geo, buf, force, wrench, has_wrench, tau, closure, info)
+    status = solve_inverse(geo, buf, force, wrench, has_wrench, tau, closure, info)
+    if status == OK and geo[DRIVES + drv.FLAG] != 0.0:
+        for k in range(N_ACTUATORS):
+            leg = buf[k]
+            tau[k] += drv.inverse_load(geo, DRIVES, k, leg[S], leg[SD], leg[SDD])
+    return status
 
 
 @jit

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..core import effects_projection as drv
 from ..core.checks import as_array, vector
 from ..core.closed_loop import ClosedLoopModel
 from ..core.measures import TYPE_I_TOL, TYPE_II_TOL, singularity_measures
@@ -42,13 +43,17 @@ def vec3(value: npt.ArrayLike, name: str) -> np.ndarray:
 
 
 class PlanarWorkspace:
-    """The cache of one robot: the kernels' geometry vector and tree indices, scratch
-    buffers (single states; not thread-safe), and where the closures' rows sit.
+    """The cache of one robot: the kernels' geometry vector (with the sliders' drives of
+    the model's joint effects, :mod:`hexapod_pin.core.effects_projection`) and tree
+    indices, scratch buffers (single states; not thread-safe), and where the closures' rows
+    sit.
 
     Args:
         geometry: the robot's geometry.
         model: its :class:`ClosedLoopModel` (closures ``link_<k>_tip`` on
-            ``platform_anchor_<k>``, in that order).
+            ``platform_anchor_<k>``, in that order); its effects give the drives of
+            :attr:`geo`, an armature written into ``model.model.armature`` by hand noticed
+            at the next access of :attr:`geo`.
 
     Raises:
         DescriptionError: the loops file does not hold those closures.
@@ -69,7 +74,11 @@ class PlanarWorkspace:
         self.rows = np.array([r.start for r in model.row_slices])
         self.idx = np.concatenate([self.indices.platform, self.indices.slider,
                                    self.indices.link, self.rows]).astype(np.int64)
-        self.geo = kernels.pack_geometry(geometry)
+        self._packed = drv.PackedDrives(
+            model, lambda drives, passive: kernels.pack_geometry(geometry, drives, passive))
+        #: the kernels' vector as built: its geometry part is all that the kinematic kernels
+        #: read; the dynamics kernels take :attr:`dynamics_geo`
+        self.geo = self._packed.vector
         #: the characteristic length of the singularity measures (m)
         self.platform_radius = float(geometry.platform_radius)
         #: rail midpoints ``m_k``, directions ``u_k``, platform points ``p_k`` (3, 2), read-only
@@ -82,6 +91,13 @@ class PlanarWorkspace:
         self.zero3 = np.zeros(3)
         self.buf = np.zeros((N_ACTUATORS, kernels.LEG_COLS))
         self.info = np.zeros(kernels.INFO_SIZE)
+
+    @property
+    def dynamics_geo(self) -> np.ndarray:
+        """The kernels' geometry vector with the current drives (a new array when the
+        armature was written by hand since the last access): what the dynamics kernels
+        read."""
+        return self._packed.vector
 
     def signs(self, branch: npt.ArrayLike | None) -> np.ndarray:
         """A validated branch (3,) (``None``: the home branch)."""

@@ -23,6 +23,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from ..core.closed_loop import ClosedLoopModel
+from ..core.effects import JointEffects
 from ..core.results import (InverseDynamicsDerivatives)
 from ..core.robot_api import delegate
 from ..core.robot_base import RobotBase
@@ -30,7 +32,7 @@ from ..errors import ArgumentTypeError
 from .assembly_modes import PlanarAssembly
 from .derivatives import inverse_dynamics_derivatives
 from .dynamics import PlanarDynamics
-from .geometry import N_ACTUATORS, PlanarGeometry, planar_model
+from .geometry import N_ACTUATORS, PlanarGeometry, planar_model, set_gravity
 from .kinematics import PlanarKinematics, PlanarWorkspace
 
 
@@ -39,6 +41,14 @@ class Planar3PRR(RobotBase):
 
     Args:
         geometry: design parameters; default :class:`PlanarGeometry` ().
+        effects: a :class:`~hexapod_pin.core.effects.JointEffects` record of this tree
+            (``other.effects``), or None: rigid. Every route includes it, the sliders'
+            drives in the compiled kernels (:mod:`hexapod_pin.core.effects_projection`);
+            ``robot.with_effects(...)`` gives the robot with other effects.
+
+    Raises:
+        ArgumentTypeError: the geometry is not a :class:`PlanarGeometry`.
+        InputError: the effects are a record of another tree.
 
     Attributes:
         geometry: the :class:`PlanarGeometry`.
@@ -58,18 +68,28 @@ class Planar3PRR(RobotBase):
     #: the pose ``(x, y, theta)`` (m, m, rad), ``theta`` the rotation about the world z axis
     POSE_AXES = ("x", "y", "yaw")
 
-    def __init__(self, geometry: PlanarGeometry | None = None) -> None:
+    def __init__(self, geometry: PlanarGeometry | None = None,
+                 effects: JointEffects | None = None) -> None:
         self.geometry = PlanarGeometry() if geometry is None else geometry
         if not isinstance(self.geometry, PlanarGeometry):
             raise ArgumentTypeError("geometry", geometry,
                                     f"expected a PlanarGeometry, got {type(geometry).__name__}")
-        self._init_facade(planar_model(self.geometry))
+        clm = planar_model(self.geometry)
+        if effects is not None:
+            clm = clm.with_effects(effects)
+            set_gravity(clm, self.geometry)           # the rebuilt model's gravity
+        self._init_facade(clm)
         self.workspace = PlanarWorkspace(self.geometry, self.model)
         self.indices = self.workspace.indices
         self.kinematics = PlanarKinematics(self.geometry, self.model, self.workspace)
         self.assembly = PlanarAssembly(self.geometry)
         self.dynamics = PlanarDynamics(self.geometry, self.model, self.workspace, self.lock,
                                        self.kinematics.singularity)
+
+    def _with_model(self, model: ClosedLoopModel) -> "Planar3PRR":
+        """This robot rebuilt from its geometry with the effects of ``model`` (the same
+        tree; a planar robot builds in milliseconds)."""
+        return Planar3PRR(self.geometry, effects=model.effects)
 
     @classmethod
     def default(cls) -> "Planar3PRR":

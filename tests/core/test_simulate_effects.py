@@ -404,15 +404,21 @@ def test_the_compiled_backend_refuses_effects_it_does_not_model(monkeypatch):
     assert calls[-1]["friction_regularisation"] is None and calls[-1]["integrator"] == "rk4"
 
 
-def test_the_hexapods_compiled_backend_refuses_a_robot_with_effects():
+def test_the_hexapods_compiled_backend_follows_a_hand_written_armature():
+    """The compiled batch once ignored an armature the tree routes follow (issue 27): the
+    hexapod's compiled simulator now declares the effects and agrees with the tree one."""
+    assert simulate_module.COMPILED_SIMULATORS[hp.Hexapod].supports_effects
     hexapod = hp.Hexapod.default()
-    if simulate_module.COMPILED_SIMULATORS[hp.Hexapod].supports_effects:
-        pytest.skip("the hexapod's compiled simulator models the effects")
     # an armature written by hand into the tree: the model's effects adopt it
     hexapod.model.model.armature[hexapod.model.actuated_v] = 0.5
     assert not hexapod.effects.is_rigid
-    with pytest.raises(hp.InputError, match="does not model joint effects"):
-        simulate(hexapod, 0.01, 1e-3, backend="compiled")
+    forces = np.full(6, 3.0)
+    fast = simulate(hexapod, 0.02, 1e-3, actuator_forces=forces, backend="compiled")
+    tree = simulate(hexapod, 0.02, 1e-3, actuator_forces=forces, backend="tree")
+    rigid = simulate(hp.Hexapod.default(), 0.02, 1e-3, actuator_forces=forces,
+                     backend="compiled")
+    np.testing.assert_allclose(fast.poses[-1], tree.poses[-1], rtol=0, atol=1e-9)
+    assert np.abs(fast.poses[-1] - rigid.poses[-1]).max() > 1e-6
 
 
 def test_a_trajectory_built_without_dissipation_records_zeros():

@@ -2,7 +2,9 @@
 
 Independent routes: link poses read here from the SDF text with ElementTree and numpy,
 finite differences, a hand-reduced constraint set (the redundant plantar-loop row of each
-leg projected out by hand, then a plain numpy KKT solve), and FD(ID) round trips.
+leg projected out by hand, then a plain numpy KKT solve with the SDF's damping and springs
+written here), and FD(ID) round trips. The SDF's springs are part of the model's effects:
+every route applies them, no test adds them to ``tau``.
 """
 
 import xml.etree.ElementTree as ET
@@ -152,12 +154,37 @@ def _hand_reduced(cassie, q, v):
     return np.vstack(rows_j), np.concatenate(rows_g)
 
 
+def _sdf_dynamics(cassie):
+    """(damping (nv,), [(idx_q, idx_v, stiffness, reference)]) read here from the SDF text."""
+    damping, springs = np.zeros(cassie.nv), []
+    for joint in ET.parse(robots.cassie_sdf_path()).getroot().find("model").iter("joint"):
+        dyn = joint.find("axis/dynamics")
+        if dyn is None or not cassie.model.existJointName(joint.get("name")):
+            continue
+        jmodel = cassie.model.joints[cassie.model.getJointId(joint.get("name"))]
+        damping[jmodel.idx_v:jmodel.idx_v + jmodel.nv] = float(dyn.findtext("damping", "0"))
+        k = float(dyn.findtext("spring_stiffness", "0"))
+        if k:
+            springs.append((jmodel.idx_q, jmodel.idx_v, k,
+                            float(dyn.findtext("spring_reference", "0"))))
+    return damping, springs
+
+
+def _sdf_spring_forces(cassie, q):
+    """``-k (q_j - q_ref)`` of the SDF's springs (nv,), N m."""
+    tau = np.zeros(cassie.nv)
+    for iq, iv, k, ref in _sdf_dynamics(cassie)[1]:
+        tau[iv] = -k * (q[iq] - ref)
+    return tau
+
+
 def _kkt_forward(cassie, q, v, tau, jac, gamma):
-    model, data = cassie.model, cassie.model.createData()
+    model, data = pin.Model(cassie.tree_model), cassie.tree_model.createData()
     mass = pin.crba(model, data, q)
     mass = np.triu(mass) + np.triu(mass, 1).T
-    # the joint damping of the SDF (Pinocchio's model.damping) acts as -D v
-    bias = pin.rnea(model, data, q, v, np.zeros(cassie.nv)) + np.asarray(model.damping) * v
+    # the joint damping of the SDF acts as -D v, its springs as -k (q - q_ref)
+    bias = pin.rnea(model, data, q, v, np.zeros(cassie.nv)) + _sdf_dynamics(cassie)[0] * v \
+        - _sdf_spring_forces(cassie, q)
     n, m = cassie.nv, jac.shape[0]
     kkt = np.block([[mass, -jac.T], [jac, np.zeros((m, m))]])
     sol = np.linalg.solve(kkt, np.concatenate([tau - bias, -gamma]))
@@ -173,9 +200,9 @@ def _state(cassie, q, seed, v_scale=0.1):
 def test_redundant_rows_give_the_answer_of_the_hand_reduced_system(cassie, assembled):
     q = assembled
     v, rng = _state(cassie, q, 10)
-    tau = cassie_springs = robots.cassie_spring_torques(cassie, q)
-    tau = cassie_springs.copy()
-    tau[cassie.actuated_v] += 0.5 * rng.normal(size=cassie.n_actuated)
+    assert np.abs(_sdf_spring_forces(cassie, q)).max() > 1.0      # the springs are loaded
+    tau = np.zeros(cassie.nv)
+    tau[cassie.actuated_v] = 0.5 * rng.normal(size=cassie.n_actuated)
     jac_r, gamma_r = _hand_reduced(cassie, q, v)
     assert np.linalg.matrix_rank(jac_r) == 10 == jac_r.shape[0]
     a_ref, lam_r = _kkt_forward(cassie, q, v, tau, jac_r, gamma_r)
@@ -193,9 +220,8 @@ def test_redundant_rows_give_the_answer_of_the_hand_reduced_system(cassie, assem
     np.testing.assert_allclose(qp_route.a, a_ref, atol=1e-8 * max(1.0, np.abs(a_ref).max()))
     # inverse dynamics on both: the actuator torques of the reduced system
     for method in ("qp", "kkt"):
-        inv = inverse_dynamics_tree(cassie, q, v, a_ref, tau_ext=cassie_springs, method=method)
-        np.testing.assert_allclose(inv.actuator_forces, tau[cassie.actuated_v] - cassie_springs[
-            cassie.actuated_v], atol=1e-8)
+        inv = inverse_dynamics_tree(cassie, q, v, a_ref, method=method)
+        np.testing.assert_allclose(inv.actuator_forces, tau[cassie.actuated_v], atol=1e-8)
 
 
 def test_forward_inverse_round_trip(cassie, assembled):
@@ -204,33 +230,38 @@ def test_forward_inverse_round_trip(cassie, assembled):
     q = assembled
     for seed in (11, 12):
         v, rng = _state(cassie, q, seed)
-        springs = robots.cassie_spring_torques(cassie, q)
         u0 = 0.5 * rng.normal(size=cassie.n_actuated)
-        tau = springs.copy()
-        tau[cassie.actuated_v] += u0
+        tau = np.zeros(cassie.nv)
+        tau[cassie.actuated_v] = u0
         a = forward_dynamics_full_tau(cassie, q, v, tau, method="kkt").a
         assert np.max(np.abs(cassie.constraint_jacobian(q) @ a + cassie.constraint_drift(q, v))) \
             < 1e-8
-        inv = inverse_dynamics_tree(cassie, q, v, a, tau_ext=springs, method="kkt")
+        inv = inverse_dynamics_tree(cassie, q, v, a, method="kkt")
         np.testing.assert_allclose(inv.actuator_forces, u0, atol=1e-9)
         a_qp = forward_dynamics_full_tau(cassie, q, v, tau, method="qp").a
         np.testing.assert_allclose(a_qp, a, atol=1e-8 * max(1.0, np.abs(a).max()))
-        inv_qp = inverse_dynamics_tree(cassie, q, v, a, tau_ext=springs, method="qp")
+        inv_qp = inverse_dynamics_tree(cassie, q, v, a, method="qp")
         np.testing.assert_allclose(inv_qp.actuator_forces, u0, atol=1e-7)
-        tau2 = springs.copy()
-        tau2[cassie.actuated_v] += inv.actuator_forces
+        tau2 = np.zeros(cassie.nv)
+        tau2[cassie.actuated_v] = inv.actuator_forces
         a2 = forward_dynamics_full_tau(cassie, q, v, tau2, method="kkt").a
         np.testing.assert_allclose(a2, a, atol=1e-8 * max(1.0, np.abs(a).max()))
 
 
 def test_spring_torques_follow_the_sdf(cassie, assembled):
+    """The model's effects hold the SDF's springs and damping (read here with ElementTree);
+    cassie_spring_torques is what the springs of the effects give."""
     tau = robots.cassie_spring_torques(cassie, assembled)
+    np.testing.assert_allclose(tau, _sdf_spring_forces(cassie, assembled), rtol=1e-14)
     stiff = {j.name: j.spring_stiffness for j in load_sdf(robots.cassie_sdf_path()).joints}
     for name in SPRINGS:
         idx = cassie.joint_v_index(name)
         assert tau[idx] == pytest.approx(-stiff[name] * assembled[cassie.joint_q_index(name)])
+        assert cassie.effects.stiffness[idx] == stiff[name] > 1000.0
     others = np.setdiff1d(np.arange(cassie.nv), [cassie.joint_v_index(n) for n in SPRINGS])
-    assert np.all(tau[others] == 0.0)
+    assert np.all(tau[others] == 0.0) and np.all(cassie.effects.stiffness[others] == 0.0)
+    np.testing.assert_array_equal(cassie.effects.damping, _sdf_dynamics(cassie)[0])
+    np.testing.assert_array_equal(cassie.effects.spring_reference, pin.neutral(cassie.model))
 
 
 def test_free_flyer_variant(cassie):
@@ -272,6 +303,11 @@ def test_urdf_route_is_the_same_mechanism(cassie):
                                    cassie.constraint_jacobian(q), atol=1e-12)
         np.testing.assert_allclose(pin.rnea(via.model, d2, qv, vv, vv)[perm],
                                    pin.rnea(cassie.model, d1, q, v, v), atol=1e-10)
+    # same effects: the URDF's <dynamics> carry the damping, the loops the springs
+    perm_v = np.array([via.joint_v_index(n) for n in list(cassie.model.names)[1:]])
+    for field in ("armature", "damping", "coulomb", "stiffness"):
+        np.testing.assert_array_equal(getattr(via.effects, field)[perm_v],
+                                      getattr(cassie.effects, field))
     urdf, _ = robots.cassie_urdf()
     assert urdf.count("<visual") == 23 and "np.float64" not in urdf
     geom = pin.buildGeomFromUrdfString(via.model, urdf, pin.GeometryType.VISUAL)

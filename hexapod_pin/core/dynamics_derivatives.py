@@ -1,0 +1,586 @@
+"""Analytic derivatives of the closed-loop forward dynamics of any
+:class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`, by implicit differentiation of its
+KKT system (the equations of :mod:`hexapod_pin.core.dynamics`)::
+
+    E = M(q) a + h(q, v) - tau_e(q, v) - S^T u - tau_ext - J_c(q)^T lambda = 0
+    C = J_c(q) a + gamma(q, v) = 0
+
+At a solution ``(a, lambda)`` a perturbation ``(dq, dv, du, dtau_ext)`` moves them by
+``(da, dlambda)`` solving ``M da - J_c^T dlambda = -(E_q dq + E_v dv) + S^T du + dtau_ext``,
+``J_c da = -(C_q dq + C_v dv)``. The partials come from Pinocchio's tree derivatives:
+``E_q``, ``E_v`` from one ``pin.computeRNEADerivatives`` call with the closure forces as
+external forces (plus the turning of a point closure's world-fixed force with its body,
+and the effects' ``-K dDifference(q_ref, q)/dq`` and ``-D``), ``C_q``, ``C_v`` from
+``pin.computeForwardKinematicsDerivatives`` and ``pin.getFrameAccelerationDerivatives`` of
+the closure anchor frames (a point closure's rows: the world-axes classical accelerations
+of its two anchor points; a weld's: their LOCAL spatial accelerations, which coincide with
+the ``Jlog6`` rows along the closures).
+
+Tangent directions (the derivative exists only along the closures): ``q`` moves along
+``dq`` in ``null(J_c)`` (``pin.integrate``), and ``v`` is carried along by its Euclidean
+projection onto the closures, ``v(q) = Pi(q) v`` with ``Pi = I - J_c^+ J_c``, so that
+``dv = -J_c^+ (d(J_c v)/dq) dq``. The extension used off the state manifold (the rows
+above) agrees with the library's dynamics on it, so every derivative along a tangent
+direction is that of the library's verified forward dynamics. The multipliers' derivatives
+are those of the minimum-norm multipliers (the library's, unique or not).
+
+Coulomb friction: the force of a sliding coordinate is constant (zero derivative); a
+coordinate at rest makes the dynamics non-smooth (stick / slip) and is refused. The
+derivation and the tests that check it: ``docs/dynamics_derivatives.md``.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+import scipy.linalg
+
+from ..errors import InputError, SingularityError, SolverError
+from .checks import as_array, max_abs
+from .closed_loop import RANK_RTOL, ClosedLoopModel
+from .dynamics import forward_dynamics_tree
+from .effects import JointEffects, at_rest, passive_forces
+from .pose import skew
+
+_LOCAL = pin.ReferenceFrame.LOCAL
+#: relative residual accepted for the linear solves of the derivatives (each is checked
+#: against the linearised equations it solves)
+DERIVATIVE_SOLVE_RTOL = 1e-8
+
+
+class FrameRates(NamedTuple):
+    """The motion of some frames and its partial derivatives (after
+    ``pin.computeForwardKinematicsDerivatives(q, v, a)`` and the frame placements), one
+    entry per frame along the first axis.
+
+    World rows: the classical acceleration of the frame origin and the angular
+    acceleration (m/s^2, rad/s^2) and the velocity ``(v, w)``, world axes (Pinocchio's
+    ``LOCAL_WORLD_ALIGNED``). Local rows: the spatial acceleration and velocity in the
+    frame's LOCAL axes.
+
+    Attributes:
+        acc: (n, 6) the accelerations.
+        acc_q: (n, 6, nv) their partials in ``q`` (tangent, ``pin.integrate``).
+        acc_v: (n, 6, nv) their partials in ``v``.
+        jac: (n, 6, nv) their partials in ``a`` (the frame Jacobians in the same axes).
+        vel: (n, 6) the velocities.
+        vel_q: (n, 6, nv) their partials in ``q``.
+    """
+
+    acc: np.ndarray
+    acc_q: np.ndarray
+    acc_v: np.ndarray
+    jac: np.ndarray
+    vel: np.ndarray
+    vel_q: np.ndarray
+
+
+def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int], v: np.ndarray,
+                a: np.ndarray, world: np.ndarray) -> FrameRates:
+    """:class:`FrameRates` of ``frames`` (ids) at the state ``(v, a)`` of the derivatives in
+    ``data``, world rows where ``world`` (bool (n,)) is True, else LOCAL ones.
+
+    From Pinocchio's LOCAL partials: the velocity is ``J v``, the spatial acceleration
+    ``J a + (da/dv) v / 2`` (its bias is quadratic in ``v``); world rows rotate them,
+    ``x_w = R x`` and ``d x_w / dq = R (dx/dq - [x]_x J_ang)``, after adding ``w x v`` to
+    the linear acceleration (classical)."""
+    n = len(frames)
+    parts = [pin.getFrameAccelerationDerivatives(model, data, f, _LOCAL) for f in frames]
+    v_dq, a_dq, a_dv, jac = (np.array([p[k] for p in parts]).reshape(n, 6, model.nv)
+                             for k in range(4))
+    vel = jac @ v
+    acc = jac @ a + 0.5 * (a_dv @ v)
+    if not world.any():
+        return FrameRates(acc, a_dq, a_dv, jac, vel, v_dq)
+    w = np.flatnonzero(world)
+    lin, ang = skew(vel[w, :3]), skew(vel[w, 3:])
+    acc[w, :3] += np.cross(vel[w, 3:], vel[w, :3])
+    a_dq[w, :3] += ang @ v_dq[w, :3] - lin @ v_dq[w, 3:]
+    a_dv[w, :3] += ang @ jac[w, :3] - lin @ jac[w, 3:]
+    jang = jac[w, 3:]
+    a_dq[w, :3] -= skew(acc[w, :3]) @ jang
+    a_dq[w, 3:] -= skew(acc[w, 3:]) @ jang
+    v_dq[w, :3] -= lin @ jang
+    v_dq[w, 3:] -= ang @ jang
+    rot = np.array([data.oMf[frames[int(k)]].rotation for k in w]).reshape(w.size, 3, 3)
+    for arr in (a_dq, a_dv, jac, v_dq):
+        arr[w, :3] = rot @ arr[w, :3]
+        arr[w, 3:] = rot @ arr[w, 3:]
+    for arr in (acc, vel):
+        arr[w, :3] = np.einsum("kij,kj->ki", rot, arr[w, :3])
+        arr[w, 3:] = np.einsum("kij,kj->ki", rot, arr[w, 3:])
+    return FrameRates(acc, a_dq, a_dv, jac, vel, v_dq)
+
+
+class ClosureRates(NamedTuple):
+    """The closures' rows of :class:`FrameRates`: ``C`` and its partials (``jac`` is
+    ``J_c`` along the closures), ``J_c v`` and its partial in ``q``; ``anchors``: the
+    anchors' own (anchor 1 then anchor 2 of each closure, closure order)."""
+
+    acc_q: np.ndarray
+    acc_v: np.ndarray
+    jac: np.ndarray
+    vel_q: np.ndarray
+    anchors: FrameRates
+
+
+def closure_rates(clm: ClosedLoopModel, data: pin.Data, v: np.ndarray,
+                  a: np.ndarray) -> ClosureRates:
+    """:class:`ClosureRates` (n_rows rows) from the frame derivatives in ``data``: a point
+    closure's rows are the world linear rows of anchor 1 minus anchor 2, a weld's the
+    LOCAL spatial rows."""
+    lay = layout_of(clm)
+    rates = frame_rates(clm.model, data, lay.anchors, v, a, lay.world)
+    nv = clm.model.nv
+    out = []
+    for field in (rates.acc_q, rates.acc_v, rates.jac, rates.vel_q):
+        flat = field.reshape(-1, nv)
+        out.append(flat[lay.rows1] - flat[lay.rows2])
+    return ClosureRates(out[0], out[1], out[2], out[3], rates)
+
+
+class Layout:
+    """Where the closures' rows sit among their anchors' :class:`FrameRates` and how their
+    forces reach the joints (built once per model and thread, :func:`layout_of`).
+
+    Attributes:
+        data: this module's ``pin.Data`` of the model.
+        anchors: the anchor frames, anchor 1 then anchor 2 of each closure.
+        world: (2 n,) whether each anchor takes world rows (a point closure's).
+        rows1: (n_rows,) the rows of anchor 1 in the flattened (2 n x 6) rows.
+        rows2: (n_rows,) the rows of anchor 2 there.
+        joints: (2 n,) each anchor's parent joint.
+        placement_rot: (2 n, 3, 3) each anchor's rotation in its joint.
+        placement_pos: (2 n, 3) each anchor's position in its joint.
+        points: (n,) whether each closure is a point.
+    """
+
+    def __init__(self, clm: ClosedLoopModel) -> None:
+        model = clm.model
+        self.data = model.createData()
+        cf = clm.closure_frames
+        self.anchors = [f for c in cf for f in (c.frame1, c.frame2)]
+        self.points = np.array([c.is_point for c in cf], dtype=bool)
+        self.world = np.repeat(self.points, 2)
+        rows1, rows2 = [], []
+        for k, c in enumerate(cf):
+            width = 3 if c.is_point else 6
+            rows1 += [12 * k + i for i in range(width)]
+            rows2 += [12 * k + 6 + i for i in range(width)]
+        self.rows1, self.rows2 = np.array(rows1, dtype=int), np.array(rows2, dtype=int)
+        frames = [model.frames[f] for f in self.anchors]
+        self.joints = np.array([f.parentJoint for f in frames], dtype=int)
+        self.placement_rot = np.array([f.placement.rotation for f in frames]).reshape(-1, 3, 3)
+        self.placement_pos = np.array([f.placement.translation for f in frames]).reshape(-1, 3)
+        self.fext = pin.StdVec_Force()
+        for _ in range(model.njoints):
+            self.fext.append(pin.Force.Zero())
+        self._touched = [int(j) for j in np.unique(self.joints)]
+
+    def joint_forces(self, clm: ClosedLoopModel, multipliers: np.ndarray, data: pin.Data,
+                     wrenches: Sequence[tuple[int, np.ndarray]] = ()) -> pin.StdVec_Force:
+        """The closure forces and the frame ``wrenches`` as Pinocchio's external forces
+        (joint LOCAL frames, one per joint): a point closure's ``lambda`` (world axes) at
+        anchor 1 and ``-lambda`` at anchor 2; a weld's spatial force ``lambda`` (anchor-1
+        axes) on anchor 1 and its opposite on anchor 2 (the same frame on the closures);
+        each ``(frame, (f, m))``: force and moment (world axes, moment about the frame
+        origin) on that frame. ``data``: frame placements."""
+        n = len(self.anchors)
+        local = np.zeros((n, 6))               # in each anchor's axes
+        for k, (is_point, rows, f1, f2, _, _) in enumerate(clm.closure_frames):
+            lam = multipliers[rows]
+            if is_point:
+                local[2 * k, :3] = data.oMf[f1].rotation.T @ lam
+                local[2 * k + 1, :3] = -(data.oMf[f2].rotation.T @ lam)
+            else:
+                local[2 * k], local[2 * k + 1] = lam, -lam
+        force = np.einsum("kij,kj->ki", self.placement_rot, local[:, :3])
+        moment = np.einsum("kij,kj->ki", self.placement_rot, local[:, 3:]) \
+            + np.cross(self.placement_pos, force)
+        per_joint = np.zeros((clm.model.njoints, 6))
+        np.add.at(per_joint, self.joints, np.hstack([force, moment]))
+        touched = list(self._touched)
+        for frame, wrench in wrenches:
+            placement = clm.model.frames[frame]
+            rot = data.oMf[frame].rotation
+            local = pin.Force(rot.T @ wrench[:3], rot.T @ wrench[3:])
+            per_joint[placement.parentJoint] += placement.placement.act(local).vector
+            touched.append(placement.parentJoint)
+        fext = self.fext
+        for j in touched:
+            fext[j] = pin.Force(per_joint[j])
+        return fext
+
+
+def layout_of(clm: ClosedLoopModel) -> Layout:
+    """The :class:`Layout` of ``clm`` for the calling thread (kept in ``clm.workspaces``)."""
+    key = ("dynamics_derivatives", threading.get_ident())
+    lay = clm.workspaces.get(key)
+    if lay is None:
+        lay = clm.workspaces[key] = Layout(clm)
+    return lay
+
+
+def curved_joints(model: pin.Model) -> list[tuple[int, int]]:
+    """``(idx_v, nv)`` of the joints whose configuration space is curved (a free, ball or
+    planar joint: ``nq != nv`` and more than one velocity coordinate)."""
+    return [(j.idx_v, j.nv) for j in model.joints[1:] if j.nv > 1 and j.nq != j.nv]
+
+
+def spring_jacobian(model: pin.Model, effects: JointEffects, q: np.ndarray) -> np.ndarray:
+    """``d tau_s / dq`` (nv, nv) of the springs' force ``tau_s`` of
+    :func:`~hexapod_pin.core.effects.passive_forces` (at zero velocity), tangent columns.
+
+    On vector-space joints it is ``-stiffness`` (diagonal). On a curved joint (free, ball,
+    planar) the force is the energy gradient ``-D^T K dq`` (``D = dDifference``), whose
+    derivative needs the second derivative of ``pin.difference`` (not in Pinocchio): that
+    joint's block comes from Richardson-extrapolated central differences of the force on
+    its own coordinates (steps 2e-2, 1e-2, 5e-3 (m, rad): ``pin.dDifference`` of a free or
+    ball joint is noisy, ~1e-6 relative, for relative rotations of 1e-4 to 1e-3 rad, which
+    smaller steps would sample), the two extrapolations agreeing to 1e-8 relative.
+
+    Raises:
+        SolverError: the two extrapolations of a curved joint's block disagree.
+    """
+    out = np.diag(-np.asarray(effects.stiffness, dtype=float))
+    zero = np.zeros(model.nv)
+    for start, width in curved_joints(model):
+        cols = slice(start, start + width)
+        if not effects.stiffness[cols].any():
+            continue
+        block = np.empty((width, width))
+        for k in range(width):
+            step = np.zeros(model.nv)
+            step[start + k] = 1.0
+            diffs = []
+            for h in (2e-2, 1e-2, 5e-3):
+                plus = passive_forces(model, effects, pin.integrate(model, q, h * step), zero)
+                minus = passive_forces(model, effects, pin.integrate(model, q, -h * step), zero)
+                diffs.append((plus[cols] - minus[cols]) / (2.0 * h))
+            coarse, fine = (4.0 * diffs[1] - diffs[0]) / 3.0, (4.0 * diffs[2] - diffs[1]) / 3.0
+            if max_abs(fine - coarse) > 1e-8 * max(1.0, max_abs(fine)):
+                raise SolverError("spring_jacobian", "unverified",
+                                  f"curvature block of coordinates {start}..{start + width}: "
+                                  f"extrapolations differ by {max_abs(fine - coarse):.3e}")
+            block[:, k] = fine
+        out[cols, cols] = block
+    return out
+
+
+class KKTLinearization:
+    """The linearised KKT system of one forward-dynamics solution (module docstring).
+
+    Attributes:
+        q: (nq,) the configuration.
+        v: (nv,) the velocity.
+        a: (nv,) the acceleration solved there.
+        multipliers: (n_rows,) the closure multipliers solved there.
+        mass: ``M`` (nv, nv) with the armature.
+        jac: ``J_c`` (n_rows, nv).
+        basis: an orthonormal basis (nv, m) of ``null(J_c)`` (SVD; Euclidean in the mixed
+            m / rad coordinates of ``v``).
+        rank: the rank of ``J_c`` (:data:`~hexapod_pin.core.closed_loop.RANK_RTOL`).
+        e_q: (nv, nv) partial of ``E`` in ``q`` (without ``S^T u + tau_ext``; the frame
+            ``wrenches`` held in world axes).
+        e_v: (nv, nv) partial of ``E`` in ``v``.
+        c_q: (n_rows, nv) partial of ``C`` in ``q``.
+        c_v: (n_rows, nv) partial of ``C`` in ``v``.
+        jv_q: (n_rows, nv) partial of ``J_c v`` in ``q``.
+        frames: :class:`FrameRates` (world rows) of the extra frames asked for (None:
+            none).
+    """
+
+    def __init__(self, clm: ClosedLoopModel, data: pin.Data, q: np.ndarray, v: np.ndarray,
+                 a: np.ndarray, multipliers: np.ndarray, frames: Sequence[int],
+                 wrenches: Sequence[tuple[int, np.ndarray]] = ()) -> None:
+        model = clm.model
+        self.clm, self.model, self.data = clm, model, data
+        self.q, self.v, self.a, self.multipliers = q, v, a, multipliers
+        pin.computeForwardKinematicsDerivatives(model, data, q, v, a)
+        pin.updateFramePlacements(model, data)
+        rates = closure_rates(clm, data, v, a)
+        self.c_q, self.c_v, self.jac, self.jv_q = rates[:4]
+        #: world :class:`FrameRates` of the extra frames (in the order asked)
+        self.frames = frame_rates(model, data, list(frames), v, a,
+                                  np.ones(len(frames), dtype=bool)) if len(frames) else None
+        # E: rnea with the closure forces as external forces, their turning, the effects
+        fext = layout_of(clm).joint_forces(clm, multipliers, data, wrenches)
+        dtau_dq, dtau_dv, mass = pin.computeRNEADerivatives(model, data, q, v, a, fext)
+        self.mass = np.triu(mass) + np.triu(mass, 1).T
+        self.e_q = np.array(dtau_dq) - self._turning(rates.anchors.jac) \
+            - self._wrench_turning(wrenches)
+        self.e_v = np.array(dtau_dv)
+        eff = clm.effects
+        if eff.damping.any():
+            self.e_v[np.diag_indices(model.nv)] += eff.damping
+        if eff.stiffness.any():
+            self.e_q -= spring_jacobian(model, eff, q)
+        self._factor()
+
+    def _turning(self, anchor_jac: np.ndarray) -> np.ndarray | float:
+        """``d(J_c^T lambda)/dq`` beyond the forces held in the bodies' frames (what the
+        RNEA derivatives hold): a point closure's force is held in world axes, so in anchor
+        ``i``'s axes it turns, ``d(R^T lambda) = [R^T lambda]_x J_ang dq`` (LOCAL), i.e.
+        ``+- J_lin^T [lambda]_x J_ang`` with the anchors' world Jacobians ``anchor_jac``
+        (2 n_closures, 6, nv)."""
+        points = layout_of(self.clm).points
+        if not points.any():
+            return 0.0        # a weld's force is held in anchor-1 = anchor-2 axes
+        nv = self.model.nv
+        lam = np.concatenate([self.multipliers[c.rows] for c, p in
+                              zip(self.clm.closure_frames, points) if p]).reshape(-1, 3)
+        turn = skew(lam)
+        j1, j2 = anchor_jac[0::2][points], anchor_jac[1::2][points]
+        return (j1[:, :3].reshape(-1, nv).T @ (turn @ j1[:, 3:]).reshape(-1, nv)
+                - j2[:, :3].reshape(-1, nv).T @ (turn @ j2[:, 3:]).reshape(-1, nv))
+
+    def _wrench_turning(self, wrenches: Sequence[tuple[int, np.ndarray]]) -> np.ndarray | float:
+        """The turning of world-fixed frame wrenches ``(f, m)`` (as :meth:`_turning`):
+        ``J_lin^T [f]_x J_ang + J_ang^T [m]_x J_ang`` (world frame Jacobians)."""
+        out: np.ndarray | float = 0.0
+        lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        for frame, wrench in wrenches:
+            jac = pin.getFrameJacobian(self.model, self.data, frame, lwa)
+            out = out + jac[:3].T @ skew(wrench[:3]) @ jac[3:] \
+                + jac[3:].T @ skew(wrench[3:]) @ jac[3:]
+        return out
+
+    def _factor(self) -> None:
+        """The null-space basis, the least-norm solves of ``J_c`` and the Cholesky factor
+        of ``N^T M N``: a QR of ``J_c^T`` when its rows are independent (checked on the
+        triangle), else an SVD (rank to :data:`~hexapod_pin.core.closed_loop.RANK_RTOL`)."""
+        nv, jac = self.model.nv, self.jac
+        n_rows = jac.shape[0]
+        self._tri = None
+        if not n_rows:
+            rank, self.basis = 0, np.eye(nv)
+            self._left, self._sv, self._right = np.zeros((0, 0)), np.zeros(0), np.zeros((nv, 0))
+        else:
+            independent = False
+            if n_rows <= nv:
+                qmat, tri = np.linalg.qr(jac.T, mode="complete")
+                diag = np.abs(np.diag(tri))
+                independent = bool(diag.min() > 1e-8 * diag.max())
+            if independent:
+                rank, self._tri = n_rows, np.linalg.inv(tri[:n_rows])
+                self._left, self._right = np.zeros((n_rows, 0)), qmat[:, :n_rows]
+                self.basis = qmat[:, n_rows:]
+            else:
+                u_mat, sv, vt = np.linalg.svd(jac)
+                tol = max(RANK_RTOL * sv[0], max(jac.shape) * np.finfo(float).eps)
+                rank = int(np.sum(sv > tol))
+                self._left, self._sv, self._right = u_mat[:, :rank], sv[:rank], vt[:rank].T
+                self.basis = vt[rank:].T.copy()
+        self.rank = rank
+        reduced = self.basis.T @ self.mass @ self.basis
+        try:
+            self._chol = scipy.linalg.cho_factor(0.5 * (reduced + reduced.T))
+        except np.linalg.LinAlgError:
+            raise SingularityError("mass matrix on the closures' null space (N^T M N not "
+                                   "positive definite: massless motion)", 0.0) from None
+
+    # -- solves ----------------------------------------------------------------------------
+    def pinv(self, rhs: np.ndarray) -> np.ndarray:
+        """``J_c^+ rhs`` (nv, ...): the least-norm solution of ``J_c x = rhs``."""
+        if not self.rank:
+            return np.zeros((self.model.nv,) + rhs.shape[1:])
+        if self._tri is not None:          # J_c = R^T Q^T, _tri = R^-1
+            return self._right @ (self._tri.T @ rhs)
+        scaled = (self._left.T @ rhs) / (self._sv if rhs.ndim == 1 else self._sv[:, None])
+        return self._right @ scaled
+
+    def _pinv_t(self, rhs: np.ndarray) -> np.ndarray:
+        """``J_c^+T rhs`` (n_rows, k): the least-norm ``y`` with ``J_c^T y = rhs``."""
+        if not self.rank:
+            return np.zeros((self.clm.n_rows, rhs.shape[1]))
+        if self._tri is not None:
+            return self._tri @ (self._right.T @ rhs)
+        return self._left @ ((self._right.T @ rhs) / self._sv[:, None])
+
+    def solve(self, rhs_e: np.ndarray, rhs_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(da, dlambda)`` (nv, k), (n_rows, k) with ``M da - J_c^T dlambda = rhs_e``,
+        ``J_c da = rhs_c`` (``dlambda`` least-norm), verified.
+
+        Raises:
+            SolverError: a residual above :data:`DERIVATIVE_SOLVE_RTOL` (relative), e.g. a
+                ``rhs_c`` outside the range of ``J_c`` (a direction off the closures).
+        """
+        da_p = self.pinv(rhs_c)
+        basis = self.basis
+        da = da_p + basis @ scipy.linalg.cho_solve(self._chol,
+                                                   basis.T @ (rhs_e - self.mass @ da_p))
+        force = self.mass @ da - rhs_e
+        dlam = self._pinv_t(force)
+        scale = max(1.0, max_abs(rhs_e), max_abs(self.mass) * max_abs(da))
+        eom = max_abs(force - self.jac.T @ dlam) / scale
+        con = max_abs(self.jac @ da - rhs_c) / max(1.0, max_abs(rhs_c),
+                                                   max_abs(self.jac) * max_abs(da))
+        if not (eom <= DERIVATIVE_SOLVE_RTOL and con <= DERIVATIVE_SOLVE_RTOL):
+            raise SolverError("forward-dynamics derivatives", "unverified",
+                              f"linearised equation of motion residual {eom:.3e}, closure "
+                              f"residual {con:.3e} (relative, tolerance "
+                              f"{DERIVATIVE_SOLVE_RTOL:g})")
+        return da, dlam
+
+    def transport(self, dq: np.ndarray) -> np.ndarray:
+        """``dv`` (nv, k) carrying ``v`` along ``dq`` (nv, k) by its Euclidean projection
+        onto the closures: ``-J_c^+ (d(J_c v)/dq) dq``."""
+        return -self.pinv(self.jv_q @ dq)
+
+    def along(self, dq: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(da, dlambda)`` (nv, k), (n_rows, k) along state directions ``(dq, dv)`` (each
+        (nv, k)) tangent to the closures (``J_c dq = 0``, ``J_c dv = -d(J_c v)/dq dq``).
+
+        With redundant rows the minimum-norm multipliers also turn with the range of
+        ``J_c``: ``dlambda`` gets ``P dJ_c[dq] J_c^+ lambda`` (``P`` the projector on
+        ``null(J_c^T)``), from one more kinematic pass."""
+        da, dlam = self.solve(-(self.e_q @ dq + self.e_v @ dv), -(self.c_q @ dq + self.c_v @ dv))
+        if self.rank < self.clm.n_rows and dq.any():
+            dlam += self._range_turn(dq)
+        return da, dlam
+
+    def _range_turn(self, dq: np.ndarray) -> np.ndarray:
+        w = self.pinv(self.multipliers)
+        model, data = self.model, self.data
+        zero = np.zeros(model.nv)
+        pin.computeForwardKinematicsDerivatives(model, data, self.q, w, zero)
+        pin.updateFramePlacements(model, data)
+        turned = closure_rates(self.clm, data, w, zero).vel_q @ dq
+        return turned - self._left @ (self._left.T @ turned)
+
+
+@dataclass(frozen=True)
+class TreeDynamicsDerivatives:
+    """Derivatives of :func:`~hexapod_pin.core.dynamics.forward_dynamics_tree` at one state,
+    from :func:`forward_dynamics_derivatives_tree` (module docstring for the directions).
+
+    Attributes:
+        a: the tree acceleration (nv,).
+        multipliers: the closure multipliers (n_rows,) (minimum-norm when redundant).
+        tangent_basis: ``N`` (nv, m), the position directions: orthonormal columns spanning
+            ``null(J_c)`` (or the ``basis`` given).
+        d_q: ``da / dz`` (nv, m) along ``q(z) = integrate(q, N z)`` with ``v`` carried by
+            its Euclidean projection onto the closures.
+        d_v: ``da / dv`` (nv, nv) of ``a(q, Pi v)``, ``Pi`` the Euclidean projector on
+            ``null(J_c)`` (zero on motions that break the closures).
+        d_actuator_forces: ``da / du`` (nv, n_act).
+        d_tau_ext: ``da / dtau_ext`` (nv, nv).
+        multipliers_d_q: ``dlambda / dz`` (n_rows, m).
+        multipliers_d_v: ``dlambda / dv`` (n_rows, nv).
+        multipliers_d_actuator_forces: ``dlambda / du`` (n_rows, n_act).
+        multipliers_d_tau_ext: ``dlambda / dtau_ext`` (n_rows, nv).
+    """
+
+    a: np.ndarray
+    multipliers: np.ndarray
+    tangent_basis: np.ndarray
+    d_q: np.ndarray
+    d_v: np.ndarray
+    d_actuator_forces: np.ndarray
+    d_tau_ext: np.ndarray
+    multipliers_d_q: np.ndarray
+    multipliers_d_v: np.ndarray
+    multipliers_d_actuator_forces: np.ndarray
+    multipliers_d_tau_ext: np.ndarray
+
+
+def linearize_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
+                   actuator_forces: npt.ArrayLike, tau_ext: npt.ArrayLike | None = None,
+                   frames: Sequence[int] = (),
+                   wrenches: Sequence[tuple[int, np.ndarray]] = ()) -> KKTLinearization:
+    """The forward-dynamics solution at ``(q, v)`` (the verified "kkt" route of
+    :func:`~hexapod_pin.core.dynamics.forward_dynamics_tree`) and its
+    :class:`KKTLinearization`, with the world :class:`FrameRates` of ``frames`` (ids).
+
+    ``wrenches``: ``(frame id, (f, m))`` pairs, each a force and moment (6,) (N, N m; world
+    axes, moment about the frame origin) on that frame, applied with ``tau_ext`` (as the
+    generalised force ``J_frame^T (f, m)``, ``LOCAL_WORLD_ALIGNED`` Jacobian) and held in
+    world axes by the partials.
+
+    Raises:
+        InputError: bad shapes, NaN / inf, a state off the closures (as
+            ``forward_dynamics_tree``), a coordinate with Coulomb friction at rest (the
+            dynamics is not differentiable there: stick / slip), an unknown frame id.
+        SolverError: the forward dynamics misses its equations.
+        SingularityError: ``N^T M N`` not positive definite.
+    """
+    q = clm.check_q(q)
+    v = clm.check_v(v)
+    eff = clm.effects
+    if eff.has_coulomb:
+        rest = at_rest(eff, v)
+        if rest.size:
+            raise InputError("v", v, f"coordinates {rest.tolist()} with Coulomb friction are "
+                             f"at rest (|v| <= {eff.velocity_threshold:g}): the forward "
+                             "dynamics is not differentiable there (stick / slip)")
+    for frame in list(frames) + [f for f, _ in wrenches]:
+        if not (isinstance(frame, (int, np.integer)) and 0 <= frame < clm.model.nframes):
+            raise InputError("frames", frame, f"not a frame id of {clm.name}")
+    data = layout_of(clm).data
+    if wrenches:
+        pin.computeJointJacobians(clm.model, data, q)
+        pin.updateFramePlacements(clm.model, data)
+        lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        total = np.zeros(clm.nv) if tau_ext is None else np.array(clm.check_v(tau_ext,
+                                                                             "tau_ext"))
+        for frame, wrench in wrenches:
+            total += pin.getFrameJacobian(clm.model, data, frame, lwa).T @ wrench
+        tau_ext = total
+    res = forward_dynamics_tree(clm, q, v, actuator_forces, tau_ext, method="kkt")
+    return KKTLinearization(clm, data, q, v, np.array(res.a), np.array(res.multipliers),
+                            frames, wrenches)
+
+
+def forward_dynamics_derivatives_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
+                                      actuator_forces: npt.ArrayLike,
+                                      tau_ext: npt.ArrayLike | None = None,
+                                      basis: npt.ArrayLike | None = None
+                                      ) -> TreeDynamicsDerivatives:
+    """Analytic derivatives of the closed-loop forward dynamics on the tree.
+
+    Args:
+        clm: the closed-loop model (its joint effects included: armature, damping,
+            springs, sliding Coulomb friction).
+        q: configuration (nq,) on the closures (as
+            :func:`~hexapod_pin.core.dynamics.forward_dynamics_tree`).
+        v: velocity (nv,) keeping the closures (``J_c v = 0``; Pinocchio conventions).
+        actuator_forces: ``u`` (n_act,) (N, N m).
+        tau_ext: generalised external force (nv,) (N, N m); default zero.
+        basis: the position directions (nv, k), columns in ``null(J_c)`` (checked to 1e-9
+            relative); default an orthonormal basis of it.
+
+    Returns:
+        :class:`TreeDynamicsDerivatives` (units: ``a`` in m/s^2 or rad/s^2 per unit of
+        each argument).
+
+    Raises:
+        InputError: bad shapes, NaN / inf, a state off the closures, a ``basis`` off
+            ``null(J_c)``, a coordinate with Coulomb friction at rest (non-smooth).
+        SolverError: a solve misses its equations (verified).
+        SingularityError: ``N^T M N`` not positive definite.
+    """
+    lin = linearize_tree(clm, q, v, actuator_forces, tau_ext)
+    nv = clm.nv
+    if basis is None:
+        dirs = lin.basis
+    else:
+        if np.ndim(basis) != 2:
+            raise InputError("basis", basis, f"expected an (nv = {nv}, k) array")
+        dirs = as_array(basis, (nv, int(np.shape(basis)[1])), "basis")
+        miss = max_abs(lin.jac @ dirs)
+        if not miss <= 1e-9 * max(1.0, max_abs(lin.jac) * max_abs(dirs)):
+            raise InputError("basis", basis, f"columns off null(J_c): |J_c basis| = "
+                             f"{miss:.3e}")
+    da_q, dl_q = lin.along(dirs, lin.transport(dirs))
+    n = lin.basis
+    da_v, dl_v = lin.along(np.zeros_like(n), n)
+    da_t, dl_t = lin.solve(np.eye(nv), np.zeros((clm.n_rows, nv)))
+    act = clm.actuated_v
+    return TreeDynamicsDerivatives(lin.a, lin.multipliers, dirs, da_q, da_v @ n.T, da_t[:, act],
+                                   da_t, dl_q, dl_v @ n.T, dl_t[:, act], dl_t)

@@ -1,0 +1,380 @@
+"""Analytic forward-dynamics derivatives (hexapod_pin.core.dynamics_derivatives and
+hexapod_pin.core.platform_derivatives) against finite differences.
+
+Independent route: Richardson-extrapolated central differences (steps h, h/2, h/4, two
+extrapolations, the finer one kept) of the library's verified forward dynamics
+("kkt" route on the tree, the robots' default "nullspace" route at platform level),
+moving along the closure manifold: ``q(s) = assemble(integrate(q, s dq))`` with the
+actuators held, ``v(s)`` the orthogonal projection of ``v`` on ``null(J_c(q(s)))``; platform poses moved by
+``(dp, exp(dtheta) R)`` in world axes. Robots: the hexapod (home and the other branch, an
+as-built geometry), the planar 3-PRR, the Stewart platform, the delta (welds), the
+four-bar and five-bar (redundant point rows), Cassie (tree level, its SDF damping and
+springs); every one rigid and with damping, springs (relaxed away from the state),
+armature and sliding Coulomb friction. Tolerance 1e-7 relative.
+
+Pinocchio's ``computeConstraintDynamicsDerivatives``: right on the hexapod, the planar
+robot and the delta, wrong (``d ddq / dq`` along the closures) on the four-bar, the
+five-bar and the Stewart platform (point loops between two moving bodies whose branches
+start with a revolute joint): ``test_pinocchio_constraint_derivatives_*``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import hexapod_pin as hp
+import robot_registry
+from hexapod_pin.calibration import random_as_built
+from hexapod_pin.core.dynamics import forward_dynamics_tree
+from hexapod_pin.core.dynamics_derivatives import (forward_dynamics_derivatives_tree,
+                                                   linearize_tree, spring_jacobian)
+from hexapod_pin.core.effects import passive_forces
+from hexapod_pin.core.pose import rotation_from_rpy, rpy_from_rotation
+from hexapod_pin.errors import InputError
+from hexapod_pin.hexapod.kinematics import HOME_BRANCH
+from hexapod_pin.loaders import robots as loaded
+
+RTOL = 1e-7
+ROBOTS = ("hexapod", "planar", "stewart", "delta", "four-bar", "five-bar")
+
+
+def richardson(fun, h):
+    """``d fun / ds`` at 0: central differences at h, h/2, h/4, extrapolated twice."""
+    diffs = [(fun(s) - fun(-s)) / (2 * s) for s in (h, h / 2, h / 4)]
+    return (4 * diffs[2] - diffs[1]) / 3
+
+
+def relative(num, ana):
+    return float(np.max(np.abs(num - ana)) / max(1.0, np.max(np.abs(num))))
+
+
+def with_effects(clm, q, v, rng):
+    """The model with damping, springs (relaxed at a random configuration), armature and
+    Coulomb friction on the coordinates that slide fast enough to stay sliding."""
+    nv = clm.nv
+    coulomb = np.where(np.abs(v) > 0.05, rng.uniform(0.1, 0.3, nv), 0.0)
+    return clm.with_effects(damping=rng.uniform(0.1, 0.5, nv), stiffness=rng.uniform(1, 5, nv),
+                            spring_reference=pin.integrate(clm.model, q,
+                                                           rng.uniform(-0.5, 0.5, nv)),
+                            armature=rng.uniform(0.01, 0.05, nv), coulomb=coulomb)
+
+
+def project(clm, q, v):
+    """The orthogonal projection of ``v`` on ``null(J_c(q))`` (numpy SVD, rank to 1e-10
+    relative; written here: the library's Euclidean projection is not the orthogonal one
+    where rows are nearly dependent, e.g. Cassie's right plantar loop)."""
+    jac = clm.constraint_jacobian(q)
+    _, sv, vt = np.linalg.svd(jac)
+    null = vt[int(np.sum(sv > 1e-10 * sv[0])):]
+    return null.T @ (null @ v)
+
+
+def tree_state(clm, q, seed):
+    rng = np.random.default_rng(seed)
+    v = project(clm, q, rng.normal(size=clm.nv))
+    return rng, v, rng.normal(size=clm.n_actuated), 0.1 * rng.normal(size=clm.nv)
+
+
+def check_tree(clm, q, v, u, tau, rng):
+    """Every derivative of forward_dynamics_derivatives_tree against finite differences."""
+    der = forward_dynamics_derivatives_tree(clm, q, v, u, tau)
+
+    def solve(qq, vv, uu=u, tt=tau):
+        res = forward_dynamics_tree(clm, qq, vv, uu, tt, method="kkt")
+        return np.concatenate([res.a, res.multipliers])
+
+    def along(direction):
+        def moved(s):
+            qq = clm.assemble(pin.integrate(clm.model, q, s * direction), tol=1e-14).q
+            return solve(qq, project(clm, qq, v))
+        return moved
+
+    worst = 0.0
+    for k in range(der.tangent_basis.shape[1]):
+        num = richardson(along(der.tangent_basis[:, k]), 1e-3)
+        worst = max(worst, relative(num, np.concatenate([der.d_q[:, k],
+                                                         der.multipliers_d_q[:, k]])))
+    for _ in range(2):     # random directions, each testing every column at once
+        dv = rng.normal(size=clm.nv)
+        num = richardson(lambda s: solve(q, project(clm, q, v + s * dv)), 1e-3)
+        worst = max(worst, relative(num, np.concatenate([der.d_v @ dv,
+                                                         der.multipliers_d_v @ dv])))
+        dt = rng.normal(size=clm.nv)
+        num = richardson(lambda s: solve(q, v, u, tau + s * dt), 1.0)
+        worst = max(worst, relative(num, np.concatenate([der.d_tau_ext @ dt,
+                                                         der.multipliers_d_tau_ext @ dt])))
+    for k in range(clm.n_actuated):
+        du = np.eye(clm.n_actuated)[k]
+        num = richardson(lambda s: solve(q, v, u + s * du), 1.0)
+        worst = max(worst, relative(num, np.concatenate(
+            [der.d_actuator_forces[:, k], der.multipliers_d_actuator_forces[:, k]])))
+    return worst, der
+
+
+@pytest.mark.parametrize("effects", [False, True], ids=["rigid", "effects"])
+@pytest.mark.parametrize("name", ROBOTS)
+def test_tree_derivatives_match_finite_differences(name, effects):
+    robot = robot_registry.get(name)
+    clm, q = robot.model, robot.home_configuration
+    rng, v, u, tau = tree_state(clm, q, 3)
+    if effects:
+        clm = with_effects(clm, q, v, rng)
+    worst, der = check_tree(clm, q, v, u, tau, rng)
+    assert worst < RTOL
+    # the basis is orthonormal and spans null(J_c)
+    basis = der.tangent_basis
+    np.testing.assert_allclose(basis.T @ basis, np.eye(basis.shape[1]), atol=1e-12)
+    assert np.max(np.abs(clm.constraint_jacobian(q) @ basis)) < 1e-10
+    assert basis.shape[1] == clm.mobility(q)
+
+
+def test_tree_derivatives_cassie():
+    """Cassie hanging from its pelvis: 22 coordinates, four rod loops (one redundant row
+    per leg, ~1e-12 on the right leg), its SDF damping and springs."""
+    cassie = loaded.cassie()
+    rng = np.random.default_rng(7)
+    dq = np.zeros(cassie.nv)
+    dq[cassie.actuated_v] = 0.1 * rng.normal(size=cassie.n_actuated)
+    q = cassie.assemble(pin.integrate(cassie.model, pin.neutral(cassie.model), dq)).q
+    _, v, u, tau = tree_state(cassie, q, 8)
+    assert cassie.effects.stiffness.any() and cassie.effects.damping.any()
+    worst, _ = check_tree(cassie, q, v, u, tau, rng)
+    assert worst < RTOL
+
+
+def test_given_basis_and_its_check():
+    robot = robot_registry.get("stewart")
+    clm, q = robot.model, robot.home_configuration
+    _, v, u, tau = tree_state(clm, q, 1)
+    full = forward_dynamics_derivatives_tree(clm, q, v, u, tau)
+    mix = full.tangent_basis @ np.random.default_rng(0).normal(size=(6, 2))
+    part = forward_dynamics_derivatives_tree(clm, q, v, u, tau, basis=mix)
+    np.testing.assert_allclose(part.d_q, full.d_q @ np.linalg.lstsq(full.tangent_basis, mix,
+                                                                   rcond=None)[0], atol=1e-9)
+    with pytest.raises(InputError, match="null"):
+        forward_dynamics_derivatives_tree(clm, q, v, u, tau, basis=np.eye(clm.nv)[:, :2])
+    with pytest.raises(InputError):
+        forward_dynamics_derivatives_tree(clm, q, v, u, tau, basis=np.ones(clm.nv))
+
+
+def test_coulomb_friction_at_rest_is_refused():
+    robot = robot_registry.get("four-bar")
+    clm = robot.model.with_effects(coulomb=np.full(robot.model.nv, 0.2))
+    with pytest.raises(InputError, match="at rest"):
+        forward_dynamics_derivatives_tree(clm, robot.home_configuration, np.zeros(clm.nv),
+                                          np.zeros(1))
+
+
+def test_bad_input_is_refused():
+    robot = robot_registry.get("four-bar")
+    clm, q = robot.model, robot.home_configuration
+    with pytest.raises(InputError):
+        forward_dynamics_derivatives_tree(clm, q[:2], np.zeros(3), np.zeros(1))
+    with pytest.raises(InputError):
+        forward_dynamics_derivatives_tree(clm, q, np.full(3, np.nan), np.zeros(1))
+    with pytest.raises(InputError):       # a velocity that breaks the closure
+        forward_dynamics_derivatives_tree(clm, q, np.array([1.0, 0.0, 0.0]), np.zeros(1))
+    with pytest.raises(InputError):
+        linearize_tree(clm, q, np.zeros(3), np.zeros(1), frames=[10_000])
+
+
+def test_spring_jacobian_on_a_free_joint():
+    """The springs' force on a free-flyer is the energy gradient ``-D^T K dq``: its
+    curvature block against central differences of passive_forces (steps 1e-6)."""
+    robot = robot_registry.get("stewart")
+    clm = robot.model
+    q = robot.home_configuration
+    eff = clm.with_effects(stiffness=np.linspace(1, 3, clm.nv), spring_reference=pin.integrate(
+        clm.model, q, np.linspace(-0.4, 0.5, clm.nv))).effects
+    zero = np.zeros(clm.nv)
+    num = np.array([(passive_forces(clm.model, eff, pin.integrate(clm.model, q, 1e-6 * e), zero)
+                     - passive_forces(clm.model, eff, pin.integrate(clm.model, q, -1e-6 * e),
+                                      zero)) / 2e-6 for e in np.eye(clm.nv)]).T
+    np.testing.assert_allclose(spring_jacobian(clm.model, eff, q), num, atol=1e-7)
+
+
+# -- Pinocchio's computeConstraintDynamicsDerivatives ---------------------------------------
+def pinocchio_along(clm, q, v, u):
+    """Pinocchio's ``d ddq`` along our tangent directions: ``ddq_dq N + ddq_dv dv``."""
+    lin = linearize_tree(clm, q, v, u)
+    cms, cds = clm.pinocchio_constraints()
+    data = clm.model.createData()
+    pin.initConstraintDynamics(clm.model, data, cms, cds)
+    tau = np.zeros(clm.nv)
+    tau[clm.actuated_v] = u
+    prox = pin.ProximalSettings(1e-12, 1e-10 if lin.rank < clm.n_rows else 0.0, 100)
+    pin.constraintDynamics(clm.model, data, q, v, tau, cms, cds, prox)
+    pin.computeConstraintDynamicsDerivatives(clm.model, data, cms, cds, prox)
+    basis = lin.basis
+    return (data.ddq_dq @ basis + data.ddq_dv @ lin.transport(basis), data.ddq_dv @ basis,
+            data.ddq_dtau[:, clm.actuated_v], basis)
+
+
+@pytest.mark.parametrize("name", ["hexapod", "planar", "delta"])
+def test_pinocchio_constraint_derivatives_right_here(name):
+    """Rail-rooted legs (prismatic first), the planar 3-PRR, the delta's welds: Pinocchio
+    agrees with ours (which finite differences check above)."""
+    robot = robot_registry.get(name)
+    clm, q = robot.model, robot.home_configuration
+    _, v, u, _ = tree_state(clm, q, 1)
+    d_q, d_v, d_u, basis = pinocchio_along(clm, q, v, u)
+    ours = forward_dynamics_derivatives_tree(clm, q, v, u, basis=basis)
+    assert relative(ours.d_q, d_q) < 1e-9
+    assert relative(ours.d_v @ basis, d_v) < 1e-9
+    assert relative(ours.d_actuator_forces, d_u) < 1e-9
+
+
+@pytest.mark.parametrize("name", ["four-bar", "five-bar", "stewart"])
+def test_pinocchio_constraint_derivatives_wrong_for_point_loops_between_moving_bodies(name):
+    """A minimal repro for upstream: the four-bar of tests/data/four_bar (one CONTACT_3D
+    between the coupler and the rocker, LOCAL, both on revolute-rooted branches).
+    ``ddq_dq`` of ``pin.computeConstraintDynamicsDerivatives`` misses the derivative along
+    the closure surface by a relative 0.4 to 10 (``ddq_dv`` and ``ddq_dtau`` are right),
+    while ours matches the finite differences of ``test_tree_derivatives_*``."""
+    robot = robot_registry.get(name)
+    clm, q = robot.model, robot.home_configuration
+    _, v, u, _ = tree_state(clm, q, 1)
+    d_q, d_v, d_u, basis = pinocchio_along(clm, q, v, u)
+    ours = forward_dynamics_derivatives_tree(clm, q, v, u, basis=basis)
+    assert relative(ours.d_q, d_q) > 0.1              # wrong
+    assert relative(ours.d_v @ basis, d_v) < 1e-9      # right
+    assert relative(ours.d_actuator_forces, d_u) < 1e-9
+
+
+# -- robot level ---------------------------------------------------------------------------
+def displaced(robot, pose, dx):
+    """The pose moved by the world tangent ``dx = (dp, dtheta)`` (``R -> exp(dtheta) R``)."""
+    lay = robot.pose_layout
+    out = pose.copy()
+    out[lay.linear] += dx[lay.linear]
+    if lay.full_rotation:
+        rot = pin.exp3(dx[lay.angular]) @ rotation_from_rpy(pose[lay.angular])
+        out[lay.angular] = rpy_from_rotation(rot)
+    else:
+        out[lay.angular] += dx[lay.angular]
+    return out
+
+
+def check_robot(robot, branch=None, seed=3):
+    dim = robot.pose_layout.dim
+    rng = np.random.default_rng(seed)
+    pose = robot.home_pose + 0.01 * rng.uniform(-1, 1, dim)
+    twist, wrench = 0.05 * rng.normal(size=dim), rng.normal(size=dim)
+    u = robot.static_forces(pose, bounded=False, branch=branch) + rng.normal(size=robot.n_actuators)
+    der = robot.forward_dynamics_derivatives(pose, twist, u, wrench, branch=branch)
+
+    def acc(p, t=twist, uu=u, w=wrench):
+        return robot.forward_dynamics(p, t, uu, w, branch=branch).twist_dot
+
+    eye = np.eye(dim)
+    np.testing.assert_allclose(der.twist_dot, acc(pose), rtol=1e-9, atol=1e-9)
+    worst = 0.0
+    for got, column, h in (
+            (der.d_world, lambda k: lambda s: acc(displaced(robot, pose, s * eye[k])), 1e-3),
+            (der.d_pose, lambda k: lambda s: acc(pose + s * eye[k]), 1e-3),
+            (der.d_twist, lambda k: lambda s: acc(pose, twist + s * eye[k]), 1e-2),
+            (der.d_wrench, lambda k: lambda s: acc(pose, twist, u, wrench + s * eye[k]), 1.0)):
+        num = np.array([richardson(column(k), h) for k in range(dim)]).T
+        worst = max(worst, relative(num, got))
+    num = np.array([richardson(lambda s: acc(pose, twist, u + s * np.eye(robot.n_actuators)[k]),
+                               1.0) for k in range(robot.n_actuators)]).T
+    return max(worst, relative(num, der.d_actuator_forces)), der, pose
+
+
+@pytest.mark.parametrize("effects", [False, True], ids=["rigid", "effects"])
+@pytest.mark.parametrize("name", ROBOTS)
+def test_robot_derivatives_match_finite_differences(name, effects):
+    robot = robot_registry.get(name)
+    if effects:
+        clm, q = robot.model, robot.home_configuration
+        nv = clm.nv
+        rng = np.random.default_rng(11)
+        robot = robot.with_effects(damping=rng.uniform(0.1, 0.5, nv),
+                                   stiffness=rng.uniform(1, 5, nv),
+                                   spring_reference=pin.integrate(clm.model, q,
+                                                                  rng.uniform(-0.5, 0.5, nv)),
+                                   armature=rng.uniform(0.01, 0.05, nv))
+    worst, der, pose = check_robot(robot)
+    assert worst < RTOL
+    # the reduced dynamics, another route: d_wrench = M_x^-1, d_u = M_x^-1 J^T
+    red = robot.reduced_dynamics(pose, np.zeros(robot.pose_layout.dim))
+    np.testing.assert_allclose(der.d_wrench @ red.mass_matrix, np.eye(robot.pose_layout.dim),
+                               atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_robot_derivatives_as_built_hexapod_both_branches(seed):
+    robot = hp.Hexapod(random_as_built(hp.HexapodGeometry(), 1e-3, seed))
+    for branch in (None, -np.asarray(HOME_BRANCH)):
+        worst, _, _ = check_robot(robot, branch=branch, seed=seed)
+        assert worst < RTOL
+
+
+def test_linearize_blocks_and_rotation_term():
+    robot = robot_registry.get("hexapod")
+    pose, twist = robot.home_pose, np.array([0.01, 0.0, -0.02, 0.1, -0.2, 0.3])
+    u = robot.static_forces(pose, bounded=False)
+    model = robot.linearize(pose, twist, u)
+    der = robot.forward_dynamics_derivatives(pose, twist, u)
+    np.testing.assert_array_equal(model.a[6:, :6], der.d_world)
+    np.testing.assert_array_equal(model.a[6:, 6:], der.d_twist)
+    np.testing.assert_array_equal(model.a[:6, 6:], np.eye(6))
+    np.testing.assert_array_equal(model.b[6:], der.d_actuator_forces)
+    assert not model.b[:6].any()
+    # d dtheta / dt = dw + w x dtheta: the rotation of R exp... at the operating twist
+    w = twist[3:]
+    np.testing.assert_allclose(model.a[3:6, 3:6] @ np.array([1.0, 2.0, 3.0]),
+                               np.cross(w, [1.0, 2.0, 3.0]), atol=1e-15)
+    planar = robot_registry.get("planar")
+    lin = planar.linearize(planar.home_pose, np.array([0.1, 0.0, 0.5]), np.zeros(3))
+    assert not lin.a[:3, :3].any()
+
+
+def test_robot_level_bad_input():
+    robot = robot_registry.get("four-bar")
+    with pytest.raises(InputError):
+        robot.forward_dynamics_derivatives([0.0, 1.0], [0.0], [0.0])
+    with pytest.raises(InputError):
+        robot.forward_dynamics_derivatives(robot.home_pose, [np.inf], [0.0])
+    with pytest.raises(InputError):
+        robot.linearize(robot.home_pose, [0.0], [0.0, 1.0])
+    with pytest.raises(InputError):
+        robot.forward_dynamics_derivatives(robot.home_pose, [0.0], [0.0], wrench=[1.0, 2.0])
+
+
+def test_other_geometry_robots():
+    """Robots the code was not written for: another hexapod and planar geometry."""
+    for name in ("hexapod-other", "planar-other"):
+        worst, _, _ = check_robot(robot_registry.get(name), seed=5)
+        assert worst < RTOL
+
+
+def test_result_is_frozen():
+    robot = robot_registry.get("four-bar")
+    der = robot.forward_dynamics_derivatives(robot.home_pose, [0.0], [0.0])
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        der.twist_dot = None
+
+
+def test_lqr_example_stabilises_the_hexapod(capsys):
+    """examples/hexapod_lqr.py: the LQR gain from robot.linearize puts every closed-loop
+    eigenvalue in the left half-plane (the open loop at held forces is unstable), and the
+    simulated nonlinear closed loop brings the pose error down by two orders."""
+    import re
+    import runpy
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    runpy.run_path(str(root / "examples" / "hexapod_lqr.py"), run_name="__main__")
+    out = capsys.readouterr().out
+    number = r"([-+0-9.e]+)"
+    assert float(re.search("open-loop max real part " + number, out).group(1)) > 0
+    assert float(re.search("closed-loop max real part " + number, out).group(1)) < 0
+    assert "status completed" in out
+    start, half, end = (float(x) for x in re.search(
+        f"pose error start {number} half {number} end {number}", out).groups())
+    assert end < 1e-2 * start and half < start
