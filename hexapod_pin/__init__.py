@@ -2,20 +2,23 @@
 
 The rail-driven 6-DoF hexapod is the first and best-supported robot; any closed-loop
 robot described as a URDF + loops file, an SDF or an example-parallel-robots folder gets
-the same API with no code of its own (:class:`~hexapod_pin.core.robot.ClosedLoopRobot`)::
+the same API with no code of its own (:class:`~hexapod_pin.core.robot.ClosedLoopRobot`):
 
-    import hexapod_pin
-    robot = hexapod_pin.Hexapod.default()
-    q = robot.configuration(robot.home_pose)      # Pinocchio q, every closure holds
-    other = hexapod_pin.load_robot("stewart.urdf")        # its loops file names the platform
-    run = hexapod_pin.simulate(other, duration=0.5)       # any robot, one Trajectory
+```python
+import hexapod_pin
+robot = hexapod_pin.Hexapod.default()
+q = robot.configuration(robot.home_pose)      # Pinocchio q, every closure holds
+other = hexapod_pin.load_robot("stewart.urdf")        # its loops file names the platform
+run = hexapod_pin.simulate(other, duration=0.5)       # any robot, one Trajectory
+```
 
 Layout: :mod:`hexapod_pin.core` (any tree + loop closures: description, closed-loop model,
 dynamics, simulation, the shared robot API and result types), :mod:`hexapod_pin.loaders`
 (robots and formats from elsewhere), :mod:`hexapod_pin.hexapod` and
 :mod:`hexapod_pin.planar` (the two robots, one compiled closed form each),
 :mod:`hexapod_pin.viz` (meshcat scenes, figures), :mod:`hexapod_pin.cli` (the command line).
-The names below are the public entry points; every robot implements
+The public names are ``hexapod_pin.__all__`` (listed with links on the API page of the
+package); every robot implements
 :class:`~hexapod_pin.core.robot_api.ParallelRobot` and returns the result types of
 :mod:`hexapod_pin.core.results`.
 """

@@ -56,6 +56,8 @@ def test_the_site_builds_strictly(tmp_path):
                            str(ROOT / "mkdocs.yml"), "-d", str(site)], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=900, check=False)
     assert done.returncode == 0, done.stderr[-4000:]
+    # every signature formatted (mkdocstrings needs ruff or black for that)
+    assert "Formatting signatures requires" not in done.stderr + done.stdout
     api = (site / "api" / "hexapod" / "index.html").read_text(encoding="utf-8")
     assert "hexapod_pin.hexapod.kinematics.HexapodKinematics.leg_motion" in api
     # a facade method made by `delegate` shows the component's signature and docstring
@@ -274,3 +276,29 @@ def test_every_module_is_in_the_api_reference():
         info.name for info in pkgutil.walk_packages(hexapod_pin.__path__, "hexapod_pin.")
         if not info.name.endswith("__main__")}
     assert modules - listed == set(), "add them to a page of docs/api"
+
+
+def test_the_package_page_lists_every_public_name():
+    """docs/api/package.md lists ``hp.__all__``, each name linked to its definition."""
+    import hexapod_pin as hp
+
+    page = (DOCS / "api" / "package.md").read_text(encoding="utf-8")
+    listed = re.findall(r"^- \[`(\w+)`\]\[([\w.]+)\]", page, re.MULTILINE)
+    assert sorted(n for n, _ in listed) == sorted(hp.__all__)
+    for n, target in listed:
+        obj = getattr(hp, n)
+        where = obj.__name__ if hasattr(obj, "__path__") or not hasattr(obj, "__module__") \
+            else f"{obj.__module__}.{obj.__qualname__}"
+        assert target == where, (n, target)
+
+
+def test_pages_with_equations_load_mathjax():
+    """A page written with $...$ or $$...$$ (pymdownx.arithmatex) is typeset by MathJax."""
+    config = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    with_math = [name(p) for p in DOCS.rglob("*.md")
+                 if re.search(r"\$\$|(?<![\w$`])\$[^$\s`][^$`]*\$(?![\w$])", p.read_text(encoding="utf-8"))]
+    assert with_math, "no page has equations: this test checks nothing"
+    assert "pymdownx.arithmatex" in config and "mathjax" in config.lower()
+    script = config.split("extra_javascript:")[1].split("\n", 3)
+    assert any("javascripts/mathjax.js" in line for line in script)
+    assert (DOCS / "javascripts" / "mathjax.js").is_file()
