@@ -48,6 +48,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .core.robot_api import INVERSE_DYNAMICS_METHODS, ParallelRobot, PoseLayout, pose_layout
+from .core.simulation import resolve_integrator
 from .errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
 from .files import read_text, write_text_atomic
 from .hexapod import simulation
@@ -623,7 +624,7 @@ def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None,
                     controller: str = "pid",
                     radius: float = 0.02, period: float = 2.0,
                     progress: Callable[[int, int], None] | None = None,
-                    engine: str = "auto") -> CircleRun:
+                    engine: str = "auto", integrator: str = "auto") -> CircleRun:
     """Simulate the hexapod tracking :func:`circle_reference` (a circle about home).
 
     Controllers: ``"pid"``, the joint-space PID with the Quanser gains
@@ -650,13 +651,20 @@ def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None,
             hundreds of times real time; PID or no control); ``"python"``: the Pinocchio
             tree route (:func:`hexapod_pin.hexapod.simulation.simulate`, every
             controller); ``"auto"`` (default): fast unless the controller is
-            computed torque.
+            computed torque, the integrator is "stick_slip" or the joint effects sit on
+            passive coordinates (which the compiled kernels do not model).
+        integrator: one of :data:`hexapod_pin.core.simulation.INTEGRATORS`, "auto"
+            (default: "stick_slip" with Coulomb friction, else "rk4",
+            :func:`~hexapod_pin.core.simulation.resolve_integrator`); the fast engine
+            takes "rk4" and "semi_implicit_euler".
 
     Returns:
         :class:`CircleRun`.
 
     Raises:
         InputError: an unknown controller or engine, computed torque on the fast engine,
+            an integrator that does not take the robot's friction or engine
+            (:func:`~hexapod_pin.core.simulation.resolve_integrator`),
             ``dt`` not in ``(0, duration]``, more than :data:`MAX_STEPS` steps, a bad
             circle.
     """
@@ -664,11 +672,17 @@ def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None,
         raise InputError("controller", controller, f"expected one of {', '.join(DEFAULT_DT)}")
     if engine not in ENGINES:
         raise InputError("engine", engine, f"expected one of {', '.join(ENGINES)}")
+    stepper = resolve_integrator(robot.model, integrator)
+    tree_only = stepper == "stick_slip" or not robot.effects.only_on(robot.model.actuated_v)
     if engine == "auto":
-        engine = "python" if controller == "computed-torque" else "fast"
+        engine = "python" if controller == "computed-torque" or tree_only else "fast"
     if engine == "fast" and controller == "computed-torque":
         raise InputError("engine", engine, "the compiled simulator runs the PID or no "
                                            "control; computed torque needs engine 'python'")
+    if engine == "fast" and stepper == "stick_slip":
+        raise InputError("integrator", stepper, "the compiled simulator steps rk4 or "
+                                                "semi_implicit_euler; exact Coulomb friction "
+                                                "(stick_slip) needs engine 'python'")
     if not (np.isfinite(duration) and duration > 0):
         raise InputError("duration", duration, "need a finite duration > 0 (s)")
     dt = DEFAULT_DT[controller] if dt is None else float(dt)
@@ -682,17 +696,18 @@ def simulate_circle(robot: Hexapod, duration: float, dt: float | None = None,
     traj: simulation.Trajectory | FastTrajectory
     if engine == "fast":
         if controller == "none":
-            traj = simulate_fast(robot, duration, dt, pose0=robot.home_pose, twist0=np.zeros(6))
+            traj = simulate_fast(robot, duration, dt, pose0=robot.home_pose, twist0=np.zeros(6),
+                                 integrator=stepper)
         else:
-            traj = simulate_fast(robot, duration, dt, reference=reference)
+            traj = simulate_fast(robot, duration, dt, reference=reference, integrator=stepper)
     elif controller == "none":
         traj = simulation.simulate(robot, duration, dt, pose0=robot.home_pose,
-                                   twist0=np.zeros(6), progress=progress)
+                                   twist0=np.zeros(6), progress=progress, integrator=stepper)
     else:
         make = (simulation.PIDController if controller == "pid"
                 else simulation.ComputedTorqueController)
         traj = simulation.simulate(robot, duration, dt, controller=make(robot, reference),
-                                   reference=reference, progress=progress)
+                                   reference=reference, progress=progress, integrator=stepper)
     references = np.array([reference(float(t)).pose for t in traj.times])
     tolerance = float(radius) if radius > 0 else HOLD_TOLERANCE
     error = None if controller == "none" else float(np.max(np.linalg.norm(

@@ -50,6 +50,8 @@ from rich.text import Text
 from typer.core import TyperCommand, TyperGroup
 
 from .. import motion as motions
+from ..core.description import read_effects_file
+from ..core.effects import COORDINATE_FIELDS
 from ..core.robot import ClosedLoopRobot
 from ..core.robot_api import ParallelRobot
 from ..errors import DescriptionError, HexapodPinError, InputError
@@ -107,6 +109,11 @@ PoseAxes = Annotated[str | None, typer.Option(
     "x,y,z,roll,pitch,yaw in that order (default: the loops file's, else all six)",
     show_default=False)]
 
+EffectsFile = Annotated[Path | None, typer.Option(
+    "--effects", metavar="FILE", help="joint and drive effects on top of the robot's own: "
+    "a YAML / TOML file, `joints: {<joint>: {damping: 1.5, coulomb: 0.8, ...}}` (the "
+    "loops file's effects: format; see docs/drives.md)", show_default=False)]
+
 #: the robot of a command: the hexapod, or a robot loaded with ``--robot``
 CliRobot = Hexapod | ClosedLoopRobot
 #: angular pose components (``--degrees`` converts them)
@@ -133,25 +140,96 @@ def robot_of(geometry_file: Path | None, overrides: list[str] | None) -> Hexapod
 
 
 def load_cli_robot(robot: Path | None, platform: str | None, pose_axes: str | None,
-                   geometry: Path | None, set_: list[str] | None) -> CliRobot:
+                   geometry: Path | None, set_: list[str] | None,
+                   effects: Path | None = None) -> CliRobot:
     """The robot of a command: with ``robot`` (``--robot PATH``) the
     :class:`~hexapod_pin.ClosedLoopRobot` of :func:`hexapod_pin.load_robot` (``--platform``,
-    ``--pose-axes``), else the hexapod of ``--geometry`` / ``--set`` (:func:`robot_of`).
+    ``--pose-axes``), else the hexapod of ``--geometry`` / ``--set`` (:func:`robot_of`);
+    with the effects of ``--effects FILE`` over its own (:func:`with_effects_file`).
 
     Raises:
         CliUsageError: ``--robot`` with ``--geometry`` or ``--set``, or ``--platform`` /
             ``--pose-axes`` without ``--robot``.
         DescriptionError: a missing or malformed description, no loops file, an unknown
-            frame, pose axes that do not match the mechanism's mobility.
+            frame, pose axes that do not match the mechanism's mobility, a malformed
+            effects file.
     """
     if robot is None:
         if platform is not None or pose_axes is not None:
             raise CliUsageError("--platform and --pose-axes need --robot PATH")
-        return robot_of(geometry, set_)
+        return with_effects_file(robot_of(geometry, set_), effects)
     if geometry is not None or set_:
         raise CliUsageError("--robot cannot be combined with --geometry or --set (they "
                             "set the fields of the hexapod's geometry)")
-    return load_robot(robot, platform, pose_axes)
+    return with_effects_file(load_robot(robot, platform, pose_axes), effects)
+
+
+def with_effects_file(robot: CliRobot, path: Path | None) -> CliRobot:
+    """``robot`` with the joint and drive effects of an effects file
+    (:func:`hexapod_pin.core.description.read_effects_file`) applied over its own, joint by
+    joint (:meth:`~hexapod_pin.core.description.EffectsSection.apply`); ``robot`` itself
+    when ``path`` is None.
+
+    Raises:
+        DescriptionError: a malformed file, an unknown joint or key, a bad value (naming
+            the file, the joint, the key and its line).
+    """
+    if path is None:
+        return robot
+    section = read_effects_file(path)
+    model = robot.model
+    effects = section.apply(model.tree_model, model.actuated_joints, robot.effects)
+    return cast(CliRobot, robot.with_effects(effects))
+
+
+def effects_on(robot: CliRobot) -> dict[str, list[str]]:
+    """The joint and drive effects ``robot`` carries: each field that is on (a nonzero
+    armature, damping, coulomb, stiffness; a gear other than 1; a finite effort limit)
+    -> the joints that have it, in the tree's order."""
+    effects, model = robot.effects, robot.model.tree_model
+    joint_of = [""] * model.nv
+    for jid in range(1, model.njoints):
+        joint = model.joints[jid]
+        joint_of[joint.idx_v:joint.idx_v + joint.nv] = [model.names[jid]] * joint.nv
+    out: dict[str, list[str]] = {}
+    for name in COORDINATE_FIELDS:
+        joints = [joint_of[i] for i in np.flatnonzero(getattr(effects, name))]
+        if joints:
+            out[name] = list(dict.fromkeys(joints))
+    actuated = robot.model.actuated_joints
+    for name, on in (("gear", effects.gear != 1.0),
+                     ("effort_limit", np.isfinite(effects.effort_limit))):
+        if np.any(on):
+            out[name] = [actuated[k] for k in np.flatnonzero(on)]
+    return out
+
+
+def effects_fields(robot: CliRobot, path: Path | None) -> dict[str, Any]:
+    """What ``--json`` adds with ``--effects FILE``: ``{"effects": {"file": ..., "on":
+    {field: [joints]}, "velocity_threshold": ...}}`` (:func:`effects_on`; nothing
+    without the option)."""
+    if path is None:
+        return {}
+    return {"effects": {"file": path, "on": effects_on(robot),
+                        "velocity_threshold": robot.effects.velocity_threshold}}
+
+
+def effects_line(robot: CliRobot, path: Path | None) -> str | None:
+    """The line the text output shows with ``--effects FILE``, e.g. ``effects (drives.yaml):
+    damping on 6 joints, coulomb on crank`` (None without the option)."""
+    if path is None:
+        return None
+    on = effects_on(robot)
+    parts = [f"{name} on {joints[0] if len(joints) == 1 else f'{len(joints)} joints'}"
+             for name, joints in on.items()]
+    return f"effects ({path}): {', '.join(parts) if parts else 'none (rigid)'}"
+
+
+def print_effects(robot: CliRobot, path: Path | None) -> None:
+    """Print :func:`effects_line` on stdout (nothing without ``--effects``)."""
+    line = effects_line(robot, path)
+    if line is not None:
+        console.print(Text(line))
 
 
 def robot_urdf(robot: CliRobot, path: Path | None) -> Path | None:

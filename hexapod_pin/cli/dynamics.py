@@ -1,7 +1,14 @@
 """Dynamics commands: ``statics``, ``fd`` (forward dynamics of one state), ``id`` (inverse
 dynamics along a motion file), ``simulate`` (the hexapod: closed-loop simulation tracking
 a circle; any robot of ``--robot``: :func:`hexapod_pin.core.simulate.simulate` under
-constant forces or computed torque holding home)."""
+constant forces or computed torque holding home).
+
+Each takes ``--effects FILE``: joint and drive effects (armature, damping, Coulomb
+friction, springs, gears) over the robot's own, from a YAML or TOML file in the format of
+a loops file's ``effects:`` section (:func:`hexapod_pin.core.description.read_effects_file`);
+the output then says which effects are on (a line ``effects (FILE): damping on 6
+joints, ...``; with ``--json`` an ``effects`` object) and ``simulate`` reports the work
+they dissipated."""
 
 from __future__ import annotations
 
@@ -25,7 +32,9 @@ from .common import (
     TWIST_OF,
     WRENCH_OF,
     AsJson,
+    CliRobot,
     Degrees,
+    EffectsFile,
     GeometryFile,
     PlatformFrame,
     PoseAxes,
@@ -38,6 +47,7 @@ from .common import (
     check_suffix,
     component_values,
     console,
+    effects_fields,
     emit_json,
     guard,
     hexapod_only,
@@ -45,6 +55,7 @@ from .common import (
     note,
     parse_numbers,
     pose_axes_of,
+    print_effects,
     progress_bar,
     quantity_table,
     read_robot_motion,
@@ -67,19 +78,23 @@ def statics(pose: Values = None,
             degrees: Degrees = False, as_json: AsJson = False,
             robot: RobotFile = None, platform: PlatformFrame = None,
             pose_axes: PoseAxes = None,
-            geometry: GeometryFile = None, set_: SetFields = None) -> None:
+            geometry: GeometryFile = None, set_: SetFields = None,
+            effects: EffectsFile = None) -> None:
     """Actuator forces (N) holding the platform at rest at a pose (default home).
 
     With `--robot`: in its pose axes; `--wrench` has one value per pose axis (fx for x,
-    mx for roll, ...); forces in N or N m along each actuated joint."""
-    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
+    mx for roll, ...); forces in N or N m along each actuated joint. With `--effects`:
+    the springs' forces included (damping and friction give none at rest)."""
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_, effects)
     p = robot_pose_in(bot, pose, degrees)
     w = component_values(bot, wrench, "wrench", WRENCH_OF)
     tau = bot.static_forces(p, wrench=w)
     if as_json:
         emit_json({"pose": robot_pose_out(bot, p, degrees), "wrench": w,
-                   "actuator_forces": tau, **robot_fields(bot)})
+                   "actuator_forces": tau, **robot_fields(bot),
+                   **effects_fields(bot, effects)})
         return
+    print_effects(bot, effects)
     title = ("static actuator forces (+ along the rail direction u_k)"
              if not isinstance(bot, ClosedLoopRobot) else
              "static actuator forces (+ along each actuated joint)")
@@ -108,11 +123,16 @@ def fd(pose: Values = None,
        ] = "nullspace",
        degrees: Degrees = False, as_json: AsJson = False,
        robot: RobotFile = None, platform: PlatformFrame = None, pose_axes: PoseAxes = None,
-       geometry: GeometryFile = None, set_: SetFields = None) -> None:
+       geometry: GeometryFile = None, set_: SetFields = None,
+       effects: EffectsFile = None) -> None:
     """Forward dynamics of one state: the platform acceleration (twist derivative) and
     the actuator accelerations produced by actuator forces at a pose (default home) and
-    twist (default rest)."""
-    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
+    twist (default rest).
+
+    With `--effects`: the effects act with the forces (Coulomb friction of a joint at
+    rest sticks or slips); the default forces are then the static forces with the
+    springs."""
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_, effects)
     p = robot_pose_in(bot, pose, degrees)
     v = component_values(bot, twist, "twist", TWIST_OF)
     w = component_values(bot, wrench, "wrench", WRENCH_OF)
@@ -124,8 +144,10 @@ def fd(pose: Values = None,
         emit_json({"pose": robot_pose_out(bot, p, degrees), "twist": v, "wrench": w,
                    "actuator_forces": u, "twist_dot": result.twist_dot,
                    "actuator_accelerations": result.actuator_accelerations,
-                   "method": result.method, **robot_fields(bot)})
+                   "method": result.method, **robot_fields(bot),
+                   **effects_fields(bot, effects)})
         return
+    print_effects(bot, effects)
     axes = pose_axes_of(bot)
     console.print(quantity_table("forward dynamics: twist derivative (world axes)", {
         f"d{TWIST_OF[a]}/dt ({'rad' if TWIST_OF[a][0] == 'w' else 'm'}/s^2)": f"{value:+.6g}"
@@ -147,7 +169,8 @@ def inverse_dynamics(motion_file: Annotated[Path, typer.Argument(
                      as_json: AsJson = False, quiet: Quiet = False,
                      robot: RobotFile = None, platform: PlatformFrame = None,
                      pose_axes: PoseAxes = None,
-                     geometry: GeometryFile = None, set_: SetFields = None) -> None:
+                     geometry: GeometryFile = None, set_: SetFields = None,
+                     effects: EffectsFile = None) -> None:
     """Inverse dynamics along a motion file: actuator forces (N) at every sample.
 
     Motion file, CSV: a header row, then one row per sample; columns `t` (s), `x, y, z`
@@ -160,10 +183,13 @@ def inverse_dynamics(motion_file: Annotated[Path, typer.Argument(
     With `--robot`: the same selection of each group for its pose axes, one `qN` and
     `tauN` per actuator (a five-bar in x, z: `t, x, z, vx, vz, ..., q0, q1, tau0, tau1`);
     forces in N or N m along each actuated joint.
+
+    With `--effects`: the forces also balance the effects (rotor inertia, damping,
+    Coulomb friction of the moving joints, springs).
     """
     quiet = quiet or as_json
     check_suffix("out", out, motions.MOTION_SUFFIXES)
-    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_, effects)
     motion = read_robot_motion(motion_file, bot)
     rates_of = None if isinstance(bot, Hexapod) else as_parallel(bot)
     with progress_bar(quiet, "inverse dynamics", total=len(motion.t)) as progress:
@@ -177,8 +203,9 @@ def inverse_dynamics(motion_file: Annotated[Path, typer.Argument(
     peak = np.max(np.abs(tau), axis=0)
     if as_json:
         emit_json({"t": motion.t, "actuator_forces": tau, "max_abs_actuator_forces": peak,
-                   "out": out, **robot_fields(bot)})
+                   "out": out, **robot_fields(bot), **effects_fields(bot, effects)})
         return
+    print_effects(bot, effects)
     unit = "N" if isinstance(bot, Hexapod) else "N | N m"
     console.print(actuator_table(
         bot, f"inverse dynamics over {len(motion.t)} samples, {motion.t[-1] - motion.t[0]:g} s",
@@ -207,9 +234,12 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
              forces: Annotated[str | None, typer.Option(
                  help="with --robot and no controller: constant actuator forces "
                       "'u0,u1,...' (N or N m, actuator order); default zero")] = None,
-             integrator: Annotated[str | None, typer.Option(
-                 help="with --robot: rk4 or semi_implicit_euler; default rk4",
-                 show_default=False)] = None,
+             integrator: Annotated[str, typer.Option(
+                 help=f"{', '.join(INTEGRATORS)}: auto picks stick_slip (exact Coulomb "
+                      "friction at velocity level) when the joints have Coulomb friction, "
+                      "else rk4; the hexapod's fast engine steps rk4 or "
+                      "semi_implicit_euler (auto runs stick_slip on the python engine)")
+             ] = "auto",
              out: Annotated[Path | None, typer.Option(
                  help="write the trajectory (.csv / .json motion file)")] = None,
              html: Annotated[Path | None, typer.Option(
@@ -219,7 +249,8 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
              as_json: AsJson = False, quiet: Quiet = False,
              robot: RobotFile = None, platform: PlatformFrame = None,
              pose_axes: PoseAxes = None,
-             geometry: GeometryFile = None, set_: SetFields = None) -> None:
+             geometry: GeometryFile = None, set_: SetFields = None,
+             effects: EffectsFile = None) -> None:
     """Simulate the closed-loop dynamics tracking a circle of the platform about home.
 
     Exit code 1 unless the run completed and tracked the circle (status `completed`):
@@ -232,21 +263,24 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
     With `--robot`: the generic simulation (`hexapod_pin.simulate`) from home at rest,
     under constant actuator forces (`--forces`, default zero) or computed torque holding
     the home pose; statuses `completed`, `saturated` (exit code 1) or `failed` (exit
-    code 1)."""
+    code 1).
+
+    With `--effects` (or a robot whose description has effects): the summary reports the
+    integrator that ran and the work the damping and friction dissipated
+    (`dissipated_work_j`)."""
     quiet = quiet or as_json
-    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
+    bot = load_cli_robot(robot, platform, pose_axes, geometry, set_, effects)
     check_suffix("out", out, motions.MOTION_SUFFIXES)
     check_suffix("html", html, (".html", ".htm"))
     check_suffix("plot", plot, plotting.IMAGE_SUFFIXES)
     if isinstance(bot, ClosedLoopRobot):
         hexapod_only(bot, engine=engine, radius=radius, period=period)
         _simulate_loaded(bot, duration, dt, controller or "none", forces,
-                         integrator or "rk4", SimulateFiles(out, html, plot), as_json, quiet,
+                         integrator, SimulateFiles(out, html, plot, effects), as_json, quiet,
                          robot_urdf(bot, robot))
         return
-    for name, value in (("forces", forces), ("integrator", integrator)):
-        if value is not None:
-            raise InputError(name, value, f"--{name} is an option of simulate --robot")
+    if forces is not None:
+        raise InputError("forces", forces, "--forces is an option of simulate --robot")
     controller = controller or "pid"
     engine = engine or "auto"
     radius = 0.02 if radius is None else radius
@@ -258,7 +292,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
     with progress_bar(quiet, f"simulating {duration:g} s",
                       total=None if steps is None else max(steps, 1)) as progress:
         run = motions.simulate_circle(bot, duration, dt, controller, radius, period,
-                                      progress, engine=engine)
+                                      progress, engine=engine, integrator=integrator)
     traj = run.trajectory
     motion = motions.Motion.from_trajectory(traj)
     if out is not None:
@@ -276,6 +310,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
         note(quiet, f"wrote {plot}")
     residual = motion.closure_residual
     summary = {"status": run.status, "message": run.message, "engine": run.engine,
+               "integrator": traj.integrator,
                "duration_s": float(motion.t[-1] - motion.t[0]), "samples": len(motion.t),
                "wall_time_s": float(traj.wall_time),
                "max_tracking_error_m": run.tracking_error,
@@ -283,10 +318,12 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
                "max_abs_actuator_force_n": float(np.max(np.abs(traj.actuator_forces))),
                "saturated_fraction": float(np.mean(traj.saturated)),
                "max_closure_residual_m": None if residual is None else float(np.max(residual)),
+               "dissipated_work_j": dissipated_work(bot, traj.dissipated_work),
                "out": out, "html": html, "plot": plot}
     if as_json:
-        emit_json(summary)
+        emit_json({**summary, **effects_fields(bot, effects)})
         return
+    print_effects(bot, effects)
     console.print(quantity_table(
         f"simulation: {controller} control, circle r = {radius:g} m",
         {key: f"{value:.4g}" if isinstance(value, float) else str(value)
@@ -297,17 +334,29 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
         raise typer.Exit(code=1)
 
 
+def dissipated_work(robot: CliRobot, work: np.ndarray) -> float | None:
+    """The work (J) the joint effects dissipated over a run (the last of the cumulative
+    ``work`` (n,)); None for a robot without damping or friction (left out of the
+    summary)."""
+    effects = robot.effects
+    if not (effects.damping.any() or effects.coulomb.any()):
+        return None
+    return float(work[-1]) if np.size(work) else 0.0
+
+
 class SimulateFiles(NamedTuple):
-    """The files ``simulate --robot`` writes (None: not asked for).
+    """The files ``simulate --robot`` reads and writes (None: not asked for).
 
     Attributes:
         out: the motion file (:func:`trajectory_motion`). html: the animated view.
         plot: the figure of actuator positions, forces and closure residual.
+        effects: the effects file read (``--effects``).
     """
 
     out: Path | None
     html: Path | None
     plot: Path | None
+    effects: Path | None = None
 
 
 def trajectory_motion(traj: Trajectory) -> motions.Motion:
@@ -369,8 +418,9 @@ def _simulate_loaded(robot: ClosedLoopRobot, duration: float, dt: float | None,
             note(quiet, f"wrote {files.plot}")
     summary = loaded_summary(robot, traj, controller, integrator, files)
     if as_json:
-        emit_json(summary)
+        emit_json({**summary, **effects_fields(robot, files.effects)})
         return
+    print_effects(robot, files.effects)
     console.print(quantity_table(
         f"simulation of {robot.geometry.name}: {controller} control",
         {key: shown(value) for key, value in summary.items() if value not in (None, "", [])}))
@@ -391,16 +441,19 @@ def shown(value: object) -> str:
 
 def loaded_summary(robot: ClosedLoopRobot, traj: Trajectory, controller: str,
                    integrator: str, files: SimulateFiles) -> dict:
-    """The summary of ``simulate --robot`` (the ``--json`` object)."""
+    """The summary of ``simulate --robot`` (the ``--json`` object): ``integrator`` the one
+    that ran ("auto" resolved), the energy balance ``energies + dissipated_work - work``
+    against its start (:attr:`~hexapod_pin.core.simulate.Trajectory.energy_residual`)."""
     final = None if traj.poses is None else robot_pose_out(robot, traj.poses[-1], False)
-    balance = traj.energies - traj.energies[0] - traj.work
+    balance = traj.energy_residual
     return {"status": traj.status, "message": traj.message, "controller": controller,
-            "integrator": integrator, "dt_s": traj.dt,
+            "integrator": traj.integrator or integrator, "dt_s": traj.dt,
             "duration_s": float(traj.times[-1] - traj.times[0]),
             "samples": len(traj.times), "wall_time_s": float(traj.wall_time),
             "max_abs_actuator_force": float(np.max(np.abs(traj.actuator_forces))),
             "saturated_fraction": float(np.mean(traj.saturated)),
             "max_closure_residual": float(np.max(traj.closure_residual)),
             "max_energy_balance_error_j": float(np.max(np.abs(balance))),
+            "dissipated_work_j": dissipated_work(robot, traj.dissipated_work),
             "final_pose": final, "out": files.out, "html": files.html, "plot": files.plot,
             **robot_fields(robot)}

@@ -25,6 +25,10 @@ Common options (:mod:`.common`):
   the loops file's ``robot:`` section). Poses then have the robot's pose axes, actuator
   values its actuated joints; ``--robot`` with ``--geometry`` / ``--set`` or a hexapod
   option (``--branch``, ``--radius``, ...) is a usage error (exit code 2).
+* ``--effects FILE`` (``statics``, ``fd``, ``id``, ``simulate``): joint and drive effects
+  (armature, damping, Coulomb friction, springs, gears) over the robot's own, from a YAML
+  or TOML file in the format of a loops file's ``effects:`` section
+  (:func:`hexapod_pin.core.description.read_effects_file`); the output says which are on.
 * ``--json``: machine-readable output on stdout (nothing else is written then).
 * ``--quiet``: no progress bars or notes (results are still printed).
 * ``--degrees``: angles of poses in degrees, in and out (default rad).

@@ -24,15 +24,22 @@ The loops format (see ``urdf/hexapod.loops.yaml``)::
                      effort_limit: 100}
 
 (the ``effects:`` section: :class:`EffectsSection`; a ``robot:`` section:
-:class:`RobotSection`). Nothing here is specific to the hexapod.
+:class:`RobotSection`). The same ``effects:`` format, alone in a YAML or TOML file, is a
+standalone effects file (:func:`read_effects_file`, the command line's ``--effects``).
+Nothing here is specific to the hexapod.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import importlib.metadata
 import io
 import math
+import os
 import re
+import sys
+import threading
 import warnings
 from dataclasses import dataclass
 from importlib import resources
@@ -42,10 +49,14 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 import yaml
-import yourdfpy
 
 from ..errors import DescriptionError, InputError
 from .effects import JointEffects, resolve_effects
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10 (tomli is declared for it in pyproject.toml)
+    import tomli as tomllib
 
 WORLD = "world"
 CLOSURE_TYPES = {"point": 3, "weld": 6}
@@ -290,14 +301,85 @@ def validate_urdf(urdf_xml: str, source: str = "<urdf>") -> None:
     non-zero axis for revolute, continuous and prismatic joints; finite limits with
     ``lower <= upper``; ``<dynamics damping friction>`` finite and ``>= 0``.
 
+    The last text that passed under each ``source`` name is remembered on disk (its
+    SHA-256 with the validator's), so loading an unchanged description again skips the
+    parse (:class:`_ValidationMemo`; ``HEXAPOD_PIN_NO_MEMO=1`` turns that off).
+
     Raises:
         DescriptionError: naming the source, the element at fault and the problem.
     """
     if not isinstance(urdf_xml, str):
         raise DescriptionError(source, f"URDF must be text, got {type(urdf_xml).__name__}")
+    memo = _ValidationMemo(urdf_xml, source)
+    if memo.known():
+        return
+    _validate_urdf(urdf_xml, source)
+    memo.remember()
+
+
+class _ValidationMemo:
+    """Remembers, on disk, the last URDF text that passed :func:`validate_urdf` under each
+    ``source`` name, so that loading the same description again (every ``Hexapod()``,
+    every command-line call) skips the strict parse and its 0.4-0.6 s import of
+    ``yourdfpy`` / ``trimesh``. The key is the SHA-256 of the text, this module's own
+    source (a changed validator validates again) and the ``yourdfpy`` version; one small
+    file per source name, next to numba's kernel cache (``__pycache__`` of this package,
+    else the user cache directory). Anything that fails (a read-only disk) only means
+    validating again; text that fails validation is never remembered."""
+
+    def __init__(self, urdf_xml: str, source: str) -> None:
+        digest = hashlib.sha256(_validator_stamp().encode())
+        digest.update(urdf_xml.encode("utf-8", "surrogatepass"))
+        self.digest = digest.hexdigest()
+        name = hashlib.sha256(source.encode("utf-8", "surrogatepass")).hexdigest()[:32]
+        self.paths = [folder / name for folder in _memo_folders()]
+
+    def known(self) -> bool:
+        for path in self.paths:
+            try:
+                if path.read_text(encoding="ascii") == self.digest:
+                    return True
+            except (OSError, ValueError):
+                continue
+        return False
+
+    def remember(self) -> None:
+        for path in self.paths:
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                tmp = path.with_suffix(f".{os.getpid()}.{threading.get_ident()}.tmp")
+                tmp.write_text(self.digest, encoding="ascii")
+                os.replace(tmp, path)
+                return
+            except OSError:
+                continue
+
+
+def _memo_folders() -> list[Path]:
+    """Where :class:`_ValidationMemo` keeps its files (``HEXAPOD_PIN_NO_MEMO=1``: none)."""
+    if os.environ.get("HEXAPOD_PIN_NO_MEMO"):
+        return []
+    user = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return [Path(__file__).resolve().parent / "__pycache__" / "validated_urdf",
+            user / "hexapod_pin" / "validated_urdf"]
+
+
+@functools.lru_cache(maxsize=1)
+def _validator_stamp() -> str:
+    try:
+        version = importlib.metadata.version("yourdfpy")
+    except importlib.metadata.PackageNotFoundError:
+        version = "?"
+    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest() + version
+
+
+def _validate_urdf(urdf_xml: str, source: str) -> None:
+    """:func:`validate_urdf` without its memo."""
     try:
         # non-finite numbers are reported below; the parser's own arithmetic on them
         # (trimesh's transforms) must not warn
+        import yourdfpy  # here, not at import: it loads trimesh and networkx (0.6 s)
+
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore", RuntimeWarning)
             robot = yourdfpy.URDF.load(io.StringIO(urdf_xml), build_scene_graph=False,
@@ -518,10 +600,11 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
                      effects)
 
 
-def _effect_lines(text: str, source: str) -> dict[str, int]:
+def _effect_lines(text: str, source: str, nested: bool = True) -> dict[str, int]:
     """The 1-based line of the ``effects:`` section, its keys, joints and their keys (see
     :meth:`EffectsSection.culprit`); a joint or key written twice is refused (YAML would
-    keep the last one silently)."""
+    keep the last one silently). ``nested``: the section is the top-level ``effects`` key
+    (a loops file), else the whole document (a standalone effects file)."""
     lines: dict[str, int] = {}
 
     def walk(node: Any, prefix: str, depth: int) -> None:
@@ -538,6 +621,9 @@ def _effect_lines(text: str, source: str) -> dict[str, int]:
                 walk(value_node, name, depth + 1)
 
     root = yaml.compose(text)
+    if not nested:
+        walk(root, "effects", 1)
+        return lines
     for key_node, value_node in root.value if isinstance(root, yaml.MappingNode) else ():
         if key_node.value == "effects":
             lines["effects"] = key_node.start_mark.line + 1
@@ -605,6 +691,124 @@ def _effects_section(raw: object, lines: dict[str, int], source: str) -> Effects
         out.append((joint, tuple((key, _effect_value(value, source, section.culprit(joint, key)))
                                  for key, value in entry.items())))
     return EffectsSection(tuple(out), threshold, source, section.lines)
+
+
+#: the suffixes of a standalone effects file and their format (:func:`read_effects_file`)
+EFFECTS_SUFFIXES = {".yaml": "yaml", ".yml": "yaml", ".toml": "toml"}
+
+
+def parse_effects(text: str, source: str = "<effects>", *, kind: str = "yaml"
+                  ) -> EffectsSection:
+    """Parse a standalone effects file: the format of a loops file's ``effects:`` section
+    (:class:`EffectsSection`: keys ``joints`` and ``velocity_threshold``), at the top
+    level or under one ``effects`` key, written in YAML or TOML, e.g.::
+
+        # drives.toml                          # drives.yaml
+        velocity_threshold = 1e-6              velocity_threshold: 1.0e-6
+        [joints.crank]                         joints:
+        damping = 0.5                            crank: {damping: 0.5, gear: 20}
+        gear = 20
+
+    Only the syntax is checked here; :meth:`EffectsSection.apply` checks the joint names,
+    sizes and ranges against a tree. Messages name ``source``, the key
+    (``effects.joints.<joint>.<key>``, the prefix ``effects`` also for a file without
+    that key) and its line.
+
+    Args:
+        text: the file's text.
+        source: the file it came from, for messages.
+        kind: ``"yaml"`` or ``"toml"``.
+
+    Raises:
+        DescriptionError: malformed YAML / TOML, a document that is not a mapping or is
+            empty, a key beside ``effects``, an unknown key, a value that is not a number
+            or a list of numbers (e.g. YAML's ``1e-9``, which it reads as text), a key
+            written twice.
+    """
+    if kind not in ("yaml", "toml"):
+        raise DescriptionError(source, f"unknown effects format {kind!r} (yaml or toml)")
+    data: Any
+    try:
+        data = tomllib.loads(text) if kind == "toml" else yaml.safe_load(text)
+    except (tomllib.TOMLDecodeError, yaml.YAMLError) as exc:
+        raise DescriptionError(source, f"malformed {kind.upper()}: {exc}") from None
+    if not isinstance(data, dict) or not data:
+        raise DescriptionError(source, "an effects file must be a mapping with the keys "
+                                       "joints and velocity_threshold (or one effects: "
+                                       "section holding them)")
+    nested = "effects" in data
+    if nested and len(data) > 1:
+        other = next(str(key) for key in data if key != "effects")
+        raise DescriptionError(source, f"unknown key {other!r} beside 'effects' (an effects "
+                                       "file holds joints and velocity_threshold, at the top "
+                                       "level or under effects)", other)
+    lines = _toml_lines(text, nested) if kind == "toml" else _effect_lines(text, source,
+                                                                           nested)
+    return _effects_section(data["effects"] if nested else data, lines, source)
+
+
+def read_effects_file(path: str | Path) -> EffectsSection:
+    """Read a standalone effects file (:func:`parse_effects`), YAML (``.yaml``, ``.yml``)
+    or TOML (``.toml``) by its suffix. Apply it to a robot with
+    ``robot.with_effects(section.apply(robot.model.tree_model,
+    robot.model.actuated_joints, robot.effects))``.
+
+    Raises:
+        DescriptionError: another suffix, a missing or unreadable file, or a malformed
+            one (:func:`parse_effects`).
+    """
+    path = Path(path)
+    kind = EFFECTS_SUFFIXES.get(path.suffix.lower())
+    if kind is None:
+        raise DescriptionError(str(path), f"an effects file ends in "
+                                          f"{', '.join(EFFECTS_SUFFIXES)} (YAML or TOML)")
+    return parse_effects(read_text(path), str(path), kind=kind)
+
+
+#: a TOML key (bare, or quoted), and a dotted one
+_TOML_PART = r"(?:[A-Za-z0-9_-]+|\"[^\"]*\"|'[^']*')"
+_TOML_DOTTED = rf"{_TOML_PART}(?:\s*\.\s*{_TOML_PART})*"
+_TOML_HEADER = re.compile(rf"^\s*\[\s*({_TOML_DOTTED})\s*\]\s*(?:#.*)?$")
+_TOML_ASSIGN = re.compile(rf"^\s*({_TOML_DOTTED})\s*=(.*)$")
+_TOML_INLINE = re.compile(rf"[{{,]\s*({_TOML_DOTTED})\s*=")
+
+
+def _toml_key(text: str) -> list[str]:
+    """The parts of a TOML (dotted, maybe quoted) key."""
+    return [next(g for g in m.groups() if g is not None)
+            for m in re.finditer(r"\"([^\"]*)\"|'([^']*)'|([A-Za-z0-9_-]+)", text)]
+
+
+def _toml_lines(text: str, nested: bool) -> dict[str, int]:
+    """The 1-based line of each table, key and inline-table key of an effects file in TOML
+    (as :func:`_effect_lines` for YAML; tomllib has refused keys written twice already).
+    A line scan of headers ``[a.b]`` and assignments ``a.b = ...`` (``{k = ...}`` inline
+    tables on one line), enough for the flat files of this format."""
+    lines: dict[str, int] = {}
+
+    def record(path: list[str], number: int) -> None:
+        path = path if nested else ["effects", *path]
+        for end in range(1 if nested else 2, len(path) + 1):
+            if path[0] == "effects":
+                lines.setdefault(".".join(path[:end]), number)
+
+    table: list[str] = []
+    for number, line in enumerate(text.splitlines(), 1):
+        header = _TOML_HEADER.match(line)
+        if header is not None:
+            table = _toml_key(header.group(1))
+            record(table, number)
+            continue
+        assign = _TOML_ASSIGN.match(line)
+        if assign is None:
+            continue
+        path = table + _toml_key(assign.group(1))
+        record(path, number)
+        value = assign.group(2).strip()
+        if value.startswith("{"):
+            for inner in _TOML_INLINE.finditer(value):
+                record(path + _toml_key(inner.group(1)), number)
+    return lines
 
 
 def _numbers(value: object, source: str, key: str) -> tuple[float, ...]:

@@ -11,7 +11,7 @@ The library never prints: pass ``progress`` to follow a long run.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -242,6 +242,12 @@ class Trajectory:
         message: details of a stop (which carriage, which limit, which error).
         dt: the step (s).
         wall_time: seconds spent in the integration loop.
+        integrator: the integrator that ran ("rk4", "semi_implicit_euler" or
+            "stick_slip": "auto" resolved, :func:`~hexapod_pin.core.simulation.resolve_integrator`).
+        dissipated_work: (n,) energy dissipated by the joint effects' damping and Coulomb
+            friction since t = 0 (J, >= 0; the integrator's quadrature of their power,
+            :attr:`~hexapod_pin.core.simulation.ClosedLoopIntegrator.dissipated`); zeros
+            without them.
     """
 
     times: np.ndarray
@@ -259,6 +265,12 @@ class Trajectory:
     message: str
     dt: float
     wall_time: float
+    integrator: str = ""
+    dissipated_work: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        if self.dissipated_work.size == 0 and self.times.size:   # left out: none
+            object.__setattr__(self, "dissipated_work", np.zeros(self.times.size))
 
     @property
     def real_time_factor(self) -> float:
@@ -399,6 +411,8 @@ def simulate(robot: Hexapod, duration: float, dt: float = 1e-3, *,
     rec_f = np.zeros((n_rec, 6))
     rec_sat = np.zeros(n_rec, dtype=bool)
     rec_res = np.empty(n_rec)
+    rec_lost = np.zeros(n_rec)
+    lost = 0.0                          # J dissipated by damping and friction so far
     rec_ref = np.empty((n_rec, 6)) if reference is not None else np.empty((0, 6))
     status, message = "completed", ""
     if controller is not None and hasattr(controller, "reset"):
@@ -454,6 +468,7 @@ def simulate(robot: Hexapod, duration: float, dt: float = 1e-3, *,
             status, message = "failed", f"at t = {t:.6g} s: {exc}"
             break
         t = step * dt
+        lost += integ.dissipated
         if not (np.all(np.isfinite(q_tree)) and np.all(np.isfinite(v_tree))):
             status, message = "failed", f"at t = {t:.6g} s: non-finite state"
             break
@@ -475,6 +490,7 @@ def simulate(robot: Hexapod, duration: float, dt: float = 1e-3, *,
         if step % record_every == 0 or stop:
             k_rec += 1
             rec_t[k_rec], rec_q[k_rec], rec_v[k_rec], rec_res[k_rec] = t, q_tree, v_tree, res
+            rec_lost[k_rec] = lost
             rec_f[k_rec], rec_sat[k_rec] = (forces, sat) if not stop else (rec_f[k_rec - 1],
                                                                              False)
             if reference is not None:
@@ -496,7 +512,7 @@ def simulate(robot: Hexapod, duration: float, dt: float = 1e-3, *,
                       rec_v[:n, idx.carriage_v].copy(), rec_f[:n].copy(), rec_sat[:n].copy(),
                       rec_res[:n].copy(), rec_q[:n].copy(), rec_v[:n].copy(),
                       rec_ref[:n].copy() if reference is not None else rec_ref, status,
-                      message, float(dt), wall)
+                      message, float(dt), wall, integ.integrator, rec_lost[:n].copy())
 
 
 def _sim_state(robot, ff_v, t: float, q: np.ndarray, v: np.ndarray) -> SimState:

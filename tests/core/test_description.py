@@ -6,7 +6,7 @@ from conftest import TWO_LINKS
 
 import hexapod_pin as hp
 from hexapod_pin.hexapod.geometry import hexapod_urdf
-from hexapod_pin.core.description import build_model, parse_loops, urdf_dir
+from hexapod_pin.core.description import build_model, parse_loops, urdf_dir, validate_urdf
 from hexapod_pin.errors import DescriptionError
 
 
@@ -162,3 +162,42 @@ def test_inertia_check_is_shared_by_the_sdf_reader():
       </model></sdf>"""
     with pytest.raises(DescriptionError, match="triangle inequality"):
         parse_sdf(sdf)
+
+
+def _run(code: str, env_extra: dict | None = None) -> str:
+    import os
+    import subprocess
+    import sys
+    env = dict(os.environ, **(env_extra or {}))
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, timeout=300, check=False)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done.stdout.strip()
+
+
+def test_importing_the_package_loads_no_urdf_parser():
+    """``import hexapod_pin`` does not pay for yourdfpy / trimesh / networkx (0.6 s)."""
+    out = _run("import sys, hexapod_pin; print(sorted(m for m in ('yourdfpy', 'trimesh', "
+               "'networkx') if m in sys.modules))")
+    assert out == "[]"
+
+
+def test_a_validated_description_is_remembered_and_a_bad_one_never(tmp_path):
+    """The second load of the same text under the same name skips the strict parse (no
+    yourdfpy in that process); other text under that name, or a failing text, is parsed."""
+    import uuid
+    source = f"memo-test-{uuid.uuid4().hex}"
+    good = TWO_LINKS.format(mass=1, ixx=0.01, x=0, axis="0 0 1")
+    path = tmp_path / "two_links.urdf"
+    path.write_text(good, encoding="utf-8")
+    check = ("import sys; from hexapod_pin.core.description import validate_urdf; "
+             f"validate_urdf(open({str(path)!r}).read(), {source!r}); "
+             "print('yourdfpy' in sys.modules)")
+    assert _run(check) == "True"            # parsed, then remembered
+    assert _run(check) == "False"           # remembered: not parsed
+    assert _run(check, {"HEXAPOD_PIN_NO_MEMO": "1"}) == "True"
+    bad = TWO_LINKS.format(mass=-1, ixx=0.01, x=0, axis="0 0 1")
+    for _ in range(2):                      # a failure is never remembered
+        with pytest.raises(DescriptionError, match="mass"):
+            validate_urdf(bad, source)
+    assert _run(check) == "False"           # the good text is still the one remembered
