@@ -28,7 +28,9 @@ field               units                        enters as
 and per actuator (``clm.actuated_joints`` order): ``gear`` (the actuator force is ``gear *``
 the motor torque; a rotor inertia ``J_m`` given per motor enters the armature of its joint
 as ``gear^2 J_m``) and ``effort_limit`` (joint side, N or N m; ``inf`` for none; exported
-to MuJoCo, not enforced by the routes: pass ``bounds`` for that).
+to MuJoCo; the default force bound of planning and of the workspace force capability, with
+``geometry.max_actuator_force``: :func:`~hexapod_pin.core.workspace_maps.actuator_force_bounds`;
+the dynamics routes take their own ``bounds``).
 
 The generalised force of the effects, ``tau_e = passive_forces(q, v) + friction``, is
 applied with the actuator and external forces: forward dynamics solves ``(M + A) a + h =
@@ -79,7 +81,8 @@ class JointEffects:
         spring_reference: the configuration (nq,) at which the springs are relaxed.
         gear: actuator force per motor torque (n_act,), nonzero.
         effort_limit: joint-side force bound of each actuator (n_act,), > 0 (``inf``:
-            none); informational (exported), not enforced.
+            none); exported, and a default bound of planning and of the force capability
+            (:func:`~hexapod_pin.core.workspace_maps.actuator_force_bounds`).
         velocity_threshold: speed at or below which a joint counts as at rest for
             Coulomb friction (m/s or rad/s), >= 0.
     """

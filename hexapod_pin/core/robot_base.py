@@ -247,6 +247,30 @@ class RobotBase:
         return self._checked("vibration_modes", vibration_modes, pose, actuator_stiffness,
                              branch)
 
+    def holding_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
+                       branch: Any = None) -> Any:
+        """The band of actuator forces (N or N m, joint side) that hold ``pose`` at rest
+        when Coulomb friction helps: a :class:`~hexapod_pin.core.holding.HoldingBand`
+        (per actuator ``lower`` / ``upper``, the others free, and the frictionless
+        ``static`` forces; :func:`~hexapod_pin.core.holding.holding_band`, exact LPs,
+        verified).
+
+        Args:
+            pose: (dim,) (m, rad).
+            wrench: (dim,) ON the platform, world axes, moment about its origin; None:
+                gravity only.
+            branch: the working mode.
+
+        Raises:
+            InputError: bad shapes, NaN / inf.
+            UnreachablePoseError: the pose is out of reach.
+            SingularityError: a singular pose.
+            SolverError: an LP or its verification fails.
+        """
+        from .holding import holding_band
+        with self.lock:
+            return holding_band(self, pose, wrench, branch=branch)
+
     def _checked(self, name: str, function: Any, *args: Any) -> Any:
         """``function(self, *args)`` under the robot's lock, every number checked finite."""
         from .checks import check_finite_result

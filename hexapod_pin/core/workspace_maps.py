@@ -21,6 +21,19 @@ by one. The per-pose measures are those of
 * ``static_forces``: the actuator forces (N or N m) holding the pose at rest against
   gravity and a payload wrench, ``robot.static_forces(pose, payload, bounded=False)``.
 
+Force limits and drive effects (``robot.effects``, :mod:`~hexapod_pin.core.effects`):
+the bound of actuator ``i`` is the smaller of ``geometry.max_actuator_force`` and the
+drive's ``effort_limit`` (:func:`actuator_force_bounds`); the static forces are the
+robot's, springs included. Coulomb friction at rest makes the holding forces a band
+(:func:`~hexapod_pin.core.holding.holding_band`): actuator ``i`` may need any force in
+``[static_i - below_i, static_i + above_i]`` (``below``, ``above`` independent of the
+wrench: the band is a translate of one set). :func:`force_capability` reports by default
+the *guaranteed* capability, the whole band within the bounds (whatever force friction at
+rest leaves to the actuators, and enough to break away in either direction): the bounds
+shrink by the band's half-widths; ``friction="helping"`` counts on friction instead (the
+band need only meet the bounds: a load that stays held once at rest, not one the
+actuators could move off).
+
 Poses, twists and wrenches follow :mod:`~hexapod_pin.core.robot_api`: the selection
 ``robot.pose_axes`` of ``(x, y, z, roll, pitch, yaw)`` (m, rad) and of ``(f, m)`` (N, N m,
 world axes, moment about the platform origin). Rows outside the workspace (not ``ok``) carry
@@ -42,6 +55,7 @@ import numpy.typing as npt
 
 from ..errors import ArgumentTypeError, HexapodPinError, InputError, SingularityError
 from .checks import as_array, count, real_number
+from .holding import holding_band
 from .measures import condition_number
 from .robot_api import ParallelRobot
 
@@ -55,6 +69,12 @@ Progress = Callable[[float], object]
 
 #: the most poses one call samples (memory: a few hundred bytes per pose)
 MAX_POSES = 10 ** 7
+
+#: an effort limit at or above this (N, N m) is none: what a URDF writes for "no limit"
+NO_EFFORT_LIMIT = 1e30
+
+#: how :func:`force_capability` treats Coulomb friction at rest
+FRICTION_MODES = ("guaranteed", "helping")
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,14 +128,19 @@ class ForceCapabilityMap:
 
     Attributes:
         scale: (N,) largest ``s >= 0`` such that the payload ``s * direction`` is held with
-            ``|tau_i| <= max_actuator_force_i``; 0 where the pose is not ok, its statics
-            failed or gravity alone already exceeds a bound; inf where no bounded actuator
-            limits it.
+            ``|tau_i| <= bound_i`` (:func:`actuator_force_bounds`; with Coulomb friction
+            the band as the ``friction`` mode asks); 0 where the pose is not ok, its
+            statics failed or gravity alone already exceeds a bound; inf where no bounded
+            actuator limits it.
         limiting_actuator: (N,) the actuator reaching its bound first, -1 where none does.
-        base_forces: (N, n_act) actuator forces without payload (N or N m).
+        base_forces: (N, n_act) actuator forces without payload (N or N m), the
+            frictionless static forces (springs included).
         unit_forces: (N, n_act) actuator forces per unit of ``s``.
         feasible_without_payload: (N,) bool, ``ok`` and gravity alone within the bounds.
         ok: (N,) bool, the workspace mask ``ok`` of :func:`evaluate`.
+        band_below: (N, n_act) how far friction at rest lets each force drop below the
+            static one (N or N m; zeros without Coulomb friction or where not usable).
+        band_above: (N, n_act) how far it lets each rise above (N or N m).
     """
 
     scale: np.ndarray
@@ -124,6 +149,8 @@ class ForceCapabilityMap:
     unit_forces: np.ndarray
     feasible_without_payload: np.ndarray
     ok: np.ndarray
+    band_below: np.ndarray
+    band_above: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -179,10 +206,38 @@ def _progress(progress: Progress | None) -> Progress | None:
     return progress
 
 
-def _max_forces(robot: ParallelRobot) -> np.ndarray:
-    """``geometry.max_actuator_force`` as (n_act,) (inf: unbounded)."""
-    limit = np.asarray(robot.geometry.max_actuator_force, dtype=float)
-    return np.broadcast_to(limit, (robot.n_actuators,)).copy()
+def actuator_force_bounds(robot: ParallelRobot) -> np.ndarray:
+    """The actuator force bounds (n_act,) (N or N m, joint side; ``inf``: none): the
+    robot's ``geometry.max_actuator_force`` and, elementwise the smaller, the
+    ``effort_limit`` of its drive effects (``robot.effects``; one of
+    :data:`NO_EFFORT_LIMIT` or more counts as none)."""
+    limit = np.broadcast_to(np.asarray(robot.geometry.max_actuator_force, dtype=float),
+                            (robot.n_actuators,))
+    effects = getattr(robot, "effects", None)
+    if effects is not None:
+        effort = np.asarray(effects.effort_limit, dtype=float)
+        limit = np.minimum(limit, np.where(effort < NO_EFFORT_LIMIT, effort, np.inf))
+    return np.array(limit, dtype=float)
+
+
+def _band(robot: ParallelRobot, poses: np.ndarray, rows: np.ndarray, failures: Counter
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(below, above, done)``: the holding band's half-widths (n, n_act) at the selected
+    rows (zeros elsewhere, and everywhere without Coulomb friction)."""
+    n, n_act = poses.shape[0], robot.n_actuators
+    below, above, done = np.zeros((n, n_act)), np.zeros((n, n_act)), rows.copy()
+    effects = getattr(robot, "effects", None)
+    if effects is None or not effects.has_coulomb:
+        return below, above, done
+    for k in np.flatnonzero(rows):
+        try:
+            band = holding_band(robot, poses[k])
+        except HexapodPinError as exc:
+            failures[f"friction: {type(exc).__name__}"] += 1
+            done[k] = False
+            continue
+        below[k], above[k] = band.half_widths
+    return below, above, done
 
 
 # -- the stages of one chunk -----------------------------------------------------------------
@@ -372,56 +427,71 @@ def dexterity(measures: Any) -> np.ndarray:
 
 
 def force_capability(robot: ParallelRobot, poses: npt.ArrayLike, direction: npt.ArrayLike, *,
-                     progress: Progress | None = None) -> ForceCapabilityMap:
+                     progress: Progress | None = None,
+                     friction: str = "guaranteed") -> ForceCapabilityMap:
     """Largest payload along a wrench direction that the actuators can hold, per pose.
 
-    Solves, per pose, the linear program ``max s`` s.t. ``|tau0 + s tau1|_i <=
-    max_actuator_force_i`` for every actuator i, where ``tau0`` holds gravity and ``tau1``
-    the unit payload ``direction`` (``static_forces`` is affine in the wrench). The LP is
-    one-dimensional, so its exact solution is the smallest crossing
-    ``(sign(tau1_i) tau_max_i - tau0_i) / tau1_i`` over i.
+    Solves, per pose, the linear program ``max s`` s.t. ``-bound_i + below_i <= tau0_i +
+    s tau1_i <= bound_i - above_i`` for every actuator i, where ``tau0`` holds gravity
+    (springs included) and ``tau1`` the unit payload ``direction`` (``static_forces`` is
+    affine in the wrench), ``bound`` is :func:`actuator_force_bounds` and ``below``,
+    ``above`` the half-widths of the holding band of Coulomb friction at rest (zero
+    without friction; module docstring). The LP is one-dimensional, so its exact
+    solution is the smallest crossing over i.
 
     Args:
         robot: any :class:`~hexapod_pin.core.robot_api.ParallelRobot`; its bounds
-            ``geometry.max_actuator_force`` (a float or (n_act,), inf: none).
+            ``geometry.max_actuator_force`` (a float or (n_act,), inf: none) and its
+            drives' ``effort_limit``.
         poses: (N, dim) poses (m, rad).
         direction: payload wrench direction (dim,) ON the platform (N, N m, world axes,
             about the platform origin), e.g. ``(0, 0, -m g, 0, 0, 0)`` for a mass m at the
             origin of a 6-D pose (then ``scale`` is in units of m). Any scale: the result
             scales inversely.
         progress: as in :func:`evaluate` (the fraction of the kinematics done).
+        friction: with Coulomb friction at rest, "guaranteed" (default: the whole
+            holding band within the bounds, ``below``, ``above`` the band's half-widths)
+            or "helping" (the band need only meet the bounds: ``below`` and ``above``
+            swapped and negated, friction holding part of the load).
 
     Returns:
         :class:`ForceCapabilityMap`.
 
     Raises:
         ArgumentTypeError: as in :func:`evaluate`.
-        InputError: as in :func:`evaluate`, or a zero direction.
+        InputError: as in :func:`evaluate`, a zero direction, an unknown ``friction``.
     """
     robot = _robot(robot)
     direction = as_array(direction, (robot.pose_dim,), "direction")
     if not np.any(direction):
         raise InputError("direction", direction, "must not be zero")
+    if friction not in FRICTION_MODES:
+        raise InputError("friction", friction, f"expected one of {FRICTION_MODES}")
     poses = _poses(robot, poses)
     n = poses.shape[0]
     base, done0 = _run(robot, poses, None, True, False, _progress(progress))
     with_unit, done1 = _statics(robot, poses, np.broadcast_to(direction, (n, direction.size)),
                                 done0, Counter())
-    usable_rows = done0 & done1
+    below, above, done2 = _band(robot, poses, done0 & done1, Counter())
+    usable_rows = done0 & done1 & done2
     tau0 = np.where(usable_rows[:, None], base.static_forces, 0.0)
     tau1 = np.where(usable_rows[:, None], with_unit - base.static_forces, 0.0)
-    limit = _max_forces(robot)[None, :]
-    feasible0 = usable_rows & np.all(np.abs(tau0) <= limit, axis=1)
+    below = np.where(usable_rows[:, None], below, 0.0)
+    above = np.where(usable_rows[:, None], above, 0.0)
+    limit = actuator_force_bounds(robot)[None, :]
+    high, low = (limit - above, -limit + below) if friction == "guaranteed" else \
+        (limit + below, -limit - above)
+    feasible0 = usable_rows & np.all((tau0 <= high) & (tau0 >= low), axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        bound = np.where(tau1 > 0, (limit - tau0) / tau1,
-                         np.where(tau1 < 0, (-limit - tau0) / tau1, np.inf))
+        bound = np.where(tau1 > 0, (high - tau0) / tau1,
+                         np.where(tau1 < 0, (low - tau0) / tau1, np.inf))
     bound = np.where(np.isnan(bound), np.inf, bound)
     limiting = np.argmin(bound, axis=1)
     scale = bound[np.arange(n), limiting]
     bounded = np.isfinite(scale)
     scale = np.where(feasible0, np.where(bounded, np.maximum(scale, 0.0), np.inf), 0.0)
     limiting = np.where(feasible0 & bounded, limiting, -1)
-    return ForceCapabilityMap(scale, limiting, tau0, tau1, feasible0, base.ok)
+    return ForceCapabilityMap(scale, limiting, tau0, tau1, feasible0, base.ok, below, above)
 
 
 # -- sampling --------------------------------------------------------------------------------

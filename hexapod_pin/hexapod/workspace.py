@@ -270,6 +270,12 @@ def force_capability(robot: Hexapod, poses: npt.ArrayLike, direction: npt.ArrayL
     direction = as_array(direction, (6,), "direction")
     if not np.any(direction):
         raise InputError("direction", direction, "must not be zero")
+    effects = robot.effects
+    if effects.stiffness.any() or effects.coulomb.any() or \
+            np.any(effects.effort_limit < robot.geometry.max_actuator_force):
+        raise InputError("robot", effects, "drive effects at rest (springs, Coulomb friction, "
+                         "effort limits) that these compiled maps do not model: use "
+                         "hexapod_pin.core.workspace_maps.force_capability")
     base = evaluate(robot, poses, None, branch, threads, singularity=False)
     with_unit = evaluate(robot, base.poses, direction, branch, threads, singularity=False)
     tau0 = base.static_forces

@@ -4,7 +4,8 @@
 forces, velocities and accelerations, the platform speeds and the strokes allow (TOPP-RA
 on the robot's own closed-loop inverse dynamics); :func:`check_feasibility` measures the
 margins of a timed motion against the same limits. Both take any robot with the shared
-API (:mod:`hexapod_pin.core.robot_api`).
+API (:mod:`hexapod_pin.core.robot_api`), with its drive effects (armature, damping, Coulomb
+friction, springs, effort limits: ``docs/drives.md``, "Planning with drives").
 
 Modules: :mod:`.path` (C2 paths, rotations on SO(3)), :mod:`.limits` (limits, payload,
 their coefficients along a path), :mod:`.solver` (compiled TOPP-RA),

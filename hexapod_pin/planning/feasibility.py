@@ -11,6 +11,15 @@ and accelerations by ``1/k^2``; so do the velocity-product terms of the dynamics
 forces are ``tau(k) = c + (tau - c) / k^2`` exactly, ``c`` the static forces (weight,
 constant wrenches). The smallest ``k`` meeting every limit is then found in closed form
 (``k < 1``: the motion could be played faster; ``inf``: a pose cannot be held statically).
+
+With drive effects (``robot.effects``) damping scales by ``1/k`` and Coulomb friction
+not at all, so ``tau(mu) = c_0 + c_1 mu + c_2 mu^2`` with ``mu = 1/k``; the three
+coefficients of every sample follow exactly from the inverse dynamics at ``mu = 1, 1/2,
+1/4`` (``c_0`` is then the force of a very slow motion: the static forces and the sliding
+friction), and the slow-down is the first crossing of a bound: the smallest ``k`` from
+which on every slower playback meets the force limits (an inverse dynamics at rest gives
+a joint that accelerates the friction ``-coulomb sign(a)``: the formula holds at rest
+samples too).
 """
 
 from __future__ import annotations
@@ -203,7 +212,8 @@ def check_feasibility(robot: ParallelRobot, motion: MotionSource, *, limits: Lim
     margins = {key: limit_of[key] - values[key] for key in values}
     feasible = bool(np.all(within)) and all(
         np.all(values[key] <= limit_of[key] * (1 + tolerance)) for key in values)
-    slow, reason = _slow_down(t, forces, static, values, limit_of, within)
+    poly = _speed_polynomial(robot, poses, twists, twist_dots, wrench, forces, static)
+    slow, reason = _slow_down(t, poly, values, limit_of, within)
     return FeasibilityReport(feasible, t, values, limit_of, margins, within,
                              _worst(t, values, limit_of, within), slow, reason)
 
@@ -226,7 +236,44 @@ def _worst(t, values, bounds, within) -> Violation | None:
     return best
 
 
-def _slow_down(t, forces, static, values, bounds, within) -> tuple[float, str]:
+def _speed_polynomial(robot, poses, twists, twist_dots, wrench, forces, static):
+    """``(c_0, c_1, c_2)`` (N, n_act) each: the forces of the motion played at ``mu = 1/k``
+    times its speed are ``c_0 + c_1 mu + c_2 mu^2`` (module docstring)."""
+    effects = getattr(robot, "effects", None)
+    if effects is None or not (effects.damping.any() or effects.coulomb.any()):
+        return static, np.zeros_like(static), forces - static
+    values = [forces]
+    for mu in (0.5, 0.25):
+        tdots = twist_dots * mu ** 2
+        values.append(robot.inverse_dynamics_batch(poses, twists * mu, tdots, wrench(tdots),
+                                                   bounded=False).actuator_forces)
+    mus = np.array([1.0, 0.5, 0.25])
+    vander = np.stack([np.ones(3), mus, mus ** 2], axis=1)
+    coeffs = np.linalg.solve(vander, np.stack([v.reshape(-1) for v in values]))
+    return tuple(row.reshape(forces.shape) for row in coeffs)
+
+
+def _first_crossing(c0, c1, c2, bound):
+    """The smallest ``mu > 0`` with ``|c0 + c1 mu + c2 mu^2| = bound`` (elementwise,
+    ``inf`` where none; ``|c0| <= bound`` assumed)."""
+    best = np.full(c0.shape, np.inf)
+    scale = np.maximum(np.maximum(np.abs(c0), bound), 1.0)
+    quadratic = np.abs(c2) > 1e-12 * scale
+    linear = ~quadratic & (np.abs(c1) > 1e-12 * scale)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for target in (bound, -bound):
+            k = c0 - target
+            disc = c1 ** 2 - 4.0 * c2 * k
+            root = np.sqrt(np.where(disc >= 0, disc, np.nan))
+            for r in ((-c1 + root) / (2.0 * c2), (-c1 - root) / (2.0 * c2)):
+                ok = quadratic & (disc >= 0) & (r > 0)
+                best = np.where(ok, np.minimum(best, r), best)
+            r = -k / c1
+            best = np.where(linear & (r > 0), np.minimum(best, r), best)
+    return best
+
+
+def _slow_down(t, poly, values, bounds, within) -> tuple[float, str]:
     """The smallest uniform slow-down factor and, when none helps, why."""
     if not np.all(within):
         k = int(np.argmin(within))
@@ -235,20 +282,20 @@ def _slow_down(t, forces, static, values, bounds, within) -> tuple[float, str]:
     force_bound = bounds["actuator_force"]
     finite = np.isfinite(force_bound)
     if np.any(finite):
-        c, d, f = static[:, finite], (forces - static)[:, finite], force_bound[finite]
+        c, c1, c2 = (part[:, finite] for part in poly)
+        f = np.broadcast_to(force_bound[finite], c.shape)
         over = np.abs(c) > f
         if np.any(over):
             k, j = np.unravel_index(int(np.argmax(np.abs(c) / f)), c.shape)
             actuator = int(np.flatnonzero(finite)[j])
             return float("inf"), (f"holding the pose at rest (gravity and the payload, no "
-                                  f"motion) already needs {abs(c[k, j]):.6g} on actuator "
+                                  f"motion; with Coulomb friction: the slowest motion) "
+                                  f"already needs {abs(c[k, j]):.6g} on actuator "
                                   f"{actuator} at sample {k} (t = {t[k]:.6g} s), above its "
-                                  f"bound {f[j]:.6g}: no slow-down helps")
-        # |c + lam d| <= f for lam = 1 / k^2 in (0, lam_max]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lam = np.where(d > 0, (f - c) / d, np.where(d < 0, (-f - c) / d, np.inf))
-        lam_max = float(np.min(lam))
-        needed = max(needed, 0.0 if lam_max == np.inf else 1.0 / np.sqrt(max(lam_max, 0.0)))
+                                  f"bound {f[k, j]:.6g}: no slow-down helps")
+        # |c0 + c1 mu + c2 mu^2| <= f for mu = 1 / k in (0, mu_max]
+        mu_max = float(np.min(_first_crossing(c, c1, c2, f)))
+        needed = max(needed, 0.0 if mu_max == np.inf else 1.0 / max(mu_max, 1e-300))
     for key, power in (("actuator_velocity", 1), ("linear_speed", 1), ("angular_speed", 1),
                        ("actuator_acceleration", 2)):
         if key in values:

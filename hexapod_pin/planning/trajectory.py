@@ -7,6 +7,20 @@ sampled at a uniform grid of its parameter ``s`` (m); the limits become rows aff
 the fastest ``s_dot(s)``; the timing follows from ``dt = 2 ds / (s_dot_k + s_dot_{k+1})``
 (constant ``s_ddot`` on each segment).
 
+Drive effects (``robot.effects``): armature and springs enter the coefficients exactly;
+Coulomb friction is a constant ``f(s)`` while the path moves forward; viscous damping
+is linear in ``s_dot``, and TOPP-RA's rows are affine in ``x = s_dot^2``, so its term is
+linearised conservatively at a speed per grid point (:mod:`hexapod_pin.planning.limits`).
+The planner starts from the profile without the damping term, then re-linearises at
+the last profile's speeds until the duration changes by less than
+:data:`DAMPING_RTOL` (at most :data:`DAMPING_ITERATIONS` solves; a linearisation that
+closes the phase plane is retried at half the speeds). Every profile of these rows meets
+the true limits; the result is then verified: the forces recomputed by the robot's own
+``inverse_dynamics_batch`` (effects included) at every grid point must equal the planned
+ones and keep the force bounds (else the bounds are tightened by the excess and the
+plan repeated, at most :data:`VERIFY_ATTEMPTS` times, then
+:class:`~hexapod_pin.errors.SolverError`).
+
 A :class:`TimedTrajectory` holds the result at the grid points (``s_ddot`` of the
 segment that starts there; the last point takes the last segment's) in the robot's
 conventions (pose, twist ``(v, w)`` in world axes, ``twist_dot`` its plain derivative,
@@ -23,13 +37,22 @@ import numpy.typing as npt
 
 from ..core.robot_api import ParallelRobot, pose_layout
 from ..core.checks import real_number
-from ..errors import InfeasiblePathError, InputError
+from ..errors import InfeasiblePathError, InputError, SolverError
 from . import solver
-from .limits import Limits, Payload, constraint_rows, path_coefficients
-from .path import GeometricPath
+from .limits import Limits, PathCoefficients, Payload, constraint_rows, path_coefficients
+from .path import GeometricPath, PathSamples
 
 #: default number of grid points
 DEFAULT_GRID_POINTS = 1000
+#: relative change of the duration at which the damping linearisation stops
+DAMPING_RTOL = 1e-4
+#: the most TOPP-RA solves of the damping linearisation
+DAMPING_ITERATIONS = 30
+#: the most plans with tightened bounds when the verification finds an excess
+VERIFY_ATTEMPTS = 3
+#: relative tolerance of the verification: planned against recomputed forces (of the
+#: force scale), recomputed forces against their bounds
+VERIFY_RTOL = 1e-7
 
 
 @dataclass(frozen=True)
@@ -62,7 +85,10 @@ class TimedTrajectory:
         twists: (N, dim) twists, the same selection of ``(v, w)``, world axes (m/s,
             rad/s).
         twist_dots: (N, dim) their time derivatives (m/s^2, rad/s^2).
-        actuator_forces: (N, n_act) (N or N m), the payload included.
+        actuator_forces: (N, n_act) (N or N m), the payload and the drive effects
+            included: the robot's inverse dynamics at each sample (at a sample where the
+            path is at rest, Coulomb friction as inverse dynamics gives it to a joint that
+            accelerates, ``-coulomb sign(a)``).
         actuator_velocities: (N, n_act) (m/s or rad/s).
         actuator_positions: (N, n_act) (m or rad).
         s: (N,) path parameter (m).
@@ -144,7 +170,9 @@ def time_optimal(robot: ParallelRobot, waypoints: npt.ArrayLike, *, limits: Limi
     Args:
         robot: a robot with the shared API (:class:`hexapod_pin.Hexapod`,
             :class:`hexapod_pin.Planar3PRR`, a :class:`hexapod_pin.ClosedLoopRobot` of any
-            pose axes), on its home inverse-kinematics branch (that of its batch routes).
+            pose axes), on its home inverse-kinematics branch (that of its batch routes),
+            with its drive effects (``robot.effects``: armature, damping, Coulomb
+            friction and springs enter the force limits, module docstring).
         waypoints: (K, dim) poses (m, rad), K >= 2, one column per axis of
             ``robot.pose_axes`` in that order; the path is C2 through them
             (:mod:`hexapod_pin.planning.path`: a full rotation on SO(3) when the pose has
@@ -163,9 +191,12 @@ def time_optimal(robot: ParallelRobot, waypoints: npt.ArrayLike, *, limits: Limi
     Raises:
         InputError: malformed waypoints (a width other than ``robot.pose_dim``, NaN /
             inf: the error names the values), limits or speeds; no finite limit at all.
-        InfeasiblePathError: a pose the robot cannot hold statically within its force
-            limits, a pose out of reach or out of its strokes, a singular pose, an end
-            or start speed the limits do not allow; it names the grid point.
+        InfeasiblePathError: a pose the robot cannot hold statically (or, with Coulomb
+            friction, move through slowly) within its force limits, a pose out of reach
+            or out of its strokes, a singular pose, an end or start speed the limits do
+            not allow; it names the grid point.
+        SolverError: the forces recomputed by the robot's inverse dynamics disagree with
+            the planned ones, or keep exceeding the bounds (module docstring).
     """
     limits = Limits() if limits is None else limits
     payload = Payload() if payload is None else payload
@@ -182,17 +213,91 @@ def time_optimal(robot: ParallelRobot, waypoints: npt.ArrayLike, *, limits: Limi
         raise InputError("waypoints", waypoints, f"expected poses of {robot.pose_dim} values")
     samples = path.sample(np.linspace(0.0, path.length, int(grid_points)))
     coeffs = path_coefficients(robot, samples, limits, payload)
-    rows = constraint_rows(coeffs, robot, limits)
+    at_rest = np.zeros(len(samples.s), dtype=bool)
+    at_rest[0], at_rest[-1] = start_speed == 0.0, end_speed == 0.0
+    rows = constraint_rows(coeffs, robot, limits, at_rest=at_rest)
     if not np.any(rows) and not np.any(np.isfinite(coeffs.speed_bound)):
         raise InputError("limits", limits, "no finite limit: the motion is unbounded")
-    phase = _solve(rows, coeffs.speed_bound, samples, start_speed, end_speed)
-    x, u = phase.s_dot ** 2, np.append(phase.s_ddot, phase.s_ddot[-1])
+    plain = not (coeffs.damped or np.any(coeffs.force_f))
+    scale = 1.0
+    for _ in range(VERIFY_ATTEMPTS + 1):
+        phase = _plan(coeffs, robot, limits, samples, start_speed, end_speed, at_rest,
+                      scale)
+        x, u = phase.s_dot ** 2, np.append(phase.s_ddot, phase.s_ddot[-1])
+        twists = samples.tangents * phase.s_dot[:, None]
+        twist_dots = samples.tangents * u[:, None] + samples.curvatures * x[:, None]
+        forces = coeffs.forces(u, phase.s_dot)
+        if plain:
+            break
+        excess = _verify(robot, limits, payload, samples, twists, twist_dots, forces)
+        if excess <= 1.0 + VERIFY_RTOL:
+            break
+        scale /= excess
+    else:
+        raise SolverError("time_optimal", "verification",
+                          f"the recomputed forces exceed their bounds by a factor {excess:.9g}"
+                          f" after {VERIFY_ATTEMPTS} tightened plans")
     return TimedTrajectory(
-        _grid_times(phase), samples.poses, samples.tangents * phase.s_dot[:, None],
-        samples.tangents * u[:, None] + samples.curvatures * x[:, None],
-        coeffs.force_a * u[:, None] + coeffs.force_b * x[:, None] + coeffs.force_c,
+        _grid_times(phase), samples.poses, twists, twist_dots, forces,
         coeffs.velocity_ratio * phase.s_dot[:, None], coeffs.actuator_positions,
         samples.s, phase.s_dot, u, path, phase, robot, limits, payload)
+
+
+def _plan(coeffs: PathCoefficients, robot: ParallelRobot, limits: Limits,
+          samples: PathSamples, start_speed: float, end_speed: float, at_rest: np.ndarray,
+          scale: float) -> PhaseProfile:
+    """The TOPP-RA profile; with damping, the conservative linearisation iterated (module
+    docstring)."""
+    rows = constraint_rows(coeffs, robot, limits, force_scale=scale, at_rest=at_rest)
+    phase = _solve(rows, coeffs.speed_bound, samples, start_speed, end_speed)
+    if not coeffs.damped:
+        return phase
+    speed, best, duration = phase.s_dot, None, np.inf
+    for _ in range(DAMPING_ITERATIONS):
+        floor = 1e-3 * max(float(np.max(speed)), 1e-12)
+        rows = constraint_rows(coeffs, robot, limits, np.maximum(speed, floor), scale,
+                               at_rest)
+        try:
+            phase = _solve(rows, coeffs.speed_bound, samples, start_speed, end_speed)
+        except InfeasiblePathError:
+            if best is not None:       # keep the best verified-conservative profile
+                break
+            speed = 0.5 * speed        # the linearisation closed the phase plane: slower
+            continue
+        new = float(_grid_times(phase)[-1])
+        if best is not None and new > duration * (1.0 - DAMPING_RTOL):
+            if new < duration:
+                best, duration = phase, new
+            break
+        best, duration, speed = phase, new, phase.s_dot
+    if best is None:
+        raise InfeasiblePathError(0, samples.s[0], samples.poses[0],
+                                  "no profile meets the force limits with the damping "
+                                  "linearised at any speed")
+    return best
+
+
+def _verify(robot: ParallelRobot, limits: Limits, payload: Payload, samples: PathSamples,
+            twists: np.ndarray, twist_dots: np.ndarray, forces: np.ndarray) -> float:
+    """Recompute the grid forces with the robot's inverse dynamics (effects included):
+    raise :class:`SolverError` where they differ from the planned ones, return the
+    largest ratio of a force to its bound (1 when none is bounded)."""
+    recomputed = robot.inverse_dynamics_batch(samples.poses, twists, twist_dots,
+                                              payload.wrenches(robot, twist_dots),
+                                              bounded=False).actuator_forces
+    scale = max(1.0, float(np.max(np.abs(recomputed))))
+    miss = float(np.max(np.abs(recomputed - forces)))
+    if not miss <= VERIFY_RTOL * scale:
+        k = int(np.argmax(np.max(np.abs(recomputed - forces), axis=1)))
+        raise SolverError("time_optimal", "verification",
+                          f"the planned forces {forces[k].tolist()} at grid point {k} differ "
+                          f"from the robot's inverse dynamics {recomputed[k].tolist()} by "
+                          f"{miss:.3e}")
+    bound = limits.per_actuator(robot, planning=True)["force"]
+    finite = np.isfinite(bound)
+    if not np.any(finite):
+        return 1.0
+    return float(np.max(np.abs(recomputed[:, finite]) / bound[finite]))
 
 
 def _solve(rows, speed_bound, samples, start_speed, end_speed) -> PhaseProfile:

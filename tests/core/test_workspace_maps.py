@@ -229,6 +229,9 @@ def test_force_capability_with_a_bound_per_actuator(five_bar, maps):
     poses = maps["five-bar"][0][:10]
     direction = np.array([0.3, -1.0])
     cap = wm.force_capability(robot, poses, direction)
+    # the drives' effort limits (50 N m from the URDF) cap the second bound
+    limit = wm.actuator_force_bounds(robot)
+    np.testing.assert_array_equal(limit, [30.0, 50.0])
     for k in np.flatnonzero(cap.ok):
         tau0 = robot.static_forces(poses[k], bounded=False)
         tau1 = robot.static_forces(poses[k], direction, bounded=False) - tau0
@@ -241,6 +244,11 @@ def test_force_capability_with_a_bound_per_actuator(five_bar, maps):
 def test_force_capability_is_inf_without_bounds(five_bar, maps):
     robot = hp.ClosedLoopRobot(five_bar.model, "end_1", ("x", "z"),
                                home=five_bar.home_configuration, max_actuator_force=np.inf)
+    # the drives' effort limits (the URDF's efforts) still bound it ...
+    capped = wm.force_capability(robot, maps["five-bar"][0][:6], [0.0, -1.0])
+    assert np.all(np.isfinite(capped.scale[capped.ok]))
+    # ... and without them nothing does
+    robot = robot.with_effects(effort_limit=np.full(2, np.inf))
     cap = wm.force_capability(robot, maps["five-bar"][0][:6], [0.0, -1.0])
     assert np.all(np.isinf(cap.scale[cap.ok])) and np.all(cap.scale[~cap.ok] == 0.0)
     assert np.all(cap.limiting_actuator == -1)
@@ -401,3 +409,91 @@ def test_random_bad_shapes_raise_input_error(five_bar, shape):
     if arr.shape != (five_bar.pose_dim,) and arr.shape != (1, five_bar.pose_dim):
         with pytest.raises(InputError):
             wm.evaluate(five_bar, five_bar.home_pose[None], arr)
+
+
+# -- drive effects: effort limits, springs, friction at rest ----------------------------------
+def _stewart_poses(stewart, maps):
+    poses, _, m = maps["stewart"]
+    return poses[m.ok][:6]
+
+
+def test_effort_limits_and_springs_enter_the_force_capability(stewart, maps):
+    poses = _stewart_poses(stewart, maps)
+    act = stewart.model.actuated_joints
+    sprung = stewart.with_effects(stiffness={j: 300.0 for j in act})
+    held = np.max(np.abs(sprung.static_forces_batch(poses, bounded=False)))
+    effort = np.linspace(1.5, 3.0, len(act)) * held
+    sprung = sprung.with_effects(effort_limit=effort)
+    np.testing.assert_allclose(wm.actuator_force_bounds(sprung), np.minimum(
+        effort, np.broadcast_to(stewart.geometry.max_actuator_force, effort.shape)))
+    direction = np.array([0.0, 0.0, -50.0, 0.0, 0.0, 0.0])
+    cap = wm.force_capability(sprung, poses, direction)
+    limit = wm.actuator_force_bounds(sprung)
+    for k, pose in enumerate(poses):
+        assert cap.ok[k]
+        tau0 = sprung.static_forces(pose, bounded=False)
+        tau1 = sprung.static_forces(pose, direction, bounded=False) - tau0
+        assert np.max(np.abs(tau0 - stewart.static_forces(pose, bounded=False))) > 1e-3
+        np.testing.assert_allclose(cap.base_forces[k], tau0, atol=1e-9)
+        np.testing.assert_allclose(cap.unit_forces[k], tau1, atol=1e-9)
+        assert cap.scale[k] == pytest.approx(linprog_scale(tau0, tau1, limit), rel=1e-7)
+
+
+def test_friction_at_rest_shrinks_the_guaranteed_capability(stewart, maps):
+    poses = _stewart_poses(stewart, maps)
+    act = stewart.model.actuated_joints
+    coulomb = np.linspace(2.0, 7.0, len(act))
+    rubbing = stewart.with_effects(coulomb=dict(zip(act, coulomb)))
+    direction = np.array([0.0, 0.0, -50.0, 0.0, 0.0, 0.0])
+    limit = wm.actuator_force_bounds(rubbing)
+    plain = wm.force_capability(stewart, poses, direction)
+    sure = wm.force_capability(rubbing, poses, direction)
+    helped = wm.force_capability(rubbing, poses, direction, friction="helping")
+    for k, pose in enumerate(poses):
+        tau0 = stewart.static_forces(pose, bounded=False)
+        tau1 = stewart.static_forces(pose, direction, bounded=False) - tau0
+        # friction on the actuated joints: the band is static +- coulomb (closed form)
+        np.testing.assert_allclose(sure.band_below[k], coulomb, atol=1e-9)
+        np.testing.assert_allclose(sure.band_above[k], coulomb, atol=1e-9)
+        assert sure.scale[k] == pytest.approx(linprog_scale(tau0, tau1, limit - coulomb),
+                                              rel=1e-7)
+        assert helped.scale[k] == pytest.approx(linprog_scale(tau0, tau1, limit + coulomb),
+                                                rel=1e-7)
+        assert sure.scale[k] < plain.scale[k] < helped.scale[k]
+    with pytest.raises(InputError):
+        wm.force_capability(rubbing, poses, direction, friction="sometimes")
+
+
+def test_guaranteed_capability_with_passive_friction_puts_the_band_on_the_bound(stewart,
+                                                                                maps):
+    poses = _stewart_poses(stewart, maps)[:3]
+    rubbing = stewart.with_effects(coulomb={"u_0_a": 3.0, "u_2_b": 2.0, "u_4_a": 1.5,
+                                            stewart.model.actuated_joints[1]: 2.5})
+    direction = np.array([0.0, 0.0, -50.0, 0.0, 0.0, 0.0])
+    cap = wm.force_capability(rubbing, poses, direction)
+    limit = wm.actuator_force_bounds(rubbing)
+    for k, pose in enumerate(poses):
+        i, s = cap.limiting_actuator[k], cap.scale[k]
+        # the band at the loaded pose: the same half-widths, its edge on the bound
+        band = rubbing.holding_forces(pose, s * direction)
+        np.testing.assert_allclose(band.static - band.lower, cap.band_below[k], atol=1e-8)
+        np.testing.assert_allclose(band.upper - band.static, cap.band_above[k], atol=1e-8)
+        assert np.all(band.upper <= limit * (1 + 1e-9)) and np.all(band.lower >= -limit *
+                                                                    (1 + 1e-9))
+        assert max(band.upper[i] - limit[i], -limit[i] - band.lower[i]) == \
+            pytest.approx(0.0, abs=1e-7 * limit[i])
+
+
+def test_the_hexapods_compiled_capability_refuses_effects_it_does_not_model(hexapod):
+    poses = near_home_hexapod(hexapod, 4, seed=2)
+    direction = [0.0, 0.0, -1.0, 0.0, 0.0, 0.0]
+    for values in ({"coulomb": {"carriage_0": 1.0}}, {"stiffness": {"carriage_1": 50.0}},
+                   {"effort_limit": np.full(6, 40.0)}):
+        driven = hexapod.with_effects(**values)
+        with pytest.raises(InputError, match="workspace_maps"):
+            hexapod_workspace.force_capability(driven, poses, direction)
+        cap = wm.force_capability(driven, poses, direction)        # the generic maps
+        assert np.any(cap.ok) and np.all(np.isfinite(cap.scale))
+    rigid = wm.force_capability(hexapod, poses, direction)
+    compiled = hexapod_workspace.force_capability(hexapod, poses, direction)
+    np.testing.assert_allclose(rigid.scale, compiled.scale, rtol=1e-9)
