@@ -1,7 +1,7 @@
 """hexapod_pin: kinematics and dynamics of closed-loop mechanisms on Pinocchio and ProxSuite.
 
 The rail-driven 6-DoF hexapod is the first and best-supported robot; any closed-loop
-robot described as a URDF + loops file, an SDF or an example-parallel-robots folder gets
+robot described as a URDF + loops file, an SDF, an MJCF or an example-parallel-robots folder gets
 the same API with no code of its own (:class:`~hexapod_pin.core.robot.ClosedLoopRobot`):
 
 ```python
@@ -47,6 +47,7 @@ from .hexapod.robot import Hexapod
 from .hexapod import compiled_backend  # noqa: F401  (registers simulate's backend="compiled")
 from .loaders import robots
 from .loaders.any_robot import load_robot
+from .loaders.mjcf import load_mjcf
 from .loaders.parallel_robots import load_parallel_robot
 from .planar.assembly_modes import AssemblyPolynomial
 from .planar.geometry import PlanarGeometry
@@ -58,7 +59,7 @@ __all__ = [
     # robots
     "Hexapod", "HexapodGeometry", "ChainGeometry", "LegMotion", "Planar3PRR", "PlanarGeometry",
     "AssemblyPolynomial", "ParallelRobot", "load_parallel_robot", "robots",
-    "ClosedLoopRobot", "RobotSpec", "load_robot",
+    "ClosedLoopRobot", "RobotSpec", "load_robot", "load_mjcf",
     # the generic core
     "ClosedLoopModel", "AssemblyResult", "RankInfo", "ClosureSpec", "LoopsSpec",
     "expand_xacro", "load_loops", "parse_loops", "urdf_dir",

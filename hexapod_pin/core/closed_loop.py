@@ -349,6 +349,14 @@ class ClosedLoopModel:
         """Pinocchio's neutral configuration of the tree (closures not satisfied)."""
         return pin.neutral(self.model)
 
+    @property
+    def reference_configurations(self) -> dict[str, np.ndarray]:
+        """The tree's named configurations, name -> (nq,) copies: Pinocchio's
+        ``model.referenceConfigurations`` (an SRDF's; an MJCF's ``qpos0``, keyframes and
+        ``home``, :mod:`hexapod_pin.loaders.mjcf`); empty when the tree has none."""
+        return {entry.key(): np.array(entry.data(), dtype=float)
+                for entry in self.model.referenceConfigurations}
+
     # -- input checks -------------------------------------------------------------
     def check_q(self, q: npt.ArrayLike, name: str = "q") -> np.ndarray:
         """``q`` as a contiguous float64 array of size ``nq``; raises InputError."""

@@ -1,4 +1,4 @@
 """Robots and description formats from elsewhere: example-parallel-robots folders, SDF,
-example-robot-data's Solo-12 and Cassie, each loaded as a
+MJCF (compiled by MuJoCo), example-robot-data's Solo-12 and Cassie, each loaded as a
 :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`.
 """

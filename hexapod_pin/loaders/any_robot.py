@@ -26,6 +26,7 @@ from ..core.closed_loop import ClosedLoopModel
 from ..core.description import RobotSection, load_loops
 from ..core.robot import ClosedLoopRobot
 from ..errors import ArgumentTypeError, DescriptionError
+from .mjcf import read_mjcf, robot_section
 from .parallel_robots import load_parallel_robot
 from .sdf import closed_loop_from_sdf, load_sdf
 
@@ -67,8 +68,11 @@ def _folder(path: Path, actuated: tuple[str, ...]
 
 
 def _mjcf(path: Path, actuated: tuple[str, ...]) -> tuple[ClosedLoopModel, RobotSection | None]:
-    raise DescriptionError(str(path), "MJCF descriptions cannot be read yet (export to "
-                           "MuJoCo works: hexapod_pin.core.mujoco_export)")
+    if actuated:
+        raise DescriptionError(str(path), "an MJCF names its actuated joints (<actuator>); "
+                               "actuated= is for SDF files", "actuated")
+    result = read_mjcf(path)
+    return result.model, robot_section(result)
 
 
 #: description kinds -> (test on the path, loader returning the model and robot section)
@@ -87,8 +91,10 @@ def load_model(path: str | os.PathLike[str], actuated: tuple[str, ...] = ()
     """The :class:`ClosedLoopModel` of a description and its ``robot:`` section (or None).
 
     Args:
-        path: a URDF / xacro with ``<name>.loops.yaml`` beside it, an SDF, or a folder
-            (example-parallel-robots format, or one URDF with its loops file).
+        path: a URDF / xacro with ``<name>.loops.yaml`` beside it, an SDF, an MJCF
+            (``.xml``, :func:`~hexapod_pin.loaders.mjcf.read_mjcf`; its ``home`` is the
+            robot's default home), or a folder (example-parallel-robots format, or one
+            URDF with its loops file).
         actuated: the actuated joints of an SDF (the other formats name them).
 
     Raises:
@@ -104,7 +110,7 @@ def load_model(path: str | os.PathLike[str], actuated: tuple[str, ...] = ()
         if test(path):
             return loader(path, tuple(actuated))
     raise DescriptionError(str(path), "unknown description format (expected a folder, "
-                           ".urdf, .xacro, .sdf)")
+                           ".urdf, .xacro, .sdf, .xml)")
 
 
 def load_robot(path: str | os.PathLike[str], platform: str | None = None,
