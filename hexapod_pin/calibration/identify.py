@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import OptimizeResult, least_squares
 
+from ..core.checks import as_array, count
 from ..errors import InputError, SolverError
 from ..hexapod.robot import Hexapod
 from . import identifiability as ident
@@ -80,7 +81,10 @@ def calibrate(robot: Hexapod, poses: npt.ArrayLike | None = None, actuators: npt
         :class:`CalibrationResult`.
 
     Raises:
-        InputError: not a Hexapod, malformed measurements or options.
+        InputError: not a Hexapod, malformed measurements or options (``instrument`` and
+            ``target`` 6 finite numbers or None, ``identify`` group names, ``max_nfev`` an
+            integer >= 1, ``rcond`` a float in (0, 1), ``method`` "lm" or "trf"), each
+            naming the argument.
         IdentifiabilityError: the measurements do not determine the base parameter set.
         SolverError: the least squares stops without converging (or see :func:`solve`).
         AssemblyError: (points) a forward kinematics fails on the current estimate.
@@ -93,6 +97,10 @@ def calibrate(robot: Hexapod, poses: npt.ArrayLike | None = None, actuators: npt
         raise InputError("method", method, "expected 'lm' or 'trf'")
     if not (isinstance(rcond, float) and 0.0 < rcond < 1.0):
         raise InputError("rcond", rcond, "expected a float in (0, 1)")
+    max_nfev = count(max_nfev, "max_nfev", minimum=1)
+    instrument = None if instrument is None else as_array(instrument, (6,), "instrument")
+    target = None if target is None else as_array(target, (6,), "target")
+    parameter_indices(identify)               # the groups checked before any computation
     data = Measurements.checked(actuators, poses, points, target_points)
     if instrument is None:
         instrument = register_instrument(robot, data, target)

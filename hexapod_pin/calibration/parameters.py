@@ -97,10 +97,14 @@ def parameter_indices(identify: Sequence[str] | str) -> np.ndarray:
             groups); a single string is one group.
 
     Raises:
-        InputError: an unknown group name, or no group at all.
+        InputError: not a name or a list / tuple of names (None, a number), an unknown
+            group name (with the closest known one), or no group at all.
     """
     if isinstance(identify, str):
         identify = (identify,)
+    if not isinstance(identify, (list, tuple)) or not all(isinstance(i, str) for i in identify):
+        raise InputError("identify", identify, "expected a parameter group name or a list of "
+                                               f"them (chains, {', '.join(GROUPS)})")
     wanted: set[str] = set()
     for item in identify:
         if item == "chains":

@@ -29,9 +29,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..core.checks import as_array
+from ..core.checks import as_array, count
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
-from ..errors import InputError
+from ..errors import IdentifiabilityError, InputError
 from ..hexapod.robot import Hexapod
 from .identifiability import RCOND
 from .identify import base_set
@@ -86,11 +86,16 @@ def candidate_blocks(robot: Hexapod, candidates: np.ndarray,
                      target_points: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Scaled Jacobian blocks of the base set at each candidate, (C, r, n), and the mask
     (len(candidates),) of the candidates kept (reachable, within the strokes)."""
+    if not isinstance(robot, Hexapod):
+        raise InputError("robot", type(robot).__name__, "expected a Hexapod")
     params = ParameterModel(robot.geometry.chain_geometry, instrument, target)
     columns = parameter_indices(identify)
     kind = "poses" if target_points is None else "points"
     tp = None if target_points is None else as_array(target_points, (3,), "target_points",
                                                      batch=True)
+    if tp is not None and not 1 <= len(tp) <= 3:      # as calibrate takes them
+        raise InputError("target_points", target_points, f"one to three points (M, 3), got "
+                                                         f"{len(tp)}")
     base, _ = base_set(robot, params, columns, kind, tp, RCOND)
     batch = robot.inverse_kinematics_batch(candidates)
     world, q = candidates[batch.ok], batch.actuator_positions[batch.ok]
@@ -143,17 +148,23 @@ def select_poses(robot: Hexapod, candidates: npt.ArrayLike, n: int, *, criterion
         :class:`PoseSelection`.
 
     Raises:
-        InputError: unknown criterion or method, malformed candidates, or ``n`` not in
-            ``[1, number of usable candidates]``.
+        InputError: unknown criterion or method, malformed candidates, ``n`` not an
+            integer in ``[1, number of usable candidates]``, ``target_points`` not one to
+            three points (as :func:`~hexapod_pin.calibration.identify.calibrate` takes
+            them), or options as in :func:`~hexapod_pin.calibration.identify.calibrate`.
+        IdentifiabilityError: the chosen poses do not determine the parameters (their
+            information matrix is singular: too few poses for the parameters asked for).
     """
-    if criterion not in CRITERIA:
+    if not isinstance(criterion, str) or criterion not in CRITERIA:
         raise InputError("criterion", criterion, f"expected one of {CRITERIA}")
-    if method not in METHODS:
+    if not isinstance(method, str) or method not in METHODS:
         raise InputError("method", method, f"expected one of {METHODS}")
+    n = count(n, "n", minimum=1)
+    max_rounds = count(max_rounds, "max_rounds", minimum=1)
     candidates = as_array(candidates, (6,), "candidates", batch=True)
     blocks, ok = candidate_blocks(robot, candidates, identify, instrument, target, target_points)
     kept = np.flatnonzero(ok)
-    if not (isinstance(n, (int, np.integer)) and 1 <= n <= kept.size):
+    if not n <= kept.size:
         raise InputError("n", n, f"expected an integer in [1, {kept.size}] (usable candidates)")
     flat = blocks.reshape(-1, blocks.shape[2])
     normal = flat.T @ flat
@@ -187,6 +198,11 @@ def select_poses(robot: Hexapod, candidates: npt.ArrayLike, n: int, *, criterion
             if not improved:
                 break
     o1, log_det = observability(blocks[chosen])
+    if not np.isfinite(log_det):
+        rank = int(np.linalg.matrix_rank(blocks[chosen].reshape(-1, blocks.shape[2])))
+        raise IdentifiabilityError(f"the {n} chosen poses do not determine the parameters "
+                                   f"(log det of their information matrix {log_det})",
+                                   blocks.shape[2], rank)
     indices = kept[np.array(chosen)]
     return PoseSelection(indices, candidates[indices], criterion,
                          o1 if criterion == "O1" else log_det, o1, log_det, swaps)

@@ -663,13 +663,21 @@ class ClosedLoopModel:
         Args:
             q: an assembled configuration (nq,).
             frame: frame name or id.
-            reference: ``pin.ReferenceFrame`` of the result.
+            reference: ``pin.ReferenceFrame`` of the result, or its name (``"LOCAL"``,
+                ``"WORLD"``, ``"LOCAL_WORLD_ALIGNED"``).
             method: see :meth:`actuated_velocity_map`.
 
         Raises:
-            InputError: unknown frame.
+            InputError: unknown frame, or a ``reference`` that is neither.
             InconsistentMotionError: see :meth:`actuated_velocity_map`.
         """
+        frames = {"LOCAL": pin.ReferenceFrame.LOCAL, "WORLD": pin.ReferenceFrame.WORLD,
+                  "LOCAL_WORLD_ALIGNED": pin.ReferenceFrame.LOCAL_WORLD_ALIGNED}
+        if isinstance(reference, str) and reference in frames:
+            reference = frames[reference]
+        elif not isinstance(reference, pin.ReferenceFrame):
+            raise InputError("reference", reference, f"expected a pin.ReferenceFrame or one "
+                                                     f"of {list(frames)}")
         fid = self.frame_id(frame)
         gmap = self.actuated_velocity_map(q, method)
         # constraint_jacobian left the joint Jacobians of q in self.data

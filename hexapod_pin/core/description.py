@@ -31,6 +31,7 @@ Nothing here is specific to the hexapod.
 
 from __future__ import annotations
 
+import difflib
 import functools
 import hashlib
 import importlib.metadata
@@ -41,6 +42,7 @@ import re
 import sys
 import threading
 import warnings
+import xml.parsers.expat
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -292,8 +294,13 @@ MAX_COORDINATE = 1e6
 def validate_urdf(urdf_xml: str, source: str = "<urdf>") -> None:
     """Parse URDF text strictly (``yourdfpy``) and check its physics before Pinocchio loads it.
 
-    Pinocchio's parser only warns about (and then drops) a malformed inertial, and accepts
-    non-physical values; this check refuses them. Every link's inertial: mass finite and
+    First a strict pre-parse with line numbers (:func:`_check_urdf_elements`: unknown
+    joint types, parent / child links that do not exist, misspelt or unknown attributes
+    and elements, missing required attributes), so that a typo names its element,
+    attribute and line instead of Pinocchio's "does not contain a valid URDF model" (whose
+    cause goes to C++ stderr). Pinocchio's parser only warns about (and then drops) a
+    malformed inertial, and accepts non-physical values; this check refuses them. Every
+    link's inertial: mass finite and
     ``>= 0`` (a zero mass only with a zero inertia: a massless link); inertia tensor
     finite, symmetric positive semi-definite and satisfying the triangle inequality of
     its principal moments (``I1 + I2 >= I3``), to ``INERTIA_RTOL`` relative to its
@@ -375,6 +382,7 @@ def _validator_stamp() -> str:
 
 def _validate_urdf(urdf_xml: str, source: str) -> None:
     """:func:`validate_urdf` without its memo."""
+    _check_urdf_elements(urdf_xml, source)
     try:
         # non-finite numbers are reported below; the parser's own arithmetic on them
         # (trimesh's transforms) must not warn
@@ -393,6 +401,194 @@ def _validate_urdf(urdf_xml: str, source: str) -> None:
     for joint in robot.joints:
         _check_joint(joint, source)
         _check_dynamics(joint, urdf_xml, source)
+
+
+#: the URDF elements read here: attributes (a trailing ``*``: required) and children. An
+#: element of another namespace (``xacro:``, ``gazebo:``) and its content are not checked;
+#: neither is an unknown attribute or child of an element outside :data:`_URDF_STRICT`
+#: unless it is a near miss of a known name (a misspelling: ``limit effrot``), for real
+#: URDFs carry extensions (``<link><self_filter>``, ``<dynamics D K>``, ``<gazebo>``).
+_URDF_ELEMENTS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "robot": (("name*", "version"), ("link", "joint", "material")),
+    "link": (("name*",), ("inertial", "visual", "collision")),
+    "inertial": ((), ("origin", "mass", "inertia")),
+    "origin": (("xyz", "rpy"), ()),
+    "mass": (("value*",), ()),
+    "inertia": (("ixx*", "ixy*", "ixz*", "iyy*", "iyz*", "izz*"), ()),
+    "visual": (("name",), ("origin", "geometry", "material")),
+    "collision": (("name",), ("origin", "geometry")),
+    "geometry": ((), ("box", "cylinder", "sphere", "mesh", "capsule")),
+    "box": (("size*",), ()),
+    "cylinder": (("radius*", "length*"), ()),
+    "capsule": (("radius*", "length*"), ()),
+    "sphere": (("radius*",), ()),
+    "mesh": (("filename*", "scale"), ()),
+    "material": (("name",), ("color", "texture")),
+    "color": (("rgba*",), ()),
+    "texture": (("filename",), ()),
+    "joint": (("name*", "type*"), ("origin", "parent", "child", "axis", "calibration",
+                                   "dynamics", "limit", "mimic", "safety_controller")),
+    "parent": (("link*",), ()),
+    "child": (("link*",), ()),
+    "axis": (("xyz",), ()),
+    "calibration": (("rising", "falling", "reference_position"), ()),
+    "dynamics": (("damping", "friction"), ()),
+    "limit": (("lower", "upper", "effort*", "velocity*"), ()),
+    "mimic": (("joint*", "multiplier", "offset"), ()),
+    "safety_controller": (("soft_lower_limit", "soft_upper_limit", "k_position",
+                           "k_velocity"), ()),
+}
+#: the elements of the inertial parameters and the kinematic tree: every unknown attribute
+#: or child refused
+_URDF_STRICT = frozenset({"inertial", "origin", "mass", "inertia", "axis", "parent", "child"})
+#: how close an unknown name must be to a known one to count as its misspelling
+#: (``difflib`` ratio, lengths within 2: one letter dropped or doubled in a name of 3
+#: letters or more; not ``gear_velocity`` for ``velocity``)
+_NEAR_MISS = 0.75
+#: the joint types of the URDF specification
+URDF_JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+
+
+class _UrdfElement:
+    """One element of a URDF as the strict pre-parse sees it: tag, attributes, line,
+    children."""
+
+    def __init__(self, tag: str, attributes: dict[str, str], line: int,
+                 parent: _UrdfElement | None = None) -> None:
+        self.tag, self.attributes, self.line = tag, attributes, line
+        self.children: list[_UrdfElement] = []
+        name = attributes.get("name")
+        here = tag if name is None else f"{tag} {name}"
+        #: the element and its ancestors below <robot>: ``link rocker/inertial/inertia``
+        self.path: str = here if parent is None or parent.tag in ("", "robot") \
+            else f"{parent.path}/{here}"
+
+    def culprit(self) -> str:
+        """``<path> (line n)``, e.g. ``joint rocker (line 84)`` or
+        ``link rocker/inertial/inertia (line 95)``."""
+        return f"{self.path} (line {self.line})"
+
+
+def _urdf_tree(urdf_xml: str, source: str) -> _UrdfElement:
+    """The element tree of URDF text, with line numbers (standard library ``expat``).
+
+    Raises:
+        DescriptionError: not well-formed XML (the line and column of the fault).
+    """
+    parser = xml.parsers.expat.ParserCreate()
+    stack: list[_UrdfElement] = [_UrdfElement("", {}, 0)]
+
+    def start(tag: str, attributes: dict[str, str]) -> None:
+        element = _UrdfElement(tag, attributes, parser.CurrentLineNumber, stack[-1])
+        stack[-1].children.append(element)
+        stack.append(element)
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = lambda tag: stack.pop()
+    try:
+        parser.Parse(urdf_xml, True)
+    except xml.parsers.expat.ExpatError as exc:
+        raise DescriptionError(source, f"malformed XML: {exc}",
+                               f"line {exc.lineno}, column {exc.offset}") from None
+    roots = stack[0].children
+    if len(roots) != 1 or roots[0].tag != "robot":
+        raise DescriptionError(source, "a URDF holds one <robot> element, got "
+                                       f"{[r.tag for r in roots]}")
+    return roots[0]
+
+
+def _suggest(word: str, known: Any, cutoff: float = 0.6) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``known`` (``difflib`` ratio at least
+    ``cutoff``), or ""."""
+    close = difflib.get_close_matches(word, list(known), n=1, cutoff=cutoff)
+    if cutoff >= _NEAR_MISS:               # a misspelling, not a longer extension name
+        close = [c for c in close if abs(len(c) - len(word)) <= 2]
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def _check_element(element: _UrdfElement, source: str) -> None:
+    """Attributes and children of one element of :data:`_URDF_ELEMENTS`, recursively."""
+    declared, children = _URDF_ELEMENTS[element.tag]
+    allowed = {a.rstrip("*") for a in declared}
+    strict = element.tag in _URDF_STRICT
+    for attribute, value in element.attributes.items():
+        if ":" in attribute or attribute in allowed or not (
+                strict or _suggest(attribute, allowed, _NEAR_MISS)):
+            continue
+        raise DescriptionError(source, f"unknown attribute {attribute}={value!r} of "
+                                       f"<{element.tag}>{_suggest(attribute, allowed)}; "
+                                       f"expected {sorted(allowed) or 'none'}",
+                               element.culprit())
+    for attribute in declared:
+        if attribute.endswith("*") and attribute[:-1] not in element.attributes:
+            raise DescriptionError(source, f"<{element.tag}> needs the attribute "
+                                           f"{attribute[:-1]!r}", element.culprit())
+    for child in element.children:
+        if ":" in child.tag:
+            continue
+        if child.tag in children:
+            _check_element(child, source)
+        elif strict or _suggest(child.tag, children, _NEAR_MISS):
+            raise DescriptionError(source, f"unknown element <{child.tag}> in <{element.tag}>"
+                                           f"{_suggest(child.tag, children)}; expected one of "
+                                           f"{list(children) or 'none'}", child.culprit())
+
+
+def _check_urdf_elements(urdf_xml: str, source: str) -> None:
+    """The strict pre-parse of :func:`validate_urdf`: well-formed XML; every element this
+    library reads with known attributes only and its required ones; joint types of the
+    URDF specification, a ``<limit>`` on revolute and prismatic joints, damping or friction
+    in a ``<dynamics>``; link and joint names unique; each joint's parent and child links defined,
+    a link the child of one joint at most. Line numbers are those of ``urdf_xml`` (of the
+    expanded text for a xacro).
+
+    Raises:
+        DescriptionError: naming the element (``joint rocker (line 84)``), the attribute
+            and its value.
+    """
+    robot = _urdf_tree(urdf_xml, source)
+    _check_element(robot, source)
+    links: dict[str, _UrdfElement] = {}
+    for link in (e for e in robot.children if e.tag == "link"):
+        name = link.attributes["name"]
+        if name in links:
+            raise DescriptionError(source, f"link name {name!r} already used at line "
+                                           f"{links[name].line}", link.culprit())
+        links[name] = link
+    parents: dict[str, _UrdfElement] = {}
+    joints: dict[str, _UrdfElement] = {}
+    for joint in (e for e in robot.children if e.tag == "joint"):
+        name, kind = joint.attributes["name"], joint.attributes["type"]
+        if name in joints:
+            raise DescriptionError(source, f"joint name {name!r} already used at line "
+                                           f"{joints[name].line}", joint.culprit())
+        joints[name] = joint
+        if kind not in URDF_JOINT_TYPES:
+            raise DescriptionError(source, f"attribute type={kind!r} is not a URDF joint type"
+                                           f"{_suggest(kind, URDF_JOINT_TYPES)}; expected one "
+                                           f"of {list(URDF_JOINT_TYPES)}", joint.culprit())
+        for role in ("parent", "child"):
+            found = [e for e in joint.children if e.tag == role]
+            if len(found) != 1:
+                raise DescriptionError(source, f"a joint needs exactly one <{role} link=...>, "
+                                               f"got {len(found)}", joint.culprit())
+            link = found[0].attributes["link"]
+            if link not in links:
+                raise DescriptionError(source, f"<{role} link={link!r}> names no link of the "
+                                               f"URDF{_suggest(link, links)}", joint.culprit())
+            if role == "child" and link in parents:
+                raise DescriptionError(source, f"link {link!r} is already the child of "
+                                               f"{parents[link].culprit()}", joint.culprit())
+            if role == "child":
+                parents[link] = joint
+        tags = [e.tag for e in joint.children]
+        if kind in ("revolute", "prismatic") and "limit" not in tags:
+            raise DescriptionError(source, f"a {kind} joint needs a <limit effort velocity>",
+                                   joint.culprit())
+        for dynamics in (e for e in joint.children if e.tag == "dynamics"):
+            if not {"damping", "friction"} & set(dynamics.attributes):
+                raise DescriptionError(source, "<dynamics> needs damping or friction",
+                                       dynamics.culprit())
 
 
 def _check_inertial(inertial, source: str, where: str) -> None:

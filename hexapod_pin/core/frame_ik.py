@@ -65,9 +65,10 @@ import pinocchio as pin
 import proxsuite
 
 from ..errors import AssemblyError, InputError, SolverError
-from .checks import as_array
+from .checks import as_array, count, flag, real_number
 from .closure_motion import RowBasis, row_basis
 from .compiled import jit
+from .description import MAX_COORDINATE
 
 IK_METHODS = ("qp", "lstsq")
 #: damping factor of the Levenberg-Marquardt term ``lambda = DAMPING |e|_W^2``
@@ -199,19 +200,24 @@ def frame_inverse_kinematics(clm: Any, frame: str, target: npt.ArrayLike,
         least-squares stationary point of the weighted task error).
 
     Raises:
-        InputError: unknown frame or joint, bad target shape, non-positive weight, bad
-            method or option.
+        InputError: a frame that is not a name or id (None), unknown frame or joint, bad
+            target shape, a target position beyond ``MAX_COORDINATE`` (1e6 m), non-positive
+            weight, bad method or option (``tol`` and ``closure_tol`` finite numbers > 0,
+            ``max_iter`` an integer >= 1, ``damping`` a finite number >= 0, ``limits`` and
+            ``position_only`` bools), each naming the argument.
         AssemblyError: the closures cannot be held from ``q0`` with ``fixed`` held (or,
             exceptionally, at the closest placement found).
         SolverError: ProxSuite failed on a step whose null-space fallback would cross a
             joint limit, or neither convergence nor a stationary point within
             ``max_iter`` steps.
     """
-    if method not in IK_METHODS:
+    if not isinstance(method, str) or method not in IK_METHODS:
         raise InputError("method", method, f"expected one of {IK_METHODS}")
-    if not (tol > 0 and closure_tol > 0 and max_iter >= 1 and damping >= 0):
-        raise InputError("options", (tol, closure_tol, max_iter, damping),
-                         "tol, closure_tol > 0, max_iter >= 1, damping >= 0 needed")
+    tol = real_number(tol, "tol", minimum=0.0)
+    closure_tol = real_number(closure_tol, "closure_tol", minimum=0.0)
+    max_iter = count(max_iter, "max_iter", minimum=1)
+    damping = real_number(damping, "damping", minimum=0.0, strict=False)
+    limits = flag(limits, "limits")
     tasks = _tasks(clm, frame, target, position_only, weights)
     fixed_v = _fixed_indices(clm, fixed)
     q = clm.neutral() if q0 is None else clm.check_q(q0, "q0")
@@ -299,37 +305,72 @@ def frame_inverse_kinematics(clm: Any, frame: str, target: npt.ArrayLike,
 
 
 # ------------------------------------------------------------------------------ helpers
+def _within_reach(position: np.ndarray, target: Any) -> np.ndarray:
+    """``position`` (m), refused beyond ``MAX_COORDINATE`` (the bound of a description's
+    coordinates: no robot of the library reaches there, and the squared errors of such a
+    target overflow the least-squares steps).
+
+    Raises:
+        InputError: naming ``target``.
+    """
+    if np.max(np.abs(position)) > MAX_COORDINATE:
+        raise InputError("target", target, f"a position within {MAX_COORDINATE:g} m of the "
+                                           "world origin (no robot reaches beyond)")
+    return position
+
+
+def _is_frame(frame: Any) -> bool:
+    """A frame name or id (not a bool)."""
+    return isinstance(frame, (str, int, np.integer)) and not isinstance(frame, (bool, np.bool_))
+
+
 def _tasks(clm, frame, target, position_only, weights) -> list[FrameTask]:
-    several = not isinstance(frame, (str, int, np.integer))
+    several = not _is_frame(frame)
+    expected = "a frame name or id, or a non-empty list of them"
+    if several and not (isinstance(frame, (list, tuple)) and frame
+                        and all(_is_frame(f) for f in frame)):
+        raise InputError("frame", frame, expected)
     frames = list(frame) if several else [frame]
+    for fr in frames:
+        clm.frame_id(fr)                   # an unknown frame: InputError naming it
+    if several and not isinstance(target, (list, tuple, np.ndarray)):
+        raise InputError("target", target, f"expected {len(frames)} targets")
     targets = list(target) if several else [target]
     if len(targets) != len(frames):
         raise InputError("target", target, f"expected {len(frames)} targets")
-    flags = ([bool(position_only)] * len(frames) if np.ndim(position_only) == 0
-             else [bool(f) for f in position_only])
+    flags = ([flag(position_only, "position_only")] * len(frames)
+             if isinstance(position_only, (bool, np.bool_)) or np.ndim(position_only) == 0
+             else [flag(f, "position_only") for f in position_only])
     wlist = [1.0] * len(frames) if weights is None else (
         list(weights) if several else [weights])
     if len(flags) != len(frames) or len(wlist) != len(frames):
         raise InputError("position_only / weights", (position_only, weights),
                          f"expected one per frame ({len(frames)})")
     out = []
-    for fr, tgt, flag, w in zip(frames, targets, flags, wlist):
-        rows = 3 if flag else 6
-        w = (np.full(rows, float(w)) if isinstance(w, (int, float, np.floating))
-             else np.broadcast_to(np.asarray(w, dtype=float), (rows,)).copy())
+    for fr, tgt, only, w in zip(frames, targets, flags, wlist):
+        rows = 3 if only else 6
+        given = w
+        if isinstance(w, np.ndarray) and w.ndim == 0:
+            w = as_array(w, (), "weights")[()]
+        if isinstance(w, (int, float, np.integer, np.floating)) \
+                and not isinstance(w, (bool, np.bool_)):
+            w = np.full(rows, float(w))
+        else:                                   # one per task row, real numbers
+            w = as_array(w, (rows,), "weights").copy()
         if not np.all(np.isfinite(w) & (w > 0)):
-            raise InputError("weights", w, "weights must be finite and > 0")
-        out.append(FrameTask(clm.frame_id(fr), _placement(tgt, flag), flag, w))
+            raise InputError("weights", given, "weights must be finite and > 0")
+        out.append(FrameTask(clm.frame_id(fr), _placement(tgt, only), only, w))
     return out
 
 
 def _placement(target, position_only: bool) -> pin.SE3:
     if position_only:
-        return pin.SE3(np.eye(3), as_array(target, (3,), "target"))
+        return pin.SE3(np.eye(3), _within_reach(as_array(target, (3,), "target"), target))
     if isinstance(target, pin.SE3):
-        mat = target.homogeneous
+        mat = as_array(target.homogeneous, (4, 4), "target")
     else:
         mat = as_array(target, (4, 4), "target")
+    _within_reach(mat[:3, 3], target)
     rot = mat[:3, :3]
     # np.allclose's test (atol 1e-9, rtol 1e-5 for the orthonormality; defaults for the
     # last row), written out: allclose itself costs more than the rest of a step

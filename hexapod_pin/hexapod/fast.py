@@ -739,9 +739,8 @@ class FastStepper:
                  twist0: npt.ArrayLike | None = None, integrator: str = "semi_implicit_euler",
                  check_limits: bool = True,
                  friction_regularisation: float | None = None) -> None:
-        if not (np.isfinite(dt) and dt > 0):
-            raise InputError("dt", dt, "must be a positive number")
-        if integrator not in INTEGRATORS:
+        dt = real_number(dt, "dt", minimum=0.0)
+        if not isinstance(integrator, str) or integrator not in INTEGRATORS:
             raise InputError("integrator", integrator, f"expected one of {tuple(INTEGRATORS)}")
         self.robot, self.dt, self.integrator = robot, float(dt), integrator
         self.check_limits = bool(check_limits)

@@ -33,6 +33,7 @@ so that it is the same assembly mode as the drawing's home.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 from dataclasses import dataclass, field
 
@@ -470,7 +471,10 @@ class HexapodGeometry:
                 raise GeometryError(name, value, f"not a ChainGeometry field "
                                                  f"({', '.join(shapes)})")
             try:
-                delta = np.asarray(value, dtype=float)
+                raw = np.asarray(value)
+                if raw.dtype.kind not in "iuf":    # complex (its imaginary part), bool, text
+                    raise TypeError(raw.dtype)
+                delta = raw.astype(float)
             except (TypeError, ValueError):
                 raise GeometryError(name, value, "must be an array of real numbers") from None
             if delta.shape != shapes[name]:
@@ -556,7 +560,18 @@ class HexapodGeometry:
         return args
 
     def replace(self, **changes) -> "HexapodGeometry":
-        """A copy with some fields changed (validated again)."""
+        """A copy with some fields changed (validated again).
+
+        Raises:
+            GeometryError: a name that is not a field (with the closest one), or an
+                invalid value.
+        """
+        fields = [f.name for f in dataclasses.fields(self) if f.init]
+        for name, value in changes.items():
+            if name not in fields:
+                close = difflib.get_close_matches(name, fields, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                raise GeometryError(name, value, f"not a HexapodGeometry field{hint}")
         return dataclasses.replace(self, **changes)
 
 
