@@ -15,6 +15,14 @@ level (``robot.forward_dynamics_derivatives`` at the home pose: inverse kinemati
 the platform rows). "FD miss" is the max relative difference between the analytic and the
 central-difference derivatives (the smoke run exits 1 above 1e-5).
 
+A second table, per robot at its home pose (twist 0.05, held static forces): the
+inverse-dynamics derivatives as the robot answers them (the hexapod's and planar robot's
+closed forms, a loaded robot's core route) and by the core route
+(``platform_derivatives.inverse_dynamics_derivatives``, the implicit-function theorem on
+the forward-dynamics derivatives, the forces given); one simulation step of a fresh
+integrator ("rk4", "semi_implicit_euler", dt = 1 ms) and its analytic step Jacobians
+(``robot.step_jacobians``).
+
     python benchmarks/bench_derivatives.py            # the table (~1 min)
     python benchmarks/bench_derivatives.py --smoke    # what the tests run (seconds)
 """
@@ -32,6 +40,9 @@ import bench_common as bc
 import hexapod_pin as hp
 from hexapod_pin.core.dynamics import forward_dynamics_tree
 from hexapod_pin.core.dynamics_derivatives import forward_dynamics_derivatives_tree
+from hexapod_pin.core.platform_derivatives import (PlatformLinearization,
+                                                   inverse_dynamics_derivatives)
+from hexapod_pin.core.simulation import ClosedLoopIntegrator
 from hexapod_pin.loaders.robots import cassie
 
 DATA = Path(__file__).resolve().parents[1] / "tests" / "data"
@@ -140,7 +151,42 @@ def main() -> int:
                     "central differences", "pin constraint derivs", "robot level",
                     "FD miss"], rows,
                    title="Forward-dynamics derivatives, per call (µs)"))
+    print(bc.table(["robot", "ID derivs (robot)", "ID derivs (core)", "rk4 step",
+                    "rk4 step Jacobians", "Euler step", "Euler step Jacobians"],
+                   robot_rows(args.smoke, repeats),
+                   title="Inverse-dynamics derivatives and step Jacobians, per call (µs)"))
     return 0 if worst <= 1e-5 else 1
+
+
+def robot_rows(smoke: bool, repeats: int) -> list[list[str]]:
+    """The second table (module docstring)."""
+    rows = []
+    for name, robot, clm, _, _ in robots(smoke):
+        if robot is None:
+            continue
+        dim = robot.pose_layout.dim
+        pose, twist = robot.home_pose, np.full(dim, 0.05)
+        held = robot.static_forces(pose, bounded=False)
+        accel = np.full(dim, 0.1)
+        forces = robot.inverse_dynamics(pose, twist, accel, bounded=False).actuator_forces
+        own = bc.measure(lambda: robot.inverse_dynamics_derivatives(pose, twist, accel),
+                         repeats=repeats)
+        core = bc.measure(lambda: inverse_dynamics_derivatives(robot, pose, twist, accel,
+                                                               forces), repeats=repeats)
+        start = PlatformLinearization(robot, pose, twist, held, None, None)
+        q, vel = start.tree.q, start.tree.v
+        tau = np.zeros(clm.nv)
+        tau[clm.actuated_v] = held
+        cells = [name, bc.fmt_us(own), bc.fmt_us(core)]
+        for integrator in ("rk4", "semi_implicit_euler"):
+            def one_step(integrator=integrator):
+                ClosedLoopIntegrator(clm, integrator=integrator).step(q, vel, tau, 1e-3)
+            step = bc.measure(one_step, repeats=repeats)
+            jac = bc.measure(lambda integrator=integrator: robot.step_jacobians(
+                pose, twist, held, 1e-3, integrator=integrator), repeats=repeats)
+            cells += [bc.fmt_us(step), bc.fmt_us(jac)]
+        rows.append(cells)
+    return rows
 
 
 if __name__ == "__main__":

@@ -9,24 +9,26 @@ At a solution ``(a, lambda)`` a perturbation ``(dq, dv, du, dtau_ext)`` moves th
 ``(da, dlambda)`` solving ``M da - J_c^T dlambda = -(E_q dq + E_v dv) + S^T du + dtau_ext``,
 ``J_c da = -(C_q dq + C_v dv)``. The partials come from Pinocchio's tree derivatives:
 ``E_q``, ``E_v`` from one ``pin.computeRNEADerivatives`` call with the closure forces as
-external forces (plus the turning of a point closure's world-fixed force with its body,
-and the effects' ``-K dDifference(q_ref, q)/dq`` and ``-D``), ``C_q``, ``C_v`` from
-``pin.computeForwardKinematicsDerivatives`` and ``pin.getFrameAccelerationDerivatives`` of
-the closure anchor frames (a point closure's rows: the world-axes classical accelerations
-of its two anchor points; a weld's: their LOCAL spatial accelerations, which coincide with
-the ``Jlog6`` rows along the closures).
+external forces (plus the turning of a point closure's world-fixed force with its body
+and of a weld's force on its second anchor, and the effects' ``-d tau_s / dq`` and
+``-D``), ``C_q``, ``C_v`` from ``pin.computeForwardKinematicsDerivatives`` and
+``pin.getFrameAccelerationDerivatives`` of the closure anchor frames (a point closure's
+rows: the difference of the world-axes classical accelerations of its two anchor points; a
+weld's: the relative spatial acceleration ``a1 - Ad(M12) a2 + v1 x Ad(M12) v2``, LOCAL,
+Pinocchio's 6-D rows ``J_rel = J1 - Ad(M12) J2``, which the library's ``Jlog6(M21)`` rows
+multiply; its multipliers become ``Jlog6^T lambda``, the same on the closures).
 
-Tangent directions (the derivative exists only along the closures): ``q`` moves along
-``dq`` in ``null(J_c)`` (``pin.integrate``), and ``v`` is carried along by its Euclidean
-projection onto the closures, ``v(q) = Pi(q) v`` with ``Pi = I - J_c^+ J_c``, so that
-``dv = -J_c^+ (d(J_c v)/dq) dq``. The extension used off the state manifold (the rows
-above) agrees with the library's dynamics on it, so every derivative along a tangent
+These rows are those of the library's dynamics at every state, on the closures or not (an
+integrator's stage states), so the partials hold in every direction. Along the closures,
+``q`` moves along ``dq`` in ``null(J_c)`` (``pin.integrate``), and ``v`` is carried along
+by its Euclidean projection onto the closures, ``v(q) = Pi(q) v`` with ``Pi = I - J_c^+
+J_c``, so that ``dv = -J_c^+ (d(J_c v)/dq) dq``: every derivative along such a tangent
 direction is that of the library's verified forward dynamics. The multipliers' derivatives
 are those of the minimum-norm multipliers (the library's, unique or not).
 
 Coulomb friction: the force of a sliding coordinate is constant (zero derivative); a
 coordinate at rest makes the dynamics non-smooth (stick / slip) and is refused. The
-derivation and the tests that check it: ``docs/dynamics_derivatives.md``.
+derivation and the tests that check it: ``docs/derivations.md`` (section 8).
 """
 
 from __future__ import annotations
@@ -91,30 +93,28 @@ def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int], v: np.n
     ``x_w = R x`` and ``d x_w / dq = R (dx/dq - [x]_x J_ang)``, after adding ``w x v`` to
     the linear acceleration (classical)."""
     n = len(frames)
-    parts = [pin.getFrameAccelerationDerivatives(model, data, f, _LOCAL) for f in frames]
-    v_dq, a_dq, a_dv, jac = (np.array([p[k] for p in parts]).reshape(n, 6, model.nv)
-                             for k in range(4))
+    parts = np.array([pin.getFrameAccelerationDerivatives(model, data, f, _LOCAL)
+                      for f in frames]).reshape(n, 4, 6, model.nv)
+    v_dq, a_dq, a_dv, jac = parts[:, 0], parts[:, 1], parts[:, 2], parts[:, 3]
     vel = jac @ v
     acc = jac @ a + 0.5 * (a_dv @ v)
     if not world.any():
         return FrameRates(acc, a_dq, a_dv, jac, vel, v_dq)
-    w = np.flatnonzero(world)
+    w: slice | np.ndarray = slice(None) if world.all() else np.flatnonzero(world)
+    ids = frames if isinstance(w, slice) else [frames[int(k)] for k in w]
     lin, ang = skew(vel[w, :3]), skew(vel[w, 3:])
-    acc[w, :3] += np.cross(vel[w, 3:], vel[w, :3])
-    a_dq[w, :3] += ang @ v_dq[w, :3] - lin @ v_dq[w, 3:]
-    a_dv[w, :3] += ang @ jac[w, :3] - lin @ jac[w, 3:]
+    acc[w, :3] += (ang @ vel[w, :3, None])[..., 0]                   # + w x v
     jang = jac[w, 3:]
-    a_dq[w, :3] -= skew(acc[w, :3]) @ jang
+    a_dq[w, :3] += ang @ v_dq[w, :3] - lin @ v_dq[w, 3:] + skew(-acc[w, :3]) @ jang
     a_dq[w, 3:] -= skew(acc[w, 3:]) @ jang
+    a_dv[w, :3] += ang @ jac[w, :3] - lin @ jac[w, 3:]
     v_dq[w, :3] -= lin @ jang
     v_dq[w, 3:] -= ang @ jang
-    rot = np.array([data.oMf[frames[int(k)]].rotation for k in w]).reshape(w.size, 3, 3)
+    rot = np.array([data.oMf[f].rotation for f in ids]).reshape(-1, 1, 3, 3)
     for arr in (a_dq, a_dv, jac, v_dq):
-        arr[w, :3] = rot @ arr[w, :3]
-        arr[w, 3:] = rot @ arr[w, 3:]
+        arr[w] = (rot @ arr[w].reshape(-1, 2, 3, model.nv)).reshape(-1, 6, model.nv)
     for arr in (acc, vel):
-        arr[w, :3] = np.einsum("kij,kj->ki", rot, arr[w, :3])
-        arr[w, 3:] = np.einsum("kij,kj->ki", rot, arr[w, 3:])
+        arr[w] = (rot @ arr[w].reshape(-1, 2, 3, 1)).reshape(-1, 6)
     return FrameRates(acc, a_dq, a_dv, jac, vel, v_dq)
 
 
@@ -142,7 +142,52 @@ def closure_rates(clm: ClosedLoopModel, data: pin.Data, v: np.ndarray,
     for field in (rates.acc_q, rates.acc_v, rates.jac, rates.vel_q):
         flat = field.reshape(-1, nv)
         out.append(flat[lay.rows1] - flat[lay.rows2])
+    for k, c in lay.welds:
+        _weld_rows(rates, 2 * k, relative_action(data, c.frame1, c.frame2),
+                   [arr[c.rows] for arr in out])
     return ClosureRates(out[0], out[1], out[2], out[3], rates)
+
+
+def motion_cross(m: np.ndarray) -> np.ndarray:
+    """``ad(m)`` (6, 6): ``m x y`` for spatial motions ``(v, w)``: ``(w x y_v + v x y_w,
+    w x y_w)``."""
+    out = np.zeros((6, 6))
+    out[:3, :3] = out[3:, 3:] = skew(m[3:])
+    out[:3, 3:] = skew(m[:3])
+    return out
+
+
+def force_cross(f: np.ndarray) -> np.ndarray:
+    """``B(f)`` (6, 6) with ``xi x* f = B(f) xi`` for a spatial force ``f = (force,
+    moment)`` and motions ``xi = (v, w)``: ``(w x force, v x force + w x moment)``."""
+    out = np.zeros((6, 6))
+    out[:3, 3:] = out[3:, :3] = -skew(f[:3])
+    out[3:, 3:] = -skew(f[3:])
+    return out
+
+
+def relative_action(data: pin.Data, frame1: int, frame2: int) -> np.ndarray:
+    """``Ad(M12)`` (6, 6), ``M12 = oM1^-1 oM2``: frame-2 motions in frame-1 axes."""
+    return np.asarray(data.oMf[frame1].actInv(data.oMf[frame2]).action)
+
+
+def _weld_rows(rates: FrameRates, i1: int, ad12: np.ndarray, out: list[np.ndarray]) -> None:
+    """A weld's rows of :class:`ClosureRates` in every direction (in place into ``out``:
+    the views ``acc_q, acc_v, jac, vel_q`` of its rows): the relative acceleration
+    ``C = a1 - Ad a2 + v1 x (Ad v2)`` and ``J v = v1 - Ad v2`` (LOCAL, ``Ad = Ad(M12)``,
+    Pinocchio's 6-D constraint; the library's rows are ``Jlog6(M21)`` times these), with
+    ``d(Ad x) = (Ad x) x J_rel dq``, ``J_rel = J1 - Ad J2``."""
+    i2 = i1 + 1
+    v1, a2, v2 = rates.vel[i1], rates.acc[i2], rates.vel[i2]
+    j1, j2 = rates.jac[i1], rates.jac[i2]
+    jrel = j1 - ad12 @ j2
+    ad_v1, ad_v2 = motion_cross(v1), motion_cross(ad12 @ v2)
+    acc_q, acc_v, jac, vel_q = out
+    acc_q[:] = (rates.acc_q[i1] - ad12 @ rates.acc_q[i2] - motion_cross(ad12 @ a2) @ jrel
+                - ad_v2 @ rates.vel_q[i1] + ad_v1 @ (ad12 @ rates.vel_q[i2] + ad_v2 @ jrel))
+    acc_v[:] = rates.acc_v[i1] - ad12 @ rates.acc_v[i2] - ad_v2 @ j1 + ad_v1 @ ad12 @ j2
+    jac[:] = jrel
+    vel_q[:] = rates.vel_q[i1] - ad12 @ rates.vel_q[i2] - ad_v2 @ jrel
 
 
 class Layout:
@@ -159,6 +204,7 @@ class Layout:
         placement_rot: (2 n, 3, 3) each anchor's rotation in its joint.
         placement_pos: (2 n, 3) each anchor's position in its joint.
         points: (n,) whether each closure is a point.
+        welds: ``(index, ClosureFrames)`` of each weld.
     """
 
     def __init__(self, clm: ClosedLoopModel) -> None:
@@ -167,6 +213,8 @@ class Layout:
         cf = clm.closure_frames
         self.anchors = [f for c in cf for f in (c.frame1, c.frame2)]
         self.points = np.array([c.is_point for c in cf], dtype=bool)
+        #: (index, ClosureFrames) of the welds
+        self.welds = [(k, c) for k, c in enumerate(cf) if not c.is_point]
         self.world = np.repeat(self.points, 2)
         rows1, rows2 = [], []
         for k, c in enumerate(cf):
@@ -182,13 +230,15 @@ class Layout:
         for _ in range(model.njoints):
             self.fext.append(pin.Force.Zero())
         self._touched = [int(j) for j in np.unique(self.joints)]
+        self._extra: list[int] = []        # the joints only the last call's wrenches set
 
     def joint_forces(self, clm: ClosedLoopModel, multipliers: np.ndarray, data: pin.Data,
                      wrenches: Sequence[tuple[int, np.ndarray]] = ()) -> pin.StdVec_Force:
         """The closure forces and the frame ``wrenches`` as Pinocchio's external forces
         (joint LOCAL frames, one per joint): a point closure's ``lambda`` (world axes) at
         anchor 1 and ``-lambda`` at anchor 2; a weld's spatial force ``lambda`` (anchor-1
-        axes) on anchor 1 and its opposite on anchor 2 (the same frame on the closures);
+        axes, paired with its rows ``J_rel`` of :func:`_weld_rows`) on anchor 1 and
+        ``-Ad(M12)^T lambda`` (anchor-2 axes; ``-lambda`` on the closures) on anchor 2;
         each ``(frame, (f, m))``: force and moment (world axes, moment about the frame
         origin) on that frame. ``data``: frame placements."""
         n = len(self.anchors)
@@ -198,8 +248,9 @@ class Layout:
             if is_point:
                 local[2 * k, :3] = data.oMf[f1].rotation.T @ lam
                 local[2 * k + 1, :3] = -(data.oMf[f2].rotation.T @ lam)
-            else:
-                local[2 * k], local[2 * k + 1] = lam, -lam
+            else:       # mu on anchor 1, -Ad(M12)^T mu on anchor 2 (J_rel^T mu)
+                local[2 * k] = lam
+                local[2 * k + 1] = -(relative_action(data, f1, f2).T @ lam)
         force = np.einsum("kij,kj->ki", self.placement_rot, local[:, :3])
         moment = np.einsum("kij,kj->ki", self.placement_rot, local[:, 3:]) \
             + np.cross(self.placement_pos, force)
@@ -213,8 +264,9 @@ class Layout:
             per_joint[placement.parentJoint] += placement.placement.act(local).vector
             touched.append(placement.parentJoint)
         fext = self.fext
-        for j in touched:
+        for j in set(self._extra) | set(touched):   # last call's wrench joints cleared
             fext[j] = pin.Force(per_joint[j])
+        self._extra = touched[len(self._touched):]
         return fext
 
 
@@ -273,6 +325,80 @@ def spring_jacobian(model: pin.Model, effects: JointEffects, q: np.ndarray) -> n
     return out
 
 
+def point_force_turning(clm: ClosedLoopModel, multipliers: np.ndarray,
+                        anchor_jac: np.ndarray) -> np.ndarray | float:
+    """``d(J_c^T lambda)/dq`` beyond the forces held in the bodies' frames (what the RNEA
+    derivatives hold): a point closure's force is held in world axes, so in anchor ``i``'s
+    axes it turns, ``d(R^T lambda) = [R^T lambda]_x J_ang dq`` (LOCAL), i.e. ``+-
+    J_lin^T [lambda]_x J_ang`` with the anchors' world Jacobians ``anchor_jac`` (2
+    n_closures, 6, nv); 0 without point closures (a weld's force is held in anchor-1 =
+    anchor-2 axes)."""
+    points = layout_of(clm).points
+    if not points.any():
+        return 0.0
+    nv = clm.model.nv
+    lam = np.concatenate([multipliers[c.rows] for c, p in
+                          zip(clm.closure_frames, points) if p]).reshape(-1, 3)
+    turn = skew(lam)
+    j1, j2 = anchor_jac[0::2][points], anchor_jac[1::2][points]
+    return (j1[:, :3].reshape(-1, nv).T @ (turn @ j1[:, 3:]).reshape(-1, nv)
+            - j2[:, :3].reshape(-1, nv).T @ (turn @ j2[:, 3:]).reshape(-1, nv))
+
+
+def weld_force_turning(clm: ClosedLoopModel, data: pin.Data, multipliers: np.ndarray,
+                       anchor_jac: np.ndarray) -> np.ndarray | float:
+    """The welds' part of :func:`point_force_turning`: the force ``-Ad(M12)^T mu`` on
+    anchor 2 turns with ``M12``, ``d(Ad^T mu) = Ad^T (J_rel dq x* mu)``, i.e. ``-J2^T
+    Ad^T B(mu) J_rel`` (:func:`force_cross`; LOCAL anchor Jacobians ``anchor_jac``, zero
+    on the closures' tangent directions). ``data``: frame placements."""
+    out: np.ndarray | float = 0.0
+    for k, c in layout_of(clm).welds:
+        ad12 = relative_action(data, c.frame1, c.frame2)
+        j1, j2 = anchor_jac[2 * k], anchor_jac[2 * k + 1]
+        out = out - j2.T @ ad12.T @ force_cross(multipliers[c.rows]) @ (j1 - ad12 @ j2)
+    return out
+
+
+def weld_multipliers(clm: ClosedLoopModel, data: pin.Data,
+                     multipliers: np.ndarray) -> np.ndarray:
+    """The multipliers of the rows ``J_rel`` of :func:`_weld_rows`: a weld's ``mu =
+    Jlog6(M21)^T lambda`` for the library's ``lambda`` (of the ``Jlog6(M21) J_rel`` rows;
+    equal on the closures), the points' unchanged. ``data``: frame placements."""
+    lay = layout_of(clm)
+    if not lay.welds:
+        return multipliers
+    out = np.array(multipliers, dtype=float)
+    for _, c in lay.welds:
+        m21 = data.oMf[c.frame2].actInv(data.oMf[c.frame1])
+        out[c.rows] = pin.Jlog6(m21).T @ out[c.rows]
+    return out
+
+
+def closure_force_derivative(clm: ClosedLoopModel, data: pin.Data, q: np.ndarray,
+                             multipliers: np.ndarray) -> np.ndarray:
+    """``d(J_c^T y)/dq`` (nv, nv) at ``q`` for closure forces ``y`` (n_rows,) held (a
+    point's in world axes, as the multipliers): the generalised force of the closures
+    differentiated along ``pin.integrate``, from ``pin.computeRNEADerivatives`` at rest
+    with ``y`` as external forces (less the gravity's
+    ``pin.computeGeneralizedGravityDerivatives``), :func:`point_force_turning` and
+    :func:`weld_force_turning` (a weld's ``y`` pairs with its rows ``J_rel``). Overwrites
+    ``data``."""
+    model = clm.model
+    zero = np.zeros(model.nv)
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    lay = layout_of(clm)
+    lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+    anchor_jac = np.array([pin.getFrameJacobian(model, data, f, lwa if world else _LOCAL)
+                           for f, world in zip(lay.anchors, lay.world)])
+    turning = point_force_turning(clm, multipliers, anchor_jac) + \
+        weld_force_turning(clm, data, multipliers, anchor_jac)
+    fext = lay.joint_forces(clm, multipliers, data)
+    with_forces = np.array(pin.computeRNEADerivatives(model, data, q, zero, zero, fext)[0])
+    gravity = np.array(pin.computeGeneralizedGravityDerivatives(model, data, q))
+    return gravity - with_forces + turning
+
+
 class KKTLinearization:
     """The linearised KKT system of one forward-dynamics solution (module docstring).
 
@@ -310,7 +436,8 @@ class KKTLinearization:
         self.frames = frame_rates(model, data, list(frames), v, a,
                                   np.ones(len(frames), dtype=bool)) if len(frames) else None
         # E: rnea with the closure forces as external forces, their turning, the effects
-        fext = layout_of(clm).joint_forces(clm, multipliers, data, wrenches)
+        forces = self._forces = weld_multipliers(clm, data, multipliers)
+        fext = layout_of(clm).joint_forces(clm, forces, data, wrenches)
         dtau_dq, dtau_dv, mass = pin.computeRNEADerivatives(model, data, q, v, a, fext)
         self.mass = np.triu(mass) + np.triu(mass, 1).T
         self.e_q = np.array(dtau_dq) - self._turning(rates.anchors.jac) \
@@ -324,21 +451,10 @@ class KKTLinearization:
         self._factor()
 
     def _turning(self, anchor_jac: np.ndarray) -> np.ndarray | float:
-        """``d(J_c^T lambda)/dq`` beyond the forces held in the bodies' frames (what the
-        RNEA derivatives hold): a point closure's force is held in world axes, so in anchor
-        ``i``'s axes it turns, ``d(R^T lambda) = [R^T lambda]_x J_ang dq`` (LOCAL), i.e.
-        ``+- J_lin^T [lambda]_x J_ang`` with the anchors' world Jacobians ``anchor_jac``
-        (2 n_closures, 6, nv)."""
-        points = layout_of(self.clm).points
-        if not points.any():
-            return 0.0        # a weld's force is held in anchor-1 = anchor-2 axes
-        nv = self.model.nv
-        lam = np.concatenate([self.multipliers[c.rows] for c, p in
-                              zip(self.clm.closure_frames, points) if p]).reshape(-1, 3)
-        turn = skew(lam)
-        j1, j2 = anchor_jac[0::2][points], anchor_jac[1::2][points]
-        return (j1[:, :3].reshape(-1, nv).T @ (turn @ j1[:, 3:]).reshape(-1, nv)
-                - j2[:, :3].reshape(-1, nv).T @ (turn @ j2[:, 3:]).reshape(-1, nv))
+        """:func:`point_force_turning` and :func:`weld_force_turning` of the closure
+        forces."""
+        return point_force_turning(self.clm, self._forces, anchor_jac) + \
+            weld_force_turning(self.clm, self.data, self._forces, anchor_jac)
 
     def _wrench_turning(self, wrenches: Sequence[tuple[int, np.ndarray]]) -> np.ndarray | float:
         """The turning of world-fixed frame wrenches ``(f, m)`` (as :meth:`_turning`):

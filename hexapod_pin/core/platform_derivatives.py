@@ -21,11 +21,12 @@ frame, ``T a + bias``. Derivatives hold the twist and the wrench fixed in world 
   d(rpy)/dt``), ``d_world`` otherwise.
 
 :func:`linearize` assembles them into the state-space model of ``x = (dp, dtheta,
-twist)``. Equations and tests: ``docs/dynamics_derivatives.md``.
+twist)``. Equations and tests: ``docs/derivations.md`` (section 8).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -33,14 +34,16 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import SingularityError
+from ..errors import InputError, SingularityError, SolverError
 from .checks import as_array, max_abs
 from .closed_loop import ClosedLoopModel
 from .dynamics_common import characteristic_length
 from .dynamics_derivatives import KKTLinearization, linearize_tree
+from .effects_projection import batch_of_states
 from .measures import TREE_TYPE_I_TOL, inverse_condition
 from .platform_map import MAP_RTOL, PlatformMap, solve_checked_square
 from .pose import euler_rates_matrix, skew
+from .results import InverseDynamicsDerivatives
 from .robot_api import PoseLayout
 
 
@@ -113,6 +116,13 @@ class StateSpaceModel:
         wrench: (dim,) the wrench held (zeros for None).
         twist_dot: (dim,) the platform acceleration there (zero at an equilibrium).
         derivatives: the :class:`ForwardDynamicsDerivatives` it was built from.
+        ad: the discrete-time ``Ad`` (2 dim, 2 dim) of one simulation step of ``dt``
+            (:class:`~hexapod_pin.core.step_jacobians.StepJacobians`), or None (no ``dt``
+            asked).
+        bd: the discrete-time ``Bd`` (2 dim, n_act), or None.
+        dt: the step of ``ad`` and ``bd`` (s), or None.
+        integrator: the integrator of ``ad`` and ``bd`` ("rk4", "semi_implicit_euler"), or
+            None.
     """
 
     a: np.ndarray
@@ -123,6 +133,10 @@ class StateSpaceModel:
     wrench: np.ndarray
     twist_dot: np.ndarray
     derivatives: ForwardDynamicsDerivatives
+    ad: np.ndarray | None = None
+    bd: np.ndarray | None = None
+    dt: float | None = None
+    integrator: str | None = None
 
 
 def platform_of(robot: PlatformRobot) -> PlatformMap:
@@ -195,12 +209,19 @@ class PlatformLinearization:
         """The :class:`ForwardDynamicsDerivatives` of the module docstring."""
         tree, vmap, rows = self.tree, self.vmap, self.rows
         dv = self.transport()
-        da_w, _ = tree.along(vmap, dv)
-        d_world = self.acc_q @ vmap + self.acc_v @ dv + rows @ da_w
-        da_t, _ = tree.along(np.zeros_like(vmap), vmap)
-        d_twist = self.acc_v @ vmap + rows @ da_t
-        d_tau, _ = tree.solve(np.eye(tree.model.nv), np.zeros((tree.clm.n_rows, tree.model.nv)))
-        response = rows @ d_tau
+        dim, nv = vmap.shape[1], tree.model.nv
+        # one solve for every column: along (V, dv), along (0, V), and the forces S^T, T^T
+        dq_all = np.hstack([vmap, np.zeros_like(vmap)])
+        dv_all = np.hstack([dv, vmap])
+        force = np.zeros((nv, self.act.size))
+        force[self.act, np.arange(self.act.size)] = 1.0
+        rhs_e = np.hstack([-(tree.e_q @ dq_all + tree.e_v @ dv_all), force, rows.T])
+        rhs_c = np.hstack([-(tree.c_q @ dq_all + tree.c_v @ dv_all),
+                           np.zeros((tree.clm.n_rows, self.act.size + dim))])
+        da, _ = tree.solve(rhs_e, rhs_c)
+        d_world = self.acc_q @ vmap + self.acc_v @ dv + rows @ da[:, :dim]
+        d_twist = self.acc_v @ vmap + rows @ da[:, dim:2 * dim]
+        response = rows @ da[:, 2 * dim:]
         d_pose = d_world
         if self.layout.full_rotation:
             rates = np.eye(self.layout.dim)
@@ -208,7 +229,8 @@ class PlatformLinearization:
             rates[np.ix_(ang, ang)] = euler_rates_matrix(self.pose[ang])
             d_pose = d_world @ rates
         return ForwardDynamicsDerivatives(self.acc.copy(), d_pose, d_world, d_twist,
-                                          response[:, self.act], response @ rows.T)
+                                          response[:, :self.act.size],
+                                          response[:, self.act.size:])
 
 
 def forward_dynamics_derivatives(robot: PlatformRobot, pose: npt.ArrayLike,
@@ -238,6 +260,104 @@ def forward_dynamics_derivatives(robot: PlatformRobot, pose: npt.ArrayLike,
     """
     return PlatformLinearization(robot, pose, twist, actuator_forces, wrench,
                                  branch).derivatives()
+
+
+def inverse_dynamics_derivatives(robot: PlatformRobot, pose: npt.ArrayLike,
+                                 twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
+                                 actuator_forces: npt.ArrayLike,
+                                 wrench: npt.ArrayLike | None = None,
+                                 branch: Any = None) -> InverseDynamicsDerivatives:
+    """Analytic derivatives of the inverse-dynamics forces ``u = ID(pose, twist,
+    twist_dot, wrench)`` (no bounds) by the implicit-function theorem on the forward
+    dynamics ``twist_dot = FD(pose, twist, u, wrench)``: with ``B = d FD / d u`` (square,
+    ``M_x^-1 J^T``), ``d u / d y = -B^-1 d FD / d y`` (``y``: pose, twist, wrench) and
+    ``d u / d twist_dot = B^-1`` (``= J^-T M_x``; ``d u / d wrench = -J^-T``).
+
+    Args:
+        robot: any robot of the library.
+        pose: (dim,) (m, rad).
+        twist: (dim,) world axes.
+        twist_dot: (dim,) world axes (m/s^2, rad/s^2).
+        actuator_forces: (n_act,) the inverse-dynamics forces of that state (from the
+            robot's verified route; checked: the forward dynamics with them must return
+            ``twist_dot`` to 1e-8 relative).
+        wrench: (dim,) on the platform, world axes; None: zero.
+        branch: the working mode.
+
+    Returns:
+        :class:`~hexapod_pin.core.results.InverseDynamicsDerivatives`.
+
+    Raises:
+        InputError: bad shapes, NaN / inf, redundant actuation (``n_act != dim``), Coulomb
+            friction at rest.
+        UnreachablePoseError: the pose is out of reach.
+        SingularityError: a singular pose.
+        InconsistentMotionError: ``B`` singular (a type-II singularity).
+        SolverError: the forces do not produce ``twist_dot``, or a solve misses its
+            equations.
+    """
+    lin = PlatformLinearization(robot, pose, twist, actuator_forces, wrench, branch)
+    dim = lin.layout.dim
+    target = as_array(twist_dot, (dim,), "twist_dot")
+    if lin.u.size != dim:
+        raise InputError("actuator_forces", actuator_forces, f"{lin.u.size} actuators for "
+                         f"a pose of dimension {dim}: the inverse dynamics is not a "
+                         "function of the state (redundant actuation)")
+    der = lin.derivatives()
+    miss = max_abs(der.twist_dot - target)
+    if not miss <= 1e-8 * max(1.0, max_abs(target), max_abs(der.twist_dot)):
+        raise SolverError("inverse_dynamics_derivatives", "unverified",
+                          f"the forward dynamics with these actuator forces misses "
+                          f"twist_dot by {miss:.3e}")
+    inv = solve_checked_square(der.d_actuator_forces, np.eye(dim), "d twist_dot / d u")
+    return InverseDynamicsDerivatives(lin.u.copy(), -inv @ der.d_pose, -inv @ der.d_world,
+                                      -inv @ der.d_twist, inv, -inv @ der.d_wrench)
+
+
+def forward_dynamics_derivatives_batch(robot: PlatformRobot, poses: npt.ArrayLike,
+                                       twists: npt.ArrayLike, actuator_forces: npt.ArrayLike,
+                                       wrenches: npt.ArrayLike | None = None,
+                                       branch: Any = None) -> ForwardDynamicsDerivatives:
+    """:func:`forward_dynamics_derivatives` of N states: a
+    :class:`ForwardDynamicsDerivatives` whose arrays carry a leading axis N (``twist_dot``
+    (N, dim), ``d_world`` (N, dim, dim), ``d_actuator_forces`` (N, dim, n_act), ...),
+    row ``k`` the single-state answer of state ``k``.
+
+    Args:
+        robot: any robot of the library.
+        poses: (N, dim) (m, rad).
+        twists: (N, dim) world axes.
+        actuator_forces: (N, n_act) (N, N m).
+        wrenches: (N, dim) or None (zero).
+        branch: the working mode of every state.
+
+    Raises:
+        InputError: bad shapes (rows that differ in number), NaN / inf, Coulomb friction
+            at rest.
+        BatchUnreachablePoseError: a pose out of reach (``index`` the first such row).
+        BatchSingularityError: a singular state (``index``).
+        SolverError: a solve misses its equations.
+    """
+    dim, n_act = robot.pose_layout.dim, robot.model.n_actuated
+    p = as_array(poses, (dim,), "poses", batch=True)
+    n = len(p)
+    rows = [("twists", twists, dim), ("actuator_forces", actuator_forces, n_act)]
+    if wrenches is not None:
+        rows.append(("wrenches", wrenches, dim))
+    arrays = []
+    for name, value, width in rows:
+        arr = as_array(value, (width,), name, batch=True)
+        if len(arr) != n:
+            raise InputError(name, value, f"expected {n} rows (one per pose), got {len(arr)}")
+        arrays.append(arr)
+    t, u = arrays[0], arrays[1]
+    w = arrays[2] if wrenches is not None else None
+    res = batch_of_states(n, lambda k: forward_dynamics_derivatives(
+        robot, p[k], t[k], u[k], None if w is None else w[k], branch))
+    return ForwardDynamicsDerivatives(
+        *(np.array([getattr(r, f.name) for r in res]).reshape((n,) + shape) for f, shape in
+          zip(dataclasses.fields(ForwardDynamicsDerivatives),
+              [(dim,), (dim, dim), (dim, dim), (dim, dim), (dim, n_act), (dim, dim)])))
 
 
 def linearize(robot: PlatformRobot, pose: npt.ArrayLike, twist: npt.ArrayLike,

@@ -184,24 +184,88 @@ class RobotBase:
         return self._checked("forward_dynamics_derivatives", forward_dynamics_derivatives,
                              pose, twist, actuator_forces, wrench, branch)
 
+    def forward_dynamics_derivatives_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                                           actuator_forces: npt.ArrayLike,
+                                           wrenches: npt.ArrayLike | None = None, *,
+                                           branch: Any = None) -> Any:
+        """:meth:`forward_dynamics_derivatives` of N states (rows of (N, dim) and (N, n_act)
+        arrays): one :class:`~hexapod_pin.core.platform_derivatives.ForwardDynamicsDerivatives`
+        whose arrays carry a leading axis N
+        (:func:`~hexapod_pin.core.platform_derivatives.forward_dynamics_derivatives_batch`).
+
+        Raises:
+            InputError: bad shapes, NaN / inf, Coulomb friction at rest.
+            BatchUnreachablePoseError: a pose out of reach (``index``: its row).
+            BatchSingularityError: a singular state (``index``).
+            SolverError: a solve misses its equations.
+        """
+        from .platform_derivatives import forward_dynamics_derivatives_batch
+        return self._checked("forward_dynamics_derivatives_batch",
+                             forward_dynamics_derivatives_batch, poses, twists,
+                             actuator_forces, wrenches, branch)
+
     def linearize(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                   actuator_forces: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
-                  branch: Any = None) -> Any:
+                  branch: Any = None, dt: float | None = None,
+                  integrator: str = "rk4") -> Any:
         """The continuous-time linearised model ``dx/dt = A x + B du`` in ``x = (dp,
         dtheta, twist)`` (world axes): a
         :class:`~hexapod_pin.core.platform_derivatives.StateSpaceModel` (``A = [[0, I],
         [d_world, d_twist]]`` at rest, ``B = [[0], [d_actuator_forces]]``). Arguments and
-        errors as :meth:`forward_dynamics_derivatives`.
+        errors as :meth:`forward_dynamics_derivatives`; with a step ``dt`` (s) it also
+        holds the discrete-time ``Ad``, ``Bd`` of one simulation step of ``integrator``
+        (:meth:`step_jacobians`; no wrench then: ``simulate`` applies none).
 
         Raises:
-            InputError: see :meth:`forward_dynamics_derivatives`.
+            InputError: see :meth:`forward_dynamics_derivatives` and :meth:`step_jacobians`;
+                a ``dt`` with a wrench.
             UnreachablePoseError: see :meth:`forward_dynamics_derivatives`.
             SingularityError: see :meth:`forward_dynamics_derivatives`.
             SolverError: see :meth:`forward_dynamics_derivatives`.
         """
+        import dataclasses
+
         from .platform_derivatives import linearize
-        return self._checked("linearize", linearize, pose, twist, actuator_forces, wrench,
-                             branch)
+        out = self._checked("linearize", linearize, pose, twist, actuator_forces, wrench,
+                            branch)
+        if dt is None:
+            return out
+        if wrench is not None:
+            raise InputError("wrench", wrench, "the step Jacobians (dt given) are those of "
+                             "simulate, which applies no wrench")
+        step = self.step_jacobians(pose, twist, actuator_forces, dt, integrator=integrator,
+                                   branch=branch)
+        return dataclasses.replace(out, ad=step.ad, bd=step.bd, dt=step.dt,
+                                   integrator=step.integrator)
+
+    def step_jacobians(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                       actuator_forces: npt.ArrayLike, dt: float, *,
+                       integrator: str = "rk4", branch: Any = None) -> Any:
+        """The Jacobians ``Ad = d x_{k+1} / d x_k``, ``Bd = d x_{k+1} / d u_k`` of one
+        ``simulate`` step (``x = (dp, dtheta, twist)``, world axes; the projection onto
+        the closures included), analytic, by the chain rule through the integrator's
+        stages: a :class:`~hexapod_pin.core.step_jacobians.StepJacobians`
+        (:func:`~hexapod_pin.core.step_jacobians.step_jacobians`).
+
+        Args:
+            pose: (dim,) (m, rad).
+            twist: (dim,) world axes (m/s, rad/s).
+            actuator_forces: (n_act,) held over the step (N, N m).
+            dt: the step (s), > 0.
+            integrator: "rk4" (default) or "semi_implicit_euler".
+            branch: the working mode.
+
+        Raises:
+            InputError: bad shapes, NaN / inf, a bad ``dt`` or integrator, Coulomb
+                friction (not differentiable).
+            UnreachablePoseError: the pose is out of reach.
+            SingularityError: a singular pose.
+            SolverError: a solve misses its equations.
+            AssemblyError: the step's projection does not converge.
+        """
+        from .step_jacobians import step_jacobians
+        return self._checked("step_jacobians", step_jacobians, pose, twist, actuator_forces,
+                             dt, integrator, branch)
 
     def cartesian_stiffness(self, pose: npt.ArrayLike, actuator_stiffness: npt.ArrayLike,
                             wrench: npt.ArrayLike | None = None, *, branch: Any = None) -> Any:

@@ -19,12 +19,12 @@ platform's selected twist rows. Then:
 * ``closure_forces``: per closure, the force (N, world axes) that the body of ``frame2``
   exerts on the body of ``frame1`` (a weld: the force part of its spatial force), shape
   (n_closures, 3);
-* inverse-dynamics derivatives: ``d tau / d twist_dot = J^-T M_x`` and
-  ``d tau / d wrench = -J^-T`` exactly; ``d tau / d pose`` and ``d tau / d twist`` by
-  Richardson-extrapolated central differences of the inverse dynamics at three steps,
-  whose error estimate (the difference of two extrapolations) is checked against 1e-6
-  relative (numerical, typically 1e-9; the analytic derivatives of the closed-loop
-  dynamics are a later issue).
+* inverse-dynamics derivatives: analytic, the implicit-function theorem on the core's
+  forward-dynamics derivatives at the inverse-dynamics forces
+  (:func:`~hexapod_pin.core.platform_derivatives.inverse_dynamics_derivatives`, the KKT
+  derivatives of :mod:`~hexapod_pin.core.dynamics_derivatives`): ``d tau / d y = -B^-1 d
+  twist_dot / d y`` with ``B = M_x^-1 J^T``, so ``d tau / d twist_dot = J^-T M_x`` and
+  ``d tau / d wrench = -J^-T``.
 """
 
 from __future__ import annotations
@@ -44,19 +44,30 @@ from .closure_forces import closure_world_forces
 from .dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
 from .effects_projection import batch_of_states
 from .energy import energy_totals
+from .platform_derivatives import \
+    inverse_dynamics_derivatives as platform_inverse_dynamics_derivatives
 from .platform_map import VelocityMaps, solve_checked_square
-from .pose import euler_rates_matrix
 from .results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                       ComputedDetails, Energies, ForwardDynamicsResult,
                       InverseDynamicsDerivatives, InverseDynamicsResult, LazyConditioning,
                       ReducedDynamics)
-from .robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS
+from .robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS, pose_layout
 from .robot_kinematics import RobotKinematics
 
 #: relative residual of the tree equation of motion accepted from the "nullspace" route
 NULLSPACE_RTOL = 1e-9
-#: relative error estimate accepted from the numerical derivatives
-DERIVATIVE_RTOL = 1e-6
+
+
+class _PlatformView:
+    """What :mod:`~hexapod_pin.core.platform_derivatives` reads of a robot, from its
+    dynamics (model, pose axes, platform frame, configuration)."""
+
+    def __init__(self, dyn: "RobotDynamics") -> None:
+        self.model = dyn.clm
+        self.pose_axes = dyn.platform.axes
+        self.pose_layout = pose_layout(dyn.platform.axes)
+        self.platform_frame_id = dyn.platform.frame
+        self.configuration = dyn.kin.configuration
 
 
 class TreeState(NamedTuple):
@@ -331,57 +342,22 @@ class RobotDynamics:
                                      twist_dot: npt.ArrayLike,
                                      wrench: npt.ArrayLike | None = None
                                      ) -> InverseDynamicsDerivatives:
-        """Derivatives of the (unbounded) inverse-dynamics forces (module docstring).
+        """Derivatives of the (unbounded) inverse-dynamics forces (module docstring): the
+        forces of :meth:`inverse_dynamics`, their derivatives from the core's KKT
+        derivatives (:func:`~hexapod_pin.core.platform_derivatives.inverse_dynamics_derivatives`).
 
         Raises:
-            SolverError: the error estimate of a numerical derivative exceeds
-                :data:`DERIVATIVE_RTOL` (relative).
+            InputError: bad shapes, NaN / inf, redundant actuation, Coulomb friction at
+                rest (not differentiable).
+            UnreachablePoseError: the pose is out of reach.
+            SingularityError: a singular pose.
+            SolverError: a solve misses its equations.
         """
-        pose = as_array(pose, (self.dim,), "pose")
-        twist = as_array(twist, (self.dim,), "twist")
-        twist_dot = as_array(twist_dot, (self.dim,), "twist_dot")
-        w = np.zeros(self.dim) if wrench is None else as_array(wrench, (self.dim,), "wrench")
         q0 = self.kin.configuration(pose)
-        st = self.state(pose, twist, None)
-        mass, _, jac, _, _, _ = self._reduced(st)
-        jt_inv = solve_checked_square(jac.T, np.eye(self.dim), "J^T")
-
-        def tau(p: np.ndarray, t: np.ndarray) -> np.ndarray:
-            return self.inverse_dynamics(p, t, twist_dot, w, branch=q0, bounded=False,
-                                         joint_wrenches=False).actuator_forces
-
-        base = tau(pose, twist)
-        step_p = 1e-4 * max(1.0, self.platform.length)
-        d_pose = self._richardson(lambda h, k: tau(pose + h * np.eye(self.dim)[k], twist),
-                                  step_p, base)
-        d_twist = self._richardson(lambda h, k: tau(pose, twist + h * np.eye(self.dim)[k]),
-                                   1e-3 * max(1.0, max_abs(twist)), base)
-        d_world = d_pose.copy()
-        if self.dim == 6:
-            rates = np.eye(6)
-            rates[3:, 3:] = euler_rates_matrix(pose[3:])
-            d_world = np.linalg.solve(rates.T, d_pose.T).T
-        return InverseDynamicsDerivatives(base, d_pose, d_world, d_twist, jt_inv @ mass,
-                                          -jt_inv)
-
-    def _richardson(self, value, step: float, base: np.ndarray) -> np.ndarray:
-        """Per column ``k``: central differences of ``value(h, k)`` at ``h``, ``h/2`` and
-        ``h/4``, Richardson-extrapolated twice (``(4 D(h/2) - D(h)) / 3`` and the same one
-        level finer, each O(h^4)); the finer is returned, and the difference of the two is
-        its error estimate, checked against :data:`DERIVATIVE_RTOL`."""
-        out = np.empty((self.n_act, self.dim))
-        for k in range(self.dim):
-            diffs = [(value(h, k) - value(-h, k)) / (2 * h)
-                     for h in (step, step / 2, step / 4)]
-            coarse = (4.0 * diffs[1] - diffs[0]) / 3.0
-            out[:, k] = (4.0 * diffs[2] - diffs[1]) / 3.0
-            error = max_abs(out[:, k] - coarse)
-            scale = max(1.0, max_abs(base), max_abs(out[:, k]))
-            if error > DERIVATIVE_RTOL * scale:
-                raise SolverError("inverse_dynamics_derivatives", "unverified",
-                                  f"error estimate {error:.3e} of column {k} (relative "
-                                  f"{error / scale:.3e} above {DERIVATIVE_RTOL:g})")
-        return out
+        forces = self.inverse_dynamics(pose, twist, twist_dot, wrench, branch=q0,
+                                       bounded=False, joint_wrenches=False).actuator_forces
+        return platform_inverse_dynamics_derivatives(_PlatformView(self), pose, twist,
+                                                     twist_dot, forces, wrench, q0)
 
     # -- batches -------------------------------------------------------------------------
     def _each(self, name: str, n: int, call):

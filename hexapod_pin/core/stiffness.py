@@ -15,7 +15,8 @@ d(twist_dot)/dx = d(J^T tau_0 + W - h_x)/dx = -K_g``, so ``K_g = -M_x d_world`` 
 d_wrench^-1`` (the platform mass matrix, with the armature). It holds the change of the
 transmission under the preload (``dJ^T tau_0``), of the gravity load and of the joint
 springs of the effects (``clm.effects.stiffness``, passive joints included). The modes
-solve ``K_x phi = omega^2 M_x phi``. Equations and tests: ``docs/dynamics_derivatives.md``.
+solve ``K_x phi = omega^2 M_x phi``. Equations and tests: ``docs/derivations.md``
+(section 8).
 """
 
 from __future__ import annotations

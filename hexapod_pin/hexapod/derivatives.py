@@ -43,14 +43,20 @@ with the closed form used here, which is faster.
 Joint and drive effects (``robot.effects``): the ID point balances ``rnea - tau_e`` and
 ``FD`` runs with the tree force ``S^T tau + tau_ext + tau_e(q, v)`` (Pinocchio's partials
 hold the armature); the effects' own derivatives join the chain's ``dtau_tree`` rows:
-``dtau_e = -K dDifference(ref, q) dq - D dv`` (Coulomb friction is piecewise constant: its
+``dtau_e = (d tau_s / dq) dq - D dv`` (the core's ``spring_jacobian``: on the free-flyer the
+springs' force is the energy gradient ``-D^T K dq``, whose Jacobian is more than ``-K
+dDifference(ref, q)``; Coulomb friction is piecewise constant: its
 derivative is zero away from ``v = 0``), the free-flyer rows rotated to the chain's world
 axes.
 
-Everything is exact up to round-off: no finite differences inside. The tests check every
-block against central differences of ``robot.inverse_dynamics(..., method="kkt",
-bounded=False)`` on both geometries. The per-robot workspace (Pinocchio data, buffers)
-is shared between calls: not thread-safe, like the rest of the dynamics.
+Everything is exact up to round-off: no finite differences inside (but for springs on the
+free-flyer, whose curvature block the core's ``spring_jacobian`` extrapolates, verified).
+The tests check every block against central differences of
+``robot.inverse_dynamics(..., method="kkt", bounded=False)`` on both geometries, and against
+the core's route (``core.platform_derivatives.inverse_dynamics_derivatives``, the
+implicit-function theorem on the core's KKT derivatives, which every loaded robot uses;
+this closed form stays as the faster kernel). The per-robot workspace (Pinocchio data,
+buffers) is shared between calls: not thread-safe, like the rest of the dynamics.
 """
 
 from __future__ import annotations
@@ -70,6 +76,7 @@ from ..core.results import InverseDynamicsDerivatives
 from ..errors import HexapodPinError, SolverError
 from . import kernels
 from ..core.closed_loop import ClosedLoopModel
+from ..core.dynamics_derivatives import spring_jacobian
 from ..core.effects import effect_forces
 from .geometry import HexapodGeometry, carriage_frames
 
@@ -262,8 +269,11 @@ def analytic_derivatives(ws: DerivativesWorkspace, pose: npt.ArrayLike, twist: n
 
 
 def _effect_rows(ws: DerivativesWorkspace, effects, q, rot, chain) -> np.ndarray:
-    """The chain's ``dtau_tree`` rows (24, 24) of the effects: ``dtau_e = -K
-    dDifference(ref, q) dq - D dv`` in the tree's local coordinates, with the free-flyer
+    """The chain's ``dtau_tree`` rows (24, 24) of the effects: ``dtau_e = (d tau_s / dq) dq
+    - D dv`` in the tree's local coordinates (the springs' Jacobian of the core,
+    :func:`~hexapod_pin.core.dynamics_derivatives.spring_jacobian`: on the free-flyer the
+    force is the energy gradient ``-D^T K dq`` and its Jacobian has a curvature term
+    beyond ``-K dDifference``), with the free-flyer
     rows of ``dq``, ``dv`` (chain rows 18:24, 42:48) and of the result in world axes
     (``blockdiag(R, R)`` times the local ones, as the chain keeps them)."""
     nv = ws.nv
@@ -272,8 +282,7 @@ def _effect_rows(ws: DerivativesWorkspace, effects, q, rot, chain) -> np.ndarray
     dq_local, dv_local = rb.T @ chain[0:nv], rb.T @ chain[nv:2 * nv]
     out = -effects.damping[:, None] * dv_local
     if effects.stiffness.any():
-        jd = pin.dDifference(ws.model, effects.spring_reference, q, pin.ArgumentPosition.ARG1)
-        out -= effects.stiffness[:, None] * (jd @ dq_local)
+        out += spring_jacobian(ws.model, effects, q) @ dq_local
     return rb @ out
 
 

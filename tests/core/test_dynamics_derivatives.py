@@ -16,6 +16,13 @@ Pinocchio's ``computeConstraintDynamicsDerivatives``: right on the hexapod, the 
 robot and the delta, wrong (``d ddq / dq`` along the closures) on the four-bar, the
 five-bar and the Stewart platform (point loops between two moving bodies whose branches
 start with a revolute joint): ``test_pinocchio_constraint_derivatives_*``.
+
+Also here: the batch of forward-dynamics derivatives against the single-state answers,
+``d(J_c^T y)/dq`` (the projection's second-order term of the step Jacobians) against
+central differences, and the inverse-dynamics derivatives from the core (the
+implicit-function theorem on the forward ones) against central differences of the loaded
+robots' inverse dynamics and against the hexapod's and planar robot's closed-form
+derivations.
 """
 
 from __future__ import annotations
@@ -30,7 +37,8 @@ import hexapod_pin as hp
 import robot_registry
 from hexapod_pin.calibration import random_as_built
 from hexapod_pin.core.dynamics import forward_dynamics_tree
-from hexapod_pin.core.dynamics_derivatives import (forward_dynamics_derivatives_tree,
+from hexapod_pin.core.dynamics_derivatives import (closure_force_derivative,
+                                                   forward_dynamics_derivatives_tree,
                                                    linearize_tree, spring_jacobian)
 from hexapod_pin.core.effects import passive_forces
 from hexapod_pin.core.pose import rotation_from_rpy, rpy_from_rotation
@@ -195,6 +203,55 @@ def test_spring_jacobian_on_a_free_joint():
                      - passive_forces(clm.model, eff, pin.integrate(clm.model, q, -1e-6 * e),
                                       zero)) / 2e-6 for e in np.eye(clm.nv)]).T
     np.testing.assert_allclose(spring_jacobian(clm.model, eff, q), num, atol=1e-7)
+
+
+@pytest.mark.parametrize("name", ["stewart", "four-bar", "hexapod"])
+def test_closure_force_derivative_matches_finite_differences(name):
+    """``d(J_c^T y)/dq`` (point closures, forces held in world axes) against central
+    differences of ``constraint_jacobian(q)^T y`` along ``pin.integrate`` in random
+    directions, on and off the closures (steps 1e-3)."""
+    robot = robot_registry.get(name)
+    clm = robot.model
+    rng = np.random.default_rng(5)
+    y = rng.normal(size=clm.n_rows)
+    for q in (robot.home_configuration,
+              pin.integrate(clm.model, robot.home_configuration, 0.05 * rng.normal(size=clm.nv))):
+        got = closure_force_derivative(clm, clm.model.createData(), q, y)
+        dq = rng.normal(size=clm.nv)
+        num = richardson(lambda s: clm.constraint_jacobian(
+            pin.integrate(clm.model, q, s * dq)).T @ y, 1e-3)
+        assert relative(num, got @ dq) < RTOL
+
+
+@pytest.mark.parametrize("name", ["delta", "stewart", "hexapod"])
+def test_kkt_partials_off_the_closures(name):
+    """The KKT linearisation at a state off the closures (an RK4 stage state of the step
+    Jacobians), in every direction: ``da`` against central differences of the library's
+    unchecked "kkt" forward dynamics (steps 1e-3); the welds' rows and forces are exact
+    there too (``J_rel``, ``-Ad(M12)^T mu``), not only along the closures."""
+    from hexapod_pin.core.dynamics import dynamics_of
+    from hexapod_pin.core.dynamics_derivatives import KKTLinearization
+
+    robot = robot_registry.get(name)
+    clm = robot.model
+    rng = np.random.default_rng(3)
+    q = pin.integrate(clm.model, robot.home_configuration, 1e-3 * rng.normal(size=clm.nv))
+    v = rng.normal(size=clm.nv)
+    tau = np.zeros(clm.nv)
+    tau[clm.actuated_v] = rng.normal(size=clm.n_actuated)
+    dyn = dynamics_of(clm)
+
+    def acc(qq, vv):
+        return np.array(dyn.forward_unchecked(qq, vv, tau, "kkt").a)
+
+    res = dyn.forward_unchecked(q, v, tau, "kkt")
+    lin = KKTLinearization(clm, clm.model.createData(), q, v, np.array(res.a),
+                           np.array(res.multipliers), ())
+    dq, dv = rng.normal(size=(clm.nv, 1)), rng.normal(size=(clm.nv, 1))
+    got, _ = lin.solve(-(lin.e_q @ dq + lin.e_v @ dv), -(lin.c_q @ dq + lin.c_v @ dv))
+    num = richardson(lambda s: acc(pin.integrate(clm.model, q, s * dq[:, 0]), v + s * dv[:, 0]),
+                     1e-3)
+    assert relative(num, got[:, 0]) < RTOL
 
 
 # -- Pinocchio's computeConstraintDynamicsDerivatives ---------------------------------------
@@ -378,3 +435,107 @@ def test_lqr_example_stabilises_the_hexapod(capsys):
     start, half, end = (float(x) for x in re.search(
         f"pose error start {number} half {number} end {number}", out).groups())
     assert end < 1e-2 * start and half < start
+
+
+@pytest.mark.parametrize("name", ["hexapod", "planar", "delta", "five-bar"])
+def test_batch_equals_single_states(name):
+    """forward_dynamics_derivatives_batch: row k is the single-state answer of state k
+    (with and without wrenches); a bad row count and an unreachable row are named."""
+    robot = robot_registry.get(name)
+    dim, n_act = robot.pose_layout.dim, robot.n_actuators
+    rng = np.random.default_rng(2)
+    poses = robot.home_pose + 0.01 * rng.uniform(-1, 1, (3, dim))
+    twists, wrenches = 0.05 * rng.normal(size=(3, dim)), rng.normal(size=(3, dim))
+    forces = rng.normal(size=(3, n_act))
+    for w in (None, wrenches):
+        batch = robot.forward_dynamics_derivatives_batch(poses, twists, forces, w)
+        for k in range(3):
+            one = robot.forward_dynamics_derivatives(poses[k], twists[k], forces[k],
+                                                     None if w is None else w[k])
+            for field in dataclasses.fields(one):
+                np.testing.assert_array_equal(getattr(batch, field.name)[k],
+                                              getattr(one, field.name))
+    with pytest.raises(InputError, match="rows"):
+        robot.forward_dynamics_derivatives_batch(poses, twists[:2], forces)
+    far = poses.copy()
+    far[1, 0] += 100.0
+    with pytest.raises((hp.errors.BatchUnreachablePoseError,
+                        hp.errors.BatchSingularityError)) as info:
+        robot.forward_dynamics_derivatives_batch(far, twists, forces)
+    assert info.value.index == 1
+
+
+# -- inverse-dynamics derivatives from the core ----------------------------------------------
+def id_state(robot, seed):
+    dim = robot.pose_layout.dim
+    rng = np.random.default_rng(seed)
+    return (robot.home_pose + 0.01 * rng.uniform(-1, 1, dim), 0.05 * rng.normal(size=dim),
+            rng.normal(size=dim), rng.normal(size=dim))
+
+
+@pytest.mark.parametrize("effects", [False, True], ids=["rigid", "effects"])
+@pytest.mark.parametrize("name", ["stewart", "delta", "four-bar", "five-bar"])
+def test_loaded_inverse_dynamics_derivatives_match_finite_differences(name, effects):
+    """ClosedLoopRobot.inverse_dynamics_derivatives (analytic, the implicit-function theorem
+    on the core's KKT derivatives) against Richardson central differences of the robot's
+    verified inverse dynamics (steps 1e-3 pose, 1e-2 twist, 1.0 twist_dot and wrench)."""
+    robot = robot_registry.get(name)
+    if effects:
+        clm, q = robot.model, robot.home_configuration
+        rng = np.random.default_rng(4)
+        robot = robot.with_effects(damping=rng.uniform(0.1, 0.5, clm.nv),
+                                   stiffness=rng.uniform(1, 5, clm.nv),
+                                   spring_reference=pin.integrate(
+                                       clm.model, q, rng.uniform(-0.5, 0.5, clm.nv)),
+                                   armature=rng.uniform(0.01, 0.05, clm.nv))
+    pose, twist, twist_dot, wrench = id_state(robot, 6)
+    der = robot.inverse_dynamics_derivatives(pose, twist, twist_dot, wrench)
+    dim = robot.pose_layout.dim
+    eye = np.eye(dim)
+
+    def tau(p=pose, t=twist, td=twist_dot, w=wrench):
+        return robot.inverse_dynamics(p, t, td, w, bounded=False).actuator_forces
+
+    np.testing.assert_allclose(der.actuator_forces, tau(), atol=1e-12)
+    for got, column, h in (
+            (der.d_world, lambda k: lambda s: tau(p=displaced(robot, pose, s * eye[k])), 1e-3),
+            (der.d_pose, lambda k: lambda s: tau(p=pose + s * eye[k]), 1e-3),
+            (der.d_twist, lambda k: lambda s: tau(t=twist + s * eye[k]), 1e-2),
+            (der.d_twist_dot, lambda k: lambda s: tau(td=twist_dot + s * eye[k]), 1.0),
+            (der.d_wrench, lambda k: lambda s: tau(w=wrench + s * eye[k]), 1.0)):
+        num = np.array([richardson(column(k), h) for k in range(dim)]).T
+        assert relative(num, got) < RTOL
+
+
+@pytest.mark.parametrize("effects", [False, True], ids=["rigid", "effects"])
+@pytest.mark.parametrize("name", ["hexapod", "planar", "hexapod-other", "planar-other"])
+def test_core_inverse_dynamics_derivatives_match_the_closed_forms(name, effects):
+    """The core chain rule and the hexapod's / planar robot's own derivations (Pinocchio's
+    constraint-dynamics derivatives with the closed-form leg maps; the planar closed form)
+    agree: two independent routes."""
+    from hexapod_pin.core.platform_derivatives import inverse_dynamics_derivatives
+
+    robot = robot_registry.get(name)
+    if effects:
+        nv = robot.model.nv
+        rng = np.random.default_rng(9)
+        robot = robot.with_effects(damping=rng.uniform(0.1, 0.5, nv),
+                                   stiffness=rng.uniform(1, 5, nv),
+                                   armature=rng.uniform(0.01, 0.05, nv))
+    pose, twist, twist_dot, wrench = id_state(robot, 8)
+    own = robot.inverse_dynamics_derivatives(pose, twist, twist_dot, wrench)
+    core = inverse_dynamics_derivatives(robot, pose, twist, twist_dot, own.actuator_forces,
+                                        wrench)
+    for field in dataclasses.fields(own):
+        assert relative(getattr(own, field.name), getattr(core, field.name)) < 1e-8, field.name
+
+
+def test_core_inverse_dynamics_derivatives_check_their_forces():
+    from hexapod_pin.core.platform_derivatives import inverse_dynamics_derivatives
+    from hexapod_pin.errors import SolverError
+
+    robot = robot_registry.get("planar")
+    pose, twist, twist_dot, wrench = id_state(robot, 8)
+    forces = robot.inverse_dynamics(pose, twist, twist_dot, wrench, bounded=False).actuator_forces
+    with pytest.raises(SolverError, match="misses twist_dot"):
+        inverse_dynamics_derivatives(robot, pose, twist, twist_dot, forces + 1.0, wrench)
