@@ -49,6 +49,7 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 import ladder
 import stress_robots
 
+from hexapod_pin.core.effects import passive_forces
 from hexapod_pin.core.dynamics import (
     PIN_PROX_ITERS,
     PIN_PROX_MU,
@@ -171,21 +172,42 @@ def _null_velocity(clm, q, rng):
     return 0.5 * basis @ rng.normal(size=basis.shape[1])
 
 
+def _with_drives(entry):
+    """A robot of the list with drive effects on every coordinate: armature, damping,
+    springs relaxed at a sampled state, Coulomb friction (the states slide)."""
+    name, clm, sample = entry
+    nv = clm.nv
+    ramp = 1.0 + np.arange(nv) / nv
+    driven = clm.with_effects(armature=0.02 * ramp, damping=0.5 * ramp, coulomb=0.1 * ramp,
+                              stiffness=20.0 * ramp,
+                              spring_reference=sample(np.random.default_rng(99))[0])
+    return f"{name}+drives", driven, sample
+
+
 def robot_list(smoke: bool):
     if smoke:
-        return [_parallel("five_bar_6d"), _ladder(1)]
-    return [_parallel("five_bar_6d"), _parallel("delta"), _stress("five_bar_stiff"),
+        return [_parallel("five_bar_6d"), _with_drives(_parallel("five_bar_6d")), _ladder(1)]
+    return [_parallel("five_bar_6d"), _with_drives(_parallel("five_bar_6d")),
+            _parallel("delta"), _with_drives(_parallel("delta")), _stress("five_bar_stiff"),
             _stress("delta_massless"), _stress("planar_ladder_weld"), _stress("ladder_mixed"),
             _cassie(), _solo(), _ladder(1), _ladder(16), _ladder(64)]
 
 
 # -------------------------------------------------------------------------- reference
 def reference(clm, q, v, tau):
-    """(a, J_c, M, h) of the null-space method, numpy SVD."""
-    data = clm.model.createData()
-    mass = pin.crba(clm.model, data, q)
+    """The acceleration of the null-space method, numpy SVD, with the drive effects
+    written here: ``M + diag(armature)`` (on a copy of the tree without Pinocchio's
+    armature) and ``tau - D v - K (q - q_ref) - c sign(v)`` (every coordinate of the
+    robots here is a vector-space joint; the states slide)."""
+    model = pin.Model(clm.model)
+    model.armature[:] = 0.0
+    data = model.createData()
+    eff = clm.effects
+    mass = pin.crba(model, data, q) + np.diag(eff.armature)
     mass = np.triu(mass) + np.triu(mass, 1).T
-    bias = pin.nonLinearEffects(clm.model, data, q, v)
+    bias = pin.nonLinearEffects(model, data, q, v)
+    tau = tau - eff.damping * v - eff.stiffness * pin.difference(model, eff.spring_reference, q) \
+        - eff.coulomb * np.sign(v)
     jac, gamma = clm.constraint_jacobian(q), clm.constraint_drift(q, v)
     _, sv, vt = np.linalg.svd(jac)
     r = int(np.sum(sv > 1e-10 * sv[0]))
@@ -430,6 +452,52 @@ def print_overhead() -> None:
 
 
 # ------------------------------------------------------------------------------ report
+def mujoco_effects_agreement(clm, states) -> tuple[float, float] | None:
+    """Max relative errors of MuJoCo's ``mj_fullM`` (armature included) and
+    ``qfrc_passive`` (damping, springs) on the exported model against ours (the tree's
+    mass matrix plus the armature, :func:`~hexapod_pin.core.effects.passive_forces`) over
+    ``states``; None without MuJoCo, on a tree with ball / free joints (other velocity
+    conventions) or when the export is refused."""
+    if mujoco is None or clm.model.nq != clm.model.nv:
+        return None
+    try:
+        mjm = to_mujoco(clm)
+    except InputError:
+        return None
+    mjd = mujoco.MjData(mjm)
+    err_m = err_p = 0.0
+    for q, v, *_ in states:
+        st = mujoco_state(clm, q, v)
+        mjd.qpos[:], mjd.qvel[:] = st.qpos, st.qvel
+        mujoco.mj_forward(mjm, mjd)
+        full = np.zeros((mjm.nv, mjm.nv))
+        mujoco.mj_fullM(mjm, mjd, full)
+        ours_m = pin.crba(clm.model, clm.model.createData(), q)
+        ours_m = np.triu(ours_m) + np.triu(ours_m, 1).T
+        err_m = max(err_m, rel(full, ours_m))
+        ours_p = passive_forces(clm.model, clm.effects, q, v)
+        if np.abs(ours_p).max() > 0:
+            err_p = max(err_p, rel(np.asarray(mjd.qfrc_passive), ours_p))
+    return err_m, err_p
+
+
+def print_mujoco_effects(kept, bad) -> None:
+    print("\n| robot (MuJoCo export) | armature, damping, springs | mj_fullM vs M + armature | "
+          "qfrc_passive vs -D v - K dq |")
+    print("|---|---|---|---|")
+    for name, clm, states in kept:
+        got = mujoco_effects_agreement(clm, states)
+        if got is None:
+            continue
+        eff = clm.effects
+        what = ", ".join(k for k, x in (("armature", eff.armature), ("damping", eff.damping),
+                                        ("springs", eff.stiffness)) if np.any(x)) or "none"
+        print(f"| {name} | {what} | {got[0]:.1e} | {got[1]:.1e} |")
+        # the export pads point masses with tiny inertias (core.mujoco_export): 1e-9
+        if not max(got) <= 1e-9:
+            bad.append(f"{name} MuJoCo export: mass matrix {got[0]:.1e}, passive {got[1]:.1e}")
+
+
 def print_steps(kept) -> None:
     """The integrator table: one step on Cassie and the one-loop ladder (of ``kept``,
     ``(name, clm, states)`` triples) against ``mj_step``."""
@@ -520,6 +588,7 @@ def main(argv=None) -> int:
             continue
         _, n, fb, fl, ib, il = bench_batch(name, clm, states, 8 if args.smoke else 64)
         print(f"| {name} | {n} | {_us(fb)} | {_us(fl)} | {_us(ib)} | {_us(il)} |")
+    print_mujoco_effects(kept, bad)
     print_steps(kept)
     if bad:
         print("\nDISAGREEMENT OR FAILED SOLVES:\n" + "\n".join(bad))

@@ -18,3 +18,7 @@ def test_bench_generic_smoke():
     assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-2000:]
     assert "| five_bar_6d | 5 | 6/3 | FD pinocchio |" in out.stdout
     assert "mj_step" in out.stdout
+    # a robot with drive effects: every route against the reference with the effects
+    # written in the benchmark, and MuJoCo's export carrying them (mass matrix, passive)
+    assert "| five_bar_6d+drives | 5 | 6/3 | FD pinocchio |" in out.stdout
+    assert "| five_bar_6d+drives | armature, damping, springs |" in out.stdout
