@@ -117,3 +117,15 @@ TWO_LINKS = """<robot name="t">
     <origin xyz="{x} 0 0"/><axis xyz="{axis}"/>
     <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
 </robot>"""
+
+
+def one_line_error(result, code: int, *words: str) -> str:
+    """The one ``error:`` line a CLI run printed on stderr, after checking its exit
+    ``code``, that nothing else (no traceback) was printed, and that it names ``words``."""
+    assert result.exit_code == code, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:"), result.stderr
+    assert "Traceback" not in result.output
+    for word in words:
+        assert word in lines[0], (word, lines[0])
+    return lines[0]

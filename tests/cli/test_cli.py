@@ -16,6 +16,8 @@ from rich.console import Console
 from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
+from conftest import one_line_error as cli_error
+
 import hexapod_pin as hp
 from hexapod_pin import files
 from hexapod_pin import motion as motions
@@ -39,13 +41,8 @@ def ok_json(*args):
 
 
 def one_line_error(result, *words):
-    assert result.exit_code == 1, result.output
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error:"), result.stderr
-    assert "Traceback" not in result.output
-    for word in words:
-        assert word in lines[0], (word, lines[0])
-    return lines[0]
+    """:func:`conftest.one_line_error` with exit code 1."""
+    return cli_error(result, 1, *words)
 
 
 def independent_ik(geometry, pose):

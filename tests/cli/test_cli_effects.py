@@ -20,6 +20,8 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import one_line_error
+
 import hexapod_pin as hp
 from hexapod_pin.cli import app
 from hexapod_pin.motion import read_motion
@@ -65,16 +67,6 @@ def ok_json(*args: object) -> dict:
     assert result.exit_code == 0, result.output
     assert result.stderr == ""
     return json.loads(result.stdout)
-
-
-def one_line_error(result, code: int, *words: str) -> str:
-    assert result.exit_code == code, result.output
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error:"), result.stderr
-    assert "Traceback" not in result.output
-    for word in words:
-        assert word in lines[0], (word, lines[0])
-    return lines[0]
 
 
 def references(robot) -> np.ndarray:
