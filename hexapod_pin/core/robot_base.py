@@ -23,7 +23,8 @@ import pinocchio as pin
 from ..errors import DescriptionError, InputError
 from .closed_loop import ClosedLoopModel
 from .effects import JointEffects
-from .robot_api import PoseLayout, pose_layout
+from .closed_form import ClosedFormDynamics
+from .robot_api import PoseLayout, delegate, pose_layout
 
 
 class RobotBase:
@@ -116,6 +117,13 @@ class RobotBase:
         """A robot like this one on ``model`` (the same tree with other effects); each
         robot class supplies it."""
         raise NotImplementedError(f"{type(self).__name__} cannot be rebuilt on another model")
+
+    # -- the dynamics component's shared routes (core.closed_form; a robot may override) ----
+    energies = delegate("dynamics", ClosedFormDynamics.energies)
+    inverse_dynamics_batch = delegate("dynamics", ClosedFormDynamics.inverse_dynamics_batch)
+    forward_dynamics_batch = delegate("dynamics", ClosedFormDynamics.forward_dynamics_batch)
+    static_forces_batch = delegate("dynamics", ClosedFormDynamics.static_forces_batch)
+    reduced_dynamics_batch = delegate("dynamics", ClosedFormDynamics.reduced_dynamics_batch)
 
     # -- configuration-level maps ----------------------------------------------------------
     @cached_property

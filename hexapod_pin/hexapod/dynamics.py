@@ -17,14 +17,18 @@ forward dynamics answer on the tree (its stick / slip solve). The batches run th
 closed form, which carries the carriages' drives; a robot whose passive coordinates
 (universal joints, the platform's free flyer) carry effects runs its batches state by state
 on the single-state routes (the same numbers).
+
+The plumbing (bounds, input and method checks, status codes to errors, the batch drivers,
+the lazy parts of results, the energies) is
+:class:`~hexapod_pin.core.closed_form.ClosedFormDynamics`;
+this module supplies the hexapod's kernels of its contract.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from types import MappingProxyType
-from typing import Any
+from typing import Any, NoReturn
 
 import threading
 
@@ -35,28 +39,23 @@ import proxsuite
 
 from . import kernels
 from . import batch
-from .batch import check_batch
-from ..core.checks import as_array, max_abs, owned_copy, required
+from ..core.closed_form import ClosedFormDynamics, Inputs, LazyParts, TreeDetails
 from ..core.closed_loop import ClosedLoopModel
 from ..core.compiled import all_finite
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
-                            Energies, ForwardDynamicsResult, InverseDynamicsDerivatives,
-                            InverseDynamicsResult, LazyConditioning, ReducedDynamics,
-                            SingularityMeasures)
+                            ForwardDynamicsResult, InverseDynamicsDerivatives,
+                            InverseDynamicsResult, ReducedDynamics, SingularityMeasures)
 from ..core.dynamics import (INVERSE_METHODS, QP_SOLVED, QP_STATUS, RESIDUAL_RTOL,
                              ClosedLoopDynamics)
-from ..core.effects_projection import batch_of_states, batch_row, stacked
-from ..core.energy import energy_totals
 from .derivatives import DerivativesWorkspace, analytic_derivatives
 from .kinematics import HexapodKinematics, check_branch
 from ..errors import (
     ActuatorSaturationError,
     HexapodPinError,
-    InputError,
     SolverError,
 )
 from ..core.pose import rotation_from_rpy
-from ..core.checks import vec6 as _vec6
+from ..core.checks import owned_copy, vec6
 from .geometry import HexapodGeometry
 
 #: the hexapod's forward-dynamics routes: the tree routes and the null-space one
@@ -68,89 +67,6 @@ _QP_EPS_REDUCED = 2e-14
 # --------------------------------------------------------------------------------------
 # hexapod: pose / twist-level API
 # --------------------------------------------------------------------------------------
-class _InverseDetails:
-    """The parts of an inverse-dynamics result computed on first access
-    (:class:`~hexapod_pin.core.results.ResultDetails`)."""
-
-    def __init__(self, ws, force, tau, wrench, q, v, a, wrenches_wanted, pose, signs):
-        self.ws, self.force, self.tau, self.wrench = ws, force, tau, wrench
-        self.q, self.v, self.a, self.wrenches_wanted = q, v, a, wrenches_wanted
-        self.pose, self.signs = pose, signs
-        self._tips = None
-
-    def tip_forces(self) -> np.ndarray:
-        """(6, 3) force of the platform on each leg tip (carriage order), world axes."""
-        if self._tips is None:
-            self._tips = self.ws.compiled.tip_forces(self.pose, self.force, self.tau,
-                                                      self.signs)
-        return self._tips
-
-    def tau_ext(self) -> np.ndarray:
-        tau = np.zeros(self.ws.dyn.nv)
-        if self.wrench is not None:
-            rot = rotation_from_rpy(self.pose[3:])
-            wrench = np.asarray(self.wrench, dtype=float)
-            tau[self.ws.ff_v] = np.concatenate([rot.T @ wrench[:3], rot.T @ wrench[3:]])
-        return tau
-
-    def multipliers(self) -> np.ndarray:
-        return self.tip_forces()[self.ws.leg_of_closure].reshape(-1)
-
-    def closure_forces(self) -> np.ndarray:
-        return -self.tip_forces()
-
-    def joint_wrenches(self) -> Mapping[str, np.ndarray]:
-        if not self.wrenches_wanted:
-            return MappingProxyType({})
-        fext = None
-        if self.wrench is not None:
-            fext = {self.ws.platform_joint: pin.Force(self.tau_ext()[self.ws.ff_v])}
-        with self.ws.lock:                  # the robot's Pinocchio data
-            table, _ = self.ws.dyn.joint_wrenches(self.q, self.v, self.a, self.multipliers(),
-                                                  fext)
-        return MappingProxyType(table)
-
-    def residual(self) -> float:
-        dyn = self.ws.dyn
-        full = np.array(self.force) - self.tau_ext()
-        full[dyn.clm.actuated_v] -= self.tau
-        with self.ws.lock:                  # the robot's Pinocchio data
-            jac = dyn.constraint_jacobian(self.q)
-        full -= jac.T @ self.multipliers()
-        return max_abs(full)
-
-
-class _ForwardDetails:
-    """Closure multipliers and forces of a forward-dynamics result, converted on first
-    access (:class:`~hexapod_pin.core.results.ResultDetails`)."""
-
-    __slots__ = ("dyn", "leg_of_closure", "local", "lock", "q", "rows")
-
-    def __init__(self, dyn, q, leg_of_closure, lock, local=None, rows=None):
-        self.dyn, self.q, self.local, self.rows = dyn, q, local, rows
-        self.leg_of_closure, self.lock = leg_of_closure, lock
-
-    def closure_forces(self) -> np.ndarray:
-        out = np.empty((6, 3))
-        out[self.leg_of_closure] = -self.multipliers().reshape(-1, 3)
-        return out
-
-    def multipliers(self) -> np.ndarray:
-        with self.lock:                     # the robot's Pinocchio data
-            return self._multipliers()
-
-    def _multipliers(self) -> np.ndarray:
-        if isinstance(self.rows, _LazyTreeMultipliers):
-            self.rows = self.rows()
-        if self.rows is None:
-            # Pinocchio's LOCAL contact forces, rotated into world axes: lambda = R_c1 lambda_pin
-            dyn = self.dyn
-            pin.framesForwardKinematics(dyn.model, dyn.data, self.q)
-            rots = np.array([dyn.data.oMf[c[2]].rotation for c in dyn.closure_frames])
-            self.rows = np.einsum("kij,kj->ki", rots, self.local.reshape(-1, 3)).reshape(-1)
-        return self.rows
-
-
 class _LazyTreeMultipliers:
     """Closure multipliers of a null-space forward-dynamics result, from the legs' tree
     rows at the computed motion (as the inverse dynamics does)."""
@@ -161,7 +77,7 @@ class _LazyTreeMultipliers:
         self.ws, self.pose, self.q, self.v, self.acc = ws, pose, q, v, acc
         self.forces, self.signs, self.effect = forces, signs, effect
 
-    def __call__(self) -> np.ndarray:
+    def __call__(self, details: Any = None) -> np.ndarray:
         ws = self.ws
         # each leg's three tree rows (carriage, u_a, u_b) of rnea - tau_e = S^T tau +
         # J_c^T lambda (the wrench acts on the platform rows only)
@@ -172,6 +88,16 @@ class _LazyTreeMultipliers:
         return tips[ws.leg_of_closure].reshape(-1)
 
 
+def _pinocchio_multipliers(dyn: ClosedLoopDynamics, q: np.ndarray,
+                           local: np.ndarray) -> Callable[[], np.ndarray]:
+    """The closure multipliers (18,) of ``pin.constraintDynamics``, computed on first
+    access: Pinocchio's LOCAL contact forces rotated into world axes
+    (``lambda = R_c1 lambda_pin``)."""
+    def rotate(details: Any = None) -> np.ndarray:
+        pin.framesForwardKinematics(dyn.model, dyn.data, q)
+        rots = np.array([dyn.data.oMf[c[2]].rotation for c in dyn.closure_frames])
+        return np.einsum("kij,kj->ki", rots, local.reshape(-1, 3)).reshape(-1)
+    return rotate
 
 
 @dataclass
@@ -180,10 +106,8 @@ class _HexapodWorkspace:
     ff_v: np.ndarray
     free_v: np.ndarray
     leg_of_closure: np.ndarray
-    bounds: np.ndarray | None
     platform_joint: int
     compiled: kernels.ClosedForm
-    lock: object
     q: np.ndarray = field(default_factory=lambda: np.empty(25))
     v: np.ndarray = field(default_factory=lambda: np.empty(24))
     a: np.ndarray = field(default_factory=lambda: np.empty(24))
@@ -192,14 +116,19 @@ class _HexapodWorkspace:
     jac_t: np.ndarray = field(default_factory=lambda: np.empty((6, 6)))
     work: np.ndarray = field(default_factory=lambda: np.empty((36, 6)))
     qps: dict = field(default_factory=dict)
+    #: how the lazy parts of the inverse and forward results are computed
+    inverse_parts: Any = None
+    forward_parts: Any = None
     #: whether the joint effects give a force (damping, friction, springs): fixed for a
     #: model (a hand-written armature changes the armature only, which Pinocchio reads)
     forces: bool = False
 
 
-class HexapodDynamics:
+class HexapodDynamics(ClosedFormDynamics):
     """The hexapod's dynamics at the platform level: the component that
-    :class:`~hexapod_pin.hexapod.robot.Hexapod` delegates its dynamics methods to.
+    :class:`~hexapod_pin.hexapod.robot.Hexapod` delegates its dynamics methods to, the
+    hexapod's kernels of the :class:`~hexapod_pin.core.closed_form.ClosedFormDynamics`
+    contract (which holds the bounds, checks, errors, batch drivers and energies).
 
     Args:
         geometry: the :class:`~hexapod_pin.hexapod.geometry.HexapodGeometry`.
@@ -233,17 +162,21 @@ class HexapodDynamics:
     independent of ``pin.rnea``; the tests check that both agree to 1e-10.
     """
 
+    dim = 6
+    n_actuators = 6
+    closure_shape = (6, 3)
+    INVERSE_METHODS = INVERSE_METHODS
+    FORWARD_METHODS = HEXAPOD_FORWARD_METHODS
+
     def __init__(self, geometry: HexapodGeometry, model: ClosedLoopModel, indices: Any,
                  closed_form: kernels.ClosedForm, lock: threading.RLock | None = None,
                  singularity: Callable[[npt.ArrayLike, npt.ArrayLike | None],
                                        SingularityMeasures] | None = None) -> None:
-        self.geometry, self.model, self.indices = geometry, model, indices
+        super().__init__(geometry, model, lock,
+                         HexapodKinematics(geometry, closed_form).singularity
+                         if singularity is None else singularity)
+        self.indices = indices
         self.closed_form = closed_form
-        #: the measures of a pose, for the results' lazy ``singularity``
-        self.singularity = HexapodKinematics(geometry, closed_form).singularity \
-            if singularity is None else singularity
-        #: the robot's lock, held by the lazy parts of results (they use this workspace)
-        self.lock = threading.RLock() if lock is None else lock
         self._ws: _HexapodWorkspace | None = None
         self._derivatives: DerivativesWorkspace | None = None
 
@@ -280,11 +213,14 @@ class HexapodDynamics:
                 cl.type != "point" for cl in clm.closures):
             raise HexapodPinError("the hexapod's loops must be six point closures "
                                   "leg_<i>_tip -> platform_anchor_<i>")
-        limit = self.geometry.max_actuator_force
-        bounds = None if not np.isfinite(limit) else np.full(6, limit)
-        ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure, bounds,
+        ws = _HexapodWorkspace(dyn, ff_v, free_v, leg_of_closure,
                                clm.model.getJointId("platform_joint"), self.closed_form,
-                               self.lock, forces=clm.effects.has_forces)
+                               forces=clm.effects.has_forces)
+        ws.inverse_parts = LazyParts(dyn, self.lock, tau_ext=self._tree_wrench,
+                                     closure=self._tip_closure,
+                                     to_multipliers=self._closure_rows,
+                                     fext=self._platform_force)
+        ws.forward_parts = LazyParts(dyn, self.lock, to_closure=self._leg_closure)
         home_q, _ = self.tree_state(self.geometry.home_pose, np.zeros(6), ws=ws)
         dyn.closure_rank(home_q)
         kernels.check_mass_structure(pin.crba(dyn.model, dyn.data, home_q))
@@ -304,14 +240,44 @@ class HexapodDynamics:
         """
         ck = (self._workspace() if ws is None else ws).compiled
         signs = ck.signs if branch is None else check_branch(branch)
-        pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
+        pose_a, twist_a = vec6(pose, "pose"), vec6(twist, "twist")
         q, v = np.empty(25), np.empty(24)
         s = ck.scratch
         code = kernels.tree_state(ck.geo, signs, pose_a, twist_a, twist_a, 1, q, v, v,
                                   s.rot, s.wk)
         if code != kernels.OK:
-            self._raise_code(ck, code, pose=pose, twist=twist)
+            self.refuse(code, ((pose, "pose"), (twist, "twist")))
         return q, v
+
+    # -- the contract's other pieces ----------------------------------------------------
+    @property
+    def batch_kernels_apply(self) -> bool:
+        """Whether the compiled batches model the robot's effects (the carriages' drives:
+        yes; effects on the universal joints or the platform's free flyer: no)."""
+        return not self.closed_form.dynamics_geo[kernels.PASSIVE]
+
+    def tau_ext(self, wrench: np.ndarray | None, pose: np.ndarray) -> np.ndarray:
+        """The wrench ``(f, m)`` (6,) as the tree's generalised force (nv,): the free-flyer
+        rows ``(R^T f, R^T m)`` (body axes), zero elsewhere (and for None)."""
+        ws = self._workspace()
+        tau = np.zeros(ws.dyn.nv)
+        if wrench is not None:
+            rot = rotation_from_rpy(pose[3:])
+            wrench = np.asarray(wrench, dtype=float)
+            tau[ws.ff_v] = np.concatenate([rot.T @ wrench[:3], rot.T @ wrench[3:]])
+        return tau
+
+    def raise_kernel_status(self, code: int, inputs: Inputs, info: np.ndarray | None = None,
+                            index: int | None = None,
+                            pose: np.ndarray | None = None) -> NoReturn:
+        """Raise :meth:`kernels.ClosedForm.error` of ``code`` (single states: the hexapod's
+        batches raise in :mod:`hexapod_pin.hexapod.batch`).
+
+        Raises:
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: a singular configuration.
+        """
+        raise self.closed_form.error(code)
 
     # -- inverse dynamics --------------------------------------------------------------
     def inverse_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
@@ -361,29 +327,58 @@ class HexapodDynamics:
             InputError: bad shapes, NaN / inf, unknown method.
             SolverError: the QP failed for another reason.
         """
-        if method not in INVERSE_METHODS:
-            raise InputError("method", method, f"expected one of {INVERSE_METHODS}")
+        self.check_method(method, self.INVERSE_METHODS)
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
         signs = ck.signs if branch is None else check_branch(branch)
-        pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
-        tdot_a = _vec6(twist_dot, "twist_dot")
-        wrench_a = None if wrench is None else _vec6(wrench, "wrench")
-        bounds = ws.bounds if bounded else None
+        pose_a, twist_a = vec6(pose, "pose"), vec6(twist, "twist")
+        tdot_a = vec6(twist_dot, "twist_dot")
+        wrench_a = None if wrench is None else vec6(wrench, "wrench")
+        bounds = self.bounds(bounded)
         q, v, a = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
         s = ck.scratch
         code = kernels.tree_state(ck.geo, signs, pose_a, twist_a, tdot_a, 2, q, v, a, s.rot,
                                   s.wk)
         if code != kernels.OK or (wrench_a is not None and not all_finite(wrench_a)):
-            self._raise_code(ck, code, pose=pose, twist=twist, twist_dot=twist_dot,
-                             wrench=wrench)
+            self.refuse(code, ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot"),
+                               (wrench, "wrench")))
         force = self._tree_force(ws, q, v, a)
         tau, status, iters, rhs = self._solve_tree(ws, force, wrench_a, method, bounds)
-        details = _InverseDetails(ws, force, tau,
-                                  None if wrench_a is None else owned_copy(wrench_a, wrench), q, v,
-                                  a, joint_wrenches, owned_copy(pose_a, pose), signs)
+        kept = owned_copy(pose_a, pose)
+        wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
+        # the lazy parts (ws.inverse_parts): the closure forces from the legs' tree rows
+        details = TreeDetails(ws.inverse_parts, (q, v, a), tau, wrench_kept, kept, signs,
+                              force=force, wanted=joint_wrenches)
         return InverseDynamicsResult(tau, q, v, a, method, status, iters, details,
-                                     self._conditioning(details.pose, signs))
+                                     self.conditioning(kept, signs))
+
+    # -- the lazy parts of results (ws.inverse_parts, ws.forward_parts: core.closed_form) ----
+    def _tree_wrench(self, details: TreeDetails) -> np.ndarray:
+        """The result's wrench on the tree (nv,) (:meth:`tau_ext`)."""
+        return self.tau_ext(details.wrench, details.pose)    # type: ignore[arg-type]
+
+    def _tip_closure(self, details: TreeDetails) -> np.ndarray:
+        """(6, 3) force of each leg tip on the platform (carriage order), world axes: minus
+        the platform's force on the tip (:meth:`kernels.ClosedForm.tip_forces`)."""
+        return -self.closed_form.tip_forces(details.pose, details.force, details.tau,
+                                            details.signs)
+
+    def _closure_rows(self, closure: np.ndarray) -> np.ndarray:
+        """The multipliers (18,) of closure forces (6, 3), in the closures' order."""
+        return (-closure)[self._workspace().leg_of_closure].reshape(-1)
+
+    def _platform_force(self, details: TreeDetails) -> dict[int, Any] | None:
+        """The wrench as Pinocchio's external force on the platform joint (body axes)."""
+        if details.wrench is None:
+            return None
+        ws = self._workspace()
+        return {ws.platform_joint: pin.Force(details.tau_ext()[ws.ff_v])}
+
+    def _leg_closure(self, rows: np.ndarray) -> np.ndarray:
+        """The closure forces (6, 3), carriage order, of the multipliers (18,)."""
+        out = np.empty((6, 3))
+        out[self._workspace().leg_of_closure] = -rows.reshape(-1, 3)
+        return out
 
     @staticmethod
     def _tree_force(ws: _HexapodWorkspace, q: np.ndarray, v: np.ndarray,
@@ -395,11 +390,6 @@ class HexapodDynamics:
         if not ws.forces:
             return force
         return force - dyn.effect_force_of_motion(q, v, a)
-
-    def _conditioning(self, pose: np.ndarray, signs: np.ndarray) -> LazyConditioning:
-        """The lazy conditioning of a result at ``pose`` (an owned copy) on ``signs``."""
-        return LazyConditioning(self.singularity, pose, np.array(signs, copy=True),
-                                self.lock)
 
     def _solve_tree(self, ws, force, wrench_a, method, bounds):
         """``J^T tau = G^T force - wrench`` at the legs of the last tree state, under the
@@ -431,8 +421,7 @@ class HexapodDynamics:
         """
         limit = None if bounds is None else bounds[0] * (1.0 + RESIDUAL_RTOL)
         if method == "kkt":
-            if limit is not None and max(map(abs, tau.tolist())) > limit:
-                raise ActuatorSaturationError(tau, bounds)
+            self.check_bounds(tau, bounds)
             return tau, "solved", 0
         key = "id_box" if bounds is not None else "id"
         qp = ws.qps.get(key)
@@ -480,11 +469,11 @@ class HexapodDynamics:
         ``wrench`` (6,) as in :meth:`inverse_dynamics` (no checks beyond the
         singularities): the legs are read from the universal-joint angles of ``q``."""
         ws = self._workspace()
-        ck, dyn = ws.compiled, ws.dyn
+        ck = ws.compiled
         s = ck.scratch
         q = np.ascontiguousarray(q, dtype=float)
-        twist_a, tdot_a = _vec6(twist, "twist"), _vec6(twist_dot, "twist_dot")
-        wrench_a = None if wrench is None else _vec6(wrench, "wrench")
+        twist_a, tdot_a = vec6(twist, "twist"), vec6(twist_dot, "twist_dot")
+        wrench_a = None if wrench is None else vec6(wrench, "wrench")
         code = kernels.legs_from_tree(ck.geo, q, np.empty(6), s.rot, s.wk)
         if code != kernels.OK:
             raise ck.error(code)
@@ -523,13 +512,13 @@ class HexapodDynamics:
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
         signs = ck.signs if branch is None else check_branch(branch)
-        pose_a = _vec6(pose, "pose")
-        wrench_a = None if wrench is None else _vec6(wrench, "wrench")
+        pose_a = vec6(pose, "pose")
+        wrench_a = None if wrench is None else vec6(wrench, "wrench")
         q, s = ws.q, ck.scratch
         code = kernels.tree_state(ck.geo, signs, pose_a, kernels.ZERO6, kernels.ZERO6, 0,
                                   q, ws.v, ws.a, s.rot, s.wk)
         if code != kernels.OK or (wrench_a is not None and not all_finite(wrench_a)):
-            self._raise_code(ck, code, pose=pose, wrench=wrench)
+            self.refuse(code, ((pose, "pose"), (wrench, "wrench")))
         gravity = pin.computeGeneralizedGravity(dyn.model, dyn.data, q)
         if ws.forces:                  # the springs: tau_e = -K dq at rest (damping 0)
             gravity = gravity - dyn.effect_force_of_motion(q, np.zeros(dyn.nv),
@@ -541,19 +530,8 @@ class HexapodDynamics:
         code = kernels.solve_forces(ck.geo, s.wk, s.mats, rhs, tau, ws.multipliers, ws.jac_t)
         if code != kernels.OK:
             raise ck.error(code)
-        if bounded and ws.bounds is not None and \
-                max(map(abs, tau.tolist())) > ws.bounds[0] * (1.0 + RESIDUAL_RTOL):
-            raise ActuatorSaturationError(tau, ws.bounds)
+        self.check_bounds(tau, self.bounds(bounded))
         return tau
-
-    @staticmethod
-    def _raise_code(ck, code, **vectors) -> None:
-        """Raise the error of a state the kernels refused: the :class:`InputError` of a
-        non-finite input (by name), else :meth:`kernels.ClosedForm.error` of ``code``."""
-        for name, value in vectors.items():
-            if value is not None:
-                as_array(value, (6,), name)
-        raise ck.error(code)
 
     # -- forward dynamics ----------------------------------------------------------------
     def forward_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
@@ -589,14 +567,15 @@ class HexapodDynamics:
             InputError: bad shape, non-finite or non-real values.
             SolverError: a solve that does not verify.
         """
-        if method not in HEXAPOD_FORWARD_METHODS:
-            raise InputError("method", method, f"expected one of {HEXAPOD_FORWARD_METHODS}")
+        self.check_method(method, self.FORWARD_METHODS)
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
         signs = ck.signs if branch is None else check_branch(branch)
-        pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
-        tau_a = _vec6(actuator_forces, "actuator_forces")
-        wrench_a = None if wrench is None else _vec6(wrench, "wrench")
+        pose_a, twist_a = vec6(pose, "pose"), vec6(twist, "twist")
+        tau_a = vec6(actuator_forces, "actuator_forces")
+        wrench_a = None if wrench is None else vec6(wrench, "wrench")
+        inputs = ((pose, "pose"), (twist, "twist"), (actuator_forces, "actuator_forces"),
+                  (wrench, "wrench"))
         q, v, acc0 = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
         # the drift a_0 (tree acceleration at twist_dot = 0) only for the null-space route
         level = 2 if method == "nullspace" else 1
@@ -604,8 +583,7 @@ class HexapodDynamics:
         code = kernels.tree_state(ck.geo, signs, pose_a, twist_a, kernels.ZERO6, level, q,
                                   v, acc0, s.rot, s.wk)
         if code != kernels.OK:
-            self._raise_code(ck, code, pose=pose, twist=twist, actuator_forces=actuator_forces,
-                             wrench=wrench)
+            self.refuse(code, inputs)
         twist_dot = np.empty(6)
         effect, rest = dyn.effect_terms(q, v) if ws.forces else (None, ())
         if method == "nullspace" and len(rest):
@@ -623,21 +601,19 @@ class HexapodDynamics:
                 kernels.ZERO6 if wrench_a is None else wrench_a, wrench_a is not None, acc0,
                 ws.work, twist_dot, acc)
             if code == kernels.NONFINITE:
-                self._raise_code(ck, code, pose=pose, twist=twist,
-                                 actuator_forces=actuator_forces, wrench=wrench)
+                self.refuse(code, inputs)
             if code != kernels.OK:
                 raise SolverError("null-space forward dynamics", "mass matrix not positive "
                                   "definite", f"M_x = {ws.work[24:30].tolist()}")
             lazy = _LazyTreeMultipliers(
                 ws, owned_copy(pose_a, pose), q, v, acc, owned_copy(tau_a, actuator_forces),
                 signs, effect)
-            details = _ForwardDetails(dyn, q, ws.leg_of_closure, ws.lock, rows=lazy)
+            details = TreeDetails(ws.forward_parts, (q, v, acc), lazy.forces, multipliers=lazy)
             return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                          "solved", 0, details,
-                                         self._conditioning(lazy.pose, signs))
+                                         self.conditioning(lazy.pose, signs))
         if not all_finite(tau_a) or (wrench_a is not None and not all_finite(wrench_a)):
-            self._raise_code(ck, kernels.NONFINITE, pose=pose, twist=twist,
-                             actuator_forces=actuator_forces, wrench=wrench)
+            self.refuse(kernels.NONFINITE, inputs)
         tau = np.zeros(dyn.nv)
         tau[dyn.clm.actuated_v] = tau_a
         if wrench_a is not None:
@@ -647,18 +623,19 @@ class HexapodDynamics:
             acc, prox = dyn.pinocchio_call(q, v, tau, False)
         if acc is not None:
             acc = acc.copy()
-            details = _ForwardDetails(dyn, q, ws.leg_of_closure, ws.lock,
-                                      local=dyn.data.lambda_c.copy())
+            details = TreeDetails(ws.forward_parts, (q, v, acc), tau_a, multipliers=(
+                _pinocchio_multipliers(dyn, q, dyn.data.lambda_c.copy())))
             status, iters = "solved", int(prox.iter)
         else:
             res = dyn.forward(q, v, tau, method)
             acc, status, iters = res.a, res.status + note, res.iterations
-            details = _ForwardDetails(dyn, q, ws.leg_of_closure, ws.lock, rows=res.multipliers)
+            details = TreeDetails(ws.forward_parts, (q, v, acc), tau_a,
+                                  multipliers=res.multipliers)
         kernels.twist_dot_of(s.rot, twist_a, acc[ws.ff_v], twist_dot)
         method = "nullspace" if note else method
         return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                      status, iters, details,
-                                     self._conditioning(owned_copy(pose_a, pose), signs))
+                                     self.conditioning(owned_copy(pose_a, pose), signs))
 
     # -- reduced (null-space) dynamics ------------------------------------------------------
     def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
@@ -689,13 +666,13 @@ class HexapodDynamics:
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
         signs = ck.signs if branch is None else check_branch(branch)
-        pose_a, twist_a = _vec6(pose, "pose"), _vec6(twist, "twist")
+        pose_a, twist_a = vec6(pose, "pose"), vec6(twist, "twist")
         q, v, acc0 = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
         s = ck.scratch
         code = kernels.tree_state(ck.geo, signs, pose_a, twist_a, kernels.ZERO6, 2, q, v,
                                   acc0, s.rot, s.wk)
         if code != kernels.OK:
-            self._raise_code(ck, code, pose=pose, twist=twist)
+            self.refuse(code, ((pose, "pose"), (twist, "twist")))
         mass = pin.crba(dyn.model, dyn.data, q)
         bias = pin.rnea(dyn.model, dyn.data, q, v, acc0)
         if ws.forces:
@@ -704,139 +681,33 @@ class HexapodDynamics:
         kernels.reduced_tree(ck.geo, s.rot, s.wk, mass, bias, vmap, m_x, h_x)
         return ReducedDynamics(m_x, h_x, vmap[self.indices.carriage_v].copy(), vmap)
 
-    # -- energies ----------------------------------------------------------------------------
-    def energies(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
-                 branch: npt.ArrayLike | None = None) -> Energies:
-        """Kinetic and potential energy of the whole mechanism (J).
+    # -- batch kernels (the drivers: ClosedFormDynamics) -----------------------------------
+    def inverse_batch_kernel(self, poses: np.ndarray, twists: np.ndarray,
+                             twist_dots: np.ndarray, wrenches: np.ndarray | None,
+                             bounded: bool) -> BatchInverseDynamics:
+        """The Newton-Euler kernels over N checked states (:mod:`hexapod_pin.hexapod.batch`;
+        independent of the Pinocchio tree route of :meth:`inverse_dynamics`; they agree to
+        round-off)."""
+        return batch.inverse_dynamics_batch(self.closed_form.dynamics_geo, poses, twists,
+                                            twist_dots, wrenches, bounded)
 
-        Kinetic ``1/2 v^T (M + A) v`` (the rotors' armature included); potential: ``sum
-        m_b g z_b`` over every body's centre of mass (zero at z = 0) plus the springs'
-        ``sum K dq^2 / 2`` (:func:`~hexapod_pin.core.energy.energy_totals`).
+    def forward_batch_kernel(self, poses: np.ndarray, twists: np.ndarray,
+                             forces: np.ndarray,
+                             wrenches: np.ndarray | None) -> BatchForwardDynamics:
+        """The reduced equation per state (:mod:`hexapod_pin.hexapod.batch`)."""
+        return batch.forward_dynamics_batch(self.closed_form.dynamics_geo, poses, twists,
+                                            forces, wrenches)
 
-        Args:
-            pose: (6,) (m, rad).
-            twist: ``(v, w)`` world axes (6,).
-        """
-        q, v = self.tree_state(pose, twist, branch)
-        return self.tree_energies(q, v)
+    def static_batch_kernel(self, poses: np.ndarray, wrenches: np.ndarray | None,
+                            bounded: bool) -> np.ndarray:
+        """The static-force kernel over N checked poses (:mod:`hexapod_pin.hexapod.batch`)."""
+        return batch.static_forces_batch(self.closed_form.dynamics_geo, poses, wrenches,
+                                         bounded)
 
-    def tree_energies(self, q: npt.ArrayLike, v: npt.ArrayLike) -> Energies:
-        """:meth:`energies` from a tree state ``q`` (nq,), ``v`` (nv,) (Pinocchio conventions)."""
-        kinetic, potential = energy_totals(self.model, q, v)
-        return Energies(kinetic, potential, kinetic + potential)
-
-    # -- batch ----------------------------------------------------------------------------
-    def inverse_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
-                               twist_dots: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
-                               bounded: bool = True) -> BatchInverseDynamics:
-        """Inverse dynamics of N states at once (closed form, vectorised numpy).
-
-        The Newton-Euler kernels over N states (:mod:`hexapod_pin.hexapod.batch`; independent
-        of the Pinocchio tree route of :meth:`inverse_dynamics`; they agree to round-off).
-
-        Args:
-            poses: (N, 6), conventions as in :meth:`inverse_dynamics`.
-            twists: (N, 6), conventions as in :meth:`inverse_dynamics`.
-            twist_dots: (N, 6), conventions as in :meth:`inverse_dynamics`.
-            wrenches: (N, 6) or None.
-            bounded: raise :class:`BatchActuatorSaturationError` (an
-                :class:`ActuatorSaturationError`) for the first state beyond the bounds.
-
-        Returns:
-            :class:`~hexapod_pin.core.results.BatchInverseDynamics`.
-
-        Raises:
-            InputError: bad shapes or NaN / inf, rows of different lengths.
-            BatchUnreachablePoseError: a pose out of reach, the first such state (a subclass
-                of :class:`UnreachablePoseError`, with its ``index``).
-            BatchSingularityError: a singular state, the first such state (a subclass of
-                :class:`SingularityError`, with its ``index``).
-        """
-        required(twists=twists, twist_dots=twist_dots)
-        poses, twists, twist_dots, wrenches, _ = check_batch(poses, twists, twist_dots,
-                                                             wrenches)
-        geo = self.closed_form.dynamics_geo
-        if geo[kernels.PASSIVE]:                 # effects the kernels do not model
-            res = batch_of_states(len(poses), lambda k: self.inverse_dynamics(
-                poses[k], twists[k], twist_dots[k], batch_row(wrenches, k), bounded=bounded,
-                joint_wrenches=False))
-            return BatchInverseDynamics(stacked(res, "actuator_forces", (6,)),
-                                        stacked(res, "closure_forces", (6, 3)),
-                                        stacked(res, "residual", ()))
-        return batch.inverse_dynamics_batch(geo, poses, twists, twist_dots, wrenches, bounded)
-
-    def forward_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
-                               actuator_forces: npt.ArrayLike,
-                               wrenches: npt.ArrayLike | None = None) -> BatchForwardDynamics:
-        """Forward dynamics of N states at once (closed form, vectorised numpy).
-
-        Solves the reduced equation ``M_x twist_dot = J^T tau + wrench - h_x`` per state
-        (:mod:`hexapod_pin.hexapod.batch`).
-
-        Args:
-            poses: (N, 6) (m, rad).
-            twists: (N, 6) (m/s, rad/s, world axes).
-            actuator_forces: (N, 6) (N).
-            wrenches: (N, 6) or None.
-
-        Returns:
-            :class:`~hexapod_pin.core.results.BatchForwardDynamics`.
-
-        Raises:
-            InputError: bad shape, non-finite or non-real values.
-            BatchUnreachablePoseError: a pose out of reach.
-            BatchSingularityError: a singular state.
-        """
-        required(twists=twists, actuator_forces=actuator_forces)
-        poses, twists, _, wrenches, forces = check_batch(poses, twists, None, wrenches,
-                                                         actuator_forces)
-        geo = self.closed_form.dynamics_geo
-        if geo[kernels.PASSIVE]:                 # effects the kernels do not model
-            res = batch_of_states(len(poses), lambda k: self.forward_dynamics(
-                poses[k], twists[k], forces[k], batch_row(wrenches, k)))
-            return BatchForwardDynamics(stacked(res, "twist_dot", (6,)),
-                                        stacked(res, "actuator_accelerations", (6,)),
-                                        stacked(res, "closure_forces", (6, 3)))
-        return batch.forward_dynamics_batch(geo, poses, twists, forces, wrenches)
-
-    def static_forces_batch(self, poses: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
-                            bounded: bool = True) -> npt.NDArray[np.float64]:
-        """:meth:`static_forces` of N poses at once (closed form): (N, 6) forces (N).
-
-        Raises:
-            InputError: bad shape, non-finite or non-real values.
-            BatchUnreachablePoseError: a pose out of reach.
-            BatchSingularityError: a singular state.
-            BatchActuatorSaturationError: with ``bounded``, forces beyond
-                ``geometry.max_actuator_force``.
-        """
-        poses, _, _, wrenches, _ = check_batch(poses, None, None, wrenches)
-        geo = self.closed_form.dynamics_geo
-        if geo[kernels.PASSIVE]:                 # effects the kernels do not model
-            return np.array(batch_of_states(len(poses), lambda k: self.static_forces(
-                poses[k], batch_row(wrenches, k), bounded=bounded))).reshape(len(poses), 6)
-        return batch.static_forces_batch(geo, poses, wrenches, bounded)
-
-    def reduced_dynamics_batch(self, poses: npt.ArrayLike,
-                               twists: npt.ArrayLike) -> BatchReducedDynamics:
-        """:meth:`reduced_dynamics` of N states at once (closed form): ``M_x`` (N, 6, 6),
-        ``h_x`` (N, 6), ``J`` (N, 6, 6).
-
-        Raises:
-            InputError: bad shape, non-finite or non-real values.
-            BatchUnreachablePoseError: a pose out of reach.
-            BatchSingularityError: a singular state.
-        """
-        required(twists=twists)
-        poses, twists, _, _, _ = check_batch(poses, twists)
-        geo = self.closed_form.dynamics_geo
-        if geo[kernels.PASSIVE]:                 # effects the kernels do not model
-            res = batch_of_states(len(poses), lambda k: self.reduced_dynamics(poses[k],
-                                                                              twists[k]))
-            return BatchReducedDynamics(stacked(res, "mass_matrix", (6, 6)),
-                                        stacked(res, "bias", (6,)),
-                                        stacked(res, "jacobian", (6, 6)))
-        return batch.reduced_dynamics_batch(geo, poses, twists)
+    def reduced_batch_kernel(self, poses: np.ndarray,
+                             twists: np.ndarray) -> BatchReducedDynamics:
+        """``M_x``, ``h_x``, ``J`` of N checked states (:mod:`hexapod_pin.hexapod.batch`)."""
+        return batch.reduced_dynamics_batch(self.closed_form.dynamics_geo, poses, twists)
 
     # -- derivatives ------------------------------------------------------------------------
     def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,

@@ -150,17 +150,12 @@ class Hexapod(RobotBase):
     forward_kinematics = delegate("kinematics", HexapodKinematics.forward_kinematics)
     assembly_modes = delegate("kinematics", HexapodKinematics.assembly_modes)
 
-    # -- dynamics (HexapodDynamics) --------------------------------------------------------
+    # -- dynamics (HexapodDynamics; energies and batches: RobotBase) -----------------------
     inverse_dynamics = delegate("dynamics", HexapodDynamics.inverse_dynamics)
     forward_dynamics = delegate("dynamics", HexapodDynamics.forward_dynamics)
     static_forces = delegate("dynamics", HexapodDynamics.static_forces)
     reduced_dynamics = delegate("dynamics", HexapodDynamics.reduced_dynamics)
-    energies = delegate("dynamics", HexapodDynamics.energies)
     tree_energies = delegate("dynamics", HexapodDynamics.tree_energies)
-    inverse_dynamics_batch = delegate("dynamics", HexapodDynamics.inverse_dynamics_batch)
-    forward_dynamics_batch = delegate("dynamics", HexapodDynamics.forward_dynamics_batch)
-    static_forces_batch = delegate("dynamics", HexapodDynamics.static_forces_batch)
-    reduced_dynamics_batch = delegate("dynamics", HexapodDynamics.reduced_dynamics_batch)
     inverse_dynamics_derivatives = delegate("dynamics",
                                             HexapodDynamics.inverse_dynamics_derivatives)
 

@@ -25,33 +25,33 @@ dynamics add their share through the velocity map
 (:func:`~hexapod_pin.core.effects_projection.reduced_effects`), and its batches run state by
 state. Coulomb friction at rest: forward dynamics solves stick / slip; statics return the
 frictionless holding forces (any force within ``+-coulomb`` of them holds a slider).
+
+The plumbing (bounds, input and method checks, status codes to errors, the batch drivers,
+the lazy parts of results, the energies) is
+:class:`~hexapod_pin.core.closed_form.ClosedFormDynamics`;
+this module supplies the planar robot's kernels of its contract.
 """
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Mapping
-from types import MappingProxyType
-from typing import Any
+from collections.abc import Callable
+from typing import Any, NoReturn
 
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..core.checks import as_array, max_abs, owned_copy, required
+from ..core.checks import as_array, max_abs, owned_copy
+from ..core.closed_form import ClosedFormDynamics, Inputs, LazyParts, TreeDetails
 from ..core.closed_loop import ClosedLoopModel
 from ..core.dynamics import ClosedLoopDynamics, forward_dynamics_tree, inverse_dynamics_tree
-from ..core.effects_projection import (PASSIVE_STATUS, batch_of_states, batch_row,
-                                       passive_effect_coordinates, reduced_effects,
-                                       stacked)
-from ..core.energy import energy_totals
+from ..core.effects_projection import (PASSIVE_STATUS, passive_effect_coordinates,
+                                       reduced_effects)
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
-                            ComputedDetails, Energies, ForwardDynamicsResult,
-                            InverseDynamicsResult, LazyConditioning, ReducedDynamics,
-                            SingularityMeasures)
-from ..core.robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS
-from ..errors import (ActuatorSaturationError, BatchActuatorSaturationError, InputError,
-                      SolverError)
+                            ComputedDetails, ForwardDynamicsResult, InverseDynamicsResult,
+                            ReducedDynamics, SingularityMeasures)
+from ..errors import InputError, SolverError
 from . import kernels
 from .geometry import N_ACTUATORS, PlanarGeometry
 from .kinematics import PlanarKinematics, PlanarWorkspace, vec3
@@ -60,78 +60,6 @@ STATUS_ID = "solved (closed form; out-of-plane multipliers zero: minimum norm)"
 STATUS_FD = "solved (closed form, null-space; out-of-plane multipliers zero: minimum norm)"
 #: relative tolerance of the checks on a tree route's answer
 CHECK_RTOL = 1e-9
-
-
-class TreeDetails:
-    """The parts of a planar dynamics result computed on first access
-    (:class:`~hexapod_pin.core.results.ResultDetails`).
-
-    Args:
-        dyn: the tree's :class:`~hexapod_pin.core.dynamics.ClosedLoopDynamics`.
-        ws: the robot's workspace.
-        state: ``(q, v, a)`` the tree state.
-        tau: actuator forces (3,).
-        tau_ext: the wrench on the tree (nv,).
-        wrench: the wrench (3,) or None.
-        wanted: whether joint wrenches were asked for.
-        closure: (3, 2) closure forces, or None to read them from ``multipliers``.
-        multipliers: (n_rows,) multipliers, or None to build them from ``closure``.
-        residual: the route's residual, or None to evaluate it on Pinocchio.
-    """
-
-    __slots__ = ("_closure", "_multipliers", "_residual", "dyn", "lock", "platform_joint",
-                 "state", "tau", "tau_ext", "wanted", "wrench", "ws")
-
-    def __init__(self, dyn: ClosedLoopDynamics, ws: PlanarWorkspace,
-                 state: tuple[np.ndarray, np.ndarray, np.ndarray], tau: np.ndarray,
-                 tau_ext: np.ndarray, wrench: np.ndarray | None, wanted: bool, platform_joint: int,
-                 closure: np.ndarray | None = None, multipliers: np.ndarray | None = None,
-                 residual: float | None = None, lock: threading.RLock | None = None) -> None:
-        self.lock = threading.RLock() if lock is None else lock
-        self.dyn, self.ws, self.state, self.tau, self.tau_ext = dyn, ws, state, tau, tau_ext
-        self.wrench, self.wanted, self.platform_joint = wrench, wanted, platform_joint
-        self._closure, self._multipliers, self._residual = closure, multipliers, residual
-
-    def multipliers(self) -> np.ndarray:
-        if self._multipliers is None:
-            self._multipliers = multipliers_of(self.ws, self._closure)  # type: ignore[arg-type]
-        return self._multipliers
-
-    def closure_forces(self) -> np.ndarray:
-        if self._closure is None:
-            self._closure = closure_of(self.ws, self._multipliers)  # type: ignore[arg-type]
-        return self._closure
-
-    def joint_wrenches(self) -> Mapping[str, np.ndarray]:
-        if not self.wanted:
-            return MappingProxyType({})
-        q, v, a = self.state
-        fext = None
-        if self.wrench is not None:
-            # the wrench in the LOCAL frame of platform_theta (at the platform origin)
-            c, s = np.cos(q[self.ws.indices.platform[2]]), np.sin(q[self.ws.indices.platform[2]])
-            fx, fy, mz = self.wrench
-            fext = {self.platform_joint: pin.Force(np.array([c * fx + s * fy,
-                                                             -s * fx + c * fy, 0.0]),
-                                                   np.array([0.0, 0.0, mz]))}
-        with self.lock:                     # the robot's Pinocchio data
-            table, _ = self.dyn.joint_wrenches(q, v, a, self.multipliers(), fext)
-        return MappingProxyType(table)
-
-    def residual(self) -> float:
-        if self._residual is None:
-            q, v, a = self.state
-            dyn = self.dyn
-            with self.lock:                 # the robot's Pinocchio data
-                full = pin.rnea(dyn.model, dyn.data, q, v, a) - self.tau_ext
-                effect = dyn.effect_force_of_motion(q, v, a)   # the joint effects' force
-                if effect is not None:
-                    full -= effect
-                jac = dyn.constraint_jacobian(q)
-            full[dyn.clm.actuated_v] -= self.tau
-            full -= jac.T @ self.multipliers()
-            self._residual = max_abs(full)
-        return float(self._residual)
 
 
 def multipliers_of(ws: PlanarWorkspace, closure: np.ndarray) -> np.ndarray:
@@ -148,8 +76,10 @@ def closure_of(ws: PlanarWorkspace, multipliers: np.ndarray) -> np.ndarray:
     return -np.stack([multipliers[ws.rows], multipliers[ws.rows + 1]], axis=1)
 
 
-class PlanarDynamics:
-    """The dynamics of one planar 3-PRR (see the module docstring).
+class PlanarDynamics(ClosedFormDynamics):
+    """The dynamics of one planar 3-PRR (see the module docstring): the planar robot's
+    kernels of the :class:`~hexapod_pin.core.closed_form.ClosedFormDynamics` contract
+    (which holds the bounds, checks, errors, batch drivers and energies).
 
     Args:
         geometry: the robot's geometry.
@@ -162,41 +92,90 @@ class PlanarDynamics:
             :class:`~hexapod_pin.planar.kinematics.PlanarKinematics` on ``workspace``.
     """
 
+    dim = 3
+    n_actuators = N_ACTUATORS
+    closure_shape = (N_ACTUATORS, 2)
+
     def __init__(self, geometry: PlanarGeometry, model: ClosedLoopModel,
                  workspace: PlanarWorkspace, lock: threading.RLock | None = None,
                  singularity: Callable[[npt.ArrayLike, npt.ArrayLike | None],
                                        SingularityMeasures] | None = None) -> None:
-        self.geometry, self.model, self.ws = geometry, model, workspace
-        #: the measures of a pose, for the results' lazy ``singularity``
-        self.singularity = PlanarKinematics(geometry, model, workspace).singularity \
-            if singularity is None else singularity
-        #: the robot's lock, held by the lazy parts of results (they use this workspace)
-        self.lock = threading.RLock() if lock is None else lock
+        super().__init__(geometry, model, lock,
+                         PlanarKinematics(geometry, model, workspace).singularity
+                         if singularity is None else singularity)
+        self.ws = workspace
         # its own generic workspace (the robot's lock guards it)
         self.dyn = ClosedLoopDynamics(model)
         self.data = model.model.createData()
         self.platform_joint = model.model.getJointId("platform_theta")
-        limit = geometry.max_actuator_force
-        self.limits = None if not np.isfinite(limit) else np.full(N_ACTUATORS, limit)
+        #: how the lazy parts of results are computed
+        self.parts = LazyParts(self.dyn, self.lock, to_multipliers=self._multipliers_of,
+                               to_closure=self._closure_of, fext=self._platform_force)
 
-    # -- helpers -----------------------------------------------------------------------------
-    def bounds(self, bounded: bool) -> np.ndarray | None:
-        """The actuator bounds (3,) (N) enforced with ``bounded``, or None (none)."""
-        return self.limits if bounded else None
+    # -- the contract's pieces ----------------------------------------------------------------
+    @property
+    def batch_kernels_apply(self) -> bool:
+        """Whether the compiled batches model the robot's effects (the sliders' drives:
+        yes; effects on the links or the platform's joints: no)."""
+        return not self.ws.dynamics_geo[kernels.PASSIVE]
 
-    def check_bounds(self, tau: np.ndarray, bounds: np.ndarray | None) -> None:
-        """Raise :class:`ActuatorSaturationError` (needed forces, bound) when ``|tau|``
-        exceeds the bounds (relative slack 1e-9)."""
-        if bounds is not None and np.any(np.abs(tau) > bounds * (1.0 + CHECK_RTOL)):
-            raise ActuatorSaturationError(tau, bounds)
+    def tree_state(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                   branch: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Tree configuration ``q`` (nq,) and velocity ``v`` (nv,) of a pose ``(x, y,
+        theta)`` and twist ``(vx, vy, omega)`` (3,) each, on ``branch``, in closed form.
 
-    def tau_ext(self, wrench: np.ndarray | None) -> np.ndarray:
+        Raises:
+            InputError: bad shape, non-finite or non-real values.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: at a singular configuration.
+        """
+        inputs = ((pose, "pose"), (twist, "twist"))
+        q, v, _ = self.ws.state(1, True, branch, inputs, vec3(pose, "pose"),
+                                vec3(twist, "twist"))
+        return q, v
+
+    def tau_ext(self, wrench: np.ndarray | None, pose: np.ndarray | None = None) -> np.ndarray:
         """The wrench ``(fx, fy, mz)`` as a tree generalised force (nv,) (the platform
-        chain's joints are world x, world y and z at the platform origin)."""
+        chain's joints are world x, world y and z at the platform origin, so ``pose`` is
+        not needed)."""
         tau = np.zeros(self.model.nv)
         if wrench is not None:
             tau[self.ws.indices.platform] = wrench
         return tau
+
+    def raise_kernel_status(self, code: int, inputs: Inputs, info: np.ndarray | None = None,
+                            index: int | None = None,
+                            pose: np.ndarray | None = None) -> NoReturn:
+        """Raise the error of a kernel status (:meth:`PlanarWorkspace.raise_for
+        <hexapod_pin.planar.kinematics.PlanarWorkspace.raise_for>`); a batch's residual
+        refusal first rebuilds the refused state's legs (its measures).
+
+        Raises:
+            InputError: bad shape, non-finite or non-real values.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: at a singular configuration (Batch* with ``index``).
+        """
+        if code == kernels.RESIDUAL and pose is not None:
+            self.ws.legs(0, False, None, (), pose)
+        self.ws.raise_for(code, inputs, info, index=index)
+        raise SolverError("planar closed form", f"status {code}", "no error for it")
+
+    def _multipliers_of(self, closure: np.ndarray) -> np.ndarray:
+        return multipliers_of(self.ws, closure)
+
+    def _closure_of(self, rows: np.ndarray) -> np.ndarray:
+        return closure_of(self.ws, rows)
+
+    def _platform_force(self, details: TreeDetails) -> dict[int, Any] | None:
+        if details.wrench is None:
+            return None
+        # the wrench in the LOCAL frame of platform_theta (at the platform origin)
+        theta = details.state[0][self.ws.indices.platform[2]]
+        c, s = np.cos(theta), np.sin(theta)
+        fx, fy, mz = details.wrench
+        return {self.platform_joint: pin.Force(np.array([c * fx + s * fy,
+                                                         -s * fx + c * fy, 0.0]),
+                                               np.array([0.0, 0.0, mz]))}
 
     def _tree_check(self, q, v, acc, branch, twist_a) -> None:
         """Check a tree route's acceleration: finite, and its leg rows equal to the closed
@@ -252,8 +231,7 @@ class PlanarDynamics:
             ActuatorSaturationError: the motion needs more than the bound (carries the
                 needed forces; no clipped answer).
         """
-        if method not in INVERSE_DYNAMICS_METHODS:
-            raise InputError("method", method, f"expected one of {INVERSE_DYNAMICS_METHODS}")
+        self.check_method(method, self.INVERSE_METHODS)
         ws = self.ws
         inputs = ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot"),
                   (wrench, "wrench"))
@@ -269,7 +247,7 @@ class PlanarDynamics:
             ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None,
             ws.signs(branch), q, v, a, tau, closure, ws.buf, ws.info)
         if status in (kernels.NONFINITE, kernels.UNREACHABLE, kernels.TYPE_I, kernels.TYPE_II):
-            ws.raise_for(status, inputs)
+            self.refuse(status, inputs)
         if not (np.all(np.isfinite(v)) and np.all(np.isfinite(a))):
             # finite inputs whose products overflow (a twist of 1e160): name the user's
             # argument, not the tree state it overflowed in
@@ -282,13 +260,12 @@ class PlanarDynamics:
         bounds = self.bounds(bounded)
         wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
         tau_ext = self.tau_ext(wrench_kept)
-        conditioning = self._conditioning(owned_copy(pose_a, pose), ws.signs(branch))
+        conditioning = self.conditioning(owned_copy(pose_a, pose), ws.signs(branch))
         passive = bool(geo[kernels.PASSIVE])
         if method == "kkt" and status == kernels.OK and not passive:
             self.check_bounds(tau, bounds)
-            details = TreeDetails(self.dyn, ws, (q, v, a), tau, tau_ext, wrench_kept,
-                                  joint_wrenches, self.platform_joint, closure=closure,
-                                  lock=self.lock)
+            details = TreeDetails(self.parts, (q, v, a), tau, wrench_kept, tau_ext=tau_ext,
+                                  closure=closure, wanted=joint_wrenches)
             return InverseDynamicsResult(tau, q, v, a, "kkt", STATUS_ID, 0, details,
                                          conditioning)
         res = inverse_dynamics_tree(self.model, q, v, a, tau_ext, bounds=bounds,
@@ -296,17 +273,12 @@ class PlanarDynamics:
         tau = res.actuator_forces.copy()
         if not np.all(np.isfinite(tau)) or not np.all(np.isfinite(res.multipliers)):
             raise SolverError("tree inverse dynamics", res.status, "non-finite forces")
-        details = TreeDetails(self.dyn, ws, (q, v, a), tau, tau_ext, wrench_kept,
-                              joint_wrenches, self.platform_joint,
+        details = TreeDetails(self.parts, (q, v, a), tau, wrench_kept, tau_ext=tau_ext,
                               multipliers=res.multipliers.copy(), residual=res.residual,
-                              lock=self.lock)
+                              wanted=joint_wrenches)
         status_text = f"{res.status} ({PASSIVE_STATUS})" if passive else res.status
         return InverseDynamicsResult(tau, q, v, a, method, status_text, res.iterations,
                                      details, conditioning)
-
-    def _conditioning(self, pose: np.ndarray, signs: np.ndarray) -> LazyConditioning:
-        """The lazy conditioning of a result at ``pose`` (an owned copy) on ``signs``."""
-        return LazyConditioning(self.singularity, pose, np.array(signs, copy=True), self.lock)
 
     def static_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
                       branch: npt.ArrayLike | None = None,
@@ -327,8 +299,7 @@ class PlanarDynamics:
         ws = self.ws
         geo = ws.dynamics_geo
         if geo[kernels.PASSIVE]:           # effects the kernels do not model: the tree route
-            return self.inverse_dynamics(pose, ws.zero3, ws.zero3, wrench, branch=branch,
-                                         bounded=bounded, joint_wrenches=False).actuator_forces
+            return super().static_forces(pose, wrench, branch=branch, bounded=bounded)
         pose_a = vec3(pose, "pose")
         wrench_a = None if wrench is None else vec3(wrench, "wrench")
         nv = ws.nv
@@ -339,7 +310,7 @@ class PlanarDynamics:
             ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None,
             ws.signs(branch), q, v, a, tau, closure, ws.buf, ws.info)
         if status != kernels.OK:
-            ws.raise_for(status, ((pose, "pose"), (wrench, "wrench")))
+            self.refuse(status, ((pose, "pose"), (wrench, "wrench")))
         bounds = self.bounds(bounded)
         self.check_bounds(tau, bounds)
         return tau
@@ -375,8 +346,7 @@ class PlanarDynamics:
             SingularityError: at a singular configuration (see :meth:`inverse_dynamics`).
             SolverError: a route's answer failed its checks.
         """
-        if method not in FORWARD_DYNAMICS_METHODS:
-            raise InputError("method", method, f"expected one of {FORWARD_DYNAMICS_METHODS}")
+        self.check_method(method, self.FORWARD_METHODS)
         ws = self.ws
         inputs = ((pose, "pose"), (twist, "twist"), (actuator_forces, "actuator_forces"),
                   (wrench, "wrench"))
@@ -397,11 +367,11 @@ class PlanarDynamics:
                 ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None, signs,
                 q, v, a, twist_dot, closure, ws.buf, ws.info)
             if status != kernels.OK:
-                ws.raise_for(status, inputs)
+                self.refuse(status, inputs)
             details = ComputedDetails(multipliers_of(ws, closure), closure)
             return ForwardDynamicsResult(twist_dot, a[ws.indices.slider], a, method,
                                          STATUS_FD, 0, details,
-                                         self._conditioning(owned_copy(pose_a, pose), signs))
+                                         self.conditioning(owned_copy(pose_a, pose), signs))
         q, v, _ = ws.state(1, True, branch, inputs[:2], pose_a, twist_a)
         forces = as_array(actuator_forces, (N_ACTUATORS,), "actuator_forces")
         wrench_c = None if wrench is None else as_array(wrench, (3,), "wrench")
@@ -413,7 +383,7 @@ class PlanarDynamics:
         return ForwardDynamicsResult(acc[ws.indices.platform], acc[ws.indices.slider], acc,
                                      "nullspace" if note else method, res.status + note,
                                      res.iterations, details,
-                                     self._conditioning(owned_copy(pose_a, pose), signs))
+                                     self.conditioning(owned_copy(pose_a, pose), signs))
 
     # -- reduced dynamics and energies --------------------------------------------------------
     def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
@@ -437,54 +407,28 @@ class PlanarDynamics:
         ws = self.ws
         geo = ws.dynamics_geo
         m_x, h_x, jac = np.empty((3, 3)), np.empty(3), np.empty((3, 3))
-        status = kernels.reduced_dynamics(geo, vec3(pose, "pose"), vec3(twist, "twist"),
-                                          ws.signs(branch), m_x, h_x, jac, ws.buf, ws.info)
+        status = kernels.reduced_dynamics(geo, vec3(pose, "pose"),
+                                          vec3(twist, "twist"), ws.signs(branch), m_x,
+                                          h_x, jac, ws.buf, ws.info)
         if status != kernels.OK:
-            ws.raise_for(status, ((pose, "pose"), (twist, "twist")))
+            self.refuse(status, ((pose, "pose"), (twist, "twist")))
         vmap = np.empty((ws.nv, 3))
         kernels.velocity_map(geo, ws.idx, ws.buf, vmap)
         if geo[kernels.PASSIVE]:           # the passive coordinates' share, through G
-            q, v, a0 = ws.state(2, True, branch, (), vec3(pose, "pose"), vec3(twist, "twist"))
+            q, v, a0 = ws.state(2, True, branch, (), vec3(pose, "pose"),
+                                vec3(twist, "twist"))
             d_mass, d_bias = reduced_effects(self.model, passive_effect_coordinates(self.model),
                                              vmap, q, v, a0)
             m_x, h_x = m_x + d_mass, h_x + d_bias
         return ReducedDynamics(m_x, h_x, jac, vmap)
 
-    def energies(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
-                 branch: npt.ArrayLike | None = None) -> Energies:
-        """Kinetic and potential energy of the mechanism (J) on the closed-form tree state
-        (:func:`~hexapod_pin.core.energy.energy_totals`: kinetic with the rotors' armature,
-        gravity potential zero when every centre of mass is at y = 0, plus the springs').
-
-        Raises:
-            InputError: bad shape, non-finite or non-real values.
-            UnreachablePoseError: a leg cannot reach the pose.
-            SingularityError: at a singular configuration.
-        """
-        inputs = ((pose, "pose"), (twist, "twist"))
-        q, v, _ = self.ws.state(1, True, branch, inputs, vec3(pose, "pose"),
-                                vec3(twist, "twist"))
-        kinetic, potential = energy_totals(self.model, q, v)
-        return Energies(kinetic, potential, kinetic + potential)
-
-    # -- batches --------------------------------------------------------------------------------
-    def _raise_first(self, status: np.ndarray, infos: np.ndarray, poses: np.ndarray,
-                     tau=None, bounds=None) -> None:
-        """Raise the Batch* error of the first state that failed or saturates."""
-        bad = status != kernels.OK
-        if tau is not None and bounds is not None:
-            bad = bad | np.any(np.abs(tau) > bounds * (1.0 + CHECK_RTOL), axis=1)
-        if not bad.any():
-            return
-        first = int(np.argmax(bad))
-        if status[first] == kernels.OK:
-            raise BatchActuatorSaturationError(first, tau[first], bounds)
-        if status[first] == kernels.RESIDUAL:
-            # the leg buffer then holds the refused state's legs (its measures)
-            self.ws.legs(0, False, None, (), poses[first])
-        self.ws.raise_for(int(status[first]), (), infos[first], index=first)
-
-    def _batch_inverse(self, poses, twists, twist_dots, wrenches, bounded):
+    # -- batch kernels (the drivers: ClosedFormDynamics) ---------------------------------------
+    def inverse_batch_kernel(self, poses: np.ndarray, twists: np.ndarray,
+                             twist_dots: np.ndarray, wrenches: np.ndarray | None,
+                             bounded: bool) -> BatchInverseDynamics:
+        """:meth:`inverse_dynamics` ("kkt", home branch) of N checked states: the same
+        compiled kernel over the states in parallel (a type-II state is refused: no
+        least-squares fallback in a batch)."""
         ws = self.ws
         n = poses.shape[0]
         has_wrench = wrenches is not None
@@ -493,72 +437,13 @@ class PlanarDynamics:
         kernels.inverse_dynamics_batch(ws.dynamics_geo, ws.idx, ws.home_signs, poses, twists,
                                        twist_dots, wrenches if has_wrench else np.zeros((n, 3)),
                                        has_wrench, tau, closure, status, infos)
-        self._raise_first(status, infos, poses, tau, self.bounds(bounded))
-        return tau, closure, infos[:, kernels.X_RES].copy()
+        self.raise_first(status, infos, poses, tau, self.bounds(bounded))
+        return BatchInverseDynamics(tau, closure, infos[:, kernels.X_RES].copy())
 
-    def inverse_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
-                               twist_dots: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
-                               bounded: bool = True) -> BatchInverseDynamics:
-        """:meth:`inverse_dynamics` ("kkt", home branch) of N states, the same compiled
-        kernel over the states in parallel.
-
-        Args:
-            poses: (N, 3).
-            twists: (N, 3).
-            twist_dots: (N, 3).
-            wrenches: (N, 3) or None.
-            bounded: raise for the first state beyond ``geometry.max_actuator_force``.
-
-        Raises:
-            InputError: bad shapes, NaN / inf, rows of different lengths.
-            BatchUnreachablePoseError: a pose out of reach; for the first such state (``index``).
-            BatchSingularityError: a singular state (type I, or type II: no least-squares fallback
-                in a batch); for the first such state (``index``).
-            BatchActuatorSaturationError: with ``bounded``, forces beyond
-                ``geometry.max_actuator_force``; for the first such state (``index``).
-        """
-        poses, twists, twist_dots, wrenches = check_batch(
-            poses=poses, twists=twists, twist_dots=twist_dots, wrenches=wrenches)
-        if self.ws.dynamics_geo[kernels.PASSIVE]:   # effects the kernels do not model
-            res = batch_of_states(len(poses), lambda k: self.inverse_dynamics(
-                poses[k], twists[k], twist_dots[k], batch_row(wrenches, k), bounded=bounded,
-                joint_wrenches=False))
-            return BatchInverseDynamics(stacked(res, "actuator_forces", (N_ACTUATORS,)),
-                                        stacked(res, "closure_forces", (N_ACTUATORS, 2)),
-                                        stacked(res, "residual", ()))
-        tau, closure, residual = self._batch_inverse(poses, twists, twist_dots, wrenches,
-                                                     bounded)
-        return BatchInverseDynamics(tau, closure, residual)
-
-    def static_forces_batch(self, poses: npt.ArrayLike, wrenches: npt.ArrayLike | None = None, *,
-                            bounded: bool = True) -> npt.NDArray[np.float64]:
-        """:meth:`static_forces` of N poses (N, 3): (N, 3) forces (N). Raises as
-        :meth:`inverse_dynamics_batch`."""
-        poses, wrenches = check_batch(poses=poses, wrenches=wrenches)
-        zero = np.zeros_like(poses)
-        if self.ws.dynamics_geo[kernels.PASSIVE]:   # effects the kernels do not model
-            return self.inverse_dynamics_batch(poses, zero, zero, wrenches,
-                                               bounded=bounded).actuator_forces
-        return self._batch_inverse(poses, zero, zero, wrenches, bounded)[0]
-
-    def forward_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
-                               actuator_forces: npt.ArrayLike,
-                               wrenches: npt.ArrayLike | None = None) -> BatchForwardDynamics:
-        """:meth:`forward_dynamics` ("nullspace", home branch) of N states.
-
-        Raises:
-            InputError: bad shape, non-finite or non-real values.
-            BatchUnreachablePoseError: a pose out of reach.
-            BatchSingularityError: a singular state.
-        """
-        poses, twists, forces, wrenches = check_batch(
-            poses=poses, twists=twists, actuator_forces=actuator_forces, wrenches=wrenches)
-        if self.ws.dynamics_geo[kernels.PASSIVE]:   # effects the kernels do not model
-            res = batch_of_states(len(poses), lambda k: self.forward_dynamics(
-                poses[k], twists[k], forces[k], batch_row(wrenches, k)))
-            return BatchForwardDynamics(stacked(res, "twist_dot", (3,)),
-                                        stacked(res, "actuator_accelerations", (N_ACTUATORS,)),
-                                        stacked(res, "closure_forces", (N_ACTUATORS, 2)))
+    def forward_batch_kernel(self, poses: np.ndarray, twists: np.ndarray,
+                             forces: np.ndarray,
+                             wrenches: np.ndarray | None) -> BatchForwardDynamics:
+        """:meth:`forward_dynamics` ("nullspace", home branch) of N checked states."""
         ws = self.ws
         n = poses.shape[0]
         has_wrench = wrenches is not None
@@ -568,54 +453,17 @@ class PlanarDynamics:
         kernels.forward_dynamics_batch(ws.dynamics_geo, ws.idx, ws.home_signs, poses, twists,
                                        forces, wrenches if has_wrench else np.zeros((n, 3)),
                                        has_wrench, twist_dot, acc, closure, status, infos)
-        self._raise_first(status, infos, poses)
+        self.raise_first(status, infos, poses)
         return BatchForwardDynamics(twist_dot, acc, closure)
 
-    def reduced_dynamics_batch(self, poses: npt.ArrayLike,
-                               twists: npt.ArrayLike) -> BatchReducedDynamics:
-        """:meth:`reduced_dynamics` (home branch) of N states: ``M_x`` (N, 3, 3), ``h_x``
-        (N, 3), ``J`` (N, 3, 3).
-
-        Raises:
-            InputError: bad shape, non-finite or non-real values.
-            BatchUnreachablePoseError: a pose out of reach.
-            BatchSingularityError: a singular state.
-        """
-        poses, twists = check_batch(poses=poses, twists=twists)
-        if self.ws.dynamics_geo[kernels.PASSIVE]:   # effects the kernels do not model
-            res = batch_of_states(len(poses), lambda k: self.reduced_dynamics(poses[k],
-                                                                              twists[k]))
-            return BatchReducedDynamics(stacked(res, "mass_matrix", (3, 3)),
-                                        stacked(res, "bias", (3,)),
-                                        stacked(res, "jacobian", (N_ACTUATORS, 3)))
+    def reduced_batch_kernel(self, poses: np.ndarray,
+                             twists: np.ndarray) -> BatchReducedDynamics:
+        """:meth:`reduced_dynamics` (home branch) of N checked states."""
         ws = self.ws
         n = poses.shape[0]
         m_x, h_x, jac = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3, 3))
         status, infos = np.empty(n, np.int64), np.zeros((n, kernels.INFO_SIZE))
-        kernels.reduced_dynamics_batch(ws.dynamics_geo, ws.home_signs, poses, twists, m_x, h_x, jac,
-                                       status, infos)
-        self._raise_first(status, infos, poses)
+        kernels.reduced_dynamics_batch(ws.dynamics_geo, ws.home_signs, poses, twists, m_x, h_x,
+                                       jac, status, infos)
+        self.raise_first(status, infos, poses)
         return BatchReducedDynamics(m_x, h_x, jac)
-
-
-def check_batch(**arrays: npt.ArrayLike | None) -> list[Any]:
-    """Validate batch inputs: each ``(N, 3)`` (``wrenches`` may be None), the same N.
-
-    Raises:
-        InputError: bad shape, NaN / inf, or rows of different lengths.
-    """
-    out: list[Any] = []
-    n = None
-    for name, value in arrays.items():
-        if value is None and name == "wrenches":
-            out.append(None)
-            continue
-        required(**{name: value})
-        arr = as_array(value, (3,), name, batch=True)
-        if n is None:
-            n = arr.shape[0]
-        elif arr.shape[0] != n:
-            raise InputError(name, value, f"expected {n} rows like the poses, got "
-                             f"{arr.shape[0]}")
-        out.append(arr)
-    return out

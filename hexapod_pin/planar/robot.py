@@ -133,16 +133,11 @@ class Planar3PRR(RobotBase):
     inverse_kinematics_batch = delegate("kinematics", PlanarKinematics.inverse_kinematics_batch)
     jacobian_batch = delegate("kinematics", PlanarKinematics.jacobian_batch)
 
-    # -- dynamics (PlanarDynamics) ---------------------------------------------------------------
+    # -- dynamics (PlanarDynamics; energies and batches: RobotBase) ------------------------------
     inverse_dynamics = delegate("dynamics", PlanarDynamics.inverse_dynamics)
     forward_dynamics = delegate("dynamics", PlanarDynamics.forward_dynamics)
     static_forces = delegate("dynamics", PlanarDynamics.static_forces)
     reduced_dynamics = delegate("dynamics", PlanarDynamics.reduced_dynamics)
-    energies = delegate("dynamics", PlanarDynamics.energies)
-    inverse_dynamics_batch = delegate("dynamics", PlanarDynamics.inverse_dynamics_batch)
-    forward_dynamics_batch = delegate("dynamics", PlanarDynamics.forward_dynamics_batch)
-    static_forces_batch = delegate("dynamics", PlanarDynamics.static_forces_batch)
-    reduced_dynamics_batch = delegate("dynamics", PlanarDynamics.reduced_dynamics_batch)
 
     def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                                      twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None
