@@ -17,6 +17,9 @@ Conventions:
   residual(q) + J_c dv + O(dv^2)``. A velocity ``v`` keeps the closures when
   ``J_c v = 0``; an acceleration ``a`` when ``J_c a + gamma = 0`` with the drift
   ``gamma`` from :meth:`ClosedLoopModel.constraint_drift`.
+* Joint couplings (``clm.couplings``, :mod:`~hexapod_pin.core.couplings`: ``q1 = f(q2)``)
+  add one row each after the closure rows (residual ``q1 - f(q2)``), in the residual,
+  ``J_c``, ``gamma`` and ``n_rows``; ``n_closure_rows`` counts the closure rows alone.
 
 Motion on the closures (velocity and acceleration maps, projections) is computed by
 :mod:`~hexapod_pin.core.closure_motion`, frame-target inverse kinematics by
@@ -41,6 +44,7 @@ from .checks import as_array, count, real_number
 from .closure_motion import complete, project
 from .closure_terms import ClosureFrames, closure_drift, weld_jacobian
 from .constraint_views import ConstraintErrors
+from .couplings import CouplingRows, JointCoupling
 from .description import WORLD, ClosureSpec, LoopsSpec, build_model, expand_xacro, load_loops
 from .effects import JointEffects, resolve_effects
 from .frame_ik import FrameIKResult, frame_inverse_kinematics
@@ -194,7 +198,15 @@ class ClosedLoopModel:
         for closure in self.closures:
             self.row_slices.append(slice(start, start + closure.n_rows))
             start += closure.n_rows
-        self.n_rows = start
+        #: rows of the loop closures (the first rows of J_c)
+        self.n_closure_rows = start
+        #: the joint couplings (:mod:`~hexapod_pin.core.couplings`), one row each after the
+        #: closure rows
+        self.couplings: tuple[JointCoupling, ...] = tuple(loops.couplings)
+        #: their rows, evaluated together (None without couplings)
+        self.coupling_rows = (CouplingRows(self.model, self.couplings, name)
+                              if self.couplings else None)
+        self.n_rows = start + len(self.couplings)
         #: one :class:`ClosureFrames` per closure, in the order of the loops file
         self.closure_frames: tuple[ClosureFrames, ...] = tuple(
             ClosureFrames(closure.type == "point", rows, f1, f2, cm.joint1_id, cm.joint2_id)
@@ -425,14 +437,16 @@ class ClosedLoopModel:
         q = self.check_q(q)
         pin.forwardKinematics(self.model, self.data, q)
         self._calc_anchors()
-        return self._residual_from_anchors()
+        if self.coupling_rows is None:
+            return self._residual_from_anchors()
+        return np.concatenate([self._residual_from_anchors(), self.coupling_rows.residual(q)])
 
     def _residual_from_anchors(self) -> np.ndarray:
         """The residual from the anchor placements of :meth:`_calc_anchors`."""
         points = self._point_errors
         if self._all_points:
             return points.gather(np.empty(points.n_rows))
-        out = np.empty(self.n_rows)
+        out = np.empty(self.n_closure_rows)
         if points.n_rows:
             out[self._point_rows] = points.gather(np.empty(points.n_rows))
         omf = self.data.oMf
@@ -449,7 +463,9 @@ class ClosedLoopModel:
         q = self.check_q(q)
         pin.computeJointJacobians(self.model, self.data, q)
         self._calc_anchors()
-        return self._jacobian_from_anchors()
+        if self.coupling_rows is None:
+            return self._jacobian_from_anchors()
+        return np.vstack([self._jacobian_from_anchors(), self.coupling_rows.jacobian(q)])
 
     def residual_and_jacobian(self, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`residual` (n_rows,) and :meth:`constraint_jacobian` (n_rows, nv) at ``q``
@@ -457,7 +473,11 @@ class ClosedLoopModel:
         q = self.check_q(q)
         pin.computeJointJacobians(self.model, self.data, q)
         self._calc_anchors()
-        return self._residual_from_anchors(), self._jacobian_from_anchors()
+        if self.coupling_rows is None:
+            return self._residual_from_anchors(), self._jacobian_from_anchors()
+        rows = self.coupling_rows
+        return (np.concatenate([self._residual_from_anchors(), rows.residual(q)]),
+                np.vstack([self._jacobian_from_anchors(), rows.jacobian(q)]))
 
     def _jacobian_from_anchors(self) -> np.ndarray:
         """``J_c`` from the joint Jacobians of ``self.data`` and the anchor placements."""
@@ -466,7 +486,7 @@ class ClosedLoopModel:
                   if self._point_calcs else None)
         if self._all_points:
             return points if points is not None else np.zeros((0, model.nv))
-        out = np.empty((self.n_rows, model.nv))
+        out = np.empty((self.n_closure_rows, model.nv))
         if points is not None:
             out[self._point_rows] = points
         for rows, f1, f2 in self._welds:
@@ -479,12 +499,16 @@ class ClosedLoopModel:
         For a point closure it is the difference of the classical accelerations
         of the two anchor points at zero joint acceleration, world axes (m/s^2).
         For a weld it is ``Jlog6`` times the relative spatial acceleration bias in
-        anchor-1 axes (exact at an assembled configuration with ``J_c v = 0``).
+        anchor-1 axes (exact at an assembled configuration with ``J_c v = 0``). For a
+        joint coupling it is ``-f''(q2) v2^2``.
         """
         q, v = self.check_q(q), self.check_v(v)
         pin.forwardKinematics(self.model, self.data, q, v, np.zeros(self.model.nv))
         pin.updateFramePlacements(self.model, self.data)
-        return closure_drift(self.model, self.data, self.closure_frames, self.n_rows)
+        drift = closure_drift(self.model, self.data, self.closure_frames, self.n_closure_rows)
+        if self.coupling_rows is None:
+            return drift
+        return np.concatenate([drift, self.coupling_rows.drift(q, v)])
 
     def rank(self, q: npt.ArrayLike, tol: float | None = None) -> RankInfo:
         """Numerical rank of ``J_c`` at ``q`` and which rows are redundant.

@@ -22,9 +22,16 @@ The loops format (see ``urdf/hexapod.loops.yaml``)::
         carriage_0: {armature: 0.02, damping: 1.5, coulomb: 0.8, stiffness: 100.0,
                      spring_reference: 0.0, gear: 25, rotor_inertia: 1.0e-5,
                      effort_limit: 100}
+    couplings:                   # optional: joint couplings q1 = c0 + c1 q2 + ... + c4 q2^4
+      - name: gear               # unique
+        joint1: follower         # a revolute or prismatic joint (the driven one)
+        joint2: driver           # optional: without it, q1 = c0
+        polycoef: [0, 2, 0, 0, 0]   # c0 .. c4 (up to five numbers; missing ones are 0)
 
-(the ``effects:`` section: :class:`EffectsSection`; a ``robot:`` section:
-:class:`RobotSection`). The same ``effects:`` format, alone in a YAML or TOML file, is a
+(the ``couplings:`` section: :class:`~hexapod_pin.core.couplings.JointCoupling`, one
+constraint row each after the closure rows, for the revolute and prismatic joints of any
+tree, a URDF's too; the ``effects:`` section: :class:`EffectsSection`; a ``robot:``
+section: :class:`RobotSection`). The same ``effects:`` format, alone in a YAML or TOML file, is a
 standalone effects file (:func:`read_effects_file`, the command line's ``--effects``).
 Nothing here is specific to the hexapod.
 """
@@ -53,6 +60,7 @@ import pinocchio as pin
 import yaml
 
 from ..errors import DescriptionError, InputError
+from .couplings import JointCoupling
 from .effects import JointEffects, resolve_effects
 
 if sys.version_info >= (3, 11):
@@ -238,6 +246,7 @@ class LoopsSpec:
     actuated: tuple[str, ...]
     robot: RobotSection | None = None
     effects: EffectsSection | None = None
+    couplings: tuple[JointCoupling, ...] = ()
 
 
 def urdf_dir() -> Path:
@@ -753,7 +762,7 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
         raise DescriptionError(source, f"malformed YAML: {exc}") from None
     if not isinstance(data, dict):
         raise DescriptionError(source, "the loops description must be a YAML mapping")
-    unknown = set(data) - {"closures", "actuated", "robot", "effects"}
+    unknown = set(data) - {"closures", "actuated", "robot", "effects", "couplings"}
     if unknown:
         raise DescriptionError(source, f"unknown keys {sorted(unknown)}", sorted(unknown)[0])
     raw_closures = data.get("closures", [])
@@ -793,7 +802,37 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
     effects = None if data.get("effects") is None else \
         _effects_section(data["effects"], _effect_lines(text, source), source)
     return LoopsSpec(tuple(closures), tuple(actuated), _robot_section(data.get("robot"), source),
-                     effects)
+                     effects, _couplings(data.get("couplings"), source))
+
+
+def _couplings(raw: Any, source: str) -> tuple[JointCoupling, ...]:
+    """The ``couplings:`` section (a list of mappings name, joint1, joint2, polycoef)."""
+    if raw is None:
+        return ()
+    if not isinstance(raw, list):
+        raise DescriptionError(source, "'couplings' must be a list", "couplings")
+    out = []
+    for index, entry in enumerate(raw):
+        label = f"couplings[{index}]"
+        if not isinstance(entry, dict):
+            raise DescriptionError(source, "a coupling must be a mapping", label)
+        missing = {"name", "joint1", "polycoef"} - set(entry)
+        extra = set(entry) - {"name", "joint1", "joint2", "polycoef"}
+        if missing or extra:
+            raise DescriptionError(source, f"missing keys {sorted(missing)}" if missing
+                                   else f"unknown keys {sorted(extra)}", label)
+        coef = entry["polycoef"]
+        if not isinstance(coef, list) or not all(
+                isinstance(c, (int, float)) and not isinstance(c, bool) for c in coef):
+            raise DescriptionError(source, "'polycoef' must be a list of up to five numbers",
+                                   label)
+        joint2 = entry.get("joint2")
+        out.append(JointCoupling(str(entry["name"]), str(entry["joint1"]),
+                                 None if joint2 is None else str(joint2), tuple(coef)))
+    names = [c.name for c in out]
+    if len(set(names)) != len(names):
+        raise DescriptionError(source, "duplicate coupling names", "couplings")
+    return tuple(out)
 
 
 def _effect_lines(text: str, source: str, nested: bool = True) -> dict[str, int]:

@@ -36,6 +36,13 @@ tree, and for a point closure ``lambda_c`` (N, world axes) is the force that the
 of ``frame2`` exerts on the body of ``frame1`` at the joint (``-lambda_c`` acts on
 ``frame2``'s body). ``S`` selects the actuated velocity coordinates (``clm.actuated_v``).
 
+Joint couplings (``clm.couplings``, :mod:`~hexapod_pin.core.couplings`) add one row each
+after the closure rows of ``J_c``, ``gamma`` and the multipliers (a coupling's multiplier
+is the generalised force on its driven joint). Pinocchio's ``constraintDynamics`` knows
+only its rigid constraints: the "pinocchio" route of a model with couplings is answered
+by the KKT route (the status says so), the inverse routes work in our rows, and the state
+check adds the couplings' residual and velocity rows.
+
 For a weld the six multipliers pair with the ``log6`` rows (at an assembled
 configuration, the spatial force in anchor-1 axes). Pinocchio's own ``lambda_c``
 (LOCAL contact frames) is converted: ``lambda = R_c1 lambda_pin`` for a point
@@ -158,6 +165,10 @@ class ClosedLoopDynamics:
         self.data = self.model.createData()
         self.nv = self.model.nv
         self.n_rows = clm.n_rows
+        #: the closure rows (the first ones); the joint couplings' rows follow
+        self.n_closure_rows = clm.n_closure_rows
+        #: the couplings' rows (:class:`~hexapod_pin.core.couplings.CouplingRows`), or None
+        self.coupling_rows = clm.coupling_rows
         self.n_act = clm.n_actuated
         #: Pinocchio's constraint models and datas of the closures (for ``constraintDynamics``)
         self.pin_models, self.pin_datas = clm.pinocchio_constraints()
@@ -172,7 +183,8 @@ class ClosedLoopDynamics:
         self._rank: int | None = None
         #: the multiplier conversions of the results (their own data, under a lock: a
         #: result may convert its multipliers on any thread)
-        self.conversion = MultiplierConversion(self.model, self.closure_frames, self.n_rows)
+        self.conversion = MultiplierConversion(self.model, self.closure_frames,
+                                               self.n_closure_rows)
         self._res_out = np.empty(2)
         self._pools: dict[int, pin.ModelPool] = {}
         self._pin_singular = False       # M structurally singular: Pinocchio refused
@@ -215,13 +227,16 @@ class ClosedLoopDynamics:
         """``J_c`` (n_rows, nv) at ``q`` (same as :meth:`ClosedLoopModel.constraint_jacobian`)."""
         pin.computeJointJacobians(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
-        return self.jacobian_from(self.data)
+        if self.coupling_rows is None:
+            return self.jacobian_from(self.data)
+        return np.vstack([self.jacobian_from(self.data), self.coupling_rows.jacobian(q)])
 
     def jacobian_from(self, data: pin.Data) -> np.ndarray:
         """``J_c`` (n_rows, nv) from ``data`` (a ``pin.Data`` of this model whose joint
         Jacobians and frame placements are up to date):
-        :func:`~hexapod_pin.core.closure_terms.closure_jacobian`."""
-        return closure_jacobian(self.model, data, self.closure_frames, self.n_rows)
+        :func:`~hexapod_pin.core.closure_terms.closure_jacobian`; the closure rows only
+        (the joint couplings' rows need ``q``: :meth:`constraint_jacobian`)."""
+        return closure_jacobian(self.model, data, self.closure_frames, self.n_closure_rows)
 
     def constraint_drift(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``gamma`` (n_rows,) at ``(q, v)`` (same as :meth:`ClosedLoopModel.constraint_drift`,
@@ -229,7 +244,10 @@ class ClosedLoopDynamics:
         model, data = self.model, self.data
         pin.forwardKinematics(model, data, q, v, self._zero_v)
         pin.updateFramePlacements(model, data)
-        return closure_drift(model, data, self.closure_frames, self.n_rows)
+        drift = closure_drift(model, data, self.closure_frames, self.n_closure_rows)
+        if self.coupling_rows is None:
+            return drift
+        return np.concatenate([drift, self.coupling_rows.drift(q, v)])
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Joint-space inertia matrix ``M(q)`` (nv, nv), symmetric (kg, kg m, kg m^2)."""
@@ -365,7 +383,7 @@ class ClosedLoopDynamics:
         data = self.data
         self._v_ddq = data.ddq
         self._v_mass, self._v_nle, self._v_lambda = data.M, data.nle, data.lambda_c
-        self._v_rhs = data.primal_rhs_contact[:self.n_rows]
+        self._v_rhs = data.primal_rhs_contact[:self.n_closure_rows]
         self._pin_ready = True
         #: the closure check of the public routes (reads the constraint datas)
         self.state_check = ClosureStateCheck(self.model, self.pin_datas, self._probe)
@@ -392,7 +410,8 @@ class ClosedLoopDynamics:
         if not self._pin_ready:
             self._init_pinocchio()
         self._finite(q, v)
-        self._probe(q, v)
+        if self.coupling_rows is None:
+            self._probe(q, v)
         self.check_after_call(q, v)
 
     @staticmethod
@@ -409,10 +428,37 @@ class ClosedLoopDynamics:
             InputError: see :meth:`check_state`.
         """
         try:
+            if self.coupling_rows is not None:
+                self._check_couplings(q, v)
+                return
             self.state_check.check(q, v)
         except InputError:
             self._finite(q, v)          # a NaN / inf entry is named as such
             raise
+
+    def _check_couplings(self, q: np.ndarray, v: np.ndarray) -> None:
+        """The state check of a model with joint couplings: the closures' (after a probe
+        of their own) and the couplings' residual ``q1 - f(q2)`` and velocity rows (to
+        :data:`CLOSURE_QTOL` / :data:`CLOSURE_VTOL` times the length scale, m or rad)."""
+        if not self._pin_ready:
+            self._init_pinocchio()
+        if self.n_closure_rows:
+            self._probe(q, v)
+            self.state_check.check(q, v)
+        rows = self.coupling_rows
+        if rows is None:
+            return
+        scale = self.state_check.scale
+        res = float(np.max(np.abs(rows.residual(q))))
+        if not res <= CLOSURE_QTOL * scale:
+            raise InputError("q", q, f"off the joint couplings: residual {res:.3e} exceeds "
+                             f"the tolerance {CLOSURE_QTOL * scale:.3e} (CLOSURE_QTOL = "
+                             f"{CLOSURE_QTOL:g} x length scale {scale:.3g})")
+        vel = float(np.max(np.abs(rows.jacobian(q) @ v)))
+        tol = CLOSURE_VTOL * max(1.0, float(np.max(np.abs(v), initial=0.0))) * scale
+        if not vel <= tol:
+            raise InputError("v", v, f"breaks the joint couplings: J v = {vel:.3e} exceeds "
+                             f"the tolerance {tol:.3e} (CLOSURE_VTOL = {CLOSURE_VTOL:g})")
 
     def pinocchio_call(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                        redundant: bool) -> tuple[np.ndarray | None, Any]:
@@ -427,7 +473,7 @@ class ClosedLoopDynamics:
         """
         if not self._pin_ready:
             self._init_pinocchio()
-        if self._pin_singular:
+        if self._pin_singular or self.coupling_rows is not None:
             return None, self._prox_exact
         prox = self._prox_redundant if redundant else self._prox_exact
         acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
@@ -574,6 +620,14 @@ class ClosedLoopDynamics:
         return None
 
     def _forward_pinocchio(self, q, v, tau, rank) -> TreeForwardDynamics:
+        if self.coupling_rows is not None:
+            # Pinocchio's constraintDynamics has no joint-coupling rows: the KKT route
+            mass, bias, jac, gamma = self._terms(q, v)
+            res = self.forward_routes.kkt(mass, bias, jac, gamma, tau, rank)
+            return TreeForwardDynamics(res.a, res.multipliers, "pinocchio",
+                                       "joint couplings (not in pin.constraintDynamics): "
+                                       "solved by the KKT route", 0, res.rank,
+                                       res.constraint_residual)
         redundant = rank < self.n_rows
         acc, prox = self.pinocchio_call(q, v, tau, redundant)
         if acc is None and not redundant and not self._rank_rechecked:
@@ -613,6 +667,8 @@ class ClosedLoopDynamics:
         (its acceleration is not used). Empty arrays without closures."""
         if not self.n_rows:
             return self._no_rows
+        if self.coupling_rows is not None:   # our rows: J_c a = -gamma
+            return self.constraint_jacobian(q), -self.constraint_drift(q, v)
         if not self._pin_ready:
             self._init_pinocchio()
         pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
@@ -625,7 +681,10 @@ class ClosedLoopDynamics:
         """A callable giving our row multipliers from Pinocchio's LOCAL ones ``lam_pin`` at
         ``q`` (computed on its first call, safe on any thread); with ``jac`` (Pinocchio's
         constraint Jacobian at ``q``) the minimum-norm multipliers of the same generalised
-        force. ``q``, ``lam_pin`` and ``jac`` are kept: pass arrays the caller owns."""
+        force. ``q``, ``lam_pin`` and ``jac`` are kept: pass arrays the caller owns. With
+        joint couplings the rows are already ours (:meth:`pinocchio_constraint_terms`)."""
+        if self.coupling_rows is not None:
+            return LazyMultipliers(_our_rows, lam_pin, jac)
         return LazyMultipliers(self.conversion.from_pinocchio, q, lam_pin, jac)
 
     # -- inverse dynamics (the routes of core.inverse_routes) -------------------------------
@@ -689,8 +748,15 @@ class ClosedLoopDynamics:
         a = as_array(a, (self.nv,), "a")
         multipliers = as_array(multipliers, (self.n_rows,), "multipliers")
         self.check_state(q, v)
-        return joint_wrenches(self.model, self.data, self.closure_frames, q, v, a,
-                              multipliers, fext)
+        if self.coupling_rows is None:
+            return joint_wrenches(self.model, self.data, self.closure_frames, q, v, a,
+                                  multipliers, fext)
+        # the couplings' generalised forces act inside their joints: they take their part
+        # of the joint torques (the wrenches are those of the motion and closure forces)
+        ncl = self.n_closure_rows
+        wrenches, tau = joint_wrenches(self.model, self.data, self.closure_frames, q, v, a,
+                                       multipliers[:ncl], fext)
+        return wrenches, tau - self.coupling_rows.jacobian(q).T @ multipliers[ncl:]
 
 
 #: per thread: model -> its workspace (a workspace holds Pinocchio data and ProxSuite
@@ -811,6 +877,14 @@ def inverse_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
 # helpers
 # --------------------------------------------------------------------------------------
 _NO_INDEX = np.zeros(0, dtype=int)
+
+
+def _our_rows(lam: np.ndarray, jac: np.ndarray | None) -> np.ndarray:
+    """Multipliers already in our rows; with ``jac``, the minimum-norm ones of the same
+    generalised force ``jac^T lam``."""
+    if jac is None:
+        return lam
+    return np.linalg.lstsq(jac.T, jac.T @ lam, rcond=None)[0]
 
 
 def null_space_basis(jac: np.ndarray, rank: int) -> np.ndarray:

@@ -131,10 +131,18 @@ class ClosureRates(NamedTuple):
 
 
 def closure_rates(clm: ClosedLoopModel, data: pin.Data, v: np.ndarray,
-                  a: np.ndarray) -> ClosureRates:
+                  a: np.ndarray, q: np.ndarray | None = None) -> ClosureRates:
     """:class:`ClosureRates` (n_rows rows) from the frame derivatives in ``data``: a point
     closure's rows are the world linear rows of anchor 1 minus anchor 2, a weld's the
-    LOCAL spatial rows."""
+    LOCAL spatial rows; the joint couplings' rows (:mod:`~hexapod_pin.core.couplings`)
+    after them, from ``q`` (the configuration of ``data``).
+
+    Raises:
+        InputError: a model with joint couplings and no ``q``.
+    """
+    couplings = clm.coupling_rows
+    if couplings is not None and q is None:
+        raise InputError("q", q, f"{clm.name} has joint couplings: their rows need q")
     lay = layout_of(clm)
     rates = frame_rates(clm.model, data, lay.anchors, v, a, lay.world)
     nv = clm.model.nv
@@ -145,6 +153,13 @@ def closure_rates(clm: ClosedLoopModel, data: pin.Data, v: np.ndarray,
     for k, c in lay.welds:
         _weld_rows(rates, 2 * k, relative_action(data, c.frame1, c.frame2),
                    [arr[c.rows] for arr in out])
+    if couplings is not None and q is not None:
+        # C = J a + gamma: d/dq (J a) + d gamma/dq, d gamma/dv; J v: d(J v)/dq
+        out[0] = np.vstack([out[0], couplings.jacobian_velocity_dq(q, a)
+                            + couplings.drift_dq(q, v)])
+        out[1] = np.vstack([out[1], couplings.drift_dv(q, v)])
+        out[2] = np.vstack([out[2], couplings.jacobian(q)])
+        out[3] = np.vstack([out[3], couplings.jacobian_velocity_dq(q, v)])
     return ClosureRates(out[0], out[1], out[2], out[3], rates)
 
 
@@ -396,6 +411,9 @@ def closure_force_derivative(clm: ClosedLoopModel, data: pin.Data, q: np.ndarray
     fext = lay.joint_forces(clm, multipliers, data)
     with_forces = np.array(pin.computeRNEADerivatives(model, data, q, zero, zero, fext)[0])
     gravity = np.array(pin.computeGeneralizedGravityDerivatives(model, data, q))
+    if clm.coupling_rows is not None:     # the joint couplings' rows (core.couplings)
+        turning = turning + clm.coupling_rows.transpose_force_dq(
+            q, multipliers[clm.n_closure_rows:])
     return gravity - with_forces + turning
 
 
@@ -430,8 +448,9 @@ class KKTLinearization:
         self.q, self.v, self.a, self.multipliers = q, v, a, multipliers
         pin.computeForwardKinematicsDerivatives(model, data, q, v, a)
         pin.updateFramePlacements(model, data)
-        rates = closure_rates(clm, data, v, a)
+        rates = closure_rates(clm, data, v, a, q)
         self.c_q, self.c_v, self.jac, self.jv_q = rates[:4]
+        couplings = clm.coupling_rows
         #: world :class:`FrameRates` of the extra frames (in the order asked)
         self.frames = frame_rates(model, data, list(frames), v, a,
                                   np.ones(len(frames), dtype=bool)) if len(frames) else None
@@ -443,6 +462,8 @@ class KKTLinearization:
         self.e_q = np.array(dtau_dq) - self._turning(rates.anchors.jac) \
             - self._wrench_turning(wrenches)
         self.e_v = np.array(dtau_dv)
+        if couplings is not None:   # -d(J^T lambda)/dq of the couplings' forces
+            self.e_q -= couplings.transpose_force_dq(q, multipliers[clm.n_closure_rows:])
         eff = clm.effects
         if eff.damping.any():
             self.e_v[np.diag_indices(model.nv)] += eff.damping
@@ -567,7 +588,7 @@ class KKTLinearization:
         zero = np.zeros(model.nv)
         pin.computeForwardKinematicsDerivatives(model, data, self.q, w, zero)
         pin.updateFramePlacements(model, data)
-        turned = closure_rates(self.clm, data, w, zero).vel_q @ dq
+        turned = closure_rates(self.clm, data, w, zero, self.q).vel_q @ dq
         return turned - self._left @ (self._left.T @ turned)
 
 

@@ -123,7 +123,9 @@ def freeze_joints(clm: ClosedLoopModel, joints: Sequence[str],
                                 q_locked)
         dropped.append(closure.name)
     reduced_tree = _reduced_tree(clm.tree_model, sorted(ids), q_locked)
-    loops = LoopsSpec(tuple(kept), tuple(j for j in clm.actuated_joints if j not in names))
+    # joint couplings are kept (one on a frozen joint is refused by name: not in the tree)
+    loops = LoopsSpec(tuple(kept), tuple(j for j in clm.actuated_joints if j not in names),
+                      couplings=clm.couplings)
     reduced = ClosedLoopModel(reduced_tree, loops, name=f"{clm.name} (frozen: {', '.join(names)})",
                               urdf_xml=None)
     q_index: list[int] = []

@@ -25,7 +25,9 @@ Conventions of the export:
 * every closure anchor is a ``<site>`` (``<closure>__anchor1`` / ``__anchor2``) on its
   body; a point closure becomes ``<connect site1 site2>``, a weld ``<weld site1 site2>``
   (site frames kept coincident), both with the stiffest impedance MuJoCo allows
-  (``solimp = 0.9999 0.9999 0.001 0.5 2``) and ``solref = (2 timestep, 1)``;
+  (``solimp = 0.9999 0.9999 0.001 0.5 2``) and ``solref = (2 timestep, 1)``; a joint
+  coupling (``clm.couplings``) becomes ``<joint joint1 joint2 polycoef>`` (the exported
+  joints have no ``ref``: MuJoCo's ``qpos0`` is zero and its polynomial is ours);
 * the joint and drive effects (``clm.effects``, :mod:`~hexapod_pin.core.effects`) are the
   joints' ``armature``, ``damping``, ``frictionloss`` (Coulomb friction), ``stiffness``
   and ``springref`` (the spring reference; MuJoCo's ``qpos_spring``); a ball joint takes
@@ -378,6 +380,12 @@ def closed_loop_mjcf(clm: ClosedLoopModel, timestep: float = 1e-3,
         lines.append(f'    <{kind} name="{_name(closure.name, "closure name")}" '
                      f'site1="{_site_name(closure.name + "/anchor1")}" '
                      f'site2="{_site_name(closure.name + "/anchor2")}"/>')
+    for coupling in clm.couplings:     # the joints have no ref: qpos0 = 0, absolute polycoef
+        second = ("" if coupling.joint2 is None
+                  else f'joint2="{_name(coupling.joint2, "joint name")}" ')
+        lines.append(f'    <joint name="{_name(coupling.name, "coupling name")}" '
+                     f'joint1="{_name(coupling.joint1, "joint name")}" {second}'
+                     f'polycoef="{_vec(coupling.polycoef)}"/>')
     lines += ["  </equality>", "  <actuator>"]
     effects = clm.effects
     lines += [f"    {_motor_xml(j, effects.gear[k], effects.effort_limit[k])}"

@@ -633,11 +633,19 @@ class ClosedLoopIntegrator:
         derivative of the errors along ``pin.integrate`` where they vanish: a point
         closure's error is ``R_1^T (p_1 - p_2)`` (the :meth:`ClosedLoopModel.residual`
         rows in anchor-1 axes: same Euclidean norm), a weld's ``log6(c2Mc1)`` (the same
-        rows as :meth:`ClosedLoopModel.residual`)."""
+        rows as :meth:`ClosedLoopModel.residual`). The joint couplings' rows
+        (:mod:`~hexapod_pin.core.couplings`) follow the closure rows."""
         model, data, err = self.clm.model, self._data, self._err
         pin.computeJointJacobians(model, data, q)
         for calc, cd in self._calcs:
             calc(model, data, cd)                 # the anchor placements (J reads them)
+        couplings = self.clm.coupling_rows
+        if couplings is not None:
+            ncl = self.clm.n_closure_rows
+            self._errors.gather(err[:ncl])
+            err[ncl:] = couplings.residual(q)
+            return np.vstack([pin.getConstraintsJacobian(model, data, self._cms, self._cds)
+                              if ncl else np.zeros((0, model.nv)), couplings.jacobian(q)])
         views = self._views
         if views is None:
             self._errors.gather(err)

@@ -59,8 +59,14 @@ Conventions of the import:
   ``keyframe=``, else the file's keyframe named ``home``, else ``qpos0`` (a chosen
   keyframe replaces a file's ``home``).
 
+* **Joint couplings.** Active ``<equality><joint joint1 joint2 polycoef>`` on hinge and
+  slide joints -> :class:`~hexapod_pin.core.couplings.JointCoupling` rows
+  (``clm.couplings``): MuJoCo's ``q1 - q1_0 = f(q2 - q2_0)``, relative to ``qpos0``,
+  rewritten in absolute coordinates ``q1 = f_abs(q2)`` (``q1 = c0 + q1_0`` without
+  ``joint2``); solref / solimp are not read.
+
 Refused (:class:`~hexapod_pin.errors.DescriptionError` naming every one): joint couplings
-(``<equality><joint>``, not yet rows of the core routes), tendon and flex equalities,
+of ball or free joints, tendon and flex equalities,
 tendons with stiffness, damping, friction, armature or limits, actuators with another
 transmission (tendon, site, body, slider-crank) or on a ball / free joint, two actuators on
 one joint, gravity compensation, fluid forces (``density`` / ``viscosity``), flexes,
@@ -82,6 +88,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.closed_loop import ClosedLoopModel
+from ..core.couplings import JointCoupling
 from ..core.description import WORLD, ClosureSpec, LoopsSpec, RobotSection, check_inertia
 from ..core.effects import JointEffects, resolve_effects
 from ..errors import DescriptionError, MissingDependencyError
@@ -197,6 +204,8 @@ class _Builder:
         self.unsupported: list[str] = []
         self.notes: list[str] = []
         self.skipped: list[str] = []
+        #: the joint couplings (``<equality><joint>``), in file order
+        self.couplings: list[JointCoupling] = []
         #: body -> (Pinocchio joint, placement of the body frame in that joint's frame)
         self.frames: list[tuple[int, pin.SE3]] = [(0, pin.SE3.Identity())]
         self.body_frame_ids = [0]
@@ -293,9 +302,7 @@ class _Builder:
             if off or not mj.eq_active0[i]:
                 self.skipped.append(name)
             elif kind == eq.mjEQ_JOINT:
-                pair = [self.joints[int(k)] for k in (mj.eq_obj1id[i], mj.eq_obj2id[i]) if k >= 0]
-                self.unsupported.append(f"joint coupling {name!r} ({' = f('.join(pair)}"
-                                        f"{')' if len(pair) == 2 else ' = const'})")
+                self.coupling(i, name)
             elif kind in (eq.mjEQ_CONNECT, eq.mjEQ_WELD):
                 closure = self.closure(i, name, kind == eq.mjEQ_CONNECT)
                 if closure is not None:
@@ -304,6 +311,23 @@ class _Builder:
                 label = {int(eq.mjEQ_TENDON): "tendon"}.get(kind, eq(kind).name)
                 self.unsupported.append(f"{label} equality {name!r}")
         return tuple(out)
+
+    def coupling(self, i: int, name: str) -> None:
+        """The joint coupling ``i`` (hinge or slide joints) into :attr:`couplings`, MuJoCo's
+        ``q1 - q1_0 = f(q2 - q2_0)`` (``qpos0`` references) written in absolute
+        coordinates; another joint type is listed as unsupported."""
+        mj = self.mj
+        ids = [int(k) for k in (mj.eq_obj1id[i], mj.eq_obj2id[i]) if k >= 0]
+        scalar = (int(self.mjc.mjtJoint.mjJNT_HINGE), int(self.mjc.mjtJoint.mjJNT_SLIDE))
+        if not all(int(mj.jnt_type[j]) in scalar for j in ids):
+            pair = [self.joints[j] for j in ids]
+            self.unsupported.append(f"joint coupling {name!r} of a ball or free joint "
+                                    f"({' = f('.join(pair)}{')' if len(pair) == 2 else ''})")
+            return
+        refs = [float(mj.qpos0[mj.jnt_qposadr[j]]) for j in ids] + [0.0]
+        self.couplings.append(JointCoupling.shifted(
+            name, self.joints[ids[0]], self.joints[ids[1]] if len(ids) == 2 else None,
+            [float(c) for c in mj.eq_data[i][:5]], refs[0], refs[1]))
 
     def closure(self, i: int, name: str, point: bool) -> ClosureSpec | None:
         mj = self.mj
@@ -475,7 +499,9 @@ def from_mjmodel(mj_model: Any, source: str = "<MjModel>", *,
     effects = resolve_effects(model, actuated, JointEffects.rigid(model, len(actuated)),
                               gear=gear, effort_limit=limit, **values)
     name = Path(source).name
-    clm = ClosedLoopModel(model, LoopsSpec(closures, actuated), name=name, effects=effects)
+    clm = ClosedLoopModel(model, LoopsSpec(closures, actuated,
+                                           couplings=tuple(builder.couplings)),
+                          name=name, effects=effects)
     return MjcfImport(clm, references, tuple(builder.skipped), tuple(builder.notes), mj_model)
 
 
