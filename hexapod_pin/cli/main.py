@@ -10,6 +10,7 @@ functions:
 * ``urdf``, ``mjcf`` (:mod:`.export`);
 * ``retime``, ``check`` (:mod:`.planning`);
 * ``workspace`` (:mod:`.workspace`);
+* ``stiffness`` (:mod:`.stiffness`);
 * ``calibrate`` (:mod:`.calibrate`).
 
 Common options (:mod:`.common`):
@@ -25,9 +26,9 @@ Common options (:mod:`.common`):
   the loops file's ``robot:`` section). Poses then have the robot's pose axes, actuator
   values its actuated joints; ``--robot`` with ``--geometry`` / ``--set`` or a hexapod
   option (``--branch``, ``--radius``, ...) is a usage error (exit code 2).
-* ``--effects FILE`` (``statics``, ``fd``, ``id``, ``simulate``): joint and drive effects
-  (armature, damping, Coulomb friction, springs, gears) over the robot's own, from a YAML
-  or TOML file in the format of a loops file's ``effects:`` section
+* ``--effects FILE`` (``statics``, ``fd``, ``id``, ``simulate``, ``stiffness``): joint and
+  drive effects (armature, damping, Coulomb friction, springs, gears) over the robot's own,
+  from a YAML or TOML file in the format of a loops file's ``effects:`` section
   (:func:`hexapod_pin.core.description.read_effects_file`); the output says which are on.
 * ``--json``: machine-readable output on stdout (nothing else is written then).
 * ``--quiet``: no progress bars or notes (results are still printed).
@@ -58,7 +59,7 @@ from typing import Annotated
 import typer
 
 from .. import __version__
-from . import calibrate, demo, dynamics, export, kinematics, planning, views, workspace
+from . import calibrate, demo, dynamics, export, kinematics, planning, stiffness, views, workspace
 from .common import NUMBERS, Command, Group
 
 app = typer.Typer(help="Kinematics and dynamics of the rail-driven hexapod.", no_args_is_help=True,
@@ -96,6 +97,7 @@ app.command(cls=Command)(export.mjcf)
 app.command(cls=Command)(planning.retime)
 app.command(cls=Command)(planning.check)
 app.command(cls=Command)(workspace.workspace)
+app.command(cls=Command, context_settings=NUMBERS)(stiffness.stiffness)
 app.command(cls=Command, context_settings=NUMBERS)(calibrate.calibrate)
 
 
