@@ -360,9 +360,6 @@ class RobotDynamics:
                                                      twist_dot, forces, wrench, q0)
 
     # -- batches -------------------------------------------------------------------------
-    def _each(self, name: str, n: int, call):
-        return batch_of_states(n, call)
-
     def _arrays(self, n_or_first, *arrays):
         first = as_array(n_or_first, (self.dim,), "poses", batch=True)
         n = len(first)
@@ -384,7 +381,7 @@ class RobotDynamics:
         first offending row (``index``)."""
         n, (p, t, td, w) = self._arrays(poses, ("twists", twists), ("twist_dots", twist_dots),
                                         ("wrenches", wrenches))
-        res = self._each("inverse_dynamics", n, lambda k: self.inverse_dynamics(
+        res = batch_of_states(n, lambda k: self.inverse_dynamics(
             p[k], t[k], td[k], None if w is None else w[k], bounded=bounded,
             joint_wrenches=False))
         forces = np.array([r.actuator_forces for r in res]).reshape(n, self.n_act)
@@ -400,7 +397,7 @@ class RobotDynamics:
         u = as_array(actuator_forces, (self.n_act,), "actuator_forces", batch=True)
         if len(u) != n:
             raise InputError("actuator_forces", actuator_forces, f"expected {n} rows")
-        res = self._each("forward_dynamics", n, lambda k: self.forward_dynamics(
+        res = batch_of_states(n, lambda k: self.forward_dynamics(
             p[k], t[k], u[k], None if w is None else w[k]))
         return BatchForwardDynamics(
             np.array([r.twist_dot for r in res]).reshape(n, self.dim),
@@ -411,7 +408,7 @@ class RobotDynamics:
                             *, bounded: bool = True) -> npt.NDArray[np.float64]:
         """:meth:`static_forces` of N poses: (N, n_act)."""
         n, (p, w) = self._arrays(poses, ("wrenches", wrenches))
-        res = self._each("static_forces", n, lambda k: self.static_forces(
+        res = batch_of_states(n, lambda k: self.static_forces(
             p[k], None if w is None else w[k], bounded=bounded))
         return np.array(res).reshape(n, self.n_act)
 
@@ -419,7 +416,7 @@ class RobotDynamics:
                                twists: npt.ArrayLike) -> BatchReducedDynamics:
         """:meth:`reduced_dynamics` of N states."""
         n, (p, t) = self._arrays(poses, ("twists", twists))
-        res = self._each("reduced_dynamics", n, lambda k: self.reduced_dynamics(p[k], t[k]))
+        res = batch_of_states(n, lambda k: self.reduced_dynamics(p[k], t[k]))
         return BatchReducedDynamics(
             np.array([r.mass_matrix for r in res]).reshape(n, self.dim, self.dim),
             np.array([r.bias for r in res]).reshape(n, self.dim),

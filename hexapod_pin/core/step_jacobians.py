@@ -205,7 +205,7 @@ class _ClosureTangent:
         model, zero = self.clm.model, np.zeros(self.clm.nv)
         pin.computeForwardKinematicsDerivatives(model, self.data, self.q, w, zero)
         pin.updateFramePlacements(model, self.data)
-        rates = closure_rates(self.clm, self.data, w, zero)
+        rates = closure_rates(self.clm, self.data, w, zero, self.q)
         return rates.jac, rates.vel_q
 
     def platform(self, frame: int, sel: np.ndarray, v: np.ndarray

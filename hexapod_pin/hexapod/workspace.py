@@ -44,7 +44,7 @@ import numpy.typing as npt
 from ..core.checks import as_array
 from ..core.measures import condition_number
 from ..core.workspace_maps import VolumeEstimate, volume_estimate
-from ..errors import InputError
+from ..errors import HexapodPinError, InputError
 from . import batch
 from . import kernels as K
 from .robot import Hexapod
@@ -212,13 +212,32 @@ def _chunk(robot, poses, signs, payload, singularity: bool, statics: bool):
         type_one = np.where(jb.reachable, cosine, 0.0)
         type_two = np.where(jb.reachable, np.linalg.svd(a_hat, compute_uv=False)[:, -1], 0.0)
     if statics and np.any(good):
-        # the statics kernels: J^T tau = h_gravity - payload (zeros where they refuse)
-        tau, codes = batch.static_forces_codes(geo, poses, np.atleast_2d(payload), False,
-                                               signs)
-        keep = good & (codes == K.OK)
-        forces[keep] = tau[keep]
+        forces = _statics(robot, poses, signs, payload, good)
     return (jb.actuator_positions, cond, smin, type_one, type_two, forces,
             jb.reachable, jb.within_stroke, jb.regular)
+
+
+def _statics(robot: Hexapod, poses: np.ndarray, signs: np.ndarray, payload: np.ndarray,
+             good: np.ndarray) -> np.ndarray:
+    """Static forces (N, 6) at the ``good`` poses, zeros elsewhere and where the statics
+    refuse: the compiled kernels (``J^T tau = G^T (g + K dq) - payload``, the carriages'
+    springs included) when they model the robot's effects, else (springs on the universal
+    joints or the platform's free flyer) the robot's single-state statics, which hold them."""
+    forces = np.zeros((poses.shape[0], 6))
+    if robot.dynamics.batch_kernels_apply:
+        tau, codes = batch.static_forces_codes(robot.closed_form.dynamics_geo, poses,
+                                               np.atleast_2d(payload), False, signs)
+        keep = good & (codes == K.OK)
+        forces[keep] = tau[keep]
+        return forces
+    for i in np.flatnonzero(good):
+        try:
+            forces[i] = robot.static_forces(poses[i], payload if payload.ndim == 1
+                                            else payload[i], bounded=False,
+                                            branch=signs[i] if signs.shape[0] > 1 else signs[0])
+        except HexapodPinError:
+            pass          # refused (the kernels' zeros): not part of the usable workspace
+    return forces
 
 
 @dataclass(frozen=True)
@@ -250,9 +269,9 @@ def force_capability(robot: Hexapod, poses: npt.ArrayLike, direction: npt.ArrayL
     """Largest payload along a wrench direction that the actuators can hold, per pose.
 
     Solves, per pose, the linear program ``max s`` s.t. ``|tau0 + s tau1|_i <=
-    max_actuator_force`` for all i, where ``tau0`` holds gravity and ``tau1``
-    the unit payload ``direction`` (wrench on the platform, world axes, about the
-    origin). The LP is one-dimensional, so its exact solution is the smallest
+    max_actuator_force`` for all i, where ``tau0`` holds gravity and the springs of the
+    joint effects (:func:`evaluate`'s statics) and ``tau1`` the unit payload ``direction``
+    (wrench on the platform, world axes, about the origin). The LP is one-dimensional, so its exact solution is the smallest
     positive crossing ``(sign(tau1_i) tau_max - tau0_i) / tau1_i`` over i.
 
     Args:
@@ -265,16 +284,17 @@ def force_capability(robot: Hexapod, poses: npt.ArrayLike, direction: npt.ArrayL
         threads: as in :func:`evaluate`.
 
     Raises:
-        InputError: malformed inputs or a zero direction.
+        InputError: malformed inputs, a zero direction, or Coulomb friction or effort
+            limits in the robot's effects (the generic
+            :func:`hexapod_pin.core.workspace_maps.force_capability` models them).
     """
     direction = as_array(direction, (6,), "direction")
     if not np.any(direction):
         raise InputError("direction", direction, "must not be zero")
     effects = robot.effects
-    if effects.stiffness.any() or effects.coulomb.any() or \
-            np.any(effects.effort_limit < robot.geometry.max_actuator_force):
-        raise InputError("robot", effects, "drive effects at rest (springs, Coulomb friction, "
-                         "effort limits) that these compiled maps do not model: use "
+    if effects.coulomb.any() or np.any(effects.effort_limit < robot.geometry.max_actuator_force):
+        raise InputError("robot", effects, "drive effects at rest (Coulomb friction, effort "
+                         "limits) that these compiled maps do not model: use "
                          "hexapod_pin.core.workspace_maps.force_capability")
     base = evaluate(robot, poses, None, branch, threads, singularity=False)
     with_unit = evaluate(robot, base.poses, direction, branch, threads, singularity=False)

@@ -21,6 +21,7 @@ four-bar (redundant point rows).
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -34,6 +35,8 @@ from hexapod_pin.core.pose import rotation_from_rpy
 from hexapod_pin.core.simulation import ClosedLoopIntegrator
 from hexapod_pin.errors import InputError
 from hexapod_pin.hexapod.kinematics import HOME_BRANCH
+
+DATA = Path(__file__).resolve().parents[1] / "data"
 
 RTOL = 1e-7
 DT = 1e-3
@@ -180,3 +183,18 @@ def test_refused():
     rough = robot.with_effects(coulomb=np.full(robot.model.nv, 0.2))
     with pytest.raises(InputError, match="Coulomb"):
         rough.step_jacobians(pose, [0.1], u, DT, integrator="rk4")
+
+
+@pytest.mark.parametrize("integrator", ["rk4", "semi_implicit_euler"])
+@pytest.mark.parametrize("effects", [False, True], ids=["rigid", "effects"])
+def test_step_jacobians_with_joint_couplings(effects, integrator):
+    """A four-bar whose pendulum hinge follows the crank through a quartic joint coupling
+    (tests/data/mjcf/coupled_fourbar.xml): the couplings' rows enter the projection's
+    derivative (the curvature of the rows needs ``q``)."""
+    pytest.importorskip("mujoco")
+    robot = hp.ClosedLoopRobot(hp.load_mjcf(DATA / "mjcf" / "coupled_fourbar.xml"),
+                               platform="coupler", pose_axes=("z",))
+    if effects:
+        robot = with_drive_effects(robot)
+    err_a, err_b, _ = check_step(robot, integrator)
+    assert err_a < RTOL and err_b < RTOL, (err_a, err_b)

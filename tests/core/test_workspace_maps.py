@@ -487,8 +487,7 @@ def test_guaranteed_capability_with_passive_friction_puts_the_band_on_the_bound(
 def test_the_hexapods_compiled_capability_refuses_effects_it_does_not_model(hexapod):
     poses = near_home_hexapod(hexapod, 4, seed=2)
     direction = [0.0, 0.0, -1.0, 0.0, 0.0, 0.0]
-    for values in ({"coulomb": {"carriage_0": 1.0}}, {"stiffness": {"carriage_1": 50.0}},
-                   {"effort_limit": np.full(6, 40.0)}):
+    for values in ({"coulomb": {"carriage_0": 1.0}}, {"effort_limit": np.full(6, 40.0)}):
         driven = hexapod.with_effects(**values)
         with pytest.raises(InputError, match="workspace_maps"):
             hexapod_workspace.force_capability(driven, poses, direction)
@@ -497,3 +496,26 @@ def test_the_hexapods_compiled_capability_refuses_effects_it_does_not_model(hexa
     rigid = wm.force_capability(hexapod, poses, direction)
     compiled = hexapod_workspace.force_capability(hexapod, poses, direction)
     np.testing.assert_allclose(rigid.scale, compiled.scale, rtol=1e-9)
+
+
+def test_the_hexapods_compiled_maps_hold_springs_on_every_joint(hexapod):
+    """Springs on the carriages (in the compiled kernels) and on the universal joints (not
+    in them: the statics go state by state through the tree routes): the compiled
+    ``evaluate`` statics equal the robot's own static forces with the payload, and the
+    compiled force capability the generic one."""
+    poses = near_home_hexapod(hexapod, 6, seed=3)
+    poses = poses[hexapod_workspace.evaluate(hexapod, poses).ok]
+    assert len(poses) >= 3
+    payload = np.array([1.0, -2.0, -5.0, 0.1, 0.2, -0.1])
+    direction = [0.0, 0.0, -1.0, 0.0, 0.0, 0.0]
+    for stiffness in ({"carriage_1": 50.0}, {"u_0_a": [3.0], "u_3_b": [2.0]}):
+        sprung = hexapod.with_effects(stiffness=stiffness)
+        measures = hexapod_workspace.evaluate(sprung, poses, payload)
+        assert np.all(measures.ok)
+        expected = np.array([sprung.static_forces(p, payload, bounded=False) for p in poses])
+        rigid = np.array([hexapod.static_forces(p, payload, bounded=False) for p in poses])
+        assert np.max(np.abs(expected - rigid)) > 1e-3          # the springs matter here
+        np.testing.assert_allclose(measures.static_forces, expected, rtol=1e-12, atol=1e-12)
+        compiled = hexapod_workspace.force_capability(sprung, poses, direction)
+        generic = wm.force_capability(sprung, poses, direction)
+        np.testing.assert_allclose(compiled.scale, generic.scale, rtol=1e-9)
