@@ -364,3 +364,9 @@ def test_the_finiteness_check_walks_dataclasses_and_allows_an_infinite_condition
         check_finite_result("f", Inner(np.array([0.0, np.nan]), 1.0))
     with pytest.raises(hp.NonFiniteResultError):
         check_finite_result("f", Inner(np.ones(2), -math.inf))
+    strided = np.array([[0.0, 1.0], [np.nan, 2.0]])[:, 0]          # a non-contiguous field
+    with pytest.raises(hp.NonFiniteResultError, match="values"):
+        check_finite_result("f", Inner(strided, 1.0))
+    with pytest.raises(hp.NonFiniteResultError, match="condition_number"):
+        check_finite_result("f", Inner(np.ones(2), np.array([1.0, -math.inf])))
+    assert check_finite_result("f", Inner(np.ones(2), np.array([1.0, math.inf]))).values[0] == 1
