@@ -83,38 +83,117 @@ class FrameRates(NamedTuple):
     vel_q: np.ndarray
 
 
-def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int], v: np.ndarray,
-                a: np.ndarray, world: np.ndarray) -> FrameRates:
-    """:class:`FrameRates` of ``frames`` (ids) at the state ``(v, a)`` of the derivatives in
-    ``data``, world rows where ``world`` (bool (n,)) is True, else LOCAL ones.
+class FrameSet:
+    """What :func:`frame_rates` needs of the model for some frames, built once (per model
+    and frame list: :func:`frame_set`).
 
-    From Pinocchio's LOCAL partials: the velocity is ``J v``, the spatial acceleration
-    ``J a + (da/dv) v / 2`` (its bias is quadratic in ``v``); world rows rotate them,
-    ``x_w = R x`` and ``d x_w / dq = R (dx/dq - [x]_x J_ang)``, after adding ``w x v`` to
-    the linear acceleration (classical)."""
-    n = len(frames)
-    parts = np.array([pin.getFrameAccelerationDerivatives(model, data, f, _LOCAL)
-                      for f in frames]).reshape(n, 4, 6, model.nv)
-    v_dq, a_dq, a_dv, jac = parts[:, 0], parts[:, 1], parts[:, 2], parts[:, 3]
+    Attributes:
+        frames: the frame ids.
+        joints: (n,) each frame's parent joint.
+        support: (n, 1, nv) 1.0 on the velocity coordinates of the joints supporting each
+            frame (its parent joint and those above it), else 0.0.
+        col_parent: (nv,) the parent joint of each velocity coordinate's joint.
+        col_inner: (nv, 1) 1.0 where that parent is not the universe, else 0.0.
+        placement_rot: (n, 3, 3) each frame's rotation in its joint.
+        placement_pos: (n, 3) each frame's position in its joint.
+    """
+
+    def __init__(self, model: pin.Model, frames: Sequence[int]) -> None:
+        self.frames = [int(f) for f in frames]
+        placements = [model.frames[f] for f in self.frames]
+        self.joints = np.array([f.parentJoint for f in placements], dtype=int)
+        nv = model.nv
+        col_joint = np.zeros(nv, dtype=int)
+        for j in range(1, model.njoints):
+            joint = model.joints[j]
+            col_joint[joint.idx_v:joint.idx_v + joint.nv] = j
+        self.col_parent = np.array([model.parents[int(j)] for j in col_joint], dtype=int)
+        self.col_inner = (self.col_parent > 0).astype(float)[:, None]
+        self.support = np.zeros((len(self.frames), 1, nv))
+        for k, j in enumerate(self.joints):
+            for s in model.supports[int(j)][1:]:
+                joint = model.joints[int(s)]
+                self.support[k, 0, joint.idx_v:joint.idx_v + joint.nv] = 1.0
+        self.placement_rot = np.array([f.placement.rotation for f in placements]
+                                      ).reshape(-1, 3, 3)
+        self.placement_pos = np.array([f.placement.translation for f in placements]
+                                      ).reshape(-1, 3)
+
+
+def frame_set(clm: ClosedLoopModel, frames: Sequence[int]) -> FrameSet:
+    """The :class:`FrameSet` of ``frames`` (ids) of ``clm`` (kept in ``clm.workspaces``)."""
+    key = ("frame_set", tuple(int(f) for f in frames))
+    out = clm.workspaces.get(key)
+    if out is None:
+        out = clm.workspaces[key] = FrameSet(clm.model, frames)
+    return out
+
+
+def _cross_rows(m: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``m_k x x_k`` (k, 6) of spatial motions ``m``, ``x`` (k, 6) (:func:`motion_cross`)."""
+    return (motion_cross(m) @ x[:, :, None])[..., 0]
+
+
+def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int] | FrameSet,
+                v: np.ndarray, a: np.ndarray, world: np.ndarray) -> FrameRates:
+    """:class:`FrameRates` of ``frames`` (ids, or their :class:`FrameSet`) at the state ``(v,
+    a)`` of ``pin.computeForwardKinematicsDerivatives`` in ``data`` (frame placements
+    updated), world rows where ``world`` (bool (n,)) is True, else LOCAL ones.
+
+    All frames at once from the world-axes joint quantities of that pass (``data.J``,
+    ``data.dJ``, ``data.ov``, ``data.oa``), as ``pin.getJointAccelerationDerivatives``
+    (WORLD) forms them for one joint: the column of coordinate ``c`` (joint ``i``, parent
+    ``p``) of a body on joint ``b`` has ``dV/dq = (ov_p - ov_b) x J_c``, ``dA/dv = dV/dq +
+    dJ_c`` and ``dA/dq = (oa_p - oa_b) x J_c + [p > 0] (ov_p - ov_b) x dJ_c`` (zero off the
+    body's support). They are moved to each frame origin ``o`` (world axes): ``x_o = x +
+    x_ang x o``, ``d x_o = dx - [o]_x dx_ang + [x_ang]_x J_o,lin`` (``J_o`` the frame's
+    world Jacobian); the velocity is ``J_o v``, the spatial acceleration ``J_o a + (dA/dv)
+    v / 2`` (its bias is quadratic in ``v``). World rows add ``w x v`` to the linear
+    acceleration (classical); LOCAL rows rotate, ``x_l = R^T x_o`` and ``d x_l / dq = R^T
+    (d x_o / dq + [x_o]_x J_o,ang)`` per 3-block."""
+    fs = frames if isinstance(frames, FrameSet) else FrameSet(model, frames)
+    nv, joints, support = model.nv, fs.joints, fs.support
+    jac_w, djac_w = np.asarray(data.J), np.asarray(data.dJ)
+    ov = np.array([m.vector for m in data.ov.tolist()])
+    oa = np.array([m.vector for m in data.oa.tolist()])
+    ov_p, oa_p = ov[fs.col_parent], oa[fs.col_parent]
+    cols_v = _cross_rows(ov_p, jac_w.T).T                                  # ov_p x J_c
+    cols_a = (_cross_rows(oa_p, jac_w.T) + fs.col_inner * _cross_rows(ov_p, djac_w.T)).T
+    ad_v, ad_a = motion_cross(ov[joints]), motion_cross(oa[joints])       # (n, 6, 6)
+    v_dq = (cols_v - ad_v @ jac_w) * support
+    a_dq = (cols_a - ad_a @ jac_w - (ad_v @ djac_w) * fs.col_inner[:, 0]) * support
+    a_dv = v_dq + djac_w * support
+    # to the frame origins, world axes
+    homog = np.array([m.homogeneous for m in data.oMi.tolist()])[joints]
+    rot = homog[:, :3, :3] @ fs.placement_rot
+    pos = (homog[:, :3, :3] @ fs.placement_pos[:, :, None])[..., 0] + homog[:, :3, 3]
+    arm = skew(pos)
+    jac = np.broadcast_to(jac_w, v_dq.shape) * support
+    jac[:, :3] -= arm @ jac[:, 3:]
     vel = jac @ v
-    acc = jac @ a + 0.5 * (a_dv @ v)
-    if not world.any():
-        return FrameRates(acc, a_dq, a_dv, jac, vel, v_dq)
-    w: slice | np.ndarray = slice(None) if world.all() else np.flatnonzero(world)
-    ids = frames if isinstance(w, slice) else [frames[int(k)] for k in w]
-    lin, ang = skew(vel[w, :3]), skew(vel[w, 3:])
-    acc[w, :3] += (ang @ vel[w, :3, None])[..., 0]                   # + w x v
-    jang = jac[w, 3:]
-    a_dq[w, :3] += ang @ v_dq[w, :3] - lin @ v_dq[w, 3:] + skew(-acc[w, :3]) @ jang
-    a_dq[w, 3:] -= skew(acc[w, 3:]) @ jang
-    a_dv[w, :3] += ang @ jac[w, :3] - lin @ jac[w, 3:]
-    v_dq[w, :3] -= lin @ jang
-    v_dq[w, 3:] -= ang @ jang
-    rot = np.array([data.oMf[f].rotation for f in ids]).reshape(-1, 1, 3, 3)
-    for arr in (a_dq, a_dv, jac, v_dq):
-        arr[w] = (rot @ arr[w].reshape(-1, 2, 3, model.nv)).reshape(-1, 6, model.nv)
-    for arr in (acc, vel):
-        arr[w] = (rot @ arr[w].reshape(-1, 2, 3, 1)).reshape(-1, 6)
+    acc = jac @ a
+    a_dv[:, :3] -= arm @ a_dv[:, 3:]
+    acc += 0.5 * (a_dv @ v)
+    jlin = jac[:, :3]
+    v_dq[:, :3] += skew(vel[:, 3:]) @ jlin - arm @ v_dq[:, 3:]
+    a_dq[:, :3] += skew(acc[:, 3:]) @ jlin - arm @ a_dq[:, 3:]
+    w = np.asarray(world, dtype=bool)
+    if w.any():                                   # classical: + w x v
+        lin, ang = skew(vel[w, :3]), skew(vel[w, 3:])
+        acc[w, :3] += (ang @ vel[w, :3, None])[..., 0]
+        a_dq[w, :3] += ang @ v_dq[w, :3] - lin @ v_dq[w, 3:]
+        a_dv[w, :3] += ang @ jac[w, :3] - lin @ jac[w, 3:]
+    loc = ~w
+    if loc.any():                                 # LOCAL axes
+        rt = np.swapaxes(rot[loc], 1, 2)[:, None]
+        jang = jac[loc, 3:][:, None]
+        for arr, x in ((v_dq, vel), (a_dq, acc)):
+            turned = arr[loc].reshape(-1, 2, 3, nv) + skew(x[loc].reshape(-1, 2, 3)) @ jang
+            arr[loc] = (rt @ turned).reshape(-1, 6, nv)
+        for arr in (a_dv, jac):
+            arr[loc] = (rt @ arr[loc].reshape(-1, 2, 3, nv)).reshape(-1, 6, nv)
+        for x in (acc, vel):
+            x[loc] = (rt @ x[loc].reshape(-1, 2, 3, 1)).reshape(-1, 6)
     return FrameRates(acc, a_dq, a_dv, jac, vel, v_dq)
 
 
@@ -144,7 +223,7 @@ def closure_rates(clm: ClosedLoopModel, data: pin.Data, v: np.ndarray,
     if couplings is not None and q is None:
         raise InputError("q", q, f"{clm.name} has joint couplings: their rows need q")
     lay = layout_of(clm)
-    rates = frame_rates(clm.model, data, lay.anchors, v, a, lay.world)
+    rates = frame_rates(clm.model, data, lay.frame_set, v, a, lay.world)
     nv = clm.model.nv
     out = []
     for field in (rates.acc_q, rates.acc_v, rates.jac, rates.vel_q):
@@ -164,11 +243,11 @@ def closure_rates(clm: ClosedLoopModel, data: pin.Data, v: np.ndarray,
 
 
 def motion_cross(m: np.ndarray) -> np.ndarray:
-    """``ad(m)`` (6, 6): ``m x y`` for spatial motions ``(v, w)``: ``(w x y_v + v x y_w,
-    w x y_w)``."""
-    out = np.zeros((6, 6))
-    out[:3, :3] = out[3:, 3:] = skew(m[3:])
-    out[:3, 3:] = skew(m[:3])
+    """``ad(m)`` (..., 6, 6) of spatial motions ``m = (v, w)`` (..., 6): ``m x y = (w x y_v
+    + v x y_w, w x y_w)``."""
+    out = np.zeros(m.shape[:-1] + (6, 6))
+    out[..., :3, :3] = out[..., 3:, 3:] = skew(m[..., 3:])
+    out[..., :3, 3:] = skew(m[..., :3])
     return out
 
 
@@ -212,6 +291,7 @@ class Layout:
     Attributes:
         data: this module's ``pin.Data`` of the model.
         anchors: the anchor frames, anchor 1 then anchor 2 of each closure.
+        frame_set: their :class:`FrameSet`.
         world: (2 n,) whether each anchor takes world rows (a point closure's).
         rows1: (n_rows,) the rows of anchor 1 in the flattened (2 n x 6) rows.
         rows2: (n_rows,) the rows of anchor 2 there.
@@ -237,10 +317,10 @@ class Layout:
             rows1 += [12 * k + i for i in range(width)]
             rows2 += [12 * k + 6 + i for i in range(width)]
         self.rows1, self.rows2 = np.array(rows1, dtype=int), np.array(rows2, dtype=int)
-        frames = [model.frames[f] for f in self.anchors]
-        self.joints = np.array([f.parentJoint for f in frames], dtype=int)
-        self.placement_rot = np.array([f.placement.rotation for f in frames]).reshape(-1, 3, 3)
-        self.placement_pos = np.array([f.placement.translation for f in frames]).reshape(-1, 3)
+        self.frame_set = FrameSet(model, self.anchors)
+        self.joints = self.frame_set.joints
+        self.placement_rot = self.frame_set.placement_rot
+        self.placement_pos = self.frame_set.placement_pos
         self.fext = pin.StdVec_Force()
         for _ in range(model.njoints):
             self.fext.append(pin.Force.Zero())
@@ -452,7 +532,7 @@ class KKTLinearization:
         self.c_q, self.c_v, self.jac, self.jv_q = rates[:4]
         couplings = clm.coupling_rows
         #: world :class:`FrameRates` of the extra frames (in the order asked)
-        self.frames = frame_rates(model, data, list(frames), v, a,
+        self.frames = frame_rates(model, data, frame_set(clm, frames), v, a,
                                   np.ones(len(frames), dtype=bool)) if len(frames) else None
         # E: rnea with the closure forces as external forces, their turning, the effects
         forces = self._forces = weld_multipliers(clm, data, multipliers)

@@ -59,6 +59,7 @@ from .dynamics_derivatives import (
     closure_force_derivative,
     closure_rates,
     frame_rates,
+    frame_set,
 )
 from .platform_derivatives import PlatformLinearization, PlatformRobot, platform_of
 from .simulation import PROJECTION_TOL, ClosedLoopIntegrator
@@ -214,7 +215,8 @@ class _ClosureTangent:
         model, zero = self.clm.model, np.zeros(self.clm.nv)
         pin.computeForwardKinematicsDerivatives(model, self.data, self.q, v, zero)
         pin.updateFramePlacements(model, self.data)
-        out = frame_rates(model, self.data, [frame], v, zero, np.ones(1, dtype=bool))
+        out = frame_rates(model, self.data, frame_set(self.clm, [frame]), v, zero,
+                          np.ones(1, dtype=bool))
         return out.jac[0][sel], out.vel_q[0][sel]
 
     def pinv(self, rhs: np.ndarray) -> np.ndarray:
