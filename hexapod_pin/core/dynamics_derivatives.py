@@ -48,6 +48,7 @@ from .checks import as_array, max_abs
 from .closed_loop import RANK_RTOL, ClosedLoopModel
 from .dynamics import forward_dynamics_tree
 from .effects import JointEffects, at_rest, passive_forces
+from .frame_rate_kernels import frame_rates_kernel
 from .pose import skew
 
 _LOCAL = pin.ReferenceFrame.LOCAL
@@ -90,34 +91,39 @@ class FrameSet:
     Attributes:
         frames: the frame ids.
         joints: (n,) each frame's parent joint.
-        support: (n, 1, nv) 1.0 on the velocity coordinates of the joints supporting each
-            frame (its parent joint and those above it), else 0.0.
+        support: (n, nv) whether each velocity coordinate supports each frame (belongs to
+            its parent joint or a joint above it).
+        joint_support: (njoints, nv) the same for every joint (row 0: the universe).
         col_parent: (nv,) the parent joint of each velocity coordinate's joint.
-        col_inner: (nv, 1) 1.0 where that parent is not the universe, else 0.0.
+        col_inner: (nv,) whether that parent is not the universe.
         placement_rot: (n, 3, 3) each frame's rotation in its joint.
         placement_pos: (n, 3) each frame's position in its joint.
+        inner_joints: the distinct parent joints of the frames (sorted).
+        joint_index: (n,) each frame's parent joint's position in ``inner_joints``.
     """
 
     def __init__(self, model: pin.Model, frames: Sequence[int]) -> None:
         self.frames = [int(f) for f in frames]
         placements = [model.frames[f] for f in self.frames]
-        self.joints = np.array([f.parentJoint for f in placements], dtype=int)
+        self.joints = np.array([f.parentJoint for f in placements], dtype=np.int64)
         nv = model.nv
-        col_joint = np.zeros(nv, dtype=int)
+        col_joint = np.zeros(nv, dtype=np.int64)
+        self.joint_support = np.zeros((model.njoints, nv), dtype=bool)
         for j in range(1, model.njoints):
             joint = model.joints[j]
             col_joint[joint.idx_v:joint.idx_v + joint.nv] = j
-        self.col_parent = np.array([model.parents[int(j)] for j in col_joint], dtype=int)
-        self.col_inner = (self.col_parent > 0).astype(float)[:, None]
-        self.support = np.zeros((len(self.frames), 1, nv))
-        for k, j in enumerate(self.joints):
-            for s in model.supports[int(j)][1:]:
-                joint = model.joints[int(s)]
-                self.support[k, 0, joint.idx_v:joint.idx_v + joint.nv] = 1.0
+            for s in model.supports[j][1:]:
+                above = model.joints[int(s)]
+                self.joint_support[j, above.idx_v:above.idx_v + above.nv] = True
+        self.col_parent = np.array([model.parents[int(j)] for j in col_joint], dtype=np.int64)
+        self.col_inner = self.col_parent > 0
+        self.support = self.joint_support[self.joints]
         self.placement_rot = np.array([f.placement.rotation for f in placements]
                                       ).reshape(-1, 3, 3)
         self.placement_pos = np.array([f.placement.translation for f in placements]
                                       ).reshape(-1, 3)
+        self.inner_joints = sorted({int(j) for j in self.joints})
+        self.joint_index = np.searchsorted(self.inner_joints, self.joints)
 
 
 def frame_set(clm: ClosedLoopModel, frames: Sequence[int]) -> FrameSet:
@@ -129,72 +135,38 @@ def frame_set(clm: ClosedLoopModel, frames: Sequence[int]) -> FrameSet:
     return out
 
 
-def _cross_rows(m: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """``m_k x x_k`` (k, 6) of spatial motions ``m``, ``x`` (k, 6) (:func:`motion_cross`)."""
-    return (motion_cross(m) @ x[:, :, None])[..., 0]
-
-
 def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int] | FrameSet,
                 v: np.ndarray, a: np.ndarray, world: np.ndarray) -> FrameRates:
     """:class:`FrameRates` of ``frames`` (ids, or their :class:`FrameSet`) at the state ``(v,
-    a)`` of ``pin.computeForwardKinematicsDerivatives`` in ``data`` (frame placements
-    updated), world rows where ``world`` (bool (n,)) is True, else LOCAL ones.
+    a)`` of ``pin.computeForwardKinematicsDerivatives`` in ``data``, world rows where
+    ``world`` (bool (n,)) is True, else LOCAL ones.
 
-    All frames at once from the world-axes joint quantities of that pass (``data.J``,
-    ``data.dJ``, ``data.ov``, ``data.oa``), as ``pin.getJointAccelerationDerivatives``
-    (WORLD) forms them for one joint: the column of coordinate ``c`` (joint ``i``, parent
-    ``p``) of a body on joint ``b`` has ``dV/dq = (ov_p - ov_b) x J_c``, ``dA/dv = dV/dq +
-    dJ_c`` and ``dA/dq = (oa_p - oa_b) x J_c + [p > 0] (ov_p - ov_b) x dJ_c`` (zero off the
-    body's support). They are moved to each frame origin ``o`` (world axes): ``x_o = x +
-    x_ang x o``, ``d x_o = dx - [o]_x dx_ang + [x_ang]_x J_o,lin`` (``J_o`` the frame's
-    world Jacobian); the velocity is ``J_o v``, the spatial acceleration ``J_o a + (dA/dv)
-    v / 2`` (its bias is quadratic in ``v``). World rows add ``w x v`` to the linear
+    All frames in one compiled call
+    (:func:`~hexapod_pin.core.frame_rate_kernels.frame_rates_kernel`) from the world-axes
+    joint columns of that pass, ``J_c`` and ``dJ_c = ov_i x J_c`` (``data.J``, ``data.dJ``),
+    as ``pin.getJointAccelerationDerivatives`` (WORLD) forms them for one joint: the column
+    of coordinate ``c`` (joint ``i``, parent ``p``) of a body on joint ``b`` has ``dV/dq =
+    (ov_p - ov_b) x J_c``, ``dA/dv = dV/dq + dJ_c``, ``dA/dq = (oa_p - oa_b) x J_c + [p >
+    0] (ov_p - ov_b) x dJ_c`` (zero off the body's support; ``ov_j = sum J_c v_c``, ``oa_j
+    = sum J_c a_c + dJ_c v_c`` over the coordinates supporting ``j``). Moved to each frame
+    origin ``o`` (world axes): ``x_o = x - o x x_ang`` and ``d x_o = (dx)_o + [x_o,ang]_x
+    J_o,lin``; the velocity is ``J_o v``, the spatial acceleration ``J_o a + (dA_o/dv) v /
+    2`` (its bias is quadratic in ``v``). World rows add ``w x v`` to the linear
     acceleration (classical); LOCAL rows rotate, ``x_l = R^T x_o`` and ``d x_l / dq = R^T
     (d x_o / dq + [x_o]_x J_o,ang)`` per 3-block."""
     fs = frames if isinstance(frames, FrameSet) else FrameSet(model, frames)
-    nv, joints, support = model.nv, fs.joints, fs.support
-    jac_w, djac_w = np.asarray(data.J), np.asarray(data.dJ)
-    ov = np.array([m.vector for m in data.ov.tolist()])
-    oa = np.array([m.vector for m in data.oa.tolist()])
-    ov_p, oa_p = ov[fs.col_parent], oa[fs.col_parent]
-    cols_v = _cross_rows(ov_p, jac_w.T).T                                  # ov_p x J_c
-    cols_a = (_cross_rows(oa_p, jac_w.T) + fs.col_inner * _cross_rows(ov_p, djac_w.T)).T
-    ad_v, ad_a = motion_cross(ov[joints]), motion_cross(oa[joints])       # (n, 6, 6)
-    v_dq = (cols_v - ad_v @ jac_w) * support
-    a_dq = (cols_a - ad_a @ jac_w - (ad_v @ djac_w) * fs.col_inner[:, 0]) * support
-    a_dv = v_dq + djac_w * support
-    # to the frame origins, world axes
-    homog = np.array([m.homogeneous for m in data.oMi.tolist()])[joints]
+    n, nv = len(fs.frames), model.nv
+    oMi = data.oMi
+    homog = np.array([oMi[j].homogeneous for j in fs.inner_joints])[fs.joint_index]
     rot = homog[:, :3, :3] @ fs.placement_rot
     pos = (homog[:, :3, :3] @ fs.placement_pos[:, :, None])[..., 0] + homog[:, :3, 3]
-    arm = skew(pos)
-    jac = np.broadcast_to(jac_w, v_dq.shape) * support
-    jac[:, :3] -= arm @ jac[:, 3:]
-    vel = jac @ v
-    acc = jac @ a
-    a_dv[:, :3] -= arm @ a_dv[:, 3:]
-    acc += 0.5 * (a_dv @ v)
-    jlin = jac[:, :3]
-    v_dq[:, :3] += skew(vel[:, 3:]) @ jlin - arm @ v_dq[:, 3:]
-    a_dq[:, :3] += skew(acc[:, 3:]) @ jlin - arm @ a_dq[:, 3:]
-    w = np.asarray(world, dtype=bool)
-    if w.any():                                   # classical: + w x v
-        lin, ang = skew(vel[w, :3]), skew(vel[w, 3:])
-        acc[w, :3] += (ang @ vel[w, :3, None])[..., 0]
-        a_dq[w, :3] += ang @ v_dq[w, :3] - lin @ v_dq[w, 3:]
-        a_dv[w, :3] += ang @ jac[w, :3] - lin @ jac[w, 3:]
-    loc = ~w
-    if loc.any():                                 # LOCAL axes
-        rt = np.swapaxes(rot[loc], 1, 2)[:, None]
-        jang = jac[loc, 3:][:, None]
-        for arr, x in ((v_dq, vel), (a_dq, acc)):
-            turned = arr[loc].reshape(-1, 2, 3, nv) + skew(x[loc].reshape(-1, 2, 3)) @ jang
-            arr[loc] = (rt @ turned).reshape(-1, 6, nv)
-        for arr in (a_dv, jac):
-            arr[loc] = (rt @ arr[loc].reshape(-1, 2, 3, nv)).reshape(-1, 6, nv)
-        for x in (acc, vel):
-            x[loc] = (rt @ x[loc].reshape(-1, 2, 3, 1)).reshape(-1, 6)
-    return FrameRates(acc, a_dq, a_dv, jac, vel, v_dq)
+    out = FrameRates(np.zeros((n, 6)), np.zeros((n, 6, nv)), np.zeros((n, 6, nv)),
+                     np.zeros((n, 6, nv)), np.zeros((n, 6)), np.zeros((n, 6, nv)))
+    frame_rates_kernel(np.ascontiguousarray(data.J.T), np.ascontiguousarray(data.dJ.T),
+                       np.asarray(v, dtype=float), np.asarray(a, dtype=float),
+                       fs.joint_support, fs.col_parent, fs.col_inner, fs.joints, fs.support,
+                       rot, pos, np.asarray(world, dtype=bool), *out)
+    return out
 
 
 class ClosureRates(NamedTuple):
@@ -321,6 +293,8 @@ class Layout:
         self.joints = self.frame_set.joints
         self.placement_rot = self.frame_set.placement_rot
         self.placement_pos = self.frame_set.placement_pos
+        #: (nv, nv) True on and above the diagonal (Pinocchio fills that triangle of M)
+        self.upper = np.triu(np.ones((model.nv, model.nv), dtype=bool))
         self.fext = pin.StdVec_Force()
         for _ in range(model.njoints):
             self.fext.append(pin.Force.Zero())
@@ -538,7 +512,7 @@ class KKTLinearization:
         forces = self._forces = weld_multipliers(clm, data, multipliers)
         fext = layout_of(clm).joint_forces(clm, forces, data, wrenches)
         dtau_dq, dtau_dv, mass = pin.computeRNEADerivatives(model, data, q, v, a, fext)
-        self.mass = np.triu(mass) + np.triu(mass, 1).T
+        self.mass = np.where(layout_of(clm).upper, mass, mass.T)
         self.e_q = np.array(dtau_dq) - self._turning(rates.anchors.jac) \
             - self._wrench_turning(wrenches)
         self.e_v = np.array(dtau_dv)
@@ -650,14 +624,19 @@ class KKTLinearization:
         onto the closures: ``-J_c^+ (d(J_c v)/dq) dq``."""
         return -self.pinv(self.jv_q @ dq)
 
-    def along(self, dq: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def along(self, dq: np.ndarray, dv: np.ndarray, force: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
         """``(da, dlambda)`` (nv, k), (n_rows, k) along state directions ``(dq, dv)`` (each
-        (nv, k)) tangent to the closures (``J_c dq = 0``, ``J_c dv = -d(J_c v)/dq dq``).
+        (nv, k)) tangent to the closures (``J_c dq = 0``, ``J_c dv = -d(J_c v)/dq dq``),
+        with the generalised forces ``force`` (nv, k) added (default none).
 
         With redundant rows the minimum-norm multipliers also turn with the range of
         ``J_c``: ``dlambda`` gets ``P dJ_c[dq] J_c^+ lambda`` (``P`` the projector on
         ``null(J_c^T)``), from one more kinematic pass."""
-        da, dlam = self.solve(-(self.e_q @ dq + self.e_v @ dv), -(self.c_q @ dq + self.c_v @ dv))
+        rhs_e = -(self.e_q @ dq + self.e_v @ dv)
+        if force is not None:
+            rhs_e += force
+        da, dlam = self.solve(rhs_e, -(self.c_q @ dq + self.c_v @ dv))
         if self.rank < self.clm.n_rows and dq.any():
             dlam += self._range_turn(dq)
         return da, dlam
@@ -794,10 +773,18 @@ def forward_dynamics_derivatives_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v:
         if not miss <= 1e-9 * max(1.0, max_abs(lin.jac) * max_abs(dirs)):
             raise InputError("basis", basis, f"columns off null(J_c): |J_c basis| = "
                              f"{miss:.3e}")
-    da_q, dl_q = lin.along(dirs, lin.transport(dirs))
-    n = lin.basis
-    da_v, dl_v = lin.along(np.zeros_like(n), n)
-    da_t, dl_t = lin.solve(np.eye(nv), np.zeros((clm.n_rows, nv)))
+    # one verified solve for every column: along (dirs, transported v), along (0, N), tau
+    k, n = dirs.shape[1], lin.basis
+    m = n.shape[1]
+    dq_all = np.zeros((nv, k + m + nv))
+    dq_all[:, :k] = dirs
+    dv_all = np.zeros_like(dq_all)
+    dv_all[:, :k], dv_all[:, k:k + m] = lin.transport(dirs), n
+    force = np.zeros_like(dq_all)
+    force[:, k + m:] = np.eye(nv)
+    da, dl = lin.along(dq_all, dv_all, force)
     act = clm.actuated_v
-    return TreeDynamicsDerivatives(lin.a, lin.multipliers, dirs, da_q, da_v @ n.T, da_t[:, act],
-                                   da_t, dl_q, dl_v @ n.T, dl_t[:, act], dl_t)
+    da_t, dl_t = da[:, k + m:], dl[:, k + m:]
+    return TreeDynamicsDerivatives(lin.a, lin.multipliers, dirs, da[:, :k],
+                                   da[:, k:k + m] @ n.T, da_t[:, act], da_t, dl[:, :k],
+                                   dl[:, k:k + m] @ n.T, dl_t[:, act], dl_t)
