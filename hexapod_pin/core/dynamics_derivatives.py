@@ -41,7 +41,6 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-import scipy.linalg
 
 from ..errors import InputError, SingularityError, SolverError
 from .checks import as_array, max_abs
@@ -74,6 +73,7 @@ class FrameRates(NamedTuple):
         jac: (n, 6, nv) their partials in ``a`` (the frame Jacobians in the same axes).
         vel: (n, 6) the velocities.
         vel_q: (n, 6, nv) their partials in ``q``.
+        rot: (n, 3, 3) the frames' rotations (frame axes to world axes).
     """
 
     acc: np.ndarray
@@ -82,6 +82,7 @@ class FrameRates(NamedTuple):
     jac: np.ndarray
     vel: np.ndarray
     vel_q: np.ndarray
+    rot: np.ndarray
 
 
 class FrameSet:
@@ -161,11 +162,11 @@ def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int] | FrameS
     rot = homog[:, :3, :3] @ fs.placement_rot
     pos = (homog[:, :3, :3] @ fs.placement_pos[:, :, None])[..., 0] + homog[:, :3, 3]
     out = FrameRates(np.zeros((n, 6)), np.zeros((n, 6, nv)), np.zeros((n, 6, nv)),
-                     np.zeros((n, 6, nv)), np.zeros((n, 6)), np.zeros((n, 6, nv)))
+                     np.zeros((n, 6, nv)), np.zeros((n, 6)), np.zeros((n, 6, nv)), rot)
     frame_rates_kernel(np.ascontiguousarray(data.J.T), np.ascontiguousarray(data.dJ.T),
                        np.asarray(v, dtype=float), np.asarray(a, dtype=float),
                        fs.joint_support, fs.col_parent, fs.col_inner, fs.joints, fs.support,
-                       rot, pos, np.asarray(world, dtype=bool), *out)
+                       rot, pos, np.asarray(world, dtype=bool), *out[:6])
     return out
 
 
@@ -299,43 +300,67 @@ class Layout:
         for _ in range(model.njoints):
             self.fext.append(pin.Force.Zero())
         self._touched = [int(j) for j in np.unique(self.joints)]
+        #: the point closures' multiplier rows, anchor-1 and anchor-2 indices
+        self.point_rows = np.array([r for c in cf if c.is_point
+                                    for r in range(c.rows.start, c.rows.stop)], dtype=int)
+        self.point_anchors = np.flatnonzero(self.world)
+        #: (6 touched joints, 6 anchors): an anchor's spatial force (its axes) to its
+        #: joint's (``placement.act``: ``(R f, R m + p x R f)``), summed per joint
+        self._to_joints = np.zeros((len(self._touched), 6, len(self.anchors), 6))
+        for k, joint in enumerate(self.joints):
+            rot, pos = self.placement_rot[k], self.placement_pos[k]
+            block = self._to_joints[self._touched.index(int(joint)), :, k]
+            block[:3, :3] = block[3:, 3:] = rot
+            block[3:, :3] = skew(pos) @ rot
+        self._to_joints = self._to_joints.reshape(6 * len(self._touched), 6 * len(self.anchors))
         self._extra: list[int] = []        # the joints only the last call's wrenches set
 
     def joint_forces(self, clm: ClosedLoopModel, multipliers: np.ndarray, data: pin.Data,
-                     wrenches: Sequence[tuple[int, np.ndarray]] = ()) -> pin.StdVec_Force:
+                     wrenches: Sequence[tuple[int, np.ndarray]] = (),
+                     rot: np.ndarray | None = None) -> pin.StdVec_Force:
         """The closure forces and the frame ``wrenches`` as Pinocchio's external forces
         (joint LOCAL frames, one per joint): a point closure's ``lambda`` (world axes) at
         anchor 1 and ``-lambda`` at anchor 2; a weld's spatial force ``lambda`` (anchor-1
         axes, paired with its rows ``J_rel`` of :func:`_weld_rows`) on anchor 1 and
         ``-Ad(M12)^T lambda`` (anchor-2 axes; ``-lambda`` on the closures) on anchor 2;
         each ``(frame, (f, m))``: force and moment (world axes, moment about the frame
-        origin) on that frame. ``data``: frame placements."""
+        origin) on that frame. ``data``: frame placements; ``rot``: the anchors' world
+        rotations (2 n, 3, 3) when known (else read from ``data``)."""
         n = len(self.anchors)
         local = np.zeros((n, 6))               # in each anchor's axes
-        for k, (is_point, rows, f1, f2, _, _) in enumerate(clm.closure_frames):
-            lam = multipliers[rows]
-            if is_point:
-                local[2 * k, :3] = data.oMf[f1].rotation.T @ lam
-                local[2 * k + 1, :3] = -(data.oMf[f2].rotation.T @ lam)
-            else:       # mu on anchor 1, -Ad(M12)^T mu on anchor 2 (J_rel^T mu)
-                local[2 * k] = lam
-                local[2 * k + 1] = -(relative_action(data, f1, f2).T @ lam)
-        force = np.einsum("kij,kj->ki", self.placement_rot, local[:, :3])
-        moment = np.einsum("kij,kj->ki", self.placement_rot, local[:, 3:]) \
-            + np.cross(self.placement_pos, force)
-        per_joint = np.zeros((clm.model.njoints, 6))
-        np.add.at(per_joint, self.joints, np.hstack([force, moment]))
-        touched = list(self._touched)
+        pts = self.point_anchors
+        if pts.size:
+            if rot is None:
+                rot = np.array([data.oMf[self.anchors[k]].rotation for k in pts])
+            else:
+                rot = rot[pts]
+            lam = np.repeat(multipliers[self.point_rows].reshape(-1, 3), 2, axis=0)
+            lam[1::2] *= -1.0
+            local[pts, :3] = (np.swapaxes(rot, 1, 2) @ lam[:, :, None])[..., 0]
+        for k, c in self.welds:   # mu on anchor 1, -Ad(M12)^T mu on anchor 2 (J_rel^T mu)
+            lam = multipliers[c.rows]
+            local[2 * k] = lam
+            local[2 * k + 1] = -(relative_action(data, c.frame1, c.frame2).T @ lam)
+        per_touched = (self._to_joints @ local.reshape(-1)).reshape(-1, 6)
+        fext = self.fext
+        for j, wrench in zip(self._touched, per_touched):
+            fext[j] = pin.Force(wrench)
+        extra: dict[int, np.ndarray] = {}
         for frame, wrench in wrenches:
             placement = clm.model.frames[frame]
-            rot = data.oMf[frame].rotation
-            local = pin.Force(rot.T @ wrench[:3], rot.T @ wrench[3:])
-            per_joint[placement.parentJoint] += placement.placement.act(local).vector
-            touched.append(placement.parentJoint)
-        fext = self.fext
-        for j in set(self._extra) | set(touched):   # last call's wrench joints cleared
-            fext[j] = pin.Force(per_joint[j])
-        self._extra = touched[len(self._touched):]
+            frame_rot = data.oMf[frame].rotation
+            joint = placement.parentJoint
+            local_force = pin.Force(frame_rot.T @ wrench[:3], frame_rot.T @ wrench[3:])
+            base = extra.get(joint)
+            if base is None:
+                base = per_touched[self._touched.index(joint)] if joint in self._touched \
+                    else np.zeros(6)
+            extra[joint] = base + placement.placement.act(local_force).vector
+        for j in set(self._extra) - set(extra) - set(self._touched):
+            fext[j] = pin.Force.Zero()         # last call's wrench joints cleared
+        for j, wrench in extra.items():
+            fext[j] = pin.Force(wrench)
+        self._extra = list(extra)
         return fext
 
 
@@ -510,7 +535,7 @@ class KKTLinearization:
                                   np.ones(len(frames), dtype=bool)) if len(frames) else None
         # E: rnea with the closure forces as external forces, their turning, the effects
         forces = self._forces = weld_multipliers(clm, data, multipliers)
-        fext = layout_of(clm).joint_forces(clm, forces, data, wrenches)
+        fext = layout_of(clm).joint_forces(clm, forces, data, wrenches, rates.anchors.rot)
         dtau_dq, dtau_dv, mass = pin.computeRNEADerivatives(model, data, q, v, a, fext)
         self.mass = np.where(layout_of(clm).upper, mass, mass.T)
         self.e_q = np.array(dtau_dq) - self._turning(rates.anchors.jac) \
@@ -543,8 +568,9 @@ class KKTLinearization:
         return out
 
     def _factor(self) -> None:
-        """The null-space basis, the least-norm solves of ``J_c`` and the Cholesky factor
-        of ``N^T M N``: a QR of ``J_c^T`` when its rows are independent (checked on the
+        """The null-space basis, the least-norm solves of ``J_c`` and the inverse
+        Cholesky factor of ``N^T M N``: a QR of ``J_c^T`` when its rows are independent
+        (checked on the
         triangle), else an SVD (rank to :data:`~hexapod_pin.core.closed_loop.RANK_RTOL`)."""
         nv, jac = self.model.nv, self.jac
         n_rows = jac.shape[0]
@@ -571,10 +597,12 @@ class KKTLinearization:
         self.rank = rank
         reduced = self.basis.T @ self.mass @ self.basis
         try:
-            self._chol = scipy.linalg.cho_factor(0.5 * (reduced + reduced.T))
+            chol = np.linalg.cholesky(0.5 * (reduced + reduced.T))
         except np.linalg.LinAlgError:
             raise SingularityError("mass matrix on the closures' null space (N^T M N not "
                                    "positive definite: massless motion)", 0.0) from None
+        #: ``G = N L^-T`` (nv, m), ``N^T M N = L L^T``: ``G G^T = N (N^T M N)^-1 N^T``
+        self._gain = self.basis @ np.linalg.inv(chol).T
 
     # -- solves ----------------------------------------------------------------------------
     def pinv(self, rhs: np.ndarray) -> np.ndarray:
@@ -603,9 +631,8 @@ class KKTLinearization:
                 ``rhs_c`` outside the range of ``J_c`` (a direction off the closures).
         """
         da_p = self.pinv(rhs_c)
-        basis = self.basis
-        da = da_p + basis @ scipy.linalg.cho_solve(self._chol,
-                                                   basis.T @ (rhs_e - self.mass @ da_p))
+        gain = self._gain
+        da = da_p + gain @ (gain.T @ (rhs_e - self.mass @ da_p))
         force = self.mass @ da - rhs_e
         dlam = self._pinv_t(force)
         scale = max(1.0, max_abs(rhs_e), max_abs(self.mass) * max_abs(da))
@@ -690,8 +717,11 @@ def linearize_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
                    actuator_forces: npt.ArrayLike, tau_ext: npt.ArrayLike | None = None,
                    frames: Sequence[int] = (),
                    wrenches: Sequence[tuple[int, np.ndarray]] = ()) -> KKTLinearization:
-    """The forward-dynamics solution at ``(q, v)`` (the verified "kkt" route of
-    :func:`~hexapod_pin.core.dynamics.forward_dynamics_tree`) and its
+    """The forward-dynamics solution at ``(q, v)`` (the verified default route of
+    :func:`~hexapod_pin.core.dynamics.forward_dynamics_tree`, Pinocchio's, checked on its
+    equations; with redundant closure rows its "kkt" route, exact with minimum-norm
+    multipliers, where Pinocchio's proximal solve is only converged to its tolerance) and
+    its
     :class:`KKTLinearization`, with the world :class:`FrameRates` of ``frames`` (ids).
 
     ``wrenches``: ``(frame id, (f, m))`` pairs, each a force and moment (6,) (N, N m; world
@@ -728,7 +758,9 @@ def linearize_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
         for frame, wrench in wrenches:
             total += pin.getFrameJacobian(clm.model, data, frame, lwa).T @ wrench
         tau_ext = total
-    res = forward_dynamics_tree(clm, q, v, actuator_forces, tau_ext, method="kkt")
+    res = forward_dynamics_tree(clm, q, v, actuator_forces, tau_ext)
+    if res.rank < clm.n_rows:     # redundant rows: the exact null-space solve
+        res = forward_dynamics_tree(clm, q, v, actuator_forces, tau_ext, method="kkt")
     return KKTLinearization(clm, data, q, v, np.array(res.a), np.array(res.multipliers),
                             frames, wrenches)
 
