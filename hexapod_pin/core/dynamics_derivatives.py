@@ -157,6 +157,10 @@ def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int] | FrameS
     (d x_o / dq + [x_o]_x J_o,ang)`` per 3-block."""
     fs = frames if isinstance(frames, FrameSet) else FrameSet(model, frames)
     n, nv = len(fs.frames), model.nv
+    if not n:
+        return FrameRates(np.zeros((0, 6)), np.zeros((0, 6, nv)), np.zeros((0, 6, nv)),
+                          np.zeros((0, 6, nv)), np.zeros((0, 6)), np.zeros((0, 6, nv)),
+                          np.zeros((0, 3, 3)))
     oMi = data.oMi
     homog = np.array([oMi[j].homogeneous for j in fs.inner_joints])[fs.joint_index]
     rot = homog[:, :3, :3] @ fs.placement_rot
