@@ -47,7 +47,7 @@ from .checks import as_array, max_abs
 from .closed_loop import RANK_RTOL, ClosedLoopModel
 from .dynamics import forward_dynamics_tree
 from .effects import JointEffects, at_rest, passive_forces
-from .frame_rate_kernels import frame_rates_kernel
+from .derivative_kernels import frame_rates_kernel, reduced_gain_kernel
 from .pose import skew
 
 _LOCAL = pin.ReferenceFrame.LOCAL
@@ -143,7 +143,7 @@ def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int] | FrameS
     ``world`` (bool (n,)) is True, else LOCAL ones.
 
     All frames in one compiled call
-    (:func:`~hexapod_pin.core.frame_rate_kernels.frame_rates_kernel`) from the world-axes
+    (:func:`~hexapod_pin.core.derivative_kernels.frame_rates_kernel`) from the world-axes
     joint columns of that pass, ``J_c`` and ``dJ_c = ov_i x J_c`` (``data.J``, ``data.dJ``),
     as ``pin.getJointAccelerationDerivatives`` (WORLD) forms them for one joint: the column
     of coordinate ``c`` (joint ``i``, parent ``p``) of a body on joint ``b`` has ``dV/dq =
@@ -599,14 +599,12 @@ class KKTLinearization:
                 self._left, self._sv, self._right = u_mat[:, :rank], sv[:rank], vt[:rank].T
                 self.basis = vt[rank:].T.copy()
         self.rank = rank
-        reduced = self.basis.T @ self.mass @ self.basis
-        try:
-            chol = np.linalg.cholesky(0.5 * (reduced + reduced.T))
-        except np.linalg.LinAlgError:
-            raise SingularityError("mass matrix on the closures' null space (N^T M N not "
-                                   "positive definite: massless motion)", 0.0) from None
         #: ``G = N L^-T`` (nv, m), ``N^T M N = L L^T``: ``G G^T = N (N^T M N)^-1 N^T``
-        self._gain = self.basis @ np.linalg.inv(chol).T
+        self.basis = np.ascontiguousarray(self.basis)
+        self._gain = np.empty(self.basis.shape)
+        if reduced_gain_kernel(self.basis, self.mass, self._gain):
+            raise SingularityError("mass matrix on the closures' null space (N^T M N not "
+                                   "positive definite: massless motion)", 0.0)
 
     # -- solves ----------------------------------------------------------------------------
     def pinv(self, rhs: np.ndarray) -> np.ndarray:
