@@ -45,6 +45,7 @@ import pinocchio as pin
 from ..errors import InputError, SingularityError, SolverError
 from .checks import as_array, max_abs
 from .closed_loop import RANK_RTOL, ClosedLoopModel
+from .closure_motion import FULL_RANK_RTOL, row_basis
 from .dynamics import forward_dynamics_tree
 from .effects import JointEffects, at_rest, passive_forces
 from .derivative_kernels import frame_rates_kernel, reduced_gain_kernel
@@ -303,6 +304,8 @@ class Layout:
         self.fext = pin.StdVec_Force()
         for _ in range(model.njoints):
             self.fext.append(pin.Force.Zero())
+        #: writable views (6,) of each joint's force in ``fext`` (never resized)
+        self._fext_views = [self.fext[j].vector for j in range(model.njoints)]
         self._touched = [int(j) for j in np.unique(self.joints)]
         #: the point closures' multiplier rows, anchor-1 and anchor-2 indices
         self.point_rows = np.array([r for c in cf if c.is_point
@@ -346,9 +349,9 @@ class Layout:
             local[2 * k] = lam
             local[2 * k + 1] = -(relative_action(data, c.frame1, c.frame2).T @ lam)
         per_touched = (self._to_joints @ local.reshape(-1)).reshape(-1, 6)
-        fext = self.fext
+        views = self._fext_views
         for j, wrench in zip(self._touched, per_touched):
-            fext[j] = pin.Force(wrench)
+            views[j][:] = wrench
         extra: dict[int, np.ndarray] = {}
         for frame, wrench in wrenches:
             placement = clm.model.frames[frame]
@@ -361,11 +364,11 @@ class Layout:
                     else np.zeros(6)
             extra[joint] = base + placement.placement.act(local_force).vector
         for j in set(self._extra) - set(extra) - set(self._touched):
-            fext[j] = pin.Force.Zero()         # last call's wrench joints cleared
+            views[j][:] = 0.0                  # last call's wrench joints cleared
         for j, wrench in extra.items():
-            fext[j] = pin.Force(wrench)
+            views[j][:] = wrench
         self._extra = list(extra)
-        return fext
+        return self.fext
 
 
 def layout_of(clm: ClosedLoopModel) -> Layout:
@@ -572,32 +575,30 @@ class KKTLinearization:
         return out
 
     def _factor(self) -> None:
-        """The null-space basis, the least-norm solves of ``J_c`` and the inverse
-        Cholesky factor of ``N^T M N``: a QR of ``J_c^T`` when its rows are independent
-        (checked on the
-        triangle), else an SVD (rank to :data:`~hexapod_pin.core.closed_loop.RANK_RTOL`)."""
+        """The null-space basis, ``J_c^+`` and the inverse Cholesky factor of ``N^T M N``:
+        the compiled pivoted QR of ``J_c^T``
+        (:func:`~hexapod_pin.core.closure_motion.row_basis`) when its rows are independent
+        (every pivot above FULL_RANK_RTOL times the first), else an SVD (rank to
+        :data:`~hexapod_pin.core.closed_loop.RANK_RTOL`)."""
         nv, jac = self.model.nv, self.jac
         n_rows = jac.shape[0]
-        self._tri = None
+        #: the orthonormal basis (n_rows, rank) of range(J_c) (its complement: the
+        #: multipliers that do no work); empty when the rows are independent
+        self._left = np.zeros((n_rows, 0))
+        rows = row_basis(jac, FULL_RANK_RTOL) if 0 < n_rows <= nv else None
         if not n_rows:
-            rank, self.basis = 0, np.eye(nv)
-            self._left, self._sv, self._right = np.zeros((0, 0)), np.zeros(0), np.zeros((nv, 0))
+            rank, self.basis, self._pinv = 0, np.eye(nv), np.zeros((nv, 0))
+        elif rows is not None and rows.rows.size == n_rows:
+            rank, self.basis = n_rows, rows.null
+            self._pinv = np.empty((nv, n_rows))
+            self._pinv[:, rows.rows] = rows.pinv     # J_c[rows] pinv = I, in range(J_c^T)
         else:
-            independent = False
-            if n_rows <= nv:
-                qmat, tri = np.linalg.qr(jac.T, mode="complete")
-                diag = np.abs(np.diag(tri))
-                independent = bool(diag.min() > 1e-8 * diag.max())
-            if independent:
-                rank, self._tri = n_rows, np.linalg.inv(tri[:n_rows])
-                self._left, self._right = np.zeros((n_rows, 0)), qmat[:, :n_rows]
-                self.basis = qmat[:, n_rows:]
-            else:
-                u_mat, sv, vt = np.linalg.svd(jac)
-                tol = max(RANK_RTOL * sv[0], max(jac.shape) * np.finfo(float).eps)
-                rank = int(np.sum(sv > tol))
-                self._left, self._sv, self._right = u_mat[:, :rank], sv[:rank], vt[:rank].T
-                self.basis = vt[rank:].T.copy()
+            u_mat, sv, vt = np.linalg.svd(jac)
+            tol = max(RANK_RTOL * sv[0], max(jac.shape) * np.finfo(float).eps)
+            rank = int(np.sum(sv > tol))
+            self._left = u_mat[:, :rank]
+            self._pinv = (vt[:rank].T / sv[:rank]) @ u_mat[:, :rank].T
+            self.basis = vt[rank:].T
         self.rank = rank
         #: ``G = N L^-T`` (nv, m), ``N^T M N = L L^T``: ``G G^T = N (N^T M N)^-1 N^T``
         self.basis = np.ascontiguousarray(self.basis)
@@ -609,20 +610,11 @@ class KKTLinearization:
     # -- solves ----------------------------------------------------------------------------
     def pinv(self, rhs: np.ndarray) -> np.ndarray:
         """``J_c^+ rhs`` (nv, ...): the least-norm solution of ``J_c x = rhs``."""
-        if not self.rank:
-            return np.zeros((self.model.nv,) + rhs.shape[1:])
-        if self._tri is not None:          # J_c = R^T Q^T, _tri = R^-1
-            return self._right @ (self._tri.T @ rhs)
-        scaled = (self._left.T @ rhs) / (self._sv if rhs.ndim == 1 else self._sv[:, None])
-        return self._right @ scaled
+        return self._pinv @ rhs
 
     def _pinv_t(self, rhs: np.ndarray) -> np.ndarray:
         """``J_c^+T rhs`` (n_rows, k): the least-norm ``y`` with ``J_c^T y = rhs``."""
-        if not self.rank:
-            return np.zeros((self.clm.n_rows, rhs.shape[1]))
-        if self._tri is not None:
-            return self._tri @ (self._right.T @ rhs)
-        return self._left @ ((self._right.T @ rhs) / self._sv[:, None])
+        return self._pinv.T @ rhs
 
     def solve(self, rhs_e: np.ndarray, rhs_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(da, dlambda)`` (nv, k), (n_rows, k) with ``M da - J_c^T dlambda = rhs_e``,
