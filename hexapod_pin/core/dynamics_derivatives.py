@@ -321,6 +321,9 @@ class Layout:
             block[3:, :3] = skew(pos) @ rot
         self._to_joints = self._to_joints.reshape(6 * len(self._touched), 6 * len(self.anchors))
         self._extra: list[int] = []        # the joints only the last call's wrenches set
+        #: whether the last linearised state had redundant closure rows (the next one
+        #: goes straight to the exact "kkt" forward dynamics)
+        self.redundant = False
 
     def joint_forces(self, clm: ClosedLoopModel, multipliers: np.ndarray, data: pin.Data,
                      wrenches: Sequence[tuple[int, np.ndarray]] = (),
@@ -600,6 +603,7 @@ class KKTLinearization:
             self._pinv = (vt[:rank].T / sv[:rank]) @ u_mat[:, :rank].T
             self.basis = vt[rank:].T
         self.rank = rank
+        self._norms = (max_abs(self.mass), max_abs(jac))     # of the residual checks
         #: ``G = N L^-T`` (nv, m), ``N^T M N = L L^T``: ``G G^T = N (N^T M N)^-1 N^T``
         self.basis = np.ascontiguousarray(self.basis)
         self._gain = np.empty(self.basis.shape)
@@ -629,10 +633,10 @@ class KKTLinearization:
         da = da_p + gain @ (gain.T @ (rhs_e - self.mass @ da_p))
         force = self.mass @ da - rhs_e
         dlam = self._pinv_t(force)
-        scale = max(1.0, max_abs(rhs_e), max_abs(self.mass) * max_abs(da))
+        size = max_abs(da)
+        scale = max(1.0, max_abs(rhs_e), self._norms[0] * size)
         eom = max_abs(force - self.jac.T @ dlam) / scale
-        con = max_abs(self.jac @ da - rhs_c) / max(1.0, max_abs(rhs_c),
-                                                   max_abs(self.jac) * max_abs(da))
+        con = max_abs(self.jac @ da - rhs_c) / max(1.0, max_abs(rhs_c), self._norms[1] * size)
         if not (eom <= DERIVATIVE_SOLVE_RTOL and con <= DERIVATIVE_SOLVE_RTOL):
             raise SolverError("forward-dynamics derivatives", "unverified",
                               f"linearised equation of motion residual {eom:.3e}, closure "
@@ -742,7 +746,8 @@ def linearize_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
     for frame in list(frames) + [f for f, _ in wrenches]:
         if not (isinstance(frame, (int, np.integer)) and 0 <= frame < clm.model.nframes):
             raise InputError("frames", frame, f"not a frame id of {clm.name}")
-    data = layout_of(clm).data
+    lay = layout_of(clm)
+    data = lay.data
     if wrenches:
         pin.computeJointJacobians(clm.model, data, q)
         pin.updateFramePlacements(clm.model, data)
@@ -752,9 +757,11 @@ def linearize_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
         for frame, wrench in wrenches:
             total += pin.getFrameJacobian(clm.model, data, frame, lwa).T @ wrench
         tau_ext = total
-    res = forward_dynamics_tree(clm, q, v, actuator_forces, tau_ext)
-    if res.rank < clm.n_rows:     # redundant rows: the exact null-space solve
+    res = forward_dynamics_tree(clm, q, v, actuator_forces, tau_ext,
+                                method="kkt" if lay.redundant else "pinocchio")
+    if res.rank < clm.n_rows and res.method != "kkt":   # redundant: the exact solve
         res = forward_dynamics_tree(clm, q, v, actuator_forces, tau_ext, method="kkt")
+    lay.redundant = res.rank < clm.n_rows
     return KKTLinearization(clm, data, q, v, np.array(res.a), np.array(res.multipliers),
                             frames, wrenches)
 
