@@ -39,7 +39,8 @@ from hexapod_pin.calibration import random_as_built
 from hexapod_pin.core.dynamics import forward_dynamics_tree
 from hexapod_pin.core.dynamics_derivatives import (closure_force_derivative,
                                                    forward_dynamics_derivatives_tree,
-                                                   linearize_tree, spring_jacobian)
+                                                   frame_rates, linearize_tree,
+                                                   spring_jacobian)
 from hexapod_pin.core.effects import passive_forces
 from hexapod_pin.core.pose import rotation_from_rpy, rpy_from_rotation
 from hexapod_pin.errors import InputError
@@ -151,6 +152,61 @@ def test_tree_derivatives_cassie():
     _, v, u, tau = tree_state(cassie, q, 8)
     assert cassie.effects.stiffness.any() and cassie.effects.damping.any()
     worst, _ = check_tree(cassie, q, v, u, tau, rng)
+    assert worst < RTOL
+
+
+def pinocchio_frame_motion(model, data, q, v, a, frame, world):
+    """(acc, vel) (6,) of ``frame`` from Pinocchio's own frame motion at ``(q, v, a)``:
+    world rows the classical acceleration and velocity in LOCAL_WORLD_ALIGNED axes, LOCAL
+    rows the spatial ones."""
+    pin.forwardKinematics(model, data, q, v, a)
+    ref = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED if world else pin.ReferenceFrame.LOCAL
+    vel = pin.getFrameVelocity(model, data, frame, ref).vector
+    if world:
+        acc = pin.getFrameClassicalAcceleration(model, data, frame, ref).vector
+    else:
+        acc = pin.getFrameAcceleration(model, data, frame, ref).vector
+    return np.concatenate([acc, vel])
+
+
+@pytest.mark.parametrize("name", ROBOTS + ("cassie",))
+def test_frame_rates_match_finite_differences_of_pinocchio(name):
+    """frame_rates (all frames in one compiled call) against Richardson central
+    differences of Pinocchio's frame velocity and (classical or spatial) acceleration, in
+    q (along pin.integrate), v and a, on random frames, states and row kinds (world /
+    LOCAL); off the closures (frame_rates knows none)."""
+    clm = loaded.cassie() if name == "cassie" else robot_registry.get(name).model
+    model = clm.model
+    data = model.createData()
+    rng = np.random.default_rng(11)
+    q = pin.integrate(model, pin.neutral(model), 0.3 * rng.normal(size=model.nv))
+    v, a = rng.normal(size=model.nv), rng.normal(size=model.nv)
+    frames = [int(f) for f in rng.choice(np.arange(1, model.nframes), 6, replace=False)]
+    world = rng.random(len(frames)) < 0.5
+    world[:2] = [True, False]
+    pin.computeForwardKinematicsDerivatives(model, data, q, v, a)
+    pin.updateFramePlacements(model, data)
+    rates = frame_rates(model, data, frames, v, a, world)
+    ref_data = model.createData()
+    worst = 0.0
+    for k, (frame, w) in enumerate(zip(frames, world)):
+        def motion(qq, vv, aa, frame=frame, w=w):
+            return pinocchio_frame_motion(model, ref_data, qq, vv, aa, frame, w)
+        base = motion(q, v, a)
+        worst = max(worst, relative(base, np.concatenate([rates.acc[k], rates.vel[k]])))
+        np.testing.assert_allclose(rates.rot[k], pin.updateFramePlacement(
+            model, ref_data, frame).rotation, atol=1e-12)
+        for c in range(model.nv):
+            e = np.eye(model.nv)[c]
+            num_q = richardson(lambda s: motion(pin.integrate(model, q, s * e), v, a), 1e-3)
+            num_v = richardson(lambda s: motion(q, v + s * e, a), 1e-3)
+            num_a = richardson(lambda s: motion(q, v, a + s * e), 1e-3)
+            worst = max(worst,
+                        relative(num_q, np.concatenate([rates.acc_q[k][:, c],
+                                                        rates.vel_q[k][:, c]])),
+                        relative(num_v[:6], rates.acc_v[k][:, c]),
+                        relative(num_v[6:], rates.jac[k][:, c]),
+                        relative(num_a[:6], rates.jac[k][:, c]))
     assert worst < RTOL
 
 
