@@ -437,14 +437,12 @@ def point_force_turning(clm: ClosedLoopModel, multipliers: np.ndarray,
     J_lin^T [lambda]_x J_ang`` with the anchors' world Jacobians ``anchor_jac`` (2
     n_closures, 6, nv); 0 without point closures (a weld's force is held in anchor-1 =
     anchor-2 axes)."""
-    points = layout_of(clm).points
-    if not points.any():
+    lay = layout_of(clm)
+    if not lay.point_rows.size:
         return 0.0
     nv = clm.model.nv
-    lam = np.concatenate([multipliers[c.rows] for c, p in
-                          zip(clm.closure_frames, points) if p]).reshape(-1, 3)
-    turn = skew(lam)
-    j1, j2 = anchor_jac[0::2][points], anchor_jac[1::2][points]
+    turn = skew(multipliers[lay.point_rows].reshape(-1, 3))
+    j1, j2 = anchor_jac[lay.point_anchors[0::2]], anchor_jac[lay.point_anchors[1::2]]
     return (j1[:, :3].reshape(-1, nv).T @ (turn @ j1[:, 3:]).reshape(-1, nv)
             - j2[:, :3].reshape(-1, nv).T @ (turn @ j2[:, 3:]).reshape(-1, nv))
 
