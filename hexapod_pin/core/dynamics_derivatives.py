@@ -233,8 +233,9 @@ def force_cross(f: np.ndarray) -> np.ndarray:
     """``B(f)`` (6, 6) with ``xi x* f = B(f) xi`` for a spatial force ``f = (force,
     moment)`` and motions ``xi = (v, w)``: ``(w x force, v x force + w x moment)``."""
     out = np.zeros((6, 6))
-    out[:3, 3:] = out[3:, :3] = -skew(f[:3])
-    out[3:, 3:] = -skew(f[3:])
+    cross = skew(-f.reshape(2, 3))
+    out[:3, 3:] = out[3:, :3] = cross[0]
+    out[3:, 3:] = cross[1]
     return out
 
 
@@ -253,9 +254,9 @@ def _weld_rows(rates: FrameRates, i1: int, ad12: np.ndarray, out: list[np.ndarra
     v1, a2, v2 = rates.vel[i1], rates.acc[i2], rates.vel[i2]
     j1, j2 = rates.jac[i1], rates.jac[i2]
     jrel = j1 - ad12 @ j2
-    ad_v1, ad_v2 = motion_cross(v1), motion_cross(ad12 @ v2)
+    ad_v1, ad_v2, ad_a2 = motion_cross(np.stack([v1, ad12 @ v2, ad12 @ a2]))
     acc_q, acc_v, jac, vel_q = out
-    acc_q[:] = (rates.acc_q[i1] - ad12 @ rates.acc_q[i2] - motion_cross(ad12 @ a2) @ jrel
+    acc_q[:] = (rates.acc_q[i1] - ad12 @ rates.acc_q[i2] - ad_a2 @ jrel
                 - ad_v2 @ rates.vel_q[i1] + ad_v1 @ (ad12 @ rates.vel_q[i2] + ad_v2 @ jrel))
     acc_v[:] = rates.acc_v[i1] - ad12 @ rates.acc_v[i2] - ad_v2 @ j1 + ad_v1 @ ad12 @ j2
     jac[:] = jrel
