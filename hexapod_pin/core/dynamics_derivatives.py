@@ -11,8 +11,8 @@ At a solution ``(a, lambda)`` a perturbation ``(dq, dv, du, dtau_ext)`` moves th
 ``E_q``, ``E_v`` from one ``pin.computeRNEADerivatives`` call with the closure forces as
 external forces (plus the turning of a point closure's world-fixed force with its body
 and of a weld's force on its second anchor, and the effects' ``-d tau_s / dq`` and
-``-D``), ``C_q``, ``C_v`` from ``pin.computeForwardKinematicsDerivatives`` and
-``pin.getFrameAccelerationDerivatives`` of the closure anchor frames (a point closure's
+``-D``), ``C_q``, ``C_v`` from one ``pin.computeForwardKinematicsDerivatives`` pass, every
+closure anchor frame at once (:func:`frame_rates`, compiled; a point closure's
 rows: the difference of the world-axes classical accelerations of its two anchor points; a
 weld's: the relative spatial acceleration ``a1 - Ad(M12) a2 + v1 x Ad(M12) v2``, LOCAL,
 Pinocchio's 6-D rows ``J_rel = J1 - Ad(M12) J2``, which the library's ``Jlog6(M21)`` rows
@@ -129,11 +129,12 @@ class FrameSet:
 
 
 def frame_set(clm: ClosedLoopModel, frames: Sequence[int]) -> FrameSet:
-    """The :class:`FrameSet` of ``frames`` (ids) of ``clm`` (kept in ``clm.workspaces``)."""
-    key = ("frame_set", tuple(int(f) for f in frames))
-    out = clm.workspaces.get(key)
+    """The :class:`FrameSet` of ``frames`` (ids) of ``clm`` (kept in its :class:`Layout`)."""
+    key = tuple(int(f) for f in frames)
+    sets = layout_of(clm).frame_sets
+    out = sets.get(key)
     if out is None:
-        out = clm.workspaces[key] = FrameSet(clm.model, frames)
+        out = sets[key] = FrameSet(clm.model, key)
     return out
 
 
@@ -297,6 +298,8 @@ class Layout:
             rows2 += [12 * k + 6 + i for i in range(width)]
         self.rows1, self.rows2 = np.array(rows1, dtype=int), np.array(rows2, dtype=int)
         self.frame_set = FrameSet(model, self.anchors)
+        #: the :class:`FrameSet` of other frame lists (:func:`frame_set`)
+        self.frame_sets: dict[tuple[int, ...], FrameSet] = {}
         self.joints = self.frame_set.joints
         self.placement_rot = self.frame_set.placement_rot
         self.placement_pos = self.frame_set.placement_pos
@@ -314,13 +317,13 @@ class Layout:
         self.point_anchors = np.flatnonzero(self.world)
         #: (6 touched joints, 6 anchors): an anchor's spatial force (its axes) to its
         #: joint's (``placement.act``: ``(R f, R m + p x R f)``), summed per joint
-        self._to_joints = np.zeros((len(self._touched), 6, len(self.anchors), 6))
+        to_joints = np.zeros((len(self._touched), 6, len(self.anchors), 6))
         for k, joint in enumerate(self.joints):
             rot, pos = self.placement_rot[k], self.placement_pos[k]
-            block = self._to_joints[self._touched.index(int(joint)), :, k]
+            block = to_joints[self._touched.index(int(joint)), :, k]
             block[:3, :3] = block[3:, 3:] = rot
             block[3:, :3] = skew(pos) @ rot
-        self._to_joints = self._to_joints.reshape(6 * len(self._touched), 6 * len(self.anchors))
+        self._to_joints = to_joints.reshape(6 * len(self._touched), 6 * len(self.anchors))
         self._extra: list[int] = []        # the joints only the last call's wrenches set
         #: whether the last linearised state had redundant closure rows (the next one
         #: goes straight to the exact "kkt" forward dynamics)
