@@ -1,12 +1,12 @@
 """Compiled (numba) kernels of :mod:`hexapod_pin.core.dynamics_derivatives`: the motion of
-many frames and its partial derivatives from one ``pin.computeForwardKinematicsDerivatives``
-pass (:func:`frame_rates_kernel`), and the null-space factor of the linearised KKT system
+many frames and its partial derivatives from the world joint Jacobian of the tree
+(:func:`frame_rates_kernel`), and the null-space factor of the linearised KKT system
 (:func:`reduced_gain_kernel`). The formulas: the docstrings of ``frame_rates`` and
 ``KKTLinearization`` and ``docs/derivations.md`` section 8.1.
 
-Conventions: spatial motions are ``(linear, angular)``; ``J`` and ``dJ`` are Pinocchio's
-world-axes joint Jacobian columns and their ``ov_i x J_c``, passed transposed (nv, 6); the
-frame outputs are (n, 6) and (n, 6, nv). Kernels never raise: they return a status.
+Conventions: spatial motions are ``(linear, angular)``; ``J`` is Pinocchio's world-axes
+joint Jacobian (``data.J`` of any pass at ``q``), passed transposed (nv, 6); the frame
+outputs are (n, 6) and (n, 6, nv). Kernels never raise: they return a status.
 """
 
 from __future__ import annotations
@@ -67,25 +67,32 @@ def _rotate_back(block, k, nv, rot):
 
 
 @jit
-def frame_rates_kernel(jac_t, djac_t, v, a, joint_support, col_parent, col_inner, joints,
+def frame_rates_kernel(jac_t, v, a, joint_support, col_joint, col_parent, col_inner, joints,
                        support, rot, pos, world, acc, acc_q, acc_v, jac, vel, vel_q):
     """The :class:`~hexapod_pin.core.dynamics_derivatives.FrameRates` fields (written into
     ``acc, acc_q, acc_v, jac, vel, vel_q``, zeros on entry) of frames on ``joints`` (n,),
     supported by the coordinates where ``support`` (n, nv) is True, at world rotations
     ``rot`` (n, 3, 3) and origins ``pos`` (n, 3); world rows where ``world`` (n,).
 
-    ``jac_t``, ``djac_t`` (nv, 6): ``J^T`` and ``dJ^T`` (C-contiguous);
+    ``jac_t`` (nv, 6): ``J^T`` (C-contiguous; ``J`` depends on ``q`` only);
     ``joint_support`` (njoints, nv): the coordinates supporting each joint (row 0, the
-    universe, empty); ``col_parent`` (nv,) the parent joint of each coordinate's joint,
-    ``col_inner`` (nv,) whether that parent is not the universe."""
+    universe, empty); ``col_joint`` (nv,) the joint of each coordinate, ``col_parent``
+    (nv,) its parent, ``col_inner`` (nv,) whether that parent is not the universe."""
     n_joints, nv = joint_support.shape
     ov = np.zeros((n_joints, 6))
     oa = np.zeros((n_joints, 6))
-    for j in range(n_joints):                 # the joints' world spatial motions
+    for j in range(n_joints):                 # the joints' world spatial velocities
         for c in range(nv):
             if joint_support[j, c]:
                 for r in range(6):
                     ov[j, r] += jac_t[c, r] * v[c]
+    djac_t = np.empty((nv, 6))                # dJ_c = ov_i x J_c (Pinocchio's data.dJ)
+    for c in range(nv):
+        _motion_cross(ov[col_joint[c]], jac_t[c], djac_t[c])
+    for j in range(n_joints):                 # ... and accelerations
+        for c in range(nv):
+            if joint_support[j, c]:
+                for r in range(6):
                     oa[j, r] += jac_t[c, r] * a[c] + djac_t[c, r] * v[c]
     vt, at = np.empty(6), np.empty(6)
     vq, aq, av, extra = np.empty(6), np.empty(6), np.empty(6), np.empty(6)

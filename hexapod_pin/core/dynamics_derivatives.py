@@ -96,6 +96,7 @@ class FrameSet:
         support: (n, nv) whether each velocity coordinate supports each frame (belongs to
             its parent joint or a joint above it).
         joint_support: (njoints, nv) the same for every joint (row 0: the universe).
+        col_joint: (nv,) the joint of each velocity coordinate.
         col_parent: (nv,) the parent joint of each velocity coordinate's joint.
         col_inner: (nv,) whether that parent is not the universe.
         placement_rot: (n, 3, 3) each frame's rotation in its joint.
@@ -109,7 +110,7 @@ class FrameSet:
         placements = [model.frames[f] for f in self.frames]
         self.joints = np.array([f.parentJoint for f in placements], dtype=np.int64)
         nv = model.nv
-        col_joint = np.zeros(nv, dtype=np.int64)
+        col_joint = self.col_joint = np.zeros(nv, dtype=np.int64)
         self.joint_support = np.zeros((model.njoints, nv), dtype=bool)
         for j in range(1, model.njoints):
             joint = model.joints[j]
@@ -141,22 +142,25 @@ def frame_set(clm: ClosedLoopModel, frames: Sequence[int]) -> FrameSet:
 def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int] | FrameSet,
                 v: np.ndarray, a: np.ndarray, world: np.ndarray) -> FrameRates:
     """:class:`FrameRates` of ``frames`` (ids, or their :class:`FrameSet`) at the state ``(v,
-    a)`` of ``pin.computeForwardKinematicsDerivatives`` in ``data``, world rows where
-    ``world`` (bool (n,)) is True, else LOCAL ones.
+    a)``, world rows where ``world`` (bool (n,)) is True, else LOCAL ones, from the joint
+    placements ``data.oMi`` and the world joint Jacobian ``data.J`` of any Pinocchio pass
+    at ``q`` that fills them (``pin.computeJointJacobians``,
+    ``pin.computeForwardKinematicsDerivatives``, ``pin.computeRNEADerivatives``): only
+    ``q`` is read from ``data``, so one pass serves every ``(v, a)``.
 
     All frames in one compiled call
-    (:func:`~hexapod_pin.core.derivative_kernels.frame_rates_kernel`) from the world-axes
-    joint columns of that pass, ``J_c`` and ``dJ_c = ov_i x J_c`` (``data.J``, ``data.dJ``),
-    as ``pin.getJointAccelerationDerivatives`` (WORLD) forms them for one joint: the column
-    of coordinate ``c`` (joint ``i``, parent ``p``) of a body on joint ``b`` has ``dV/dq =
-    (ov_p - ov_b) x J_c``, ``dA/dv = dV/dq + dJ_c``, ``dA/dq = (oa_p - oa_b) x J_c + [p >
-    0] (ov_p - ov_b) x dJ_c`` (zero off the body's support; ``ov_j = sum J_c v_c``, ``oa_j
-    = sum J_c a_c + dJ_c v_c`` over the coordinates supporting ``j``). Moved to each frame
-    origin ``o`` (world axes): ``x_o = x - o x x_ang`` and ``d x_o = (dx)_o + [x_o,ang]_x
-    J_o,lin``; the velocity is ``J_o v``, the spatial acceleration ``J_o a + (dA_o/dv) v /
-    2`` (its bias is quadratic in ``v``). World rows add ``w x v`` to the linear
-    acceleration (classical); LOCAL rows rotate, ``x_l = R^T x_o`` and ``d x_l / dq = R^T
-    (d x_o / dq + [x_o]_x J_o,ang)`` per 3-block."""
+    (:func:`~hexapod_pin.core.derivative_kernels.frame_rates_kernel`), as
+    ``pin.getJointAccelerationDerivatives`` (WORLD) forms them for one joint from ``J_c``
+    and ``dJ_c = ov_i x J_c``: the column of coordinate ``c`` (joint ``i``, parent ``p``) of
+    a body on joint ``b`` has ``dV/dq = (ov_p - ov_b) x J_c``, ``dA/dv = dV/dq + dJ_c``,
+    ``dA/dq = (oa_p - oa_b) x J_c + [p > 0] (ov_p - ov_b) x dJ_c`` (zero off the body's
+    support; ``ov_j = sum J_c v_c``, ``oa_j = sum J_c a_c + dJ_c v_c`` over the
+    coordinates supporting ``j``). Moved to each frame origin ``o`` (world axes): ``x_o =
+    x - o x x_ang`` and ``d x_o = (dx)_o + [x_o,ang]_x J_o,lin``; the velocity is ``J_o
+    v``, the spatial acceleration ``J_o a + (dA_o/dv) v / 2`` (its bias is quadratic in
+    ``v``). World rows add ``w x v`` to the linear acceleration (classical); LOCAL rows
+    rotate, ``x_l = R^T x_o`` and ``d x_l / dq = R^T (d x_o / dq + [x_o]_x J_o,ang)`` per
+    3-block."""
     fs = frames if isinstance(frames, FrameSet) else FrameSet(model, frames)
     n, nv = len(fs.frames), model.nv
     if not n:
@@ -169,10 +173,10 @@ def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int] | FrameS
     pos = (homog[:, :3, :3] @ fs.placement_pos[:, :, None])[..., 0] + homog[:, :3, 3]
     out = FrameRates(np.zeros((n, 6)), np.zeros((n, 6, nv)), np.zeros((n, 6, nv)),
                      np.zeros((n, 6, nv)), np.zeros((n, 6)), np.zeros((n, 6, nv)), rot)
-    frame_rates_kernel(np.ascontiguousarray(data.J.T), np.ascontiguousarray(data.dJ.T),
-                       np.asarray(v, dtype=float), np.asarray(a, dtype=float),
-                       fs.joint_support, fs.col_parent, fs.col_inner, fs.joints, fs.support,
-                       rot, pos, np.asarray(world, dtype=bool), *out[:6])
+    frame_rates_kernel(np.ascontiguousarray(data.J.T), np.asarray(v, dtype=float),
+                       np.asarray(a, dtype=float), fs.joint_support, fs.col_joint,
+                       fs.col_parent, fs.col_inner, fs.joints, fs.support, rot, pos,
+                       np.asarray(world, dtype=bool), *out[:6])
     return out
 
 
@@ -659,7 +663,7 @@ class KKTLinearization:
 
         With redundant rows the minimum-norm multipliers also turn with the range of
         ``J_c``: ``dlambda`` gets ``P dJ_c[dq] J_c^+ lambda`` (``P`` the projector on
-        ``null(J_c^T)``), from one more kinematic pass."""
+        ``null(J_c^T)``)."""
         rhs_e = -(self.e_q @ dq + self.e_v @ dv)
         if force is not None:
             rhs_e += force
@@ -669,12 +673,11 @@ class KKTLinearization:
         return da, dlam
 
     def _range_turn(self, dq: np.ndarray) -> np.ndarray:
+        """``P dJ_c[dq] J_c^+ lambda`` (n_rows, k): the closure rates at the velocity ``w =
+        J_c^+ lambda`` (:func:`frame_rates` reads only ``q`` from the data)."""
         w = self.pinv(self.multipliers)
-        model, data = self.model, self.data
-        zero = np.zeros(model.nv)
-        pin.computeForwardKinematicsDerivatives(model, data, self.q, w, zero)
-        pin.updateFramePlacements(model, data)
-        turned = closure_rates(self.clm, data, w, zero, self.q).vel_q @ dq
+        turned = closure_rates(self.clm, self.data, w, np.zeros(self.model.nv),
+                               self.q).vel_q @ dq
         return turned - self._left @ (self._left.T @ turned)
 
 
