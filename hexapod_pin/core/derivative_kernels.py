@@ -178,7 +178,7 @@ def reduced_gain_kernel(basis, mass, gain):
     reduced = basis.T @ (mass @ basis)
     low = np.zeros((m, m))
     for j in range(m):
-        diag = 0.5 * (reduced[j, j] + reduced[j, j])
+        diag = reduced[j, j]
         for p in range(j):
             diag -= low[j, p] * low[j, p]
         if not diag > 0.0 or not math.isfinite(diag):

@@ -46,9 +46,9 @@ from ..errors import InputError, SingularityError, SolverError
 from .checks import as_array, max_abs
 from .closed_loop import RANK_RTOL, ClosedLoopModel
 from .closure_motion import FULL_RANK_RTOL, row_basis
+from .derivative_kernels import frame_rates_kernel, reduced_gain_kernel
 from .dynamics import forward_dynamics_tree
 from .effects import JointEffects, at_rest, passive_forces
-from .derivative_kernels import frame_rates_kernel, reduced_gain_kernel
 from .pose import skew
 
 _LOCAL = pin.ReferenceFrame.LOCAL

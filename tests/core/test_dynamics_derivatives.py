@@ -32,18 +32,22 @@ import dataclasses
 import numpy as np
 import pinocchio as pin
 import pytest
+import robot_registry
 
 import hexapod_pin as hp
-import robot_registry
 from hexapod_pin.calibration import random_as_built
+from hexapod_pin.core.derivative_kernels import reduced_gain_kernel
 from hexapod_pin.core.dynamics import forward_dynamics_tree
-from hexapod_pin.core.dynamics_derivatives import (closure_force_derivative,
-                                                   forward_dynamics_derivatives_tree,
-                                                   frame_rates, linearize_tree,
-                                                   spring_jacobian)
+from hexapod_pin.core.dynamics_derivatives import (
+    closure_force_derivative,
+    forward_dynamics_derivatives_tree,
+    frame_rates,
+    linearize_tree,
+    spring_jacobian,
+)
 from hexapod_pin.core.effects import passive_forces
 from hexapod_pin.core.pose import rotation_from_rpy, rpy_from_rotation
-from hexapod_pin.errors import InputError
+from hexapod_pin.errors import InputError, SingularityError
 from hexapod_pin.hexapod.kinematics import HOME_BRANCH
 from hexapod_pin.loaders import robots as loaded
 
@@ -198,9 +202,10 @@ def test_frame_rates_match_finite_differences_of_pinocchio(name):
             model, ref_data, frame).rotation, atol=1e-12)
         for c in range(model.nv):
             e = np.eye(model.nv)[c]
-            num_q = richardson(lambda s: motion(pin.integrate(model, q, s * e), v, a), 1e-3)
-            num_v = richardson(lambda s: motion(q, v + s * e, a), 1e-3)
-            num_a = richardson(lambda s: motion(q, v, a + s * e), 1e-3)
+            num_q = richardson(lambda s, e=e: motion(pin.integrate(model, q, s * e), v, a),
+                               1e-3)
+            num_v = richardson(lambda s, e=e: motion(q, v + s * e, a), 1e-3)
+            num_a = richardson(lambda s, e=e: motion(q, v, a + s * e), 1e-3)
             worst = max(worst,
                         relative(num_q, np.concatenate([rates.acc_q[k][:, c],
                                                         rates.vel_q[k][:, c]])),
@@ -208,6 +213,33 @@ def test_frame_rates_match_finite_differences_of_pinocchio(name):
                         relative(num_v[6:], rates.jac[k][:, c]),
                         relative(num_a[:6], rates.jac[k][:, c]))
     assert worst < RTOL
+
+
+def test_reduced_gain_against_numpy_and_its_refusal():
+    """G = N L^-T of the compiled Cholesky: G G^T = N (N^T M N)^-1 N^T against numpy's
+    inverse; a mass matrix without mass on a null-space direction is refused (status 1),
+    and KKTLinearization turns that into a SingularityError."""
+    rng = np.random.default_rng(5)
+    nv, m = 7, 4
+    basis = np.linalg.qr(rng.normal(size=(nv, nv)))[0][:, :m].copy()
+    root = rng.normal(size=(nv, nv))
+    mass = root @ root.T + 0.1 * np.eye(nv)
+    gain = np.empty((nv, m))
+    assert reduced_gain_kernel(basis, mass, gain) == 0
+    expected = basis @ np.linalg.inv(basis.T @ mass @ basis) @ basis.T
+    np.testing.assert_allclose(gain @ gain.T, expected, rtol=0, atol=1e-12)
+    massless = mass - (mass @ basis[:, 0])[:, None] * basis[:, 0][None, :] \
+        - basis[:, 0][:, None] * (basis[:, 0] @ mass)[None, :] \
+        + (basis[:, 0] @ mass @ basis[:, 0]) * np.outer(basis[:, 0], basis[:, 0])
+    assert abs(basis[:, 0] @ massless @ basis[:, 0]) < 1e-12
+    assert reduced_gain_kernel(basis, massless, gain) == 1
+    assert reduced_gain_kernel(basis, np.full((nv, nv), np.nan), gain) == 1
+    robot = robot_registry.get("four-bar")
+    clm, q = robot.model, robot.home_configuration
+    lin = linearize_tree(clm, q, np.zeros(clm.nv), np.zeros(clm.n_actuated))
+    lin.mass = np.zeros_like(lin.mass)
+    with pytest.raises(SingularityError, match="null space"):
+        lin._factor()
 
 
 def test_given_basis_and_its_check():
