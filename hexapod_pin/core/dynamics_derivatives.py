@@ -58,9 +58,8 @@ DERIVATIVE_SOLVE_RTOL = 1e-8
 
 
 class FrameRates(NamedTuple):
-    """The motion of some frames and its partial derivatives (after
-    ``pin.computeForwardKinematicsDerivatives(q, v, a)`` and the frame placements), one
-    entry per frame along the first axis.
+    """The motion of some frames at a state ``(q, v, a)`` and its partial derivatives
+    (:func:`frame_rates`), one entry per frame along the first axis.
 
     World rows: the classical acceleration of the frame origin and the angular
     acceleration (m/s^2, rad/s^2) and the velocity ``(v, w)``, world axes (Pinocchio's
@@ -541,7 +540,7 @@ class KKTLinearization:
         model = clm.model
         self.clm, self.model, self.data = clm, model, data
         self.q, self.v, self.a, self.multipliers = q, v, a, multipliers
-        pin.computeForwardKinematicsDerivatives(model, data, q, v, a)
+        pin.computeJointJacobians(model, data, q)     # J and oMi: all frame_rates reads
         pin.updateFramePlacements(model, data)
         rates = closure_rates(clm, data, v, a, q)
         self.c_q, self.c_v, self.jac, self.jv_q = rates[:4]
