@@ -11,8 +11,8 @@ At a solution ``(a, lambda)`` a perturbation ``(dq, dv, du, dtau_ext)`` moves th
 ``E_q``, ``E_v`` from one ``pin.computeRNEADerivatives`` call with the closure forces as
 external forces (plus the turning of a point closure's world-fixed force with its body
 and of a weld's force on its second anchor, and the effects' ``-d tau_s / dq`` and
-``-D``), ``C_q``, ``C_v`` from one ``pin.computeForwardKinematicsDerivatives`` pass, every
-closure anchor frame at once (:func:`frame_rates`, compiled; a point closure's
+``-D``), ``C_q``, ``C_v`` from the joint Jacobian of one ``pin.computeJointJacobians``
+pass, every closure anchor frame at once (:func:`frame_rates`, compiled; a point closure's
 rows: the difference of the world-axes classical accelerations of its two anchor points; a
 weld's: the relative spatial acceleration ``a1 - Ad(M12) a2 + v1 x Ad(M12) v2``, LOCAL,
 Pinocchio's 6-D rows ``J_rel = J1 - Ad(M12) J2``, which the library's ``Jlog6(M21)`` rows
