@@ -11,8 +11,8 @@ At a solution ``(a, lambda)`` a perturbation ``(dq, dv, du, dtau_ext)`` moves th
 ``E_q``, ``E_v`` from one ``pin.computeRNEADerivatives`` call with the closure forces as
 external forces (plus the turning of a point closure's world-fixed force with its body
 and of a weld's force on its second anchor, and the effects' ``-d tau_s / dq`` and
-``-D``), ``C_q``, ``C_v`` from ``pin.computeForwardKinematicsDerivatives`` and
-``pin.getFrameAccelerationDerivatives`` of the closure anchor frames (a point closure's
+``-D``), ``C_q``, ``C_v`` from the joint Jacobian of one ``pin.computeJointJacobians``
+pass, every closure anchor frame at once (:func:`frame_rates`, compiled; a point closure's
 rows: the difference of the world-axes classical accelerations of its two anchor points; a
 weld's: the relative spatial acceleration ``a1 - Ad(M12) a2 + v1 x Ad(M12) v2``, LOCAL,
 Pinocchio's 6-D rows ``J_rel = J1 - Ad(M12) J2``, which the library's ``Jlog6(M21)`` rows
@@ -41,11 +41,12 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-import scipy.linalg
 
 from ..errors import InputError, SingularityError, SolverError
 from .checks import as_array, max_abs
 from .closed_loop import RANK_RTOL, ClosedLoopModel
+from .closure_motion import FULL_RANK_RTOL, row_basis
+from .derivative_kernels import frame_rates_kernel, reduced_gain_kernel
 from .dynamics import forward_dynamics_tree
 from .effects import JointEffects, at_rest, passive_forces
 from .pose import skew
@@ -57,9 +58,8 @@ DERIVATIVE_SOLVE_RTOL = 1e-8
 
 
 class FrameRates(NamedTuple):
-    """The motion of some frames and its partial derivatives (after
-    ``pin.computeForwardKinematicsDerivatives(q, v, a)`` and the frame placements), one
-    entry per frame along the first axis.
+    """The motion of some frames at a state ``(q, v, a)`` and its partial derivatives
+    (:func:`frame_rates`), one entry per frame along the first axis.
 
     World rows: the classical acceleration of the frame origin and the angular
     acceleration (m/s^2, rad/s^2) and the velocity ``(v, w)``, world axes (Pinocchio's
@@ -73,6 +73,7 @@ class FrameRates(NamedTuple):
         jac: (n, 6, nv) their partials in ``a`` (the frame Jacobians in the same axes).
         vel: (n, 6) the velocities.
         vel_q: (n, 6, nv) their partials in ``q``.
+        rot: (n, 3, 3) the frames' rotations (frame axes to world axes).
     """
 
     acc: np.ndarray
@@ -81,41 +82,101 @@ class FrameRates(NamedTuple):
     jac: np.ndarray
     vel: np.ndarray
     vel_q: np.ndarray
+    rot: np.ndarray
 
 
-def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int], v: np.ndarray,
-                a: np.ndarray, world: np.ndarray) -> FrameRates:
-    """:class:`FrameRates` of ``frames`` (ids) at the state ``(v, a)`` of the derivatives in
-    ``data``, world rows where ``world`` (bool (n,)) is True, else LOCAL ones.
+class FrameSet:
+    """What :func:`frame_rates` needs of the model for some frames, built once (per model
+    and frame list: :func:`frame_set`).
 
-    From Pinocchio's LOCAL partials: the velocity is ``J v``, the spatial acceleration
-    ``J a + (da/dv) v / 2`` (its bias is quadratic in ``v``); world rows rotate them,
-    ``x_w = R x`` and ``d x_w / dq = R (dx/dq - [x]_x J_ang)``, after adding ``w x v`` to
-    the linear acceleration (classical)."""
-    n = len(frames)
-    parts = np.array([pin.getFrameAccelerationDerivatives(model, data, f, _LOCAL)
-                      for f in frames]).reshape(n, 4, 6, model.nv)
-    v_dq, a_dq, a_dv, jac = parts[:, 0], parts[:, 1], parts[:, 2], parts[:, 3]
-    vel = jac @ v
-    acc = jac @ a + 0.5 * (a_dv @ v)
-    if not world.any():
-        return FrameRates(acc, a_dq, a_dv, jac, vel, v_dq)
-    w: slice | np.ndarray = slice(None) if world.all() else np.flatnonzero(world)
-    ids = frames if isinstance(w, slice) else [frames[int(k)] for k in w]
-    lin, ang = skew(vel[w, :3]), skew(vel[w, 3:])
-    acc[w, :3] += (ang @ vel[w, :3, None])[..., 0]                   # + w x v
-    jang = jac[w, 3:]
-    a_dq[w, :3] += ang @ v_dq[w, :3] - lin @ v_dq[w, 3:] + skew(-acc[w, :3]) @ jang
-    a_dq[w, 3:] -= skew(acc[w, 3:]) @ jang
-    a_dv[w, :3] += ang @ jac[w, :3] - lin @ jac[w, 3:]
-    v_dq[w, :3] -= lin @ jang
-    v_dq[w, 3:] -= ang @ jang
-    rot = np.array([data.oMf[f].rotation for f in ids]).reshape(-1, 1, 3, 3)
-    for arr in (a_dq, a_dv, jac, v_dq):
-        arr[w] = (rot @ arr[w].reshape(-1, 2, 3, model.nv)).reshape(-1, 6, model.nv)
-    for arr in (acc, vel):
-        arr[w] = (rot @ arr[w].reshape(-1, 2, 3, 1)).reshape(-1, 6)
-    return FrameRates(acc, a_dq, a_dv, jac, vel, v_dq)
+    Attributes:
+        frames: the frame ids.
+        joints: (n,) each frame's parent joint.
+        support: (n, nv) whether each velocity coordinate supports each frame (belongs to
+            its parent joint or a joint above it).
+        joint_support: (njoints, nv) the same for every joint (row 0: the universe).
+        col_joint: (nv,) the joint of each velocity coordinate.
+        col_parent: (nv,) the parent joint of each velocity coordinate's joint.
+        col_inner: (nv,) whether that parent is not the universe.
+        placement_rot: (n, 3, 3) each frame's rotation in its joint.
+        placement_pos: (n, 3) each frame's position in its joint.
+        inner_joints: the distinct parent joints of the frames (sorted).
+        joint_index: (n,) each frame's parent joint's position in ``inner_joints``.
+    """
+
+    def __init__(self, model: pin.Model, frames: Sequence[int]) -> None:
+        self.frames = [int(f) for f in frames]
+        placements = [model.frames[f] for f in self.frames]
+        self.joints = np.array([f.parentJoint for f in placements], dtype=np.int64)
+        nv = model.nv
+        col_joint = self.col_joint = np.zeros(nv, dtype=np.int64)
+        self.joint_support = np.zeros((model.njoints, nv), dtype=bool)
+        for j in range(1, model.njoints):
+            joint = model.joints[j]
+            col_joint[joint.idx_v:joint.idx_v + joint.nv] = j
+            for s in model.supports[j][1:]:
+                above = model.joints[int(s)]
+                self.joint_support[j, above.idx_v:above.idx_v + above.nv] = True
+        self.col_parent = np.array([model.parents[int(j)] for j in col_joint], dtype=np.int64)
+        self.col_inner = self.col_parent > 0
+        self.support = self.joint_support[self.joints]
+        self.placement_rot = np.array([f.placement.rotation for f in placements]
+                                      ).reshape(-1, 3, 3)
+        self.placement_pos = np.array([f.placement.translation for f in placements]
+                                      ).reshape(-1, 3)
+        self.inner_joints = sorted({int(j) for j in self.joints})
+        self.joint_index = np.searchsorted(self.inner_joints, self.joints)
+
+
+def frame_set(clm: ClosedLoopModel, frames: Sequence[int]) -> FrameSet:
+    """The :class:`FrameSet` of ``frames`` (ids) of ``clm`` (kept in its :class:`Layout`)."""
+    key = tuple(int(f) for f in frames)
+    sets = layout_of(clm).frame_sets
+    out = sets.get(key)
+    if out is None:
+        out = sets[key] = FrameSet(clm.model, key)
+    return out
+
+
+def frame_rates(model: pin.Model, data: pin.Data, frames: Sequence[int] | FrameSet,
+                v: np.ndarray, a: np.ndarray, world: np.ndarray) -> FrameRates:
+    """:class:`FrameRates` of ``frames`` (ids, or their :class:`FrameSet`) at the state ``(v,
+    a)``, world rows where ``world`` (bool (n,)) is True, else LOCAL ones, from the joint
+    placements ``data.oMi`` and the world joint Jacobian ``data.J`` of any Pinocchio pass
+    at ``q`` that fills them (``pin.computeJointJacobians``,
+    ``pin.computeForwardKinematicsDerivatives``, ``pin.computeRNEADerivatives``): only
+    ``q`` is read from ``data``, so one pass serves every ``(v, a)``.
+
+    All frames in one compiled call
+    (:func:`~hexapod_pin.core.derivative_kernels.frame_rates_kernel`), as
+    ``pin.getJointAccelerationDerivatives`` (WORLD) forms them for one joint from ``J_c``
+    and ``dJ_c = ov_i x J_c``: the column of coordinate ``c`` (joint ``i``, parent ``p``) of
+    a body on joint ``b`` has ``dV/dq = (ov_p - ov_b) x J_c``, ``dA/dv = dV/dq + dJ_c``,
+    ``dA/dq = (oa_p - oa_b) x J_c + [p > 0] (ov_p - ov_b) x dJ_c`` (zero off the body's
+    support; ``ov_j = sum J_c v_c``, ``oa_j = sum J_c a_c + dJ_c v_c`` over the
+    coordinates supporting ``j``). Moved to each frame origin ``o`` (world axes): ``x_o =
+    x - o x x_ang`` and ``d x_o = (dx)_o + [x_o,ang]_x J_o,lin``; the velocity is ``J_o
+    v``, the spatial acceleration ``J_o a + (dA_o/dv) v / 2`` (its bias is quadratic in
+    ``v``). World rows add ``w x v`` to the linear acceleration (classical); LOCAL rows
+    rotate, ``x_l = R^T x_o`` and ``d x_l / dq = R^T (d x_o / dq + [x_o]_x J_o,ang)`` per
+    3-block."""
+    fs = frames if isinstance(frames, FrameSet) else FrameSet(model, frames)
+    n, nv = len(fs.frames), model.nv
+    if not n:
+        return FrameRates(np.zeros((0, 6)), np.zeros((0, 6, nv)), np.zeros((0, 6, nv)),
+                          np.zeros((0, 6, nv)), np.zeros((0, 6)), np.zeros((0, 6, nv)),
+                          np.zeros((0, 3, 3)))
+    oMi = data.oMi
+    homog = np.array([oMi[j].homogeneous for j in fs.inner_joints])[fs.joint_index]
+    rot = homog[:, :3, :3] @ fs.placement_rot
+    pos = (homog[:, :3, :3] @ fs.placement_pos[:, :, None])[..., 0] + homog[:, :3, 3]
+    out = FrameRates(np.zeros((n, 6)), np.zeros((n, 6, nv)), np.zeros((n, 6, nv)),
+                     np.zeros((n, 6, nv)), np.zeros((n, 6)), np.zeros((n, 6, nv)), rot)
+    frame_rates_kernel(np.ascontiguousarray(data.J.T), np.asarray(v, dtype=float),
+                       np.asarray(a, dtype=float), fs.joint_support, fs.col_joint,
+                       fs.col_parent, fs.col_inner, fs.joints, fs.support, rot, pos,
+                       np.asarray(world, dtype=bool), *out[:6])
+    return out
 
 
 class ClosureRates(NamedTuple):
@@ -144,7 +205,7 @@ def closure_rates(clm: ClosedLoopModel, data: pin.Data, v: np.ndarray,
     if couplings is not None and q is None:
         raise InputError("q", q, f"{clm.name} has joint couplings: their rows need q")
     lay = layout_of(clm)
-    rates = frame_rates(clm.model, data, lay.anchors, v, a, lay.world)
+    rates = frame_rates(clm.model, data, lay.frame_set, v, a, lay.world)
     nv = clm.model.nv
     out = []
     for field in (rates.acc_q, rates.acc_v, rates.jac, rates.vel_q):
@@ -164,11 +225,11 @@ def closure_rates(clm: ClosedLoopModel, data: pin.Data, v: np.ndarray,
 
 
 def motion_cross(m: np.ndarray) -> np.ndarray:
-    """``ad(m)`` (6, 6): ``m x y`` for spatial motions ``(v, w)``: ``(w x y_v + v x y_w,
-    w x y_w)``."""
-    out = np.zeros((6, 6))
-    out[:3, :3] = out[3:, 3:] = skew(m[3:])
-    out[:3, 3:] = skew(m[:3])
+    """``ad(m)`` (..., 6, 6) of spatial motions ``m = (v, w)`` (..., 6): ``m x y = (w x y_v
+    + v x y_w, w x y_w)``."""
+    out = np.zeros(m.shape[:-1] + (6, 6))
+    out[..., :3, :3] = out[..., 3:, 3:] = skew(m[..., 3:])
+    out[..., :3, 3:] = skew(m[..., :3])
     return out
 
 
@@ -176,8 +237,9 @@ def force_cross(f: np.ndarray) -> np.ndarray:
     """``B(f)`` (6, 6) with ``xi x* f = B(f) xi`` for a spatial force ``f = (force,
     moment)`` and motions ``xi = (v, w)``: ``(w x force, v x force + w x moment)``."""
     out = np.zeros((6, 6))
-    out[:3, 3:] = out[3:, :3] = -skew(f[:3])
-    out[3:, 3:] = -skew(f[3:])
+    cross = skew(-f.reshape(2, 3))
+    out[:3, 3:] = out[3:, :3] = cross[0]
+    out[3:, 3:] = cross[1]
     return out
 
 
@@ -196,9 +258,9 @@ def _weld_rows(rates: FrameRates, i1: int, ad12: np.ndarray, out: list[np.ndarra
     v1, a2, v2 = rates.vel[i1], rates.acc[i2], rates.vel[i2]
     j1, j2 = rates.jac[i1], rates.jac[i2]
     jrel = j1 - ad12 @ j2
-    ad_v1, ad_v2 = motion_cross(v1), motion_cross(ad12 @ v2)
+    ad_v1, ad_v2, ad_a2 = motion_cross(np.stack([v1, ad12 @ v2, ad12 @ a2]))
     acc_q, acc_v, jac, vel_q = out
-    acc_q[:] = (rates.acc_q[i1] - ad12 @ rates.acc_q[i2] - motion_cross(ad12 @ a2) @ jrel
+    acc_q[:] = (rates.acc_q[i1] - ad12 @ rates.acc_q[i2] - ad_a2 @ jrel
                 - ad_v2 @ rates.vel_q[i1] + ad_v1 @ (ad12 @ rates.vel_q[i2] + ad_v2 @ jrel))
     acc_v[:] = rates.acc_v[i1] - ad12 @ rates.acc_v[i2] - ad_v2 @ j1 + ad_v1 @ ad12 @ j2
     jac[:] = jrel
@@ -212,6 +274,7 @@ class Layout:
     Attributes:
         data: this module's ``pin.Data`` of the model.
         anchors: the anchor frames, anchor 1 then anchor 2 of each closure.
+        frame_set: their :class:`FrameSet`.
         world: (2 n,) whether each anchor takes world rows (a point closure's).
         rows1: (n_rows,) the rows of anchor 1 in the flattened (2 n x 6) rows.
         rows2: (n_rows,) the rows of anchor 2 there.
@@ -237,52 +300,85 @@ class Layout:
             rows1 += [12 * k + i for i in range(width)]
             rows2 += [12 * k + 6 + i for i in range(width)]
         self.rows1, self.rows2 = np.array(rows1, dtype=int), np.array(rows2, dtype=int)
-        frames = [model.frames[f] for f in self.anchors]
-        self.joints = np.array([f.parentJoint for f in frames], dtype=int)
-        self.placement_rot = np.array([f.placement.rotation for f in frames]).reshape(-1, 3, 3)
-        self.placement_pos = np.array([f.placement.translation for f in frames]).reshape(-1, 3)
+        self.frame_set = FrameSet(model, self.anchors)
+        #: the :class:`FrameSet` of other frame lists (:func:`frame_set`)
+        self.frame_sets: dict[tuple[int, ...], FrameSet] = {}
+        self.joints = self.frame_set.joints
+        self.placement_rot = self.frame_set.placement_rot
+        self.placement_pos = self.frame_set.placement_pos
+        #: (nv, nv) True on and above the diagonal (Pinocchio fills that triangle of M)
+        self.upper = np.triu(np.ones((model.nv, model.nv), dtype=bool))
         self.fext = pin.StdVec_Force()
         for _ in range(model.njoints):
             self.fext.append(pin.Force.Zero())
+        #: writable views (6,) of each joint's force in ``fext`` (never resized)
+        self._fext_views = [self.fext[j].vector for j in range(model.njoints)]
         self._touched = [int(j) for j in np.unique(self.joints)]
+        #: the point closures' multiplier rows, anchor-1 and anchor-2 indices
+        self.point_rows = np.array([r for c in cf if c.is_point
+                                    for r in range(c.rows.start, c.rows.stop)], dtype=int)
+        self.point_anchors = np.flatnonzero(self.world)
+        #: (6 touched joints, 6 anchors): an anchor's spatial force (its axes) to its
+        #: joint's (``placement.act``: ``(R f, R m + p x R f)``), summed per joint
+        to_joints = np.zeros((len(self._touched), 6, len(self.anchors), 6))
+        for k, joint in enumerate(self.joints):
+            rot, pos = self.placement_rot[k], self.placement_pos[k]
+            block = to_joints[self._touched.index(int(joint)), :, k]
+            block[:3, :3] = block[3:, 3:] = rot
+            block[3:, :3] = skew(pos) @ rot
+        self._to_joints = to_joints.reshape(6 * len(self._touched), 6 * len(self.anchors))
         self._extra: list[int] = []        # the joints only the last call's wrenches set
+        #: whether the last linearised state had redundant closure rows (the next one
+        #: goes straight to the exact "kkt" forward dynamics)
+        self.redundant = False
 
     def joint_forces(self, clm: ClosedLoopModel, multipliers: np.ndarray, data: pin.Data,
-                     wrenches: Sequence[tuple[int, np.ndarray]] = ()) -> pin.StdVec_Force:
+                     wrenches: Sequence[tuple[int, np.ndarray]] = (),
+                     rot: np.ndarray | None = None) -> pin.StdVec_Force:
         """The closure forces and the frame ``wrenches`` as Pinocchio's external forces
         (joint LOCAL frames, one per joint): a point closure's ``lambda`` (world axes) at
         anchor 1 and ``-lambda`` at anchor 2; a weld's spatial force ``lambda`` (anchor-1
         axes, paired with its rows ``J_rel`` of :func:`_weld_rows`) on anchor 1 and
         ``-Ad(M12)^T lambda`` (anchor-2 axes; ``-lambda`` on the closures) on anchor 2;
         each ``(frame, (f, m))``: force and moment (world axes, moment about the frame
-        origin) on that frame. ``data``: frame placements."""
+        origin) on that frame. ``data``: frame placements; ``rot``: the anchors' world
+        rotations (2 n, 3, 3) when known (else read from ``data``)."""
         n = len(self.anchors)
         local = np.zeros((n, 6))               # in each anchor's axes
-        for k, (is_point, rows, f1, f2, _, _) in enumerate(clm.closure_frames):
-            lam = multipliers[rows]
-            if is_point:
-                local[2 * k, :3] = data.oMf[f1].rotation.T @ lam
-                local[2 * k + 1, :3] = -(data.oMf[f2].rotation.T @ lam)
-            else:       # mu on anchor 1, -Ad(M12)^T mu on anchor 2 (J_rel^T mu)
-                local[2 * k] = lam
-                local[2 * k + 1] = -(relative_action(data, f1, f2).T @ lam)
-        force = np.einsum("kij,kj->ki", self.placement_rot, local[:, :3])
-        moment = np.einsum("kij,kj->ki", self.placement_rot, local[:, 3:]) \
-            + np.cross(self.placement_pos, force)
-        per_joint = np.zeros((clm.model.njoints, 6))
-        np.add.at(per_joint, self.joints, np.hstack([force, moment]))
-        touched = list(self._touched)
+        pts = self.point_anchors
+        if pts.size:
+            if rot is None:
+                rot = np.array([data.oMf[self.anchors[k]].rotation for k in pts])
+            else:
+                rot = rot[pts]
+            lam = np.repeat(multipliers[self.point_rows].reshape(-1, 3), 2, axis=0)
+            lam[1::2] *= -1.0
+            local[pts, :3] = (np.swapaxes(rot, 1, 2) @ lam[:, :, None])[..., 0]
+        for k, c in self.welds:   # mu on anchor 1, -Ad(M12)^T mu on anchor 2 (J_rel^T mu)
+            lam = multipliers[c.rows]
+            local[2 * k] = lam
+            local[2 * k + 1] = -(relative_action(data, c.frame1, c.frame2).T @ lam)
+        per_touched = (self._to_joints @ local.reshape(-1)).reshape(-1, 6)
+        views = self._fext_views
+        for j, wrench in zip(self._touched, per_touched):
+            views[j][:] = wrench
+        extra: dict[int, np.ndarray] = {}
         for frame, wrench in wrenches:
             placement = clm.model.frames[frame]
-            rot = data.oMf[frame].rotation
-            local = pin.Force(rot.T @ wrench[:3], rot.T @ wrench[3:])
-            per_joint[placement.parentJoint] += placement.placement.act(local).vector
-            touched.append(placement.parentJoint)
-        fext = self.fext
-        for j in set(self._extra) | set(touched):   # last call's wrench joints cleared
-            fext[j] = pin.Force(per_joint[j])
-        self._extra = touched[len(self._touched):]
-        return fext
+            frame_rot = data.oMf[frame].rotation
+            joint = placement.parentJoint
+            local_force = pin.Force(frame_rot.T @ wrench[:3], frame_rot.T @ wrench[3:])
+            base = extra.get(joint)
+            if base is None:
+                base = per_touched[self._touched.index(joint)] if joint in self._touched \
+                    else np.zeros(6)
+            extra[joint] = base + placement.placement.act(local_force).vector
+        for j in set(self._extra) - set(extra) - set(self._touched):
+            views[j][:] = 0.0                  # last call's wrench joints cleared
+        for j, wrench in extra.items():
+            views[j][:] = wrench
+        self._extra = list(extra)
+        return self.fext
 
 
 def layout_of(clm: ClosedLoopModel) -> Layout:
@@ -348,14 +444,12 @@ def point_force_turning(clm: ClosedLoopModel, multipliers: np.ndarray,
     J_lin^T [lambda]_x J_ang`` with the anchors' world Jacobians ``anchor_jac`` (2
     n_closures, 6, nv); 0 without point closures (a weld's force is held in anchor-1 =
     anchor-2 axes)."""
-    points = layout_of(clm).points
-    if not points.any():
+    lay = layout_of(clm)
+    if not lay.point_rows.size:
         return 0.0
     nv = clm.model.nv
-    lam = np.concatenate([multipliers[c.rows] for c, p in
-                          zip(clm.closure_frames, points) if p]).reshape(-1, 3)
-    turn = skew(lam)
-    j1, j2 = anchor_jac[0::2][points], anchor_jac[1::2][points]
+    turn = skew(multipliers[lay.point_rows].reshape(-1, 3))
+    j1, j2 = anchor_jac[lay.point_anchors[0::2]], anchor_jac[lay.point_anchors[1::2]]
     return (j1[:, :3].reshape(-1, nv).T @ (turn @ j1[:, 3:]).reshape(-1, nv)
             - j2[:, :3].reshape(-1, nv).T @ (turn @ j2[:, 3:]).reshape(-1, nv))
 
@@ -446,19 +540,19 @@ class KKTLinearization:
         model = clm.model
         self.clm, self.model, self.data = clm, model, data
         self.q, self.v, self.a, self.multipliers = q, v, a, multipliers
-        pin.computeForwardKinematicsDerivatives(model, data, q, v, a)
+        pin.computeJointJacobians(model, data, q)     # J and oMi: all frame_rates reads
         pin.updateFramePlacements(model, data)
         rates = closure_rates(clm, data, v, a, q)
         self.c_q, self.c_v, self.jac, self.jv_q = rates[:4]
         couplings = clm.coupling_rows
         #: world :class:`FrameRates` of the extra frames (in the order asked)
-        self.frames = frame_rates(model, data, list(frames), v, a,
+        self.frames = frame_rates(model, data, frame_set(clm, frames), v, a,
                                   np.ones(len(frames), dtype=bool)) if len(frames) else None
         # E: rnea with the closure forces as external forces, their turning, the effects
         forces = self._forces = weld_multipliers(clm, data, multipliers)
-        fext = layout_of(clm).joint_forces(clm, forces, data, wrenches)
+        fext = layout_of(clm).joint_forces(clm, forces, data, wrenches, rates.anchors.rot)
         dtau_dq, dtau_dv, mass = pin.computeRNEADerivatives(model, data, q, v, a, fext)
-        self.mass = np.triu(mass) + np.triu(mass, 1).T
+        self.mass = np.where(layout_of(clm).upper, mass, mass.T)
         self.e_q = np.array(dtau_dq) - self._turning(rates.anchors.jac) \
             - self._wrench_turning(wrenches)
         self.e_v = np.array(dtau_dv)
@@ -489,56 +583,47 @@ class KKTLinearization:
         return out
 
     def _factor(self) -> None:
-        """The null-space basis, the least-norm solves of ``J_c`` and the Cholesky factor
-        of ``N^T M N``: a QR of ``J_c^T`` when its rows are independent (checked on the
-        triangle), else an SVD (rank to :data:`~hexapod_pin.core.closed_loop.RANK_RTOL`)."""
+        """The null-space basis, ``J_c^+`` and the inverse Cholesky factor of ``N^T M N``:
+        the compiled pivoted QR of ``J_c^T``
+        (:func:`~hexapod_pin.core.closure_motion.row_basis`) when its rows are independent
+        (every pivot above FULL_RANK_RTOL times the first), else an SVD (rank to
+        :data:`~hexapod_pin.core.closed_loop.RANK_RTOL`)."""
         nv, jac = self.model.nv, self.jac
         n_rows = jac.shape[0]
-        self._tri = None
+        #: the orthonormal basis (n_rows, rank) of range(J_c) (its complement: the
+        #: multipliers that do no work); empty when the rows are independent
+        self._left = np.zeros((n_rows, 0))
+        rows = row_basis(jac, FULL_RANK_RTOL) if 0 < n_rows <= nv else None
         if not n_rows:
-            rank, self.basis = 0, np.eye(nv)
-            self._left, self._sv, self._right = np.zeros((0, 0)), np.zeros(0), np.zeros((nv, 0))
+            rank, self.basis, self._pinv = 0, np.eye(nv), np.zeros((nv, 0))
+        elif rows is not None and rows.rows.size == n_rows:
+            rank, self.basis = n_rows, rows.null
+            self._pinv = np.empty((nv, n_rows))
+            self._pinv[:, rows.rows] = rows.pinv     # J_c[rows] pinv = I, in range(J_c^T)
         else:
-            independent = False
-            if n_rows <= nv:
-                qmat, tri = np.linalg.qr(jac.T, mode="complete")
-                diag = np.abs(np.diag(tri))
-                independent = bool(diag.min() > 1e-8 * diag.max())
-            if independent:
-                rank, self._tri = n_rows, np.linalg.inv(tri[:n_rows])
-                self._left, self._right = np.zeros((n_rows, 0)), qmat[:, :n_rows]
-                self.basis = qmat[:, n_rows:]
-            else:
-                u_mat, sv, vt = np.linalg.svd(jac)
-                tol = max(RANK_RTOL * sv[0], max(jac.shape) * np.finfo(float).eps)
-                rank = int(np.sum(sv > tol))
-                self._left, self._sv, self._right = u_mat[:, :rank], sv[:rank], vt[:rank].T
-                self.basis = vt[rank:].T.copy()
+            u_mat, sv, vt = np.linalg.svd(jac)
+            tol = max(RANK_RTOL * sv[0], max(jac.shape) * np.finfo(float).eps)
+            rank = int(np.sum(sv > tol))
+            self._left = u_mat[:, :rank]
+            self._pinv = (vt[:rank].T / sv[:rank]) @ u_mat[:, :rank].T
+            self.basis = vt[rank:].T
         self.rank = rank
-        reduced = self.basis.T @ self.mass @ self.basis
-        try:
-            self._chol = scipy.linalg.cho_factor(0.5 * (reduced + reduced.T))
-        except np.linalg.LinAlgError:
+        self._norms = (max_abs(self.mass), max_abs(jac))     # of the residual checks
+        #: ``G = N L^-T`` (nv, m), ``N^T M N = L L^T``: ``G G^T = N (N^T M N)^-1 N^T``
+        self.basis = np.ascontiguousarray(self.basis)
+        self._gain = np.empty(self.basis.shape)
+        if reduced_gain_kernel(self.basis, self.mass, self._gain):
             raise SingularityError("mass matrix on the closures' null space (N^T M N not "
-                                   "positive definite: massless motion)", 0.0) from None
+                                   "positive definite: massless motion)", 0.0)
 
     # -- solves ----------------------------------------------------------------------------
     def pinv(self, rhs: np.ndarray) -> np.ndarray:
         """``J_c^+ rhs`` (nv, ...): the least-norm solution of ``J_c x = rhs``."""
-        if not self.rank:
-            return np.zeros((self.model.nv,) + rhs.shape[1:])
-        if self._tri is not None:          # J_c = R^T Q^T, _tri = R^-1
-            return self._right @ (self._tri.T @ rhs)
-        scaled = (self._left.T @ rhs) / (self._sv if rhs.ndim == 1 else self._sv[:, None])
-        return self._right @ scaled
+        return self._pinv @ rhs
 
     def _pinv_t(self, rhs: np.ndarray) -> np.ndarray:
         """``J_c^+T rhs`` (n_rows, k): the least-norm ``y`` with ``J_c^T y = rhs``."""
-        if not self.rank:
-            return np.zeros((self.clm.n_rows, rhs.shape[1]))
-        if self._tri is not None:
-            return self._tri @ (self._right.T @ rhs)
-        return self._left @ ((self._right.T @ rhs) / self._sv[:, None])
+        return self._pinv.T @ rhs
 
     def solve(self, rhs_e: np.ndarray, rhs_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(da, dlambda)`` (nv, k), (n_rows, k) with ``M da - J_c^T dlambda = rhs_e``,
@@ -549,15 +634,14 @@ class KKTLinearization:
                 ``rhs_c`` outside the range of ``J_c`` (a direction off the closures).
         """
         da_p = self.pinv(rhs_c)
-        basis = self.basis
-        da = da_p + basis @ scipy.linalg.cho_solve(self._chol,
-                                                   basis.T @ (rhs_e - self.mass @ da_p))
+        gain = self._gain
+        da = da_p + gain @ (gain.T @ (rhs_e - self.mass @ da_p))
         force = self.mass @ da - rhs_e
         dlam = self._pinv_t(force)
-        scale = max(1.0, max_abs(rhs_e), max_abs(self.mass) * max_abs(da))
+        size = max_abs(da)
+        scale = max(1.0, max_abs(rhs_e), self._norms[0] * size)
         eom = max_abs(force - self.jac.T @ dlam) / scale
-        con = max_abs(self.jac @ da - rhs_c) / max(1.0, max_abs(rhs_c),
-                                                   max_abs(self.jac) * max_abs(da))
+        con = max_abs(self.jac @ da - rhs_c) / max(1.0, max_abs(rhs_c), self._norms[1] * size)
         if not (eom <= DERIVATIVE_SOLVE_RTOL and con <= DERIVATIVE_SOLVE_RTOL):
             raise SolverError("forward-dynamics derivatives", "unverified",
                               f"linearised equation of motion residual {eom:.3e}, closure "
@@ -570,25 +654,29 @@ class KKTLinearization:
         onto the closures: ``-J_c^+ (d(J_c v)/dq) dq``."""
         return -self.pinv(self.jv_q @ dq)
 
-    def along(self, dq: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def along(self, dq: np.ndarray, dv: np.ndarray, force: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
         """``(da, dlambda)`` (nv, k), (n_rows, k) along state directions ``(dq, dv)`` (each
-        (nv, k)) tangent to the closures (``J_c dq = 0``, ``J_c dv = -d(J_c v)/dq dq``).
+        (nv, k)) tangent to the closures (``J_c dq = 0``, ``J_c dv = -d(J_c v)/dq dq``),
+        with the generalised forces ``force`` (nv, k) added (default none).
 
         With redundant rows the minimum-norm multipliers also turn with the range of
         ``J_c``: ``dlambda`` gets ``P dJ_c[dq] J_c^+ lambda`` (``P`` the projector on
-        ``null(J_c^T)``), from one more kinematic pass."""
-        da, dlam = self.solve(-(self.e_q @ dq + self.e_v @ dv), -(self.c_q @ dq + self.c_v @ dv))
+        ``null(J_c^T)``)."""
+        rhs_e = -(self.e_q @ dq + self.e_v @ dv)
+        if force is not None:
+            rhs_e += force
+        da, dlam = self.solve(rhs_e, -(self.c_q @ dq + self.c_v @ dv))
         if self.rank < self.clm.n_rows and dq.any():
             dlam += self._range_turn(dq)
         return da, dlam
 
     def _range_turn(self, dq: np.ndarray) -> np.ndarray:
+        """``P dJ_c[dq] J_c^+ lambda`` (n_rows, k): the closure rates at the velocity ``w =
+        J_c^+ lambda`` (:func:`frame_rates` reads only ``q`` from the data)."""
         w = self.pinv(self.multipliers)
-        model, data = self.model, self.data
-        zero = np.zeros(model.nv)
-        pin.computeForwardKinematicsDerivatives(model, data, self.q, w, zero)
-        pin.updateFramePlacements(model, data)
-        turned = closure_rates(self.clm, data, w, zero, self.q).vel_q @ dq
+        turned = closure_rates(self.clm, self.data, w, np.zeros(self.model.nv),
+                               self.q).vel_q @ dq
         return turned - self._left @ (self._left.T @ turned)
 
 
@@ -631,8 +719,11 @@ def linearize_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
                    actuator_forces: npt.ArrayLike, tau_ext: npt.ArrayLike | None = None,
                    frames: Sequence[int] = (),
                    wrenches: Sequence[tuple[int, np.ndarray]] = ()) -> KKTLinearization:
-    """The forward-dynamics solution at ``(q, v)`` (the verified "kkt" route of
-    :func:`~hexapod_pin.core.dynamics.forward_dynamics_tree`) and its
+    """The forward-dynamics solution at ``(q, v)`` (the verified default route of
+    :func:`~hexapod_pin.core.dynamics.forward_dynamics_tree`, Pinocchio's, checked on its
+    equations; with redundant closure rows its "kkt" route, exact with minimum-norm
+    multipliers, where Pinocchio's proximal solve is only converged to its tolerance) and
+    its
     :class:`KKTLinearization`, with the world :class:`FrameRates` of ``frames`` (ids).
 
     ``wrenches``: ``(frame id, (f, m))`` pairs, each a force and moment (6,) (N, N m; world
@@ -659,7 +750,8 @@ def linearize_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
     for frame in list(frames) + [f for f, _ in wrenches]:
         if not (isinstance(frame, (int, np.integer)) and 0 <= frame < clm.model.nframes):
             raise InputError("frames", frame, f"not a frame id of {clm.name}")
-    data = layout_of(clm).data
+    lay = layout_of(clm)
+    data = lay.data
     if wrenches:
         pin.computeJointJacobians(clm.model, data, q)
         pin.updateFramePlacements(clm.model, data)
@@ -669,7 +761,11 @@ def linearize_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
         for frame, wrench in wrenches:
             total += pin.getFrameJacobian(clm.model, data, frame, lwa).T @ wrench
         tau_ext = total
-    res = forward_dynamics_tree(clm, q, v, actuator_forces, tau_ext, method="kkt")
+    res = forward_dynamics_tree(clm, q, v, actuator_forces, tau_ext,
+                                method="kkt" if lay.redundant else "pinocchio")
+    if res.rank < clm.n_rows and res.method != "kkt":   # redundant: the exact solve
+        res = forward_dynamics_tree(clm, q, v, actuator_forces, tau_ext, method="kkt")
+    lay.redundant = res.rank < clm.n_rows
     return KKTLinearization(clm, data, q, v, np.array(res.a), np.array(res.multipliers),
                             frames, wrenches)
 
@@ -714,10 +810,18 @@ def forward_dynamics_derivatives_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v:
         if not miss <= 1e-9 * max(1.0, max_abs(lin.jac) * max_abs(dirs)):
             raise InputError("basis", basis, f"columns off null(J_c): |J_c basis| = "
                              f"{miss:.3e}")
-    da_q, dl_q = lin.along(dirs, lin.transport(dirs))
-    n = lin.basis
-    da_v, dl_v = lin.along(np.zeros_like(n), n)
-    da_t, dl_t = lin.solve(np.eye(nv), np.zeros((clm.n_rows, nv)))
+    # one verified solve for every column: along (dirs, transported v), along (0, N), tau
+    k, n = dirs.shape[1], lin.basis
+    m = n.shape[1]
+    dq_all = np.zeros((nv, k + m + nv))
+    dq_all[:, :k] = dirs
+    dv_all = np.zeros_like(dq_all)
+    dv_all[:, :k], dv_all[:, k:k + m] = lin.transport(dirs), n
+    force = np.zeros_like(dq_all)
+    force[:, k + m:] = np.eye(nv)
+    da, dl = lin.along(dq_all, dv_all, force)
     act = clm.actuated_v
-    return TreeDynamicsDerivatives(lin.a, lin.multipliers, dirs, da_q, da_v @ n.T, da_t[:, act],
-                                   da_t, dl_q, dl_v @ n.T, dl_t[:, act], dl_t)
+    da_t, dl_t = da[:, k + m:], dl[:, k + m:]
+    return TreeDynamicsDerivatives(lin.a, lin.multipliers, dirs, da[:, :k],
+                                   da[:, k:k + m] @ n.T, da_t[:, act], da_t, dl[:, :k],
+                                   dl[:, k:k + m] @ n.T, dl_t[:, act], dl_t)

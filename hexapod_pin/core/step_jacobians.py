@@ -59,6 +59,7 @@ from .dynamics_derivatives import (
     closure_force_derivative,
     closure_rates,
     frame_rates,
+    frame_set,
 )
 from .platform_derivatives import PlatformLinearization, PlatformRobot, platform_of
 from .simulation import PROJECTION_TOL, ClosedLoopIntegrator
@@ -201,9 +202,9 @@ class _ClosureTangent:
             self._u, self._sv, self._vt = u_mat[:, keep], sv[keep], vt[keep]
 
     def velocity_q(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(J_c, d(J_c w)/dq)`` (n_rows, nv) each (one kinematic pass at ``(q, w)``)."""
+        """``(J_c, d(J_c w)/dq)`` (n_rows, nv) each (one kinematic pass at ``q``)."""
         model, zero = self.clm.model, np.zeros(self.clm.nv)
-        pin.computeForwardKinematicsDerivatives(model, self.data, self.q, w, zero)
+        pin.computeJointJacobians(model, self.data, self.q)
         pin.updateFramePlacements(model, self.data)
         rates = closure_rates(self.clm, self.data, w, zero, self.q)
         return rates.jac, rates.vel_q
@@ -212,9 +213,10 @@ class _ClosureTangent:
                  ) -> tuple[np.ndarray, np.ndarray]:
         """``(T, d(T v)/dq)`` (dim, nv) of the platform frame."""
         model, zero = self.clm.model, np.zeros(self.clm.nv)
-        pin.computeForwardKinematicsDerivatives(model, self.data, self.q, v, zero)
+        pin.computeJointJacobians(model, self.data, self.q)
         pin.updateFramePlacements(model, self.data)
-        out = frame_rates(model, self.data, [frame], v, zero, np.ones(1, dtype=bool))
+        out = frame_rates(model, self.data, frame_set(self.clm, [frame]), v, zero,
+                          np.ones(1, dtype=bool))
         return out.jac[0][sel], out.vel_q[0][sel]
 
     def pinv(self, rhs: np.ndarray) -> np.ndarray:

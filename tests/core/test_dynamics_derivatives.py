@@ -32,17 +32,22 @@ import dataclasses
 import numpy as np
 import pinocchio as pin
 import pytest
+import robot_registry
 
 import hexapod_pin as hp
-import robot_registry
 from hexapod_pin.calibration import random_as_built
+from hexapod_pin.core.derivative_kernels import reduced_gain_kernel
 from hexapod_pin.core.dynamics import forward_dynamics_tree
-from hexapod_pin.core.dynamics_derivatives import (closure_force_derivative,
-                                                   forward_dynamics_derivatives_tree,
-                                                   linearize_tree, spring_jacobian)
+from hexapod_pin.core.dynamics_derivatives import (
+    closure_force_derivative,
+    forward_dynamics_derivatives_tree,
+    frame_rates,
+    linearize_tree,
+    spring_jacobian,
+)
 from hexapod_pin.core.effects import passive_forces
 from hexapod_pin.core.pose import rotation_from_rpy, rpy_from_rotation
-from hexapod_pin.errors import InputError
+from hexapod_pin.errors import InputError, SingularityError
 from hexapod_pin.hexapod.kinematics import HOME_BRANCH
 from hexapod_pin.loaders import robots as loaded
 
@@ -152,6 +157,89 @@ def test_tree_derivatives_cassie():
     assert cassie.effects.stiffness.any() and cassie.effects.damping.any()
     worst, _ = check_tree(cassie, q, v, u, tau, rng)
     assert worst < RTOL
+
+
+def pinocchio_frame_motion(model, data, q, v, a, frame, world):
+    """(acc, vel) (6,) of ``frame`` from Pinocchio's own frame motion at ``(q, v, a)``:
+    world rows the classical acceleration and velocity in LOCAL_WORLD_ALIGNED axes, LOCAL
+    rows the spatial ones."""
+    pin.forwardKinematics(model, data, q, v, a)
+    ref = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED if world else pin.ReferenceFrame.LOCAL
+    vel = pin.getFrameVelocity(model, data, frame, ref).vector
+    if world:
+        acc = pin.getFrameClassicalAcceleration(model, data, frame, ref).vector
+    else:
+        acc = pin.getFrameAcceleration(model, data, frame, ref).vector
+    return np.concatenate([acc, vel])
+
+
+@pytest.mark.parametrize("name", ROBOTS + ("cassie",))
+def test_frame_rates_match_finite_differences_of_pinocchio(name):
+    """frame_rates (all frames in one compiled call) against Richardson central
+    differences of Pinocchio's frame velocity and (classical or spatial) acceleration, in
+    q (along pin.integrate), v and a, on random frames, states and row kinds (world /
+    LOCAL); off the closures (frame_rates knows none)."""
+    clm = loaded.cassie() if name == "cassie" else robot_registry.get(name).model
+    model = clm.model
+    data = model.createData()
+    rng = np.random.default_rng(11)
+    q = pin.integrate(model, pin.neutral(model), 0.3 * rng.normal(size=model.nv))
+    v, a = rng.normal(size=model.nv), rng.normal(size=model.nv)
+    frames = [int(f) for f in rng.choice(np.arange(1, model.nframes), 6, replace=False)]
+    world = rng.random(len(frames)) < 0.5
+    world[:2] = [True, False]
+    pin.computeForwardKinematicsDerivatives(model, data, q, v, a)
+    pin.updateFramePlacements(model, data)
+    rates = frame_rates(model, data, frames, v, a, world)
+    ref_data = model.createData()
+    worst = 0.0
+    for k, (frame, w) in enumerate(zip(frames, world)):
+        def motion(qq, vv, aa, frame=frame, w=w):
+            return pinocchio_frame_motion(model, ref_data, qq, vv, aa, frame, w)
+        base = motion(q, v, a)
+        worst = max(worst, relative(base, np.concatenate([rates.acc[k], rates.vel[k]])))
+        np.testing.assert_allclose(rates.rot[k], pin.updateFramePlacement(
+            model, ref_data, frame).rotation, atol=1e-12)
+        for c in range(model.nv):
+            e = np.eye(model.nv)[c]
+            num_q = richardson(lambda s, e=e: motion(pin.integrate(model, q, s * e), v, a),
+                               1e-3)
+            num_v = richardson(lambda s, e=e: motion(q, v + s * e, a), 1e-3)
+            num_a = richardson(lambda s, e=e: motion(q, v, a + s * e), 1e-3)
+            worst = max(worst,
+                        relative(num_q, np.concatenate([rates.acc_q[k][:, c],
+                                                        rates.vel_q[k][:, c]])),
+                        relative(num_v[:6], rates.acc_v[k][:, c]),
+                        relative(num_v[6:], rates.jac[k][:, c]),
+                        relative(num_a[:6], rates.jac[k][:, c]))
+    assert worst < RTOL
+
+
+def test_reduced_gain_against_numpy_and_its_refusal():
+    """G = N L^-T of the compiled Cholesky: G G^T = N (N^T M N)^-1 N^T against numpy's
+    inverse; a mass matrix without mass on a null-space direction is refused (status 1),
+    and KKTLinearization turns that into a SingularityError."""
+    rng = np.random.default_rng(5)
+    nv, m = 7, 4
+    basis = np.linalg.qr(rng.normal(size=(nv, nv)))[0][:, :m].copy()
+    root = rng.normal(size=(nv, nv))
+    mass = root @ root.T + 0.1 * np.eye(nv)
+    gain = np.empty((nv, m))
+    assert reduced_gain_kernel(basis, mass, gain) == 0
+    expected = basis @ np.linalg.inv(basis.T @ mass @ basis) @ basis.T
+    np.testing.assert_allclose(gain @ gain.T, expected, rtol=0, atol=1e-12)
+    massless = mass - (mass @ basis[:, 0])[:, None] * basis[:, 0][None, :] \
+        - basis[:, 0][:, None] * (basis[:, 0] @ mass)[None, :] \
+        + (basis[:, 0] @ mass @ basis[:, 0]) * np.outer(basis[:, 0], basis[:, 0])
+    assert abs(basis[:, 0] @ massless @ basis[:, 0]) < 1e-12
+    assert reduced_gain_kernel(basis, massless, gain) == 1
+    assert reduced_gain_kernel(basis, np.full((nv, nv), np.nan), gain) == 1
+    robot = robot_registry.get("four-bar")
+    clm, q = robot.model, robot.home_configuration
+    lin = linearize_tree(clm, q, np.zeros(clm.nv), np.zeros(clm.n_actuated))
+    lin.mass = np.zeros_like(lin.mass)
+    with pytest.raises(SingularityError, match="null space"):
+        lin._factor()
 
 
 def test_given_basis_and_its_check():
