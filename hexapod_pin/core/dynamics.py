@@ -76,9 +76,10 @@ or after one cheap proximal pass (the other paths). The internal paths
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -111,7 +112,7 @@ from .dynamics_common import (  # re-exported: other modules and users import th
 )
 from .forward_routes import ForwardDynamicsRoutes
 from .inverse_routes import INVERSE_METHODS, InverseDynamicsRoutes
-from .linear_kernels import kkt_residuals
+from .linear_kernels import NULLSPACE_OK, kkt_residuals, nullspace_forward_solve
 
 __all__ = [
     "CLOSURE_QTOL", "CLOSURE_VTOL", "FORWARD_METHODS", "INVERSE_METHODS", "PIN_PROX_ITERS",
@@ -128,17 +129,34 @@ _F64 = np.dtype(np.float64)
 _FORWARD_NEW = tuple.__new__
 #: Pinocchio proximal settings used when the closures are redundant (the acceleration
 #: converges in a few iterations; every answer is verified, the multipliers are polished
-#: to minimum norm when read). Two iterations at mu = 1e-8 meet RESIDUAL_RTOL with a
-#: margin of 250 or more on every redundant robot of the benchmarks and tests (Cassie,
-#: the five-bars and ladders closed by welds); a miss continues the solve.
+#: to minimum norm when read). ``PIN_PROX_MU`` is relative: the proximal parameter is
+#: ``mu = PIN_PROX_MU / m``, ``m`` the largest diagonal entry of the mass matrix at the
+#: model's first redundant call (the Delassus matrix ``J M^-1 J^T`` scales as ``1/m``, so
+#: the contraction of the proximal iterations, ``mu / (mu + sigma)`` on its non-zero
+#: eigenvalues ``sigma``, does not depend on the units or the size of the masses). Two
+#: iterations meet RESIDUAL_RTOL on every redundant robot of the benchmarks and tests;
+#: a miss is answered by the exact null-space solve on Pinocchio's own terms
+#: (:func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve`), never by more
+#: iterations: at most PIN_PROX_ITERS proximal iterations per call.
 PIN_PROX_MU = 1e-8
 PIN_PROX_ITERS = 2
-#: iterations of the continued proximal solve when the first ones did not converge
-_PIN_PROX_DEEP_ITERS = 500
 
 
-#: status strings of the redundant-row Pinocchio route by iteration count
-_REDUNDANT_STATUS: dict[int, str] = {}
+class PinocchioSolve(NamedTuple):
+    """How a verified "pinocchio" solve was obtained.
+
+    Attributes:
+        iter: Pinocchio's proximal iterations of the call (1 for its direct solve).
+        exact: whether the exact null-space solve on Pinocchio's own terms answered
+            (redundant rows whose proximal iterations missed the verification).
+    """
+
+    iter: int
+    exact: bool
+
+
+#: status strings of the redundant-row Pinocchio route by (iterations, exact)
+_REDUNDANT_STATUS: dict[tuple[int, bool], str] = {}
 
 
 # --------------------------------------------------------------------------------------
@@ -373,8 +391,12 @@ class ClosedLoopDynamics:
     def _init_pinocchio(self) -> None:
         pin.initConstraintDynamics(self.model, self.data, self.pin_models, self.pin_datas)
         self._prox_exact = pin.ProximalSettings(1e-13, 0.0, 1)
+        #: the redundant rows' settings; mu scaled at the first redundant call
+        #: (:meth:`_scale_redundant_mu`)
         self._prox_redundant = pin.ProximalSettings(1e-13, PIN_PROX_MU, PIN_PROX_ITERS)
-        self._prox_deep = pin.ProximalSettings(1e-14, PIN_PROX_MU, _PIN_PROX_DEEP_ITERS)
+        self._mu_scaled = False
+        self._exact_acc = np.empty(self.nv)
+        self._exact_lam = np.empty(self.n_closure_rows)
         #: one cheap proximal pass: only the constraint terms of the call are used
         self._prox_probe = pin.ProximalSettings(1e-13, PIN_PROX_MU, 1)
         self._cd_list = list(self.pin_datas)
@@ -461,41 +483,73 @@ class ClosedLoopDynamics:
                              f"the tolerance {tol:.3e} (CLOSURE_VTOL = {CLOSURE_VTOL:g})")
 
     def pinocchio_call(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
-                       redundant: bool) -> tuple[np.ndarray | None, Any]:
-        """One verified ``pin.constraintDynamics`` call; returns (a or None, prox).
+                       redundant: bool) -> tuple[np.ndarray | None, PinocchioSolve]:
+        """One verified ``pin.constraintDynamics`` call; returns (a or None, how).
 
         ``a`` is Pinocchio's own buffer (copy it before the next call); Pinocchio's LOCAL
         multipliers are in ``self.data.lambda_c``. ``None`` when the solve is not finite or
         misses one of the equations by more than :data:`RESIDUAL_RTOL` (relative; checked
         with Pinocchio's own ``M``, ``nle``, constraint Jacobian and drift). With
-        ``redundant`` the proximal solve (``mu > 0``) is continued (up to
-        ``_PIN_PROX_DEEP_ITERS`` iterations) when its first iterations did not converge.
+        ``redundant`` the proximal solve (``mu > 0``, :data:`PIN_PROX_ITERS` iterations)
+        that misses the verification is replaced by the exact null-space solve on the
+        call's own terms (:meth:`_exact_redundant`, written into Pinocchio's ``ddq`` and
+        ``lambda_c``; ``how.exact`` says so).
         """
         if not self._pin_ready:
             self._init_pinocchio()
         if self._pin_singular or self.coupling_rows is not None:
-            return None, self._prox_exact
+            return None, PinocchioSolve(0, False)
+        if redundant and not self._mu_scaled:
+            self._scale_redundant_mu(q)
         prox = self._prox_redundant if redundant else self._prox_exact
         acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
                                      self.pin_datas, prox)
         if self._pin_verified(acc, tau):
             if self.n_rows:
                 self._pin_fast = prox    # the short path of pinocchio_verified
-            return acc, prox
+            return acc, PinocchioSolve(prox.iter, False)
         diag = np.diagonal(self._v_mass)
         if np.min(diag) <= 1e-14 * max(np.max(diag), TINY):
             # a joint that moves no mass: Pinocchio's factorisation of M cannot hold this
             # model at any state (structural); the exact routes answer from now on
             self._pin_singular = True
             self._pin_fast = None
-            return None, prox
-        if redundant:
-            prox = self._prox_deep
-            acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
-                                         self.pin_datas, prox)
-            if self._pin_verified(acc, tau):
-                return acc, prox
-        return None, prox
+            return None, PinocchioSolve(prox.iter, False)
+        if redundant and self._exact_redundant(tau):
+            self._pin_fast = prox
+            return acc, PinocchioSolve(prox.iter, True)
+        return None, PinocchioSolve(prox.iter, False)
+
+    def _scale_redundant_mu(self, q: np.ndarray) -> None:
+        """Set the redundant rows' proximal ``mu`` to ``PIN_PROX_MU / m`` (``m`` the largest
+        diagonal entry of ``M(q)``, kg or kg m^2; see :data:`PIN_PROX_MU`), once."""
+        scale = float(np.max(np.diagonal(pin.crba(self.model, self.data, q))))
+        if math.isfinite(scale) and scale > 0.0:
+            self._prox_redundant = pin.ProximalSettings(1e-13, PIN_PROX_MU / scale,
+                                                        PIN_PROX_ITERS)
+        self._mu_scaled = True
+
+    def _exact_redundant(self, tau: np.ndarray) -> bool:
+        """The exact null-space solve of the last ``constraintDynamics`` call's system
+        (Pinocchio's ``M``, ``nle``, constraint Jacobian :attr:`last_jacobian` and target
+        ``primal_rhs``; :func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve`
+        at the structural rank), verified like the call itself; when verified, the answer
+        is written into Pinocchio's ``ddq`` and ``lambda_c`` and True returned."""
+        jac = self.last_jacobian
+        if jac is None or self._rank is None:
+            return False
+        acc, lam = self._exact_acc, self._exact_lam
+        code = nullspace_forward_solve(self._v_mass, self._v_nle, tau, jac, self._v_rhs,
+                                       self._rank, acc, lam)
+        if code != NULLSPACE_OK:
+            return False
+        eom, con = kkt_residuals(self._v_mass, self._v_nle, tau, jac, self._v_rhs, acc, lam,
+                                 self._res_out)
+        if not (eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL):
+            return False
+        self._v_ddq[:] = acc
+        self._v_lambda[:] = lam
+        return True
 
     def _pin_verified(self, acc, tau) -> bool:
         """Whether Pinocchio's answer ``acc`` meets both equations (see
@@ -511,28 +565,32 @@ class ClosedLoopDynamics:
                                  self._v_lambda, self._res_out)
         return eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL
 
-    def _pinocchio_result(self, q, v, tau, acc, iters, rank) -> TreeForwardDynamics:
+    def _pinocchio_result(self, q, v, tau, acc, iters, rank,
+                          exact: bool = False) -> TreeForwardDynamics:
         """The result of a verified Pinocchio solve (``acc``: Pinocchio's buffer; ``tau``:
         possibly the caller's array): :meth:`pinocchio_result_of` on copies."""
         return self.pinocchio_result_of(q.copy(), v.copy(), tau.copy(), acc.copy(),
-                                        self._v_lambda.copy(), iters, rank)
+                                        self._v_lambda.copy(), iters, rank, exact)
 
     def pinocchio_result_of(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                             acc: np.ndarray, lam_pin: np.ndarray, iters: int,
-                            rank: int) -> TreeForwardDynamics:
+                            rank: int, exact: bool = False) -> TreeForwardDynamics:
         """The result of a verified Pinocchio solve from arrays the caller owns (kept as
         they are, no copies): ``acc`` (nv,) and Pinocchio's LOCAL multipliers ``lam_pin``.
         The multipliers are computed on access: ``lam_pin`` converted to our rows, or,
         with redundant rows, the minimum-norm ones (the proximal multipliers are
-        minimum-norm only up to the conditioning of the regularised system)."""
+        minimum-norm only up to the conditioning of the regularised system). ``exact``:
+        the exact null-space solve answered after ``iters`` proximal iterations."""
         if rank == self.n_rows:
             lazy = LazyMultipliers(self.conversion.from_pinocchio, q, lam_pin)
             return TreeForwardDynamics(acc, lazy, "pinocchio", "solved", iters, rank, -1.0)
-        status = _REDUNDANT_STATUS.get(iters)
+        status = _REDUNDANT_STATUS.get((iters, exact))
         if status is None:
-            status = _REDUNDANT_STATUS[iters] = (
-                f"solved (redundant rows: proximal mu={PIN_PROX_MU:g}, {iters} "
-                "iterations; minimum-norm multipliers)")
+            how = (f"{iters} proximal iterations unverified, exact null-space solve"
+                   if exact else f"proximal mu={PIN_PROX_MU:g} x 1/max M_ii, {iters} "
+                   "iterations")
+            status = _REDUNDANT_STATUS[(iters, exact)] = (
+                f"solved (redundant rows: {how}; minimum-norm multipliers)")
         lazy = LazyMultipliers(self.conversion.minimum_norm, q, v, acc, tau)
         return TreeForwardDynamics(acc, lazy, "pinocchio", status, iters, rank, -1.0)
 
@@ -578,19 +636,19 @@ class ClosedLoopDynamics:
             force, rest = self.effect_terms(q, v)
             tau = None if rest.size else applied + force   # friction at rest: full route
         if method == "pinocchio" and tau is not None:
-            prox = self.pinocchio_verified(q, v, tau)
-            if prox is not None:         # the short path: the result with lazy multipliers
+            how = self.pinocchio_verified(q, v, tau)
+            if how is not None:          # the short path: the result with lazy multipliers
                 self.check_after_call(q, v)  # the closure errors of that call
                 rank = self.closure_rank(q)  # known: the model has a verified call
                 if rank == self.n_rows:      # Pinocchio's multipliers, converted when read
                     lazy = LazyMultipliers(self.conversion.from_pinocchio, q.copy(),
                                            self._v_lambda.copy())
                     return _FORWARD_NEW(TreeForwardDynamics, (
-                        self._v_ddq.copy(), lazy, "pinocchio", "solved", prox.iter, rank,
+                        self._v_ddq.copy(), lazy, "pinocchio", "solved", how.iter, rank,
                         -1.0))
                 return self.pinocchio_result_of(q.copy(), v.copy(), tau.copy(),
                                                 self._v_ddq.copy(), self._v_lambda.copy(),
-                                                prox.iter, rank)
+                                                how.iter, rank, how.exact)
         elif method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
         self.check_state(q, v)
@@ -599,13 +657,15 @@ class ClosedLoopDynamics:
                               ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
 
     def pinocchio_verified(self, q: np.ndarray, v: np.ndarray,
-                           tau: np.ndarray) -> pin.ProximalSettings | None:
+                           tau: np.ndarray) -> PinocchioSolve | None:
         """One ``pin.constraintDynamics`` call with the settings of the last verified call,
         verified on Pinocchio's own ``M``, ``nle``, constraint Jacobian and drift (one
-        compiled kernel). Returns the proximal settings used (the answer is in
-        ``self.data.ddq`` / ``self.data.lambda_c``, the constraint Jacobian at ``q`` in
-        :attr:`last_jacobian`), or None when the model has no verified call yet or this
-        answer fails the verification (no input checks)."""
+        compiled kernel); with redundant rows, an answer that misses the verification is
+        replaced by the exact null-space solve of the same terms (:meth:`_exact_redundant`).
+        Returns how it was solved (the answer is in ``self.data.ddq`` /
+        ``self.data.lambda_c``, the constraint Jacobian at ``q`` in :attr:`last_jacobian`),
+        or None when the model has no verified call yet or this answer fails the
+        verification (no input checks)."""
         prox = self._pin_fast
         if prox is None:
             return None
@@ -616,7 +676,9 @@ class ClosedLoopDynamics:
         eom, con = kkt_residuals(self._v_mass, self._v_nle, tau, jac, self._v_rhs, acc,
                                  self._v_lambda, self._res_out)
         if eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL:
-            return prox
+            return PinocchioSolve(prox.iter, False)
+        if prox is not self._prox_exact and self._exact_redundant(tau):
+            return PinocchioSolve(prox.iter, True)
         return None
 
     def _forward_pinocchio(self, q, v, tau, rank) -> TreeForwardDynamics:
@@ -629,18 +691,18 @@ class ClosedLoopDynamics:
                                        "solved by the KKT route", 0, res.rank,
                                        res.constraint_residual)
         redundant = rank < self.n_rows
-        acc, prox = self.pinocchio_call(q, v, tau, redundant)
+        acc, how = self.pinocchio_call(q, v, tau, redundant)
         if acc is None and not redundant and not self._rank_rechecked:
             # a structural rank found too high at the first call: re-evaluate once
             self._rank_rechecked = True
             new_rank = self.closure_rank(q, force=True)
             if new_rank < rank:
                 rank, redundant = new_rank, True
-                acc, prox = self.pinocchio_call(q, v, tau, True)
+                acc, how = self.pinocchio_call(q, v, tau, True)
         if acc is not None:
             if self.n_rows:
                 self._pin_fast = self._prox_redundant if redundant else self._prox_exact
-            return self._pinocchio_result(q, v, tau, acc, prox.iter, rank)
+            return self._pinocchio_result(q, v, tau, acc, how.iter, rank, how.exact)
         # Pinocchio's factorisation cannot hold this problem (e.g. a zero pivot of M from a
         # massless link): the exact KKT route answers, and the status says so
         mass, bias, jac, gamma = self._terms(q, v)
