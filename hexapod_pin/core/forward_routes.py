@@ -121,22 +121,18 @@ class ForwardDynamicsRoutes:
     def _nullspace_forward(self, mass, bias, jac, gamma, tau):
         """Exact solve for any rank: ``a`` by
         :func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve` (the null space of
-        ``J_c`` from an SVD, scaled by ``diag(M)``) at the numerical rank of ``J_c``
-        (singular values above ``RANK_RTOL`` times the largest); minimum-norm multipliers
-        ``lambda = (J_c^T)^+ (M a + h - tau)``."""
-        nv = self.nv
-        u_mat, sv, vt = np.linalg.svd(jac)
+        ``J_c`` from an SVD, the reduced system Jacobi-scaled) at the numerical rank of ``J_c``
+        (singular values above ``RANK_RTOL`` times the largest), with the minimum-norm
+        multipliers ``lambda = (J_c^T)^+ (M a + h - tau)``."""
+        sv = np.linalg.svd(jac, compute_uv=False)
         tol = max(RANK_RTOL * sv[0], max(jac.shape) * _EPS) if sv.size else 0.0
-        r = int(np.sum(sv > tol))
-        acc, lam = np.empty(nv), np.empty(self.n_rows)
-        code = nullspace_forward_solve(mass, bias, tau, jac, -gamma, r, acc, lam)
+        acc, lam = np.empty(self.nv), np.empty(self.n_rows)
+        code = nullspace_forward_solve(mass, bias, tau, jac, -gamma, int(np.sum(sv > tol)),
+                                       acc, lam)
         if code == NULLSPACE_NOT_POSITIVE:
             raise SolverError("null-space forward dynamics", "singular",
                               "N^T M N is singular: the mass matrix is not positive on the "
                               "motions the closures allow")
-        if self.n_rows and r:
-            force = mass @ acc + bias - tau
-            lam = u_mat[:, :r] @ ((vt[:r] @ force) / sv[:r])
         return acc, lam
 
     def qp(self, mass: np.ndarray, bias: np.ndarray, jac: np.ndarray, gamma: np.ndarray,

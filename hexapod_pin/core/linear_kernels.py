@@ -255,14 +255,13 @@ def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
     """Exact solve of ``M a + h = tau + J^T lam``, ``J a = target`` for a ``J`` (nr, nv) of
     rank ``rank`` (redundant rows allowed), scaled by the problem's own magnitudes.
 
-    Rows of ``J`` normalised (``R``; a row below 1e-10 of the largest kept as it is), their SVD ``R J = U S V^T``: the
-    particular solution ``a_p = V_r S_r^-1 U_r^T R target``, ``N = V[:, rank:]`` an
+    The SVD ``J = U S V^T`` gives the particular solution ``a_p = V_r S_r^-1 U_r^T target``
+    (``r = rank``), ``N = V[:, rank:]`` an
     orthonormal basis of the closures' null space, and the reduced system
     ``(N^T M N) z = N^T (tau - h - M a_p)`` solved by Cholesky after its Jacobi scaling
     (``E = diag(N^T M N)^(1/2)``, an entry below 1e-12 of the largest raised to it: unit
     diagonal whatever the masses), ``a = a_p + N z``. The multipliers solve ``J^T lam =
-    M a + h - tau`` in the least-squares sense on the same SVD (a valid ``lam``, not the
-    minimum-norm one when rows are redundant). Reads only the upper triangle of ``mass``
+    M a + h - tau`` in the least-squares, minimum-norm sense on the same SVD. Reads only the upper triangle of ``mass``
     (Pinocchio's ``data.M``).
 
     Writes ``acc`` (nv,) and ``lam`` (nr,); returns :data:`NULLSPACE_OK`,
@@ -279,24 +278,10 @@ def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
             m_full[j, i] = mass[i, j]
     js = np.zeros((max(nr, 1), nv))
     ts = np.zeros(max(nr, 1))
-    rowscale = np.ones(nr)
-    top = 0.0
     for k in range(nr):
-        norm = 0.0
         for j in range(nv):
-            norm += jac[k, j] * jac[k, j]
-        norm = math.sqrt(norm)
-        if not math.isfinite(norm):
-            return NULLSPACE_NOT_FINITE
-        rowscale[k] = norm
-        top = max(top, norm)
-    for k in range(nr):
-        # a row at round-off level (a weld's rows of a planar motion) is kept as it is:
-        # normalising it would blow its noise up
-        rowscale[k] = 1.0 / rowscale[k] if rowscale[k] > 1e-10 * top else 1.0
-        for j in range(nv):
-            js[k, j] = jac[k, j] * rowscale[k]
-        ts[k] = target[k] * rowscale[k]
+            js[k, j] = jac[k, j]
+        ts[k] = target[k]
     u, sv, vt = np.linalg.svd(js)
     r = min(rank, sv.shape[0]) if nr else 0
     a_p = np.zeros(nv)
@@ -352,7 +337,7 @@ def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
     a = a_p + basis @ z
     for j in range(nv):
         acc[j] = a[j]
-    # J^T lam = f  <=>  (R J)^T (R^-1 lam) = f: least squares on the SVD of R J
+    # J^T lam = f: least squares on the same SVD
     for k in range(nr):
         lam[k] = 0.0
     if r:
@@ -364,8 +349,6 @@ def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
             c /= sv[i]
             for k in range(nr):
                 lam[k] += u[k, i] * c
-        for k in range(nr):
-            lam[k] *= rowscale[k]
     for j in range(nv):
         if not math.isfinite(acc[j]):
             return NULLSPACE_NOT_FINITE
