@@ -118,10 +118,44 @@ def _one_start(model: pin.Model, evaluate: Callable, q: np.ndarray, free: np.nda
     return q, res, max_iter, f"no convergence in {max_iter} iterations"   # not reached
 
 
+def _gauss_newton(model: pin.Model, evaluate: Callable, q: np.ndarray, free: np.ndarray,
+                  tol: float, max_iter: int) -> tuple[np.ndarray, np.ndarray, int, str]:
+    """Gauss-Newton from ``q`` (minimum-norm steps, halved up to 30 times while they do not
+    decrease ``max|r|``); returns ``(q, r, iterations, reason)`` as :func:`_one_start`."""
+    res, jac = evaluate(q)
+    err = float(np.max(np.abs(res), initial=0.0))
+    for it in range(max_iter + 1):
+        if err <= tol:
+            return q, res, it, ""
+        if it == max_iter:
+            break
+        step, *_ = np.linalg.lstsq(jac[:, free], -res, rcond=None)
+        dv = np.zeros(model.nv)
+        dv[free] = step
+        alpha = 1.0
+        for _ in range(30):
+            trial = pin.integrate(model, q, alpha * dv)
+            trial_res, trial_jac = evaluate(trial)
+            trial_err = float(np.max(np.abs(trial_res), initial=0.0))
+            if math.isfinite(trial_err) and trial_err < err:
+                break
+            alpha *= 0.5
+        else:
+            return q, res, it, ("no step decreases the residual (singular or unreachable "
+                                "configuration)")
+        q, res, jac, err = trial, trial_res, trial_jac, trial_err
+    return q, res, max_iter, f"no convergence to {tol:g} in {max_iter} iterations"
+
+
+#: the single-start solvers by name (``method`` of :func:`levenberg_marquardt`)
+_STARTS = {"lm": _one_start, "newton": _gauss_newton}
+ASSEMBLY_METHODS = tuple(_STARTS)
+
+
 def levenberg_marquardt(model: pin.Model,
                         evaluate: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
                         q0: np.ndarray, free: np.ndarray, tol: float, max_iter: int,
-                        restarts: int) -> AssemblySolve:
+                        restarts: int, method: str = "lm") -> AssemblySolve:
     """Solve ``residual(q) = 0`` moving the velocity coordinates ``free`` (see the module
     docstring).
 
@@ -134,6 +168,10 @@ def levenberg_marquardt(model: pin.Model,
         max_iter: iterations per start.
         restarts: further starts at most (each from ``q0`` displaced as documented,
             spreads cycling through :data:`RESTART_SPREADS`).
+        method: "lm" (Levenberg-Marquardt, above) or "newton" (Gauss-Newton with
+            minimum-norm steps halved while they do not decrease ``max|r|``: the local
+            solver of callers that track one assembly mode and globalise themselves,
+            e.g. by continuation or their own starts).
 
     Returns:
         :class:`AssemblySolve`; the caller raises when it did not converge.
@@ -148,7 +186,7 @@ def levenberg_marquardt(model: pin.Model,
             dv[free] = RESTART_SPREADS[(k - 1) % len(RESTART_SPREADS)] * \
                 rng.uniform(-1.0, 1.0, free.size)
             start = pin.integrate(model, q0, dv)
-        q, res, iters, reason = _one_start(model, evaluate, start, free, tol, max_iter)
+        q, res, iters, reason = _STARTS[method](model, evaluate, start, free, tol, max_iter)
         total += iters
         starts += 1
         err = float(np.max(np.abs(res), initial=0.0))

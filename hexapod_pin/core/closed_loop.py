@@ -40,8 +40,8 @@ import pinocchio as pin
 import scipy.linalg
 
 from ..errors import AssemblyError, DescriptionError, InputError
+from .assembly import ASSEMBLY_METHODS, RESTART_SPREADS, levenberg_marquardt
 from .checks import as_array, count, real_number
-from .assembly import RESTART_SPREADS, levenberg_marquardt
 from .closure_motion import complete, project
 from .closure_terms import ClosureFrames, closure_drift, weld_jacobian
 from .constraint_views import ConstraintErrors
@@ -542,7 +542,8 @@ class ClosedLoopModel:
 
     # -- assembly -------------------------------------------------------------------
     def assemble(self, q0: npt.ArrayLike, fixed: npt.ArrayLike | None = None, tol: float = 1e-12,
-                 max_iter: int = 50, restarts: int = ASSEMBLY_RESTARTS) -> AssemblyResult:
+                 max_iter: int = 50, restarts: int = ASSEMBLY_RESTARTS,
+                 method: str = "lm") -> AssemblyResult:
         """Close every loop by Levenberg-Marquardt with restarts, holding some velocity
         coordinates fixed.
 
@@ -567,15 +568,20 @@ class ClosedLoopModel:
             tol: convergence threshold on the max-abs residual (m / rad).
             max_iter: maximum iterations per start.
             restarts: further starts at most after the first (0: the first only).
+            method: "lm" (Levenberg-Marquardt, the default) or "newton" (Gauss-Newton,
+                minimum-norm steps halved while they do not decrease the max-abs residual:
+                the local solver of callers that follow one assembly mode and globalise
+                themselves, by continuation or their own starts; pass ``restarts=0``).
 
         Returns:
             :class:`AssemblyResult` (``iterations``: of every start together).
 
         Raises:
-            InputError: a bad ``q0``, ``tol``, ``max_iter`` or ``restarts``; a ``fixed``
-                that is neither (floats, text, nested or ragged sequences, booleans mixed
-                with integers, a mask of another length, an index out of range or
-                repeated); or a ``q0`` whose closure residual overflows (not finite).
+            InputError: a bad ``q0``, ``tol``, ``max_iter``, ``restarts`` or ``method``; a
+                ``fixed`` that is neither (floats, text, nested or ragged sequences,
+                booleans mixed with integers, a mask of another length, an index out of
+                range or repeated); or a ``q0`` whose closure residual overflows (not
+                finite).
             AssemblyError: no start converged within ``max_iter`` iterations (a singular
                 or unreachable configuration); carries the best iterate of all starts.
         """
@@ -583,6 +589,8 @@ class ClosedLoopModel:
         tol = real_number(tol, "tol", minimum=0.0)
         max_iter = count(max_iter, "max_iter", minimum=0)
         restarts = count(restarts, "restarts", minimum=0)
+        if method not in ASSEMBLY_METHODS:
+            raise InputError("method", method, f"expected one of {ASSEMBLY_METHODS}")
         fixed_idx = self.actuated_v if fixed is None else fixed_coordinates(fixed, self.model.nv)
         free = np.setdiff1d(np.arange(self.model.nv), fixed_idx)
         res = self.residual(q)
@@ -590,7 +598,7 @@ class ClosedLoopModel:
         if not math.isfinite(err):
             raise InputError("q0", q0, "its closure residual is not finite (overflow)")
         solve = levenberg_marquardt(self.model, self.residual_and_jacobian, q, free, tol,
-                                    max_iter, restarts)
+                                    max_iter, restarts, method)
         if solve.converged:
             final = float(np.max(np.abs(self.residual(solve.q)), initial=0.0))
             if final <= tol:

@@ -79,7 +79,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable, Mapping
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -129,13 +129,16 @@ _F64 = np.dtype(np.float64)
 _FORWARD_NEW = tuple.__new__
 #: Pinocchio proximal settings used when the closures are redundant (the acceleration
 #: converges in a few iterations; every answer is verified, the multipliers are polished
-#: to minimum norm when read). ``PIN_PROX_MU`` is relative: the proximal parameter is
-#: ``mu = PIN_PROX_MU / m``, ``m`` the largest diagonal entry of the mass matrix at the
-#: model's first redundant call (the Delassus matrix ``J M^-1 J^T`` scales as ``1/m``, so
-#: the contraction of the proximal iterations, ``mu / (mu + sigma)`` on its non-zero
-#: eigenvalues ``sigma``, does not depend on the units or the size of the masses). Two
-#: iterations meet RESIDUAL_RTOL on every redundant robot of the benchmarks and tests;
-#: a miss is answered by the exact null-space solve on Pinocchio's own terms
+#: to minimum norm when read). The proximal parameter is ``mu = PIN_PROX_MU / max(1, m)``,
+#: ``m`` the largest diagonal entry of the mass matrix at the neutral configuration (kg,
+#: kg m^2 as the units come): the iterations contract the error by ``mu / (mu + sigma)``
+#: on the non-zero eigenvalues ``sigma`` of the Delassus matrix ``J M^-1 J^T``, the
+#: smallest of which scales as ``1/m``, so heavy robots (the 5bar_linkage of
+#: example-parallel-robots, ``m`` ~ 5e5: 500 iterations at an absolute 1e-8) converge in
+#: as few iterations as light ones; ``mu`` is never raised above 1e-8 (a larger one costs
+#: accuracy on robots with light links). Two iterations meet RESIDUAL_RTOL on every
+#: redundant robot of the benchmarks and tests; a miss is answered by the exact
+#: null-space solve on Pinocchio's own terms
 #: (:func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve`), never by more
 #: iterations: at most PIN_PROX_ITERS proximal iterations per call.
 PIN_PROX_MU = 1e-8
@@ -391,10 +394,12 @@ class ClosedLoopDynamics:
     def _init_pinocchio(self) -> None:
         pin.initConstraintDynamics(self.model, self.data, self.pin_models, self.pin_datas)
         self._prox_exact = pin.ProximalSettings(1e-13, 0.0, 1)
-        #: the redundant rows' settings; mu scaled at the first redundant call
-        #: (:meth:`_scale_redundant_mu`)
-        self._prox_redundant = pin.ProximalSettings(1e-13, PIN_PROX_MU, PIN_PROX_ITERS)
-        self._mu_scaled = False
+        #: the redundant rows' settings: mu = PIN_PROX_MU / max(1, m), m the largest diagonal
+        #: entry of M at the neutral configuration (structural, the same on every thread)
+        scale = float(np.max(np.diagonal(pin.crba(self.model, self.data,
+                                                  pin.neutral(self.model))), initial=0.0))
+        mu = PIN_PROX_MU / max(scale, 1.0) if math.isfinite(scale) else PIN_PROX_MU
+        self._prox_redundant = pin.ProximalSettings(1e-13, mu, PIN_PROX_ITERS)
         self._exact_acc = np.empty(self.nv)
         self._exact_lam = np.empty(self.n_closure_rows)
         #: one cheap proximal pass: only the constraint terms of the call are used
@@ -499,8 +504,6 @@ class ClosedLoopDynamics:
             self._init_pinocchio()
         if self._pin_singular or self.coupling_rows is not None:
             return None, PinocchioSolve(0, False)
-        if redundant and not self._mu_scaled:
-            self._scale_redundant_mu(q)
         prox = self._prox_redundant if redundant else self._prox_exact
         acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
                                      self.pin_datas, prox)
@@ -520,14 +523,6 @@ class ClosedLoopDynamics:
             return acc, PinocchioSolve(prox.iter, True)
         return None, PinocchioSolve(prox.iter, False)
 
-    def _scale_redundant_mu(self, q: np.ndarray) -> None:
-        """Set the redundant rows' proximal ``mu`` to ``PIN_PROX_MU / m`` (``m`` the largest
-        diagonal entry of ``M(q)``, kg or kg m^2; see :data:`PIN_PROX_MU`), once."""
-        scale = float(np.max(np.diagonal(pin.crba(self.model, self.data, q))))
-        if math.isfinite(scale) and scale > 0.0:
-            self._prox_redundant = pin.ProximalSettings(1e-13, PIN_PROX_MU / scale,
-                                                        PIN_PROX_ITERS)
-        self._mu_scaled = True
 
     def _exact_redundant(self, tau: np.ndarray) -> bool:
         """The exact null-space solve of the last ``constraintDynamics`` call's system
