@@ -109,10 +109,12 @@ from .dynamics_common import (  # re-exported: other modules and users import th
     TreeForwardDynamics,
     TreeInverseDynamics,
     independent_rows,
+    independent_rows_of_rank,
 )
 from .forward_routes import ForwardDynamicsRoutes
 from .inverse_routes import INVERSE_METHODS, InverseDynamicsRoutes
-from .linear_kernels import NULLSPACE_OK, kkt_residuals, nullspace_forward_solve
+from .linear_kernels import (NULLSPACE_OK, kkt_residuals, nullspace_forward_solve,
+                             reduced_kkt_solve)
 
 __all__ = [
     "CLOSURE_QTOL", "CLOSURE_VTOL", "FORWARD_METHODS", "INVERSE_METHODS", "PIN_PROX_ITERS",
@@ -137,9 +139,9 @@ _FORWARD_NEW = tuple.__new__
 #: example-parallel-robots, ``m`` ~ 5e5: 500 iterations at an absolute 1e-8) converge in
 #: as few iterations as light ones; ``mu`` is never raised above 1e-8 (a larger one costs
 #: accuracy on robots with light links). Two iterations meet RESIDUAL_RTOL on every
-#: redundant robot of the benchmarks and tests; a miss is answered by the exact
-#: null-space solve on Pinocchio's own terms
-#: (:func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve`), never by more
+#: redundant robot of the benchmarks and tests; a miss is answered by an exact solve on
+#: Pinocchio's own terms (:meth:`ClosedLoopDynamics._exact_redundant`: the scaled KKT
+#: system on the independent rows, else the null-space solve), never by more
 #: iterations: at most PIN_PROX_ITERS proximal iterations per call.
 PIN_PROX_MU = 1e-8
 PIN_PROX_ITERS = 2
@@ -150,7 +152,7 @@ class PinocchioSolve(NamedTuple):
 
     Attributes:
         iter: Pinocchio's proximal iterations of the call (1 for its direct solve).
-        exact: whether the exact null-space solve on Pinocchio's own terms answered
+        exact: whether an exact solve on Pinocchio's own terms answered
             (redundant rows whose proximal iterations missed the verification).
     """
 
@@ -158,8 +160,8 @@ class PinocchioSolve(NamedTuple):
     exact: bool
 
 
-#: status strings of the redundant-row Pinocchio route by (iterations, exact)
-_REDUNDANT_STATUS: dict[tuple[int, bool], str] = {}
+#: status strings of the redundant-row Pinocchio route by (mu, iterations, exact)
+_REDUNDANT_STATUS: dict[tuple[float, int, bool], str] = {}
 
 
 # --------------------------------------------------------------------------------------
@@ -237,6 +239,14 @@ class ClosedLoopDynamics:
         if self._rank is None or force:
             self._rank = self.clm.rank(q).rank if self.n_rows else 0
         return self._rank
+
+    @property
+    def redundant_mu(self) -> float:
+        """The proximal ``mu`` of the "pinocchio" route on redundant rows (see
+        :data:`PIN_PROX_MU`)."""
+        if not self._pin_ready:
+            self._init_pinocchio()
+        return float(self._prox_redundant.mu)
 
     @property
     def redundant(self) -> bool | None:
@@ -402,6 +412,7 @@ class ClosedLoopDynamics:
         self._prox_redundant = pin.ProximalSettings(1e-13, mu, PIN_PROX_ITERS)
         self._exact_acc = np.empty(self.nv)
         self._exact_lam = np.empty(self.n_closure_rows)
+        self._exact_rows: np.ndarray | None = None
         #: one cheap proximal pass: only the constraint terms of the call are used
         self._prox_probe = pin.ProximalSettings(1e-13, PIN_PROX_MU, 1)
         self._cd_list = list(self.pin_datas)
@@ -496,7 +507,7 @@ class ClosedLoopDynamics:
         misses one of the equations by more than :data:`RESIDUAL_RTOL` (relative; checked
         with Pinocchio's own ``M``, ``nle``, constraint Jacobian and drift). With
         ``redundant`` the proximal solve (``mu > 0``, :data:`PIN_PROX_ITERS` iterations)
-        that misses the verification is replaced by the exact null-space solve on the
+        that misses the verification is replaced by an exact solve of the
         call's own terms (:meth:`_exact_redundant`, written into Pinocchio's ``ddq`` and
         ``lambda_c``; ``how.exact`` says so).
         """
@@ -525,26 +536,41 @@ class ClosedLoopDynamics:
 
 
     def _exact_redundant(self, tau: np.ndarray) -> bool:
-        """The exact null-space solve of the last ``constraintDynamics`` call's system
-        (Pinocchio's ``M``, ``nle``, constraint Jacobian :attr:`last_jacobian` and target
-        ``primal_rhs``; :func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve`
-        at the structural rank), verified like the call itself; when verified, the answer
-        is written into Pinocchio's ``ddq`` and ``lambda_c`` and True returned."""
+        """The exact solve of the last ``constraintDynamics`` call's system (Pinocchio's
+        ``M``, ``nle``, constraint Jacobian :attr:`last_jacobian` and target
+        ``primal_rhs``): the scaled KKT system on the structural independent rows
+        (:func:`~hexapod_pin.core.linear_kernels.reduced_kkt_solve`), else, when that
+        misses the verification (the kept rows no longer independent at this state, or
+        the others not dependent on them), the null-space solve at the structural rank
+        (:func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve`); each verified
+        on every row like the call itself. When one is verified, its answer is written
+        into Pinocchio's ``ddq`` and ``lambda_c`` and True returned."""
         jac = self.last_jacobian
         if jac is None or self._rank is None:
             return False
         acc, lam = self._exact_acc, self._exact_lam
-        code = nullspace_forward_solve(self._v_mass, self._v_nle, tau, jac, self._v_rhs,
-                                       self._rank, acc, lam)
-        if code != NULLSPACE_OK:
-            return False
-        eom, con = kkt_residuals(self._v_mass, self._v_nle, tau, jac, self._v_rhs, acc, lam,
-                                 self._res_out)
-        if not (eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL):
-            return False
-        self._v_ddq[:] = acc
-        self._v_lambda[:] = lam
-        return True
+        mass, nle, target = self._v_mass, self._v_nle, self._v_rhs
+        if self._exact_rows is None:
+            self._exact_rows = independent_rows_of_rank(jac, self._rank).astype(np.int64)
+        for solve in (self._reduced_kkt, self._nullspace):
+            if solve(mass, nle, tau, jac, target, acc, lam) != NULLSPACE_OK:
+                continue
+            eom, con = kkt_residuals(mass, nle, tau, jac, target, acc, lam, self._res_out)
+            if eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL:
+                self._v_ddq[:] = acc
+                self._v_lambda[:] = lam
+                return True
+        return False
+
+    def _reduced_kkt(self, mass, nle, tau, jac, target, acc, lam) -> int:
+        """:func:`~hexapod_pin.core.linear_kernels.reduced_kkt_solve` on the structural
+        independent rows (a pivoted QR of the first exact solve's Jacobian)."""
+        return reduced_kkt_solve(mass, nle, tau, jac, target, self._exact_rows, acc, lam)
+
+    def _nullspace(self, mass, nle, tau, jac, target, acc, lam) -> int:
+        """:func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve` at the
+        structural rank (any rows)."""
+        return nullspace_forward_solve(mass, nle, tau, jac, target, int(self._rank), acc, lam)
 
     def _pin_verified(self, acc, tau) -> bool:
         """Whether Pinocchio's answer ``acc`` meets both equations (see
@@ -575,16 +601,16 @@ class ClosedLoopDynamics:
         The multipliers are computed on access: ``lam_pin`` converted to our rows, or,
         with redundant rows, the minimum-norm ones (the proximal multipliers are
         minimum-norm only up to the conditioning of the regularised system). ``exact``:
-        the exact null-space solve answered after ``iters`` proximal iterations."""
+        an exact solve answered after ``iters`` proximal iterations."""
         if rank == self.n_rows:
             lazy = LazyMultipliers(self.conversion.from_pinocchio, q, lam_pin)
             return TreeForwardDynamics(acc, lazy, "pinocchio", "solved", iters, rank, -1.0)
-        status = _REDUNDANT_STATUS.get((iters, exact))
+        mu = float(self._prox_redundant.mu)
+        status = _REDUNDANT_STATUS.get((mu, iters, exact))
         if status is None:
-            how = (f"{iters} proximal iterations unverified, exact null-space solve"
-                   if exact else f"proximal mu={PIN_PROX_MU:g} x 1/max M_ii, {iters} "
-                   "iterations")
-            status = _REDUNDANT_STATUS[(iters, exact)] = (
+            how = (f"{iters} proximal iterations unverified, exact KKT solve"
+                   if exact else f"proximal mu={mu:.3g}, {iters} iterations")
+            status = _REDUNDANT_STATUS[(mu, iters, exact)] = (
                 f"solved (redundant rows: {how}; minimum-norm multipliers)")
         lazy = LazyMultipliers(self.conversion.minimum_norm, q, v, acc, tau)
         return TreeForwardDynamics(acc, lazy, "pinocchio", status, iters, rank, -1.0)
@@ -656,7 +682,7 @@ class ClosedLoopDynamics:
         """One ``pin.constraintDynamics`` call with the settings of the last verified call,
         verified on Pinocchio's own ``M``, ``nle``, constraint Jacobian and drift (one
         compiled kernel); with redundant rows, an answer that misses the verification is
-        replaced by the exact null-space solve of the same terms (:meth:`_exact_redundant`).
+        replaced by an exact solve of the same terms (:meth:`_exact_redundant`).
         Returns how it was solved (the answer is in ``self.data.ddq`` /
         ``self.data.lambda_c``, the constraint Jacobian at ``q`` in :attr:`last_jacobian`),
         or None when the model has no verified call yet or this answer fails the

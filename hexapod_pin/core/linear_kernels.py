@@ -353,3 +353,93 @@ def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
         if not math.isfinite(acc[j]):
             return NULLSPACE_NOT_FINITE
     return NULLSPACE_OK
+
+
+@jit
+def reduced_kkt_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: np.ndarray,
+                      target: np.ndarray, rows: np.ndarray, acc: np.ndarray,
+                      lam: np.ndarray) -> int:
+    """Exact solve of ``M a + h = tau + J^T lam``, ``J a = target`` on the independent rows
+    ``rows`` of ``J`` (int array, sorted; the other multipliers are set to zero): the KKT
+    system ``[M J_r^T; J_r 0] (a, -lam_r) = (tau - h, target_r)`` in scaled form
+    (coordinates by ``diag(M)^(1/2)``, an entry below 1e-12 of the largest raised to it;
+    rows of ``J_r`` normalised), by Gaussian elimination with partial pivoting. Reads only
+    the upper triangle of ``mass``.
+
+    Writes ``acc`` (nv,) and ``lam`` (nr,); returns :data:`NULLSPACE_OK`,
+    :data:`NULLSPACE_NOT_POSITIVE` (a zero pivot: the system is singular on these rows) or
+    :data:`NULLSPACE_NOT_FINITE`. Does not verify: the dropped rows hold only when they
+    depend on the kept ones at this state, so the callers check every row
+    (:func:`kkt_residuals`) and fall back to :func:`nullspace_forward_solve`.
+    """
+    nv = acc.shape[0]
+    r = rows.shape[0]
+    n = nv + r
+    big = 0.0
+    for i in range(nv):
+        if not math.isfinite(mass[i, i]):
+            return NULLSPACE_NOT_FINITE
+        big = max(big, mass[i, i])
+    floor = 1e-12 * big if big > 0.0 else 1.0
+    dinv = np.empty(nv)
+    for i in range(nv):
+        dinv[i] = 1.0 / math.sqrt(max(mass[i, i], floor))
+    kkt = np.zeros((n, n))
+    rhs = np.empty(n)
+    for i in range(nv):
+        for j in range(i, nv):
+            kkt[i, j] = mass[i, j] * dinv[i] * dinv[j]
+            kkt[j, i] = kkt[i, j]
+        rhs[i] = (tau[i] - bias[i]) * dinv[i]
+    rscale = np.empty(r)
+    for k in range(r):
+        row = rows[k]
+        norm = 0.0
+        for j in range(nv):
+            x = jac[row, j] * dinv[j]
+            norm += x * x
+        norm = math.sqrt(norm)
+        if not (norm > 0.0 and math.isfinite(norm)):
+            return NULLSPACE_NOT_FINITE if not math.isfinite(norm) else NULLSPACE_NOT_POSITIVE
+        rscale[k] = 1.0 / norm
+        for j in range(nv):
+            x = jac[row, j] * dinv[j] * rscale[k]
+            kkt[nv + k, j] = x
+            kkt[j, nv + k] = x
+        rhs[nv + k] = target[row] * rscale[k]
+    # Gaussian elimination with partial pivoting
+    top = 0.0
+    for i in range(n):
+        for j in range(n):
+            top = max(top, abs(kkt[i, j]))
+    for c in range(n):
+        p = c
+        for i in range(c + 1, n):
+            if abs(kkt[i, c]) > abs(kkt[p, c]):
+                p = i
+        if not abs(kkt[p, c]) > 1e-14 * top:
+            return NULLSPACE_NOT_POSITIVE
+        if p != c:
+            for j in range(n):
+                kkt[c, j], kkt[p, j] = kkt[p, j], kkt[c, j]
+            rhs[c], rhs[p] = rhs[p], rhs[c]
+        for i in range(c + 1, n):
+            f = kkt[i, c] / kkt[c, c]
+            if f != 0.0:
+                for j in range(c, n):
+                    kkt[i, j] -= f * kkt[c, j]
+                rhs[i] -= f * rhs[c]
+    for i in range(n - 1, -1, -1):
+        x = rhs[i]
+        for j in range(i + 1, n):
+            x -= kkt[i, j] * rhs[j]
+        rhs[i] = x / kkt[i, i]
+    for j in range(nv):
+        acc[j] = rhs[j] * dinv[j]
+        if not math.isfinite(acc[j]):
+            return NULLSPACE_NOT_FINITE
+    for k in range(lam.shape[0]):
+        lam[k] = 0.0
+    for k in range(r):
+        lam[rows[k]] = -rhs[nv + k] * rscale[k]
+    return NULLSPACE_OK

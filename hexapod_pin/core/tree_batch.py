@@ -151,7 +151,7 @@ def forward_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarr
     # in `full`); the per-state results are built from the stored rows on access
     lam = np.empty((n, clm.n_rows))
     iters = np.zeros(n, dtype=int)
-    exact = np.zeros(n, dtype=bool)     # the exact null-space solve answered (redundant rows)
+    exact = np.zeros(n, dtype=bool)     # an exact solve answered (redundant rows)
     full: dict[int, TreeForwardDynamics] = {}
     verified = dyn.pinocchio_verified if method == "pinocchio" else None
     if verified is not None:

@@ -11,7 +11,7 @@
   masses of the 5bar_linkage (the exact null-space fallback forced by the old proximal
   settings), the delta of tests/data/parallel/delta assembled from far starts, an
   unreachable five-bar;
-* the null-space kernel against a KKT solve on random systems.
+* the exact kernels (null-space, reduced KKT) against a KKT solve on random systems.
 
 Reference, written here: the null-space solution of the constrained dynamics from
 Pinocchio's crba / nle and the model's own J_c and gamma, an SVD basis of ker J_c and the
@@ -32,7 +32,11 @@ from hexapod_pin.core.dynamics import (
     forward_dynamics_tree,
 )
 from hexapod_pin.core.dynamics_common import QP_MAX_ITER
-from hexapod_pin.core.linear_kernels import NULLSPACE_OK, nullspace_forward_solve
+from hexapod_pin.core.linear_kernels import (
+    NULLSPACE_OK,
+    nullspace_forward_solve,
+    reduced_kkt_solve,
+)
 from hexapod_pin.errors import AssemblyError, InputError
 from hexapod_pin.loaders.parallel_robots import load_parallel_robot
 
@@ -120,7 +124,7 @@ def test_every_route_answers_under_large_loads_in_bounded_iterations(five_bar):
 
 def test_exact_null_space_solve_answers_when_the_proximal_iterations_miss():
     """The settings of the old route (mu = 1e-8 absolute) with one iteration miss the
-    verification on the heavy five-bar (closure residual ~1e-4): the exact null-space solve
+    verification on the heavy five-bar (closure residual ~1e-4): the exact KKT solve
     on Pinocchio's terms answers, says so, and agrees with the reference."""
     clm, sample = heavy_five_bar()             # a fresh model: its own workspace
     dyn = dynamics_of(clm)
@@ -130,7 +134,7 @@ def test_exact_null_space_solve_answers_when_the_proximal_iterations_miss():
     dyn._pin_fast = dyn._prox_redundant
     for q, v, tau in states:
         res = forward_dynamics_tree(clm, q, v, tau[clm.actuated_v])
-        assert "exact null-space solve" in res.status and res.iterations == 1, res.status
+        assert "exact KKT solve" in res.status and res.iterations == 1, res.status
         a_ref, lam_ref = reference_forward(clm, q, v, tau)
         assert relative_error(res.a, a_ref) <= RTOL
         assert relative_error(res.multipliers, lam_ref) <= RTOL
@@ -203,18 +207,29 @@ def test_upstream_assembly_from_starts_near_neutral(upstream):
             np.testing.assert_array_equal(res.q[clm.actuated_v], start[clm.actuated_v])
 
 
-def test_nullspace_kernel_against_numpy_on_random_systems():
+@pytest.mark.parametrize("kernel", ["nullspace", "reduced_kkt"])
+def test_exact_kernels_against_numpy_on_random_systems(kernel):
+    """Both exact kernels of the redundant-row fallback against a KKT solve on an
+    orthonormal basis of the row space, on random systems whose first ``rank`` rows are
+    independent and the others combinations of them (mass-matrix diagonal over 12
+    decades)."""
     rng = np.random.default_rng(4)
     for nv, nr, rank in ((6, 6, 3), (14, 18, 9), (9, 6, 6), (4, 0, 0)):
         root = rng.normal(size=(nv, nv))
         mass = root @ root.T + np.diag(10.0 ** rng.uniform(-6, 6, nv))
-        jac = rng.normal(size=(nr, rank)) @ rng.normal(size=(rank, nv)) if nr else \
+        base = rng.normal(size=(rank, nv))
+        jac = np.vstack([base, rng.normal(size=(nr - rank, rank)) @ base]) if nr else \
             np.zeros((0, nv))
         target = jac @ rng.normal(size=nv)
         bias, tau = rng.normal(size=nv), rng.normal(size=nv)
         acc, lam = np.empty(nv), np.empty(nr)
-        assert nullspace_forward_solve(np.triu(mass), bias, tau, jac, target, rank, acc,
-                                       lam) == NULLSPACE_OK
+        if kernel == "nullspace":
+            code = nullspace_forward_solve(np.triu(mass), bias, tau, jac, target, rank, acc,
+                                           lam)
+        else:
+            code = reduced_kkt_solve(np.triu(mass), bias, tau, jac, target,
+                                     np.arange(rank, dtype=np.int64), acc, lam)
+        assert code == NULLSPACE_OK
         # reference: the KKT system on an orthonormal basis B of the row space of J
         # (J a = target  <=>  B a = B J^+ target for a consistent target)
         if nr:
@@ -222,11 +237,16 @@ def test_nullspace_kernel_against_numpy_on_random_systems():
             kkt = np.block([[mass, rows.T], [rows, np.zeros((rank, rank))]])
             rhs = np.concatenate([tau - bias, rows @ np.linalg.pinv(jac, rcond=1e-12) @ target])
             a_ref = np.linalg.solve(kkt, rhs)[:nv]
-            lam_ref = np.linalg.pinv(jac.T, rcond=1e-12) @ (mass @ a_ref + bias - tau)
-            assert relative_error(lam, lam_ref) <= 1e-6
         else:
             a_ref = np.linalg.solve(mass, tau - bias)
         assert relative_error(acc, a_ref) <= 1e-8
+        # the multipliers give the generalised force of the reference
+        force = mass @ a_ref + bias - tau
+        if nr:
+            assert relative_error(jac.T @ lam, force) <= 1e-8
+        if kernel == "nullspace" and nr:           # minimum norm
+            lam_ref = np.linalg.pinv(jac.T, rcond=1e-12) @ force
+            assert relative_error(lam, lam_ref) <= 1e-6
 
 
 # ------------------------------------------------------------------------------ assembly
