@@ -570,7 +570,8 @@ class ClosedLoopDynamics:
     def _nullspace(self, mass, nle, tau, jac, target, acc, lam) -> int:
         """:func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve` at the
         structural rank (any rows)."""
-        return nullspace_forward_solve(mass, nle, tau, jac, target, int(self._rank), acc, lam)
+        rank = self.n_rows if self._rank is None else self._rank
+        return nullspace_forward_solve(mass, nle, tau, jac, target, rank, acc, lam)
 
     def _pin_verified(self, acc, tau) -> bool:
         """Whether Pinocchio's answer ``acc`` meets both equations (see
@@ -884,13 +885,16 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
         tau_ext: generalised external force on the tree (nv,) (N, N m); default zero.
         method: "pinocchio" (``pin.constraintDynamics``, checked on Pinocchio's own
             ``M``, ``nle``, constraint Jacobian and drift; when the closures are
-            redundant: proximal, mu = 1e-8, 2 iterations, continued up to 500 when not
-            converged, and the multipliers polished to minimum norm by least squares;
-            when Pinocchio's answer is refused, the "kkt" route answers and the status
-            says so), "qp" (Gauss principle ``min 1/2 (a - a_free)^T M (a - a_free)``
-            s.t. ``J_c a = -gamma`` as a ProxSuite dense QP: augmented Hessian
-            ``M + rho J_c^T J_c``, independent rows only, rows normalised, objective
-            scaled, warm-started from the "kkt" solution; success judged from the
+            redundant: proximal, mu = 1e-8 / max(1, max M_ii), at most
+            :data:`PIN_PROX_ITERS` = 2 iterations, then, when those miss the
+            verification, an exact solve of the same terms (the status says so), and
+            the multipliers polished to minimum norm by least squares; when Pinocchio's
+            answer is refused, the "kkt" route answers and the status says so), "qp"
+            (Gauss principle ``min 1/2 (a - a_free)^T M (a - a_free)`` s.t. ``J_c a =
+            -gamma`` as a ProxSuite dense QP in coordinates scaled by ``diag(M)^(1/2)``:
+            augmented Hessian with a unit diagonal, independent rows only, rows
+            normalised, warm-started from the "kkt" solution and its multipliers,
+            re-solved from its own iterate before it raises; success judged from the
             verified residuals, the status reported as ProxSuite gives it), or "kkt"
             (numpy solve of the KKT system; the exact null-space solve with
             minimum-norm multipliers when the rows are redundant or the system

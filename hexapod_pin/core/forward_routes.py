@@ -9,8 +9,9 @@ Given the terms at one state (``M``, ``h``, ``J_c``, ``gamma``, ``tau``; convent
 * "kkt": one numpy solve of the KKT system when the rows are independent, else (or when
   that solve misses the verification) the exact null-space solve with minimum-norm
   multipliers;
-* "qp": the Gauss principle as a scaled ProxSuite QP on the independent rows, with the
-  augmented Hessian ``M + rho J_c^T J_c``, warm-started from the "kkt" answer.
+* "qp": the Gauss principle as a ProxSuite QP on the independent rows, in coordinates
+  scaled by ``diag(M)^(1/2)`` with the augmented Hessian ``D^-1 M D^-1 + J_s^T J_s`` (unit
+  diagonal), warm-started from the "kkt" answer and its multipliers.
 
 Both verify their answer (:func:`~hexapod_pin.core.dynamics_common.verify_forward`)
 before returning it. The "pinocchio" route and the workspace live in
