@@ -10,9 +10,10 @@ tried costs no new factorisation) and applies it on the configuration manifold,
 ``q+ = pin.integrate(model, q, dv)``. A step is accepted when it decreases
 ``1/2 |r|^2``; the damping follows Nielsen's rule (``mu *= max(1/3, 1 - (2 rho - 1)^3)``
 on acceptance, ``rho`` the ratio of the actual to the predicted decrease; multiplied by
-``nu``, then ``nu`` doubled, on rejection), starting at ``1e-10 max diag(J^T J)`` (Gauss-Newton until a step fails). As
-``mu -> 0`` near a solution the step is the minimum-norm Gauss-Newton step (quadratic
-convergence; redundant rows are harmless). Convergence: ``max|r| <= tol`` (m / rad).
+``nu``, then ``nu`` doubled, on rejection), starting at ``1e-10 max diag(J^T J)``
+(Gauss-Newton steps until one fails). As ``mu -> 0`` near a solution the step is the
+minimum-norm Gauss-Newton step (quadratic convergence; redundant rows are harmless).
+Convergence: ``max|r| <= tol`` (m / rad).
 
 Restarts (:data:`RESTART_SPREADS`): when a start stalls (the damping grows past
 ``1e12`` times its scale, or an accepted step decreases ``1/2 |r|^2`` by less than
@@ -21,9 +22,14 @@ configuration) or runs out of iterations, the next start is ``q0`` with its
 free coordinates displaced by ``spread_k * u_k``, ``u_k`` uniform in ``[-1, 1]`` from
 ``numpy.random.default_rng(k)`` (deterministic: the same ``q0`` always gives the same
 answer). The fixed coordinates keep their values in ``q0``. Every start has
-``max_iter`` iterations. The answer is returned only when its residual, recomputed at
-the returned ``q``, is within ``tol``; otherwise :class:`~hexapod_pin.errors.AssemblyError`
-carries the best iterate of all starts.
+``max_iter`` iterations. :meth:`~hexapod_pin.core.closed_loop.ClosedLoopModel.assemble`
+returns the answer only when its residual, recomputed at the returned ``q``, is within
+``tol``; otherwise its :class:`~hexapod_pin.errors.AssemblyError` carries the best iterate
+of all starts.
+
+``method="newton"`` is the plain Gauss-Newton solve (minimum-norm steps halved while they
+do not decrease ``max|r|``), for callers that follow one assembly mode and globalise by
+themselves (continuation, their own starts).
 """
 
 from __future__ import annotations

@@ -534,7 +534,6 @@ class ClosedLoopDynamics:
             return acc, PinocchioSolve(prox.iter, True)
         return None, PinocchioSolve(prox.iter, False)
 
-
     def _exact_redundant(self, tau: np.ndarray) -> bool:
         """The exact solve of the last ``constraintDynamics`` call's system (Pinocchio's
         ``M``, ``nle``, constraint Jacobian :attr:`last_jacobian` and target

@@ -141,14 +141,15 @@ class ForwardDynamicsRoutes:
         """Gauss principle as a ProxSuite QP, reformulated so that it is well posed on every
         class: in the scaled coordinates ``s = D a / c`` (``D = diag(M)^(1/2)``, a
         diagonal entry below ``_MASS_FLOOR`` (1e-6) of the largest raised to it; ``c`` the
-        magnitude of the direct answer), ``min 1/2 s^T H s + g^T s  s.t.  R J_c D^-1 s = -R gamma / c`` with
-        the augmented Hessian ``H = D^-1 M D^-1 + (R J_c D^-1)^T (R J_c D^-1)`` (unit
-        diagonal whatever the masses; same minimiser on the feasible set; positive
-        definite when ``M`` is only positive on ``ker J_c``: massless links), rows
-        normalised by ``R``, independent rows only; warm-started from the verified direct
-        (KKT) solution and its multipliers. An answer that misses the verification is
-        solved again from ProxSuite's own iterate (the proximal iterations continued,
-        :data:`QP_RETRIES` times) before the route raises."""
+        magnitude of the direct answer), ``min 1/2 s^T H s + g^T s`` s.t.
+        ``R J_c D^-1 s = -R gamma / c`` with the augmented Hessian
+        ``H = D^-1 M D^-1 + (R J_c D^-1)^T (R J_c D^-1)`` (unit diagonal whatever the
+        masses; same minimiser on the feasible set; positive definite when ``M`` is only
+        positive on ``ker J_c``: massless links), rows normalised by ``R``, independent
+        rows only; warm-started from the verified direct (KKT) solution and its
+        multipliers. An answer that misses the verification is solved again from
+        ProxSuite's own iterate (the proximal iterations continued, :data:`QP_RETRIES`
+        times) before the route raises."""
         direct = self.kkt(mass, bias, jac, gamma, tau, rank)
         rank = direct.rank
         nr = self.n_rows

@@ -256,12 +256,12 @@ def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
     rank ``rank`` (redundant rows allowed), scaled by the problem's own magnitudes.
 
     The SVD ``J = U S V^T`` gives the particular solution ``a_p = V_r S_r^-1 U_r^T target``
-    (``r = rank``), ``N = V[:, rank:]`` an
-    orthonormal basis of the closures' null space, and the reduced system
-    ``(N^T M N) z = N^T (tau - h - M a_p)`` solved by Cholesky after its Jacobi scaling
-    (``E = diag(N^T M N)^(1/2)``, an entry below 1e-12 of the largest raised to it: unit
-    diagonal whatever the masses), ``a = a_p + N z``. The multipliers solve ``J^T lam =
-    M a + h - tau`` in the least-squares, minimum-norm sense on the same SVD. Reads only the upper triangle of ``mass``
+    (``r = rank``), ``N = V[:, rank:]`` an orthonormal basis of the closures' null space,
+    and the reduced system ``(N^T M N) z = N^T (tau - h - M a_p)`` solved by Cholesky
+    after its Jacobi scaling (``E = diag(N^T M N)^(1/2)``, an entry below 1e-12 of the
+    largest raised to it: unit diagonal whatever the masses), ``a = a_p + N z``. The
+    multipliers solve ``J^T lam = M a + h - tau`` in the least-squares, minimum-norm sense
+    on the same SVD. Reads only the upper triangle of ``mass``
     (Pinocchio's ``data.M``).
 
     Writes ``acc`` (nv,) and ``lam`` (nr,); returns :data:`NULLSPACE_OK`,
