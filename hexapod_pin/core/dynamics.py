@@ -531,7 +531,7 @@ class ClosedLoopDynamics:
             return None, PinocchioSolve(prox.iter, False)
         if redundant and self._exact_redundant(tau):
             self._pin_fast = prox
-            return acc, PinocchioSolve(prox.iter, True)
+            return self._v_ddq, PinocchioSolve(prox.iter, True)   # the exact answer
         return None, PinocchioSolve(prox.iter, False)
 
     def _exact_redundant(self, tau: np.ndarray) -> bool:

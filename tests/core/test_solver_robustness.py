@@ -37,6 +37,7 @@ from hexapod_pin.core.linear_kernels import (
     nullspace_forward_solve,
     reduced_kkt_solve,
 )
+from hexapod_pin.core.tree_batch import forward_dynamics_tree_batch
 from hexapod_pin.errors import AssemblyError, InputError
 from hexapod_pin.loaders.parallel_robots import load_parallel_robot
 
@@ -137,6 +138,25 @@ def test_exact_null_space_solve_answers_when_the_proximal_iterations_miss():
         assert "exact KKT solve" in res.status and res.iterations == 1, res.status
         a_ref, lam_ref = reference_forward(clm, q, v, tau)
         assert relative_error(res.a, a_ref) <= RTOL
+        assert relative_error(res.multipliers, lam_ref) <= RTOL
+
+
+def test_batch_route_reports_the_exact_solve():
+    """The batch driver takes the same fallback: every state's result says "exact KKT
+    solve" and its acceleration is the exact one (before the fix, the full route returned
+    the unverified proximal answer while saying "exact")."""
+    clm, sample = heavy_five_bar()
+    dyn = dynamics_of(clm)
+    states = loaded_states(clm, sample, 1e6, seed=5)
+    forward_dynamics_tree(clm, *states[0][:2], states[0][2][clm.actuated_v])   # set-up
+    dyn._prox_redundant = pin.ProximalSettings(1e-13, 1e-8, 1)
+    dyn._pin_fast = dyn._prox_redundant
+    q, v, tau = (np.array([s[k] for s in states]) for k in range(3))
+    batch = forward_dynamics_tree_batch(clm, q, v, tau[:, clm.actuated_v])
+    for i, res in enumerate(batch.results):
+        assert "exact KKT solve" in res.status, res.status
+        a_ref, lam_ref = reference_forward(clm, q[i], v[i], tau[i])
+        assert relative_error(batch.a[i], a_ref) <= RTOL
         assert relative_error(res.multipliers, lam_ref) <= RTOL
 
 
