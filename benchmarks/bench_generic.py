@@ -7,7 +7,8 @@ closure-consistent states:
 
 * forward dynamics, routes "pinocchio", "kkt", "qp": us per call; the raw
   ``pin.constraintDynamics`` with the same constraint models and the settings of our
-  "pinocchio" route (mu = 0, one iteration; for redundant rows mu = 1e-8, 2 iterations),
+  "pinocchio" route (mu = 0, one iteration; for redundant rows the route's mu, 1e-8 / max(1,
+  max M_ii), 2 iterations),
   and for redundant rows also with mu = 1e-6, 5 iterations (an extra row); MuJoCo's
   ``mj_forward`` on :func:`hexapod_pin.core.mujoco_export.to_mujoco`'s model;
 * inverse dynamics, routes "kkt", "qp" (bounded at 10x the needed forces): us per call;
@@ -52,7 +53,6 @@ import stress_robots
 from hexapod_pin.core.effects import passive_forces
 from hexapod_pin.core.dynamics import (
     PIN_PROX_ITERS,
-    PIN_PROX_MU,
     dynamics_of,
     forward_dynamics_tree,
     inverse_dynamics_tree,
@@ -238,8 +238,8 @@ def make_states(clm, sample, n_states: int):
 class PinocchioCalls:
     """The forward-dynamics calls compared with our "pinocchio" route, cycling over
     ``states``: ``raw`` (``pin.constraintDynamics`` on its own model, data and constraint
-    models, with the settings of our route: mu = 0 and one iteration, or mu = 1e-8 and 2
-    iterations when the rows are redundant), ``raw_user`` (mu = 1e-6, 5 iterations, the
+    models, with the settings of our route: mu = 0 and one iteration, or the route's mu
+    (1e-8 / max(1, max M_ii)) and 2 iterations when the rows are redundant), ``raw_user`` (mu = 1e-6, 5 iterations, the
     settings of the issue's first measurements), ``floor`` (the raw call plus what our
     route needs to verify it: ``getConstraintsJacobian`` and the compiled residual kernel,
     no other Python) and ``ours`` (``forward_dynamics_tree``)."""
@@ -250,8 +250,8 @@ class PinocchioCalls:
         self.data = data = model.createData()
         self.cms, self.cds = cms, cds = clm.pinocchio_constraints()
         pin.initConstraintDynamics(model, data, cms, cds)
-        self.prox = pin.ProximalSettings(1e-13, PIN_PROX_MU if redundant else 0.0,
-                                         PIN_PROX_ITERS if redundant else 1)
+        self.prox = pin.ProximalSettings(1e-13, dynamics_of(clm).redundant_mu if redundant
+                                         else 0.0, PIN_PROX_ITERS if redundant else 1)
         self.prox_user = pin.ProximalSettings(1e-13, 1e-6, 5)
         # Pinocchio's buffers, as our route reads them (live views, bound once)
         self.views = (data.M, data.nle, data.primal_rhs_contact[:clm.n_rows], data.lambda_c,

@@ -40,6 +40,7 @@ import pinocchio as pin
 import scipy.linalg
 
 from ..errors import AssemblyError, DescriptionError, InputError
+from .assembly import ASSEMBLY_METHODS, RESTART_SPREADS, levenberg_marquardt
 from .checks import as_array, count, real_number
 from .closure_motion import complete, project
 from .closure_terms import ClosureFrames, closure_drift, weld_jacobian
@@ -50,6 +51,9 @@ from .effects import JointEffects, resolve_effects
 from .frame_ik import FrameIKResult, frame_inverse_kinematics
 
 _EPS = np.finfo(float).eps
+#: default number of restarts of :meth:`ClosedLoopModel.assemble` (one per spread of
+#: :data:`~hexapod_pin.core.assembly.RESTART_SPREADS`)
+ASSEMBLY_RESTARTS = len(RESTART_SPREADS)
 #: default relative singular-value threshold of :meth:`ClosedLoopModel.rank`
 RANK_RTOL = 1e-10
 #: a frame name shared by several frames (a URDF link and joint named alike) means the
@@ -538,15 +542,23 @@ class ClosedLoopModel:
 
     # -- assembly -------------------------------------------------------------------
     def assemble(self, q0: npt.ArrayLike, fixed: npt.ArrayLike | None = None, tol: float = 1e-12,
-                 max_iter: int = 50) -> AssemblyResult:
-        """Close every loop by Gauss-Newton, holding some velocity coordinates fixed.
+                 max_iter: int = 50, restarts: int = ASSEMBLY_RESTARTS,
+                 method: str = "lm") -> AssemblyResult:
+        """Close every loop by Levenberg-Marquardt with restarts, holding some velocity
+        coordinates fixed.
 
-        Solves ``residual(q) = 0`` for the configuration nearest (in the Newton
-        sense) to ``q0``, moving only the velocity coordinates not in ``fixed``
-        (default: the actuated joints are held at their values in ``q0``). Each
-        step is the least-squares / minimum-norm solution on the free columns of
-        ``J_c`` (so redundant rows are harmless), applied with ``pin.integrate``
-        and halved while it does not decrease the residual.
+        Solves ``residual(q) = 0`` moving only the velocity coordinates not in ``fixed``
+        (default: the actuated joints are held at their values in ``q0``), by
+        :func:`~hexapod_pin.core.assembly.levenberg_marquardt`: Levenberg steps
+        ``dv = -(J^T J + mu I)^-1 J^T r`` on the free columns of ``J_c`` applied with
+        ``pin.integrate``, the damping ``mu`` adapted to the ratio of actual to predicted
+        decrease (Gauss-Newton, minimum-norm, near the solution: quadratic convergence;
+        redundant rows are harmless). A start that stalls or runs out of iterations is
+        followed by up to ``restarts`` others, from ``q0`` with its free coordinates
+        displaced by seeded, documented amounts
+        (:data:`~hexapod_pin.core.assembly.RESTART_SPREADS`); so the answer is the
+        configuration nearest ``q0`` in the Newton sense when the first start converges,
+        and a nearby one otherwise. The residual is recomputed at the returned ``q``.
 
         Args:
             q0: starting configuration (nq,).
@@ -554,49 +566,47 @@ class ClosedLoopModel:
                 (a 1-D sequence, each in ``[0, nv)``, no duplicates; empty: none fixed) or
                 a boolean mask of length ``nv`` (True: held); default the actuated ones.
             tol: convergence threshold on the max-abs residual (m / rad).
-            max_iter: maximum Newton iterations.
+            max_iter: maximum iterations per start.
+            restarts: further starts at most after the first (0: the first only).
+            method: "lm" (Levenberg-Marquardt, the default) or "newton" (Gauss-Newton,
+                minimum-norm steps halved while they do not decrease the max-abs residual:
+                the local solver of callers that follow one assembly mode and globalise
+                themselves, by continuation or their own starts; pass ``restarts=0``).
+
+        Returns:
+            :class:`AssemblyResult` (``iterations``: of every start together).
 
         Raises:
-            InputError: a bad ``q0``, ``tol`` or ``max_iter``; a ``fixed`` that is neither
-                (floats, text, nested or ragged sequences, booleans mixed with integers,
-                a mask of another length, an index out of range or repeated); or a ``q0``
-                whose closure residual overflows (not finite).
-            AssemblyError: no convergence within ``max_iter`` or a step that cannot
-                decrease the residual (a singular or unreachable configuration).
+            InputError: a bad ``q0``, ``tol``, ``max_iter``, ``restarts`` or ``method``; a
+                ``fixed`` that is neither (floats, text, nested or ragged sequences,
+                booleans mixed with integers, a mask of another length, an index out of
+                range or repeated); or a ``q0`` whose closure residual overflows (not
+                finite).
+            AssemblyError: no start converged within ``max_iter`` iterations (a singular
+                or unreachable configuration); carries the best iterate of all starts.
         """
         q = self.check_q(q0, "q0").copy()
         tol = real_number(tol, "tol", minimum=0.0)
         max_iter = count(max_iter, "max_iter", minimum=0)
+        restarts = count(restarts, "restarts", minimum=0)
+        if method not in ASSEMBLY_METHODS:
+            raise InputError("method", method, f"expected one of {ASSEMBLY_METHODS}")
         fixed_idx = self.actuated_v if fixed is None else fixed_coordinates(fixed, self.model.nv)
         free = np.setdiff1d(np.arange(self.model.nv), fixed_idx)
         res = self.residual(q)
         err = float(np.max(np.abs(res), initial=0.0))
         if not math.isfinite(err):
             raise InputError("q0", q0, "its closure residual is not finite (overflow)")
-        for iteration in range(max_iter + 1):
-            if err <= tol:
-                return AssemblyResult(q, err, iteration)
-            if iteration == max_iter:
-                break
-            jac = self.constraint_jacobian(q)[:, free]
-            step, *_ = np.linalg.lstsq(jac, -res, rcond=None)
-            dv = np.zeros(self.model.nv)
-            dv[free] = step
-            alpha, improved = 1.0, False
-            for _ in range(30):
-                trial = pin.integrate(self.model, q, alpha * dv)
-                trial_res = self.residual(trial)
-                trial_err = float(np.max(np.abs(trial_res)))
-                if np.isfinite(trial_err) and trial_err < err:
-                    improved = True
-                    break
-                alpha *= 0.5
-            if not improved:
-                raise AssemblyError("no step decreases the residual (singular or "
-                                    "unreachable configuration)", err, iteration, q)
-            q, res, err = trial, trial_res, trial_err
-        raise AssemblyError(f"no convergence to {tol:g} in {max_iter} iterations", err,
-                            max_iter, q)
+        solve = levenberg_marquardt(self.model, self.residual_and_jacobian, q, free, tol,
+                                    max_iter, restarts, method)
+        if solve.converged:
+            final = float(np.max(np.abs(self.residual(solve.q)), initial=0.0))
+            if final <= tol:
+                return AssemblyResult(solve.q, final, solve.iterations)
+            raise AssemblyError(f"the residual recomputed at the answer, {final:.3e}, exceeds "
+                                f"{tol:g}", final, solve.iterations, solve.q)
+        raise AssemblyError(f"{solve.reason} ({solve.starts} starts, best residual shown)",
+                            solve.residual_norm, solve.iterations, solve.q)
 
     # -- motion on the closures (closure_motion.py) -------------------------------------
     def complete_velocity(self, q: npt.ArrayLike, known: npt.ArrayLike, values: npt.ArrayLike,

@@ -76,9 +76,10 @@ or after one cheap proximal pass (the other paths). The internal paths
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -108,10 +109,12 @@ from .dynamics_common import (  # re-exported: other modules and users import th
     TreeForwardDynamics,
     TreeInverseDynamics,
     independent_rows,
+    independent_rows_of_rank,
 )
 from .forward_routes import ForwardDynamicsRoutes
 from .inverse_routes import INVERSE_METHODS, InverseDynamicsRoutes
-from .linear_kernels import kkt_residuals
+from .linear_kernels import (NULLSPACE_OK, kkt_residuals, nullspace_forward_solve,
+                             reduced_kkt_solve)
 
 __all__ = [
     "CLOSURE_QTOL", "CLOSURE_VTOL", "FORWARD_METHODS", "INVERSE_METHODS", "PIN_PROX_ITERS",
@@ -128,17 +131,37 @@ _F64 = np.dtype(np.float64)
 _FORWARD_NEW = tuple.__new__
 #: Pinocchio proximal settings used when the closures are redundant (the acceleration
 #: converges in a few iterations; every answer is verified, the multipliers are polished
-#: to minimum norm when read). Two iterations at mu = 1e-8 meet RESIDUAL_RTOL with a
-#: margin of 250 or more on every redundant robot of the benchmarks and tests (Cassie,
-#: the five-bars and ladders closed by welds); a miss continues the solve.
+#: to minimum norm when read). The proximal parameter is ``mu = PIN_PROX_MU / max(1, m)``,
+#: ``m`` the largest diagonal entry of the mass matrix at the neutral configuration (kg,
+#: kg m^2 as the units come): the iterations contract the error by ``mu / (mu + sigma)``
+#: on the non-zero eigenvalues ``sigma`` of the Delassus matrix ``J M^-1 J^T``, the
+#: smallest of which scales as ``1/m``, so heavy robots (the 5bar_linkage of
+#: example-parallel-robots, ``m`` ~ 5e5: 500 iterations at an absolute 1e-8) converge in
+#: as few iterations as light ones; ``mu`` is never raised above 1e-8 (a larger one costs
+#: accuracy on robots with light links). Two iterations meet RESIDUAL_RTOL on every
+#: redundant robot of the benchmarks and tests; a miss is answered by an exact solve on
+#: Pinocchio's own terms (:meth:`ClosedLoopDynamics._exact_redundant`: the scaled KKT
+#: system on the independent rows, else the null-space solve), never by more
+#: iterations: at most PIN_PROX_ITERS proximal iterations per call.
 PIN_PROX_MU = 1e-8
 PIN_PROX_ITERS = 2
-#: iterations of the continued proximal solve when the first ones did not converge
-_PIN_PROX_DEEP_ITERS = 500
 
 
-#: status strings of the redundant-row Pinocchio route by iteration count
-_REDUNDANT_STATUS: dict[int, str] = {}
+class PinocchioSolve(NamedTuple):
+    """How a verified "pinocchio" solve was obtained.
+
+    Attributes:
+        iter: Pinocchio's proximal iterations of the call (1 for its direct solve).
+        exact: whether an exact solve on Pinocchio's own terms answered
+            (redundant rows whose proximal iterations missed the verification).
+    """
+
+    iter: int
+    exact: bool
+
+
+#: status strings of the redundant-row Pinocchio route by (mu, iterations, exact)
+_REDUNDANT_STATUS: dict[tuple[float, int, bool], str] = {}
 
 
 # --------------------------------------------------------------------------------------
@@ -216,6 +239,14 @@ class ClosedLoopDynamics:
         if self._rank is None or force:
             self._rank = self.clm.rank(q).rank if self.n_rows else 0
         return self._rank
+
+    @property
+    def redundant_mu(self) -> float:
+        """The proximal ``mu`` of the "pinocchio" route on redundant rows (see
+        :data:`PIN_PROX_MU`)."""
+        if not self._pin_ready:
+            self._init_pinocchio()
+        return float(self._prox_redundant.mu)
 
     @property
     def redundant(self) -> bool | None:
@@ -373,8 +404,15 @@ class ClosedLoopDynamics:
     def _init_pinocchio(self) -> None:
         pin.initConstraintDynamics(self.model, self.data, self.pin_models, self.pin_datas)
         self._prox_exact = pin.ProximalSettings(1e-13, 0.0, 1)
-        self._prox_redundant = pin.ProximalSettings(1e-13, PIN_PROX_MU, PIN_PROX_ITERS)
-        self._prox_deep = pin.ProximalSettings(1e-14, PIN_PROX_MU, _PIN_PROX_DEEP_ITERS)
+        #: the redundant rows' settings: mu = PIN_PROX_MU / max(1, m), m the largest diagonal
+        #: entry of M at the neutral configuration (structural, the same on every thread)
+        scale = float(np.max(np.diagonal(pin.crba(self.model, self.data,
+                                                  pin.neutral(self.model))), initial=0.0))
+        mu = PIN_PROX_MU / max(scale, 1.0) if math.isfinite(scale) else PIN_PROX_MU
+        self._prox_redundant = pin.ProximalSettings(1e-13, mu, PIN_PROX_ITERS)
+        self._exact_acc = np.empty(self.nv)
+        self._exact_lam = np.empty(self.n_closure_rows)
+        self._exact_rows: np.ndarray | None = None
         #: one cheap proximal pass: only the constraint terms of the call are used
         self._prox_probe = pin.ProximalSettings(1e-13, PIN_PROX_MU, 1)
         self._cd_list = list(self.pin_datas)
@@ -461,41 +499,78 @@ class ClosedLoopDynamics:
                              f"the tolerance {tol:.3e} (CLOSURE_VTOL = {CLOSURE_VTOL:g})")
 
     def pinocchio_call(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
-                       redundant: bool) -> tuple[np.ndarray | None, Any]:
-        """One verified ``pin.constraintDynamics`` call; returns (a or None, prox).
+                       redundant: bool) -> tuple[np.ndarray | None, PinocchioSolve]:
+        """One verified ``pin.constraintDynamics`` call; returns (a or None, how).
 
         ``a`` is Pinocchio's own buffer (copy it before the next call); Pinocchio's LOCAL
         multipliers are in ``self.data.lambda_c``. ``None`` when the solve is not finite or
         misses one of the equations by more than :data:`RESIDUAL_RTOL` (relative; checked
         with Pinocchio's own ``M``, ``nle``, constraint Jacobian and drift). With
-        ``redundant`` the proximal solve (``mu > 0``) is continued (up to
-        ``_PIN_PROX_DEEP_ITERS`` iterations) when its first iterations did not converge.
+        ``redundant`` the proximal solve (``mu > 0``, :data:`PIN_PROX_ITERS` iterations)
+        that misses the verification is replaced by an exact solve of the
+        call's own terms (:meth:`_exact_redundant`, written into Pinocchio's ``ddq`` and
+        ``lambda_c``; ``how.exact`` says so).
         """
         if not self._pin_ready:
             self._init_pinocchio()
         if self._pin_singular or self.coupling_rows is not None:
-            return None, self._prox_exact
+            return None, PinocchioSolve(0, False)
         prox = self._prox_redundant if redundant else self._prox_exact
         acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
                                      self.pin_datas, prox)
         if self._pin_verified(acc, tau):
             if self.n_rows:
                 self._pin_fast = prox    # the short path of pinocchio_verified
-            return acc, prox
+            return acc, PinocchioSolve(prox.iter, False)
         diag = np.diagonal(self._v_mass)
         if np.min(diag) <= 1e-14 * max(np.max(diag), TINY):
             # a joint that moves no mass: Pinocchio's factorisation of M cannot hold this
             # model at any state (structural); the exact routes answer from now on
             self._pin_singular = True
             self._pin_fast = None
-            return None, prox
-        if redundant:
-            prox = self._prox_deep
-            acc = pin.constraintDynamics(self.model, self.data, q, v, tau, self.pin_models,
-                                         self.pin_datas, prox)
-            if self._pin_verified(acc, tau):
-                return acc, prox
-        return None, prox
+            return None, PinocchioSolve(prox.iter, False)
+        if redundant and self._exact_redundant(tau):
+            self._pin_fast = prox
+            return self._v_ddq, PinocchioSolve(prox.iter, True)   # the exact answer
+        return None, PinocchioSolve(prox.iter, False)
+
+    def _exact_redundant(self, tau: np.ndarray) -> bool:
+        """The exact solve of the last ``constraintDynamics`` call's system (Pinocchio's
+        ``M``, ``nle``, constraint Jacobian :attr:`last_jacobian` and target
+        ``primal_rhs``): the scaled KKT system on the structural independent rows
+        (:func:`~hexapod_pin.core.linear_kernels.reduced_kkt_solve`), else, when that
+        misses the verification (the kept rows no longer independent at this state, or
+        the others not dependent on them), the null-space solve at the structural rank
+        (:func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve`); each verified
+        on every row like the call itself. When one is verified, its answer is written
+        into Pinocchio's ``ddq`` and ``lambda_c`` and True returned."""
+        jac = self.last_jacobian
+        if jac is None or self._rank is None:
+            return False
+        acc, lam = self._exact_acc, self._exact_lam
+        mass, nle, target = self._v_mass, self._v_nle, self._v_rhs
+        if self._exact_rows is None:
+            self._exact_rows = independent_rows_of_rank(jac, self._rank).astype(np.int64)
+        for solve in (self._reduced_kkt, self._nullspace):
+            if solve(mass, nle, tau, jac, target, acc, lam) != NULLSPACE_OK:
+                continue
+            eom, con = kkt_residuals(mass, nle, tau, jac, target, acc, lam, self._res_out)
+            if eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL:
+                self._v_ddq[:] = acc
+                self._v_lambda[:] = lam
+                return True
+        return False
+
+    def _reduced_kkt(self, mass, nle, tau, jac, target, acc, lam) -> int:
+        """:func:`~hexapod_pin.core.linear_kernels.reduced_kkt_solve` on the structural
+        independent rows (a pivoted QR of the first exact solve's Jacobian)."""
+        return reduced_kkt_solve(mass, nle, tau, jac, target, self._exact_rows, acc, lam)
+
+    def _nullspace(self, mass, nle, tau, jac, target, acc, lam) -> int:
+        """:func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve` at the
+        structural rank (any rows)."""
+        rank = self.n_rows if self._rank is None else self._rank
+        return nullspace_forward_solve(mass, nle, tau, jac, target, rank, acc, lam)
 
     def _pin_verified(self, acc, tau) -> bool:
         """Whether Pinocchio's answer ``acc`` meets both equations (see
@@ -511,28 +586,32 @@ class ClosedLoopDynamics:
                                  self._v_lambda, self._res_out)
         return eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL
 
-    def _pinocchio_result(self, q, v, tau, acc, iters, rank) -> TreeForwardDynamics:
+    def _pinocchio_result(self, q, v, tau, acc, iters, rank,
+                          exact: bool = False) -> TreeForwardDynamics:
         """The result of a verified Pinocchio solve (``acc``: Pinocchio's buffer; ``tau``:
         possibly the caller's array): :meth:`pinocchio_result_of` on copies."""
         return self.pinocchio_result_of(q.copy(), v.copy(), tau.copy(), acc.copy(),
-                                        self._v_lambda.copy(), iters, rank)
+                                        self._v_lambda.copy(), iters, rank, exact)
 
     def pinocchio_result_of(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                             acc: np.ndarray, lam_pin: np.ndarray, iters: int,
-                            rank: int) -> TreeForwardDynamics:
+                            rank: int, exact: bool = False) -> TreeForwardDynamics:
         """The result of a verified Pinocchio solve from arrays the caller owns (kept as
         they are, no copies): ``acc`` (nv,) and Pinocchio's LOCAL multipliers ``lam_pin``.
         The multipliers are computed on access: ``lam_pin`` converted to our rows, or,
         with redundant rows, the minimum-norm ones (the proximal multipliers are
-        minimum-norm only up to the conditioning of the regularised system)."""
+        minimum-norm only up to the conditioning of the regularised system). ``exact``:
+        an exact solve answered after ``iters`` proximal iterations."""
         if rank == self.n_rows:
             lazy = LazyMultipliers(self.conversion.from_pinocchio, q, lam_pin)
             return TreeForwardDynamics(acc, lazy, "pinocchio", "solved", iters, rank, -1.0)
-        status = _REDUNDANT_STATUS.get(iters)
+        mu = float(self._prox_redundant.mu)
+        status = _REDUNDANT_STATUS.get((mu, iters, exact))
         if status is None:
-            status = _REDUNDANT_STATUS[iters] = (
-                f"solved (redundant rows: proximal mu={PIN_PROX_MU:g}, {iters} "
-                "iterations; minimum-norm multipliers)")
+            how = (f"{iters} proximal iterations unverified, exact KKT solve"
+                   if exact else f"proximal mu={mu:.3g}, {iters} iterations")
+            status = _REDUNDANT_STATUS[(mu, iters, exact)] = (
+                f"solved (redundant rows: {how}; minimum-norm multipliers)")
         lazy = LazyMultipliers(self.conversion.minimum_norm, q, v, acc, tau)
         return TreeForwardDynamics(acc, lazy, "pinocchio", status, iters, rank, -1.0)
 
@@ -578,19 +657,19 @@ class ClosedLoopDynamics:
             force, rest = self.effect_terms(q, v)
             tau = None if rest.size else applied + force   # friction at rest: full route
         if method == "pinocchio" and tau is not None:
-            prox = self.pinocchio_verified(q, v, tau)
-            if prox is not None:         # the short path: the result with lazy multipliers
+            how = self.pinocchio_verified(q, v, tau)
+            if how is not None:          # the short path: the result with lazy multipliers
                 self.check_after_call(q, v)  # the closure errors of that call
                 rank = self.closure_rank(q)  # known: the model has a verified call
                 if rank == self.n_rows:      # Pinocchio's multipliers, converted when read
                     lazy = LazyMultipliers(self.conversion.from_pinocchio, q.copy(),
                                            self._v_lambda.copy())
                     return _FORWARD_NEW(TreeForwardDynamics, (
-                        self._v_ddq.copy(), lazy, "pinocchio", "solved", prox.iter, rank,
+                        self._v_ddq.copy(), lazy, "pinocchio", "solved", how.iter, rank,
                         -1.0))
                 return self.pinocchio_result_of(q.copy(), v.copy(), tau.copy(),
                                                 self._v_ddq.copy(), self._v_lambda.copy(),
-                                                prox.iter, rank)
+                                                how.iter, rank, how.exact)
         elif method not in FORWARD_METHODS:
             raise InputError("method", method, f"expected one of {FORWARD_METHODS}")
         self.check_state(q, v)
@@ -599,13 +678,15 @@ class ClosedLoopDynamics:
                               ("v", v), ("actuator_forces", u), ("tau_ext", tau_ext))
 
     def pinocchio_verified(self, q: np.ndarray, v: np.ndarray,
-                           tau: np.ndarray) -> pin.ProximalSettings | None:
+                           tau: np.ndarray) -> PinocchioSolve | None:
         """One ``pin.constraintDynamics`` call with the settings of the last verified call,
         verified on Pinocchio's own ``M``, ``nle``, constraint Jacobian and drift (one
-        compiled kernel). Returns the proximal settings used (the answer is in
-        ``self.data.ddq`` / ``self.data.lambda_c``, the constraint Jacobian at ``q`` in
-        :attr:`last_jacobian`), or None when the model has no verified call yet or this
-        answer fails the verification (no input checks)."""
+        compiled kernel); with redundant rows, an answer that misses the verification is
+        replaced by an exact solve of the same terms (:meth:`_exact_redundant`).
+        Returns how it was solved (the answer is in ``self.data.ddq`` /
+        ``self.data.lambda_c``, the constraint Jacobian at ``q`` in :attr:`last_jacobian`),
+        or None when the model has no verified call yet or this answer fails the
+        verification (no input checks)."""
         prox = self._pin_fast
         if prox is None:
             return None
@@ -616,7 +697,9 @@ class ClosedLoopDynamics:
         eom, con = kkt_residuals(self._v_mass, self._v_nle, tau, jac, self._v_rhs, acc,
                                  self._v_lambda, self._res_out)
         if eom <= RESIDUAL_RTOL and con <= RESIDUAL_RTOL:
-            return prox
+            return PinocchioSolve(prox.iter, False)
+        if prox is not self._prox_exact and self._exact_redundant(tau):
+            return PinocchioSolve(prox.iter, True)
         return None
 
     def _forward_pinocchio(self, q, v, tau, rank) -> TreeForwardDynamics:
@@ -629,18 +712,18 @@ class ClosedLoopDynamics:
                                        "solved by the KKT route", 0, res.rank,
                                        res.constraint_residual)
         redundant = rank < self.n_rows
-        acc, prox = self.pinocchio_call(q, v, tau, redundant)
+        acc, how = self.pinocchio_call(q, v, tau, redundant)
         if acc is None and not redundant and not self._rank_rechecked:
             # a structural rank found too high at the first call: re-evaluate once
             self._rank_rechecked = True
             new_rank = self.closure_rank(q, force=True)
             if new_rank < rank:
                 rank, redundant = new_rank, True
-                acc, prox = self.pinocchio_call(q, v, tau, True)
+                acc, how = self.pinocchio_call(q, v, tau, True)
         if acc is not None:
             if self.n_rows:
                 self._pin_fast = self._prox_redundant if redundant else self._prox_exact
-            return self._pinocchio_result(q, v, tau, acc, prox.iter, rank)
+            return self._pinocchio_result(q, v, tau, acc, how.iter, rank, how.exact)
         # Pinocchio's factorisation cannot hold this problem (e.g. a zero pivot of M from a
         # massless link): the exact KKT route answers, and the status says so
         mass, bias, jac, gamma = self._terms(q, v)
@@ -801,13 +884,16 @@ def forward_dynamics_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLi
         tau_ext: generalised external force on the tree (nv,) (N, N m); default zero.
         method: "pinocchio" (``pin.constraintDynamics``, checked on Pinocchio's own
             ``M``, ``nle``, constraint Jacobian and drift; when the closures are
-            redundant: proximal, mu = 1e-8, 2 iterations, continued up to 500 when not
-            converged, and the multipliers polished to minimum norm by least squares;
-            when Pinocchio's answer is refused, the "kkt" route answers and the status
-            says so), "qp" (Gauss principle ``min 1/2 (a - a_free)^T M (a - a_free)``
-            s.t. ``J_c a = -gamma`` as a ProxSuite dense QP: augmented Hessian
-            ``M + rho J_c^T J_c``, independent rows only, rows normalised, objective
-            scaled, warm-started from the "kkt" solution; success judged from the
+            redundant: proximal, mu = 1e-8 / max(1, max M_ii), at most
+            :data:`PIN_PROX_ITERS` = 2 iterations, then, when those miss the
+            verification, an exact solve of the same terms (the status says so), and
+            the multipliers polished to minimum norm by least squares; when Pinocchio's
+            answer is refused, the "kkt" route answers and the status says so), "qp"
+            (Gauss principle ``min 1/2 (a - a_free)^T M (a - a_free)`` s.t. ``J_c a =
+            -gamma`` as a ProxSuite dense QP in coordinates scaled by ``diag(M)^(1/2)``:
+            augmented Hessian with a unit diagonal, independent rows only, rows
+            normalised, warm-started from the "kkt" solution and its multipliers,
+            re-solved from its own iterate before it raises; success judged from the
             verified residuals, the status reported as ProxSuite gives it), or "kkt"
             (numpy solve of the KKT system; the exact null-space solve with
             minimum-norm multipliers when the rows are redundant or the system

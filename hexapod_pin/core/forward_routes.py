@@ -9,8 +9,9 @@ Given the terms at one state (``M``, ``h``, ``J_c``, ``gamma``, ``tau``; convent
 * "kkt": one numpy solve of the KKT system when the rows are independent, else (or when
   that solve misses the verification) the exact null-space solve with minimum-norm
   multipliers;
-* "qp": the Gauss principle as a scaled ProxSuite QP on the independent rows, with the
-  augmented Hessian ``M + rho J_c^T J_c``, warm-started from the "kkt" answer.
+* "qp": the Gauss principle as a ProxSuite QP on the independent rows, in coordinates
+  scaled by ``diag(M)^(1/2)`` with the augmented Hessian ``D^-1 M D^-1 + J_s^T J_s`` (unit
+  diagonal), warm-started from the "kkt" answer and its multipliers.
 
 Both verify their answer (:func:`~hexapod_pin.core.dynamics_common.verify_forward`)
 before returning it. The "pinocchio" route and the workspace live in
@@ -35,8 +36,15 @@ from .dynamics_common import (
     independent_rows_of_rank,
     verify_forward,
 )
+from .linear_kernels import NULLSPACE_NOT_POSITIVE, nullspace_forward_solve
 
 _EPS = np.finfo(float).eps
+#: re-solves of the forward-dynamics QP from ProxSuite's own iterate when an answer misses
+#: the verification (the proximal iterations continued) before the route raises
+QP_RETRIES = 2
+#: the forward QP's coordinate scaling raises a mass-matrix diagonal entry below this
+#: fraction of the largest (a massless joint) to it
+_MASS_FLOOR = 1e-6
 
 
 class Workspace(Protocol):
@@ -112,36 +120,36 @@ class ForwardDynamicsRoutes:
         return kkt
 
     def _nullspace_forward(self, mass, bias, jac, gamma, tau):
-        """Exact solve for any rank: ``a = a_p + N z`` with ``N`` an orthonormal basis of
-        ``ker J_c`` (SVD), ``(N^T M N) z = N^T (tau - h - M a_p)``; minimum-norm multipliers
-        ``lambda = (J_c^T)^+ (M a + h - tau)``."""
-        if self.n_rows == 0:
-            return np.linalg.solve(mass, tau - bias), np.zeros(0)
-        u_mat, sv, vt = np.linalg.svd(jac)
+        """Exact solve for any rank: ``a`` by
+        :func:`~hexapod_pin.core.linear_kernels.nullspace_forward_solve` (the null space of
+        ``J_c`` from an SVD, the reduced system Jacobi-scaled) at the numerical rank of ``J_c``
+        (singular values above ``RANK_RTOL`` times the largest), with the minimum-norm
+        multipliers ``lambda = (J_c^T)^+ (M a + h - tau)``."""
+        sv = np.linalg.svd(jac, compute_uv=False)
         tol = max(RANK_RTOL * sv[0], max(jac.shape) * _EPS) if sv.size else 0.0
-        r = int(np.sum(sv > tol))
-        a_p = vt[:r].T @ ((u_mat[:, :r].T @ -gamma) / sv[:r])
-        basis = vt[r:].T
-        reduced = basis.T @ mass @ basis
-        try:
-            z = np.linalg.solve(reduced, basis.T @ (tau - bias - mass @ a_p))
-        except np.linalg.LinAlgError:
+        acc, lam = np.empty(self.nv), np.empty(self.n_rows)
+        code = nullspace_forward_solve(mass, bias, tau, jac, -gamma, int(np.sum(sv > tol)),
+                                       acc, lam)
+        if code == NULLSPACE_NOT_POSITIVE:
             raise SolverError("null-space forward dynamics", "singular",
                               "N^T M N is singular: the mass matrix is not positive on the "
-                              "motions the closures allow") from None
-        acc = a_p + basis @ z
-        force = mass @ acc + bias - tau
-        lam = u_mat[:, :r] @ ((vt[:r] @ force) / sv[:r])
+                              "motions the closures allow")
         return acc, lam
 
     def qp(self, mass: np.ndarray, bias: np.ndarray, jac: np.ndarray, gamma: np.ndarray,
            tau: np.ndarray, rank: int) -> TreeForwardDynamics:
         """Gauss principle as a ProxSuite QP, reformulated so that it is well posed on every
-        class: ``min 1/2 a^T H a + g^T a  s.t.  D J_c a = -D gamma`` with the augmented
-        Hessian ``H = M + rho J_c^T J_c`` (same minimiser on the feasible set; positive
-        definite when ``M`` is only positive on ``ker J_c``: massless links), rows of
-        ``J_c`` normalised by ``D``, the objective divided by its scale; warm-started from
-        the direct (KKT) solution."""
+        class: in the scaled coordinates ``s = D a / c`` (``D = diag(M)^(1/2)``, a
+        diagonal entry below ``_MASS_FLOOR`` (1e-6) of the largest raised to it; ``c`` the
+        magnitude of the direct answer), ``min 1/2 s^T H s + g^T s`` s.t.
+        ``R J_c D^-1 s = -R gamma / c`` with the augmented Hessian
+        ``H = D^-1 M D^-1 + (R J_c D^-1)^T (R J_c D^-1)`` (unit diagonal whatever the
+        masses; same minimiser on the feasible set; positive definite when ``M`` is only
+        positive on ``ker J_c``: massless links), rows normalised by ``R``, independent
+        rows only; warm-started from the verified direct (KKT) solution and its
+        multipliers. An answer that misses the verification is solved again from
+        ProxSuite's own iterate (the proximal iterations continued, :data:`QP_RETRIES`
+        times) before the route raises."""
         direct = self.kkt(mass, bias, jac, gamma, tau, rank)
         rank = direct.rank
         nr = self.n_rows
@@ -152,42 +160,52 @@ class ForwardDynamicsRoutes:
             rows = independent_rows_of_rank(jac, rank)
         jac_q, gamma_q = jac[rows], gamma[rows]
         n_eq = jac_q.shape[0]
-        scale_m = max(max_abs(np.diag(mass)), TINY)
+        diag = np.diagonal(mass)
+        dinv = 1.0 / np.sqrt(np.maximum(diag, _MASS_FLOOR * max(max_abs(diag), TINY)))
+        force = dinv * (bias - tau)
+        scale = max(max_abs(direct.a / dinv), max_abs(force), TINY)
+        hess = mass * dinv[:, None] * dinv[None, :]
+        grad = force / scale
         if n_eq:
-            norms = np.sqrt(np.einsum("ij,ij->i", jac_q, jac_q))
-            dinv = 1.0 / np.maximum(norms, TINY)
-            jac_s = jac_q * dinv[:, None]
-            rho = scale_m
-            hess = (mass + rho * (jac_s.T @ jac_s)) / scale_m
-            grad = (bias - tau + rho * (jac_s.T @ (gamma_q * dinv))) / scale_m
-            b = -gamma_q * dinv
-            # multipliers of the kept rows giving the direct generalised force
+            jac_s = jac_q * dinv[None, :]
+            rinv = 1.0 / np.maximum(np.sqrt(np.einsum("ij,ij->i", jac_s, jac_s)), TINY)
+            jac_s *= rinv[:, None]
+            b = -gamma_q * rinv / scale
+            hess = hess + jac_s.T @ jac_s
+            grad = grad - jac_s.T @ b
+            # multipliers of the kept rows giving the direct generalised force;
+            # ProxSuite's H s + g + A^T y = 0 gives lambda = -c R y
             lam_q, *_ = np.linalg.lstsq(jac_q.T, jac.T @ direct.multipliers, rcond=None)
+            y0 = -lam_q / (scale * rinv)
         else:
-            jac_s, dinv, hess, grad, b = jac_q, np.ones(0), mass / scale_m, \
-                (bias - tau) / scale_m, np.zeros(0)
-            lam_q = np.zeros(0)
-        # ProxSuite: H x + g + A^T y = 0 with A = D J_c  =>  lambda = -scale_m D y
-        y0 = -lam_q / (scale_m * dinv) if n_eq else np.zeros(0)
-        qp = cached_qp(self._qps, ("fd", n_eq), 0, (hess, grad, jac_s, b, None, None, None),
-                            warm=(direct.a, y0, None))
-        info = qp.results.info
-        status = QP_STATUS.get(info.status, str(info.status))
-        acc = qp.results.x.copy()
-        lam = np.zeros(nr)
-        if n_eq:
-            lam[rows] = -qp.results.y * scale_m * dinv
-        try:
-            self.verify(mass, bias, tau, jac, gamma, acc, lam, "ProxSuite (forward dynamics QP)")
-        except SolverError as exc:
-            raise SolverError("ProxSuite (forward dynamics QP)", status,
-                              f"{exc}; primal residual {info.pri_res:.3e}, dual residual "
-                              f"{info.dua_res:.3e}") from None
+            jac_s, rinv, b, y0 = jac_q, np.ones(0), np.zeros(0), np.zeros(0)
+        warm = (direct.a / (dinv * scale), y0, None)
+        iters, error = 0, None
+        for _ in range(QP_RETRIES + 1):
+            qp = cached_qp(self._qps, ("fd", n_eq), 0, (hess, grad, jac_s, b, None, None, None),
+                           warm=warm)
+            info = qp.results.info
+            iters += int(info.iter)
+            status = QP_STATUS.get(info.status, str(info.status))
+            acc = qp.results.x * dinv * scale
+            lam = np.zeros(nr)
+            if n_eq:
+                lam[rows] = -qp.results.y * scale * rinv
+            try:
+                self.verify(mass, bias, tau, jac, gamma, acc, lam,
+                            "ProxSuite (forward dynamics QP)")
+                error = None
+                break
+            except SolverError as exc:
+                error = (f"{exc}; primal residual {info.pri_res:.3e}, dual residual "
+                         f"{info.dua_res:.3e}")
+                warm = (qp.results.x.copy(), qp.results.y.copy(), None)
+        if error is not None:
+            raise SolverError("ProxSuite (forward dynamics QP)", status, error)
         if rank < nr:
             lam = direct.multipliers            # same generalised force; minimum norm
             status = f"{status} (redundant rows: minimum-norm multipliers)"
         elif status != "solved":
             status = f"{status} (residuals verified)"
-        return TreeForwardDynamics(acc, lam, "qp", status, int(info.iter), rank,
+        return TreeForwardDynamics(acc, lam, "qp", status, iters, rank,
                                    max_abs(jac @ acc + gamma))
-

@@ -666,7 +666,8 @@ class _Problem:
                 q[box.q_index] = np.clip(values, box.lower, box.upper)
                 hold = np.union1d(hold, box.v_index[out])
             try:
-                q = clm.assemble(q, fixed=hold, tol=self.closure_tol).q
+                q = clm.assemble(q, fixed=hold, tol=self.closure_tol, restarts=0,
+                                 method="newton").q
             except AssemblyError:
                 return None
             if box is None:

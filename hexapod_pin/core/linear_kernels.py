@@ -242,3 +242,204 @@ def within_bounds(u: np.ndarray, bounds: np.ndarray, rtol: float) -> bool:
         if not abs(u[i]) <= bounds[i] * (1.0 + rtol):
             return False
     return True
+
+
+#: status of :func:`nullspace_forward_solve`
+NULLSPACE_OK, NULLSPACE_NOT_POSITIVE, NULLSPACE_NOT_FINITE = 0, 1, 2
+
+
+@jit
+def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
+                            jac: np.ndarray, target: np.ndarray, rank: int,
+                            acc: np.ndarray, lam: np.ndarray) -> int:
+    """Exact solve of ``M a + h = tau + J^T lam``, ``J a = target`` for a ``J`` (nr, nv) of
+    rank ``rank`` (redundant rows allowed), scaled by the problem's own magnitudes.
+
+    The SVD ``J = U S V^T`` gives the particular solution ``a_p = V_r S_r^-1 U_r^T target``
+    (``r = rank``), ``N = V[:, rank:]`` an orthonormal basis of the closures' null space,
+    and the reduced system ``(N^T M N) z = N^T (tau - h - M a_p)`` solved by Cholesky
+    after its Jacobi scaling (``E = diag(N^T M N)^(1/2)``, an entry below 1e-12 of the
+    largest raised to it: unit diagonal whatever the masses), ``a = a_p + N z``. The
+    multipliers solve ``J^T lam = M a + h - tau`` in the least-squares, minimum-norm sense
+    on the same SVD. Reads only the upper triangle of ``mass``
+    (Pinocchio's ``data.M``).
+
+    Writes ``acc`` (nv,) and ``lam`` (nr,); returns :data:`NULLSPACE_OK`,
+    :data:`NULLSPACE_NOT_POSITIVE` (``N^T M N`` not positive definite: the mass matrix
+    is not positive on the motions the closures allow) or :data:`NULLSPACE_NOT_FINITE`.
+    Does not verify the answer: the callers do, on the unscaled system.
+    """
+    nv = acc.shape[0]
+    nr = jac.shape[0]
+    m_full = np.empty((nv, nv))
+    for i in range(nv):
+        for j in range(i, nv):
+            m_full[i, j] = mass[i, j]
+            m_full[j, i] = mass[i, j]
+    js = np.zeros((max(nr, 1), nv))
+    ts = np.zeros(max(nr, 1))
+    for k in range(nr):
+        for j in range(nv):
+            js[k, j] = jac[k, j]
+        ts[k] = target[k]
+    u, sv, vt = np.linalg.svd(js)
+    r = min(rank, sv.shape[0]) if nr else 0
+    a_p = np.zeros(nv)
+    for i in range(r):
+        c = 0.0
+        for k in range(nr):
+            c += u[k, i] * ts[k]
+        c /= sv[i]
+        for j in range(nv):
+            a_p[j] += vt[i, j] * c
+    m = nv - r
+    basis = np.ascontiguousarray(vt[r:, :].T)          # (nv, m)
+    red = basis.T @ (m_full @ basis)
+    rhs = basis.T @ (tau - bias - m_full @ a_p)
+    big = 0.0
+    for i in range(m):
+        if not math.isfinite(red[i, i]):
+            return NULLSPACE_NOT_FINITE
+        big = max(big, red[i, i])
+    floor = 1e-12 * big if big > 0.0 else 1.0
+    einv = np.empty(m)
+    for i in range(m):
+        einv[i] = 1.0 / math.sqrt(max(red[i, i], floor))
+    for i in range(m):
+        rhs[i] *= einv[i]
+        for j in range(m):
+            red[i, j] *= einv[i] * einv[j]
+    # Cholesky of the scaled reduced matrix (lower triangle, in place), two triangular solves
+    for j in range(m):
+        d = red[j, j]
+        for k in range(j):
+            d -= red[j, k] * red[j, k]
+        if not d > 0.0:
+            return NULLSPACE_NOT_POSITIVE
+        d = math.sqrt(d)
+        red[j, j] = d
+        for i in range(j + 1, m):
+            x = red[i, j]
+            for k in range(j):
+                x -= red[i, k] * red[j, k]
+            red[i, j] = x / d
+    z = rhs.copy()
+    for i in range(m):
+        for k in range(i):
+            z[i] -= red[i, k] * z[k]
+        z[i] /= red[i, i]
+    for i in range(m - 1, -1, -1):
+        for k in range(i + 1, m):
+            z[i] -= red[k, i] * z[k]
+        z[i] /= red[i, i]
+    for i in range(m):
+        z[i] *= einv[i]
+    a = a_p + basis @ z
+    for j in range(nv):
+        acc[j] = a[j]
+    # J^T lam = f: least squares on the same SVD
+    for k in range(nr):
+        lam[k] = 0.0
+    if r:
+        f = m_full @ a + bias - tau
+        for i in range(r):
+            c = 0.0
+            for j in range(nv):
+                c += vt[i, j] * f[j]
+            c /= sv[i]
+            for k in range(nr):
+                lam[k] += u[k, i] * c
+    for j in range(nv):
+        if not math.isfinite(acc[j]):
+            return NULLSPACE_NOT_FINITE
+    return NULLSPACE_OK
+
+
+@jit
+def reduced_kkt_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: np.ndarray,
+                      target: np.ndarray, rows: np.ndarray, acc: np.ndarray,
+                      lam: np.ndarray) -> int:
+    """Exact solve of ``M a + h = tau + J^T lam``, ``J a = target`` on the independent rows
+    ``rows`` of ``J`` (int array, sorted; the other multipliers are set to zero): the KKT
+    system ``[M J_r^T; J_r 0] (a, -lam_r) = (tau - h, target_r)`` in scaled form
+    (coordinates by ``diag(M)^(1/2)``, an entry below 1e-12 of the largest raised to it;
+    rows of ``J_r`` normalised), by Gaussian elimination with partial pivoting. Reads only
+    the upper triangle of ``mass``.
+
+    Writes ``acc`` (nv,) and ``lam`` (nr,); returns :data:`NULLSPACE_OK`,
+    :data:`NULLSPACE_NOT_POSITIVE` (a zero pivot: the system is singular on these rows) or
+    :data:`NULLSPACE_NOT_FINITE`. Does not verify: the dropped rows hold only when they
+    depend on the kept ones at this state, so the callers check every row
+    (:func:`kkt_residuals`) and fall back to :func:`nullspace_forward_solve`.
+    """
+    nv = acc.shape[0]
+    r = rows.shape[0]
+    n = nv + r
+    big = 0.0
+    for i in range(nv):
+        if not math.isfinite(mass[i, i]):
+            return NULLSPACE_NOT_FINITE
+        big = max(big, mass[i, i])
+    floor = 1e-12 * big if big > 0.0 else 1.0
+    dinv = np.empty(nv)
+    for i in range(nv):
+        dinv[i] = 1.0 / math.sqrt(max(mass[i, i], floor))
+    kkt = np.zeros((n, n))
+    rhs = np.empty(n)
+    for i in range(nv):
+        for j in range(i, nv):
+            kkt[i, j] = mass[i, j] * dinv[i] * dinv[j]
+            kkt[j, i] = kkt[i, j]
+        rhs[i] = (tau[i] - bias[i]) * dinv[i]
+    rscale = np.empty(r)
+    for k in range(r):
+        row = rows[k]
+        norm = 0.0
+        for j in range(nv):
+            x = jac[row, j] * dinv[j]
+            norm += x * x
+        norm = math.sqrt(norm)
+        if not (norm > 0.0 and math.isfinite(norm)):
+            return NULLSPACE_NOT_FINITE if not math.isfinite(norm) else NULLSPACE_NOT_POSITIVE
+        rscale[k] = 1.0 / norm
+        for j in range(nv):
+            x = jac[row, j] * dinv[j] * rscale[k]
+            kkt[nv + k, j] = x
+            kkt[j, nv + k] = x
+        rhs[nv + k] = target[row] * rscale[k]
+    # Gaussian elimination with partial pivoting
+    top = 0.0
+    for i in range(n):
+        for j in range(n):
+            top = max(top, abs(kkt[i, j]))
+    for c in range(n):
+        p = c
+        for i in range(c + 1, n):
+            if abs(kkt[i, c]) > abs(kkt[p, c]):
+                p = i
+        if not abs(kkt[p, c]) > 1e-14 * top:
+            return NULLSPACE_NOT_POSITIVE
+        if p != c:
+            for j in range(n):
+                kkt[c, j], kkt[p, j] = kkt[p, j], kkt[c, j]
+            rhs[c], rhs[p] = rhs[p], rhs[c]
+        for i in range(c + 1, n):
+            f = kkt[i, c] / kkt[c, c]
+            if f != 0.0:
+                for j in range(c, n):
+                    kkt[i, j] -= f * kkt[c, j]
+                rhs[i] -= f * rhs[c]
+    for i in range(n - 1, -1, -1):
+        x = rhs[i]
+        for j in range(i + 1, n):
+            x -= kkt[i, j] * rhs[j]
+        rhs[i] = x / kkt[i, i]
+    for j in range(nv):
+        acc[j] = rhs[j] * dinv[j]
+        if not math.isfinite(acc[j]):
+            return NULLSPACE_NOT_FINITE
+    for k in range(lam.shape[0]):
+        lam[k] = 0.0
+    for k in range(r):
+        lam[rows[k]] = -rhs[nv + k] * rscale[k]
+    return NULLSPACE_OK

@@ -73,7 +73,8 @@ def _home_candidates(model: ClosedLoopModel, n: int = 32) -> list[np.ndarray]:
     failure: AssemblyError | None = None
     for _ in range(n + 1):
         try:
-            out.append(model.assemble(start, fixed=free, max_iter=100).q)
+            out.append(model.assemble(start, fixed=free, max_iter=100, restarts=0,
+                                      method="newton").q)
         except AssemblyError as exc:
             failure = exc
         start = pin.integrate(model.model, model.neutral(), rng.uniform(-1.0, 1.0, model.nv))

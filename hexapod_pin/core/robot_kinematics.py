@@ -283,7 +283,7 @@ class RobotKinematics:
 
         def close(q: np.ndarray, values: np.ndarray) -> np.ndarray:
             return clm.assemble(self.with_actuators(q, values), tol=self.tol,
-                                max_iter=MAX_ITER).q
+                                max_iter=MAX_ITER, restarts=0, method="newton").q
 
         try:
             return close(start, actuators)
@@ -339,7 +339,7 @@ class RobotKinematics:
         for start in starts:
             try:
                 q = self.clm.assemble(self.with_actuators(start, target), tol=self.tol,
-                                      max_iter=100).q
+                                      max_iter=100, restarts=0, method="newton").q
             except AssemblyError:
                 continue
             if np.max(np.abs(self.actuator_positions(q) - target)) > self.tol:

@@ -151,6 +151,7 @@ def forward_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarr
     # in `full`); the per-state results are built from the stored rows on access
     lam = np.empty((n, clm.n_rows))
     iters = np.zeros(n, dtype=int)
+    exact = np.zeros(n, dtype=bool)     # an exact solve answered (redundant rows)
     full: dict[int, TreeForwardDynamics] = {}
     verified = dyn.pinocchio_verified if method == "pinocchio" else None
     if verified is not None:
@@ -165,10 +166,10 @@ def forward_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarr
                 solve = dyn.forward_unchecked
             else:
                 tau[i] += force
-        prox = None if verified is None or solve is not dyn.forward_total else \
+        how = None if verified is None or solve is not dyn.forward_total else \
             verified(q[i], v[i], tau[i])
-        if prox is not None:
-            acc[i], lam[i], iters[i] = ddq, lam_pin, prox.iter
+        if how is not None:
+            acc[i], lam[i], iters[i], exact[i] = ddq, lam_pin, how.iter, how.exact
             continue
         try:
             res = solve(q[i], v[i], tau[i], method)
@@ -182,7 +183,8 @@ def forward_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarr
 
     def make_results():
         return [full[i] if i in full else
-                dyn.pinocchio_result_of(q[i], v[i], tau[i], acc[i], lam[i], int(iters[i]), rank)
+                dyn.pinocchio_result_of(q[i], v[i], tau[i], acc[i], lam[i], int(iters[i]), rank,
+                                        bool(exact[i]))
                 for i in range(n)]
     return TreeForwardDynamicsBatch(acc, make_results)
 
