@@ -59,7 +59,7 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-from ..errors import DescriptionError, InputError
+from ..errors import ArgumentTypeError, DescriptionError, InputError
 from .couplings import JointCoupling
 from .effects import JointEffects, resolve_effects
 
@@ -756,6 +756,9 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
         DescriptionError: malformed YAML, missing keys, unknown closure type,
             duplicate names, or a closure joining a frame to itself.
     """
+    if not isinstance(text, str):
+        raise ArgumentTypeError("text", text, "expected the YAML text (str), got "
+                                f"{type(text).__name__}")
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -1084,13 +1087,30 @@ def _robot_section(raw: object, source: str) -> RobotSection | None:
                         None if home is None else _numbers(home, source, "home"), bound)
 
 
+def file_path(path: object, name: str = "path") -> str | os.PathLike[str]:
+    """``path`` after checking that it is a path (a non-empty string or an
+    ``os.PathLike``).
+
+    Raises:
+        ArgumentTypeError: anything else (None, a number, bytes, a list), naming ``name``.
+    """
+    if isinstance(path, os.PathLike) or (isinstance(path, str) and path):
+        return path
+    raise ArgumentTypeError(name, path, "expected a file path (str or os.PathLike), got "
+                            f"{type(path).__name__}")
+
+
 def read_text(path: str | Path) -> str:
     """The UTF-8 text of a description file.
 
     Raises:
-        DescriptionError: the file is missing, unreadable, or not UTF-8 text (binary).
+        ArgumentTypeError: ``path`` is not a path (None, a number).
+        DescriptionError: the file is missing, a folder, unreadable, or not UTF-8 text
+            (binary).
     """
-    path = Path(path)
+    path = Path(file_path(path))
+    if path.is_dir():
+        raise DescriptionError(str(path), "is a folder, expected a file")
     if not path.is_file():
         raise DescriptionError(str(path), "file not found")
     try:
