@@ -49,6 +49,7 @@ import numpy as np
 
 from .core.robot_api import INVERSE_DYNAMICS_METHODS, ParallelRobot, PoseLayout, pose_layout
 from .core.simulation import resolve_integrator
+from .core.text_formats import check_columns, load_json
 from .errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
 from .files import read_text, write_text_atomic
 from .hexapod import simulation
@@ -337,7 +338,7 @@ def _motion_from_csv(path: Path, columns: MotionColumns) -> Motion:
     if len(numbered) < 2:
         raise DescriptionError(str(path), "needs a header row and at least one data row")
     rows = list(csv.reader([ln for _, ln in numbered]))
-    header = [h.strip() for h in rows[0]]
+    header = check_columns(rows[0], str(path), numbered[0][0])
     missing = [c for c in ("t",) + columns.pose if c not in header]
     if missing:
         raise DescriptionError(str(path), f"missing columns {missing} (header: {header})")
@@ -377,10 +378,7 @@ def _is_number(text: str) -> bool:
 
 
 def _motion_from_json(path: Path, columns: MotionColumns) -> Motion:
-    try:
-        data = json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise DescriptionError(str(path), f"malformed JSON: {exc}") from None
+    data = load_json(read_text(path), str(path))
     if not isinstance(data, dict) or "t" not in data or "pose" not in data:
         raise DescriptionError(str(path), 'expected an object with "t" and "pose"')
     try:

@@ -96,7 +96,7 @@ def real_array(value, name: str) -> np.ndarray:
         if isinstance(value, (list, tuple)) and _has_bool(value):
             # a bool among numbers (numpy makes it 0.0 or 1.0)
             raise InputError(name, value, "expected real numbers, got a bool among them")
-        return np.ascontiguousarray(raw, dtype=float)
+        return np.asarray(raw, dtype=float, order="C")     # (a 0-d array stays 0-d)
     except (TypeError, ValueError, OverflowError) as exc:
         if isinstance(exc, InputError):
             raise
