@@ -196,10 +196,11 @@ def read_geometry_file(path: str | os.PathLike) -> dict:
         DescriptionError: missing file, unknown suffix, malformed content, or not a table.
     """
     path = Path(file_path(path))
+    text = read_text(path)
     suffix = path.suffix.lower()
     if suffix not in GEOMETRY_SUFFIXES:
         raise DescriptionError(str(path), "geometry file must be .toml, .yaml, .yml or .json")
-    data = load_structured(read_text(path), str(path), suffix[1:])
+    data = load_structured(text, str(path), suffix[1:])
     if isinstance(data, dict) and isinstance(data.get("geometry"), dict):
         outside = [key for key in data if key != "geometry"]
         if outside:

@@ -51,7 +51,7 @@ from .core.robot_api import INVERSE_DYNAMICS_METHODS, ParallelRobot, PoseLayout,
 from .core.simulation import resolve_integrator
 from .core.text_formats import check_columns, load_json
 from .errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
-from .files import read_text, write_text_atomic
+from .files import file_path, read_text, write_text_atomic
 from .hexapod import simulation
 from .hexapod.fast import FastTrajectory, simulate_fast
 from .hexapod.robot import Hexapod
@@ -271,10 +271,10 @@ def read_motion(path: str | os.PathLike[str], robot: ParallelRobot | None = None
             times not increasing, a shape that does not fit the robot, NaN / inf (the
             message names the file and column).
     """
-    path = Path(path)
+    path = Path(file_path(path))
     columns = motion_columns(robot)
-    if not path.is_file():
-        raise DescriptionError(str(path), "motion file not found")
+    if path.is_dir() or not path.is_file():
+        read_text(path)                 # a folder or a missing file: its DescriptionError
     suffix = path.suffix.lower()
     if suffix == ".json":
         return _motion_from_json(path, columns)

@@ -19,9 +19,10 @@ from __future__ import annotations
 import inspect
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -55,10 +56,11 @@ class Case:
 def _robot_values(robot) -> dict[str, list[Any]]:
     """Candidate valid values by argument name for ``robot`` (several where one name means
     different things on different robots: ``q`` a configuration or actuator positions)."""
-    dim, n, nq, nv = robot.pose_dim, robot.n_actuators, robot.model.nq, robot.model.nv
+    dim, n, nv = robot.pose_dim, robot.n_actuators, robot.model.nv
     home = np.array(robot.home_pose, dtype=float)
     forces = robot.static_forces(home, bounded=False)
-    two = lambda x: np.array([x, x])                       # noqa: E731 (a batch of two)
+    def two(x):                                            # a batch of two
+        return np.array([x, x])
     return {
         "pose": [home], "poses": [two(home)],
         "twist": [np.full(dim, 0.01)], "twists": [two(np.full(dim, 0.01))],
@@ -89,7 +91,7 @@ def _robot_cases(name: str) -> list[Case]:
         if any(p not in values for p in required_names):
             raise AssertionError(f"{name}.{attr}: no valid value for {required_names}")
         optional = frozenset(p for p in given if p not in required_names)
-        choices: list[dict[str, Any]] = [dict()]
+        choices: list[dict[str, Any]] = [{}]
         for p in given:                   # every combination of candidates (an option: or left out)
             choices = [dict(c, **{p: v}) for c in choices for v in values[p]] + \
                 ([dict(c) for c in choices] if p in optional else [])

@@ -300,9 +300,9 @@ def test_compiled_routes_never_return_nan(robot):
     fd = fast_dynamics(robot)
     for scale in (1e160, 1e150, 1e100):
         huge = [scale] * 6
-        for call in (lambda: fd.inverse_dynamics(robot.home_pose, huge, np.zeros(6),
-                                                 bounded=False),
-                     lambda: fd.forward_dynamics(robot.home_pose, huge, np.zeros(6))):
+        for call in (lambda h=huge: fd.inverse_dynamics(robot.home_pose, h, np.zeros(6),
+                                                        bounded=False),
+                     lambda h=huge: fd.forward_dynamics(robot.home_pose, h, np.zeros(6))):
             if scale > MAX_MAGNITUDE:
                 with pytest.raises(hp.InputError, match="twist"):
                     call()

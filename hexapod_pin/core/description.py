@@ -1085,7 +1085,7 @@ def file_path(path: object, name: str = "path") -> str | os.PathLike[str]:
                             f"{type(path).__name__}")
 
 
-def read_text(path: str | Path) -> str:
+def read_text(path: str | os.PathLike[str]) -> str:
     """The UTF-8 text of a description file.
 
     Raises:

@@ -74,8 +74,9 @@ def load_yaml(text: str, source: str) -> Any:
             key written twice in one mapping (the message names its dotted path, e.g.
             ``effects.joints.crank``, and both lines; culprit: ``path (line N)``).
     """
-    loader = yaml.SafeLoader(text)
+    loader = None
     try:
+        loader = yaml.SafeLoader(text)
         node = loader.get_single_node()
         if node is None:
             return None
@@ -88,7 +89,8 @@ def load_yaml(text: str, source: str) -> Any:
         culprit = f"line {mark.line + 1}" if mark is not None else None
         raise DescriptionError(source, f"malformed YAML: {exc}", culprit) from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
 
 
 def load_json(text: str, source: str) -> Any:
@@ -127,11 +129,18 @@ def load_toml(text: str, source: str) -> dict:
     """The table of a TOML document (TOML itself refuses a key given twice).
 
     Raises:
-        DescriptionError: malformed TOML (a duplicate key included, with its line).
+        DescriptionError: malformed TOML; a key written twice named with its line.
     """
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
+        found = re.search(r"at line (\d+)", str(exc))
+        line = int(found.group(1)) if found else 0
+        lines = text.splitlines()
+        key = lines[line - 1].split("=", 1)[0].strip() if 0 < line <= len(lines) else ""
+        if "overwrite" in str(exc) and key:
+            raise DescriptionError(source, f"{key} is written twice (line {line}): {exc}",
+                                   f"{key} (line {line})") from None
         raise DescriptionError(source, f"malformed TOML: {exc}") from None
 
 
