@@ -175,7 +175,8 @@ def validate_scalars(obj, positive: tuple[str, ...], non_negative: tuple[str, ..
         value = getattr(obj, f.name)
         if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
             raise GeometryError(f.name, value, "must be a real number")
-        value = float(value) if abs(value) <= MAX_MAGNITUDE else math.copysign(math.inf, value)
+        # beyond MAX_MAGNITUDE (an int beyond double precision included): +-inf (NaN kept)
+        value = math.copysign(math.inf, value) if abs(value) > MAX_MAGNITUDE else float(value)
         if math.isnan(value) or (math.isinf(value) and f.name not in may_be_inf):
             raise GeometryError(f.name, getattr(obj, f.name), "must be finite and at most "
                                 f"{MAX_MAGNITUDE:g} in magnitude")
