@@ -30,7 +30,7 @@ from robot_registry import DATA, get, names
 
 import hexapod_pin as hp
 from hexapod_pin import planning
-from hexapod_pin.calibration import select_poses
+from hexapod_pin.calibration import calibrate, random_as_built, select_poses, synthetic_measurements
 from hexapod_pin.calibration.problem import reference_poses
 from hexapod_pin.core import stiffness_maps, workspace_maps
 from hexapod_pin.errors import GeometryError, HexapodPinError, InputError
@@ -118,6 +118,9 @@ def _module_cases(tmp: Path) -> list[Case]:
     waypoints = np.array([home, home + [0.01, 0.0, 0.0, 0.0, 0.0, 0.02]])
     plan = planning.time_optimal(hexapod, waypoints, grid_points=20)
     stewart = str(DATA / "stewart" / "stewart.urdf")
+    truth = random_as_built(hexapod.geometry, 1e-3, seed=7)
+    commanded = reference_poses(hexapod, 40, seed=3)
+    measured = synthetic_measurements(hexapod, truth, commanded)
     return [
         Case("Hexapod", hp.Hexapod, {"geometry": hexapod.geometry}),
         Case("Planar3PRR", hp.Planar3PRR, {"geometry": planar.geometry}),
@@ -147,7 +150,13 @@ def _module_cases(tmp: Path) -> list[Case]:
         Case("TimedTrajectory.resample", plan.resample, {"rate": 100.0}),
         Case("TimedTrajectory.sample", plan.sample, {"times": np.array([0.0])}),
         Case("select_poses", select_poses,
-             {"robot": hexapod, "candidates": reference_poses(hexapod, 30, seed=9), "n": 25}),
+             {"robot": hexapod, "candidates": reference_poses(hexapod, 40, seed=9), "n": 12}),
+        Case("calibrate", calibrate,
+             {"robot": hexapod, "poses": measured.poses, "actuators": measured.actuators,
+              "identify": "chains", "max_nfev": 50, "method": "lm", "rcond": 1e-9}),
+        Case("synthetic_measurements", synthetic_measurements,
+             {"robot": hexapod, "true_geometry": truth, "commanded": commanded,
+              "position_noise": 1e-6, "actuator_noise": 1e-6, "seed": 0}),
         Case("reference_poses", reference_poses,
              {"robot": hexapod, "count": 5, "seed": 0, "scale": 1.0}),
         Case("workspace.evaluate", workspace_maps.evaluate,
@@ -157,7 +166,7 @@ def _module_cases(tmp: Path) -> list[Case]:
               "direction": np.array([0.0, 1.0, 0.0])}),
         Case("workspace.grid", workspace_maps.grid,
              {"robot": planar, "center": planar.home_pose,
-              "half_extent": np.array([0.01, 0.01, 0.0]), "n": 3}),
+              "half_extent": np.array([0.01, 0.01, 0.01]), "n": 3}),
         Case("workspace.sample_box", workspace_maps.sample_box,
              {"robot": planar, "n": 4, "low": planar.home_pose - 0.01,
               "high": planar.home_pose + 0.01}),
@@ -219,6 +228,8 @@ def _outcome(case: Case, arg: str, label: str, bad: Any, strict: bool) -> str | 
         named = getattr(exc, "name", getattr(exc, "field", None))
         if named is not None and named != arg and arg not in str(exc):
             return f"names {named!r}: {exc}"[:200]
+        if label == "unknown name" and str(case.valid[arg]) not in str(exc):
+            return f"does not list the allowed values: {exc}"[:200]   # an enum option
         return None
     except Exception as exc:                     # noqa: BLE001 (the walk's finding)
         return f"{type(exc).__name__}: {exc}"[:200]
@@ -245,12 +256,13 @@ def _describe(result: Any) -> str:
 
 #: (callable label or "*", argument, bad value label) that are valid there: a scalar
 #: stiffness is broadcast, ``times`` takes a time or any 1-D array, inf is no bound, gains
-#: and bounds may be per actuator, a payload learns the pose size from the robot
+#: and bounds may be per actuator, a payload learns the pose size from the robot, identify
+#: takes a list of group names
 VALID_THERE = {("*", "actuator_stiffness", "0-d array"), ("*", "times", "0-d array"),
                ("*", "times", "wrong shape"), ("Limits", "actuator_force", "inf"),
                ("Limits", "linear_speed", "inf"), ("Limits", "actuator_force", "list"),
                ("ActuatorPID", "kp", "list"), ("ActuatorPID", "kd", "list"),
-               ("Payload", "wrench", "wrong shape")}
+               ("Payload", "wrench", "wrong shape"), ("calibrate", "identify", "list")}
 #: (argument, bad value label) pairs where any library error will do: a string that is a
 #: well-typed path or text, but not a file or a description
 ANY_LIBRARY_ERROR = {("motion", "string"), ("path", "unknown name"), ("text", "unknown name")}
@@ -269,6 +281,9 @@ def walk(cases: list[Case]) -> tuple[int, list[str]]:
     """(how many bad calls were tried, the failures)."""
     tried, failures = 0, []
     for case in cases:
+        if not _succeeds(case.call, case.valid):
+            failures.append(f"{case.label}: the valid base call raises")
+            continue
         optional = _optional(case)
         for arg, value in case.valid.items():
             for label, bad, strict in bad_values(arg, value, arg not in optional):

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..core.checks import as_array, of_type, real_number
+from ..core.checks import as_array, generator, of_type, real_number
 from ..core.checks import count as check_count
 from ..core.pose import rotation_from_rpy
 from ..errors import InputError
@@ -227,7 +227,7 @@ def reference_poses(robot: Hexapod, count: int = 60, seed: int = 0, scale: float
     """
     robot = of_type(robot, Hexapod, "robot")
     count = check_count(count, "count")
-    rng = np.random.default_rng(check_count(seed, "seed", minimum=0))
+    rng = generator(seed)
     scale = real_number(scale, "scale", minimum=0.0)
     half = scale * np.r_[np.full(3, REFERENCE_TRANSLATION * robot.geometry.platform_radius),
                          np.full(3, REFERENCE_ROTATION)]

@@ -308,6 +308,18 @@ def count(value, name: str, minimum: int = 1) -> int:
         raise InputError(name, value, f"must be >= {minimum}")
     return int(value)
 
+def generator(seed, name: str = "seed") -> np.random.Generator:
+    """A random generator from a seed (an integer >= 0; a ``numpy.random.Generator`` is
+    used as it is).
+
+    Raises:
+        InputError: anything else (a bool, a float, text, a negative integer).
+    """
+    if isinstance(seed, np.random.Generator):
+        return seed
+    return np.random.default_rng(count(seed, name, minimum=0))
+
+
 def max_abs(x: np.ndarray) -> float:
     """Largest absolute entry of ``x`` (0 for an empty array)."""
     return float(np.max(np.abs(x), initial=0.0))

@@ -54,7 +54,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ArgumentTypeError, HexapodPinError, InputError, SingularityError
-from .checks import as_array, count, real_number
+from .checks import as_array, count, generator, real_number
 from .holding import holding_band
 from .measures import condition_number
 from .robot_api import ParallelRobot, parallel_robot
@@ -499,10 +499,7 @@ def _box(robot: ParallelRobot, low: npt.ArrayLike, high: npt.ArrayLike
     return lo, hi
 
 
-def _rng(seed: int | np.random.Generator) -> np.random.Generator:
-    if isinstance(seed, np.random.Generator):
-        return seed
-    return np.random.default_rng(count(seed, "seed", minimum=0))
+_rng = generator
 
 
 def sample_box(robot: ParallelRobot, n: int, low: npt.ArrayLike, high: npt.ArrayLike,
