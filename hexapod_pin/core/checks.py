@@ -132,7 +132,7 @@ def vector(value, size: int, name: str) -> np.ndarray:
     """
     if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (size,):
         arr = value if value.flags.c_contiguous else np.ascontiguousarray(value)
-        return within_magnitude(arr, value, name)
+        return arr if all_within(arr, MAX_MAGNITUDE) else within_magnitude(arr, value, name)
     return as_array(value, (size,), name)
 
 
