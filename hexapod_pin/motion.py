@@ -49,7 +49,7 @@ import numpy as np
 
 from .core.robot_api import INVERSE_DYNAMICS_METHODS, ParallelRobot, PoseLayout, pose_layout
 from .core.simulation import resolve_integrator
-from .core.text_formats import check_columns, load_json
+from .core.text_formats import check_columns, check_values, load_json
 from .errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
 from .files import file_path, read_text, write_text_atomic
 from .hexapod import simulation
@@ -414,8 +414,8 @@ def _checked_motion(path: Path, columns: MotionColumns, t: np.ndarray, poses: np
                                    "closure_residual")
     finite: dict[str, np.ndarray | None] = {**checks, "t": t, "closure_residual": residual}
     for key, item in finite.items():
-        if item is not None and not np.all(np.isfinite(item)):
-            raise DescriptionError(str(path), "contains NaN or inf", key)
+        if item is not None:
+            check_values(item, str(path), key)
     return Motion(t, poses, closure_residual=residual, **arrays)
 
 

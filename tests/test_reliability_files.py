@@ -119,6 +119,20 @@ def test_geometry_numbers_are_range_checked_like_the_api(tmp_path, value):
         hp.HexapodGeometry(leg_length=float(value))
 
 
+@pytest.mark.parametrize("reader, text, words", [
+    (read_motion, HEADER + "\n0,0,0,0.35,0,0,0\n1,1e200,0,0.35,0,0,0\n", "pose has a value beyond"),
+    (read_waypoints, "x,y,z,roll,pitch,yaw\n0,0,0.35,0,0,0\n0,0,0.35,0,-1e200,0\n",
+     "waypoint 2 has a value that is not finite or beyond"),
+    (read_measurements, "q0,q1,q2,q3,q4,q5,x,y,z,roll,pitch,yaw\n" + "1e200," + "0," * 10 + "0\n",
+     "actuators"),
+])
+def test_file_numbers_are_range_checked_like_the_api(tmp_path, reader, text, words):
+    path = tmp_path / "f.csv"
+    path.write_text(text)
+    with pytest.raises(HexapodPinError, match=words):
+        reader(path)
+
+
 # -- binary content, folders, non-paths ----------------------------------------------------
 @pytest.mark.parametrize("name", sorted(READERS))
 def test_binary_content_and_folders_are_refused_by_every_reader(tmp_path, name):

@@ -8,6 +8,8 @@ file (``source``), the key and its lines:
 * a key written twice in one YAML mapping or JSON object (the plain parsers keep the
   last one silently; TOML refuses it itself), named with its lines;
 * a column name given twice in a CSV header;
+* numbers outside the range the API accepts (NaN, inf, beyond
+  :data:`~hexapod_pin.core.checks.MAX_MAGNITUDE`: :func:`check_values`);
 * malformed content (the parser's own message).
 
 The text itself comes from :func:`hexapod_pin.core.description.read_text` (a missing
@@ -17,14 +19,17 @@ file, a folder or binary / non-UTF-8 content refused there).
 from __future__ import annotations
 
 import json
+import math
 import re
 import sys
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
 import yaml
 
 from ..errors import DescriptionError
+from .checks import MAX_MAGNITUDE
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -152,6 +157,24 @@ def load_structured(text: str, source: str, kind: str) -> Any:
     if kind == "json":
         return load_json(text, source)
     return load_yaml(text, source)
+
+
+def check_values(values: np.ndarray, source: str, culprit: str) -> None:
+    """Refuse NaN / inf and magnitudes beyond
+    :data:`~hexapod_pin.core.checks.MAX_MAGNITUDE` among numbers read from a file (the
+    range the API accepts).
+
+    Raises:
+        DescriptionError: naming the file, ``culprit`` (the field or column) and the
+            index of the first such value.
+    """
+    bad = ~(np.abs(values) <= MAX_MAGNITUDE)
+    if bad.any():
+        first = tuple(int(i) for i in np.argwhere(bad)[0])
+        value = float(values[first])
+        reason = "contains NaN or inf" if not math.isfinite(value) else \
+            f"has a value beyond {MAX_MAGNITUDE:g} in magnitude ({value:g})"
+        raise DescriptionError(source, f"{culprit} {reason} at index {list(first)}", culprit)
 
 
 def check_columns(names: Sequence[str], source: str, line: int = 1) -> list[str]:

@@ -44,7 +44,7 @@ import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
-from ..core.checks import as_array, real_number
+from ..core.checks import MAX_MAGNITUDE, as_array, real_number
 from ..core.description import file_path, read_text
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
 from ..core.platform_map import POSE_AXES
@@ -248,10 +248,11 @@ def read_waypoints(path: str | os.PathLike[str],
     if poses.ndim != 2 or poses.shape[1] != len(names):
         raise DescriptionError(str(path), f"expected rows of {len(names)} pose values "
                                           f"{names}, got shape {poses.shape}")
-    bad = np.flatnonzero(~np.all(np.isfinite(poses), axis=1))
+    bad = np.flatnonzero(~np.all(np.abs(poses) <= MAX_MAGNITUDE, axis=1))
     if bad.size:
         raise DescriptionError(str(path), f"waypoint {bad[0] + 1} has a value that is not "
-                                          f"finite: {poses[bad[0]].tolist()} ({', '.join(names)})")
+                                          f"finite or beyond {MAX_MAGNITUDE:g}: "
+                                          f"{poses[bad[0]].tolist()} ({', '.join(names)})")
     return poses
 
 
