@@ -24,7 +24,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
@@ -32,17 +31,15 @@ from typing import Any
 
 import yaml
 
-from .core.description import read_text
+from .core.description import file_path, read_text, suggest
+from .core.text_formats import load_structured
 from .errors import DescriptionError, GeometryError, InputError
 from .hexapod.geometry import CHAIN_FIELDS, ChainGeometry, HexapodGeometry
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10 (tomli is declared for it in pyproject.toml)
-    import tomli as tomllib
-
 #: suffixes of geometry files
 GEOMETRY_SUFFIXES = (".toml", ".yaml", ".yml", ".json")
+#: the field names of the geometries a file may hold (for suggestions)
+_GEOMETRY_FIELDS = frozenset(f.name for f in dataclasses.fields(HexapodGeometry))
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
@@ -52,12 +49,15 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
     less the umask). Returns the path.
 
     Raises:
-        InputError: the folder does not exist.
+        ArgumentTypeError: ``path`` is not a path.
+        InputError: the folder does not exist, or ``path`` is a folder.
         OSError: the file cannot be written (the temporary file is removed).
     """
-    path = Path(path)
+    path = Path(file_path(path))
     if not path.parent.is_dir():
         raise InputError("path", str(path), "its folder does not exist")
+    if path.is_dir():
+        raise InputError("path", str(path), "is a folder, expected a file name")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     umask = os.umask(0)
     os.umask(umask)
@@ -103,10 +103,11 @@ def load_geometry(path: str | os.PathLike | None = None,
         key, value = (s.strip() for s in item.split("=", 1))
         fields[key] = _override_value(key, value, tuple_fields.get(key))
     known = {f.name for f in dataclasses.fields(geometry_type)}
-    unknown = sorted(set(fields) - known)
+    unknown = sorted(set(fields) - known, key=str)
     if unknown:
-        raise GeometryError(unknown[0], fields[unknown[0]],
-                            f"unknown field; known: {', '.join(sorted(known))}")
+        raise GeometryError(str(unknown[0]), fields[unknown[0]], "unknown field"
+                            + suggest(str(unknown[0]), known)
+                            + f"; known: {', '.join(sorted(known))}")
     for key in tuple_fields:
         if isinstance(fields.get(key), list):
             fields[key] = tuple(fields[key])
@@ -194,23 +195,19 @@ def read_geometry_file(path: str | os.PathLike) -> dict:
     Raises:
         DescriptionError: missing file, unknown suffix, malformed content, or not a table.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise DescriptionError(str(path), "geometry file not found")
+    path = Path(file_path(path))
+    text = read_text(path)
     suffix = path.suffix.lower()
     if suffix not in GEOMETRY_SUFFIXES:
         raise DescriptionError(str(path), "geometry file must be .toml, .yaml, .yml or .json")
-    text = read_text(path)
-    try:
-        if suffix == ".toml":
-            data = tomllib.loads(text)
-        elif suffix == ".json":
-            data = json.loads(text)
-        else:
-            data = yaml.safe_load(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:
-        raise DescriptionError(str(path), f"malformed {suffix[1:]}: {exc}") from None
+    data = load_structured(text, str(path), suffix[1:])
     if isinstance(data, dict) and isinstance(data.get("geometry"), dict):
+        outside = [key for key in data if key != "geometry"]
+        if outside:
+            key = outside[0]
+            raise DescriptionError(str(path), f"key {key!r} outside the [geometry] table"
+                                   + suggest(str(key), data["geometry"].keys()
+                                              | _GEOMETRY_FIELDS, cutoff=0.6), str(key))
         data = data["geometry"]
     if not isinstance(data, dict):
         raise DescriptionError(str(path), "expected a table of geometry fields")

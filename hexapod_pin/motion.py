@@ -49,8 +49,9 @@ import numpy as np
 
 from .core.robot_api import INVERSE_DYNAMICS_METHODS, ParallelRobot, PoseLayout, pose_layout
 from .core.simulation import resolve_integrator
+from .core.text_formats import check_columns, check_values, load_json
 from .errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
-from .files import read_text, write_text_atomic
+from .files import file_path, read_text, write_text_atomic
 from .hexapod import simulation
 from .hexapod.fast import FastTrajectory, simulate_fast
 from .hexapod.robot import Hexapod
@@ -270,10 +271,10 @@ def read_motion(path: str | os.PathLike[str], robot: ParallelRobot | None = None
             times not increasing, a shape that does not fit the robot, NaN / inf (the
             message names the file and column).
     """
-    path = Path(path)
+    path = Path(file_path(path))
     columns = motion_columns(robot)
-    if not path.is_file():
-        raise DescriptionError(str(path), "motion file not found")
+    if path.is_dir() or not path.is_file():
+        read_text(path)                 # a folder or a missing file: its DescriptionError
     suffix = path.suffix.lower()
     if suffix == ".json":
         return _motion_from_json(path, columns)
@@ -337,7 +338,7 @@ def _motion_from_csv(path: Path, columns: MotionColumns) -> Motion:
     if len(numbered) < 2:
         raise DescriptionError(str(path), "needs a header row and at least one data row")
     rows = list(csv.reader([ln for _, ln in numbered]))
-    header = [h.strip() for h in rows[0]]
+    header = check_columns(rows[0], str(path), numbered[0][0])
     missing = [c for c in ("t",) + columns.pose if c not in header]
     if missing:
         raise DescriptionError(str(path), f"missing columns {missing} (header: {header})")
@@ -377,10 +378,7 @@ def _is_number(text: str) -> bool:
 
 
 def _motion_from_json(path: Path, columns: MotionColumns) -> Motion:
-    try:
-        data = json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise DescriptionError(str(path), f"malformed JSON: {exc}") from None
+    data = load_json(read_text(path), str(path))
     if not isinstance(data, dict) or "t" not in data or "pose" not in data:
         raise DescriptionError(str(path), 'expected an object with "t" and "pose"')
     try:
@@ -416,8 +414,8 @@ def _checked_motion(path: Path, columns: MotionColumns, t: np.ndarray, poses: np
                                    "closure_residual")
     finite: dict[str, np.ndarray | None] = {**checks, "t": t, "closure_residual": residual}
     for key, item in finite.items():
-        if item is not None and not np.all(np.isfinite(item)):
-            raise DescriptionError(str(path), "contains NaN or inf", key)
+        if item is not None:
+            check_values(item, str(path), key)
     return Motion(t, poses, closure_residual=residual, **arrays)
 
 

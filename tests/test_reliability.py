@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 
 import hexapod_pin as hp
 from hexapod_pin.cli import app
-from hexapod_pin.core.checks import check_finite_result
+from hexapod_pin.core.checks import MAX_MAGNITUDE, check_finite_result
 from hexapod_pin.core.dynamics import ClosedLoopDynamics
 from hexapod_pin.core.measures import ACCURACY, TYPE_I_TOL, TYPE_II_TOL
 from hexapod_pin.hexapod.fast import fast_dynamics, simulate_fast
@@ -173,16 +173,20 @@ def test_overflowing_inputs_never_return_nan(robot, planar):
             call()
 
 
-def test_huge_coordinates_are_unreachable_never_short_by_nan(robot):
-    """Above ~1e154 m the reach test's discriminant overflows: still unreachable, with a
-    positive (possibly infinite) shortfall, never NaN."""
-    for pose in ([1e200, 0, 0.34, 0, 0, 0], [1e308, 0, 0.35, 0, 0, 0],
-                 [1e155, 0, 0.34, 0, 0, 0]):
-        for method in ("inverse_kinematics", "jacobian", "singularity", "configuration"):
-            with pytest.raises(hp.UnreachablePoseError) as info:
+def test_huge_coordinates_are_refused_or_unreachable_never_short_by_nan(robot):
+    """Beyond MAX_MAGNITUDE (1e150; the reach test's discriminant overflows above ~1e154 m)
+    a pose is an InputError naming it (issue 31, second pass); up to it, unreachable with
+    a positive finite shortfall, never NaN."""
+    for method in ("inverse_kinematics", "jacobian", "singularity", "configuration"):
+        for pose in ([1e200, 0, 0.34, 0, 0, 0], [1e308, 0, 0.35, 0, 0, 0],
+                     [1e155, 0, 0.34, 0, 0, 0]):
+            with pytest.raises(hp.InputError, match="pose.*beyond 1e.150") as info:
                 getattr(robot, method)(pose)
-            assert "nan" not in str(info.value)
-            assert all(s > 0 for s in info.value.shortfall)
+            assert info.value.name == "pose"
+        with pytest.raises(hp.UnreachablePoseError) as info:
+            getattr(robot, method)([1e150, 0, 0.34, 0, 0, 0])
+        assert "nan" not in str(info.value)
+        assert all(0 < s < math.inf for s in info.value.shortfall)
 
 
 def test_results_are_checked_finite_at_the_facade(robot):
@@ -291,13 +295,24 @@ def test_planar_branch_of_refuses_actuators_that_do_not_assemble(planar):
 
 
 def test_compiled_routes_never_return_nan(robot):
+    """A twist beyond MAX_MAGNITUDE is refused by name (issue 31, second pass); up to it
+    the answer is finite or a NonFiniteResultError naming the route."""
     fd = fast_dynamics(robot)
-    huge = [1e160] * 6
-    for call in (lambda: fd.inverse_dynamics(robot.home_pose, huge, np.zeros(6),
-                                             bounded=False),
-                 lambda: fd.forward_dynamics(robot.home_pose, huge, np.zeros(6))):
-        with pytest.raises(hp.NonFiniteResultError, match="FastDynamics"):
-            call()
+    for scale in (1e160, 1e150, 1e100):
+        huge = [scale] * 6
+        for call in (lambda h=huge: fd.inverse_dynamics(robot.home_pose, h, np.zeros(6),
+                                                        bounded=False),
+                     lambda h=huge: fd.forward_dynamics(robot.home_pose, h, np.zeros(6))):
+            if scale > MAX_MAGNITUDE:
+                with pytest.raises(hp.InputError, match="twist"):
+                    call()
+                continue
+            try:
+                out = call()
+            except hp.NonFiniteResultError as exc:
+                assert "FastDynamics" in str(exc)
+            else:
+                assert np.isfinite(np.asarray(getattr(out, "actuator_forces", out))).all()
 
 
 # -- the command line: strict JSON, no silently dropped field, binary files --------------------

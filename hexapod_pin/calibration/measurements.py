@@ -26,8 +26,9 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from ..core.text_formats import check_columns
 from ..errors import DescriptionError, InputError
-from ..files import write_text_atomic
+from ..files import read_text, write_text_atomic
 from .problem import Measurements
 
 ACTUATOR_COLUMNS = tuple(f"q{i}" for i in range(6))
@@ -58,15 +59,12 @@ def read_measurements(path: str | os.PathLike, target_points: npt.ArrayLike | No
             column named).
         InputError: inconsistent measurements (see ``Measurements.checked``).
     """
-    path = Path(path)
-    if not path.is_file():
-        raise DescriptionError(str(path), "measurement file not found")
-    lines = [ln for ln in path.read_text(encoding="utf-8").splitlines()
+    lines = [ln for ln in read_text(path).splitlines()
              if ln.strip() and not ln.lstrip().startswith("#")]
     rows = list(csv.reader(lines))
     if not rows:
         raise DescriptionError(str(path), "no header row")
-    header = [h.strip() for h in rows[0]]
+    header = check_columns(rows[0], str(path))
     n_points = sum(1 for h in header if h.startswith("p") and h.endswith("_x"))
     known = set(ACTUATOR_COLUMNS) | set(POSE_COLUMNS) | set(point_columns(n_points))
     unknown = [h for h in header if h not in known]

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..core.checks import as_array
+from ..core.checks import as_array, generator, of_type, real_number
+from ..core.checks import count as check_count
 from ..core.pose import rotation_from_rpy
 from ..errors import InputError
 from ..hexapod.robot import Hexapod
@@ -217,8 +218,17 @@ def reference_poses(robot: Hexapod, count: int = 60, seed: int = 0, scale: float
     REFERENCE_ROTATION`` (rad) per coordinate (a fixed seed), kept when reachable, within
     the strokes and with every leg at least ``acos(REFERENCE_MIN_COS)`` away from
     perpendicular to its line (a pose error moves the readings at most ``1 /
-    REFERENCE_MIN_COS`` times as much)."""
-    rng = np.random.default_rng(seed)
+    REFERENCE_MIN_COS`` times as much).
+
+    Raises:
+        ArgumentTypeError: ``robot`` is not a :class:`~hexapod_pin.Hexapod`.
+        InputError: ``count`` not an integer >= 1, ``seed`` not one >= 0, ``scale`` not a
+            real number > 0.
+    """
+    robot = of_type(robot, Hexapod, "robot")
+    count = check_count(count, "count")
+    rng = generator(seed)
+    scale = real_number(scale, "scale", minimum=0.0)
     half = scale * np.r_[np.full(3, REFERENCE_TRANSLATION * robot.geometry.platform_radius),
                          np.full(3, REFERENCE_ROTATION)]
     poses = robot.home_pose + rng.uniform(-1.0, 1.0, size=(count, 6)) * half

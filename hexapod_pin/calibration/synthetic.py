@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial.transform import Rotation
 
-from ..core.checks import as_array, real_number
+from ..core.checks import as_array, generator, of_type, real_number
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
 from ..errors import AssemblyError, InputError
 from ..hexapod.geometry import HexapodGeometry, closure_pose
@@ -79,15 +79,10 @@ def random_as_built(geometry: HexapodGeometry, scale: float = 1e-3,
 
     Raises:
         InputError: ``scale`` negative or not a finite number, ``seed`` neither an
-            integer nor a Generator.
+            integer >= 0 nor a Generator.
     """
     scale = real_number(scale, "scale", minimum=0.0, strict=False)
-    if isinstance(seed, np.random.Generator):
-        rng = seed
-    elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-        rng = np.random.default_rng(seed)
-    else:
-        raise InputError("seed", seed, "expected an integer or a numpy Generator")
+    rng = generator(seed)
     return geometry.as_built(
         line_points=rng.normal(0.0, scale, (6, 3)),
         line_directions=rng.normal(0.0, scale, (6, 3)),
@@ -134,12 +129,14 @@ def synthetic_measurements(robot: Hexapod, true_geometry: HexapodGeometry,
         InputError: malformed arguments, or a commanded pose the nominal robot cannot reach.
         AssemblyError: the true robot does not assemble at some readings.
     """
+    robot = of_type(robot, Hexapod, "robot")
+    true_geometry = of_type(true_geometry, HexapodGeometry, "true_geometry")
     if route not in ROUTES:
         raise InputError("route", route, f"expected one of {ROUTES}")
     for name, value in (("position_noise", position_noise), ("rotation_noise", rotation_noise),
                         ("actuator_noise", actuator_noise)):
-        if not (np.isfinite(value) and value >= 0.0):
-            raise InputError(name, value, "must be a finite number >= 0")
+        real_number(value, name, minimum=0.0, strict=False)
+    rng = generator(seed)
     commanded = as_array(commanded, (6,), "commanded", batch=True)
     batch = robot.inverse_kinematics_batch(commanded)
     if not batch.ok.all():
@@ -162,7 +159,6 @@ def synthetic_measurements(robot: Hexapod, true_geometry: HexapodGeometry,
     frames = frames_of(instrument, target)
     rot = rotation_from_rpy(world[:, 3:])
     exact = measured_poses(rot, world[:, :3], frames)
-    rng = np.random.default_rng(seed)
     n = commanded.shape[0]
     noisy = exact.copy()
     noisy[:, :3] += rng.normal(scale=position_noise, size=(n, 3))

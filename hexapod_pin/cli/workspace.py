@@ -10,7 +10,7 @@ import numpy as np
 import typer
 
 from ..core import workspace_maps
-from ..core.checks import count, real_number
+from ..core.checks import count, real_number, within_magnitude
 from ..errors import InputError
 from .common import (AsJson, GeometryFile, PlatformFrame, PoseAxes, Quiet, RobotFile,
                      SetFields, as_parallel, component_values, console, emit_json, guard,
@@ -57,6 +57,7 @@ def workspace(samples: Annotated[int, typer.Option("--samples", help="uniform sa
         half = np.where(angular, DEFAULT_HALF["angular"], DEFAULT_HALF["linear"])
     elif not np.all(half > 0.0):
         raise InputError("--half-extent", half_extent, "half-widths must be > 0 (m, rad)")
+    half = within_magnitude(np.asarray(half, dtype=float), half_extent, "--half-extent")
     home = np.asarray(bot.home_pose, dtype=float)
     low, high = home - half, home + half
     units = " ".join(f"{u}^{n}" for u, n in (("m", int((~angular).sum())),

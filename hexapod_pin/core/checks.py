@@ -14,9 +14,15 @@ import numbers
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
-from ..errors import GeometryError, InputError, NonFiniteResultError, SolverError
-from .compiled import all_finite
+from ..errors import ArgumentTypeError, GeometryError, InputError, NonFiniteResultError, SolverError
+from .compiled import all_finite, all_within
+
+#: the largest magnitude an input may have: above it, squares and products of two inputs
+#: overflow double precision (sqrt of the largest double is 1.34e154), so no answer
+#: computed from it could be certified. No quantity in SI units comes near it.
+MAX_MAGNITUDE = 1e150
 
 
 def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False) -> np.ndarray:
@@ -29,48 +35,104 @@ def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False)
         batch: when True, accept ``(N,) + shape_tail``.
 
     Raises:
-        InputError: not real numbers (complex, bool, text), wrong shape, or NaN / inf
-            entries.
+        InputError: not real numbers (ragged nesting, complex, bool, text, None), wrong
+            shape, NaN / inf entries, or entries beyond :data:`MAX_MAGNITUDE`.
+    """
+    arr = real_array(value, name)
+    expected = ("N",) + shape_tail if batch else shape_tail
+    ok = (arr.ndim == len(shape_tail) + 1 and arr.shape[1:] == shape_tail) if batch \
+        else arr.shape == shape_tail
+    if not ok:
+        raise InputError(name, value, f"expected shape {expected}, got {arr.shape}")
+    return within_magnitude(arr, value, name)
+
+
+def check_batch(dim: int, n_actuators: int, **arrays: npt.ArrayLike | None) -> list[Any]:
+    """Validate the arrays of a batch: each (N, dim) (``actuator_forces`` (N, n_actuators)),
+    all with the N of the first; ``wrenches`` may be None (passed through).
+
+    Args:
+        dim: the pose size.
+        n_actuators: the actuator count.
+        **arrays: the arrays by name, ``poses`` first.
+
+    Returns:
+        The checked float arrays (C-contiguous, owned copies) in the order given.
+
+    Raises:
+        InputError: a missing array, bad shapes, NaN / inf, or rows of different lengths.
+    """
+    out: list[Any] = []
+    n = None
+    for name, value in arrays.items():
+        if value is None and name == "wrenches":
+            out.append(None)
+            continue
+        required(**{name: value})
+        arr = as_array(value, (n_actuators if name == "actuator_forces" else dim,), name,
+                       batch=True)
+        if n is None:
+            n = arr.shape[0]
+        elif arr.shape[0] != n:
+            raise InputError(name, value, f"expected {n} rows like the poses, got "
+                             f"{arr.shape[0]}")
+        out.append(arr)
+    return out
+
+
+def real_array(value, name: str) -> np.ndarray:
+    """``value`` as a C-contiguous float64 array of any shape, its entries not yet checked.
+
+    Raises:
+        InputError: ragged nesting, complex, bool, text, bytes or other objects.
     """
     if type(value) is np.ndarray and value.dtype == np.float64 and value.flags.c_contiguous:
-        arr = value                       # what np.ascontiguousarray would return
-    else:
-        try:
-            raw = np.asarray(value) if not isinstance(value, np.ndarray) else value
-        except (TypeError, ValueError):        # ragged nesting, unconvertible objects
-            raise InputError(name, value, "not a regular array of numbers") from None
+        return value                      # what np.ascontiguousarray would return
+    try:
+        raw = np.asarray(value) if not isinstance(value, np.ndarray) else value
         if raw.dtype.kind in "cbOSUV" and not (raw.dtype.kind == "O" and _all_real(raw)):
             # complex (its imaginary part would be dropped), bool, text, bytes or objects
             raise InputError(name, value, f"expected real numbers, got dtype {raw.dtype}")
         if isinstance(value, (list, tuple)) and _has_bool(value):
             # a bool among numbers (numpy makes it 0.0 or 1.0)
             raise InputError(name, value, "expected real numbers, got a bool among them")
-        try:
-            arr = np.ascontiguousarray(raw, dtype=float)
-        except (TypeError, ValueError):
-            raise InputError(name, value, "not numeric") from None
-    expected = ("N",) + shape_tail if batch else shape_tail
-    ok = (arr.ndim == len(shape_tail) + 1 and arr.shape[1:] == shape_tail) if batch \
-        else arr.shape == shape_tail
-    if not ok:
-        raise InputError(name, value, f"expected shape {expected}, got {arr.shape}")
-    if not np.isfinite(arr).all():
+        return np.asarray(raw, dtype=float, order="C")     # (a 0-d array stays 0-d)
+    except (TypeError, ValueError, OverflowError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        # ragged nesting, unconvertible objects, integers beyond double precision
+        raise InputError(name, value, "not a regular array of real numbers") from None
+
+
+def within_magnitude(arr: np.ndarray, value, name: str) -> np.ndarray:
+    """``arr`` after checking that every entry is finite and at most
+    :data:`MAX_MAGNITUDE` in magnitude (one pass when they are).
+
+    Raises:
+        InputError: NaN / inf entries, or entries beyond :data:`MAX_MAGNITUDE`.
+    """
+    if arr.size and not all_within(arr.reshape(-1), MAX_MAGNITUDE):
         bad = np.argwhere(~np.isfinite(arr))
-        raise InputError(name, value, f"contains NaN or inf at {bad[:5].tolist()}")
+        if bad.size:
+            raise InputError(name, value, f"contains NaN or inf at {bad[:5].tolist()}")
+        bad = np.argwhere(np.abs(arr) > MAX_MAGNITUDE)
+        raise InputError(name, value, f"entries beyond {MAX_MAGNITUDE:g} in magnitude at "
+                         f"{bad[:5].tolist()} (products of such numbers overflow double "
+                         "precision)")
     return arr
 
 
 def vector(value, size: int, name: str) -> np.ndarray:
     """A C-contiguous float64 ``(size,)`` array, for the compiled kernels' fast path.
 
-    A float64 array of that shape is passed through (copied only when not contiguous);
-    anything else goes through :func:`as_array` (real, finite numbers of that shape, else
-    :class:`InputError`). Finiteness of a passed-through array is NOT checked here: the
-    kernels check it and the caller then re-validates with :func:`as_array`, which raises
-    the :class:`InputError`.
+    A float64 array of that shape whose entries are finite and within
+    :data:`MAX_MAGNITUDE` is passed through (copied only when not contiguous; one compiled
+    scan); anything else goes through :func:`as_array` (real, finite numbers of that shape,
+    else :class:`InputError`).
     """
     if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (size,):
-        return value if value.flags.c_contiguous else np.ascontiguousarray(value)
+        arr = value if value.flags.c_contiguous else np.ascontiguousarray(value)
+        return arr if all_within(arr, MAX_MAGNITUDE) else within_magnitude(arr, value, name)
     return as_array(value, (size,), name)
 
 
@@ -100,9 +162,9 @@ def validate_scalars(obj, positive: tuple[str, ...], non_negative: tuple[str, ..
                          "max_actuator_force",)) -> None:
     """Coerce a frozen dataclass's scalar fields to float and check their signs.
 
-    Every field but ``skip`` must be a real number (not bool), finite unless in
-    ``may_be_inf`` (only ``+inf`` then); ``positive`` ones ``> 0``, ``non_negative``
-    ones ``>= 0``.
+    Every field but ``skip`` must be a real number (not bool), finite and at most
+    :data:`MAX_MAGNITUDE` in magnitude unless in ``may_be_inf`` (any magnitude, ``+inf``
+    included, then); ``positive`` ones ``> 0``, ``non_negative`` ones ``>= 0``.
 
     Raises:
         GeometryError: naming the first offending field and its value.
@@ -113,9 +175,11 @@ def validate_scalars(obj, positive: tuple[str, ...], non_negative: tuple[str, ..
         value = getattr(obj, f.name)
         if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
             raise GeometryError(f.name, value, "must be a real number")
-        value = float(value)
+        # beyond MAX_MAGNITUDE (an int beyond double precision included): +-inf (NaN kept)
+        value = math.copysign(math.inf, value) if abs(value) > MAX_MAGNITUDE else float(value)
         if math.isnan(value) or (math.isinf(value) and f.name not in may_be_inf):
-            raise GeometryError(f.name, value, "must be finite")
+            raise GeometryError(f.name, getattr(obj, f.name), "must be finite and at most "
+                                f"{MAX_MAGNITUDE:g} in magnitude")
         object.__setattr__(obj, f.name, value)
     for name in positive:
         if getattr(obj, name) <= 0.0:
@@ -148,14 +212,20 @@ def real_number(value, name: str, *, minimum: float | None = None,
         strict: the bound excluded (``value > minimum``) or included.
 
     Raises:
-        InputError: not a real number (None, text, bool, complex), NaN / inf, or below
-            the bound.
+        InputError: not a real number (None, text, bool, complex), NaN / inf, beyond
+            :data:`MAX_MAGNITUDE`, or below the bound.
     """
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise InputError(name, value, "expected a real number")
-    out = float(value)
+    try:
+        out = float(value)
+    except OverflowError:                       # an integer beyond double precision
+        out = math.inf
     if not math.isfinite(out):
         raise InputError(name, value, "must be finite")
+    if abs(out) > MAX_MAGNITUDE:
+        raise InputError(name, value, f"must be at most {MAX_MAGNITUDE:g} in magnitude "
+                         "(products of such numbers overflow double precision)")
     if minimum is not None and not (out > minimum if strict else out >= minimum):
         raise InputError(name, value, f"must be {'>' if strict else '>='} {minimum:g}")
     return out
@@ -166,8 +236,8 @@ def bounds(value, n: int, name: str) -> np.ndarray:
     ``inf`` means none.
 
     Raises:
-        InputError: not real numbers (text, bools, complex, ragged), NaN, a bound <= 0, or
-            the wrong length.
+        InputError: not real numbers (text, bools, complex, ragged), NaN, a bound <= 0, a
+            finite bound above :data:`MAX_MAGNITUDE`, or the wrong length.
     """
     expected = f"expected a bound > 0 or {n} bounds > 0 (inf: none)"
     if isinstance(value, (bool, np.bool_, str, bytes)) or value is None:
@@ -181,7 +251,37 @@ def bounds(value, n: int, name: str) -> np.ndarray:
     arr = np.full(n, float(raw)) if raw.ndim == 0 else raw.astype(float)
     if arr.shape != (n,) or np.isnan(arr).any() or (arr <= 0).any():
         raise InputError(name, value, expected)
+    if (np.isfinite(arr) & (arr > MAX_MAGNITUDE)).any():
+        raise InputError(name, value, f"a finite bound above {MAX_MAGNITUDE:g} cannot be "
+                         "certified in double precision (inf: none)")
     return arr
+
+
+def per_actuator(value, n: int, name: str) -> np.ndarray:
+    """A scalar (broadcast) or ``n`` real, finite numbers as an (n,) array.
+
+    Raises:
+        InputError: as :func:`as_array` (ragged, complex, bool, text, NaN / inf, beyond
+            :data:`MAX_MAGNITUDE`), or another shape.
+    """
+    arr = real_array(value, name)
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise InputError(name, value, f"expected a number or shape ({n},), got {arr.shape}")
+    return within_magnitude(arr, value, name)
+
+
+def of_type(value, kind: type, name: str):
+    """``value`` after checking that it is a ``kind``.
+
+    Raises:
+        ArgumentTypeError: anything else, naming ``name``, the value and ``kind``.
+    """
+    if not isinstance(value, kind):
+        raise ArgumentTypeError(name, value, f"expected a {kind.__name__}, got "
+                                f"{type(value).__name__}")
+    return value
 
 
 def flag(value, name: str) -> bool:
@@ -207,6 +307,18 @@ def count(value, name: str, minimum: int = 1) -> int:
     if value < minimum:
         raise InputError(name, value, f"must be >= {minimum}")
     return int(value)
+
+def generator(seed, name: str = "seed") -> np.random.Generator:
+    """A random generator from a seed (an integer >= 0; a ``numpy.random.Generator`` is
+    used as it is).
+
+    Raises:
+        InputError: anything else (a bool, a float, text, a negative integer).
+    """
+    if isinstance(seed, np.random.Generator):
+        return seed
+    return np.random.default_rng(count(seed, name, minimum=0))
+
 
 def max_abs(x: np.ndarray) -> float:
     """Largest absolute entry of ``x`` (0 for an empty array)."""

@@ -57,7 +57,7 @@ import pinocchio as pin
 
 from ..errors import ActuatorSaturationError, BatchActuatorSaturationError, InputError
 from . import kernel_status
-from .checks import as_array, max_abs, required, vector
+from .checks import as_array, check_batch, flag, max_abs, vector
 from .closed_loop import ClosedLoopModel
 from .dynamics import ClosedLoopDynamics
 from .effects_projection import batch_of_states, batch_row, stacked
@@ -72,39 +72,6 @@ BOUND_RTOL = 1e-9
 
 #: an input as given, with its name: ``(value, name)`` (for the errors that name it)
 Inputs = Sequence[tuple[Any, str]]
-
-
-def check_batch(dim: int, n_actuators: int, **arrays: npt.ArrayLike | None) -> list[Any]:
-    """Validate the arrays of a batch: each (N, dim) (``actuator_forces`` (N, n_actuators)),
-    all with the N of the first; ``wrenches`` may be None (passed through).
-
-    Args:
-        dim: the pose size.
-        n_actuators: the actuator count.
-        **arrays: the arrays by name, ``poses`` first.
-
-    Returns:
-        The checked float arrays (C-contiguous, owned copies) in the order given.
-
-    Raises:
-        InputError: a missing array, bad shapes, NaN / inf, or rows of different lengths.
-    """
-    out: list[Any] = []
-    n = None
-    for name, value in arrays.items():
-        if value is None and name == "wrenches":
-            out.append(None)
-            continue
-        required(**{name: value})
-        arr = as_array(value, (n_actuators if name == "actuator_forces" else dim,), name,
-                       batch=True)
-        if n is None:
-            n = arr.shape[0]
-        elif arr.shape[0] != n:
-            raise InputError(name, value, f"expected {n} rows like the poses, got "
-                             f"{arr.shape[0]}")
-        out.append(arr)
-    return out
 
 
 class LazyParts(NamedTuple):
@@ -355,7 +322,7 @@ class ClosedFormDynamics(ClosedFormKernels):
 
     def bounds(self, bounded: bool) -> np.ndarray | None:
         """The actuator bounds (n_act,) (N or N m) enforced with ``bounded``, or None."""
-        return self.limits if bounded else None
+        return self.limits if flag(bounded, "bounded") else None
 
     def check_bounds(self, tau: np.ndarray, bounds: np.ndarray | None) -> None:
         """Raise :class:`ActuatorSaturationError` (the needed forces, the bounds) when a
@@ -534,6 +501,7 @@ class ClosedFormDynamics(ClosedFormKernels):
             BatchActuatorSaturationError: with ``bounded``, forces beyond the bounds
                 (``index``).
         """
+        bounded = flag(bounded, "bounded")
         poses, twists, twist_dots, wrenches = self.check_batch(
             poses=poses, twists=twists, twist_dots=twist_dots, wrenches=wrenches)
         if self.batch_kernels_apply:
@@ -579,6 +547,7 @@ class ClosedFormDynamics(ClosedFormKernels):
             BatchActuatorSaturationError: with ``bounded``, forces beyond
                 ``geometry.max_actuator_force``.
         """
+        bounded = flag(bounded, "bounded")
         poses, wrenches = self.check_batch(poses=poses, wrenches=wrenches)
         if self.batch_kernels_apply:
             return self.static_batch_kernel(poses, wrenches, bounded)

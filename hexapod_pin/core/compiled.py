@@ -124,3 +124,13 @@ def all_finite(vec) -> bool:
         if not math.isfinite(vec[k]):
             return False
     return True
+
+
+@jit
+def all_within(vec, limit: float) -> bool:
+    """Whether every entry of the 1-D array ``vec`` is finite and at most ``limit`` in
+    magnitude (False for NaN)."""
+    for k in range(vec.shape[0]):
+        if not abs(vec[k]) <= limit:
+            return False
+    return True

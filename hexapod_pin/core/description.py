@@ -46,7 +46,6 @@ import io
 import math
 import os
 import re
-import sys
 import threading
 import warnings
 import xml.parsers.expat
@@ -59,14 +58,10 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-from ..errors import DescriptionError, InputError
+from ..errors import ArgumentTypeError, DescriptionError, InputError
 from .couplings import JointCoupling
 from .effects import JointEffects, resolve_effects
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10 (tomli is declared for it in pyproject.toml)
-    import tomli as tomllib
+from .text_formats import load_structured, load_yaml
 
 WORLD = "world"
 CLOSURE_TYPES = {"point": 3, "weld": 6}
@@ -506,7 +501,7 @@ def _urdf_tree(urdf_xml: str, source: str) -> _UrdfElement:
     return roots[0]
 
 
-def _suggest(word: str, known: Any, cutoff: float = 0.6) -> str:
+def suggest(word: str, known: Any, cutoff: float = 0.6) -> str:
     """`` (did you mean 'x'?)`` for the closest of ``known`` (``difflib`` ratio at least
     ``cutoff``), or ""."""
     close = difflib.get_close_matches(word, list(known), n=1, cutoff=cutoff)
@@ -522,10 +517,10 @@ def _check_element(element: _UrdfElement, source: str) -> None:
     strict = element.tag in _URDF_STRICT
     for attribute, value in element.attributes.items():
         if ":" in attribute or attribute in allowed or not (
-                strict or _suggest(attribute, allowed, _NEAR_MISS)):
+                strict or suggest(attribute, allowed, _NEAR_MISS)):
             continue
         raise DescriptionError(source, f"unknown attribute {attribute}={value!r} of "
-                                       f"<{element.tag}>{_suggest(attribute, allowed)}; "
+                                       f"<{element.tag}>{suggest(attribute, allowed)}; "
                                        f"expected {sorted(allowed) or 'none'}",
                                element.culprit())
     for attribute in declared:
@@ -537,9 +532,9 @@ def _check_element(element: _UrdfElement, source: str) -> None:
             continue
         if child.tag in children:
             _check_element(child, source)
-        elif strict or _suggest(child.tag, children, _NEAR_MISS):
+        elif strict or suggest(child.tag, children, _NEAR_MISS):
             raise DescriptionError(source, f"unknown element <{child.tag}> in <{element.tag}>"
-                                           f"{_suggest(child.tag, children)}; expected one of "
+                                           f"{suggest(child.tag, children)}; expected one of "
                                            f"{list(children) or 'none'}", child.culprit())
 
 
@@ -574,7 +569,7 @@ def _check_urdf_elements(urdf_xml: str, source: str) -> None:
         joints[name] = joint
         if kind not in URDF_JOINT_TYPES:
             raise DescriptionError(source, f"attribute type={kind!r} is not a URDF joint type"
-                                           f"{_suggest(kind, URDF_JOINT_TYPES)}; expected one "
+                                           f"{suggest(kind, URDF_JOINT_TYPES)}; expected one "
                                            f"of {list(URDF_JOINT_TYPES)}", joint.culprit())
         for role in ("parent", "child"):
             found = [e for e in joint.children if e.tag == role]
@@ -584,7 +579,7 @@ def _check_urdf_elements(urdf_xml: str, source: str) -> None:
             link = found[0].attributes["link"]
             if link not in links:
                 raise DescriptionError(source, f"<{role} link={link!r}> names no link of the "
-                                               f"URDF{_suggest(link, links)}", joint.culprit())
+                                               f"URDF{suggest(link, links)}", joint.culprit())
             if role == "child" and link in parents:
                 raise DescriptionError(source, f"link {link!r} is already the child of "
                                                f"{parents[link].culprit()}", joint.culprit())
@@ -756,10 +751,10 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
         DescriptionError: malformed YAML, missing keys, unknown closure type,
             duplicate names, or a closure joining a frame to itself.
     """
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise DescriptionError(source, f"malformed YAML: {exc}") from None
+    if not isinstance(text, str):
+        raise ArgumentTypeError("text", text, "expected the YAML text (str), got "
+                                f"{type(text).__name__}")
+    data = load_yaml(text, source)
     if not isinstance(data, dict):
         raise DescriptionError(source, "the loops description must be a YAML mapping")
     unknown = set(data) - {"closures", "actuated", "robot", "effects", "couplings"}
@@ -837,21 +832,18 @@ def _couplings(raw: Any, source: str) -> tuple[JointCoupling, ...]:
 
 def _effect_lines(text: str, source: str, nested: bool = True) -> dict[str, int]:
     """The 1-based line of the ``effects:`` section, its keys, joints and their keys (see
-    :meth:`EffectsSection.culprit`); a joint or key written twice is refused (YAML would
-    keep the last one silently). ``nested``: the section is the top-level ``effects`` key
-    (a loops file), else the whole document (a standalone effects file)."""
+    :meth:`EffectsSection.culprit`; a key written twice was refused by
+    :func:`~hexapod_pin.core.text_formats.load_yaml`). ``nested``: the section is the
+    top-level ``effects`` key (a loops file), else the whole document (a standalone
+    effects file)."""
     lines: dict[str, int] = {}
 
     def walk(node: Any, prefix: str, depth: int) -> None:
         if not isinstance(node, yaml.MappingNode):
             return
-        seen: dict[str, int] = {}
         for key_node, value_node in node.value:
             name, line = f"{prefix}.{key_node.value}", key_node.start_mark.line + 1
-            if name in seen:
-                raise DescriptionError(source, f"{name} is written twice (lines {seen[name]} "
-                                               f"and {line})", f"{name} (line {line})")
-            seen[name] = lines[name] = line
+            lines[name] = line
             if depth < 3:                             # effects.joints.<joint>.<key>
                 walk(value_node, name, depth + 1)
 
@@ -962,11 +954,7 @@ def parse_effects(text: str, source: str = "<effects>", *, kind: str = "yaml"
     """
     if kind not in ("yaml", "toml"):
         raise DescriptionError(source, f"unknown effects format {kind!r} (yaml or toml)")
-    data: Any
-    try:
-        data = tomllib.loads(text) if kind == "toml" else yaml.safe_load(text)
-    except (tomllib.TOMLDecodeError, yaml.YAMLError) as exc:
-        raise DescriptionError(source, f"malformed {kind.upper()}: {exc}") from None
+    data: Any = load_structured(text, source, kind)
     if not isinstance(data, dict) or not data:
         raise DescriptionError(source, "an effects file must be a mapping with the keys "
                                        "joints and velocity_threshold (or one effects: "
@@ -1084,13 +1072,30 @@ def _robot_section(raw: object, source: str) -> RobotSection | None:
                         None if home is None else _numbers(home, source, "home"), bound)
 
 
-def read_text(path: str | Path) -> str:
+def file_path(path: object, name: str = "path") -> str | os.PathLike[str]:
+    """``path`` after checking that it is a path (a non-empty string or an
+    ``os.PathLike``).
+
+    Raises:
+        ArgumentTypeError: anything else (None, a number, bytes, a list), naming ``name``.
+    """
+    if isinstance(path, os.PathLike) or (isinstance(path, str) and path):
+        return path
+    raise ArgumentTypeError(name, path, "expected a file path (str or os.PathLike), got "
+                            f"{type(path).__name__}")
+
+
+def read_text(path: str | os.PathLike[str]) -> str:
     """The UTF-8 text of a description file.
 
     Raises:
-        DescriptionError: the file is missing, unreadable, or not UTF-8 text (binary).
+        ArgumentTypeError: ``path`` is not a path (None, a number).
+        DescriptionError: the file is missing, a folder, unreadable, or not UTF-8 text
+            (binary).
     """
-    path = Path(path)
+    path = Path(file_path(path))
+    if path.is_dir():
+        raise DescriptionError(str(path), "is a folder, expected a file")
     if not path.is_file():
         raise DescriptionError(str(path), "file not found")
     try:

@@ -32,7 +32,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from .checks import check_finite_result
+from .checks import check_finite_result, of_type
 from .closed_loop import ClosedLoopModel
 from .effects import spring_energy
 from .results import Energies
@@ -59,9 +59,11 @@ def model_energies(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike) -> 
         (``n_bodies = model.njoints - 1``).
 
     Raises:
+        ArgumentTypeError: ``clm`` is not a closed-loop model.
         InputError: ``q`` or ``v`` of the wrong shape, not real, or with NaN / inf.
         NonFiniteResultError: finite inputs whose energies overflow.
     """
+    clm = of_type(clm, ClosedLoopModel, "clm")
     q = clm.check_q(q)
     v = clm.check_v(v)
     model, data, names = _workspace(clm)

@@ -40,7 +40,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .checks import check_finite_result
-from ..errors import InputError
+from ..errors import ArgumentTypeError, InputError
 from .closed_loop import ClosedLoopModel
 from .platform_map import POSE_AXES, check_pose_axes
 from .pose import euler_rates_matrix
@@ -216,6 +216,19 @@ SPACE_POSE_AXES = POSE_AXES
 PLANE_POSE_AXES = ("x", "y", "yaw")
 #: the pose axes assumed from a pose's width alone (the two robots with a closed form)
 DEFAULT_POSE_AXES = {6: SPACE_POSE_AXES, 3: PLANE_POSE_AXES}
+
+
+def parallel_robot(robot: object, name: str = "robot") -> ParallelRobot:
+    """``robot`` after checking that it has the shared API (:class:`ParallelRobot`).
+
+    Raises:
+        ArgumentTypeError: anything else (None, a string, a model), naming ``name``.
+    """
+    if not isinstance(robot, ParallelRobot):
+        raise ArgumentTypeError(name, robot, "expected a robot of the shared API "
+                                "(hexapod_pin.core.robot_api.ParallelRobot), got "
+                                f"{type(robot).__name__}")
+    return robot
 
 
 class PoseLayout(NamedTuple):

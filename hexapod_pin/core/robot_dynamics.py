@@ -38,7 +38,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import InputError, SolverError
-from .checks import as_array, flag, max_abs
+from .checks import as_array, check_batch, flag, max_abs
 from .closed_loop import ClosedLoopModel
 from .closure_forces import closure_world_forces
 from .dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
@@ -360,27 +360,19 @@ class RobotDynamics:
                                                      twist_dot, forces, wrench, q0)
 
     # -- batches -------------------------------------------------------------------------
-    def _arrays(self, n_or_first, *arrays):
-        first = as_array(n_or_first, (self.dim,), "poses", batch=True)
-        n = len(first)
-        out = [first]
-        for name, value in arrays:
-            if value is None:
-                out.append(None)
-                continue
-            arr = as_array(value, (self.dim,), name, batch=True)
-            if len(arr) != n:
-                raise InputError(name, value, f"expected {n} rows, got {len(arr)}")
-            out.append(arr)
-        return n, out
+    def _arrays(self, **arrays):
+        """(N, the arrays checked by :func:`~hexapod_pin.core.checks.check_batch`)."""
+        out = check_batch(self.dim, self.n_act, **arrays)
+        return len(out[0]), out
 
     def inverse_dynamics_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
                                twist_dots: npt.ArrayLike, wrenches: npt.ArrayLike | None = None,
                                *, bounded: bool = True) -> BatchInverseDynamics:
         """:meth:`inverse_dynamics` of N states (rows of (N, dim) arrays); errors name the
         first offending row (``index``)."""
-        n, (p, t, td, w) = self._arrays(poses, ("twists", twists), ("twist_dots", twist_dots),
-                                        ("wrenches", wrenches))
+        bounded = flag(bounded, "bounded")
+        n, (p, t, td, w) = self._arrays(poses=poses, twists=twists, twist_dots=twist_dots,
+                                        wrenches=wrenches)
         res = batch_of_states(n, lambda k: self.inverse_dynamics(
             p[k], t[k], td[k], None if w is None else w[k], bounded=bounded,
             joint_wrenches=False))
@@ -393,10 +385,8 @@ class RobotDynamics:
                                actuator_forces: npt.ArrayLike,
                                wrenches: npt.ArrayLike | None = None) -> BatchForwardDynamics:
         """:meth:`forward_dynamics` ("nullspace") of N states."""
-        n, (p, t, w) = self._arrays(poses, ("twists", twists), ("wrenches", wrenches))
-        u = as_array(actuator_forces, (self.n_act,), "actuator_forces", batch=True)
-        if len(u) != n:
-            raise InputError("actuator_forces", actuator_forces, f"expected {n} rows")
+        n, (p, t, u, w) = self._arrays(poses=poses, twists=twists,
+                                       actuator_forces=actuator_forces, wrenches=wrenches)
         res = batch_of_states(n, lambda k: self.forward_dynamics(
             p[k], t[k], u[k], None if w is None else w[k]))
         return BatchForwardDynamics(
@@ -407,7 +397,8 @@ class RobotDynamics:
     def static_forces_batch(self, poses: npt.ArrayLike, wrenches: npt.ArrayLike | None = None,
                             *, bounded: bool = True) -> npt.NDArray[np.float64]:
         """:meth:`static_forces` of N poses: (N, n_act)."""
-        n, (p, w) = self._arrays(poses, ("wrenches", wrenches))
+        bounded = flag(bounded, "bounded")
+        n, (p, w) = self._arrays(poses=poses, wrenches=wrenches)
         res = batch_of_states(n, lambda k: self.static_forces(
             p[k], None if w is None else w[k], bounded=bounded))
         return np.array(res).reshape(n, self.n_act)
@@ -415,7 +406,7 @@ class RobotDynamics:
     def reduced_dynamics_batch(self, poses: npt.ArrayLike,
                                twists: npt.ArrayLike) -> BatchReducedDynamics:
         """:meth:`reduced_dynamics` of N states."""
-        n, (p, t) = self._arrays(poses, ("twists", twists))
+        n, (p, t) = self._arrays(poses=poses, twists=twists)
         res = batch_of_states(n, lambda k: self.reduced_dynamics(p[k], t[k]))
         return BatchReducedDynamics(
             np.array([r.mass_matrix for r in res]).reshape(n, self.dim, self.dim),

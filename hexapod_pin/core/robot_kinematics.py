@@ -32,7 +32,8 @@ import pinocchio as pin
 
 from ..errors import (AssemblyError, InconsistentMotionError, InputError, SingularityError,
                       SolverError, StrokeLimitError, UnreachablePoseError)
-from .checks import as_array, count, flag
+from .checks import MAX_MAGNITUDE, as_array, count, flag
+from .compiled import all_within
 from .closed_loop import ClosedLoopModel
 from .measures import (TREE_TYPE_I_TOL, TREE_TYPE_II_TOL, inverse_condition,
                        tree_singularity_measures)
@@ -204,6 +205,9 @@ class RobotKinematics:
             alpha = 1.0
             for _ in range(LINE_SEARCH):
                 trial = pin.integrate(self.model, q, alpha * step)
+                if not all_within(trial, MAX_MAGNITUDE):   # beyond what the checks accept
+                    alpha *= 0.5
+                    continue
                 t_value, t_rows, t_err = self._evaluate(trial, target)
                 if math.isfinite(t_err) and t_err < err:
                     break

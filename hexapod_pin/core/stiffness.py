@@ -29,7 +29,7 @@ import numpy.typing as npt
 import scipy.linalg
 
 from ..errors import InputError, SingularityError, SolverError
-from .checks import as_array, max_abs
+from .checks import max_abs, per_actuator
 from .platform_derivatives import PlatformRobot, forward_dynamics_derivatives
 from .platform_map import solve_checked_square
 
@@ -128,8 +128,7 @@ def actuator_stiffness_of(value: npt.ArrayLike, n_act: int) -> np.ndarray:
     Raises:
         InputError: another shape, NaN / inf or a negative value.
     """
-    arr = as_array(np.broadcast_to(value, (n_act,)) if np.ndim(value) == 0 else value,
-                   (n_act,), "actuator_stiffness")
+    arr = per_actuator(value, n_act, "actuator_stiffness")
     if (arr < 0).any():
         raise InputError("actuator_stiffness", value, "must be >= 0 (N/m or N m/rad)")
     return np.array(arr)

@@ -54,10 +54,10 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ArgumentTypeError, HexapodPinError, InputError, SingularityError
-from .checks import as_array, count, real_number
+from .checks import as_array, count, generator, real_number
 from .holding import holding_band
 from .measures import condition_number
-from .robot_api import ParallelRobot
+from .robot_api import ParallelRobot, parallel_robot
 
 #: poses per chunk: the robot's batch routes run on this many at a time, and ``progress``
 #: is called after each (small enough for a generic robot's inverse-kinematics cache to
@@ -174,12 +174,7 @@ class VolumeEstimate:
 
 
 # -- input checks ----------------------------------------------------------------------------
-def _robot(robot: object) -> ParallelRobot:
-    if not isinstance(robot, ParallelRobot):
-        raise ArgumentTypeError("robot", robot, "expected a parallel robot (the protocol "
-                                "hexapod_pin.core.robot_api.ParallelRobot), got "
-                                f"{type(robot).__name__}")
-    return robot
+_robot = parallel_robot
 
 
 def _poses(robot: ParallelRobot, poses: npt.ArrayLike) -> np.ndarray:
@@ -504,10 +499,7 @@ def _box(robot: ParallelRobot, low: npt.ArrayLike, high: npt.ArrayLike
     return lo, hi
 
 
-def _rng(seed: int | np.random.Generator) -> np.random.Generator:
-    if isinstance(seed, np.random.Generator):
-        return seed
-    return np.random.default_rng(count(seed, "seed", minimum=0))
+_rng = generator
 
 
 def sample_box(robot: ParallelRobot, n: int, low: npt.ArrayLike, high: npt.ArrayLike,
@@ -617,6 +609,7 @@ def volume(robot: ParallelRobot, n_samples: int, low: npt.ArrayLike, high: npt.A
         InputError: a bad count, box, seed or threshold.
     """
     robot = _robot(robot)
+    n_samples = count(n_samples, "n_samples")
     lo, hi = _box(robot, low, high)
     if np.any(hi <= lo):
         raise InputError("high", high, f"must be > low {lo.tolist()} componentwise")

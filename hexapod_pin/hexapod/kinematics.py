@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..core.checks import as_array, check_signs, vec6
+from ..core.checks import as_array, check_signs, flag, required, vec6
 from ..core.measures import singularity_measures
 from ..core.results import InverseKinematicsBatch, JacobianBatch, SingularityMeasures
 from ..errors import AssemblyError, GeometryError, InputError, StrokeLimitError
@@ -195,6 +195,7 @@ class HexapodKinematics:
             StrokeLimitError: with ``check_limits``, a stroke or gap violation
                 (including carriages of a rail that cross).
         """
+        check_limits = flag(check_limits, "check_limits")
         wk = self._legs(pose, branch, refuse=(K.UNREACHABLE,))
         q = wk[K.Q].copy()
         if check_limits and K.limits(self.geo, wk) != K.OK:
@@ -319,7 +320,12 @@ class HexapodKinematics:
             SingularityError: type I (from :meth:`jacobian`) or type II
                 (``sigma_min(A_hat) < TYPE_II_TOL``, the test of every route).
         """
-        qdot = as_array(actuator_velocities, (6,), "qdot")
+        return self._twist_from(pose, actuator_velocities, branch, "actuator_velocities")
+
+    def _twist_from(self, pose, velocities, branch, name: str) -> npt.NDArray[np.float64]:
+        """:meth:`twist_from_actuator_velocities`, its errors naming ``velocities``
+        ``name``."""
+        qdot = as_array(velocities, (6,), name)
         wk = self._legs(pose, branch)
         jac = np.empty((6, 6))
         K.jacobian(wk, jac)
@@ -331,7 +337,7 @@ class HexapodKinematics:
     def twist_from_qdot(self, pose: npt.ArrayLike, qdot: npt.ArrayLike,
                         branch: npt.ArrayLike | None = None) -> np.ndarray:
         """:meth:`twist_from_actuator_velocities` (the carriage velocities ``qdot``)."""
-        return self.twist_from_actuator_velocities(pose, qdot, branch)
+        return self._twist_from(pose, qdot, branch, "qdot")
 
     def jacobian_derivative(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                             branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
@@ -384,6 +390,7 @@ class HexapodKinematics:
             UnreachablePoseError: a leg cannot reach the pose (as :meth:`jacobian`).
             SingularityError: at a singular configuration (as :meth:`jacobian`).
         """
+        required(twist_dot=twist_dot)      # without it the kernels leave QDD unwritten
         return self._moving_legs(pose, twist, twist_dot, branch)[K.QDD].copy()
 
     def leg_motion(self, pose: npt.ArrayLike, twist: npt.ArrayLike,

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..core.checks import as_array
+from ..core.checks import as_array, generator
 from ..core.measures import condition_number
 from ..core.workspace_maps import VolumeEstimate, volume_estimate
 from ..errors import HexapodPinError, InputError
@@ -370,7 +370,7 @@ def volume(robot: Hexapod, n_samples: int, center: npt.ArrayLike, half_extent: n
     half = as_array(half_extent, (3,), "half_extent")
     if np.any(half <= 0):
         raise InputError("half_extent", half_extent, "must be > 0")
-    rng = np.random.default_rng(seed)
+    rng = generator(seed)
     pos = rng.uniform(center - half, center + half, size=(int(n_samples), 3))
     rpy = np.broadcast_to(as_array(orientation, (3,), "orientation"), pos.shape)
     poses = np.concatenate([pos, rpy], axis=1)

@@ -47,10 +47,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pinocchio as pin
-import yaml
 
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import ClosureSpec, LoopsSpec, build_model, read_text
+from ..core.text_formats import load_yaml
 from ..errors import DescriptionError
 
 KEYS = ("closed_loop", "type", "name_mot", "joint_name", "joint_type")
@@ -93,12 +93,7 @@ def parse_robot_yaml(text: str, source: str = "<robot.yaml>") -> ParallelRobotSp
             malformed ``name_mot``, ``joint_name`` without ``joint_type`` (or of
             another length), or an unknown joint type. ``culprit`` names the entry.
     """
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        culprit = f"line {mark.line + 1}" if mark is not None else None
-        raise DescriptionError(source, f"malformed YAML: {exc}", culprit) from None
+    data = load_yaml(text, source)
     if not isinstance(data, dict):
         raise DescriptionError(source, "robot.yaml must be a YAML mapping")
     unknown = sorted(set(data) - set(KEYS))

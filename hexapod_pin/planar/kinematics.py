@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core import effects_projection as drv
-from ..core.checks import as_array, vector
+from ..core.checks import as_array, flag, vector
 from ..core.closed_loop import ClosedLoopModel
 from ..core.measures import TYPE_I_TOL, TYPE_II_TOL, singularity_measures
 from ..core.results import InverseKinematicsBatch, JacobianBatch, SingularityMeasures
@@ -268,6 +268,7 @@ class PlanarKinematics:
                 actuator indices, ``shortfall``: how much too short, m).
             StrokeLimitError: with ``check_limits``, a slider outside its stroke.
         """
+        check_limits = flag(check_limits, "check_limits")
         ws = self.ws
         ws.legs(0, False, branch, ((pose, "pose"),), vec3(pose, "pose"))
         s = ws.buf[:, kernels.S].copy()

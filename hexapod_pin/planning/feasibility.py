@@ -31,7 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.robot_api import ParallelRobot, pose_layout
+from ..core.checks import of_type, real_number
+from ..core.robot_api import ParallelRobot, parallel_robot, pose_layout
 from ..errors import InputError
 from ..motion import Motion, read_motion
 from .limits import Limits, Payload
@@ -174,11 +175,11 @@ def check_feasibility(robot: ParallelRobot, motion: MotionSource, *, limits: Lim
         BatchUnreachablePoseError: a pose out of reach (the robot's batch error).
         BatchSingularityError: a singular pose (the robot's batch error).
     """
-    limits = Limits() if limits is None else limits
-    payload = Payload() if payload is None else payload
+    robot = parallel_robot(robot)
+    limits = of_type(Limits() if limits is None else limits, Limits, "limits")
+    payload = of_type(Payload() if payload is None else payload, Payload, "payload")
     payload.check(robot.pose_dim)
-    if not (np.isfinite(tolerance) and tolerance >= 0):
-        raise InputError("tolerance", tolerance, "must be finite and >= 0")
+    tolerance = real_number(tolerance, "tolerance", minimum=0.0, strict=False)
     t, poses, twists, twist_dots, extra = motion_arrays(robot, motion)
     n, layout = len(t), pose_layout(robot)
     bounds = limits.per_actuator(robot)

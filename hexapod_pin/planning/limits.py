@@ -51,7 +51,7 @@ import numpy as np
 
 from ..core.robot_api import ParallelRobot, pose_layout
 from ..core.workspace_maps import actuator_force_bounds
-from ..core.checks import bounds, real_number
+from ..core.checks import as_array, bounds, flag, real_array, real_number, within_magnitude
 from ..errors import HexapodPinError, InfeasiblePathError, InputError
 from .path import PathSamples
 
@@ -86,18 +86,31 @@ class Limits:
     strokes: bool = True
     margin: float = 0.0
 
+    def __post_init__(self) -> None:
+        """Check every field by name (:class:`InputError`): bounds as in
+        :func:`~hexapod_pin.core.checks.bounds` (a finite bound beyond
+        :data:`~hexapod_pin.core.checks.MAX_MAGNITUDE` cannot be certified: use inf for
+        none), ``strokes`` a bool, ``0 <= margin < 1``."""
+        for name in ("actuator_force", "actuator_velocity", "actuator_acceleration"):
+            value = getattr(self, name)
+            if value is not None or name != "actuator_force":
+                sized = isinstance(value, (list, tuple)) or getattr(value, "ndim", 0) > 0
+                bounds(value, len(value) if sized else 1, name)
+        for name in ("linear_speed", "angular_speed"):
+            bounds(getattr(self, name), 1, name)
+        flag(self.strokes, "strokes")
+        margin = real_number(self.margin, "margin", minimum=0.0, strict=False)
+        if not margin < 1.0:
+            raise InputError("margin", self.margin, "expected 0 <= margin < 1")
+
     def per_actuator(self, robot: ParallelRobot, planning: bool = False) -> dict[str, np.ndarray]:
         """``{"force", "velocity", "acceleration", "linear_speed", "angular_speed"}`` ->
         bounds for ``robot``: (n_act,) for the actuators, (1,) for the platform speeds;
         with ``planning``, each times ``1 - margin``.
 
         Raises:
-            InputError: a bound that is not positive or of the wrong length, a margin
-                outside [0, 1).
+            InputError: a bound of the wrong length for ``robot``.
         """
-        margin = real_number(self.margin, "margin", minimum=0.0, strict=False)
-        if not margin < 1.0:
-            raise InputError("margin", self.margin, "expected 0 <= margin < 1")
         scale = 1.0 - float(self.margin) if planning else 1.0
         n = robot.n_actuators
         force = actuator_force_bounds(robot) if self.actuator_force is None \
@@ -127,14 +140,20 @@ class Payload:
     mass: float = 0.0
     wrench: tuple | None = None
 
-    def check(self, dim: int) -> None:
-        """Raise :class:`InputError` on a negative mass or a malformed wrench."""
-        if not (np.isfinite(self.mass) and self.mass >= 0):
-            raise InputError("payload.mass", self.mass, "must be finite and >= 0 (kg)")
+    def __post_init__(self) -> None:
+        """Check the fields by name (:class:`InputError`): ``mass`` a real number >= 0
+        (kg), ``wrench`` None or real, finite numbers of one dimension."""
+        real_number(self.mass, "mass", minimum=0.0, strict=False)
         if self.wrench is not None:
-            w = np.asarray(self.wrench, dtype=float)
-            if w.shape != (dim,) or not np.all(np.isfinite(w)):
-                raise InputError("payload.wrench", self.wrench, f"expected {dim} finite values")
+            wrench = within_magnitude(real_array(self.wrench, "wrench"), self.wrench, "wrench")
+            if wrench.ndim != 1:
+                raise InputError("wrench", self.wrench, f"expected shape (dim,), got "
+                                 f"{wrench.shape}")
+
+    def check(self, dim: int) -> None:
+        """Raise :class:`InputError` on a wrench whose size is not ``dim``."""
+        if self.wrench is not None:
+            as_array(self.wrench, (dim,), "wrench")
 
     @property
     def is_zero(self) -> bool:

@@ -35,7 +35,6 @@ characteristic length, its platform radius).
 from __future__ import annotations
 
 import csv
-import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -45,10 +44,12 @@ import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
-from ..core.checks import as_array, real_number
+from ..core.checks import MAX_MAGNITUDE, as_array, real_number
+from ..core.description import file_path, read_text
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
 from ..core.platform_map import POSE_AXES
 from ..core.robot_api import SPACE_POSE_AXES, PoseAxesSource, PoseLayout, pose_layout
+from ..core.text_formats import check_columns, load_json
 from ..errors import DescriptionError, InputError
 
 #: below this rotation angle (rad) the SO(3) Jacobian coefficients use their series
@@ -207,19 +208,22 @@ def read_waypoints(path: str | os.PathLike[str],
         InputError: bad pose axes.
     """
     names = pose_layout(pose_axes).axes
-    path = Path(path)
-    if not path.is_file():
-        raise DescriptionError(str(path), "waypoint file not found")
+    path = Path(file_path(path))
     suffix = path.suffix.lower()
+    if suffix not in (".json", ".csv", ".txt"):
+        raise DescriptionError(str(path), "waypoint files are .csv or .json")
+    text = read_text(path)
     try:
         if suffix == ".json":
-            data = json.loads(path.read_text(encoding="utf-8"))
+            data = load_json(text, str(path))
             poses = np.asarray(data["pose"], dtype=float)
-        elif suffix in (".csv", ".txt"):
-            lines = [ln for ln in path.read_text(encoding="utf-8").splitlines()
+        else:
+            lines = [ln for ln in text.splitlines()
                      if ln.strip() and not ln.lstrip().startswith("#")]
             rows = list(csv.reader(lines))
-            header = [h.strip() for h in rows[0]]
+            if not rows:
+                raise DescriptionError(str(path), "no header row")
+            header = check_columns(rows[0], str(path))
             missing = [name for name in names if name not in header]
             if missing:
                 raise DescriptionError(str(path), f"missing columns {missing}")
@@ -227,9 +231,6 @@ def read_waypoints(path: str | os.PathLike[str],
             if foreign:         # another robot's pose: refused, not silently dropped
                 raise DescriptionError(str(path), f"pose columns {foreign} are not this "
                                        f"robot's (its pose axes: {', '.join(names)})")
-            repeated = sorted({h for h in header if header.count(h) > 1})
-            if repeated:
-                raise DescriptionError(str(path), f"repeated columns {repeated}")
             cols = [header.index(name) for name in names]
             values = []
             for number, row in enumerate(rows[1:], start=1):
@@ -240,8 +241,6 @@ def read_waypoints(path: str | os.PathLike[str],
                                            f" after the header): expected {len(names)} "
                                            f"numbers in columns {', '.join(names)}, got {row}") from None
             poses = np.array(values, dtype=float).reshape(len(values), len(names))
-        else:
-            raise DescriptionError(str(path), "waypoint files are .csv or .json")
     except DescriptionError:
         raise
     except (KeyError, TypeError, ValueError, IndexError) as exc:
@@ -249,10 +248,11 @@ def read_waypoints(path: str | os.PathLike[str],
     if poses.ndim != 2 or poses.shape[1] != len(names):
         raise DescriptionError(str(path), f"expected rows of {len(names)} pose values "
                                           f"{names}, got shape {poses.shape}")
-    bad = np.flatnonzero(~np.all(np.isfinite(poses), axis=1))
+    bad = np.flatnonzero(~np.all(np.abs(poses) <= MAX_MAGNITUDE, axis=1))
     if bad.size:
         raise DescriptionError(str(path), f"waypoint {bad[0] + 1} has a value that is not "
-                                          f"finite: {poses[bad[0]].tolist()} ({', '.join(names)})")
+                                          f"finite or beyond {MAX_MAGNITUDE:g}: "
+                                          f"{poses[bad[0]].tolist()} ({', '.join(names)})")
     return poses
 
 

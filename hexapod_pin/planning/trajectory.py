@@ -30,13 +30,14 @@ any time (:meth:`TimedTrajectory.sample`, :meth:`TimedTrajectory.resample`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from ..core.robot_api import ParallelRobot, pose_layout
-from ..core.checks import real_number
+from ..core.robot_api import ParallelRobot, parallel_robot, pose_layout
+from ..core.checks import count, of_type, real_array, real_number, within_magnitude
 from ..errors import InfeasiblePathError, InputError, SolverError
 from . import solver
 from .limits import Limits, PathCoefficients, Payload, constraint_rows, path_coefficients
@@ -44,6 +45,8 @@ from .path import GeometricPath, PathSamples
 
 #: default number of grid points
 DEFAULT_GRID_POINTS = 1000
+#: the most samples :meth:`TimedTrajectory.resample` makes
+MAX_SAMPLES = 1e8
 #: relative change of the duration at which the damping linearisation stops
 DAMPING_RTOL = 1e-4
 #: the most TOPP-RA solves of the damping linearisation
@@ -130,11 +133,14 @@ class TimedTrajectory:
         come from the path, the forces from the robot's ``inverse_dynamics_batch``.
 
         Raises:
-            InputError: NaN / inf times.
+            InputError: times that are not real numbers (as
+                :func:`~hexapod_pin.core.checks.as_array`) or not one-dimensional.
         """
-        times = np.asarray(times, dtype=float).ravel()
-        if not np.all(np.isfinite(times)):
-            raise InputError("times", times, "contains NaN or inf")
+        times = within_magnitude(real_array(times, "times"), times, "times")
+        if times.ndim > 1:
+            raise InputError("times", times, f"expected a time or a 1-D array, got shape "
+                             f"{times.shape}")
+        times = times.ravel()
         grid_t, ph = self.phase_times(), self.phase
         times = np.clip(times, 0.0, grid_t[-1])
         k = np.clip(np.searchsorted(grid_t, times, side="right") - 1, 0, len(grid_t) - 2)
@@ -149,12 +155,15 @@ class TimedTrajectory:
         """:meth:`sample` at ``rate`` (Hz) from 0 to the duration (both ends included).
 
         Raises:
-            InputError: a rate that is not positive and finite.
+            InputError: a rate that is not a real number > 0, or one giving more than
+                :data:`MAX_SAMPLES` samples.
         """
-        if not (np.isfinite(rate) and rate > 0):
-            raise InputError("rate", rate, "must be > 0 (Hz)")
-        count = max(int(np.ceil(self.duration * rate)) + 1, 2)
-        return self.sample(np.linspace(0.0, self.duration, count))
+        rate = real_number(rate, "rate", minimum=0.0)
+        samples = self.duration * rate
+        if samples > MAX_SAMPLES:
+            raise InputError("rate", rate, f"{samples:.3g} samples over {self.duration:g} s:"
+                             f" at most {MAX_SAMPLES:g}")
+        return self.sample(np.linspace(0.0, self.duration, max(math.ceil(samples) + 1, 2)))
 
     def phase_times(self) -> np.ndarray:
         """(N_grid,) the times (s) of the grid points."""
@@ -198,11 +207,11 @@ def time_optimal(robot: ParallelRobot, waypoints: npt.ArrayLike, *, limits: Limi
         SolverError: the forces recomputed by the robot's inverse dynamics disagree with
             the planned ones, or keep exceeding the bounds (module docstring).
     """
-    limits = Limits() if limits is None else limits
-    payload = Payload() if payload is None else payload
+    robot = parallel_robot(robot)
+    limits = of_type(Limits() if limits is None else limits, Limits, "limits")
+    payload = of_type(Payload() if payload is None else payload, Payload, "payload")
     payload.check(robot.pose_dim)
-    if not (isinstance(grid_points, (int, np.integer)) and grid_points >= 3):
-        raise InputError("grid_points", grid_points, "must be an integer >= 3")
+    grid_points = count(grid_points, "grid_points", minimum=3)
     start_speed = real_number(start_speed, "start_speed", minimum=0.0, strict=False)
     end_speed = real_number(end_speed, "end_speed", minimum=0.0, strict=False)
     if rotation_length is None:

@@ -29,8 +29,8 @@ from numpy.typing import ArrayLike
 
 from ..core import workspace_maps
 from ..core.checks import as_array
-from ..core.robot_api import ParallelRobot
-from ..errors import ArgumentTypeError, InputError
+from ..core.robot_api import parallel_robot
+from ..errors import InputError
 from ..hexapod import workspace
 from .plotting import checked_series, figure_class, finish_figure
 
@@ -146,12 +146,7 @@ def _runs(mask: np.ndarray, s: np.ndarray) -> list:
     return [(s[a], s[min(b, len(s)) - 1]) for a, b in zip(edges[::2], edges[1::2])]
 
 
-def _robot(robot: Any) -> Any:
-    if not isinstance(robot, ParallelRobot):
-        raise ArgumentTypeError("robot", robot, "expected a robot of the shared API "
-                                f"(hexapod_pin.core.robot_api.ParallelRobot), got "
-                                f"{type(robot).__name__}")
-    return robot
+_robot = parallel_robot
 
 
 def axis_unit(axis: str) -> str:

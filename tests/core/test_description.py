@@ -75,7 +75,7 @@ def test_loops_file_parses():
 
 
 @pytest.mark.parametrize("text,culprit", [
-    ("closures: [", None),
+    ("closures: [", "line 1"),                 # the line the YAML parser names
     ("- a\n- b", None),
     ("closures: [{name: a, type: hinge, frame1: x, frame2: y}]", "a"),
     ("closures: [{name: a, type: point, frame1: x}]", "closures[0]"),

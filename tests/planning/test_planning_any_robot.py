@@ -419,7 +419,7 @@ def test_waypoints_of_another_robot_are_refused(tmp_path):
     with pytest.raises(DescriptionError, match=r"\['y'\]"):
         read_waypoints(bad, pose_axes=("x", "z"))
     bad.write_text("t,x,z,x\n0,0.3,0.0,0.2\n1,0.31,0.01,0.2\n")
-    with pytest.raises(DescriptionError, match="repeated"):
+    with pytest.raises(DescriptionError, match="duplicate column 'x'"):
         read_waypoints(bad, pose_axes=("x", "z"))
     good = tmp_path / "g.csv"
     good.write_text("t,x,z\n0,0.3,0.0\n1,0.31,0.01\n")
