@@ -159,15 +159,14 @@ def forward_dynamics_tree_batch(clm: ClosedLoopModel, q: np.ndarray, v: np.ndarr
         ddq, lam_pin = dyn.data.ddq, dyn.data.lambda_c
     effects = clm.effects.has_forces
     for i in range(n):
-        solve = dyn.forward_total
+        solve, at_rest = dyn.forward_total, False
         if effects:                        # the joint effects' force joins the applied one
             force, rest = dyn.effect_terms(q[i], v[i])
             if rest.size:                  # Coulomb friction at rest: the full route
-                solve = dyn.forward_unchecked
+                solve, at_rest = dyn.forward_unchecked, True
             else:
                 tau[i] += force
-        how = None if verified is None or solve is not dyn.forward_total else \
-            verified(q[i], v[i], tau[i])
+        how = None if verified is None or at_rest else verified(q[i], v[i], tau[i])
         if how is not None:
             acc[i], lam[i], iters[i], exact[i] = ddq, lam_pin, how.iter, how.exact
             continue
