@@ -33,6 +33,7 @@ from typing import Any
 import yaml
 
 from .core.description import read_text
+from .core.checks import existing_file
 from .errors import DescriptionError, GeometryError, InputError
 from .hexapod.geometry import CHAIN_FIELDS, ChainGeometry, HexapodGeometry
 
@@ -87,7 +88,8 @@ def load_geometry(path: str | os.PathLike | None = None,
         ``geometry_type(**fields)``.
 
     Raises:
-        DescriptionError: missing, unreadable or malformed file, or a suffix other
+        MissingFileError: the file does not exist.
+        DescriptionError: unreadable or malformed file, or a suffix other
             than .toml, .yaml, .yml, .json.
         InputError: an override without ``=``.
         GeometryError: an unknown field, a value that is not a number, or a value the
@@ -192,11 +194,11 @@ def read_geometry_file(path: str | os.PathLike) -> dict:
     """The table of geometry fields in a TOML / YAML / JSON file (not yet checked).
 
     Raises:
-        DescriptionError: missing file, unknown suffix, malformed content, or not a table.
+        MissingFileError: the file does not exist.
+        DescriptionError: unknown suffix, malformed content, or not a table.
     """
     path = Path(path)
-    if not path.is_file():
-        raise DescriptionError(str(path), "geometry file not found")
+    existing_file(path, "geometry file")
     suffix = path.suffix.lower()
     if suffix not in GEOMETRY_SUFFIXES:
         raise DescriptionError(str(path), "geometry file must be .toml, .yaml, .yml or .json")

@@ -49,6 +49,7 @@ import numpy as np
 
 from .core.robot_api import INVERSE_DYNAMICS_METHODS, ParallelRobot, PoseLayout, pose_layout
 from .core.simulation import resolve_integrator
+from .core.checks import existing_file
 from .errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
 from .files import read_text, write_text_atomic
 from .hexapod import simulation
@@ -266,14 +267,14 @@ def read_motion(path: str | os.PathLike[str], robot: ParallelRobot | None = None
         the :class:`Motion` (poses (N, dim), q and actuator forces (N, n_act)).
 
     Raises:
-        DescriptionError: missing file, unknown suffix, missing or malformed columns,
+        MissingFileError: the file does not exist.
+        DescriptionError: unknown suffix, missing or malformed columns,
             times not increasing, a shape that does not fit the robot, NaN / inf (the
             message names the file and column).
     """
     path = Path(path)
     columns = motion_columns(robot)
-    if not path.is_file():
-        raise DescriptionError(str(path), "motion file not found")
+    existing_file(path, "motion file")
     suffix = path.suffix.lower()
     if suffix == ".json":
         return _motion_from_json(path, columns)

@@ -581,3 +581,68 @@ def test_non_real_inputs_are_refused_by_name(robot, kind):
             with pytest.raises(hp.InputError) as err:
                 call()
             assert err.value.name == name
+
+
+# -- poses given as placements (pin.SE3 or a 4x4 homogeneous matrix) -----------------------
+def placement_of(robot, pose, extra=None):
+    """The pin.SE3 of a pose vector, written from the conventions (``R = Rz(yaw) Ry(pitch)
+    Rx(roll)``; components outside the pose axes zero, or ``extra``: index in (x, y, z,
+    roll, pitch, yaw) -> value)."""
+    full = np.zeros(6)
+    full[axes_of(robot)] = pose
+    for k, value in (extra or {}).items():
+        full[k] = value
+    rot = pin.AngleAxis(full[5], np.array([0.0, 0.0, 1.0])).matrix() \
+        @ pin.AngleAxis(full[4], np.array([0.0, 1.0, 0.0])).matrix() \
+        @ pin.AngleAxis(full[3], np.array([1.0, 0.0, 0.0])).matrix()
+    return pin.SE3(rot, full[:3])
+
+
+def test_poses_may_be_placements(robot):
+    pose, twist, twist_dot, wrench = states(robot, 1, 11)[0]
+    placement = placement_of(robot, pose)
+    for given in (placement, placement.homogeneous, placement.homogeneous.tolist()):
+        np.testing.assert_allclose(robot.inverse_kinematics(given),
+                                   robot.inverse_kinematics(pose), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(robot.jacobian(given), robot.jacobian(pose), atol=1e-10)
+        np.testing.assert_allclose(robot.configuration(given), robot.configuration(pose),
+                                   atol=1e-12)
+        np.testing.assert_allclose(robot.static_forces(given, wrench),
+                                   robot.static_forces(pose, wrench), atol=1e-9)
+        np.testing.assert_allclose(
+            robot.inverse_dynamics(pose=given, twist=twist, twist_dot=twist_dot).actuator_forces,
+            robot.inverse_dynamics(pose, twist, twist_dot).actuator_forces, atol=1e-9)
+        tau = robot.static_forces(pose)
+        np.testing.assert_allclose(robot.forward_dynamics(given, twist, tau).twist_dot,
+                                   robot.forward_dynamics(pose, twist, tau).twist_dot, atol=1e-9)
+    # the placement of the platform frame at the configuration of the pose (Pinocchio's
+    # forward kinematics, an independent route) gives the pose back where it fits the axes
+    q = robot.configuration(pose)
+    data = robot.pinocchio_model.createData()
+    pin.framesForwardKinematics(robot.pinocchio_model, data, q)
+    frame = data.oMf[robot.platform_frame_id]
+    full = np.concatenate([frame.translation, pin.rpy.matrixToRpy(frame.rotation)])
+    outside = np.setdiff1d(np.arange(6), axes_of(robot))
+    if np.abs(full[outside]).max(initial=0.0) < 1e-12:
+        np.testing.assert_allclose(robot.inverse_kinematics(frame), robot.inverse_kinematics(pose),
+                                   atol=1e-10)
+
+
+def test_a_placement_outside_the_pose_axes_is_refused_by_name(robot):
+    pose = robot.home_pose
+    outside = np.setdiff1d(np.arange(6), axes_of(robot))
+    names = ("x", "y", "z", "roll", "pitch", "yaw")
+    for k in outside:
+        with pytest.raises(hp.InputError, match="pose") as err:
+            robot.inverse_kinematics(placement_of(robot, pose, {int(k): 0.1}))
+        assert err.value.name == "pose"
+        if k < 3 or len([a for a in axes_of(robot) if a >= 3]) != 1:
+            assert f"{names[k]} = 0.1" in str(err.value)
+    bad = placement_of(robot, pose).homogeneous
+    bad[3, 0] = 1.0
+    with pytest.raises(hp.InputError, match="last row"):
+        robot.jacobian(bad)
+    bad = placement_of(robot, pose).homogeneous
+    bad[:3, :3] *= 2.0
+    with pytest.raises(hp.InputError, match="not a rotation"):
+        robot.static_forces(bad)

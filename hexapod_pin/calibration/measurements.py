@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from ..core.checks import existing_file
 from ..errors import DescriptionError, InputError
 from ..files import write_text_atomic
 from .problem import Measurements
@@ -53,14 +54,14 @@ def read_measurements(path: str | os.PathLike, target_points: npt.ArrayLike | No
         checked :class:`~hexapod_pin.calibration.problem.Measurements`.
 
     Raises:
-        DescriptionError: missing or unreadable file, no header, unknown or missing
+        MissingFileError: the file does not exist.
+        DescriptionError: unreadable file, no header, unknown or missing
             columns, a row of another length, a value that is not a number (row and
             column named).
         InputError: inconsistent measurements (see ``Measurements.checked``).
     """
     path = Path(path)
-    if not path.is_file():
-        raise DescriptionError(str(path), "measurement file not found")
+    existing_file(path, "measurement file")
     lines = [ln for ln in path.read_text(encoding="utf-8").splitlines()
              if ln.strip() and not ln.lstrip().startswith("#")]
     rows = list(csv.reader(lines))

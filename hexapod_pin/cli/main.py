@@ -3,7 +3,7 @@
 Commands (``hexapod-pin COMMAND --help`` for each), each a thin layer over library
 functions:
 
-* ``demo`` (:mod:`.demo`);
+* ``demo``, ``warmup`` (:mod:`.demo`);
 * ``ik``, ``fk``, ``modes``, ``jacobian`` (:mod:`.kinematics`);
 * ``statics``, ``fd``, ``id``, ``simulate`` (:mod:`.dynamics`);
 * ``view``, ``plot`` (:mod:`.views`);
@@ -82,6 +82,7 @@ def root(version: Annotated[bool, typer.Option(
 
 
 app.command(cls=Command)(demo.demo)
+app.command(cls=Command)(demo.warmup)
 app.command(cls=Command, context_settings=NUMBERS)(kinematics.ik)
 app.command(cls=Command, context_settings=NUMBERS)(kinematics.fk)
 app.command(cls=Command, context_settings=NUMBERS)(kinematics.modes)

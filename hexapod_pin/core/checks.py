@@ -11,11 +11,13 @@ import dataclasses
 import functools
 import math
 import numbers
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..errors import GeometryError, InputError, NonFiniteResultError, SolverError
+from ..errors import GeometryError, InputError, MissingFileError, NonFiniteResultError, \
+    SolverError
 from .compiled import all_finite
 
 
@@ -58,6 +60,19 @@ def as_array(value, shape_tail: tuple[int, ...], name: str, batch: bool = False)
         bad = np.argwhere(~np.isfinite(arr))
         raise InputError(name, value, f"contains NaN or inf at {bad[:5].tolist()}")
     return arr
+
+
+def existing_file(path, what: str = "file", folder: bool = False) -> Path:
+    """``path`` as a :class:`~pathlib.Path` after checking that the file exists (or, with
+    ``folder``, that a file or a folder does).
+
+    Raises:
+        MissingFileError: it does not (naming the path and ``what`` it was to be).
+    """
+    path = Path(path)
+    if not (path.exists() if folder else path.is_file()):
+        raise MissingFileError(str(path), what)
+    return path
 
 
 def vector(value, size: int, name: str) -> np.ndarray:

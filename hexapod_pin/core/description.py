@@ -59,6 +59,7 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
+from .checks import existing_file
 from ..errors import DescriptionError, InputError
 from .couplings import JointCoupling
 from .effects import JointEffects, resolve_effects
@@ -268,7 +269,8 @@ def expand_xacro(path: str | Path, args: dict[str, str] | None = None) -> str:
         args: xacro arguments, name -> value as text.
 
     Raises:
-        DescriptionError: when the file is missing, is not text, does not expand, or an
+        MissingFileError: the file does not exist.
+        DescriptionError: when the file is not text, does not expand, or an
             argument is not one the file declares (``<xacro:arg name=...>``).
     """
     path = Path(path)
@@ -989,7 +991,8 @@ def read_effects_file(path: str | Path) -> EffectsSection:
     robot.model.actuated_joints, robot.effects))``.
 
     Raises:
-        DescriptionError: another suffix, a missing or unreadable file, or a malformed
+        MissingFileError: the file does not exist.
+        DescriptionError: another suffix, an unreadable file, or a malformed
             one (:func:`parse_effects`).
     """
     path = Path(path)
@@ -1088,11 +1091,11 @@ def read_text(path: str | Path) -> str:
     """The UTF-8 text of a description file.
 
     Raises:
-        DescriptionError: the file is missing, unreadable, or not UTF-8 text (binary).
+        MissingFileError: the file does not exist.
+        DescriptionError: the file is unreadable, or not UTF-8 text (binary).
     """
     path = Path(path)
-    if not path.is_file():
-        raise DescriptionError(str(path), "file not found")
+    existing_file(path)
     try:
         return path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:

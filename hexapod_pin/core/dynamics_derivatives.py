@@ -520,7 +520,8 @@ class KKTLinearization:
             self._chol = scipy.linalg.cho_factor(0.5 * (reduced + reduced.T))
         except np.linalg.LinAlgError:
             raise SingularityError("mass matrix on the closures' null space (N^T M N not "
-                                   "positive definite: massless motion)", 0.0) from None
+                                   "positive definite: massless motion)", 0.0, None,
+                                   "Cholesky pivot") from None
 
     # -- solves ----------------------------------------------------------------------------
     def pinv(self, rhs: np.ndarray) -> np.ndarray:

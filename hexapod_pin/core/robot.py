@@ -27,7 +27,7 @@ from ..errors import ArgumentTypeError, AssemblyError, DescriptionError, InputEr
 from .checks import bounds, real_number
 from .closed_loop import ClosedLoopModel
 from .platform_map import PlatformMap, check_pose_axes
-from .robot_api import delegate
+from .robot_api import delegate, takes_placement
 from .robot_base import RobotBase
 from .robot_dynamics import RobotDynamics
 from .robot_kinematics import RobotKinematics
@@ -305,6 +305,7 @@ class ClosedLoopRobot(RobotBase):
         (-inf / inf: none)."""
         return self.kinematics.lower.copy(), self.kinematics.upper.copy()
 
+    @takes_placement
     def tree_velocity(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                       branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """The tree velocity (nv,) of a platform state, every closure kept."""

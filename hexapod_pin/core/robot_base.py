@@ -24,7 +24,7 @@ from ..errors import DescriptionError, InputError
 from .closed_loop import ClosedLoopModel
 from .effects import JointEffects
 from .closed_form import ClosedFormDynamics
-from .robot_api import PoseLayout, delegate, pose_layout
+from .robot_api import PoseLayout, delegate, pose_layout, takes_placement
 
 
 class RobotBase:
@@ -58,6 +58,22 @@ class RobotBase:
         that order (m, rad); the twist and the wrench are the same selection of ``(v, w)``
         and ``(f, m)``, world axes."""
         return self.POSE_AXES
+
+    @property
+    def pinocchio_model(self) -> pin.Model:
+        """The robot's Pinocchio model, ``robot.model.model``: the kinematic tree (the
+        loops cut open) with the frames ``<closure>/anchor1`` / ``anchor2`` of each loop
+        closure added; the closures themselves, the actuation and the joint effects are
+        in ``robot.model`` (:class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`).
+
+        Pinocchio's conventions: ``q`` (nq,), ``v`` (nv,), joint order of the tree, SI
+        units, gravity ``model.gravity`` (world axes). Use it with any Pinocchio
+        algorithm, e.g. ``pin.framesForwardKinematics(robot.pinocchio_model, data,
+        robot.configuration(pose))``; a configuration from ``robot.configuration`` closes
+        every loop. Modify a copy (``pin.Model(robot.pinocchio_model)``), not the model
+        itself: the robot's routes use it.
+        """
+        return self.model.model
 
     @property
     def platform_frame(self) -> str:
@@ -164,6 +180,7 @@ class RobotBase:
             return np.asarray(vel.vector, dtype=float)[self.pose_layout.components].copy()
 
     # -- derivatives, linearisation, stiffness (core.platform_derivatives, core.stiffness) --
+    @takes_placement
     def forward_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                                      actuator_forces: npt.ArrayLike,
                                      wrench: npt.ArrayLike | None = None, *,
@@ -212,6 +229,7 @@ class RobotBase:
                              forward_dynamics_derivatives_batch, poses, twists,
                              actuator_forces, wrenches, branch)
 
+    @takes_placement
     def linearize(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                   actuator_forces: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
                   branch: Any = None, dt: float | None = None,
@@ -246,6 +264,7 @@ class RobotBase:
         return dataclasses.replace(out, ad=step.ad, bd=step.bd, dt=step.dt,
                                    integrator=step.integrator)
 
+    @takes_placement
     def step_jacobians(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                        actuator_forces: npt.ArrayLike, dt: float, *,
                        integrator: str = "rk4", branch: Any = None) -> Any:
@@ -275,6 +294,7 @@ class RobotBase:
         return self._checked("step_jacobians", step_jacobians, pose, twist, actuator_forces,
                              dt, integrator, branch)
 
+    @takes_placement
     def cartesian_stiffness(self, pose: npt.ArrayLike, actuator_stiffness: npt.ArrayLike,
                             wrench: npt.ArrayLike | None = None, *, branch: Any = None) -> Any:
         """The Cartesian stiffness ``K_x = J^T K_a J + K_g`` at a static pose (the
@@ -298,6 +318,7 @@ class RobotBase:
         return self._checked("cartesian_stiffness", cartesian_stiffness, pose,
                              actuator_stiffness, wrench, branch)
 
+    @takes_placement
     def vibration_modes(self, pose: npt.ArrayLike, actuator_stiffness: npt.ArrayLike, *,
                         branch: Any = None) -> Any:
         """Natural frequencies (Hz, ascending) and mode shapes of ``M_x`` and ``K_x`` about
@@ -319,6 +340,7 @@ class RobotBase:
         return self._checked("vibration_modes", vibration_modes, pose, actuator_stiffness,
                              branch)
 
+    @takes_placement
     def holding_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
                        branch: Any = None) -> Any:
         """The band of actuator forces (N or N m, joint side) that hold ``pose`` at rest

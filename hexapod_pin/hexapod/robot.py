@@ -19,7 +19,7 @@ from ..core.checks import as_array
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import build_model, load_loops, urdf_dir
 from ..core.effects import JointEffects
-from ..core.robot_api import delegate
+from ..core.robot_api import delegate, takes_placement
 from ..core.robot_base import RobotBase
 from .dynamics import HexapodDynamics
 from ..errors import ArgumentTypeError, AssemblyError
@@ -193,6 +193,7 @@ class Hexapod(RobotBase):
         return self.geometry.home_pose
 
     # -- pose <-> tree configuration -----------------------------------------------------
+    @takes_placement
     def configuration(self, pose: npt.ArrayLike,
                       branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """Pinocchio configuration of the tree for a platform pose (closed form).

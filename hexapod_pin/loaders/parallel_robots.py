@@ -51,6 +51,7 @@ import yaml
 
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import ClosureSpec, LoopsSpec, build_model, read_text
+from ..core.checks import existing_file
 from ..errors import DescriptionError
 
 KEYS = ("closed_loop", "type", "name_mot", "joint_name", "joint_type")
@@ -290,8 +291,7 @@ def load_parallel_robot(path: str | Path, urdf_name: str = "robot.urdf",
     path = Path(path)
     folder = path if path.is_dir() else path.parent
     urdf = folder / urdf_name if path.is_dir() else path
-    if not urdf.is_file():
-        raise DescriptionError(str(urdf), "file not found")
+    existing_file(urdf)
     spec = load_robot_yaml(folder / yaml_name)
     source = str(folder)
     try:

@@ -26,7 +26,7 @@ import numpy.typing as npt
 from ..core.closed_loop import ClosedLoopModel
 from ..core.effects import JointEffects
 from ..core.results import (InverseDynamicsDerivatives)
-from ..core.robot_api import delegate
+from ..core.robot_api import delegate, takes_placement
 from ..core.robot_base import RobotBase
 from ..errors import ArgumentTypeError
 from .assembly_modes import PlanarAssembly
@@ -139,6 +139,7 @@ class Planar3PRR(RobotBase):
     static_forces = delegate("dynamics", PlanarDynamics.static_forces)
     reduced_dynamics = delegate("dynamics", PlanarDynamics.reduced_dynamics)
 
+    @takes_placement
     def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                                      twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None
                                      ) -> InverseDynamicsDerivatives:

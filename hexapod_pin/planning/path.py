@@ -45,7 +45,7 @@ import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
-from ..core.checks import as_array, real_number
+from ..core.checks import as_array, existing_file, real_number
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
 from ..core.platform_map import POSE_AXES
 from ..core.robot_api import SPACE_POSE_AXES, PoseAxesSource, PoseLayout, pose_layout
@@ -201,15 +201,15 @@ def read_waypoints(path: str | os.PathLike[str],
             :class:`~hexapod_pin.core.robot_api.PoseLayout`); default the hexapod's six.
 
     Raises:
-        DescriptionError: a missing file, another suffix, missing columns, pose columns
+        MissingFileError: the file does not exist.
+        DescriptionError: another suffix, missing columns, pose columns
             of axes the robot does not have, repeated columns, a value that is not a finite
             number, rows of another width.
         InputError: bad pose axes.
     """
     names = pose_layout(pose_axes).axes
     path = Path(path)
-    if not path.is_file():
-        raise DescriptionError(str(path), "waypoint file not found")
+    existing_file(path, "waypoint file")
     suffix = path.suffix.lower()
     try:
         if suffix == ".json":
