@@ -646,3 +646,63 @@ def test_a_placement_outside_the_pose_axes_is_refused_by_name(robot):
     bad[:3, :3] *= 2.0
     with pytest.raises(hp.InputError, match="not a rotation"):
         robot.static_forces(bad)
+
+
+# -- gravity in any direction ------------------------------------------------------------------
+def potential_gradient(robot, pose, gravity, h=1e-6):
+    """dV/d(actuator positions) at ``pose`` under ``gravity`` (3,): central differences of
+    Pinocchio's potential energy (a copy of the tree with that gravity) along the assembly
+    mode of ``pose`` (forward kinematics of the shifted actuator positions)."""
+    model = pin.Model(robot.pinocchio_model)
+    model.gravity = pin.Motion(np.concatenate([gravity, np.zeros(3)]))
+    data = model.createData()
+    act = robot.inverse_kinematics(pose)
+    grad = []
+    for k in range(robot.n_actuators):
+        step = np.zeros(robot.n_actuators)
+        step[k] = h
+        v = []
+        for s in (1.0, -1.0):
+            q = robot.configuration(robot.forward_kinematics(act + s * step, guess=pose))
+            v.append(pin.computePotentialEnergy(model, data, q))
+        grad.append((v[0] - v[1]) / (2 * h))
+    return np.array(grad)
+
+
+def test_with_gravity_in_any_direction_by_virtual_work(robot):
+    if np.any(robot.effects.stiffness):
+        pytest.skip("springs store energy too")
+    pose, twist, twist_dot, _ = states(robot, 1, 5)[0]
+    tilted = np.array([3.0, -4.0, -8.0])             # m/s^2, a wall-mounted, tilted robot
+    other = robot.with_gravity(tilted)
+    np.testing.assert_allclose(other.gravity, tilted)
+    np.testing.assert_allclose(robot.gravity, robot.pinocchio_model.gravity.linear)
+    if not loaded(robot):
+        # the closed form takes its own vertical only: the tree routes' robot answers
+        assert isinstance(other, hp.ClosedLoopRobot) and other.pose_axes == robot.pose_axes
+    # virtual work: the static forces are the gradient of the potential energy
+    np.testing.assert_allclose(other.static_forces(pose, bounded=False),
+                               potential_gradient(robot, pose, tilted), rtol=1e-6, atol=1e-7)
+    # gravity enters linearly: ID under g = ID without gravity (this robot's own route,
+    # the closed form where it has one) + the static forces under g
+    free = robot.with_gravity(np.zeros(3))
+    np.testing.assert_allclose(
+        other.inverse_dynamics(pose, twist, twist_dot, bounded=False).actuator_forces,
+        free.inverse_dynamics(pose, twist, twist_dot, bounded=False).actuator_forces
+        + other.static_forces(pose, bounded=False), rtol=1e-8, atol=1e-8)
+
+
+def test_with_gravity_along_the_vertical_keeps_the_closed_form(robot):
+    if loaded(robot):
+        return
+    vertical = np.zeros(3)
+    vertical[2 if robot.pose_dim == 6 else 1] = -2.0 * robot.geometry.gravity
+    heavier = robot.with_gravity(vertical)
+    assert type(heavier) is type(robot)
+    assert heavier.geometry.gravity == pytest.approx(2.0 * robot.geometry.gravity)
+    np.testing.assert_allclose(heavier.gravity, vertical)
+    pose = robot.home_pose
+    np.testing.assert_allclose(heavier.static_forces(pose, bounded=False),
+                               potential_gradient(robot, pose, vertical), rtol=1e-6, atol=1e-7)
+    with pytest.raises(hp.InputError, match="gravity"):
+        robot.with_gravity([0.0, 9.81])

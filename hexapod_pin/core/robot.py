@@ -18,6 +18,7 @@ import math
 import threading
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -312,3 +313,16 @@ class ClosedLoopRobot(RobotBase):
         with self.lock:
             return self.dynamics.state(pose, twist, branch).v.copy()
 
+
+
+def tree_robot(robot: Any, model: ClosedLoopModel) -> ClosedLoopRobot:
+    """``robot``'s mechanism on ``model`` (its tree, e.g. under another gravity) as a
+    :class:`ClosedLoopRobot`: every route derived from the tree and its closures, with
+    ``robot``'s platform frame, pose axes, home configuration, actuator force bounds and
+    characteristic length (so that its singularity measures and thresholds are the
+    robot's)."""
+    return ClosedLoopRobot(model, robot.platform_frame, robot.pose_axes,
+                           home=robot.home_configuration,
+                           max_actuator_force=robot.geometry.max_actuator_force,
+                           characteristic_length=robot.singularity(
+                               robot.home_pose).characteristic_length)

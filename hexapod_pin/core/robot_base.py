@@ -21,6 +21,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import DescriptionError, InputError
+from .checks import as_array
 from .closed_loop import ClosedLoopModel
 from .effects import JointEffects
 from .closed_form import ClosedFormDynamics
@@ -128,6 +129,40 @@ class RobotBase:
             InputError: a bad field (see :func:`~hexapod_pin.core.effects.resolve_effects`).
         """
         return self._with_model(self.model.with_effects(effects, **values))
+
+    # -- gravity ------------------------------------------------------------------------------
+    @property
+    def gravity(self) -> npt.NDArray[np.float64]:
+        """The gravity vector (3,) in world axes (m/s^2), ``robot.model.gravity``."""
+        return self.model.gravity
+
+    def with_gravity(self, gravity: npt.ArrayLike) -> Any:
+        """The same mechanism under another gravity vector (this robot is unchanged).
+
+        A robot loaded from a description returns a robot of its class on
+        ``model.with_gravity(gravity)``. The hexapod's and the planar robot's closed forms
+        take gravity along their own vertical only (the hexapod: ``-z``; the planar robot:
+        ``-y``): with such a vector they return a robot of their class with that magnitude
+        (``geometry.gravity``); with any other direction (a wall-mounted hexapod, a tilted
+        plane) a :class:`~hexapod_pin.core.robot.ClosedLoopRobot` over the same tree, the
+        same platform frame, pose axes, home, force bounds and effects, whose every route
+        is derived from the tree (the generic routes: slower, never a closed form that
+        would ignore the direction).
+
+        Args:
+            gravity: (3,) the gravitational acceleration in world axes (m/s^2), e.g. ``(0,
+                0, -9.81)``; any direction and magnitude (zero: no gravity).
+
+        Raises:
+            InputError: not 3 finite real numbers.
+        """
+        g = as_array(gravity, (3,), "gravity")
+        return self._with_gravity(self.model.with_gravity(g), g)
+
+    def _with_gravity(self, model: ClosedLoopModel, gravity: np.ndarray) -> Any:
+        """A robot like this one on ``model`` (this one's tree under ``gravity``, (3,));
+        a robot whose closed form takes one direction only overrides this."""
+        return self._with_model(model)
 
     def _with_model(self, model: ClosedLoopModel) -> Any:
         """A robot like this one on ``model`` (the same tree with other effects); each
@@ -371,3 +406,14 @@ class RobotBase:
         with self.lock:
             out = function(self, *args)
         return check_finite_result(f"{type(self).__name__}.{name}", out)
+
+
+def gravity_along(gravity: np.ndarray, axis: int) -> float | None:
+    """The magnitude ``g >= 0`` (m/s^2) of a gravity vector (3,) pointing along ``-e_axis``
+    (the other components zero to 1e-12 relative), or None for any other direction (the
+    closed form of a robot whose vertical is ``axis`` cannot take it)."""
+    others = np.delete(gravity, axis)
+    if np.abs(others).max() > 1e-12 * max(1.0, float(np.abs(gravity).max())) \
+            or gravity[axis] > 0.0:
+        return None
+    return float(-gravity[axis])

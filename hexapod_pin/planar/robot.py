@@ -19,6 +19,8 @@ reports them (rank 6 of 9, mobility 3) and every tree route tolerates them
 
 from __future__ import annotations
 
+import dataclasses
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -27,7 +29,8 @@ from ..core.closed_loop import ClosedLoopModel
 from ..core.effects import JointEffects
 from ..core.results import (InverseDynamicsDerivatives)
 from ..core.robot_api import delegate, takes_placement
-from ..core.robot_base import RobotBase
+from ..core.robot import tree_robot
+from ..core.robot_base import RobotBase, gravity_along
 from ..errors import ArgumentTypeError
 from .assembly_modes import PlanarAssembly
 from .derivatives import inverse_dynamics_derivatives
@@ -90,6 +93,16 @@ class Planar3PRR(RobotBase):
         """This robot rebuilt from its geometry with the effects of ``model`` (the same
         tree; a planar robot builds in milliseconds)."""
         return Planar3PRR(self.geometry, effects=model.effects)
+
+    def _with_gravity(self, model: ClosedLoopModel, gravity: np.ndarray) -> Any:
+        """The planar robot with ``geometry.gravity`` = g for a gravity ``(0, -g, 0)``; for
+        any other direction (its closed form takes -y only) the tree routes' robot
+        (:func:`~hexapod_pin.core.robot.tree_robot`)."""
+        magnitude = gravity_along(gravity, 1)
+        if magnitude is None:
+            return tree_robot(self, model)
+        return Planar3PRR(dataclasses.replace(self.geometry, gravity=magnitude),
+                          effects=model.effects)
 
     @classmethod
     def default(cls) -> "Planar3PRR":
