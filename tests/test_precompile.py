@@ -91,7 +91,7 @@ def test_the_warmup_command_exits_0_and_reports_its_steps():
     assert len(out["steps"]) == precompile.N_STEPS
     assert out["kernels"] > 100 and set(out["uncompiled"]) <= precompile.RARE
     text = CliRunner().invoke(app, ["warmup"])
-    assert text.exit_code == 0 and "compiled kernels" in text.stdout
+    assert text.exit_code == 0 and "compiled kernels in the library" in text.stdout
 
 
 @pytest.mark.parametrize("command", [["demo", "--no-html", "--json"]])
@@ -99,3 +99,19 @@ def test_the_demo_runs_the_warmup(command):
     result = CliRunner().invoke(app, command)
     assert result.exit_code == 0, result.output
     assert json.loads(result.stdout)["warmup"]["kernels"] > 100
+
+
+def test_the_warmup_command_shows_a_progress_bar_in_a_terminal(monkeypatch):
+    import functools
+
+    from rich.console import Console
+
+    from hexapod_pin.cli import common
+
+    monkeypatch.setattr(common, "Console", functools.partial(Console, force_terminal=True,
+                                                             width=100))
+    loud = CliRunner().invoke(app, ["warmup"])
+    assert loud.exit_code == 0 and "compiling the kernels" in loud.stderr
+    assert f"{precompile.N_STEPS}/{precompile.N_STEPS}" in loud.stderr
+    quiet = CliRunner().invoke(app, ["warmup", "--quiet"])
+    assert quiet.exit_code == 0 and "compiling the kernels" not in quiet.stderr

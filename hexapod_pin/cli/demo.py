@@ -135,8 +135,9 @@ def warmup(as_json: AsJson = False, quiet: Quiet = False) -> None:
     if as_json:
         emit_json(warmup_fields(report))
         return
-    table = Table(title=f"compiled kernels: {len(report.kernels)} in the library, "
-                        f"{report.compiled} compiled now, {report.seconds:.1f} s")
+    table = Table(title=f"{len(report.kernels)} compiled kernels in the library: "
+                        f"{report.compiled} compilations now (one per kernel and argument "
+                        f"types; 0: all from the disk cache), {report.seconds:.1f} s")
     table.add_column("step")
     table.add_column("wall time (s)", justify="right")
     table.add_column("compiled now", justify="right")
