@@ -284,12 +284,12 @@ _ANGLE_AXIS = {"roll": 0, "pitch": 1, "yaw": 2}
 def is_placement(value: object) -> bool:
     """Whether ``value`` is given as a placement: a ``pin.SE3`` or a 4x4 array-like (a
     homogeneous matrix)."""
-    if isinstance(value, pin.SE3):
-        return True
-    if isinstance(value, np.ndarray):
+    if isinstance(value, np.ndarray):           # the common case first: a pose vector
         return value.shape == (4, 4)
-    return isinstance(value, (list, tuple)) and len(value) == 4 and all(
-        isinstance(row, (list, tuple, np.ndarray)) and len(row) == 4 for row in value)
+    if isinstance(value, (list, tuple)):
+        return len(value) == 4 and all(
+            isinstance(row, (list, tuple, np.ndarray)) and len(row) == 4 for row in value)
+    return isinstance(value, pin.SE3)
 
 
 def pose_vector(value: object, layout: PoseLayout, name: str = "pose") -> Any:
@@ -450,8 +450,8 @@ class delegate(Generic[P, R]):
                 out = bound(*args, **kwargs)
             return check_finite_result(where, out)
 
-        if _takes_pose(self.function):
-            layout = getattr(obj, "pose_layout")
+        layout = getattr(obj, "pose_layout", None) if _takes_pose(self.function) else None
+        if layout is not None:              # a robot facade: its poses may be placements
             plain = serialized
 
             def serialized(*args: P.args, **kwargs: P.kwargs) -> R:  # type: ignore[misc]
