@@ -115,3 +115,20 @@ def test_the_warmup_command_shows_a_progress_bar_in_a_terminal(monkeypatch):
     assert f"{precompile.N_STEPS}/{precompile.N_STEPS}" in loud.stderr
     quiet = CliRunner().invoke(app, ["warmup", "--quiet"])
     assert quiet.exit_code == 0 and "compiling the kernels" not in quiet.stderr
+
+
+def test_the_package_kernels_honour_numba_cache_dir(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    code = ("from hexapod_pin.core import compiled; "
+            "print(compiled.all_finite._cache._cache_path)")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, check=True).stdout.strip()
+    assert out.startswith(str(tmp_path)), out
+    env.pop("NUMBA_CACHE_DIR")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, check=True).stdout.strip()
+    assert not out.startswith(str(tmp_path)) and "hexapod_pin" in out    # in the package
