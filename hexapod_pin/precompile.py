@@ -129,6 +129,9 @@ def _hexapod_single(robot: Hexapod) -> None:
         robot.static_forces(np.zeros(6))
     except SingularityError:
         pass
+    q, rest = robot.configuration(pose), np.zeros(robot.model.nv)
+    for method, bounds in (("kkt", None), ("qp", None), ("qp", 1e3)):  # the square tree system
+        inverse_dynamics_tree(robot.model, q, rest, rest, bounds=bounds, method=method)
 
 
 def _batches(robot: Hexapod | Planar3PRR) -> None:
@@ -228,14 +231,13 @@ def _steps() -> Iterator[tuple[str, Callable[[], None]]]:
 #: the number of steps of :func:`warmup`
 N_STEPS = 8
 #: kernels of routes that the small inputs of :func:`warmup` do not reach (frame inverse
-#: kinematics' QP step with curvature, the tree inverse dynamics' linear-algebra kernels
-#: of redundant or saturating actuation): compiled on their first use
+#: kinematics' QP step with curvature, the tree inverse dynamics' kernels of redundant
+#: actuation and of active force bounds): compiled on their first use
 RARE = frozenset({
     "hexapod_pin.core.frame_ik._qp_data",
     "hexapod_pin.core.linear_kernels.box_active_set_solve",
     "hexapod_pin.core.linear_kernels.minimum_norm_dual_solve",
     "hexapod_pin.core.linear_kernels.minimum_norm_solve",
-    "hexapod_pin.core.linear_kernels.square_solve",
     "hexapod_pin.core.linear_kernels.weighted_minimum_norm_solve",
 })
 
