@@ -38,7 +38,7 @@ from .core.robot_api import ParallelRobot
 from .errors import (ActuatorSaturationError, ArgumentTypeError, AssemblyError,
                      BatchActuatorSaturationError, BatchSingularityError, BatchUnreachablePoseError, DescriptionError,
                      GeometryError, HexapodPinError, InconsistentMotionError,
-                     InfeasiblePathError, InputError, MissingDependencyError,
+                     InfeasiblePathError, InputError, MissingDependencyError, MissingFileError,
                      MotionSampleError, NonFiniteResultError, SingularityError, SolverError,
                      StrokeLimitError, UnreachablePoseError)
 from .hexapod.geometry import ChainGeometry, HexapodGeometry
@@ -52,6 +52,7 @@ from .loaders.parallel_robots import load_parallel_robot
 from .planar.assembly_modes import AssemblyPolynomial
 from .planar.geometry import PlanarGeometry
 from .planar.robot import Planar3PRR
+from .precompile import warmup
 
 __version__ = "0.1.0"
 
@@ -64,6 +65,7 @@ __all__ = [
     "ClosedLoopModel", "AssemblyResult", "RankInfo", "ClosureSpec", "LoopsSpec",
     "expand_xacro", "load_loops", "parse_loops", "urdf_dir",
     "simulate", "Trajectory", "ActuatorPID", "ComputedTorque", "model_energies",
+    "warmup",
     # results shared by every robot
     "InverseDynamicsResult", "ForwardDynamicsResult", "ReducedDynamics", "Energies",
     "SingularityMeasures", "InverseDynamicsDerivatives", "InverseKinematicsBatch",
@@ -74,5 +76,5 @@ __all__ = [
     "UnreachablePoseError", "BatchActuatorSaturationError", "BatchSingularityError",
     "BatchUnreachablePoseError", "MotionSampleError", "MissingDependencyError",
     "InconsistentMotionError", "InfeasiblePathError", "NonFiniteResultError",
-    "ArgumentTypeError",
+    "ArgumentTypeError", "MissingFileError",
 ]

@@ -69,6 +69,25 @@ class DescriptionError(HexapodPinError, ValueError):
         super().__init__(f"{source}{where}: {reason}")
 
 
+class MissingFileError(HexapodPinError, FileNotFoundError):
+    """A file to read does not exist (a motion, geometry, waypoint, measurement or
+    description file): a ``FileNotFoundError`` of the library, not a malformed file.
+
+    Attributes:
+        path: the path as given (text).
+        what: what the file was to be, e.g. "motion file".
+    """
+
+    def __init__(self, path: str, what: str = "file"):
+        self.path = str(path)
+        self.what = what
+        super().__init__(f"{self.path}: {what} not found")
+        self.filename = self.path
+
+    def __str__(self) -> str:
+        return f"{self.path}: {self.what} not found"
+
+
 class AssemblyError(HexapodPinError, RuntimeError):
     """The closed chain could not be assembled (no convergence, singular).
 
@@ -127,6 +146,10 @@ class StrokeLimitError(HexapodPinError, ValueError):
 class SingularityError(HexapodPinError, RuntimeError):
     """A configuration is singular where a regular one is needed.
 
+    The message reads ``singular configuration: <what> (<measure> <value>, below the
+    threshold <threshold>)``: the measure is named as it is (a ``|cos|`` is not called a
+    singular value).
+
     Attributes:
         sigma_min: the singularity measure of the matrix at fault (its smallest singular
             value, or the measure ``what`` names, e.g. ``|cos|`` for a type-I singularity).
@@ -149,7 +172,7 @@ class SingularityError(HexapodPinError, RuntimeError):
         self.measure = measure
         below = "" if threshold is None else \
             f", {'below' if sigma_min < threshold else 'near'} the threshold {threshold:.3g}"
-        super().__init__(f"{what} is singular ({measure} {sigma_min:.3e}{below})")
+        super().__init__(f"singular configuration: {what} ({measure} {sigma_min:.3e}{below})")
 
 
 class ActuatorSaturationError(HexapodPinError, RuntimeError):

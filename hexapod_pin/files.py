@@ -87,7 +87,8 @@ def load_geometry(path: str | os.PathLike | None = None,
         ``geometry_type(**fields)``.
 
     Raises:
-        DescriptionError: missing, unreadable or malformed file, or a suffix other
+        MissingFileError: the file does not exist.
+        DescriptionError: unreadable or malformed file, or a suffix other
             than .toml, .yaml, .yml, .json.
         InputError: an override without ``=``.
         GeometryError: an unknown field, a value that is not a number, or a value the
@@ -193,10 +194,11 @@ def read_geometry_file(path: str | os.PathLike) -> dict:
     """The table of geometry fields in a TOML / YAML / JSON file (not yet checked).
 
     Raises:
-        DescriptionError: missing file, unknown suffix, malformed content, or not a table.
+        MissingFileError: the file does not exist.
+        DescriptionError: unknown suffix, malformed content, or not a table.
     """
     path = Path(file_path(path))
-    text = read_text(path)
+    text = read_text(path, "geometry file")
     suffix = path.suffix.lower()
     if suffix not in GEOMETRY_SUFFIXES:
         raise DescriptionError(str(path), "geometry file must be .toml, .yaml, .yml or .json")

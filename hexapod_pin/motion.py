@@ -267,14 +267,15 @@ def read_motion(path: str | os.PathLike[str], robot: ParallelRobot | None = None
         the :class:`Motion` (poses (N, dim), q and actuator forces (N, n_act)).
 
     Raises:
-        DescriptionError: missing file, unknown suffix, missing or malformed columns,
+        MissingFileError: the file does not exist.
+        DescriptionError: unknown suffix, missing or malformed columns,
             times not increasing, a shape that does not fit the robot, NaN / inf (the
             message names the file and column).
     """
     path = Path(file_path(path))
     columns = motion_columns(robot)
     if path.is_dir() or not path.is_file():
-        read_text(path)                 # a folder or a missing file: its DescriptionError
+        read_text(path, "motion file")  # a folder or a missing file: its error
     suffix = path.suffix.lower()
     if suffix == ".json":
         return _motion_from_json(path, columns)

@@ -80,7 +80,7 @@ def _edges(module: str) -> set[str]:
 #: A part is a subpackage, a top-level module, ``hexapod_pin`` (the package's __init__) or
 #: ``__main__``. Data flow one way: core -> robots and loaders -> the rest -> cli.
 _ALL = {"errors", "core", "hexapod", "planar", "loaders", "planning", "calibration", "viz",
-        "files", "motion"}
+        "files", "motion", "precompile"}
 LAYOUT: dict[str, set[str]] = {
     "errors": set(),
     "core": {"errors"},
@@ -92,6 +92,7 @@ LAYOUT: dict[str, set[str]] = {
     "viz": {"core", "errors"},
     "files": {"core", "hexapod", "errors"},             # geometry files (HexapodGeometry)
     "motion": {"core", "hexapod", "files", "errors"},   # motion files, the hexapod's circle
+    "precompile": {"core", "hexapod", "planar", "planning", "errors"},  # compiles every kernel
     "hexapod_pin": _ALL,                                # the public names, no cli
     "cli": _ALL | {"hexapod_pin"},
     "__main__": {"cli"},

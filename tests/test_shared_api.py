@@ -581,3 +581,128 @@ def test_non_real_inputs_are_refused_by_name(robot, kind):
             with pytest.raises(hp.InputError) as err:
                 call()
             assert err.value.name == name
+
+
+# -- poses given as placements (pin.SE3 or a 4x4 homogeneous matrix) -----------------------
+def placement_of(robot, pose, extra=None):
+    """The pin.SE3 of a pose vector, written from the conventions (``R = Rz(yaw) Ry(pitch)
+    Rx(roll)``; components outside the pose axes zero, or ``extra``: index in (x, y, z,
+    roll, pitch, yaw) -> value)."""
+    full = np.zeros(6)
+    full[axes_of(robot)] = pose
+    for k, value in (extra or {}).items():
+        full[k] = value
+    rot = pin.AngleAxis(full[5], np.array([0.0, 0.0, 1.0])).matrix() \
+        @ pin.AngleAxis(full[4], np.array([0.0, 1.0, 0.0])).matrix() \
+        @ pin.AngleAxis(full[3], np.array([1.0, 0.0, 0.0])).matrix()
+    return pin.SE3(rot, full[:3])
+
+
+def test_poses_may_be_placements(robot):
+    pose, twist, twist_dot, wrench = states(robot, 1, 11)[0]
+    placement = placement_of(robot, pose)
+    for given in (placement, placement.homogeneous, placement.homogeneous.tolist()):
+        np.testing.assert_allclose(robot.inverse_kinematics(given),
+                                   robot.inverse_kinematics(pose), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(robot.jacobian(given), robot.jacobian(pose), atol=1e-10)
+        np.testing.assert_allclose(robot.configuration(given), robot.configuration(pose),
+                                   atol=1e-12)
+        np.testing.assert_allclose(robot.static_forces(given, wrench),
+                                   robot.static_forces(pose, wrench), atol=1e-9)
+        np.testing.assert_allclose(
+            robot.inverse_dynamics(pose=given, twist=twist, twist_dot=twist_dot).actuator_forces,
+            robot.inverse_dynamics(pose, twist, twist_dot).actuator_forces, atol=1e-9)
+        tau = robot.static_forces(pose)
+        np.testing.assert_allclose(robot.forward_dynamics(given, twist, tau).twist_dot,
+                                   robot.forward_dynamics(pose, twist, tau).twist_dot, atol=1e-9)
+    # the placement of the platform frame at the configuration of the pose (Pinocchio's
+    # forward kinematics, an independent route) gives the pose back where it fits the axes
+    q = robot.configuration(pose)
+    data = robot.pinocchio_model.createData()
+    pin.framesForwardKinematics(robot.pinocchio_model, data, q)
+    frame = data.oMf[robot.platform_frame_id]
+    full = np.concatenate([frame.translation, pin.rpy.matrixToRpy(frame.rotation)])
+    outside = np.setdiff1d(np.arange(6), axes_of(robot))
+    if np.abs(full[outside]).max(initial=0.0) < 1e-12:
+        np.testing.assert_allclose(robot.inverse_kinematics(frame), robot.inverse_kinematics(pose),
+                                   atol=1e-10)
+
+
+def test_a_placement_outside_the_pose_axes_is_refused_by_name(robot):
+    pose = robot.home_pose
+    outside = np.setdiff1d(np.arange(6), axes_of(robot))
+    names = ("x", "y", "z", "roll", "pitch", "yaw")
+    for k in outside:
+        with pytest.raises(hp.InputError, match="pose") as err:
+            robot.inverse_kinematics(placement_of(robot, pose, {int(k): 0.1}))
+        assert err.value.name == "pose"
+        if k < 3 or len([a for a in axes_of(robot) if a >= 3]) != 1:
+            assert f"{names[k]} = 0.1" in str(err.value)
+    bad = placement_of(robot, pose).homogeneous
+    bad[3, 0] = 1.0
+    with pytest.raises(hp.InputError, match="last row"):
+        robot.jacobian(bad)
+    bad = placement_of(robot, pose).homogeneous
+    bad[:3, :3] *= 2.0
+    with pytest.raises(hp.InputError, match="not a rotation"):
+        robot.static_forces(bad)
+
+
+# -- gravity in any direction ------------------------------------------------------------------
+def potential_gradient(robot, pose, gravity, h=1e-6):
+    """dV/d(actuator positions) at ``pose`` under ``gravity`` (3,): central differences of
+    Pinocchio's potential energy (a copy of the tree with that gravity) along the assembly
+    mode of ``pose`` (forward kinematics of the shifted actuator positions)."""
+    model = pin.Model(robot.pinocchio_model)
+    model.gravity = pin.Motion(np.concatenate([gravity, np.zeros(3)]))
+    data = model.createData()
+    act = robot.inverse_kinematics(pose)
+    grad = []
+    for k in range(robot.n_actuators):
+        step = np.zeros(robot.n_actuators)
+        step[k] = h
+        v = []
+        for s in (1.0, -1.0):
+            q = robot.configuration(robot.forward_kinematics(act + s * step, guess=pose))
+            v.append(pin.computePotentialEnergy(model, data, q))
+        grad.append((v[0] - v[1]) / (2 * h))
+    return np.array(grad)
+
+
+def test_with_gravity_in_any_direction_by_virtual_work(robot):
+    if np.any(robot.effects.stiffness):
+        pytest.skip("springs store energy too")
+    pose, twist, twist_dot, _ = states(robot, 1, 5)[0]
+    tilted = np.array([3.0, -4.0, -8.0])             # m/s^2, a wall-mounted, tilted robot
+    other = robot.with_gravity(tilted)
+    np.testing.assert_allclose(other.gravity, tilted)
+    np.testing.assert_allclose(robot.gravity, robot.pinocchio_model.gravity.linear)
+    if not loaded(robot):
+        # the closed form takes its own vertical only: the tree routes' robot answers
+        assert isinstance(other, hp.ClosedLoopRobot) and other.pose_axes == robot.pose_axes
+    # virtual work: the static forces are the gradient of the potential energy
+    np.testing.assert_allclose(other.static_forces(pose, bounded=False),
+                               potential_gradient(robot, pose, tilted), rtol=1e-6, atol=1e-7)
+    # gravity enters linearly: ID under g = ID without gravity (this robot's own route,
+    # the closed form where it has one) + the static forces under g
+    free = robot.with_gravity(np.zeros(3))
+    np.testing.assert_allclose(
+        other.inverse_dynamics(pose, twist, twist_dot, bounded=False).actuator_forces,
+        free.inverse_dynamics(pose, twist, twist_dot, bounded=False).actuator_forces
+        + other.static_forces(pose, bounded=False), rtol=1e-8, atol=1e-8)
+
+
+def test_with_gravity_along_the_vertical_keeps_the_closed_form(robot):
+    if loaded(robot):
+        return
+    vertical = np.zeros(3)
+    vertical[2 if robot.pose_dim == 6 else 1] = -2.0 * robot.geometry.gravity
+    heavier = robot.with_gravity(vertical)
+    assert type(heavier) is type(robot)
+    assert heavier.geometry.gravity == pytest.approx(2.0 * robot.geometry.gravity)
+    np.testing.assert_allclose(heavier.gravity, vertical)
+    pose = robot.home_pose
+    np.testing.assert_allclose(heavier.static_forces(pose, bounded=False),
+                               potential_gradient(robot, pose, vertical), rtol=1e-6, atol=1e-7)
+    with pytest.raises(hp.InputError, match="gravity"):
+        robot.with_gravity([0.0, 9.81])

@@ -54,12 +54,13 @@ def read_measurements(path: str | os.PathLike, target_points: npt.ArrayLike | No
         checked :class:`~hexapod_pin.calibration.problem.Measurements`.
 
     Raises:
-        DescriptionError: missing or unreadable file, no header, unknown or missing
+        MissingFileError: the file does not exist.
+        DescriptionError: unreadable file, no header, unknown or missing
             columns, a row of another length, a value that is not a number (row and
             column named).
         InputError: inconsistent measurements (see ``Measurements.checked``).
     """
-    lines = [ln for ln in read_text(path).splitlines()
+    lines = [ln for ln in read_text(path, "measurement file").splitlines()
              if ln.strip() and not ln.lstrip().startswith("#")]
     rows = list(csv.reader(lines))
     if not rows:

@@ -9,10 +9,11 @@ closed-loop robot of ``--robot PATH [--platform FRAME] [--pose-axes x,z]``
 actuator values are read and printed in that robot's own axes and actuator order
 (:func:`pose_axes_of`, :func:`actuator_names`).
 
-Exit codes: 0 success; 1 an error of the library or of the input (a value that is not a
-number, an unreachable pose, a malformed file, ...); 2 a usage error (an unknown
-option, a missing argument, options that do not go together such as ``--robot`` with
-``--geometry``). Every error is one line on stderr, ``error: <message>``,
+Exit codes (:data:`EXIT_CODES`): 0 success; 1 a computed failure or bad input (an
+unreachable pose, a singular pose, a saturated simulation, a value that is not a number, a
+missing or malformed file, ...); 2 a usage error (an unknown option, a missing required
+option or argument, a wrong number of values (:class:`ValueCountError`), options that do
+not go together such as ``--robot`` with ``--geometry``). Every error is one line on stderr, ``error: <message>``,
 or with ``--json`` one JSON object on stdout, ``{"error": {"type": ..., "message":
 ...}}``; never a traceback.
 """
@@ -60,6 +61,8 @@ from ..hexapod.robot import Hexapod
 from ..loaders.any_robot import load_robot
 from ..motion import POSE_NAMES
 
+#: the exit codes of every command
+EXIT_CODES = {0: "success", 1: "a computed failure or bad input", 2: "a usage error"}
 #: lets "-0.1" through as a value (commands taking numbers)
 NUMBERS = {"ignore_unknown_options": True}
 #: width of tables and lines written to a pipe or a file (a terminal uses its own width)
@@ -132,6 +135,14 @@ class CliUsageError(Exception):
     def format_message(self) -> str:
         """The message (click's usage-error interface)."""
         return str(self)
+
+
+class ValueCountError(InputError):
+    """A wrong number of values on the command line (a pose of 5 numbers for 6 axes): a
+    usage error, exit code 2 (an :class:`~hexapod_pin.errors.InputError` naming the
+    argument, the values and the count expected)."""
+
+    exit_code = 2
 
 
 def robot_of(geometry_file: Path | None, overrides: list[str] | None) -> Hexapod:
@@ -375,9 +386,11 @@ def report_error(message: str, kind: str, as_json: bool = False) -> None:
 
 
 def fail(exc: Exception, as_json: bool = False) -> None:
-    """Report ``exc`` (:func:`report_error`) and exit with code 1."""
+    """Report ``exc`` (:func:`report_error`) and exit with its ``exit_code`` (2 for a
+    :class:`ValueCountError`), else 1."""
     report_error(str(exc), type(exc).__name__, as_json)
-    raise typer.Exit(code=1)
+    code = getattr(exc, "exit_code", 1)
+    raise typer.Exit(code=code if isinstance(code, int) else 1)
 
 
 def guard(func: Callable) -> Callable:
@@ -454,7 +467,9 @@ class Group(TyperGroup):
     """The ``hexapod-pin`` group: usage errors as one line (or JSON), never a box.
 
     A value that cannot be converted (``--duration abc``) exits with code 1 like any bad
-    input; other usage errors (unknown option, missing argument) exit with code 2.
+    input; other usage errors (unknown option, missing required option or argument, extra
+    arguments) exit with code 2 (click's ``MissingParameter`` derives from
+    ``BadParameter``: it is told apart).
     """
 
     def get_params(self, ctx: Any) -> list:
@@ -488,7 +503,9 @@ class Group(TyperGroup):
             if ctx is not None:
                 message += f" (see '{ctx.command_path} --help')"
             report_error(message, type(exc).__name__, as_json)
-            sys.exit(1 if isinstance(exc, typer.BadParameter) else 2)
+            bad_value = isinstance(exc, typer.BadParameter) and \
+                type(exc).__name__ != "MissingParameter"
+            sys.exit(1 if bad_value else 2)
         sys.exit(code if isinstance(code, int) else 0)
 
 
@@ -498,8 +515,9 @@ def parse_numbers(tokens: Sequence[str] | None, count: int | None, name: str,
     """Floats from tokens like ``["0", "-0.1"]`` or ``["0,-0.1"]``; exactly ``count``.
 
     Raises:
-        InputError: a token that is not a number, an empty field between commas, another
-            count, NaN or inf.
+        InputError: a token that is not a number, an empty field between commas, NaN or
+            inf.
+        ValueCountError: another count (a usage error, exit code 2).
     """
     parts: list[str] = []
     for chunk in (c for tok in (tokens or []) for c in str(tok).split()):
@@ -515,7 +533,7 @@ def parse_numbers(tokens: Sequence[str] | None, count: int | None, name: str,
             raise InputError(name, part, f"not a number ({part!r})") from None
     if count is not None and len(values) != count:
         what = f" ({meaning})" if meaning else ""
-        raise InputError(name, parts, f"expected {count} values{what}, got {len(values)}")
+        raise ValueCountError(name, parts, f"expected {count} values{what}, got {len(values)}")
     array = np.array(values, dtype=float)
     if not np.all(np.isfinite(array)):
         raise InputError(name, parts, "contains NaN or inf")

@@ -1,4 +1,5 @@
-"""The ``demo`` command: the main job of the library in one command."""
+"""The ``demo`` command: the main job of the library in one command; ``warmup``: compile
+every compiled kernel at once, with a progress bar (the demo runs it first)."""
 
 from __future__ import annotations
 
@@ -9,9 +10,12 @@ from typing import Annotated
 import numpy as np
 import typer
 from rich.table import Table
+from rich.text import Text
 
 from .. import motion as motions
 from ..viz import scenes
+from ..precompile import N_STEPS, WarmupReport
+from ..precompile import warmup as warmup_kernels
 from .common import (
     AsJson,
     GeometryFile,
@@ -21,6 +25,7 @@ from .common import (
     emit_json,
     fmt,
     guard,
+    note,
     progress_bar,
     quantity_table,
     robot_of,
@@ -41,6 +46,7 @@ def demo(as_json: AsJson = False,
     design)."""
     quiet = quiet or as_json
     robot = robot_of(geometry, set_)
+    report = compile_kernels(quiet)
     q = robot.home_configuration
     pose = robot.home_pose + ROUND_TRIP_OFFSET
     q_tilted = robot.inverse_kinematics(pose)
@@ -67,6 +73,7 @@ def demo(as_json: AsJson = False,
                        "max_tracking_error_m": run.tracking_error,
                        "max_abs_actuator_force_n": float(np.max(np.abs(traj.actuator_forces)))},
         "html": None,
+        "warmup": warmup_fields(report),
     }
     if not no_html:
         path = html or Path(tempfile.gettempdir()) / "hexapod_pin_demo.html"
@@ -97,4 +104,46 @@ def demo_table(result: dict) -> Table:
         "  max closure residual (m) / status":
             f"{sim['max_closure_residual_m']:.1e} / {sim['status']}",
         "HTML of the home pose": result["html"] or "not written",
+        "compiled kernels: wall time (s) / compiled now":
+            f"{result['warmup']['seconds']:.1f} / {result['warmup']['compiled']}",
     })
+
+
+def compile_kernels(quiet: bool) -> WarmupReport:
+    """:func:`hexapod_pin.precompile.warmup` with a progress bar on a terminal (none when
+    ``quiet``)."""
+    with progress_bar(quiet, "compiling the kernels (once per install)",
+                      total=N_STEPS) as progress:
+        return warmup_kernels(progress)
+
+
+def warmup_fields(report: WarmupReport) -> dict:
+    """The ``--json`` object of a warmup: total seconds, kernels compiled, every step
+    (label, seconds, compiled) and the kernels still uncompiled."""
+    return {"seconds": report.seconds, "compiled": report.compiled,
+            "kernels": len(report.kernels), "uncompiled": list(report.uncompiled),
+            "steps": [{"label": step.label, "seconds": step.seconds,
+                       "compiled": step.compiled} for step in report.steps]}
+
+
+@guard
+def warmup(as_json: AsJson = False, quiet: Quiet = False) -> None:
+    """Compile every compiled (numba) kernel of the library now, with a progress bar: the
+    first calls after an install then wait for no compiler (the machine code is cached on
+    disk; a second run takes about a second). `hexapod-pin demo` runs it first."""
+    report = compile_kernels(quiet or as_json)
+    if as_json:
+        emit_json(warmup_fields(report))
+        return
+    table = Table(title=f"{len(report.kernels)} compiled kernels in the library: "
+                        f"{report.compiled} compilations now (one per kernel and argument "
+                        f"types; 0: all from the disk cache), {report.seconds:.1f} s")
+    table.add_column("step")
+    table.add_column("wall time (s)", justify="right")
+    table.add_column("compiled now", justify="right")
+    for step in report.steps:
+        table.add_row(Text(step.label), f"{step.seconds:.2f}", str(step.compiled))
+    console.print(table)
+    if report.uncompiled:
+        note(quiet, "not compiled (reached only by rarer routes; compiled on first use): "
+                    + ", ".join(report.uncompiled))

@@ -22,7 +22,7 @@ import typer
 from .. import motion as motions
 from ..core.controllers import ComputedTorque
 from ..core.robot import ClosedLoopRobot
-from ..core.simulate import STATUSES, Trajectory
+from ..core.simulate import Trajectory
 from ..core.simulate import simulate as simulate_robot
 from ..core.simulation import INTEGRATORS
 from ..errors import InputError
@@ -246,6 +246,10 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
                  help="write an animated HTML view")] = None,
              plot: Annotated[Path | None, typer.Option(
                  help="write a figure (.png / .svg / .pdf) of q, forces, residual")] = None,
+             allow_saturation: Annotated[bool, typer.Option(
+                 "--allow-saturation", help="a run whose commands were clipped to the force "
+                 "bound (status saturated) exits with code 0 (still with its warning)")
+             ] = False,
              as_json: AsJson = False, quiet: Quiet = False,
              robot: RobotFile = None, platform: PlatformFrame = None,
              pose_axes: PoseAxes = None,
@@ -256,7 +260,8 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
     Exit code 1 unless the run completed and tracked the circle (status `completed`):
     a stop at a stroke limit, a failure, a tracking error above the circle's radius
     (status `tracking_lost`, e.g. a step too long for the PID gains) or commands clipped
-    to the force bound (status `saturated`, with a warning) are failures.
+    to the force bound (status `saturated`, with a warning; exit code 0 with
+    `--allow-saturation`) are failures.
     With `--json` the summary is printed with exit code 0 and its `status` says what
     happened.
 
@@ -277,7 +282,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
         hexapod_only(bot, engine=engine, radius=radius, period=period)
         _simulate_loaded(bot, duration, dt, controller or "none", forces,
                          integrator, SimulateFiles(out, html, plot, effects), as_json, quiet,
-                         robot_urdf(bot, robot))
+                         robot_urdf(bot, robot), allow_saturation)
         return
     if forces is not None:
         raise InputError("forces", forces, "--forces is an option of simulate --robot")
@@ -328,9 +333,16 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
         f"simulation: {controller} control, circle r = {radius:g} m",
         {key: f"{value:.4g}" if isinstance(value, float) else str(value)
          for key, value in summary.items() if value not in (None, "")}))
-    if run.status == "saturated":
-        note(False, f"warning: {run.message}")
-    if run.status != "completed":
+    end_of_run(run.status, run.message, allow_saturation)
+
+
+def end_of_run(status: str, message: str, allow_saturation: bool) -> None:
+    """The end of ``simulate``'s text output: the warning of a saturated run on stderr,
+    then exit code 1 unless the status is ``completed`` (or ``saturated`` with
+    ``allow_saturation``)."""
+    if status == "saturated":
+        note(False, f"warning: {message}")
+    if status != "completed" and not (allow_saturation and status == "saturated"):
         raise typer.Exit(code=1)
 
 
@@ -374,9 +386,9 @@ def trajectory_motion(traj: Trajectory) -> motions.Motion:
 def _simulate_loaded(robot: ClosedLoopRobot, duration: float, dt: float | None,
                      controller: str, forces: str | None, integrator: str,
                      files: SimulateFiles, as_json: bool, quiet: bool,
-                     urdf: Path | None) -> None:
+                     urdf: Path | None, allow_saturation: bool = False) -> None:
     """``simulate --robot``: the generic simulation from home at rest, its files, its
-    summary, and exit code 1 unless it completed."""
+    summary, and exit code 1 unless it completed (:func:`end_of_run`)."""
     html = files.html
     if controller not in ROBOT_CONTROLLERS:
         raise InputError("controller", controller,
@@ -424,10 +436,7 @@ def _simulate_loaded(robot: ClosedLoopRobot, duration: float, dt: float | None,
     console.print(quantity_table(
         f"simulation of {robot.geometry.name}: {controller} control",
         {key: shown(value) for key, value in summary.items() if value not in (None, "", [])}))
-    if traj.status == "saturated":
-        note(False, f"warning: {traj.message}")
-    if traj.status != STATUSES[0]:
-        raise typer.Exit(code=1)
+    end_of_run(traj.status, traj.message, allow_saturation)
 
 
 def shown(value: object) -> str:

@@ -3,7 +3,7 @@
 Commands (``hexapod-pin COMMAND --help`` for each), each a thin layer over library
 functions:
 
-* ``demo`` (:mod:`.demo`);
+* ``demo``, ``warmup`` (:mod:`.demo`);
 * ``ik``, ``fk``, ``modes``, ``jacobian`` (:mod:`.kinematics`);
 * ``statics``, ``fd``, ``id``, ``simulate`` (:mod:`.dynamics`);
 * ``view``, ``plot`` (:mod:`.views`);
@@ -44,10 +44,11 @@ Every measure printed is the library's and says what it is: the condition number
 ``cond(J)`` of the unscaled workspace Jacobian (columns m/s and rad/s), as
 ``Hexapod.singularity`` and ``hexapod_pin.hexapod.workspace.evaluate`` report it.
 
-Errors of the library or of the input (a value that is not a number included) end the
-command with a one-line message on stderr and exit code 1; other usage errors (an
-unknown option, a missing argument) with a one-line message and exit code 2. With
-``--json`` the error is a JSON object on stdout instead (:mod:`.common`).
+Exit codes (:data:`.common.EXIT_CODES`): 0 success; 1 a computed failure (saturation, a
+singular or unreachable pose, ...) or bad input (a value that is not a number, a missing
+or malformed file); 2 a usage error (an unknown option, a missing required option or
+argument, a wrong number of values). Every error is a one-line message on stderr, or with
+``--json`` a JSON object on stdout (:mod:`.common`).
 
 ``hexapod-pin --version`` prints the package version.
 """
@@ -82,6 +83,7 @@ def root(version: Annotated[bool, typer.Option(
 
 
 app.command(cls=Command)(demo.demo)
+app.command(cls=Command)(demo.warmup)
 app.command(cls=Command, context_settings=NUMBERS)(kinematics.ik)
 app.command(cls=Command, context_settings=NUMBERS)(kinematics.fk)
 app.command(cls=Command, context_settings=NUMBERS)(kinematics.modes)

@@ -6,9 +6,15 @@ with ``parallel=True`` on numba's worker threads, and as a plain loop on the cal
 thread (``prange`` is ``range`` there). Batches of fewer than :data:`PARALLEL_MIN`
 states run serially: waking the worker threads costs more than it saves below that
 size, and much more on a loaded machine. Both compilations give the same numbers.
+
+The parallel twin is compiled from a copy of the function named ``<name>__parallel``: numba
+keys its disk cache on the function's name and signature only (not on ``parallel=True``),
+so two twins of one name would share one cache entry and load each other's machine code.
 """
 
 from __future__ import annotations
+
+import types
 
 import numba
 
@@ -32,7 +38,7 @@ class BatchDriver:
     ``states_arg``)."""
 
     def __init__(self, func, states_arg: int, flags: dict = FLAGS):
-        self.parallel = numba.njit(parallel=True, **flags)(func)
+        self.parallel = numba.njit(parallel=True, **flags)(_renamed(func, "__parallel"))
         self.serial = numba.njit(**flags)(func)
         self.states_arg = states_arg
         self.__doc__ = func.__doc__
@@ -40,6 +46,17 @@ class BatchDriver:
     def __call__(self, *args):
         n = args[self.states_arg].shape[0]
         return (self.parallel if n >= PARALLEL_MIN else self.serial)(*args)
+
+
+def _renamed(func, suffix: str):
+    """A copy of the plain function ``func`` whose name and qualified name end in ``suffix``
+    (its own disk-cache entry: see the module docstring)."""
+    twin = types.FunctionType(func.__code__, func.__globals__, func.__name__ + suffix,
+                              func.__defaults__, func.__closure__)
+    twin.__qualname__ = func.__qualname__ + suffix
+    twin.__module__ = func.__module__
+    twin.__doc__ = func.__doc__
+    return twin
 
 
 def prange_jit(states_arg: int, flags: dict = FLAGS):

@@ -11,12 +11,14 @@ import dataclasses
 import functools
 import math
 import numbers
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import ArgumentTypeError, GeometryError, InputError, NonFiniteResultError, SolverError
+from ..errors import (ArgumentTypeError, GeometryError, InputError, MissingFileError,
+                      NonFiniteResultError, SolverError)
 from .compiled import all_finite, all_within
 
 #: the largest magnitude an input may have: above it, squares and products of two inputs
@@ -120,6 +122,19 @@ def within_magnitude(arr: np.ndarray, value, name: str) -> np.ndarray:
                          f"{bad[:5].tolist()} (products of such numbers overflow double "
                          "precision)")
     return arr
+
+
+def existing_file(path, what: str = "file", folder: bool = False) -> Path:
+    """``path`` as a :class:`~pathlib.Path` after checking that the file exists (or, with
+    ``folder``, that a file or a folder does).
+
+    Raises:
+        MissingFileError: it does not (naming the path and ``what`` it was to be).
+    """
+    path = Path(path)
+    if not (path.exists() if folder else path.is_file()):
+        raise MissingFileError(str(path), what)
+    return path
 
 
 def vector(value, size: int, name: str) -> np.ndarray:

@@ -298,6 +298,33 @@ class ClosedLoopModel:
         return type(self)(self.tree_model, self.loops, name=self.name, urdf_xml=self.urdf_xml,
                           effects=new)
 
+    @property
+    def gravity(self) -> np.ndarray:
+        """The gravity vector (3,) in world axes (m/s^2): the linear part of the Pinocchio
+        model's ``gravity`` (a copy)."""
+        return np.array(self.model.gravity.linear, dtype=float)
+
+    def with_gravity(self, gravity: npt.ArrayLike) -> "ClosedLoopModel":
+        """A new model of the same tree, closures and effects under another gravity.
+
+        Args:
+            gravity: (3,) the gravitational acceleration in world axes (m/s^2), any
+                direction (e.g. ``(0, -9.81, 0)`` for a wall-mounted robot whose tree has z
+                along the wall).
+
+        Returns:
+            A new :class:`ClosedLoopModel` whose Pinocchio models carry ``gravity`` (every
+            tree route reads it from there; this model is unchanged).
+
+        Raises:
+            InputError: not 3 finite real numbers.
+        """
+        g = as_array(gravity, (3,), "gravity")
+        tree = pin.Model(self.tree_model)
+        tree.gravity = pin.Motion(np.concatenate([g, np.zeros(3)]))
+        return type(self)(tree, self.loops, name=self.name, urdf_xml=self.urdf_xml,
+                          effects=self.effects)
+
     # -- construction ---------------------------------------------------------
     @classmethod
     def from_files(cls, urdf_path: str | Path, loops_path: str | Path,

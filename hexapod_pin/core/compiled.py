@@ -10,17 +10,29 @@ compiled into another module's kernel (``batch`` and ``fast`` inline ``kernels``
 frozen into that module's cache. The cache locators registered here (:func:`source_stamp`)
 key every kernel of this package on the contents of ALL its compiled modules instead, so
 an edit to any of them recompiles every kernel on next use (never stale machine code).
+With ``NUMBA_CACHE_DIR`` set, the cache lives there (numba's own rule), stamped the same way.
+
+Compile notice: the first call of a kernel that is not in the cache compiles it (seconds to
+a minute for the largest); that compilation logs one line at level INFO on the logger
+``"hexapod_pin"`` (:class:`CompileNotice`; a call served from memory or from the disk cache
+logs nothing). ``hexapod_pin.warmup()`` / ``hexapod-pin warmup`` compile every kernel at
+once.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import logging
 import math
+import threading
 from pathlib import Path
 
 import numba
-from numba.core import caching
+from numba.core import caching, event
+
+#: the library's logger (the compile notice, :class:`CompileNotice`)
+LOGGER = logging.getLogger("hexapod_pin")
 
 #: the package's source folder (``hexapod_pin/``)
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
@@ -52,6 +64,18 @@ def _in_package(py_file: str) -> bool:
     return True
 
 
+class PackageUserProvidedLocator(caching.UserProvidedCacheLocator):
+    """numba's ``NUMBA_CACHE_DIR`` locator for this package's kernels (used only when that
+    variable is set, as numba's own), stamped with :func:`source_stamp`."""
+
+    def get_source_stamp(self) -> str:
+        return source_stamp()
+
+    @classmethod
+    def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
+        return super().from_function(py_func, py_file) if _in_package(py_file) else None
+
+
 class PackageInTreeLocator(caching.InTreeCacheLocator):
     """numba's ``__pycache__`` locator for this package's kernels, stamped with
     :func:`source_stamp` instead of the kernel's own file."""
@@ -81,10 +105,51 @@ def _register_locators() -> None:
     through to numba's own locators). A numba without that list keeps its default."""
     classes = getattr(getattr(caching, "CacheImpl", None), "_locator_classes", None)
     if isinstance(classes, list) and PackageInTreeLocator not in classes:
-        classes[0:0] = [PackageInTreeLocator, PackageUserWideLocator]
+        classes[0:0] = [PackageUserProvidedLocator, PackageInTreeLocator,
+                        PackageUserWideLocator]
 
 
 _register_locators()
+
+
+def kernel_name(dispatcher: object) -> str:
+    """``module.function`` of a compiled kernel (a numba dispatcher), e.g.
+    ``hexapod_pin.hexapod.kernels.inverse_dynamics``."""
+    func = getattr(dispatcher, "py_func", dispatcher)
+    return f"{getattr(func, '__module__', '?')}.{getattr(func, '__qualname__', '?')}"
+
+
+class CompileNotice(event.Listener):
+    """Logs one INFO line on the ``"hexapod_pin"`` logger when a kernel of this package is
+    compiled (numba's ``"numba:compile"`` event, sent only on a cache miss: not for a call
+    served from memory or loaded from the disk cache). Kernels compiled inside the
+    compilation of another (its callees) add no line: one notice per first call."""
+
+    def __init__(self) -> None:
+        self._depth = threading.local()
+        #: kernels of this package compiled in this process (callees included)
+        self.compiled = 0
+
+    def on_start(self, ev: event.Event) -> None:
+        depth = getattr(self._depth, "value", 0)
+        self._depth.value = depth + 1
+        dispatcher = (ev.data or {}).get("dispatcher")
+        name = kernel_name(dispatcher)
+        if not name.startswith("hexapod_pin."):
+            return
+        self.compiled += 1
+        if depth == 0:
+            LOGGER.info("compiling %s for its first use (numba, once per install: the machine "
+                        "code is cached on disk; 'hexapod-pin warmup' compiles every kernel)",
+                        name)
+
+    def on_end(self, ev: event.Event) -> None:
+        self._depth.value = max(getattr(self._depth, "value", 1) - 1, 0)
+
+
+#: the listener registered with numba (one per process)
+COMPILE_NOTICE = CompileNotice()
+event.register("numba:compile", COMPILE_NOTICE)
 
 #: options of every kernel: cached machine code, numpy's error model (a division by zero
 #: gives inf / NaN, which the kernels' finiteness checks catch, never an exception)

@@ -58,6 +58,7 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
+from .checks import existing_file
 from ..errors import ArgumentTypeError, DescriptionError, InputError
 from .couplings import JointCoupling
 from .effects import JointEffects, resolve_effects
@@ -263,7 +264,8 @@ def expand_xacro(path: str | Path, args: dict[str, str] | None = None) -> str:
         args: xacro arguments, name -> value as text.
 
     Raises:
-        DescriptionError: when the file is missing, is not text, does not expand, or an
+        MissingFileError: the file does not exist.
+        DescriptionError: when the file is not text, does not expand, or an
             argument is not one the file declares (``<xacro:arg name=...>``).
     """
     path = Path(path)
@@ -977,7 +979,8 @@ def read_effects_file(path: str | Path) -> EffectsSection:
     robot.model.actuated_joints, robot.effects))``.
 
     Raises:
-        DescriptionError: another suffix, a missing or unreadable file, or a malformed
+        MissingFileError: the file does not exist.
+        DescriptionError: another suffix, an unreadable file, or a malformed
             one (:func:`parse_effects`).
     """
     path = Path(path)
@@ -1085,19 +1088,19 @@ def file_path(path: object, name: str = "path") -> str | os.PathLike[str]:
                             f"{type(path).__name__}")
 
 
-def read_text(path: str | os.PathLike[str]) -> str:
-    """The UTF-8 text of a description file.
+def read_text(path: str | os.PathLike[str], what: str = "file") -> str:
+    """The UTF-8 text of a file the library reads (a description, geometry, motion,
+    waypoint or measurement file: ``what``, named by the errors).
 
     Raises:
         ArgumentTypeError: ``path`` is not a path (None, a number).
-        DescriptionError: the file is missing, a folder, unreadable, or not UTF-8 text
-            (binary).
+        MissingFileError: the file does not exist.
+        DescriptionError: a folder, an unreadable file, or not UTF-8 text (binary).
     """
     path = Path(file_path(path))
     if path.is_dir():
         raise DescriptionError(str(path), "is a folder, expected a file")
-    if not path.is_file():
-        raise DescriptionError(str(path), "file not found")
+    existing_file(path, what)
     try:
         return path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:

@@ -614,7 +614,8 @@ class KKTLinearization:
         self._gain = np.empty(self.basis.shape)
         if reduced_gain_kernel(self.basis, self.mass, self._gain):
             raise SingularityError("mass matrix on the closures' null space (N^T M N not "
-                                   "positive definite: massless motion)", 0.0)
+                                   "positive definite: massless motion)", 0.0, None,
+                                   "Cholesky pivot")
 
     # -- solves ----------------------------------------------------------------------------
     def pinv(self, rhs: np.ndarray) -> np.ndarray:

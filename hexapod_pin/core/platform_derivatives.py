@@ -171,7 +171,9 @@ class PlatformLinearization:
         maps = plat.velocity_maps(q)
         if maps.a_map.shape != (dim, dim):
             raise SingularityError(f"closure mobility {maps.a_map.shape[1]} at this "
-                                   f"configuration, pose dimension {dim}", 0.0)
+                                   f"configuration, pose dimension {dim}",
+                                   abs(maps.a_map.shape[1] - dim), None,
+                                   "|mobility - pose dimension|")
         measure, _ = inverse_condition(plat.twist_scale[:, None] * maps.a_map, dim)
         if not measure >= TREE_TYPE_I_TOL:
             raise SingularityError("type-I singularity: the map from the closures' motion "

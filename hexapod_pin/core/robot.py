@@ -18,6 +18,7 @@ import math
 import threading
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -27,7 +28,7 @@ from ..errors import ArgumentTypeError, AssemblyError, DescriptionError, InputEr
 from .checks import bounds, real_number
 from .closed_loop import ClosedLoopModel
 from .platform_map import PlatformMap, check_pose_axes
-from .robot_api import delegate
+from .robot_api import delegate, takes_placement
 from .robot_base import RobotBase
 from .robot_dynamics import RobotDynamics
 from .robot_kinematics import RobotKinematics
@@ -306,9 +307,23 @@ class ClosedLoopRobot(RobotBase):
         (-inf / inf: none)."""
         return self.kinematics.lower.copy(), self.kinematics.upper.copy()
 
+    @takes_placement
     def tree_velocity(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                       branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """The tree velocity (nv,) of a platform state, every closure kept."""
         with self.lock:
             return self.dynamics.state(pose, twist, branch).v.copy()
 
+
+
+def tree_robot(robot: Any, model: ClosedLoopModel) -> ClosedLoopRobot:
+    """``robot``'s mechanism on ``model`` (its tree, e.g. under another gravity) as a
+    :class:`ClosedLoopRobot`: every route derived from the tree and its closures, with
+    ``robot``'s platform frame, pose axes, home configuration, actuator force bounds and
+    characteristic length (so that its singularity measures and thresholds are the
+    robot's)."""
+    return ClosedLoopRobot(model, robot.platform_frame, robot.pose_axes,
+                           home=robot.home_configuration,
+                           max_actuator_force=robot.geometry.max_actuator_force,
+                           characteristic_length=robot.singularity(
+                               robot.home_pose).characteristic_length)

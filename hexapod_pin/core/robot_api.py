@@ -32,14 +32,16 @@ Conventions (robot-neutral; each robot's README section gives its numbers):
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from typing import Any, Concatenate, Generic, NamedTuple, ParamSpec, Protocol, TypeVar, \
     overload, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 
-from .checks import check_finite_result
+from .checks import as_array, check_finite_result
 from ..errors import ArgumentTypeError, InputError
 from .closed_loop import ClosedLoopModel
 from .platform_map import POSE_AXES, check_pose_axes
@@ -285,6 +287,79 @@ class PoseLayout(NamedTuple):
         return out
 
 
+#: largest |component| (m, rad) of a placement outside a robot's pose axes that
+#: :func:`pose_vector` takes for zero (round-off of a composed placement)
+PLACEMENT_TOL = 1e-9
+#: the world axis of each angle
+_ANGLE_AXIS = {"roll": 0, "pitch": 1, "yaw": 2}
+
+
+def is_placement(value: object) -> bool:
+    """Whether ``value`` is given as a placement: a ``pin.SE3`` or a 4x4 array-like (a
+    homogeneous matrix)."""
+    if isinstance(value, np.ndarray):           # the common case first: a pose vector
+        return value.shape == (4, 4)
+    if isinstance(value, (list, tuple)):
+        return len(value) == 4 and all(
+            isinstance(row, (list, tuple, np.ndarray)) and len(row) == 4 for row in value)
+    return isinstance(value, pin.SE3)
+
+
+def pose_vector(value: object, layout: PoseLayout, name: str = "pose") -> Any:
+    """A pose as a robot's methods take it: ``value`` itself when it is a pose vector
+    (checked by the method), or the pose vector (dim,) of a placement: a ``pin.SE3`` or a
+    4x4 homogeneous matrix ``[[R, p], [0, 0, 0, 1]]`` of the platform frame in the world
+    (``p`` m; ``R`` from platform axes to world axes).
+
+    With all three angles in the pose axes the angles are ``(roll, pitch, yaw)`` of ``R =
+    Rz(yaw) Ry(pitch) Rx(roll)`` (``pin.rpy.matrixToRpy``); with one angle, ``R`` must be a
+    rotation about that world axis and the angle is its signed angle (in ``(-pi, pi]``);
+    with none, ``R`` must be the identity. The position components outside the pose axes
+    must be 0 (within :data:`PLACEMENT_TOL`), as must the angles of ``R`` outside them
+    (e.g. for the planar robot's ``(x, y, yaw)``: ``z = 0`` and a rotation about z).
+
+    Raises:
+        InputError: a 4x4 matrix that is not homogeneous (last row not ``(0, 0, 0, 1)``,
+            ``R`` not a rotation to 1e-9, NaN / inf), or components outside the pose axes
+            that are not zero (naming them and their values).
+    """
+    if not is_placement(value):
+        return value
+    if isinstance(value, pin.SE3):
+        rot, pos = np.array(value.rotation), np.array(value.translation)
+    else:
+        mat = as_array(value, (4, 4), name)
+        if np.abs(mat[3] - (0.0, 0.0, 0.0, 1.0)).max() > PLACEMENT_TOL:
+            raise InputError(name, value, "a homogeneous matrix has the last row (0, 0, 0, 1)")
+        rot, pos = mat[:3, :3], mat[:3, 3]
+    if np.abs(rot @ rot.T - np.eye(3)).max() > PLACEMENT_TOL or np.linalg.det(rot) <= 0.0:
+        raise InputError(name, value, "its 3x3 block is not a rotation (R R^T = I, det R = 1)")
+    angles = [a for a in layout.axes if a in _ANGLE_AXIS]
+    full = np.empty(6)
+    full[:3] = pos
+    if len(angles) == 1:
+        k = _ANGLE_AXIS[angles[0]]
+        i, j = (k + 1) % 3, (k + 2) % 3
+        full[3:] = 0.0
+        full[3 + k] = np.arctan2(rot[j, i], rot[i, i])
+        off_axis = max(abs(rot[k, k] - 1.0), abs(rot[k, i]), abs(rot[k, j]))
+        if off_axis > PLACEMENT_TOL:
+            others = ", ".join(a for a in _ANGLE_AXIS if a != angles[0])
+            raise InputError(name, value, f"the pose axes {', '.join(layout.axes)} allow a "
+                             f"rotation about the {'xyz'[k]} axis only: its rotation also "
+                             f"turns about the axes of {others} (off-axis part "
+                             f"{off_axis:.3g})")
+    else:
+        full[3:] = pin.rpy.matrixToRpy(rot)
+    outside = [(axis, full[k]) for k, axis in enumerate(POSE_AXES)
+               if axis not in layout.axes and abs(full[k]) > PLACEMENT_TOL]
+    if outside:
+        parts = ", ".join(f"{axis} = {v:.6g}" for axis, v in outside)
+        raise InputError(name, value, f"the pose axes are {', '.join(layout.axes)}: the "
+                         f"placement's other components must be zero, got {parts}")
+    return full[layout.components]
+
+
 #: what :func:`pose_layout` reads a layout from
 PoseAxesSource = PoseLayout | ParallelRobot | Sequence[str] | str | int
 
@@ -388,6 +463,15 @@ class delegate(Generic[P, R]):
                 out = bound(*args, **kwargs)
             return check_finite_result(where, out)
 
+        layout = getattr(obj, "pose_layout", None) if _takes_pose(self.function) else None
+        if layout is not None:              # a robot facade: its poses may be placements
+            plain = serialized
+
+            def serialized(*args: P.args, **kwargs: P.kwargs) -> R:  # type: ignore[misc]
+                if (args and is_placement(args[0])) or "pose" in kwargs:
+                    args, kwargs = _pose_arguments(layout, args, kwargs)  # type: ignore[assignment]
+                return plain(*args, **kwargs)
+
         serialized.__wrapped__ = bound    # type: ignore[attr-defined]
         serialized.__doc__ = self.function.__doc__
         serialized.__name__ = serialized.__qualname__ = self.name
@@ -396,6 +480,35 @@ class delegate(Generic[P, R]):
                                       if key != "self"}
         obj.__dict__[self.name] = serialized     # later lookups skip this descriptor
         return serialized
+
+
+def _pose_arguments(layout: PoseLayout, args: tuple, kwargs: dict) -> tuple[tuple, dict]:
+    """A call's arguments with its ``pose`` (the first positional argument, or the keyword)
+    converted from a placement (:func:`pose_vector`)."""
+    if args:
+        return (pose_vector(args[0], layout), *args[1:]), kwargs
+    return args, {**kwargs, "pose": pose_vector(kwargs["pose"], layout)}
+
+
+def takes_placement(method: Callable[..., R]) -> Callable[..., R]:
+    """Decorator of a robot method ``(self, pose, ...)`` written on the facade itself (not
+    a :class:`delegate`): its ``pose`` may be a placement too (:func:`pose_vector`, in the
+    robot's ``pose_layout``), as for the delegated methods."""
+
+    @functools.wraps(method)
+    def wrapper(self: Any, *args: Any, **kwargs: Any) -> R:
+        if (args and is_placement(args[0])) or "pose" in kwargs:
+            args, kwargs = _pose_arguments(self.pose_layout, args, kwargs)
+        return method(self, *args, **kwargs)
+
+    return wrapper
+
+
+def _takes_pose(function: Callable) -> bool:
+    """Whether a robot method's first argument after ``self`` is ``pose`` (a single-state
+    method: it takes a placement too, :func:`pose_vector`)."""
+    code = getattr(function, "__code__", None)
+    return code is not None and code.co_argcount >= 2 and code.co_varnames[1] == "pose"
 
 
 def state_branch(robot: object, pose: np.ndarray, q: np.ndarray) -> object:

@@ -21,10 +21,11 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import DescriptionError, InputError
+from .checks import as_array
 from .closed_loop import ClosedLoopModel
 from .effects import JointEffects
 from .closed_form import ClosedFormDynamics
-from .robot_api import PoseLayout, delegate, pose_layout
+from .robot_api import PoseLayout, delegate, pose_layout, takes_placement
 
 
 class RobotBase:
@@ -58,6 +59,22 @@ class RobotBase:
         that order (m, rad); the twist and the wrench are the same selection of ``(v, w)``
         and ``(f, m)``, world axes."""
         return self.POSE_AXES
+
+    @property
+    def pinocchio_model(self) -> pin.Model:
+        """The robot's Pinocchio model, ``robot.model.model``: the kinematic tree (the
+        loops cut open) with the frames ``<closure>/anchor1`` / ``anchor2`` of each loop
+        closure added; the closures themselves, the actuation and the joint effects are
+        in ``robot.model`` (:class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`).
+
+        Pinocchio's conventions: ``q`` (nq,), ``v`` (nv,), joint order of the tree, SI
+        units, gravity ``model.gravity`` (world axes). Use it with any Pinocchio
+        algorithm, e.g. ``pin.framesForwardKinematics(robot.pinocchio_model, data,
+        robot.configuration(pose))``; a configuration from ``robot.configuration`` closes
+        every loop. Modify a copy (``pin.Model(robot.pinocchio_model)``), not the model
+        itself: the robot's routes use it.
+        """
+        return self.model.model
 
     @property
     def platform_frame(self) -> str:
@@ -113,6 +130,40 @@ class RobotBase:
         """
         return self._with_model(self.model.with_effects(effects, **values))
 
+    # -- gravity ------------------------------------------------------------------------------
+    @property
+    def gravity(self) -> npt.NDArray[np.float64]:
+        """The gravity vector (3,) in world axes (m/s^2), ``robot.model.gravity``."""
+        return self.model.gravity
+
+    def with_gravity(self, gravity: npt.ArrayLike) -> Any:
+        """The same mechanism under another gravity vector (this robot is unchanged).
+
+        A robot loaded from a description returns a robot of its class on
+        ``model.with_gravity(gravity)``. The hexapod's and the planar robot's closed forms
+        take gravity along their own vertical only (the hexapod: ``-z``; the planar robot:
+        ``-y``): with such a vector they return a robot of their class with that magnitude
+        (``geometry.gravity``); with any other direction (a wall-mounted hexapod, a tilted
+        plane) a :class:`~hexapod_pin.core.robot.ClosedLoopRobot` over the same tree, the
+        same platform frame, pose axes, home, force bounds and effects, whose every route
+        is derived from the tree (the generic routes: slower, never a closed form that
+        would ignore the direction).
+
+        Args:
+            gravity: (3,) the gravitational acceleration in world axes (m/s^2), e.g. ``(0,
+                0, -9.81)``; any direction and magnitude (zero: no gravity).
+
+        Raises:
+            InputError: not 3 finite real numbers.
+        """
+        g = as_array(gravity, (3,), "gravity")
+        return self._with_gravity(self.model.with_gravity(g), g)
+
+    def _with_gravity(self, model: ClosedLoopModel, gravity: np.ndarray) -> Any:
+        """A robot like this one on ``model`` (this one's tree under ``gravity``, (3,));
+        a robot whose closed form takes one direction only overrides this."""
+        return self._with_model(model)
+
     def _with_model(self, model: ClosedLoopModel) -> Any:
         """A robot like this one on ``model`` (the same tree with other effects); each
         robot class supplies it."""
@@ -164,6 +215,7 @@ class RobotBase:
             return np.asarray(vel.vector, dtype=float)[self.pose_layout.components].copy()
 
     # -- derivatives, linearisation, stiffness (core.platform_derivatives, core.stiffness) --
+    @takes_placement
     def forward_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                                      actuator_forces: npt.ArrayLike,
                                      wrench: npt.ArrayLike | None = None, *,
@@ -212,6 +264,7 @@ class RobotBase:
                              forward_dynamics_derivatives_batch, poses, twists,
                              actuator_forces, wrenches, branch)
 
+    @takes_placement
     def linearize(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                   actuator_forces: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
                   branch: Any = None, dt: float | None = None,
@@ -246,6 +299,7 @@ class RobotBase:
         return dataclasses.replace(out, ad=step.ad, bd=step.bd, dt=step.dt,
                                    integrator=step.integrator)
 
+    @takes_placement
     def step_jacobians(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                        actuator_forces: npt.ArrayLike, dt: float, *,
                        integrator: str = "rk4", branch: Any = None) -> Any:
@@ -275,6 +329,7 @@ class RobotBase:
         return self._checked("step_jacobians", step_jacobians, pose, twist, actuator_forces,
                              dt, integrator, branch)
 
+    @takes_placement
     def cartesian_stiffness(self, pose: npt.ArrayLike, actuator_stiffness: npt.ArrayLike,
                             wrench: npt.ArrayLike | None = None, *, branch: Any = None) -> Any:
         """The Cartesian stiffness ``K_x = J^T K_a J + K_g`` at a static pose (the
@@ -298,6 +353,7 @@ class RobotBase:
         return self._checked("cartesian_stiffness", cartesian_stiffness, pose,
                              actuator_stiffness, wrench, branch)
 
+    @takes_placement
     def vibration_modes(self, pose: npt.ArrayLike, actuator_stiffness: npt.ArrayLike, *,
                         branch: Any = None) -> Any:
         """Natural frequencies (Hz, ascending) and mode shapes of ``M_x`` and ``K_x`` about
@@ -319,6 +375,7 @@ class RobotBase:
         return self._checked("vibration_modes", vibration_modes, pose, actuator_stiffness,
                              branch)
 
+    @takes_placement
     def holding_forces(self, pose: npt.ArrayLike, wrench: npt.ArrayLike | None = None, *,
                        branch: Any = None) -> Any:
         """The band of actuator forces (N or N m, joint side) that hold ``pose`` at rest
@@ -349,3 +406,14 @@ class RobotBase:
         with self.lock:
             out = function(self, *args)
         return check_finite_result(f"{type(self).__name__}.{name}", out)
+
+
+def gravity_along(gravity: np.ndarray, axis: int) -> float | None:
+    """The magnitude ``g >= 0`` (m/s^2) of a gravity vector (3,) pointing along ``-e_axis``
+    (the other components zero to 1e-12 relative), or None for any other direction (the
+    closed form of a robot whose vertical is ``axis`` cannot take it)."""
+    others = np.delete(gravity, axis)
+    if np.abs(others).max() > 1e-12 * max(1.0, float(np.abs(gravity).max())) \
+            or gravity[axis] > 0.0:
+        return None
+    return float(-gravity[axis])

@@ -388,7 +388,8 @@ class RobotKinematics:
         if maps.a_map.shape[1] != self.platform.dim:
             raise SingularityError(
                 f"closure Jacobian of {self.clm.name} (mobility {maps.a_map.shape[1]} at "
-                f"this configuration, pose dimension {self.platform.dim})", 0.0)
+                f"this configuration, pose dimension {self.platform.dim})",
+                abs(maps.a_map.shape[1] - self.platform.dim), None, "|mobility - pose dimension|")
         plat = self.platform
         for what, mat, tol in (
                 ("type-I singularity: the map from the closures' motion to the platform twist",

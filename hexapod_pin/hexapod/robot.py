@@ -9,7 +9,9 @@ dynamics) as methods. Conventions: see :mod:`hexapod_pin.hexapod.geometry` and
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -19,8 +21,9 @@ from ..core.checks import as_array
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import build_model, load_loops, urdf_dir
 from ..core.effects import JointEffects
-from ..core.robot_api import delegate
-from ..core.robot_base import RobotBase
+from ..core.robot_api import delegate, takes_placement
+from ..core.robot import tree_robot
+from ..core.robot_base import RobotBase, gravity_along
 from .dynamics import HexapodDynamics
 from ..errors import ArgumentTypeError, AssemblyError
 from .geometry import HexapodGeometry, hexapod_urdf
@@ -116,6 +119,18 @@ class Hexapod(RobotBase):
         robot._assemble(model)
         return robot
 
+    def _with_gravity(self, model: ClosedLoopModel, gravity: np.ndarray) -> Any:
+        """The hexapod with ``geometry.gravity`` = g for a gravity ``(0, 0, -g)``; for any
+        other direction (its closed form takes -z only) the tree routes' robot
+        (:func:`~hexapod_pin.core.robot.tree_robot`)."""
+        magnitude = gravity_along(gravity, 2)
+        if magnitude is None:
+            return tree_robot(self, model)
+        robot = Hexapod.__new__(Hexapod)
+        robot.geometry = dataclasses.replace(self.geometry, gravity=magnitude)
+        robot._assemble(model)
+        return robot
+
     def _assemble(self, clm: ClosedLoopModel) -> None:
         """The facade and its components on the hexapod's model ``clm``."""
         self._init_facade(clm)
@@ -193,6 +208,7 @@ class Hexapod(RobotBase):
         return self.geometry.home_pose
 
     # -- pose <-> tree configuration -----------------------------------------------------
+    @takes_placement
     def configuration(self, pose: npt.ArrayLike,
                       branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
         """Pinocchio configuration of the tree for a platform pose (closed form).

@@ -25,6 +25,7 @@ import numpy.typing as npt
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import RobotSection, load_loops
 from ..core.robot import ClosedLoopRobot
+from ..core.checks import existing_file
 from ..errors import ArgumentTypeError, DescriptionError
 from .mjcf import read_mjcf, robot_section
 from .parallel_robots import load_parallel_robot
@@ -98,14 +99,14 @@ def load_model(path: str | os.PathLike[str], actuated: tuple[str, ...] = ()
         actuated: the actuated joints of an SDF (the other formats name them).
 
     Raises:
-        DescriptionError: a missing file, an unknown format, or a malformed description.
+        MissingFileError: the path does not exist.
+        DescriptionError: an unknown format, or a malformed description.
     """
     if not isinstance(path, (str, os.PathLike)):
         raise ArgumentTypeError("path", path, "expected a file or folder path, got "
                                 f"{type(path).__name__}")
     path = Path(path)
-    if not path.exists():
-        raise DescriptionError(str(path), "file not found")
+    existing_file(path, folder=True)
     for test, loader in FORMATS.values():
         if test(path):
             return loader(path, tuple(actuated))

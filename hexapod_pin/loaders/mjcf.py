@@ -91,6 +91,7 @@ from ..core.closed_loop import ClosedLoopModel
 from ..core.couplings import JointCoupling
 from ..core.description import WORLD, ClosureSpec, LoopsSpec, RobotSection, check_inertia
 from ..core.effects import JointEffects, resolve_effects
+from ..core.checks import existing_file
 from ..errors import DescriptionError, MissingDependencyError
 
 #: the name of the home configuration: the keyframe chosen by ``keyframe=``, else the
@@ -532,13 +533,13 @@ def read_mjcf(path: str | os.PathLike[str], *, keyframe: str | int | None = None
 
     Raises:
         MissingDependencyError: ``mujoco`` is not installed (extra ``mjcf``).
-        DescriptionError: the file is missing or MuJoCo cannot compile it (MuJoCo's
+        MissingFileError: the file does not exist.
+        DescriptionError: MuJoCo cannot compile it (MuJoCo's
             message), or see :func:`from_mjmodel`.
     """
     mujoco = _mujoco()
     path = Path(path)
-    if not path.is_file():
-        raise DescriptionError(str(path), "file not found")
+    existing_file(path)
     try:
         mj_model = mujoco.MjModel.from_xml_path(str(path))
     except ValueError as exc:

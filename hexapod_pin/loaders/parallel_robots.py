@@ -50,6 +50,7 @@ import pinocchio as pin
 
 from ..core.closed_loop import ClosedLoopModel
 from ..core.description import ClosureSpec, LoopsSpec, build_model, read_text
+from ..core.checks import existing_file
 from ..core.text_formats import load_yaml
 from ..errors import DescriptionError
 
@@ -285,8 +286,7 @@ def load_parallel_robot(path: str | Path, urdf_name: str = "robot.urdf",
     path = Path(path)
     folder = path if path.is_dir() else path.parent
     urdf = folder / urdf_name if path.is_dir() else path
-    if not urdf.is_file():
-        raise DescriptionError(str(urdf), "file not found")
+    existing_file(urdf)
     spec = load_robot_yaml(folder / yaml_name)
     source = str(folder)
     try:

@@ -244,7 +244,8 @@ class PlanarAssembly:
         centres = self.slider_points(s)
         coef = np.trim_zeros(poly.coefficients, "b")
         if coef.size == 0 or np.max(np.abs(coef)) == 0.0:
-            raise SingularityError("assembly polynomial (identically zero)", 0.0)
+            raise SingularityError("assembly polynomial (identically zero)", 0.0, None,
+                                   "largest coefficient")
         roots = np.polynomial.polynomial.polyroots(coef) if coef.size > 1 else np.zeros(0)
         real = roots[np.abs(roots.imag) <= 1e-6 * (1.0 + np.abs(roots))].real
         found: list[np.ndarray] = []

@@ -19,6 +19,8 @@ reports them (rank 6 of 9, mobility 3) and every tree route tolerates them
 
 from __future__ import annotations
 
+import dataclasses
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -26,8 +28,9 @@ import numpy.typing as npt
 from ..core.closed_loop import ClosedLoopModel
 from ..core.effects import JointEffects
 from ..core.results import (InverseDynamicsDerivatives)
-from ..core.robot_api import delegate
-from ..core.robot_base import RobotBase
+from ..core.robot_api import delegate, takes_placement
+from ..core.robot import tree_robot
+from ..core.robot_base import RobotBase, gravity_along
 from ..errors import ArgumentTypeError
 from .assembly_modes import PlanarAssembly
 from .derivatives import inverse_dynamics_derivatives
@@ -91,6 +94,16 @@ class Planar3PRR(RobotBase):
         tree; a planar robot builds in milliseconds)."""
         return Planar3PRR(self.geometry, effects=model.effects)
 
+    def _with_gravity(self, model: ClosedLoopModel, gravity: np.ndarray) -> Any:
+        """The planar robot with ``geometry.gravity`` = g for a gravity ``(0, -g, 0)``; for
+        any other direction (its closed form takes -y only) the tree routes' robot
+        (:func:`~hexapod_pin.core.robot.tree_robot`)."""
+        magnitude = gravity_along(gravity, 1)
+        if magnitude is None:
+            return tree_robot(self, model)
+        return Planar3PRR(dataclasses.replace(self.geometry, gravity=magnitude),
+                          effects=model.effects)
+
     @classmethod
     def default(cls) -> "Planar3PRR":
         """The planar robot with the default geometry."""
@@ -139,6 +152,7 @@ class Planar3PRR(RobotBase):
     static_forces = delegate("dynamics", PlanarDynamics.static_forces)
     reduced_dynamics = delegate("dynamics", PlanarDynamics.reduced_dynamics)
 
+    @takes_placement
     def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                                      twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None
                                      ) -> InverseDynamicsDerivatives:

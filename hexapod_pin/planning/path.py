@@ -202,7 +202,8 @@ def read_waypoints(path: str | os.PathLike[str],
             :class:`~hexapod_pin.core.robot_api.PoseLayout`); default the hexapod's six.
 
     Raises:
-        DescriptionError: a missing file, another suffix, missing columns, pose columns
+        MissingFileError: the file does not exist.
+        DescriptionError: another suffix, missing columns, pose columns
             of axes the robot does not have, repeated columns, a value that is not a finite
             number, rows of another width.
         InputError: bad pose axes.
@@ -212,7 +213,7 @@ def read_waypoints(path: str | os.PathLike[str],
     suffix = path.suffix.lower()
     if suffix not in (".json", ".csv", ".txt"):
         raise DescriptionError(str(path), "waypoint files are .csv or .json")
-    text = read_text(path)
+    text = read_text(path, "waypoint file")
     try:
         if suffix == ".json":
             data = load_json(text, str(path))

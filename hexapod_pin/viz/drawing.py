@@ -346,6 +346,16 @@ def draw_overlays(scene: Scene, visual: RobotVisual, q: np.ndarray, root: str, s
     return scale if act or clo else None
 
 
+def triad_legend(names: Sequence[str]) -> list[str]:
+    """The legend line of the frame triads drawn for the frames ``names``: which frames,
+    and that red / green / blue are their own x / y / z axes (empty without triads)."""
+    if not names:
+        return []
+    which = ", ".join(names)
+    return [f"axis triad{'s' if len(names) > 1 else ''} of the {which} frame: red x, "
+            "green y, blue z (the frame's own axes; the world has z up)"]
+
+
 def force_legend(scale: float | None, actuators: bool, closures: bool) -> list[str]:
     """Legend lines of the force arrows: their colours and their length scale."""
     if scale is None:

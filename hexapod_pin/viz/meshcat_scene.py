@@ -476,6 +476,14 @@ def text_object(text: str, width: float, height: float, font_size: int = 64) -> 
     return lowered
 
 
+def polyline_object(points: np.ndarray, color: int) -> dict:
+    """A lowered meshcat polyline through ``points`` (N, 3) (m, world axes), in ``color``
+    (0xRRGGBB)."""
+    mg = _meshcat()
+    geometry = mg.PointsGeometry(np.asarray(points, dtype=np.float32).T)
+    return mg.Line(geometry, mg.LineBasicMaterial(color=int(color), linewidth=2)).lower()
+
+
 def point_cloud_object(points: np.ndarray, colors: np.ndarray, size: float) -> dict:
     """A lowered meshcat point cloud: ``points`` (N, 3) (m, world axes), ``colors``
     (N, 3) RGB in [0, 1], point ``size`` (m)."""

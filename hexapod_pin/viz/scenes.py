@@ -58,6 +58,7 @@ from .drawing import (
     draw_triad,
     force_legend,
     frame_id,
+    triad_legend,
     geometry_placements,
     robot_visual,
     safe_name,
@@ -73,13 +74,18 @@ from .meshcat_scene import (
     frame_camera,
     point_cloud_object,
     points_extent,
+    polyline_object,
     text_object,
 )
 
-__all__ = ["COLORMAP", "DEFAULT_ARROW_LENGTH", "RobotVisual", "Scene", "check_times", "colormap",
-           "keyframes", "modes_scene", "pose_scene", "robot_visual", "trajectory_scene",
+__all__ = ["COLORMAP", "DEFAULT_ARROW_LENGTH", "PATH_COLOR", "RobotVisual", "Scene",
+           "check_times", "colormap", "keyframes", "label_size", "modes_scene", "platform_path", "pose_scene", "robot_visual", "trajectory_scene",
            "workspace_scene", "write_modes_html", "write_pose_html", "write_trajectory_html",
            "write_workspace_html"]
+
+
+#: colour of the traced platform path (grey)
+PATH_COLOR = 0x555555
 
 
 # -- public scenes ----------------------------------------------------------------------
@@ -119,7 +125,9 @@ def pose_scene(robot: Any, q: ArrayLike, *, actuator_forces: ArrayLike | None = 
     size = points_extent(drawn.points)
     scale = draw_overlays(scene, visual, q, root, size, actuator_forces, closure_forces,
                           frames, force_scale, triad_length)
-    scene.legend = force_legend(scale, actuator_forces is not None, closure_forces is not None)
+    scene.legend = force_legend(scale, actuator_forces is not None,
+                                closure_forces is not None) + triad_legend(
+        default_frames(visual) if frames is None else tuple(frames))
     frame_camera(scene, drawn.points)
     return scene
 
@@ -141,7 +149,8 @@ def modes_scene(robot: Any, configurations: ArrayLike, *, layout: str = "grid",
             with meshcat's time slider as a mode selector).
         spacing: distance between copies (m); default 1.4 x the largest copy.
         labels: one text per configuration, listed in the caption; side by side, each
-            copy also carries ``"<index>: <label>"`` above it (facing the camera).
+            copy also carries ``"<index>: <label>"`` on a sign just below it, facing the
+            camera, narrower than the spacing (no sign overlaps a copy or another sign).
         frames: frames drawn as triads (default the platform).
 
     Raises:
@@ -156,7 +165,7 @@ def modes_scene(robot: Any, configurations: ArrayLike, *, layout: str = "grid",
     if layout == "sequence":
         times = np.arange(len(qs), dtype=float)
         scene = trajectory_scene(visual, times, qs, frames=frames, fps=None,
-                                 caption=caption, discrete=True)
+                                 caption=caption, discrete=True, path=False)
     else:
         scene = _side_by_side(visual, qs, layout, spacing, frames, labels)
         scene.caption = caption
@@ -166,9 +175,12 @@ def modes_scene(robot: Any, configurations: ArrayLike, *, layout: str = "grid",
                            for i, text in enumerate(labels))
         scene.caption = (caption + " | " if caption else "") + listed
         scene.legend = ([(f"one copy per configuration, numbered 0 .. {len(qs) - 1} left to "
-                          "right, then row by row; the number and label float above each")]
+                          "right, then row by row; the number and label on a sign below each")]
                         if layout != "sequence" else
                         ["the time slider steps through the configurations, one per second"])
+    if layout != "sequence":
+        scene.legend = list(scene.legend) + triad_legend(
+            default_frames(visual) if frames is None else tuple(frames))
     return scene
 
 
@@ -183,12 +195,14 @@ def _side_by_side(visual: RobotVisual, qs: np.ndarray, layout: str, spacing: flo
     step = spacing if spacing is not None else 1.4 * float(np.max(np.array(extents)[:, :2]))
     per_row = len(qs) if layout == "row" else min(4, len(qs))
     points = []
+    copies = []
     for index, q in enumerate(qs):
         row, col = divmod(index, per_row)
         offset = np.array([col * step, -row * step, 0.0])
         root = f"{ROOT}/{visual.name}_{index}"
         drawn = draw_robot(scene, visual, q, root, offset)
         points.extend(drawn.points)
+        copies.append(np.array(drawn.points))
         size = points_extent(drawn.points)
         names = default_frames(visual) if frames is None else tuple(frames)
         if names:
@@ -199,19 +213,23 @@ def _side_by_side(visual: RobotVisual, qs: np.ndarray, layout: str, spacing: flo
                             data.oMf[frame_id(visual.model, name)], size / 6, 0.006 * size)
     frame_camera(scene, points)
     if labels is not None:
-        _label_copies(scene, visual, qs, labels, step, per_row)
+        _label_copies(scene, copies, labels, step)
     return scene
 
 
-def _label_copies(scene: Scene, visual: RobotVisual, qs: np.ndarray, labels: Sequence[str],
-                  step: float, per_row: int) -> None:
-    """A text plane ``"<index>: <label>"`` above each copy, standing up and turned
-    towards the camera (so the caption's list can be matched to the copies)."""
-    for index, (q, label) in enumerate(zip(qs, labels)):
-        row, col = divmod(index, per_row)
-        offset = np.array([col * step, -row * step, 0.0])
-        pts = np.array([p.translation for p in geometry_placements(visual, q)]) + offset
-        anchor = np.array([*pts[:, :2].mean(axis=0), pts[:, 2].max() + 0.25 * step])
+def _label_copies(scene: Scene, copies: list[np.ndarray], labels: Sequence[str],
+                  step: float) -> None:
+    """A sign ``"<index>: <label>"`` just below each copy, standing up and turned towards
+    the camera (so the caption's list can be matched to the copies). The sign is at most
+    0.9 ``step`` wide (copies are ``step`` apart, at most ``step / 1.4`` wide by default)
+    and its height follows the text's length (at most 0.2 ``step``): it overlaps neither
+    its copy (it is below its lowest part) nor the copies or signs beside it. ``copies``:
+    the corners (world, shifted) of each copy's boxes."""
+    for index, (corners, label) in enumerate(zip(copies, labels)):
+        text = f"{index}: {label}"
+        width, height = label_size(text, step)
+        centre = (corners.min(axis=0) + corners.max(axis=0)) / 2
+        anchor = np.array([*centre[:2], corners[:, 2].min() - 0.05 * step - height / 2])
         towards = scene.camera_position - anchor
         towards[2] = 0.0
         norm = float(np.linalg.norm(towards))
@@ -221,8 +239,17 @@ def _label_copies(scene: Scene, visual: RobotVisual, qs: np.ndarray, labels: Seq
         mat[:3, :3] = np.column_stack([np.cross(up, d), up, d])
         mat[:3, 3] = anchor
         path = f"{ROOT}/labels/{index}"
-        scene.set_object(path, text_object(f"{index}: {label}", 0.8 * step, 0.8 * step))
+        scene.set_object(path, text_object(text, width, height))
         scene.set_transform(path, mat)
+
+
+def label_size(text: str, step: float) -> tuple[float, float]:
+    """Width and height (m) of the sign of ``text`` under a copy of a layout ``step``
+    apart: 0.9 ``step`` wide, as tall as the text's aspect asks (a character about 0.6
+    of the font size wide, a line 1.2 tall: height / width = 2 / characters), at most
+    0.2 ``step``."""
+    width = 0.9 * step
+    return width, min(0.2 * step, 2.0 * width / max(len(text), 1))
 
 
 def _configurations(visual: RobotVisual, configurations: ArrayLike) -> np.ndarray:
@@ -243,7 +270,7 @@ def trajectory_scene(robot: Any, times: ArrayLike, configurations: ArrayLike, *,
                      closure_forces: ArrayLike | None = None, frames: Sequence[str] | None = None,
                      force_scale: float | None = None, fps: float | None = 30.0,
                      caption: str = "", urdf: str | os.PathLike | None = None, loop: bool = True,
-                     discrete: bool = False) -> Scene:
+                     discrete: bool = False, path: bool = True) -> Scene:
     """A meshcat animation of the robot along a sampled motion (play controls in the page).
 
     Args:
@@ -260,6 +287,10 @@ def trajectory_scene(robot: Any, times: ArrayLike, configurations: ArrayLike, *,
             keys); ``None`` keeps every sample.
         loop: repeat the animation forever (otherwise play once).
         discrete: hold each key until the next (no interpolation).
+        path: trace the path of the platform origin over every sample (not only the
+            key frames) as a grey polyline (:func:`platform_path`); the platform is
+            ``robot.platform_frame`` for a robot that has one, else the first of
+            ``frames`` (default: the ``platform`` body); no frame, no path.
 
     The first sample is also drawn as the static scene, so the page shows the
     robot even where animations are off.
@@ -301,13 +332,42 @@ def trajectory_scene(robot: Any, times: ArrayLike, configurations: ArrayLike, *,
     draw_overlays(scene, visual, qs[0], root, size,
                   None if act is None else act[0], None if clo is None else clo[0],
                   frames, scale, None)
-    if act is not None or clo is not None:
-        scene.legend = force_legend(scale, act is not None, clo is not None)
+    legend = force_legend(scale, act is not None, clo is not None) \
+        if act is not None or clo is not None else []
+    names = default_frames(visual) if frames is None else tuple(frames)
+    traced = _path_frame(robot, visual, names) if path else None
+    if traced is not None:
+        origins = platform_path(visual, qs_all, traced)
+        scene.set_object(f"{root}/path", polyline_object(origins, PATH_COLOR))
+        points.extend(origins)
+        legend.append(f"grey line: the path of the {traced} origin over the motion")
+    scene.legend = legend + triad_legend(names)
     clips = [animation_clip(path, t, props, discrete) for path, props in tracks.items()
              if _moves(props)]
     scene.set_animation(clips, play=True, loop=loop)
     frame_camera(scene, points, panel=True)
     return scene
+
+
+def _path_frame(robot: Any, visual: RobotVisual, names: tuple[str, ...]) -> str | None:
+    """The frame whose origin :func:`trajectory_scene` traces: the robot's platform frame,
+    else the first triad frame, else None."""
+    frame = getattr(robot, "platform_frame", None)
+    if isinstance(frame, str) and visual.model.existFrame(frame):
+        return frame
+    return names[0] if names else None
+
+
+def platform_path(visual: RobotVisual, configurations: np.ndarray, frame: str) -> np.ndarray:
+    """The world positions (N, 3) (m) of ``frame``'s origin at each configuration (N, nq)
+    (Pinocchio's frame placements)."""
+    data = visual.model.createData()
+    fid = frame_id(visual.model, frame)
+    out = np.empty((len(configurations), 3))
+    for k, q in enumerate(configurations):
+        pin.framesForwardKinematics(visual.model, data, q)
+        out[k] = data.oMf[fid].translation
+    return out
 
 
 def _n_act(visual: RobotVisual, value: Any) -> int:

@@ -133,7 +133,7 @@ def test_geometry_from_toml_yaml_and_flags(tmp_path):
 
 
 def test_bad_input_is_one_line_nonzero_and_names_the_cause(tmp_path, robot):
-    one_line_error(invoke("ik", 0, 0, 0.35, 0, 0), "expected 6 values", "got 5")
+    cli_error(invoke("ik", 0, 0, 0.35, 0, 0), 2, "expected 6 values", "got 5")   # usage
     one_line_error(invoke("ik", 0, 0, "zz", 0, 0, 0), "not a number", "zz")
     one_line_error(invoke("ik", 0, 0, 0.9, 0, 0, 0), "unreachable", "carriage")
     one_line_error(invoke("ik", 0.0, 0.0, 0.2, 0, 0, 0), "stroke")
@@ -388,8 +388,7 @@ BAD_VALUES = [
     ("simulate", "--engine", "fast", "--controller", "computed-torque"),
     ("view", "--fps", "fast"), ("view", "--circle", "nan"), ("view", "--layout", "x", "--modes"),
     ("plot", "workspace", "--resolution", "1.5"), ("plot", "workspace", "--z", "5"),
-    ("plot", "workspace", "--rpy", "1,2"), ("modes", "--layout", "x", "--html", "m.html"),
-    ("ik", "a", "b", "c", "d", "e", "f"), ("jacobian", 0, 0, 0), ("statics", "--wrench", "1,2"),
+    ("modes", "--layout", "x", "--html", "m.html"), ("ik", "a", "b", "c", "d", "e", "f"),
     ("fk", *NO_ASSEMBLY_Q), ("modes", *NO_ASSEMBLY_Q), ("view", "--modes", *NO_ASSEMBLY_Q),
     ("urdf", "--robot", "delta"), ("urdf", "-o", "x.txt"), ("demo", "--set", "leg_length=x"),
     ("simulate", "--duration", "1e9"), ("simulate", "--dt", "1e-12"),
@@ -401,6 +400,13 @@ BAD_VALUES = [
 def test_no_traceback_for_any_bad_value(args, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     one_line_error(invoke(*args))
+
+
+@pytest.mark.parametrize("args", [("plot", "workspace", "--rpy", "1,2"), ("jacobian", 0, 0, 0),
+                                  ("statics", "--wrench", "1,2")],
+                         ids=lambda a: " ".join(map(str, a)))
+def test_a_wrong_number_of_values_is_one_line_and_exit_code_2(args):
+    cli_error(invoke(*args), 2, "expected")
 
 
 def test_errors_name_the_bad_argument():

@@ -167,7 +167,7 @@ def test_statics_is_the_gradient_of_the_potential(robots, name):
 
 def test_statics_with_a_wrench_names_its_components():
     result = invoke("statics", "--wrench", "1,2,3", *OPTIONS["five_bar"][0])
-    one_line_error(result, 1, "expected 2 values (fx, fz)")
+    one_line_error(result, 2, "expected 2 values (fx, fz)")     # a usage error
 
 
 @pytest.mark.parametrize("name", OPTIONS)
@@ -263,9 +263,9 @@ def test_mjcf_export_has_one_motor_per_actuator(tmp_path):
 
 # -- errors -------------------------------------------------------------------------------------
 def test_a_wrong_number_of_pose_values_names_the_axes():
-    one_line_error(invoke("ik", "0.3", *OPTIONS["five_bar"][0]), 1,
+    one_line_error(invoke("ik", "0.3", *OPTIONS["five_bar"][0]), 2,
                    "expected 2 values (x, z)", "got 1")
-    one_line_error(invoke("fk", "0.1", "0.2", *OPTIONS["four_bar"][0]), 1,
+    one_line_error(invoke("fk", "0.1", "0.2", *OPTIONS["four_bar"][0]), 2,
                    "expected 1 values (crank)")
 
 
@@ -298,9 +298,12 @@ def test_view_circle_is_an_option_of_the_hexapod():
 
 
 def test_errors_as_json():
-    result = invoke("ik", "0.3", *OPTIONS["five_bar"][0], "--json")
+    result = invoke("ik", "0.3", "zz", *OPTIONS["five_bar"][0], "--json")
     assert result.exit_code == 1
     assert json.loads(result.stdout)["error"]["type"] == "InputError"
+    result = invoke("ik", "0.3", *OPTIONS["five_bar"][0], "--json")
+    assert result.exit_code == 2
+    assert json.loads(result.stdout)["error"]["type"] == "ValueCountError"
 
 
 # -- motion files: id, retime, check, view --trajectory, simulate --out -------------------
@@ -520,7 +523,7 @@ def test_workspace_of_a_loaded_robot(robots):
     table = invoke("workspace", *OPTIONS["five_bar"][0], "--samples", 50)
     assert table.exit_code == 0 and "m^2" in table.stdout
     one_line_error(invoke("workspace", *OPTIONS["five_bar"][0], "--half-extent", "0.1"),
-                   1, "x, z")
+                   2, "x, z")                          # a wrong number of values: usage
 
 
 @pytest.mark.parametrize("args, words", [

@@ -283,7 +283,7 @@ def test_bad_construction_is_a_description_or_input_error(five_bar):
         hp.ClosedLoopRobot(clm, "end_1", ("x", "z"), max_actuator_force=[1.0, -2.0])
     with pytest.raises(DescriptionError, match="no platform frame"):
         hp.load_robot(DATA / "parallel" / "five_bar_3d")
-    with pytest.raises(DescriptionError, match="file not found"):
+    with pytest.raises(hp.MissingFileError, match="file not found"):
         hp.load_robot(DATA / "nope.urdf", platform="x")
 
 

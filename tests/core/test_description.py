@@ -92,9 +92,10 @@ def test_malformed_loops_raise(text, culprit):
 
 
 def test_missing_files_raise(tmp_path):
-    with pytest.raises(DescriptionError, match="not found"):
+    with pytest.raises(hp.MissingFileError, match="not found") as err:
         hp.expand_xacro(tmp_path / "none.urdf.xacro")
-    with pytest.raises(DescriptionError, match="not found"):
+    assert isinstance(err.value, FileNotFoundError) and err.value.path.endswith("none.urdf.xacro")
+    with pytest.raises(hp.MissingFileError, match="not found"):
         hp.load_loops(tmp_path / "none.yaml")
     with pytest.raises(DescriptionError, match="child link='missing'> names no link"):
         build_model("<robot name='x'><link name='a'/><joint name='j' type='revolute'>"
@@ -139,7 +140,7 @@ def test_binary_and_missing_files_are_description_errors(tmp_path):
         hp.ClosedLoopModel.from_files(binary, urdf_dir() / "hexapod.loops.yaml")
     with pytest.raises(DescriptionError, match="not UTF-8"):
         hp.load_loops(loops)
-    with pytest.raises(DescriptionError, match="file not found"):
+    with pytest.raises(hp.MissingFileError, match="file not found"):
         hp.load_loops(tmp_path / "missing.yaml")
 
 

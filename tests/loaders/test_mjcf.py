@@ -398,7 +398,7 @@ def test_missing_mujoco_names_the_extra(monkeypatch):
 
 
 def test_malformed_and_missing_files(tmp_path):
-    with pytest.raises(DescriptionError, match="file not found"):
+    with pytest.raises(hp.MissingFileError, match="file not found"):
         hp.load_mjcf(tmp_path / "absent.xml")
     bad = tmp_path / "bad.xml"
     bad.write_text("<mujoco><worldbody><body><joint type='nonsense'/></body></worldbody>"

@@ -17,7 +17,7 @@ import scipy.linalg
 from conftest import REFERENCE, fd_constraint_jacobian
 
 from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
-from hexapod_pin.errors import DescriptionError
+from hexapod_pin.errors import DescriptionError, MissingFileError
 from hexapod_pin.loaders.parallel_robots import load_parallel_robot, parse_robot_yaml
 from hexapod_pin.loaders.robots import actuation_report
 
@@ -347,10 +347,10 @@ def test_bad_descriptions_name_the_culprit(tmp_path, case):
 
 
 def test_missing_files_raise(tmp_path):
-    with pytest.raises(DescriptionError):
+    with pytest.raises(MissingFileError, match="robot.urdf: file not found"):   # no URDF
         load_parallel_robot(tmp_path)
     (tmp_path / "robot.urdf").write_text("<robot name='r'><link name='a'/></robot>")
-    with pytest.raises(DescriptionError):
+    with pytest.raises(MissingFileError, match="robot.yaml: file not found"):
         load_parallel_robot(tmp_path)
 
 

@@ -219,10 +219,10 @@ def test_modes_side_by_side_offsets_and_mirror(robot):
     texts = [c["object"]["textures"][0]["text"] for c in scene.commands
              if c["type"] == "set_object" and c["path"].startswith("/meshcat/labels/")]
     assert texts == ["0: up", "1: down"]
-    # each label floats above its copy: the second one is offset by the spacing in x
+    # each label stands below its copy: the second one is offset by the spacing in x
     first, second = (matrix_of(scene.commands, f"/meshcat/labels/{i}")[:3, 3] for i in (0, 1))
     np.testing.assert_allclose((second - first)[:2], [1.5, 0.0], atol=1e-9)
-    assert first[2] > robot.geometry.home_height and second[2] > 0.0
+    assert first[2] < 0.0 and second[2] < -robot.geometry.home_height
     offset = matrix_of(scene.commands, "/meshcat/hexapod_1")[:3, 3]
     np.testing.assert_allclose(offset, [1.5, 0.0, 0.0])
     platform = world_matrix(scene.commands, "/meshcat/hexapod_1/platform_0")[:3, 3]
@@ -471,3 +471,90 @@ def test_a_robot_without_visuals_is_a_clear_error(tmp_path):
     model = hp.ClosedLoopModel.from_files(urdf, loops)
     with pytest.raises(hp.InputError, match="no visual geometry"):
         viz.pose_scene(model, np.zeros(model.nq))
+
+
+# -- views: labels beside the copies, the platform's path, the legend ----------------------
+def _label_box(commands, index):
+    """The world corners (8, 3) of label ``index``'s sign (its box and transform)."""
+    (obj,) = [c["object"] for c in commands if c["type"] == "set_object"
+              and c["path"] == f"/meshcat/labels/{index}"]
+    width, height, depth = obj["geometries"][0]["width"], obj["geometries"][0]["height"], \
+        obj["geometries"][0]["depth"]
+    half = np.array([width, height, depth]) / 2
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    mat = matrix_of(commands, f"/meshcat/labels/{index}")
+    return (corners * half) @ mat[:3, :3].T + mat[:3, 3]
+
+
+def _overlap(a, b):
+    """Whether two axis-aligned boxes (2, 3) overlap."""
+    return bool(np.all(a[0] < b[1]) and np.all(b[0] < a[1]))
+
+
+def test_mode_labels_stand_beside_their_copies_and_overlap_nothing(robot):
+    from hexapod_pin.viz.drawing import draw_robot, robot_visual
+    from hexapod_pin.viz.meshcat_scene import Scene
+
+    modes = robot.assembly_modes(robot.home_actuators)
+    qs = hviz.hexapod_configurations(robot, modes, carriages=[robot.home_q] * len(modes))
+    labels = [f"mode {i} at pose {np.round(m[:3], 3)}" for i, m in enumerate(modes)]
+    scene = viz.modes_scene(robot, qs, labels=labels)
+    visual = robot_visual(robot)
+    step = None
+    copies = []
+    for index, q in enumerate(qs):
+        offset = matrix_of(scene.commands, f"/meshcat/hexapod_{index}")[:3, 3]
+        pts = np.array(draw_robot(Scene(), visual, q, "/x", offset).points)   # box corners
+        copies.append(np.array([pts.min(axis=0), pts.max(axis=0)]))
+        if index == 1:
+            step = offset[0]
+    signs = []
+    for index in range(len(qs)):
+        corners = _label_box(scene.commands, index)
+        signs.append(np.array([corners.min(axis=0), corners.max(axis=0)]))
+        # beside its own copy: below it, centred under it, nearer to it than to any other
+        mid = (copies[index][0] + copies[index][1]) / 2
+        np.testing.assert_allclose(signs[index].mean(axis=0)[:2], mid[:2], atol=1e-9)
+        assert signs[index][1, 2] < copies[index][0, 2]
+        gaps = [np.linalg.norm(signs[index].mean(axis=0) - (c[0] + c[1]) / 2) for c in copies]
+        assert int(np.argmin(gaps)) == index
+    for i, sign in enumerate(signs):
+        assert not any(_overlap(sign, copy) for copy in copies), i
+        assert not any(_overlap(sign, other) for j, other in enumerate(signs) if j != i), i
+        assert sign[1, 0] - sign[0, 0] <= step                     # narrower than the spacing
+    assert "sign below each" in " ".join(scene.legend)
+    assert any("red x, green y, blue z" in line for line in scene.legend)
+
+
+def test_trajectory_view_traces_the_platform_origin(robot, circle):
+    t, poses, forces = circle
+    scene = hviz.hexapod_trajectory_scene(robot, t, poses, actuator_forces=forces, fps=20.0)
+    (line,) = [c["object"] for c in scene.commands if c["type"] == "set_object"
+               and c["path"] == "/meshcat/hexapod/path"]
+    assert line["object"]["type"] == "Line"
+    (geometry,) = line["geometries"]
+    packed = geometry["data"]["attributes"]["position"]["array"]      # a float32 array
+    points = np.frombuffer(packed.data, dtype=np.float32).astype(float).reshape(-1, 3)
+    # one vertex per configuration drawn (the hexapod's helper thins the poses to the key
+    # frames k / fps first), at the pose's position: the platform origin
+    rows = np.rint(np.arange(41) / 20.0 * 1000).astype(int)
+    np.testing.assert_allclose(points, poses[rows, :3], atol=1e-6)   # float32 in the page
+    # the generic scene traces every sample it is given, not only its key frames
+    qs = np.array([robot.configuration(p) for p in poses[:200:5]])
+    dense = viz.trajectory_scene(robot, t[:200:5], qs, fps=5.0)
+    (line,) = [c["object"] for c in dense.commands if c["type"] == "set_object"
+               and c["path"] == "/meshcat/hexapod/path"]
+    packed = line["geometries"][0]["data"]["attributes"]["position"]["array"]
+    np.testing.assert_allclose(np.frombuffer(packed.data, dtype=np.float32).reshape(-1, 3),
+                               poses[:200:5, :3], atol=1e-6)
+    assert any("path of the platform origin" in line for line in scene.legend)
+    assert any("red x, green y, blue z" in line for line in scene.legend)
+    html = scene.html()
+    assert "path of the platform origin" in html and "red x, green y, blue z" in html
+
+
+def test_the_pose_view_legend_explains_the_triad(robot):
+    scene = viz.pose_scene(robot, robot.home_configuration)
+    assert scene.legend == [line for line in scene.legend if "arrow" not in line]
+    assert any("platform frame: red x, green y, blue z" in line for line in scene.legend)
+    assert viz.pose_scene(robot, robot.home_configuration, frames=()).legend == []
