@@ -74,6 +74,7 @@ def _robot_values(robot) -> dict[str, list[Any]]:
         "v": [np.zeros(nv)], "qdot": [np.zeros(nv), np.full(n, 0.01)],
         "dt": [1e-3], "integrator": ["rk4"], "method": ["kkt"], "bounded": [False],
         "check_limits": [True], "n_starts": [2], "seed": [0],
+        "gravity": [np.array([0.0, 0.0, -9.81]), np.array([0.0, -9.81, 0.0])],
     }
 
 
