@@ -59,7 +59,7 @@ import pinocchio as pin
 import yaml
 
 from .checks import existing_file
-from ..errors import ArgumentTypeError, DescriptionError, InputError
+from ..errors import ArgumentTypeError, DescriptionError, GeometryError, InputError
 from .couplings import JointCoupling
 from .effects import JointEffects, resolve_effects
 from .text_formats import load_structured, load_yaml
@@ -256,6 +256,67 @@ def urdf_dir() -> Path:
     raise DescriptionError("hexapod_pin", "cannot find the urdf/ folder of the package")
 
 
+#: the rules of the xacro arguments of known description files: file name -> a check of
+#: the arguments given (name -> text) raising :class:`DescriptionError` naming the argument
+#: (a robot package registers its file's: :func:`register_xacro_rules`)
+_XACRO_RULES: dict[str, Any] = {}
+
+
+def register_xacro_rules(file_name: str, build: Any, fields: dict[str, str]) -> None:
+    """Check the xacro arguments of the files named ``file_name`` by the rules of a
+    geometry: the arguments named in ``fields`` (xacro argument -> keyword of ``build``)
+    are read as numbers and ``build(**keywords)`` (a geometry class, whose own checks raise
+    :class:`~hexapod_pin.errors.GeometryError`) is called with them before the file is
+    expanded; an argument whose keyword ends in ``[k]`` is entry ``k`` of a tuple keyword
+    (the other entries: the class's default). A bad value is a :class:`DescriptionError`
+    naming the argument, as a wrong geometry would be a :class:`GeometryError`."""
+    _XACRO_RULES[file_name] = (build, dict(fields))
+
+
+def _check_xacro_args(path: Path, args: dict[str, str]) -> None:
+    """Apply the rules registered for ``path``'s file name to ``args`` (none: nothing)."""
+    rules = _XACRO_RULES.get(path.name)
+    if rules is None or not args:
+        return
+    build, fields = rules
+    keywords: dict[str, Any] = {}
+    owner: dict[str, str] = {}
+    for name, text in args.items():
+        field = fields.get(name)
+        if field is None:
+            continue
+        try:
+            value = float(text)
+        except ValueError:
+            raise DescriptionError(str(path), f"xacro argument {name}={text!r} is not a "
+                                              "number", name) from None
+        if "[" in field:
+            key, index = field[:-1].split("[")
+            default = getattr(build(), key)
+            current = list(keywords.get(key, default))
+            current[int(index)] = value
+            keywords[key] = tuple(current)
+            owner[key] = name
+            continue
+        if field in keywords:          # another argument of the same keyword: alone
+            _build_one(path, build, {field: value}, name)
+            continue
+        keywords[field], owner[field] = value, name
+    _build_one(path, build, keywords, None, owner)
+
+
+def _build_one(path: Path, build: Any, keywords: dict[str, Any], name: str | None,
+               owner: dict[str, str] | None = None) -> None:
+    """``build(**keywords)``, its :class:`GeometryError` as a :class:`DescriptionError`
+    naming the xacro argument (``name``, or the owner of the offending keyword)."""
+    try:
+        build(**keywords)
+    except GeometryError as exc:
+        culprit = name or (owner or {}).get(exc.field, exc.field)
+        raise DescriptionError(str(path), f"xacro argument {culprit}: {exc.reason} "
+                                          f"(got {exc.value!r})", culprit) from None
+
+
 def expand_xacro(path: str | Path, args: dict[str, str] | None = None) -> str:
     """Expand a xacro (or plain URDF) file to a URDF string, in Python.
 
@@ -265,8 +326,10 @@ def expand_xacro(path: str | Path, args: dict[str, str] | None = None) -> str:
 
     Raises:
         MissingFileError: the file does not exist.
-        DescriptionError: when the file is not text, does not expand, or an
-            argument is not one the file declares (``<xacro:arg name=...>``).
+        DescriptionError: when the file is not text, does not expand, an argument is not
+            one the file declares (``<xacro:arg name=...>``), or breaks the rules registered
+            for the file (:func:`register_xacro_rules`: the hexapod's and planar robot's
+            files by their geometries' rules, e.g. ``leg_length`` > 0).
     """
     path = Path(path)
     text = read_text(path)
@@ -276,6 +339,7 @@ def expand_xacro(path: str | Path, args: dict[str, str] | None = None) -> str:
     if unknown:
         raise DescriptionError(str(path), f"unknown xacro argument(s) {unknown}; the file "
                                           f"declares {sorted(declared)}")
+    _check_xacro_args(path, args)
     return _expand_cached(str(path.resolve()), path.stat().st_mtime_ns,
                           tuple(sorted(args.items())))
 

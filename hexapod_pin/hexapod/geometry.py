@@ -42,7 +42,7 @@ import pinocchio as pin
 
 from ..core import layouts
 from ..core.checks import validate_scalars
-from ..core.description import expand_xacro, urdf_dir
+from ..core.description import expand_xacro, register_xacro_rules, urdf_dir
 from ..core.pose import rotation_from_rpy, rpy_from_rotation
 from ..errors import GeometryError
 
@@ -573,6 +573,17 @@ class HexapodGeometry:
                 hint = f"; did you mean {close[0]!r}?" if close else ""
                 raise GeometryError(name, value, f"not a HexapodGeometry field{hint}")
         return dataclasses.replace(self, **changes)
+
+
+#: the arguments of urdf/hexapod.urdf.xacro checked by the geometry's own rules when the
+#: file is expanded with them (core.description.register_xacro_rules)
+register_xacro_rules("hexapod.urdf.xacro", HexapodGeometry, {
+    **{name: name for name in ("rail_radius", "platform_radius", "leg_length",
+                               "rail_half_length", "carriage_mass", "leg_mass",
+                               "platform_mass", "max_actuator_force")},
+    "platform_ixx": "platform_inertia[0]", "platform_iyy": "platform_inertia[1]",
+    "platform_izz": "platform_inertia[2]",
+    **{f"leg_{i}_length": "leg_length" for i in range(6)}})
 
 
 def hexapod_urdf(geometry: HexapodGeometry) -> str:

@@ -59,8 +59,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.closed_loop import ClosedLoopModel
-from ..core.description import (WORLD, ClosureSpec, EffectsSection, LoopsSpec, check_inertia,
-                                read_text)
+from ..core.description import (MAX_COORDINATE, WORLD, ClosureSpec, EffectsSection, LoopsSpec,
+                                check_inertia, read_text)
 from ..errors import DescriptionError
 
 MODEL_FRAME = "__model__"
@@ -1035,6 +1035,12 @@ def _parse_pose(element, source: str, culprit: str, snap: float = 0.0) -> pin.SE
     values = _numbers(element.text, source, culprit)
     if not values:
         return pin.SE3.Identity()
+    # the URDF route's limits (core.description): finite, positions within MAX_COORDINATE
+    if not all(math.isfinite(x) for x in values):
+        raise DescriptionError(source, f"a pose must be finite, got {values}", culprit)
+    if max(abs(x) for x in values[:3]) > MAX_COORDINATE:
+        raise DescriptionError(source, f"pose position beyond {MAX_COORDINATE:g} m "
+                                       f"({values[:3]})", culprit)
     fmt = element.get("rotation_format", "euler_rpy")
     degrees = element.get("degrees", "false").strip().lower() in ("true", "1")
     if fmt == "euler_rpy":

@@ -31,7 +31,8 @@ import pinocchio as pin
 from ..core import layouts
 from ..core.checks import check_signs, validate_scalars
 from ..core.closed_loop import ClosedLoopModel
-from ..core.description import build_model, expand_xacro, load_loops, urdf_dir
+from ..core.description import (build_model, expand_xacro, load_loops, register_xacro_rules,
+                                urdf_dir)
 from ..errors import GeometryError
 
 #: number of actuators (sliders), chains and loops
@@ -159,6 +160,14 @@ class PlanarGeometry:
     def replace(self, **changes: Any) -> "PlanarGeometry":
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+
+#: the arguments of urdf/planar_3prr.urdf.xacro checked by the geometry's own rules when
+#: the file is expanded with them (core.description.register_xacro_rules)
+register_xacro_rules("planar_3prr.urdf.xacro", PlanarGeometry, {
+    name: name for name in ("rail_radius", "platform_radius", "link_length",
+                            "rail_half_length", "slider_mass", "link_mass", "platform_mass",
+                            "platform_inertia", "max_actuator_force")})
 
 
 def planar_urdf(geometry: PlanarGeometry) -> str:

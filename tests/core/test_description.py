@@ -202,3 +202,29 @@ def test_a_validated_description_is_remembered_and_a_bad_one_never(tmp_path):
         with pytest.raises(DescriptionError, match="mass"):
             validate_urdf(bad, source)
     assert _run(check) == "False"           # the good text is still the one remembered
+
+
+@pytest.mark.parametrize("file_name, loops, args, culprit", [
+    ("hexapod.urdf.xacro", "hexapod.loops.yaml", {"leg_length": "0"}, "leg_length"),
+    ("hexapod.urdf.xacro", "hexapod.loops.yaml", {"leg_length": "-0.45"}, "leg_length"),
+    ("hexapod.urdf.xacro", "hexapod.loops.yaml", {"leg_4_length": "0"}, "leg_4_length"),
+    ("hexapod.urdf.xacro", "hexapod.loops.yaml", {"platform_izz": "-1"}, "platform_izz"),
+    ("hexapod.urdf.xacro", "hexapod.loops.yaml", {"carriage_mass": "heavy"}, "carriage_mass"),
+    ("planar_3prr.urdf.xacro", "planar_3prr.loops.yaml", {"link_length": "0"}, "link_length"),
+    ("planar_3prr.urdf.xacro", "planar_3prr.loops.yaml", {"slider_mass": "-1"}, "slider_mass"),
+])
+def test_xacro_arguments_follow_the_geometry_rules(file_name, loops, args, culprit):
+    """A xacro argument the robot's geometry would refuse (a zero or negative leg, a
+    negative moment, text) is refused at expansion, naming the argument (before: the model
+    loaded, with a singular mass matrix for a zero leg); the same geometry as a
+    :class:`HexapodGeometry` is a GeometryError; valid arguments still load."""
+    with pytest.raises(DescriptionError, match="xacro argument") as info:
+        hp.ClosedLoopModel.from_files(urdf_dir() / file_name, urdf_dir() / loops,
+                                      xacro_args=args)
+    assert info.value.culprit == culprit
+    good = {"leg_length": "0.5"} if file_name.startswith("hexapod") else {"link_length": "0.32"}
+    model = hp.ClosedLoopModel.from_files(urdf_dir() / file_name, urdf_dir() / loops,
+                                          xacro_args=good)
+    assert model.model.nq > 0
+    with pytest.raises(hp.GeometryError):
+        hp.HexapodGeometry(leg_length=0.0)

@@ -382,6 +382,10 @@ BAD_SDF = {
     "gearbox": (("<sdf version='1.6'><model name='m'><link name='a'/><link name='b'/><joint "
                 "name='g' type='gearbox'><parent>a</parent><child>b</child></joint></model>"
                 "</sdf>"), "g"),
+    "far_pose": (("<sdf version='1.6'><model name='m'><link name='a'><pose>1e300 0 1 0 0 0"
+                 "</pose></link></model></sdf>"), "a"),
+    "inf_pose": (("<sdf version='1.6'><model name='m'><link name='a'><pose>0 0 1 0 inf 0"
+                 "</pose></link></model></sdf>"), "a"),
     "no_model": ("<sdf version='1.6'></sdf>", "model"),
     "not_sdf": ("<robot name='r'/>", "robot"),
 }
