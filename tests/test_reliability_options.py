@@ -111,7 +111,8 @@ CALIBRATE_OPTIONS = [
     ("target", [0, 0]), ("target", "x"), ("target", [0, 0, 0, 0, 0, math.nan]),
     ("instrument", [0.0] * 5), ("max_nfev", 0), ("max_nfev", 2.5), ("max_nfev", "200"),
     ("max_nfev", True), ("identify", None), ("identify", 3), ("identify", ["lines", 4]),
-    ("identify", "sensor_offset"), ("identify", ()), ("rcond", "1e-9"), ("method", None),
+    ("identify", "sensor_offset"), ("identify", ()), ("identify", ["chains", "chains"]),
+    ("rcond", "1e-9"), ("method", None),
 ]
 
 

@@ -98,13 +98,17 @@ def parameter_indices(identify: Sequence[str] | str) -> np.ndarray:
 
     Raises:
         InputError: not a name or a list / tuple of names (None, a number), an unknown
-            group name (with the closest known one), or no group at all.
+            group name (with the closest known one), a name given twice, or no group at
+            all.
     """
     if isinstance(identify, str):
         identify = (identify,)
     if not isinstance(identify, (list, tuple)) or not all(isinstance(i, str) for i in identify):
         raise InputError("identify", identify, "expected a parameter group name or a list of "
                                                f"them (chains, {', '.join(GROUPS)})")
+    repeated = sorted({item for item in identify if list(identify).count(item) > 1})
+    if repeated:
+        raise InputError("identify", identify, f"names {repeated} more than once")
     wanted: set[str] = set()
     for item in identify:
         if item == "chains":
