@@ -124,7 +124,9 @@ def test_geometry_numbers_are_range_checked_like_the_api(tmp_path, value):
     (read_waypoints, "x,y,z,roll,pitch,yaw\n0,0,0.35,0,0,0\n0,0,0.35,0,-1e200,0\n",
      "waypoint 2 has a value that is not finite or beyond"),
     (read_measurements, "q0,q1,q2,q3,q4,q5,x,y,z,roll,pitch,yaw\n" + "1e200," + "0," * 10 + "0\n",
-     "actuators"),
+     r"row 2, column q0.*'1e200' is not a finite number"),
+    (read_measurements, "q0,q1,q2,q3,q4,q5,x,y,z,roll,pitch,yaw\n" + "0," * 7 + "nan,0,0,0,0\n",
+     r"row 2, column y.*'nan' is not a finite number"),
 ])
 def test_file_numbers_are_range_checked_like_the_api(tmp_path, reader, text, words):
     path = tmp_path / "f.csv"

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from ..core.checks import MAX_MAGNITUDE
 from ..core.text_formats import check_columns
 from ..errors import DescriptionError, InputError
 from ..files import read_text, write_text_atomic
@@ -87,6 +88,10 @@ def read_measurements(path: str | os.PathLike, target_points: npt.ArrayLike | No
             except ValueError:
                 raise DescriptionError(str(path), f"not a number: {text!r}",
                                        f"row {r}, column {header[c]}") from None
+            if not abs(values[r - 2, c]) <= MAX_MAGNITUDE:     # NaN, inf, 1e200
+                raise DescriptionError(str(path), f"{text.strip()!r} is not a finite number "
+                                       f"within {MAX_MAGNITUDE:g}",
+                                       f"row {r}, column {header[c]}")
     col = {h: k for k, h in enumerate(header)}
     q = values[:, [col[h] for h in ACTUATOR_COLUMNS]]
     if n_points == 0:
