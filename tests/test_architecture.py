@@ -80,7 +80,7 @@ def _edges(module: str) -> set[str]:
 #: A part is a subpackage, a top-level module, ``hexapod_pin`` (the package's __init__) or
 #: ``__main__``. Data flow one way: core -> robots and loaders -> the rest -> cli.
 _ALL = {"errors", "core", "hexapod", "planar", "loaders", "planning", "calibration", "viz",
-        "files", "motion"}
+        "files", "motion", "identification"}
 LAYOUT: dict[str, set[str]] = {
     "errors": set(),
     "core": {"errors"},
@@ -89,6 +89,7 @@ LAYOUT: dict[str, set[str]] = {
     "loaders": {"core", "errors"},
     "planning": {"core", "errors"},
     "calibration": {"core", "hexapod", "errors"},
+    "identification": {"core", "errors"},               # any robot, through its API
     "viz": {"core", "errors"},
     "files": {"core", "hexapod", "errors"},             # geometry files (HexapodGeometry)
     "motion": {"core", "hexapod", "files", "errors"},   # motion files, the hexapod's circle

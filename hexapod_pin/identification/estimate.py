@@ -1,0 +1,163 @@
+"""Estimation of the base parameters from measured states and actuator forces.
+
+Weighted least squares (Gautier's method):
+
+1. the full regressor ``W`` (N n_act, n) of the states (:mod:`.regressor`) and its base
+   columns ``W_b`` (the robot's :func:`~.base.base_parameters`, found on random states,
+   or given); the data must determine every base parameter: the numerical rank of
+   ``W_b`` with unit-norm columns (singular values above :data:`DATA_RTOL` of the
+   largest) must be ``r``, else :class:`~hexapod_pin.errors.IdentifiabilityError` names
+   the base parameters of the undetermined directions;
+2. per-actuator noise ``sigma_i``: given (``noise_std``), or from the ordinary
+   least-squares residuals of each actuator, ``sigma_i^2 = |e_i|^2 / (N - r / n_act)``;
+3. the rows of actuator ``i`` divided by ``sigma_i``: ``beta = argmin |W_w beta - u_w|``
+   (column-scaled ``lstsq``), covariance ``s^2 (W_w^T W_w)^-1`` with ``s^2 = |e_w|^2 /
+   (N n_act - r)`` (the weights' scale re-estimated: standard errors stay right when the
+   given noise levels are off by a common factor), standard errors its diagonal's roots;
+4. the physically consistent estimate of the full parameters (:mod:`.consistent`) on
+   the same weighted data, started from the nominal robot.
+
+:func:`identify` runs the same on a :class:`~.motion_data.MotionData` (positions and
+forces in time) after :func:`~.motion_data.states_from_motion`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import numpy.typing as npt
+
+from ..core.checks import as_array, bounds, flag, real_number
+from ..errors import IdentifiabilityError, InputError
+from .base import BaseParameters, base_parameters
+from .consistent import PRIOR_WEIGHT, consistent_fit
+from .motion_data import DEFAULT_TRIM, states_from_motion
+from .parameters import DEFAULT_DRIVE, nominal_parameters
+from .regressor import ClosedLoopRegressor
+from .results import ForceResiduals, IdentificationResult
+
+#: relative singular-value threshold of the data's base regressor (unit-norm columns)
+DATA_RTOL = 1e-10
+
+
+def _check_base(base: object, reg: ClosedLoopRegressor) -> BaseParameters:
+    if not isinstance(base, BaseParameters):
+        raise InputError("base", base, "expected BaseParameters (base_parameters(robot))")
+    if base.layout != reg.layout:
+        raise InputError("base", base, f"its layout {base.layout.drive} does not match "
+                         f"the robot and drive {reg.layout.drive}")
+    return base
+
+
+def _data_rank(wb: np.ndarray, names: tuple[str, ...]) -> None:
+    scaled = wb / np.maximum(np.linalg.norm(wb, axis=0), np.finfo(float).tiny)
+    _, sv, vt = np.linalg.svd(scaled, full_matrices=False)
+    rank = int(np.sum(sv > DATA_RTOL * sv[0])) if sv.size else 0
+    if rank < wb.shape[1]:
+        combos = []
+        for row in vt[rank:][:5]:
+            top = np.argsort(-np.abs(row))[:3]
+            combos.append(" ".join(f"{row[j]:+.2g} {names[j]}" for j in top))
+        raise IdentifiabilityError("the data do not excite every base parameter "
+                                   "(too few samples or too little motion)", wb.shape[1],
+                                   rank, combos)
+
+
+def _solve(mat: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(x, (A^T A)^-1, condition)`` of column-scaled least squares."""
+    norms = np.linalg.norm(mat, axis=0)
+    u_mat, sv, vt = np.linalg.svd(mat / norms, full_matrices=False)
+    y = vt.T @ ((u_mat.T @ rhs) / sv)
+    inv = (vt.T / sv ** 2) @ vt
+    return y / norms, inv / np.outer(norms, norms), float(sv[0] / sv[-1])
+
+
+def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                         twist_dots: npt.ArrayLike, actuator_forces: npt.ArrayLike, *,
+                         drive: object = DEFAULT_DRIVE, base: BaseParameters | None = None,
+                         noise_std: npt.ArrayLike | None = None, consistent: bool = True,
+                         prior: float = PRIOR_WEIGHT,
+                         times: npt.ArrayLike | None = None) -> IdentificationResult:
+    """Identify the base parameters (and a physically consistent robot) from platform
+    states and measured actuator forces (module docstring).
+
+    Args:
+        robot: a robot of the library, the nominal model.
+        poses, twists, twist_dots: (N, dim) platform states (m, rad; world-axis twists).
+        actuator_forces: (N, n_act) measured (N, N m).
+        drive: the drive parameters (:data:`~.parameters.DRIVE_KINDS`).
+        base: the base parameters (default: :func:`~.base.base_parameters` of the robot).
+        noise_std: force noise per actuator (scalar or (n_act,), > 0); None: estimated.
+        consistent: also fit the physically consistent full parameters.
+        prior: the consistent fit's prior weight (> 0).
+        times: (N,) the samples' times, for error messages.
+
+    Raises:
+        ArgumentTypeError: not a robot of the library.
+        InputError: bad shapes, lengths, NaN / inf, bad options.
+        MotionSampleError: a state out of reach or singular (its row).
+        IdentifiabilityError: the data do not determine every base parameter (with the
+            rank and the undetermined combinations), or fewer rows than parameters.
+    """
+    reg = ClosedLoopRegressor(robot, drive)
+    n_act = reg.n_actuators
+    full = reg.batch(poses, twists, twist_dots, times)
+    n = full.shape[0] // n_act
+    forces = as_array(actuator_forces, (n_act,), "actuator_forces", batch=True)
+    if forces.shape[0] != n:
+        raise InputError("actuator_forces", actuator_forces, f"expected {n} rows (one per "
+                         f"pose), got {forces.shape[0]}")
+    base = base_parameters(robot, reg.layout.drive) if base is None \
+        else _check_base(base, reg)
+    consistent = flag(consistent, "consistent")
+    prior = real_number(prior, "prior", minimum=0.0)
+    r = base.count
+    if full.shape[0] <= r:
+        raise IdentifiabilityError(f"{full.shape[0]} force rows for {r} base parameters",
+                                   r, full.shape[0])
+    wb = base.regressor(full)
+    _data_rank(wb, base.names)
+    u = forces.reshape(-1)
+    if noise_std is None:
+        beta_ols = _solve(wb, u)[0]
+        e = (u - wb @ beta_ols).reshape(n, n_act)
+        dof = max(n - r / n_act, 1.0)
+        sigma = np.sqrt(np.sum(e ** 2, axis=0) / dof)
+        sigma = np.maximum(sigma, 1e-12 * max(float(np.max(np.abs(u))), 1e-300))
+    else:
+        sigma = bounds(noise_std, n_act, "noise_std")
+        if not np.all(np.isfinite(sigma)):
+            raise InputError("noise_std", noise_std, "must be finite")
+    weights = np.tile(1.0 / sigma, n)
+    ww, uw = wb * weights[:, None], u * weights
+    beta, inv, cond = _solve(ww, uw)
+    ew = uw - ww @ beta
+    s2 = float(ew @ ew) / (ww.shape[0] - r)
+    cov = s2 * inv
+    nominal = nominal_parameters(robot, reg.layout.drive)
+    beta_nom = base.values(nominal)
+    fit = None
+    if consistent:
+        information = np.linalg.qr(ww, mode="r")
+        scale = np.linalg.norm(full * weights[:, None], axis=0)
+        fit = consistent_fit(reg.layout, information, base.regrouping, beta, scale,
+                             nominal, prior)
+    return IdentificationResult(
+        robot, base, beta, np.sqrt(np.diag(cov)), cov, sigma, beta_nom,
+        ForceResiduals.of((u - wb @ beta_nom).reshape(n, n_act)),
+        ForceResiduals.of((u - wb @ beta).reshape(n, n_act)), cond, fit)
+
+
+def identify(robot: object, data: object, *, cutoff: float | None = None,
+             trim: int = DEFAULT_TRIM, **options: object) -> IdentificationResult:
+    """Identify from a measured motion (:class:`~.motion_data.MotionData`): its states
+    by :func:`~.motion_data.states_from_motion` (zero-phase Butterworth at ``cutoff`` Hz,
+    default a fifth of the Nyquist frequency; ``trim`` samples dropped at each end), then
+    :func:`identify_from_states` with ``options`` (``drive``, ``base``, ``noise_std``,
+    ``consistent``, ``prior``). Errors as both."""
+    st = states_from_motion(robot, data, cutoff, trim)
+    result = identify_from_states(robot, st.poses, st.twists, st.twist_dots,
+                                  st.actuator_forces, times=st.times,
+                                  **options)   # type: ignore[arg-type]
+    return dataclasses.replace(result, cutoff=cutoff, trim=trim)
