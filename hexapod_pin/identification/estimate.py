@@ -8,8 +8,10 @@ Weighted least squares (Gautier's method):
    ``W_b`` with unit-norm columns (singular values above :data:`DATA_RTOL` of the
    largest) must be ``r``, else :class:`~hexapod_pin.errors.IdentifiabilityError` names
    the base parameters of the undetermined directions;
-2. per-actuator noise ``sigma_i``: given (``noise_std``), or from the ordinary
-   least-squares residuals of each actuator, ``sigma_i^2 = |e_i|^2 / (N - r / n_act)``;
+2. per-actuator noise ``sigma_i``: given (``noise_std``), or from the least-squares
+   residuals of each actuator, ``sigma_i^2 = |e_i|^2 / (N - r / n_act)``: ordinary least
+   squares first, then re-weighted with the estimate (:data:`NOISE_ITERATIONS` solves in
+   all: a noisy actuator's residual leaks into the others' through the fit);
 3. the rows of actuator ``i`` divided by ``sigma_i``: ``beta = argmin |W_w beta - u_w|``
    (column-scaled ``lstsq``), covariance ``s^2 (W_w^T W_w)^-1`` with ``s^2 = |e_w|^2 /
    (N n_act - r)`` (the weights' scale re-estimated: standard errors stay right when the
@@ -37,6 +39,8 @@ from .parameters import DEFAULT_DRIVE, nominal_parameters
 from .regressor import ClosedLoopRegressor
 from .results import ForceResiduals, IdentificationResult
 
+#: estimates of the per-actuator noise: ordinary least squares, then re-weighted
+NOISE_ITERATIONS = 3
 #: relative singular-value threshold of the data's base regressor (unit-norm columns)
 DATA_RTOL = 1e-10
 
@@ -120,11 +124,13 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
     _data_rank(wb, base.names)
     u = forces.reshape(-1)
     if noise_std is None:
-        beta_ols = _solve(wb, u)[0]
-        e = (u - wb @ beta_ols).reshape(n, n_act)
-        dof = max(n - r / n_act, 1.0)
-        sigma = np.sqrt(np.sum(e ** 2, axis=0) / dof)
-        sigma = np.maximum(sigma, 1e-12 * max(float(np.max(np.abs(u))), 1e-300))
+        sigma = np.ones(n_act)
+        for _ in range(NOISE_ITERATIONS):       # OLS, then re-weighted
+            w = np.tile(1.0 / sigma, n)
+            beta_it = _solve(wb * w[:, None], u * w)[0]
+            e = (u - wb @ beta_it).reshape(n, n_act)
+            sigma = np.sqrt(np.sum(e ** 2, axis=0) / max(n - r / n_act, 1.0))
+            sigma = np.maximum(sigma, 1e-12 * max(float(np.max(np.abs(u))), 1e-300))
     else:
         sigma = bounds(noise_std, n_act, "noise_std")
         if not np.all(np.isfinite(sigma)):
@@ -150,10 +156,11 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
 
 
 def identify(robot: object, data: object, *, cutoff: float | None = None,
-             trim: int = DEFAULT_TRIM, **options: object) -> IdentificationResult:
+             trim: int | None = DEFAULT_TRIM, **options: object) -> IdentificationResult:
     """Identify from a measured motion (:class:`~.motion_data.MotionData`): its states
     by :func:`~.motion_data.states_from_motion` (zero-phase Butterworth at ``cutoff`` Hz,
-    default a fifth of the Nyquist frequency; ``trim`` samples dropped at each end), then
+    default a fifth of the Nyquist frequency; ``trim`` samples dropped at each end,
+    default three periods of the cut-off), then
     :func:`identify_from_states` with ``options`` (``drive``, ``base``, ``noise_std``,
     ``consistent``, ``prior``). Errors as both."""
     st = states_from_motion(robot, data, cutoff, trim)

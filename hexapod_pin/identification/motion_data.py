@@ -4,16 +4,17 @@ and the platform states derived from them.
 Processing (:func:`states_from_motion`), zero-phase so that forces and states stay
 aligned in time:
 
-1. the actuator positions and the actuator forces are low-pass filtered by the same
-   Butterworth filter (order :data:`FILTER_ORDER`, cut-off ``cutoff`` Hz, default
-   :data:`DEFAULT_CUTOFF_RATIO` of the Nyquist frequency), run forward and backward
-   (``scipy.signal.filtfilt``: no phase lag, the magnitude response squared). Filtering
-   the forces with the positions is Gautier's parallel filtering: both sides of ``u = W
-   beta`` lose the same high-frequency content;
+1. the actuator positions are low-pass filtered by a Butterworth filter (order
+   :data:`FILTER_ORDER`, cut-off ``cutoff`` Hz, default :data:`DEFAULT_CUTOFF_RATIO` of
+   the Nyquist frequency), run forward and backward (``scipy.signal.filtfilt``: no phase
+   lag, the magnitude response squared). The forces are NOT filtered: their noise is
+   white and least squares averages it, while a low-pass would smear the Coulomb force's
+   steps at velocity reversals over the filter's length (a bias, not noise);
 2. actuator velocities and accelerations by second-order central differences of the
    filtered positions (``numpy.gradient``, twice; the times may be non-uniform);
-3. the samples within ``trim`` (default :data:`DEFAULT_TRIM`) of each end are dropped
-   (the filter's and the differences' end effects);
+3. the samples within ``trim`` of each end are dropped (the filter's and the
+   differences' end effects; default: three periods of the cut-off, ``ceil(3 rate /
+   cutoff)`` samples);
 4. poses: those given, else the forward kinematics of the filtered actuator positions,
    each started from the previous pose (the first from home); twists ``J^-1 qd`` and
    twist derivatives ``J^-1 (qdd - dJ/dt twist)`` from the robot's Jacobian at each pose.
@@ -36,8 +37,8 @@ from ..errors import HexapodPinError, InputError, MotionSampleError
 FILTER_ORDER = 4
 #: default cut-off as a fraction of the Nyquist frequency ``1 / (2 dt)``
 DEFAULT_CUTOFF_RATIO = 0.2
-#: default number of samples dropped at each end
-DEFAULT_TRIM = 20
+#: default ``trim``: None, three periods of the cut-off
+DEFAULT_TRIM = None
 
 
 @dataclass(frozen=True)
@@ -64,7 +65,7 @@ class MotionStates:
     Attributes:
         times: (K,) (s).
         poses, twists, twist_dots: (K, dim).
-        actuator_forces: (K, n_act), filtered.
+        actuator_forces: (K, n_act), as measured.
     """
 
     times: np.ndarray
@@ -119,7 +120,7 @@ def low_pass(times: np.ndarray, values: np.ndarray, cutoff: float) -> np.ndarray
 
 
 def states_from_motion(robot: object, data: object, cutoff: float | None = None,
-                       trim: int = DEFAULT_TRIM) -> MotionStates:
+                       trim: int | None = DEFAULT_TRIM) -> MotionStates:
     """The platform states and filtered forces of a measured motion (module docstring).
 
     Args:
@@ -127,7 +128,7 @@ def states_from_motion(robot: object, data: object, cutoff: float | None = None,
         data: a :class:`MotionData`.
         cutoff: the low-pass cut-off (Hz, > 0); None: :data:`DEFAULT_CUTOFF_RATIO` of the
             Nyquist frequency.
-        trim: samples dropped at each end (>= 0).
+        trim: samples dropped at each end (>= 0); None: three periods of the cut-off.
 
     Raises:
         InputError: bad data or options; nothing left after trimming.
@@ -137,13 +138,13 @@ def states_from_motion(robot: object, data: object, cutoff: float | None = None,
     n_act = int(getattr(robot, "n_actuators"))
     dim = int(getattr(robot, "pose_dim"))
     data = check_motion(data, n_act, dim)
-    trim = count(trim, "trim", minimum=0)
     t = data.times
     rate = (t.size - 1) / (t[-1] - t[0])
     cut = DEFAULT_CUTOFF_RATIO * 0.5 * rate if cutoff is None else \
         real_number(cutoff, "cutoff", minimum=0.0)
+    trim = int(np.ceil(3.0 * rate / cut)) if trim is None else count(trim, "trim", minimum=0)
     pos = low_pass(t, data.actuator_positions, cut)
-    forces = low_pass(t, data.actuator_forces, cut)
+    forces = data.actuator_forces
     vel = np.gradient(pos, t, axis=0, edge_order=2)
     acc = np.gradient(vel, t, axis=0, edge_order=2)
     keep = np.arange(trim, t.size - trim)

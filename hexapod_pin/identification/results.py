@@ -99,7 +99,7 @@ class IdentificationResult:
     condition_number: float
     consistent: ConsistentFit | None
     cutoff: float | None = None
-    trim: int = DEFAULT_TRIM
+    trim: int | None = DEFAULT_TRIM
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
