@@ -120,7 +120,8 @@ def random_states(robot: object, n: int, seed: int = 0,
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``n`` random platform states ``(poses, twists, twist_dots)`` (n, dim) each, seeded:
     poses uniform within ``+- amplitude`` (m, rad: linear, angular) of home that the robot
-    reaches regularly (others are drawn again, with the amplitude halved after 20 misses
+    reaches regularly (the regressor's own test: :meth:`ClosedLoopRegressor.tree_motion`
+    succeeds; others are drawn again, with the amplitude halved after 20 misses
     in a row), twists normal with standard deviations ``speed`` (m/s, rad/s) and twist
     derivatives with ``acceleration`` (m/s^2, rad/s^2). The twist's angular components are
     scaled like the pose's.
@@ -142,13 +143,15 @@ def random_states(robot: object, n: int, seed: int = 0,
         return np.where(angular, float(pair[1]), float(pair[0]))
 
     amp = scale(amplitude)
+    reg = ClosedLoopRegressor(robot, ())
+    rest = np.zeros(dim)
     poses = np.empty((n, dim))
     misses = 0
     k = 0
     while k < n:
         pose = home + rng.uniform(-1.0, 1.0, dim) * amp
         try:
-            getattr(robot, "jacobian")(pose)
+            reg.tree_motion(pose, rest, rest)
         except HexapodPinError:
             misses += 1
             if misses >= 20:

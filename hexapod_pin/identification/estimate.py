@@ -17,7 +17,12 @@ Weighted least squares (Gautier's method):
    (N n_act - r)`` (the weights' scale re-estimated: standard errors stay right when the
    given noise levels are off by a common factor), standard errors its diagonal's roots;
 4. the physically consistent estimate of the full parameters (:mod:`.consistent`) on
-   the same weighted data, started from the nominal robot.
+   the same weighted data, started from the nominal robot, and verified: besides the
+   fit's own checks, the identified robot's mass matrix in actuator coordinates at home,
+   ``M_a = G^T (M + diag(armature)) G`` (``G`` the actuated velocity map of
+   :mod:`.regressor`), must be within a factor :data:`MASS_MATRIX_RATIO` of the nominal
+   robot's in every direction (every generalised eigenvalue of the pair in
+   ``[1 / ratio, ratio]``), else :class:`~hexapod_pin.errors.SolverError`.
 
 :func:`identify` runs the same on a :class:`~.motion_data.MotionData` (positions and
 forces in time) after :func:`~.motion_data.states_from_motion`.
@@ -29,13 +34,15 @@ import dataclasses
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
+import scipy.linalg
 
 from ..core.checks import as_array, bounds, flag, real_number
-from ..errors import IdentifiabilityError, InputError
+from ..errors import IdentifiabilityError, InputError, SolverError
 from .base import BaseParameters, base_parameters
 from .consistent import PRIOR_WEIGHT, consistent_fit
 from .motion_data import DEFAULT_TRIM, states_from_motion
-from .parameters import DEFAULT_DRIVE, nominal_parameters
+from .parameters import DEFAULT_DRIVE, nominal_parameters, tree_with_parameters
 from .regressor import ClosedLoopRegressor
 from .results import ForceResiduals, IdentificationResult
 
@@ -43,6 +50,9 @@ from .results import ForceResiduals, IdentificationResult
 NOISE_ITERATIONS = 3
 #: relative singular-value threshold of the data's base regressor (unit-norm columns)
 DATA_RTOL = 1e-10
+#: the identified robot's actuator-space mass matrix must be within this factor of the
+#: nominal one in every direction (module docstring, step 4)
+MASS_MATRIX_RATIO = 100.0
 
 
 def _check_base(base: object, reg: ClosedLoopRegressor) -> BaseParameters:
@@ -66,6 +76,37 @@ def _data_rank(wb: np.ndarray, names: tuple[str, ...]) -> None:
         raise IdentifiabilityError("the data do not excite every base parameter "
                                    "(too few samples or too little motion)", wb.shape[1],
                                    rank, combos)
+
+
+def actuator_mass_matrix(reg: ClosedLoopRegressor, parameters: np.ndarray) -> np.ndarray:
+    """``M_a = G^T (M + diag(armature)) G`` (n_act, n_act) (kg or kg m^2) at the robot's
+    home pose of the robot with the full parameters ``parameters`` (layout of ``reg``;
+    the model's armature on the actuated coordinates replaced by the parameters' when
+    the layout has armature)."""
+    clm = reg.clm
+    home = np.asarray(getattr(reg.robot, "home_pose"), dtype=float)
+    rest = np.zeros(reg.dim)
+    motion = reg.tree_motion(home, rest, rest)
+    tree = tree_with_parameters(clm, parameters)
+    mass = np.array(pin.crba(tree, tree.createData(), motion.q))
+    mass = np.triu(mass) + np.triu(mass, 1).T
+    armature = np.array(clm.effects.armature, dtype=float)
+    if "armature" in reg.layout.drive:
+        armature[clm.actuated_v] = parameters[reg.layout.drive_slice("armature")]
+    gmap = motion.actuated_map
+    return gmap.T @ (mass + np.diag(armature)) @ gmap
+
+
+def _verify_mass_matrix(reg: ClosedLoopRegressor, nominal: np.ndarray,
+                        identified: np.ndarray) -> None:
+    ratios = scipy.linalg.eigvalsh(actuator_mass_matrix(reg, identified),
+                                   actuator_mass_matrix(reg, nominal))
+    if not (np.all(np.isfinite(ratios)) and ratios[0] >= 1.0 / MASS_MATRIX_RATIO
+            and ratios[-1] <= MASS_MATRIX_RATIO):
+        raise SolverError("consistent fit", "unverified", "the identified robot's mass "
+                          "matrix at home is off the nominal one by the factors "
+                          f"{ratios[0]:.3g} .. {ratios[-1]:.3g} (allowed "
+                          f"{1.0 / MASS_MATRIX_RATIO:g} .. {MASS_MATRIX_RATIO:g})")
 
 
 def _solve(mat: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -103,6 +144,8 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
         MotionSampleError: a state out of reach or singular (its row).
         IdentifiabilityError: the data do not determine every base parameter (with the
             rank and the undetermined combinations), or fewer rows than parameters.
+        SolverError: the consistent fit failed its checks (step 4 and
+            :mod:`.consistent`).
     """
     reg = ClosedLoopRegressor(robot, drive)
     n_act = reg.n_actuators
@@ -149,6 +192,7 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
         scale = np.linalg.norm(full * weights[:, None], axis=0)
         fit = consistent_fit(reg.layout, information, base.regrouping, beta, scale,
                              nominal, prior)
+        _verify_mass_matrix(reg, nominal, fit.parameters)
     return IdentificationResult(
         robot, base, beta, np.sqrt(np.diag(cov)), cov, sigma, beta_nom,
         ForceResiduals.of((u - wb @ beta_nom).reshape(n, n_act)),

@@ -196,15 +196,13 @@ def robot_with_parameters(robot: object, parameters: np.ndarray,
     Raises:
         ArgumentTypeError: not a robot of the library.
         InputError: a vector of the wrong length or not finite; negative armature,
-            viscous or Coulomb parameters (the model's effects must be >= 0).
+            viscous or Coulomb parameters (the model's effects must be >= 0); a body
+            with a mass <= 0 and other parameters not zero.
     """
     clm = closed_loop_model(robot)
     layout = ParameterLayout.of(robot, drive)
     values = as_array(parameters, (layout.size,), "parameters")
-    tree = pin.Model(clm.tree_model)
-    tree.gravity = clm.model.gravity
-    for j in range(1, tree.njoints):
-        tree.inertias[j] = pin.Inertia.FromDynamicParameters(values[10 * (j - 1):10 * j])
+    tree = tree_with_parameters(clm, values)
     changes: dict[str, np.ndarray] = {}
     fields = {"armature": "armature", "viscous": "damping", "coulomb": "coulomb"}
     for kind, field in fields.items():
@@ -222,6 +220,29 @@ def robot_with_parameters(robot: object, parameters: np.ndarray,
                           effects=effects)
     return ClosedLoopRobot(new, robot_platform_frame(robot), robot_pose_axes(robot),
                            home=robot_home(robot), max_actuator_force=np.inf)
+
+
+def tree_with_parameters(clm: ClosedLoopModel, parameters: np.ndarray) -> pin.Model:
+    """A copy of the tree of ``clm`` (its gravity included) with the bodies' inertias of
+    a full parameter vector (its first ``10 nb`` entries; a body whose ten parameters
+    are all zero gets ``pin.Inertia.Zero()``: a massless body).
+
+    Raises:
+        InputError: a body with a mass <= 0 but other parameters not zero (no inertia
+            has them).
+    """
+    tree = pin.Model(clm.tree_model)
+    tree.gravity = clm.model.gravity
+    for j in range(1, tree.njoints):
+        pi = parameters[10 * (j - 1):10 * j]
+        if pi[0] > 0.0:
+            tree.inertias[j] = pin.Inertia.FromDynamicParameters(pi)
+        elif not np.any(pi):
+            tree.inertias[j] = pin.Inertia.Zero()
+        else:
+            raise InputError("parameters", pi, f"body {tree.names[j]!r}: a mass <= 0 with "
+                             "other inertial parameters not zero")
+    return tree
 
 
 def robot_platform_frame(robot: object) -> str:

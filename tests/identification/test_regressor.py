@@ -87,3 +87,25 @@ def test_bad_inputs_name_the_argument():
         robot_with_parameters(robot, np.zeros(5))
     with pytest.raises(InputError, match="rtol"):
         base_parameters(robot, rtol=-1.0)
+
+
+def test_log_cholesky_body_map_against_finite_differences():
+    """The consistent fit's body map: its Jacobian against central differences, the mass
+    m_0 exp(2 theta_3), and theta = 0 giving the reference (nominal plus the lift)."""
+    from hexapod_pin.identification.consistent import LIFT, BodyReference, pseudo_inertia
+    rng = np.random.default_rng(2)
+    import pinocchio as pin
+    nominal = pin.Inertia(0.5, np.array([0.01, -0.02, 0.03]),
+                          np.diag([0.004, 0.005, 0.003])).toDynamicParameters()
+    ref = BodyReference.of(nominal, 0.2)
+    theta = rng.normal(scale=0.3, size=10)
+    pi, jac = ref.parameters(theta)
+    step = 1e-6
+    fd = np.column_stack([(ref.parameters(theta + step * e)[0]
+                           - ref.parameters(theta - step * e)[0]) / (2 * step)
+                          for e in np.eye(10)])
+    assert np.allclose(jac, fd, rtol=1e-6, atol=1e-10)
+    assert np.isclose(pi[0], nominal[0] * np.exp(2 * theta[3]), rtol=1e-12)
+    lifted = pseudo_inertia(nominal) + LIFT * 0.5 * 0.2 ** 2 * np.diag([1.0, 1.0, 1.0, 0.0])
+    assert np.allclose(pseudo_inertia(ref.parameters(np.zeros(10))[0]), lifted, atol=1e-15)
+    assert np.linalg.eigvalsh(pseudo_inertia(pi))[0] > 0
