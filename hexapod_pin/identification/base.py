@@ -18,6 +18,35 @@ and ``beta`` is what data can identify. Each base parameter is printed as its ru
 (``beta_k = Izz_platform + 0.04 m_leg_0 + ...``, coefficients below
 :data:`COEFFICIENT_TOL` relative to the largest dropped).
 
+Which parameters merge (measured, ``tests/identification/test_base.py``; the counts are
+tree / closed loop / + armature / + viscous and Coulomb / + armature, viscous and Coulomb
+/ + all four drive kinds):
+
+=========== ======== ====== ==== ==== ==== ==== ====
+robot       standard tree   loop +a   +vc  +avc +avco
+=========== ======== ====== ==== ==== ==== ==== ====
+hexapod     190      76     46   46   58   58   64
+Stewart     190      94     88   94   100  106  112
+planar 3PRR 90       17     14   16   20   22   23
+=========== ======== ====== ==== ==== ==== ==== ====
+
+* viscous and Coulomb columns (``qd_i``, ``sign(qd_i)``) are never combinations of the
+  inertial ones: each adds one base parameter per actuator;
+* armature (``qdd_i``): on a HORIZONTAL rail the carriage moves along the rail only and
+  gravity has no component along it, so the mass column of the carriage and everything
+  that translates with it is ``qdd_i`` too: the armature merges with that mass
+  (``m_carriage_0 + m_u_0_a + m_u_0_b - 2.222 mz_u_0_b + Ia_carriage_0``): the
+  hexapod's six, the planar robot's slider 0. On an INCLINED rail the mass column is
+  ``qdd_i + g sin(alpha_i)``, so the armature is separate (the planar robot's sliders 1
+  and 2), and on a Stewart leg the actuated body also turns with the leg: separate;
+* offset (``1``): separate on a horizontal rail (the hexapod's six, planar slider 0) and
+  on a Stewart leg; on an inclined rail with armature asked for, the constant is already
+  spanned by the mass column ``qdd_i + g sin(alpha_i)`` and the armature's ``qdd_i``, so
+  the offset merges (planar sliders 1 and 2).
+
+The issue's "with viscous, Coulomb and offset terms" counts (58 / 106 / 22) are those
+of ``drive=("armature", "viscous", "coulomb")``.
+
 The structure depends only on the robot, not on the samples, when the samples are rich
 enough; data that are not (too few states, motions in a subspace) are detected in
 :mod:`.estimate` by the rank of the base regressor of the data.
@@ -90,8 +119,8 @@ class BaseParameters:
         return self.regrouping @ np.asarray(parameters, dtype=float)
 
     def rules(self, precision: int = 4) -> tuple[str, ...]:
-        """One rule per base parameter, e.g. ``"m_carriage_0 = m_carriage_0 + 1 m_u_0_a +
-        ..."`` (coefficients with ``precision`` significant digits; terms whose
+        """One rule per base parameter, e.g. ``"m_carriage_0 = m_carriage_0 + m_u_0_a -
+        2.222 mz_u_0_b + ..."`` (coefficients with ``precision`` significant digits; terms whose
         coefficient is below :data:`COEFFICIENT_TOL` times the largest are left out)."""
         full = self.layout.names
         out = []
@@ -100,11 +129,11 @@ class BaseParameters:
             terms = []
             for j in np.flatnonzero(np.abs(row) > COEFFICIENT_TOL * big):
                 coef = row[j]
-                if j == self.base_index[k] and coef == 1.0:
-                    terms.append(full[j])
-                else:
-                    terms.append(f"{coef:+.{precision}g} {full[j]}")
-            body = " ".join(terms).replace(" +", " + ").replace(" -", " - ")
+                sign = "-" if coef < 0 else "+"
+                text = full[j] if abs(abs(coef) - 1.0) < 1e-9 else f"{abs(coef):.{precision}g} {full[j]}"
+                terms.append(f"{sign} {text}")
+            body = " ".join(terms)
+            body = body[2:] if body.startswith("+ ") else body
             out.append(f"{full[self.base_index[k]]} = {body}")
         return tuple(out)
 

@@ -49,8 +49,9 @@ from ..errors import ArgumentTypeError, InputError
 DRIVE_KINDS = ("armature", "viscous", "coulomb", "offset")
 #: the prefix of each drive kind's names
 DRIVE_PREFIX = {"armature": "Ia", "viscous": "fv", "coulomb": "fc", "offset": "off"}
-#: the default drive parameters of identification (armature is left out: on the robots of
-#: the library it cannot be told from the mass of the actuated body)
+#: the default drive parameters of identification (armature is left out: on a horizontal
+#: rail, the hexapod's, it cannot be told from the mass of the carriage; see
+#: :mod:`.base` for which kinds merge on which robot)
 DEFAULT_DRIVE = ("viscous", "coulomb", "offset")
 #: the ten inertial parameter names of a body, Pinocchio's order
 INERTIAL_NAMES = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
