@@ -122,7 +122,7 @@ class ClosedLoopRegressor:
         """
         twist = as_array(twist, (self.dim,), "twist")
         twist_dot = as_array(twist_dot, (self.dim,), "twist_dot")
-        q = np.asarray(self.robot.configuration(pose), dtype=float)   # type: ignore[attr-defined]
+        q = np.asarray(getattr(self.robot, "configuration")(pose), dtype=float)
         kin = self.kinematics
         maps = kin.regular_maps(q)
         v = kin.tree_velocity(maps, twist)
