@@ -93,7 +93,8 @@ LAYOUT: dict[str, set[str]] = {
     "loaders": {"core", "errors"},
     "planning": {"core", "errors"},
     "calibration": {"core", "hexapod", "errors"},
-    "identification": {"core", "errors"},               # any robot, through its API
+    "identification": {"core", "errors", "motion", "planning"},  # any robot, its API;
+    # motion files and the feasibility check for excitation trajectories
     "viz": {"core", "errors"},
     "files": {"core", "hexapod", "errors"},             # geometry files (HexapodGeometry)
     "motion": {"core", "hexapod", "files", "errors"},   # motion files, the hexapod's circle

@@ -10,6 +10,8 @@ parameters, least-squares and physically consistent estimates.
 * :mod:`.estimate`: :func:`identify_from_states`, :func:`identify` (weighted least squares,
   standard errors, the physically consistent fit of :mod:`.consistent`);
 * :mod:`.motion_data`: :class:`MotionData` and its zero-phase filtering;
+* :mod:`.excitation`: :func:`optimise_excitation`, a pose-space Fourier series optimised
+  for the base regressor's condition number within the robot's limits;
 * :mod:`.results`: :class:`IdentificationResult`, :class:`ValidationReport`.
 
 Units: SI (kg, m, s, N, N m); poses, twists and actuator conventions of the robot API.
@@ -19,6 +21,7 @@ from ..errors import IdentifiabilityError
 from .base import BaseParameters, base_from_regressor, base_parameters, random_states
 from .consistent import ConsistentFit
 from .estimate import identify, identify_from_states
+from .excitation import Excitation, FourierSeries, optimise_excitation
 from .motion_data import MotionData, MotionStates, states_from_motion
 from .parameters import (DEFAULT_DRIVE, DRIVE_KINDS, ParameterLayout, nominal_parameters,
                          robot_with_parameters)
@@ -27,6 +30,7 @@ from .results import ForceResiduals, IdentificationResult, ValidationReport
 
 __all__ = [
     "DEFAULT_DRIVE", "DRIVE_KINDS", "BaseParameters", "ClosedLoopRegressor", "ConsistentFit",
+    "Excitation", "FourierSeries", "optimise_excitation",
     "ForceResiduals", "IdentifiabilityError", "IdentificationResult", "MotionData",
     "MotionStates", "ParameterLayout", "TreeMotion", "ValidationReport", "base_from_regressor",
     "base_parameters", "identify", "identify_from_states", "nominal_parameters",
