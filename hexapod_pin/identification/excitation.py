@@ -22,12 +22,13 @@ the condition number of the stacked base regressor (:mod:`.regressor`, :mod:`.ba
 rest points, where the Coulomb column ``sign(qd)`` jumps), with unit-norm columns (``D`` the column norms: a condition number
 free of the parameters' units), subject to, at every sample:
 
-* the pose reached within the strokes (``robot.inverse_kinematics_batch``: ``ok``);
+* the pose reached, regularly (the regressor's tree state exists) and within the strokes
+  (``robot.stroke_violations`` of the actuator positions);
 * both singularity measures (``robot.singularity``) at least ``singularity_margin``
   times the robot's own thresholds;
-* the actuator forces of the nominal robot (``robot.inverse_dynamics_batch(...,
-  bounded=False)``) within ``force_margin`` of the robot's force bounds
-  (:func:`hexapod_pin.core.workspace_maps.actuator_force_bounds`);
+* the actuator forces of the nominal robot (``W pi_nominal``, its inverse dynamics with
+  its drive effects, :mod:`.regressor`) within ``force_margin`` of the robot's force
+  bounds (:func:`hexapod_pin.core.workspace_maps.actuator_force_bounds`);
 
 the coefficients within ``+- amplitude`` (scaled per component, linear / angular).
 The reach and stroke condition is not smooth: the constraint is -1 at a sample that
@@ -62,7 +63,7 @@ from ..motion import Motion, write_motion
 from ..planning.feasibility import check_feasibility
 from ..planning.limits import Limits
 from .base import BaseParameters, base_parameters
-from .parameters import DEFAULT_DRIVE
+from .parameters import DEFAULT_DRIVE, nominal_parameters
 from .regressor import ClosedLoopRegressor
 
 #: the coefficients are scaled by this factor while the denser check fails
@@ -219,65 +220,71 @@ def _null_basis(harmonics: int) -> np.ndarray:
 
 
 class _Problem:
-    """The optimisation's functions, sharing one evaluation per point."""
+    """The optimisation's functions, sharing one pass over the samples per point: the
+    regressor's tree state (it refuses a pose out of reach or singular), the actuator
+    positions read from it (strokes), the singularity measures, and the nominal forces
+    ``W pi_nominal`` (the robot's inverse dynamics, :mod:`.regressor`)."""
 
     def __init__(self, robot: ParallelRobot, reg: ClosedLoopRegressor, base: BaseParameters,
-                 make: Callable[[np.ndarray], FourierSeries], times: np.ndarray, singularity_margin: float,
-                 force_margin: float) -> None:
+                 make: Callable[[np.ndarray], FourierSeries], times: np.ndarray,
+                 singularity_margin: float, force_margin: float) -> None:
         self.robot, self.reg, self.base, self.make = robot, reg, base, make
         self.times = times
         self.sing_margin = singularity_margin
         self.bound = actuator_force_bounds(robot) * (1.0 - force_margin)
+        self.nominal = nominal_parameters(robot, reg.layout.drive)
         self._key: bytes | None = None
         self._value: tuple[float, np.ndarray] = (0.0, np.zeros(0))
 
-    def condition(self, poses: np.ndarray, twists: np.ndarray,
-                  twist_dots: np.ndarray) -> float:
-        wb = self.base.regressor(self.reg.batch(poses, twists, twist_dots))
+    def rows(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(W, margins)``: the full regressor (N n_act, n) and per sample the smallest
+        of the reach / stroke (-1 or 1), singularity (log10 of the measure over the
+        margin times the threshold) and force (``1 - |u| / bound``) margins; ``W`` is
+        empty when a sample fails the reach, stroke or singularity test."""
+        poses, twists, twist_dots = self.make(x).evaluate(self.times)
+        n, m = poses.shape[0], self.reg.n_actuators
+        out = np.full(n, 1.0)
+        full = np.empty((n * m, self.reg.layout.size))
+        for i in range(n):
+            try:
+                motion = self.reg.tree_motion(poses[i], twists[i], twist_dots[i])
+            except HexapodPinError:
+                out[i] = -1.0
+                continue
+            if self.robot.stroke_violations(   # type: ignore[attr-defined]
+                    self.robot.actuator_positions(motion.q)):
+                out[i] = -1.0
+                continue
+            meas = self.robot.singularity(poses[i])
+            for value, threshold in ((meas.type_one, meas.type_one_threshold),
+                                     (meas.type_two, meas.type_two_threshold)):
+                if threshold > 0:
+                    out[i] = min(out[i], np.log10(max(value, 1e-300)
+                                                  / (self.sing_margin * threshold)))
+            full[i * m:(i + 1) * m] = self.reg.rows_of(motion)
+        if np.any(out < 0):
+            return np.zeros((0, self.reg.layout.size)), out
+        finite = np.isfinite(self.bound)
+        if np.any(finite):
+            u = (full @ self.nominal).reshape(n, m)
+            out = np.minimum(out, 1.0 - np.max(np.abs(u[:, finite]) / self.bound[finite],
+                                               axis=1))
+        return full, out
+
+    def condition(self, full: np.ndarray) -> float:
+        """Condition number of the base columns of ``full`` with unit-norm columns."""
+        wb = self.base.regressor(full)
         norms = np.linalg.norm(wb, axis=0)
         sv = np.linalg.svd(wb / np.where(norms > 0, norms, 1.0), compute_uv=False)
         return float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
 
-    def margins(self, poses: np.ndarray, twists: np.ndarray,
-                twist_dots: np.ndarray) -> np.ndarray:
-        """Per sample: the smallest of the reach / stroke (-1 or 0), singularity (log10 of
-        measure over the margin times threshold) and force (1 - |u| / bound) margins."""
-        n = poses.shape[0]
-        ik = self.robot.inverse_kinematics_batch(poses)
-        if not np.all(ik.ok):
-            return np.where(ik.ok, 0.0, -1.0)
-        out = np.full(n, np.inf)
-        for i, pose in enumerate(poses):
-            m = self.robot.singularity(pose)
-            for value, threshold in ((m.type_one, m.type_one_threshold),
-                                     (m.type_two, m.type_two_threshold)):
-                if threshold > 0:
-                    out[i] = min(out[i], np.log10(max(value, 1e-300)
-                                                  / (self.sing_margin * threshold)))
-        if np.any(out < 0):
-            return np.minimum(out, 1.0)
-        if np.any(np.isfinite(self.bound)):
-            try:
-                u = self.robot.inverse_dynamics_batch(poses, twists, twist_dots,
-                                                      bounded=False).actuator_forces
-            except HexapodPinError:
-                return np.full(n, -1.0)
-            finite = np.isfinite(self.bound)
-            ratio = np.abs(u[:, finite]) / self.bound[finite]
-            out = np.minimum(out, 1.0 - ratio.max(axis=1))
-        return np.minimum(out, 1.0)
-
     def evaluate(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """``(log10 condition number, margins)`` at ``x`` (the objective 10 where a
+        margin fails)."""
         key = x.tobytes()
         if key != self._key:
-            states = self.make(x).evaluate(self.times)
-            margins = self.margins(*states)
-            objective = 10.0
-            if np.all(margins >= 0):
-                try:
-                    objective = float(np.log10(self.condition(*states)))
-                except HexapodPinError:
-                    margins = np.full_like(margins, -1.0)
+            full, margins = self.rows(x)
+            objective = float(np.log10(self.condition(full))) if full.size else 10.0
             self._key, self._value = key, (objective, margins)
         return self._value
 
@@ -384,7 +391,7 @@ def optimise_excitation(robot: object, *, harmonics: int = 3, base_frequency: fl
     series = make(best)
     poses, twists, twist_dots = series.evaluate(times)
     motion = sampled_motion(bot, series, times)
-    cond = problem.condition(poses, twists, twist_dots)
+    cond = problem.condition(reg.batch(poses, twists, twist_dots))
     if progress is not None:
         progress(1.0)
     return Excitation(robot, series, times, poses, twists, twist_dots, np.asarray(motion.q),
