@@ -13,4 +13,6 @@ matplotlib figures.
   extra) and the figure helpers.
 * :mod:`~hexapod_pin.viz.workspace_plots`: workspace figures: cond(J) along a path,
   slices, force capability, design sweeps.
+* :mod:`~hexapod_pin.viz.identification_plots`: dynamic identification: measured
+  against predicted forces, parameter estimates with error bars.
 """
