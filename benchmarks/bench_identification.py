@@ -29,9 +29,13 @@ import pinocchio as pin
 import scipy
 
 import hexapod_pin as hp
-from hexapod_pin.identification import (ClosedLoopRegressor, base_parameters,
-                                        identify_from_states, nominal_parameters,
-                                        random_states)
+from hexapod_pin.identification import (
+    ClosedLoopRegressor,
+    base_parameters,
+    identify_from_states,
+    nominal_parameters,
+    random_states,
+)
 
 DRIVE = ("viscous", "coulomb", "offset")
 ROBOTS = {"hexapod": hp.Hexapod.default, "planar": hp.Planar3PRR.default}
@@ -104,7 +108,8 @@ def main() -> None:
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
           f"Python {platform.python_version()}, numpy {np.__version__}, scipy "
           f"{scipy.__version__}, pinocchio {pin.__version__}, hexapod_pin {hp.__version__}")
-    ok = all([run(name, sizes) for name in args.robots.split(",")])
+    passed = [run(name, sizes) for name in args.robots.split(",")]   # every robot runs
+    ok = all(passed)
     print("\nall checks passed" if ok else "\nCHECK FAILED")
     raise SystemExit(0 if ok else 1)
 

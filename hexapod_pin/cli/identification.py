@@ -12,14 +12,34 @@ import typer
 
 from .. import motion as motions
 from ..errors import InputError
-from ..identification import (MotionData, identify as identify_motion, optimise_excitation)
+from ..identification import MotionData, optimise_excitation
+from ..identification import identify as identify_motion
 from ..identification.motion_data import states_from_motion
 from ..identification.parameters import DRIVE_KINDS, check_drive
 from ..viz.identification_plots import plot_force_prediction, plot_parameter_estimates
-from .common import (AsJson, CliRobot, GeometryFile, PlatformFrame, PoseAxes, Quiet, RobotFile,
-                     SetFields, actuator_names, check_suffix, console, emit_json,
-                     guard, load_cli_robot, note, parse_numbers, progress_bar, quantity_table,
-                     read_robot_motion, robot_fields, write_robot_motion)
+from .common import (
+    AsJson,
+    CliRobot,
+    GeometryFile,
+    PlatformFrame,
+    PoseAxes,
+    Quiet,
+    RobotFile,
+    SetFields,
+    actuator_names,
+    check_suffix,
+    console,
+    emit_json,
+    guard,
+    load_cli_robot,
+    note,
+    parse_numbers,
+    progress_bar,
+    quantity_table,
+    read_robot_motion,
+    robot_fields,
+    write_robot_motion,
+)
 
 Drive = Annotated[str, typer.Option(
     help=f"drive parameters per actuator, comma-separated, of {', '.join(DRIVE_KINDS)} "
@@ -69,7 +89,7 @@ def excite(out: Annotated[Path, typer.Option(
         ex = optimise_excitation(bot, harmonics=harmonics, base_frequency=frequency,
                                  samples=samples, amplitude=(float(amp[0]), float(amp[1])),
                                  drive=_drive(drive), max_iterations=iterations, seed=seed,
-                                 progress=lambda f: update(int(round(100 * f))))
+                                 progress=lambda f: update(round(100 * f)))
     motion = ex.motion(rate_factor=rate, periods=periods)
     write_robot_motion(out, motion, bot)
     force = float(np.max(np.abs(ex.actuator_forces)))

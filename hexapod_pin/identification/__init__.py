@@ -23,8 +23,13 @@ from .consistent import ConsistentFit
 from .estimate import identify, identify_from_states
 from .excitation import Excitation, FourierSeries, optimise_excitation
 from .motion_data import MotionData, MotionStates, states_from_motion
-from .parameters import (DEFAULT_DRIVE, DRIVE_KINDS, ParameterLayout, nominal_parameters,
-                         robot_with_parameters)
+from .parameters import (
+    DEFAULT_DRIVE,
+    DRIVE_KINDS,
+    ParameterLayout,
+    nominal_parameters,
+    robot_with_parameters,
+)
 from .regressor import ClosedLoopRegressor, TreeMotion, regressor, regressor_batch
 from .results import ForceResiduals, IdentificationResult, ValidationReport
 

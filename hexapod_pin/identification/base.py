@@ -133,7 +133,7 @@ class BaseParameters:
                 text = full[j] if abs(abs(coef) - 1.0) < 1e-9 else f"{abs(coef):.{precision}g} {full[j]}"
                 terms.append(f"{sign} {text}")
             body = " ".join(terms)
-            body = body[2:] if body.startswith("+ ") else body
+            body = body.removeprefix("+ ")
             out.append(f"{full[self.base_index[k]]} = {body}")
         return tuple(out)
 

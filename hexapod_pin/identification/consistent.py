@@ -136,7 +136,7 @@ class BodyReference:
     linear: np.ndarray
 
     @classmethod
-    def of(cls, pi0: np.ndarray, length: float) -> "BodyReference":
+    def of(cls, pi0: np.ndarray, length: float) -> BodyReference:
         """The reference of a body with nominal parameters ``pi0`` (mass > 0) and the
         robot's radius of gyration ``length`` (m)."""
         lift = LIFT * pi0[0] * length ** 2 * np.diag([1.0, 1.0, 1.0, 0.0])

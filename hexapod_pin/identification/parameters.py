@@ -93,7 +93,7 @@ class ParameterLayout:
     drive: tuple[str, ...]
 
     @classmethod
-    def of(cls, robot: object, drive: object = DEFAULT_DRIVE) -> "ParameterLayout":
+    def of(cls, robot: object, drive: object = DEFAULT_DRIVE) -> ParameterLayout:
         """The layout of a robot (anything with a ``model``, a
         :class:`~hexapod_pin.core.closed_loop.ClosedLoopModel`).
 

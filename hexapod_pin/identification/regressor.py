@@ -51,8 +51,14 @@ from ..core.checks import as_array
 from ..core.platform_map import PlatformMap, solve_checked_square
 from ..core.robot_kinematics import RobotKinematics
 from ..errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
-from .parameters import (DEFAULT_DRIVE, ParameterLayout, closed_loop_model, robot_home,
-                         robot_platform_frame, robot_pose_axes)
+from .parameters import (
+    DEFAULT_DRIVE,
+    ParameterLayout,
+    closed_loop_model,
+    robot_home,
+    robot_platform_frame,
+    robot_pose_axes,
+)
 
 
 class TreeMotion(NamedTuple):

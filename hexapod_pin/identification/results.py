@@ -43,7 +43,7 @@ class ForceResiduals:
     count: int
 
     @classmethod
-    def of(cls, residual: np.ndarray) -> "ForceResiduals":
+    def of(cls, residual: np.ndarray) -> ForceResiduals:
         """The summary of residuals shaped (N, n_act)."""
         return cls(float(np.sqrt(np.mean(residual ** 2))),
                    np.sqrt(np.mean(residual ** 2, axis=0)),

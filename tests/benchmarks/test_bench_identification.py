@@ -10,7 +10,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_bench_identification_smoke():
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_identification.py"),
-                           "--smoke"], cwd=ROOT, capture_output=True, text=True, timeout=600)
+                           "--smoke"], cwd=ROOT, capture_output=True, text=True, timeout=600,
+                          check=False)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "all checks passed" in proc.stdout
     for robot in ("### hexapod", "### planar"):

@@ -10,9 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
-
 from conftest import one_line_error
+from typer.testing import CliRunner
 
 import hexapod_pin as hp
 from hexapod_pin.cli import app

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 import robot_registry
+
 from hexapod_pin.identification import ClosedLoopRegressor, base_parameters, random_states
 
 #: drive columns of each count below, after the inertial ones

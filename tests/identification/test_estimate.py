@@ -6,13 +6,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 import robot_registry
-from conftest import perturbed
+from identification_helpers import perturbed
+
 from hexapod_pin.errors import IdentifiabilityError, InputError
-from hexapod_pin.identification import (ClosedLoopRegressor, MotionData, base_parameters,
-                                        identify, identify_from_states, nominal_parameters,
-                                        random_states)
+from hexapod_pin.identification import (
+    ClosedLoopRegressor,
+    MotionData,
+    base_parameters,
+    identify,
+    identify_from_states,
+    nominal_parameters,
+    random_states,
+)
 from hexapod_pin.identification.consistent import MASS_FLOOR, pseudo_inertia
 
 DRIVE = ("viscous", "coulomb", "offset")

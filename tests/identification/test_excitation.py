@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import robot_registry
 
 import hexapod_pin as hp
-import robot_registry
 from hexapod_pin.errors import InputError
 from hexapod_pin.identification import ClosedLoopRegressor, base_parameters
-from hexapod_pin.identification.excitation import (FourierSeries, _null_basis,
-                                                   optimise_excitation)
+from hexapod_pin.identification.excitation import FourierSeries, _null_basis, optimise_excitation
 from hexapod_pin.motion import read_motion
 
 

@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 from hexapod_pin.errors import InputError
-from hexapod_pin.viz.identification_plots import (plot_force_prediction,
-                                                  plot_parameter_estimates)
+from hexapod_pin.viz.identification_plots import plot_force_prediction, plot_parameter_estimates
 
 pytest.importorskip("matplotlib", reason="matplotlib (the plot extra) is not installed")
 

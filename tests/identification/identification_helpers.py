@@ -1,13 +1,12 @@
 """Shared helpers of the identification tests: random physically consistent parameters and
-synthetic data of a perturbed robot."""
+synthetic data of a perturbed robot (a module of its own, not the conftest: the tests'
+``from conftest import ...`` means tests/conftest.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
-import pytest
 
-import robot_registry
 from hexapod_pin.identification import ClosedLoopRegressor, nominal_parameters
 
 #: the robots of the issue's checks
@@ -46,7 +45,7 @@ def perturbed(robot, drive, rng) -> np.ndarray:
         nominal = pin.Inertia.FromDynamicParameters(out[10 * b:10 * b + 10])
         if nominal.mass <= 0.0:
             continue
-        factor = lambda: 1.0 + rng.choice([-1.0, 1.0]) * rng.uniform(0.1, 0.3)  # noqa: E731
+        factor = lambda: 1.0 + rng.choice([-1.0, 1.0]) * rng.uniform(0.1, 0.3)
         out[10 * b:10 * b + 10] = pin.Inertia(
             nominal.mass * factor(), nominal.lever + rng.uniform(-0.01, 0.01, 3),
             nominal.inertia * factor()).toDynamicParameters()
@@ -56,9 +55,3 @@ def perturbed(robot, drive, rng) -> np.ndarray:
     for kind in layout.drive:
         out[layout.drive_slice(kind)] = rng.uniform(*values[kind], n_act)
     return out
-
-
-@pytest.fixture(params=ROBOTS)
-def id_robot(request):
-    """Each robot of the issue's checks in turn."""
-    return request.param, robot_registry.get(request.param)
