@@ -4,8 +4,9 @@ against the number of samples, and its accuracy.
 The truth is the nominal robot with every massive body's mass and inertia off by
 10-30 %, its centre of mass moved by up to 1 cm, and drive friction and offsets on
 (viscous 1-5, Coulomb 0.5-2, offsets +-1); its forces at random closure-consistent states
-(:func:`hexapod_pin.identification.random_states`) plus Gaussian noise of 1 % of each
-actuator's force range. Timed: ``identify_from_states`` with the base parameters given
+(:func:`hexapod_pin.identification.random_states`: accelerations of 2-10 m/s^2 at poses
+up to the singularity thresholds, so peak forces reach kN) plus Gaussian noise of 1 % of
+each actuator's force standard deviation. Timed: ``identify_from_states`` with the base parameters given
 (found once, timed apart), without and with the physically consistent fit; and the
 regressor alone (``ClosedLoopRegressor.batch``), the part that grows with the samples.
 
@@ -82,7 +83,7 @@ def run(name: str, sizes: list[int]) -> bool:
         full = reg.batch(*states)
         t_reg = time.perf_counter() - t0
         clean = (full @ truth).reshape(n, -1)
-        noise = 0.01 * np.ptp(clean, axis=0)
+        noise = 0.01 * np.std(clean, axis=0)
         measured = clean + rng.normal(size=clean.shape) * noise
         t0 = time.perf_counter()
         plain = identify_from_states(robot, *states, measured, base=base, consistent=False)

@@ -67,7 +67,7 @@ PRIOR_WEIGHT = 1e-3
 #: the robot's radius of gyration
 LIFT = 1e-2
 #: evaluations of the fit at most
-MAX_EVALUATIONS = 200
+MAX_EVALUATIONS = 100
 #: relative tolerances of the fit (scipy's ftol, xtol, gtol)
 TOLERANCE = 1e-8
 #: lower bound of every fitted mass, a fraction of its nominal value
