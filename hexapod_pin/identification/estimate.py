@@ -22,7 +22,10 @@ Weighted least squares (Gautier's method):
    ``M_a = G^T (M + diag(armature)) G`` (``G`` the actuated velocity map of
    :mod:`.regressor`), must be within a factor :data:`MASS_MATRIX_RATIO` of the nominal
    robot's in every direction (every generalised eigenvalue of the pair in
-   ``[1 / ratio, ratio]``), else :class:`~hexapod_pin.errors.SolverError`.
+   ``[1 / ratio, ratio]``), else :class:`~hexapod_pin.errors.SolverError`. Its distance
+   from the least-squares base parameters (``consistent_gap`` of the result, in standard
+   errors) above :data:`GAP_WARNING` is logged as a warning (logger
+   ``hexapod_pin.identification.estimate``).
 
 :func:`identify` runs the same on a :class:`~.motion_data.MotionData` (positions and
 forces in time) after :func:`~.motion_data.states_from_motion`.
@@ -31,6 +34,7 @@ forces in time) after :func:`~.motion_data.states_from_motion`.
 from __future__ import annotations
 
 import dataclasses
+import logging
 
 import numpy as np
 import numpy.typing as npt
@@ -50,6 +54,11 @@ from .results import ForceResiduals, IdentificationResult
 NOISE_ITERATIONS = 3
 #: relative singular-value threshold of the data's base regressor (unit-norm columns)
 DATA_RTOL = 1e-10
+#: a consistent estimate farther than this from the least-squares one (in standard errors
+#: of a base parameter) is logged as a warning (the least-squares estimate is then not
+#: physically consistent, or the data do not fit the model)
+GAP_WARNING = 3.0
+LOGGER = logging.getLogger(__name__)
 #: the identified robot's actuator-space mass matrix must be within this factor of the
 #: nominal one in every direction (module docstring, step 4)
 MASS_MATRIX_RATIO = 100.0
@@ -193,10 +202,17 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
         fit = consistent_fit(reg.layout, information, base.regrouping, beta, scale,
                              nominal, prior)
         _verify_mass_matrix(reg, nominal, fit.parameters)
-    return IdentificationResult(
+    result = IdentificationResult(
         robot, base, beta, np.sqrt(np.diag(cov)), cov, sigma, beta_nom,
         ForceResiduals.of((u - wb @ beta_nom).reshape(n, n_act)),
         ForceResiduals.of((u - wb @ beta).reshape(n, n_act)), cond, fit)
+    gap = result.consistent_gap
+    if gap is not None and gap > GAP_WARNING:
+        LOGGER.warning("the consistent estimate is %.3g standard errors from the "
+                       "least-squares one (above %g): the least-squares estimate is not "
+                       "physically consistent, or the data do not fit the model", gap,
+                       GAP_WARNING)
+    return result
 
 
 def identify(robot: object, data: object, *, cutoff: float | None = None,
