@@ -60,7 +60,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize
 
-from ..errors import SolverError
+from ..errors import InputError, SolverError
 from .parameters import ParameterLayout
 
 #: weight of the prior (chi-square units per unit of ``theta`` squared)
@@ -220,9 +220,14 @@ def consistent_fit(layout: ParameterLayout, information: np.ndarray, regrouping:
         prior: the prior's weight (>= 0).
 
     Raises:
+        InputError: ``information`` not (r, r).
         SolverError: the fit is not finite, a pseudo-inertia is not positive definite or
             a mass fell below :data:`MASS_FLOOR` of its nominal value (module docstring).
     """
+    r = regrouping.shape[0]
+    if information.shape != (r, r):
+        raise InputError("information", information.shape, f"expected the ({r}, {r}) "
+                         "triangular factor of the weighted base regressor")
     free = [b for b in range(len(layout.bodies)) if nominal[10 * b] > 0.0]
     n_free, n_in = len(free), layout.n_inertial
     length = gyration_length(layout, nominal)

@@ -197,7 +197,7 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
     beta_nom = base.values(nominal)
     fit = None
     if consistent:
-        information = scipy.linalg.qr(ww, mode="r")[0]
+        information = scipy.linalg.qr(ww, mode="r")[0][:r]     # R (r, r)
         scale = np.linalg.norm(full * weights[:, None], axis=0)
         fit = consistent_fit(reg.layout, information, base.regrouping, beta, scale,
                              nominal, prior)
