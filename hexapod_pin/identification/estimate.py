@@ -138,7 +138,9 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
 
     Args:
         robot: a robot of the library, the nominal model.
-        poses, twists, twist_dots: (N, dim) platform states (m, rad; world-axis twists).
+        poses: (N, dim) platform poses (m, rad).
+        twists: (N, dim) their twists (world axes, m/s, rad/s).
+        twist_dots: (N, dim) the twists' time derivatives (m/s^2, rad/s^2).
         actuator_forces: (N, n_act) measured (N, N m).
         drive: the drive parameters (:data:`~.parameters.DRIVE_KINDS`).
         base: the base parameters (default: :func:`~.base.base_parameters` of the robot).

@@ -145,7 +145,9 @@ class Excitation:
         robot: the robot it was optimised for (the nominal model).
         series: the :class:`FourierSeries`.
         times: (N,) the samples of one period (s), ``(i + 1/2) / (N f0)``.
-        poses, twists, twist_dots: (N, dim) (m, rad; world-axis twists).
+        poses: (N, dim) platform poses (m, rad).
+        twists: (N, dim) their twists (world axes, m/s, rad/s).
+        twist_dots: (N, dim) the twists' time derivatives.
         actuator_positions: (N, n_act) (m or rad).
         actuator_forces: (N, n_act) of the nominal robot (N or N m).
         condition_number: of the base regressor at the samples (unit-norm columns).

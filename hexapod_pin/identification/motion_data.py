@@ -63,7 +63,9 @@ class MotionStates:
 
     Attributes:
         times: (K,) (s).
-        poses, twists, twist_dots: (K, dim).
+        poses: (K, dim) platform poses (m, rad).
+        twists: (K, dim) their twists (world axes, m/s, rad/s).
+        twist_dots: (K, dim) the twists' time derivatives.
         actuator_forces: (K, n_act), as measured.
     """
 

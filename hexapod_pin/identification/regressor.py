@@ -179,7 +179,9 @@ class ClosedLoopRegressor:
         ``actuator_forces.reshape(-1)`` for forces of shape (N, n_act)).
 
         Args:
-            poses, twists, twist_dots: (N, dim) each.
+            poses: (N, dim) platform poses (m, rad).
+            twists: (N, dim) their twists (world axes, m/s, rad/s).
+            twist_dots: (N, dim) the twists' time derivatives.
             times: (N,) the samples' times (s), for error messages only (default: the
                 row index).
 
