@@ -8,12 +8,16 @@
   by one table, :data:`LAYOUT` (part -> parts it may import, after the README's layout),
   or is one of the few module edges of :data:`EXCEPTIONS`;
 * no private name (leading underscore) is imported from another module of the package;
-* the library never prints.
+* the library never prints;
+* a bare ``import hexapod_pin`` stays light (the one check that runs an interpreter).
 """
 
 from __future__ import annotations
 
 import ast
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -80,7 +84,7 @@ def _edges(module: str) -> set[str]:
 #: A part is a subpackage, a top-level module, ``hexapod_pin`` (the package's __init__) or
 #: ``__main__``. Data flow one way: core -> robots and loaders -> the rest -> cli.
 _ALL = {"errors", "core", "hexapod", "planar", "loaders", "planning", "calibration", "viz",
-        "files", "motion", "precompile"}
+        "files", "motion", "precompile", "identification"}
 LAYOUT: dict[str, set[str]] = {
     "errors": set(),
     "core": {"errors"},
@@ -89,6 +93,8 @@ LAYOUT: dict[str, set[str]] = {
     "loaders": {"core", "errors"},
     "planning": {"core", "errors"},
     "calibration": {"core", "hexapod", "errors"},
+    "identification": {"core", "errors", "motion", "planning"},  # any robot, its API;
+    # motion files and the feasibility check for excitation trajectories
     "viz": {"core", "errors"},
     "files": {"core", "hexapod", "errors"},             # geometry files (HexapodGeometry)
     "motion": {"core", "hexapod", "files", "errors"},   # motion files, the hexapod's circle
@@ -256,3 +262,21 @@ def test_the_library_never_prints(module):
     calls = [node.lineno for node in ast.walk(tree) if isinstance(node, ast.Call)
              and isinstance(node.func, ast.Name) and node.func.id == "print"]
     assert not calls, f"{module} calls print at lines {calls}"
+
+
+def test_a_bare_import_stays_light():
+    """``import hexapod_pin`` loads neither the optional parts (identification,
+    calibration, planning, the command line, views) nor scipy.signal, matplotlib,
+    meshcat or typer (a fresh interpreter)."""
+    code = ("import sys, hexapod_pin; print(' '.join(sorted(m for m in sys.modules if "
+            "m.split('.')[0] in ('hexapod_pin', 'scipy', 'matplotlib', 'meshcat', "
+            "'typer'))))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, cwd=PACKAGE.parent,
+                          env={**os.environ, "PYTHONPATH": str(PACKAGE.parent)})
+    loaded = set(done.stdout.split())
+    assert "hexapod_pin.core" in loaded                 # the check can see modules
+    for heavy in ("hexapod_pin.identification", "hexapod_pin.calibration",
+                  "hexapod_pin.planning", "hexapod_pin.cli", "hexapod_pin.viz",
+                  "scipy.signal", "matplotlib", "meshcat", "typer"):
+        assert heavy not in loaded

@@ -11,7 +11,8 @@ functions:
 * ``retime``, ``check`` (:mod:`.planning`);
 * ``workspace`` (:mod:`.workspace`);
 * ``stiffness`` (:mod:`.stiffness`);
-* ``calibrate`` (:mod:`.calibrate`).
+* ``calibrate`` (:mod:`.calibrate`);
+* ``excite``, ``identify`` (:mod:`.identification`).
 
 Common options (:mod:`.common`):
 
@@ -20,7 +21,8 @@ Common options (:mod:`.common`):
   ``--set FIELD=VALUE`` (repeatable) overrides one field. Default: the defaults
   (:func:`hexapod_pin.files.load_geometry`).
 * ``--robot PATH [--platform FRAME] [--pose-axes x,z]`` (``ik``, ``fk``, ``modes``,
-  ``jacobian``, ``statics``, ``fd``, ``simulate``, ``view``, ``mjcf``): any closed-loop
+  ``jacobian``, ``statics``, ``fd``, ``simulate``, ``view``, ``mjcf``, ``excite``,
+  ``identify``): any closed-loop
   robot instead of the hexapod (:func:`hexapod_pin.load_robot`: a URDF with
   ``<name>.loops.yaml`` beside it, an SDF, or a folder; platform and pose axes default to
   the loops file's ``robot:`` section). Poses then have the robot's pose axes, actuator
@@ -60,7 +62,8 @@ from typing import Annotated
 import typer
 
 from .. import __version__
-from . import calibrate, demo, dynamics, export, kinematics, planning, stiffness, views, workspace
+from . import (calibrate, demo, dynamics, export, identification, kinematics, planning,
+               stiffness, views, workspace)
 from .common import NUMBERS, Command, Group
 
 app = typer.Typer(help="Kinematics and dynamics of the rail-driven hexapod.", no_args_is_help=True,
@@ -101,6 +104,8 @@ app.command(cls=Command)(planning.check)
 app.command(cls=Command)(workspace.workspace)
 app.command(cls=Command, context_settings=NUMBERS)(stiffness.stiffness)
 app.command(cls=Command, context_settings=NUMBERS)(calibrate.calibrate)
+app.command(cls=Command)(identification.excite)
+app.command(cls=Command)(identification.identify)
 
 
 def main() -> None:  # pragma: no cover - console entry point

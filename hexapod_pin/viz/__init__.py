@@ -15,4 +15,6 @@ matplotlib figures.
   slices, force capability, design sweeps.
 * :mod:`~hexapod_pin.viz.stiffness_plots`: maps of the weakest stiffness and the lowest
   natural frequency over a slice.
+* :mod:`~hexapod_pin.viz.identification_plots`: dynamic identification: measured
+  against predicted forces, parameter estimates with error bars.
 """

@@ -1,0 +1,232 @@
+"""Estimation of the base parameters from measured states and actuator forces.
+
+Weighted least squares (Gautier's method):
+
+1. the full regressor ``W`` (N n_act, n) of the states (:mod:`.regressor`) and its base
+   columns ``W_b`` (the robot's :func:`~.base.base_parameters`, found on random states,
+   or given); the data must determine every base parameter: the numerical rank of
+   ``W_b`` with unit-norm columns (singular values above :data:`DATA_RTOL` of the
+   largest) must be ``r``, else :class:`~hexapod_pin.errors.IdentifiabilityError` names
+   the base parameters of the undetermined directions;
+2. per-actuator noise ``sigma_i``: given (``noise_std``), or from the least-squares
+   residuals of each actuator, ``sigma_i^2 = |e_i|^2 / (N - r / n_act)``: ordinary least
+   squares first, then re-weighted with the estimate (:data:`NOISE_ITERATIONS` solves in
+   all: a noisy actuator's residual leaks into the others' through the fit);
+3. the rows of actuator ``i`` divided by ``sigma_i``: ``beta = argmin |W_w beta - u_w|``
+   (column-scaled ``lstsq``), covariance ``s^2 (W_w^T W_w)^-1`` with ``s^2 = |e_w|^2 /
+   (N n_act - r)`` (the weights' scale re-estimated: standard errors stay right when the
+   given noise levels are off by a common factor), standard errors its diagonal's roots;
+4. the physically consistent estimate of the full parameters (:mod:`.consistent`) on
+   the same weighted data, started from the nominal robot, and verified: besides the
+   fit's own checks, the identified robot's mass matrix in actuator coordinates at home,
+   ``M_a = G^T (M + diag(armature)) G`` (``G`` the actuated velocity map of
+   :mod:`.regressor`), must be within a factor :data:`MASS_MATRIX_RATIO` of the nominal
+   robot's in every direction (every generalised eigenvalue of the pair in
+   ``[1 / ratio, ratio]``), else :class:`~hexapod_pin.errors.SolverError`. Its distance
+   from the least-squares base parameters (``consistent_gap`` of the result, in standard
+   errors) above :data:`GAP_WARNING` is logged as a warning (logger
+   ``hexapod_pin.identification.estimate``).
+
+:func:`identify` runs the same on a :class:`~.motion_data.MotionData` (positions and
+forces in time) after :func:`~.motion_data.states_from_motion`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+import scipy.linalg
+
+from ..core.checks import as_array, bounds, flag, real_number
+from ..errors import IdentifiabilityError, InputError, SolverError
+from .base import BaseParameters, base_parameters
+from .consistent import PRIOR_WEIGHT, consistent_fit
+from .motion_data import DEFAULT_TRIM, states_from_motion
+from .parameters import DEFAULT_DRIVE, nominal_parameters, tree_with_parameters
+from .regressor import ClosedLoopRegressor
+from .results import ForceResiduals, IdentificationResult
+
+#: estimates of the per-actuator noise: ordinary least squares, then re-weighted
+NOISE_ITERATIONS = 3
+#: relative singular-value threshold of the data's base regressor (unit-norm columns)
+DATA_RTOL = 1e-10
+#: a consistent estimate farther than this from the least-squares one (in standard errors
+#: of a base parameter) is logged as a warning (the least-squares estimate is then not
+#: physically consistent, or the data do not fit the model)
+GAP_WARNING = 3.0
+LOGGER = logging.getLogger(__name__)
+#: the identified robot's actuator-space mass matrix must be within this factor of the
+#: nominal one in every direction (module docstring, step 4)
+MASS_MATRIX_RATIO = 100.0
+
+
+def _check_base(base: object, reg: ClosedLoopRegressor) -> BaseParameters:
+    if not isinstance(base, BaseParameters):
+        raise InputError("base", base, "expected BaseParameters (base_parameters(robot))")
+    if base.layout != reg.layout:
+        raise InputError("base", base, f"its layout {base.layout.drive} does not match "
+                         f"the robot and drive {reg.layout.drive}")
+    return base
+
+
+def _data_rank(wb: np.ndarray, names: tuple[str, ...]) -> None:
+    scaled = wb / np.maximum(np.linalg.norm(wb, axis=0), np.finfo(float).tiny)
+    _, sv, vt = np.linalg.svd(scaled, full_matrices=False)
+    rank = int(np.sum(sv > DATA_RTOL * sv[0])) if sv.size else 0
+    if rank < wb.shape[1]:
+        combos = []
+        for row in vt[rank:][:5]:
+            top = np.argsort(-np.abs(row))[:3]
+            combos.append(" ".join(f"{row[j]:+.2g} {names[j]}" for j in top))
+        raise IdentifiabilityError("the data do not excite every base parameter "
+                                   "(too few samples or too little motion)", wb.shape[1],
+                                   rank, combos)
+
+
+def actuator_mass_matrix(reg: ClosedLoopRegressor, parameters: np.ndarray) -> np.ndarray:
+    """``M_a = G^T (M + diag(armature)) G`` (n_act, n_act) (kg or kg m^2) at the robot's
+    home pose of the robot with the full parameters ``parameters`` (layout of ``reg``;
+    the model's armature on the actuated coordinates replaced by the parameters' when
+    the layout has armature)."""
+    clm = reg.clm
+    home = np.asarray(getattr(reg.robot, "home_pose"), dtype=float)
+    rest = np.zeros(reg.dim)
+    motion = reg.tree_motion(home, rest, rest)
+    tree = tree_with_parameters(clm, parameters)
+    mass = np.array(pin.crba(tree, tree.createData(), motion.q))
+    mass = np.triu(mass) + np.triu(mass, 1).T
+    armature = np.array(clm.effects.armature, dtype=float)
+    if "armature" in reg.layout.drive:
+        armature[clm.actuated_v] = parameters[reg.layout.drive_slice("armature")]
+    gmap = motion.actuated_map
+    return gmap.T @ (mass + np.diag(armature)) @ gmap
+
+
+def _verify_mass_matrix(reg: ClosedLoopRegressor, nominal: np.ndarray,
+                        identified: np.ndarray) -> None:
+    ratios = scipy.linalg.eigvalsh(actuator_mass_matrix(reg, identified),
+                                   actuator_mass_matrix(reg, nominal))
+    if not (np.all(np.isfinite(ratios)) and ratios[0] >= 1.0 / MASS_MATRIX_RATIO
+            and ratios[-1] <= MASS_MATRIX_RATIO):
+        raise SolverError("consistent fit", "unverified", "the identified robot's mass "
+                          "matrix at home is off the nominal one by the factors "
+                          f"{ratios[0]:.3g} .. {ratios[-1]:.3g} (allowed "
+                          f"{1.0 / MASS_MATRIX_RATIO:g} .. {MASS_MATRIX_RATIO:g})")
+
+
+def _solve(mat: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(x, (A^T A)^-1, condition)`` of column-scaled least squares."""
+    norms = np.linalg.norm(mat, axis=0)
+    u_mat, sv, vt = np.linalg.svd(mat / norms, full_matrices=False)
+    y = vt.T @ ((u_mat.T @ rhs) / sv)
+    inv = (vt.T / sv ** 2) @ vt
+    return y / norms, inv / np.outer(norms, norms), float(sv[0] / sv[-1])
+
+
+def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                         twist_dots: npt.ArrayLike, actuator_forces: npt.ArrayLike, *,
+                         drive: object = DEFAULT_DRIVE, base: BaseParameters | None = None,
+                         noise_std: npt.ArrayLike | None = None, consistent: bool = True,
+                         prior: float = PRIOR_WEIGHT,
+                         times: npt.ArrayLike | None = None) -> IdentificationResult:
+    """Identify the base parameters (and a physically consistent robot) from platform
+    states and measured actuator forces (module docstring).
+
+    Args:
+        robot: a robot of the library, the nominal model.
+        poses: (N, dim) platform poses (m, rad).
+        twists: (N, dim) their twists (world axes, m/s, rad/s).
+        twist_dots: (N, dim) the twists' time derivatives (m/s^2, rad/s^2).
+        actuator_forces: (N, n_act) measured (N, N m).
+        drive: the drive parameters (:data:`~.parameters.DRIVE_KINDS`).
+        base: the base parameters (default: :func:`~.base.base_parameters` of the robot).
+        noise_std: force noise per actuator (scalar or (n_act,), > 0); None: estimated.
+        consistent: also fit the physically consistent full parameters.
+        prior: the consistent fit's prior weight (> 0).
+        times: (N,) the samples' times, for error messages.
+
+    Raises:
+        ArgumentTypeError: not a robot of the library.
+        InputError: bad shapes, lengths, NaN / inf, bad options.
+        MotionSampleError: a state out of reach or singular (its row).
+        IdentifiabilityError: the data do not determine every base parameter (with the
+            rank and the undetermined combinations), or fewer rows than parameters.
+        SolverError: the consistent fit failed its checks (step 4 and
+            :mod:`.consistent`).
+    """
+    reg = ClosedLoopRegressor(robot, drive)
+    n_act = reg.n_actuators
+    full = reg.batch(poses, twists, twist_dots, times)
+    n = full.shape[0] // n_act
+    forces = as_array(actuator_forces, (n_act,), "actuator_forces", batch=True)
+    if forces.shape[0] != n:
+        raise InputError("actuator_forces", actuator_forces, f"expected {n} rows (one per "
+                         f"pose), got {forces.shape[0]}")
+    base = base_parameters(robot, reg.layout.drive) if base is None \
+        else _check_base(base, reg)
+    consistent = flag(consistent, "consistent")
+    prior = real_number(prior, "prior", minimum=0.0)
+    r = base.count
+    if full.shape[0] <= r:
+        raise IdentifiabilityError(f"{full.shape[0]} force rows for {r} base parameters",
+                                   r, full.shape[0])
+    wb = base.regressor(full)
+    _data_rank(wb, base.names)
+    u = forces.reshape(-1)
+    if noise_std is None:
+        sigma = np.ones(n_act)
+        for _ in range(NOISE_ITERATIONS):       # OLS, then re-weighted
+            w = np.tile(1.0 / sigma, n)
+            beta_it = _solve(wb * w[:, None], u * w)[0]
+            e = (u - wb @ beta_it).reshape(n, n_act)
+            sigma = np.sqrt(np.sum(e ** 2, axis=0) / max(n - r / n_act, 1.0))
+            sigma = np.maximum(sigma, 1e-12 * max(float(np.max(np.abs(u))), 1e-300))
+    else:
+        sigma = bounds(noise_std, n_act, "noise_std")
+        if not np.all(np.isfinite(sigma)):
+            raise InputError("noise_std", noise_std, "must be finite")
+    weights = np.tile(1.0 / sigma, n)
+    ww, uw = wb * weights[:, None], u * weights
+    beta, inv, cond = _solve(ww, uw)
+    ew = uw - ww @ beta
+    s2 = float(ew @ ew) / (ww.shape[0] - r)
+    cov = s2 * inv
+    nominal = nominal_parameters(robot, reg.layout.drive)
+    beta_nom = base.values(nominal)
+    fit = None
+    if consistent:
+        information = scipy.linalg.qr(ww, mode="r")[0][:r]     # R (r, r)
+        scale = np.linalg.norm(full * weights[:, None], axis=0)
+        fit = consistent_fit(reg.layout, information, base.regrouping, beta, scale,
+                             nominal, prior)
+        _verify_mass_matrix(reg, nominal, fit.parameters)
+    result = IdentificationResult(
+        robot, base, beta, np.sqrt(np.diag(cov)), cov, sigma, beta_nom,
+        ForceResiduals.of((u - wb @ beta_nom).reshape(n, n_act)),
+        ForceResiduals.of((u - wb @ beta).reshape(n, n_act)), cond, fit)
+    gap = result.consistent_gap
+    if gap is not None and gap > GAP_WARNING:
+        LOGGER.warning("the consistent estimate is %.3g standard errors from the "
+                       "least-squares one (above %g): the least-squares estimate is not "
+                       "physically consistent, or the data do not fit the model", gap,
+                       GAP_WARNING)
+    return result
+
+
+def identify(robot: object, data: object, *, cutoff: float | None = None,
+             trim: int | None = DEFAULT_TRIM, **options: object) -> IdentificationResult:
+    """Identify from a measured motion (:class:`~.motion_data.MotionData`): its states
+    by :func:`~.motion_data.states_from_motion` (zero-phase Butterworth at ``cutoff`` Hz,
+    default a fifth of the Nyquist frequency; ``trim`` samples dropped at each end,
+    default three periods of the cut-off), then
+    :func:`identify_from_states` with ``options`` (``drive``, ``base``, ``noise_std``,
+    ``consistent``, ``prior``). Errors as both."""
+    st = states_from_motion(robot, data, cutoff, trim)
+    result = identify_from_states(robot, st.poses, st.twists, st.twist_dots,
+                                  st.actuator_forces, times=st.times,
+                                  **options)   # type: ignore[arg-type]
+    return dataclasses.replace(result, cutoff=cutoff, trim=trim)
