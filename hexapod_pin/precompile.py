@@ -35,7 +35,6 @@ from .hexapod import workspace
 from .hexapod.fast import INTEGRATORS, simulate_fast
 from .hexapod.robot import Hexapod
 from .planar.robot import Planar3PRR
-from .planning import Limits, time_optimal
 
 #: a progress callback ``update(done, total)`` (steps of :func:`warmup`)
 Progress = Callable[[int, int], object]
@@ -185,6 +184,8 @@ def _simulators(robot: Hexapod) -> None:
 
 
 def _planning(robot: Hexapod) -> None:
+    from .planning import Limits, time_optimal      # optional part: not at a bare import
+
     waypoints = robot.home_pose + np.array([[0.0] * 6, [0.01, 0.0, 0.005, 0.0, 0.0, 0.02]])
     time_optimal(robot, waypoints, limits=Limits(actuator_force=60.0), grid_points=5)
 
