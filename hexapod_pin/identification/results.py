@@ -84,7 +84,8 @@ class IdentificationResult:
         after: residuals of the estimate on the data.
         condition_number: of the weighted base regressor with unit-norm columns.
         consistent: the physically consistent estimate (None when not asked for).
-        cutoff, trim: the filter settings used for motion data (None for states).
+        cutoff: the filter's cut-off used for motion data (None for states).
+        trim: the samples dropped at each end of motion data (None for states).
     """
 
     robot: object
