@@ -6,7 +6,8 @@ first calls of a session take seconds to minutes each. :func:`warmup` pays that 
 front, by running each family of kernels on small inputs: the hexapod's and the planar
 robot's closed forms (single state and batches, both the serial and the parallel
 compilation of every batch loop), the hexapod's compiled simulator (every integrator),
-the time-optimal planner, and the tree routes of a robot loaded from a description. A
+the time-optimal planner, and the tree routes of a robot loaded from a description (the
+forward-dynamics derivatives included, both factor routes: independent and redundant rows). A
 warm cache makes it take about a second. ``hexapod-pin warmup`` runs it with a progress bar.
 """
 
@@ -26,6 +27,7 @@ from numba.core.dispatcher import Dispatcher
 from .core.batching import BatchDriver
 from .core.compiled import COMPILE_NOTICE, PACKAGE_DIR, compiled_modules, kernel_name
 from .core.dynamics import inverse_dynamics_tree
+from .core.dynamics_derivatives import forward_dynamics_derivatives_tree
 from .core.integrator_kernels import normalise_pairs
 from .core.robot import ClosedLoopRobot
 from .core.robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS, ParallelRobot
@@ -121,6 +123,7 @@ def _hexapod_single(robot: Hexapod) -> None:
     robot.reduced_dynamics(pose, twist)
     robot.energies(pose, twist)
     robot.inverse_dynamics_derivatives(pose, twist, acc)
+    robot.forward_dynamics_derivatives(pose, twist, result.actuator_forces)  # independent rows
     poses = np.repeat(pose[None, :], 2, axis=0)
     workspace.evaluate(robot, poses)
     workspace.leg_reachable(robot, poses)
@@ -200,6 +203,7 @@ def _tree_routes(planar: Planar3PRR) -> None:
         robot.inverse_dynamics(pose, twist, twist, method=method)
     for method in FORWARD_DYNAMICS_METHODS:
         robot.forward_dynamics(pose, twist, tau, method=method)
+    robot.forward_dynamics_derivatives(pose, twist, tau)     # redundant rows: the SVD route
     robot.inverse_dynamics_batch(pose[None, :], twist[None, :], twist[None, :])
     model, q = robot.model, robot.home_configuration
     model.velocity_from_actuated(q, np.full(model.n_actuated, 0.01))
@@ -214,6 +218,7 @@ def _tree_routes(planar: Planar3PRR) -> None:
     rest = np.zeros(model.nv)
     for method, bounds in (("kkt", None), ("qp", None), ("qp", 1e3)):
         inverse_dynamics_tree(model, q, rest, rest, bounds=bounds, method=method)
+    forward_dynamics_derivatives_tree(model, q, rest, np.zeros(model.n_actuated))
     normalise_pairs(np.array([1.0, 0.0]), np.zeros(1, dtype=np.int64))  # quaternion-free here
 
 

@@ -97,14 +97,14 @@ def row_basis(jac: np.ndarray, rtol: float = ROW_RTOL) -> RowBasis:
         SolverError: non-finite entries in ``jac``.
     """
     jac = np.ascontiguousarray(jac, dtype=float)
-    rank, piv, q_mat, pinv = _basis_kernel(jac, rtol)
+    rank, piv, q_mat, pinv = row_basis_kernel(jac, rtol)
     if rank < 0:
         raise SolverError("closure row basis", "non-finite", "NaN or inf in the Jacobian")
     return RowBasis(piv[:rank], q_mat[:, :rank], q_mat[:, rank:], pinv)
 
 
 @jit
-def _basis_kernel(jac, rtol):
+def row_basis_kernel(jac, rtol):
     """(rank or -1 when not finite, pivots, Q (n, n), right inverse (n, rank)) of
     :func:`row_basis`."""
     m_rows, n = jac.shape
@@ -114,17 +114,19 @@ def _basis_kernel(jac, rtol):
     vecs = np.zeros((n, steps))
     betas = np.zeros(steps)
     q_mat = np.eye(n)
+    norms2, dots = np.zeros(m_rows), np.zeros(m_rows)
     if not np.all(np.isfinite(a)):
         return -1, piv, q_mat, np.zeros((n, 0))
     rank, first = 0, 0.0
     for j in range(steps):
         best, where = -1.0, j
+        norms2[j:] = 0.0                              # rows of a are contiguous
+        for i in range(j, n):
+            for c in range(j, m_rows):
+                norms2[c] += a[i, c] * a[i, c]
         for c in range(j, m_rows):
-            norm2 = 0.0
-            for i in range(j, n):
-                norm2 += a[i, c] * a[i, c]
-            if norm2 > best:
-                best, where = norm2, c
+            if norms2[c] > best:
+                best, where = norms2[c], c
         if where != j:
             for i in range(n):
                 a[i, j], a[i, where] = a[i, where], a[i, j]
@@ -141,24 +143,25 @@ def _basis_kernel(jac, rtol):
         for i in range(v.shape[0]):
             vnorm2 += v[i] * v[i]
         beta = 2.0 / vnorm2 if vnorm2 > 0.0 else 0.0
-        for c in range(j, m_rows):
-            dot = 0.0
-            for i in range(v.shape[0]):
-                dot += v[i] * a[j + i, c]
-            dot *= beta
-            for i in range(v.shape[0]):
-                a[j + i, c] -= dot * v[i]
+        dots[j:] = 0.0
+        for i in range(v.shape[0]):
+            for c in range(j, m_rows):
+                dots[c] += v[i] * a[j + i, c]
+        for i in range(v.shape[0]):
+            for c in range(j, m_rows):
+                a[j + i, c] -= beta * dots[c] * v[i]
         vecs[j:, j] = v
         betas[j] = beta
         rank += 1
+    qdots = np.empty(n)
     for j in range(rank - 1, -1, -1):                 # Q = H_0 H_1 ... H_(rank-1)
-        for c in range(n):
-            dot = 0.0
-            for i in range(j, n):
-                dot += vecs[i, j] * q_mat[i, c]
-            dot *= betas[j]
-            for i in range(j, n):
-                q_mat[i, c] -= dot * vecs[i, j]
+        qdots[:] = 0.0
+        for i in range(j, n):
+            for c in range(n):
+                qdots[c] += vecs[i, j] * q_mat[i, c]
+        for i in range(j, n):
+            for c in range(n):
+                q_mat[i, c] -= betas[j] * qdots[c] * vecs[i, j]
     # right inverse Q1 R11^-T: each of its rows y solves y R11^T = (that row of Q1)
     pinv = np.zeros((n, rank))
     for row in range(n):

@@ -1,8 +1,13 @@
 """Compiled (numba) kernels of :mod:`hexapod_pin.core.dynamics_derivatives`: the motion of
 many frames and its partial derivatives from the world joint Jacobian of the tree
-(:func:`frame_rates_kernel`), and the null-space factor of the linearised KKT system
-(:func:`reduced_gain_kernel`). The formulas: the docstrings of ``frame_rates`` and
-``KKTLinearization`` and ``docs/derivations.md`` section 8.1.
+(:func:`frame_rates_kernel`), the closures' rows among them (:func:`closure_rows_kernel`)
+and the closure forces on the anchors' joints (:func:`anchor_forces_kernel`), the null-space
+factor of the linearised KKT system
+(:func:`reduced_gain_kernel`), and the chain after Pinocchio's RNEA derivatives: the
+partials ``E_q``, ``E_v`` with the point closures' force turning and the factorisation
+(:func:`linearize_kernel`), the verified solve of the linearised KKT system
+(:func:`kkt_solve_kernel`, :func:`kkt_along_kernel`). The formulas: the docstrings of
+``frame_rates`` and ``KKTLinearization`` and ``docs/derivations.md`` section 8.1.
 
 Conventions: spatial motions are ``(linear, angular)``; ``J`` is Pinocchio's world-axes
 joint Jacobian (``data.J`` of any pass at ``q``), passed transposed (nv, 6); the frame
@@ -15,6 +20,7 @@ import math
 
 import numpy as np
 
+from .closure_motion import row_basis_kernel
 from .compiled import jit
 
 
@@ -197,3 +203,161 @@ def reduced_gain_kernel(basis, mass, gain):
                 s -= gain[r, p] * low[j, p]
             gain[r, j] = s / low[j, j]
     return 0
+
+
+@jit
+def _max_abs(x):
+    """Largest absolute entry of the 2-D ``x`` (0 when empty, NaN when any is NaN), as
+    :func:`~hexapod_pin.core.checks.max_abs`."""
+    out = 0.0
+    for i in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            val = abs(x[i, j])
+            if math.isnan(val):
+                return val
+            out = max(out, val)
+    return out
+
+
+#: :func:`linearize_kernel`'s statuses: factored; ``N^T M N`` not positive definite;
+#: rows not independent (or none: the caller's SVD route); NaN / inf in ``J_c``
+LINEARIZED, NOT_POSITIVE, DEPENDENT_ROWS, NOT_FINITE = 0, 1, 2, 3
+
+
+@jit
+def point_turning_kernel(anchor_jac, forces, point_rows, point_anchors, out):
+    """``out -= sum_k (J1_lin^T [l_k]_x J1_ang - J2_lin^T [l_k]_x J2_ang)`` (nv, nv): the
+    world-held point closure forces ``l_k = forces[point_rows[3k:3k+3]]`` turning with
+    their anchors (world Jacobians ``anchor_jac[point_anchors[2k]]`` and ``[2k+1]``, of
+    ``anchor_jac`` (2 n, 6, nv))."""
+    nv = out.shape[1]
+    turned = np.empty((3, nv))
+    for k in range(point_rows.shape[0] // 3):
+        l0, l1, l2 = forces[point_rows[3 * k]], forces[point_rows[3 * k + 1]], \
+            forces[point_rows[3 * k + 2]]
+        for side in range(2):
+            anchor = point_anchors[2 * k + side]
+            sign = 1.0 if side == 0 else -1.0
+            for c in range(nv):                  # [l]_x J_ang
+                turned[0, c], turned[1, c], turned[2, c] = _cross(
+                    l0, l1, l2, anchor_jac[anchor, 3, c], anchor_jac[anchor, 4, c],
+                    anchor_jac[anchor, 5, c])
+            for r in range(nv):                  # - sign J_lin^T [l]_x J_ang
+                j0 = sign * anchor_jac[anchor, 0, r]
+                j1 = sign * anchor_jac[anchor, 1, r]
+                j2 = sign * anchor_jac[anchor, 2, r]
+                if j0 == 0.0 and j1 == 0.0 and j2 == 0.0:
+                    continue
+                for c in range(nv):
+                    out[r, c] -= j0 * turned[0, c] + j1 * turned[1, c] + j2 * turned[2, c]
+
+
+@jit
+def linearize_kernel(mass_up, dtau_dq, dtau_dv, anchor_jac, forces, point_rows,
+                     point_anchors, damping, jac, rtol, mass, e_q, e_v):
+    """The partials of ``E`` and the factors of ``KKTLinearization`` from Pinocchio's
+    ``computeRNEADerivatives`` (``dtau_dq``, ``dtau_dv`` (nv, nv), ``mass_up``: ``M``
+    filled on and above its diagonal) with the closure forces as external forces.
+
+    Writes ``mass`` (symmetric ``M``), ``e_v = dtau_dv + diag(damping)`` and ``e_q =
+    dtau_dq -`` the point forces' turning (:func:`point_turning_kernel`). Then factors
+    ``J_c`` (``jac`` (n_rows, nv)): the pivoted QR of
+    :func:`~hexapod_pin.core.closure_motion.row_basis_kernel` (``rtol``), and, when
+    every row is independent, the null-space basis ``N``, ``J_c^+`` and ``G = N L^-T``
+    (:func:`reduced_gain_kernel`).
+
+    Returns ``(status, N, J_c^+, G, max |M|, max |J_c|)``, status one of
+    :data:`LINEARIZED`, :data:`NOT_POSITIVE`, :data:`DEPENDENT_ROWS` (the factors then
+    empty), :data:`NOT_FINITE`."""
+    nv = mass.shape[0]
+    for i in range(nv):
+        for j in range(nv):
+            mass[i, j] = mass_up[i, j] if j >= i else mass_up[j, i]
+            e_q[i, j] = dtau_dq[i, j]
+            e_v[i, j] = dtau_dv[i, j]
+        e_v[i, i] += damping[i]
+    point_turning_kernel(anchor_jac, forces, point_rows, point_anchors, e_q)
+    n_rows = jac.shape[0]
+    norm_m, norm_j = _max_abs(mass), _max_abs(jac)
+    empty = np.zeros((nv, 0))
+    if n_rows == 0 or n_rows > nv:
+        return DEPENDENT_ROWS, empty, empty, empty, norm_m, norm_j
+    rank, piv, q_mat, right = row_basis_kernel(jac, rtol)
+    if rank < 0:
+        return NOT_FINITE, empty, empty, empty, norm_m, norm_j
+    if rank < n_rows:
+        return DEPENDENT_ROWS, empty, empty, empty, norm_m, norm_j
+    basis = np.ascontiguousarray(q_mat[:, rank:])
+    pinv = np.empty((nv, n_rows))
+    for i in range(rank):                        # J_c[rows] pinv = I, in range(J_c^T)
+        pinv[:, piv[i]] = right[:, i]
+    gain = np.empty(basis.shape)
+    if reduced_gain_kernel(basis, mass, gain):
+        return NOT_POSITIVE, basis, pinv, gain, norm_m, norm_j
+    return LINEARIZED, basis, pinv, gain, norm_m, norm_j
+
+
+@jit
+def kkt_solve_kernel(mass, jac, pinv, gain, norm_m, norm_j, rhs_e, rhs_c):
+    """``(da, dlambda, eom, con)``: ``M da - J_c^T dlambda = rhs_e``, ``J_c da = rhs_c``
+    ((nv, k), (n_rows, k)) by ``da = J_c^+ rhs_c + G G^T (rhs_e - M J_c^+ rhs_c)``,
+    ``dlambda = J_c^+T (M da - rhs_e)``, and the two residuals relative to ``max(1, |rhs|,
+    |M| |da|)`` and ``max(1, |rhs_c|, |J_c| |da|)`` (``max |M|``, ``max |J_c|``: ``norm_m``,
+    ``norm_j``; max-abs norms) that the caller checks."""
+    da_p = pinv @ rhs_c
+    da = da_p + gain @ (gain.T @ (rhs_e - mass @ da_p))
+    force = mass @ da - rhs_e
+    dlam = pinv.T @ force
+    size = _max_abs(da)
+    eom = _max_abs(force - jac.T @ dlam) / max(1.0, _max_abs(rhs_e), norm_m * size)
+    con = _max_abs(jac @ da - rhs_c) / max(1.0, _max_abs(rhs_c), norm_j * size)
+    return da, dlam, eom, con
+
+
+@jit
+def kkt_along_kernel(e_q, e_v, c_q, c_v, mass, jac, pinv, gain, norm_m, norm_j, dq, dv,
+                     force):
+    """:func:`kkt_solve_kernel` along state directions ``(dq, dv)`` (nv, k) with the
+    generalised forces ``force`` (nv, k): ``rhs_e = force - E_q dq - E_v dv``, ``rhs_c =
+    -(C_q dq + C_v dv)``."""
+    rhs_e = force - e_q @ dq - e_v @ dv
+    rhs_c = -(c_q @ dq) - c_v @ dv
+    return kkt_solve_kernel(mass, jac, pinv, gain, norm_m, norm_j, rhs_e, rhs_c)
+
+
+@jit
+def closure_rows_kernel(acc_q, acc_v, jac, vel_q, rows1, rows2):
+    """``(acc_q, acc_v, jac, vel_q)`` (n_rows, nv) of the closures: the rows ``rows1`` minus
+    the rows ``rows2`` of the same fields (n, 6, nv) of the anchors' frame rates, rows
+    counted in the flattened (6 n, nv) fields."""
+    nv = acc_q.shape[2]
+    n_rows = rows1.shape[0]
+    out_q, out_v = np.empty((n_rows, nv)), np.empty((n_rows, nv))
+    out_j, out_vq = np.empty((n_rows, nv)), np.empty((n_rows, nv))
+    for i in range(n_rows):
+        f1, r1, f2, r2 = rows1[i] // 6, rows1[i] % 6, rows2[i] // 6, rows2[i] % 6
+        for c in range(nv):
+            out_q[i, c] = acc_q[f1, r1, c] - acc_q[f2, r2, c]
+            out_v[i, c] = acc_v[f1, r1, c] - acc_v[f2, r2, c]
+            out_j[i, c] = jac[f1, r1, c] - jac[f2, r2, c]
+            out_vq[i, c] = vel_q[f1, r1, c] - vel_q[f2, r2, c]
+    return out_q, out_v, out_j, out_vq
+
+
+@jit
+def anchor_forces_kernel(rot, forces, point_rows, point_anchors, local, to_joints):
+    """The anchors' spatial forces summed on their joints, (n_touched, 6) ``to_joints @
+    local``: ``local`` (2 n, 6) (each anchor's axes; a weld's already set) gets a point
+    closure's ``R1^T l_k`` on anchor 1 and ``-R2^T l_k`` on anchor 2 (``l_k =
+    forces[point_rows[3k:3k+3]]`` in world axes, ``rot`` (2 n, 3, 3) the anchors' world
+    rotations, anchors ``point_anchors[2k]``, ``[2k+1]``)."""
+    for k in range(point_rows.shape[0] // 3):
+        l0, l1, l2 = forces[point_rows[3 * k]], forces[point_rows[3 * k + 1]], \
+            forces[point_rows[3 * k + 2]]
+        for side in range(2):
+            anchor = point_anchors[2 * k + side]
+            sign = 1.0 if side == 0 else -1.0
+            for r in range(3):
+                local[anchor, r] = sign * (rot[anchor, 0, r] * l0 + rot[anchor, 1, r] * l1
+                                           + rot[anchor, 2, r] * l2)
+    return (to_joints @ local.reshape(-1)).reshape(-1, 6)

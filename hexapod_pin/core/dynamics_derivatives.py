@@ -45,8 +45,20 @@ import pinocchio as pin
 from ..errors import InputError, SingularityError, SolverError
 from .checks import as_array, max_abs
 from .closed_loop import RANK_RTOL, ClosedLoopModel
-from .closure_motion import FULL_RANK_RTOL, row_basis
-from .derivative_kernels import frame_rates_kernel, reduced_gain_kernel
+from .closure_motion import FULL_RANK_RTOL
+from .derivative_kernels import (
+    DEPENDENT_ROWS,
+    NOT_FINITE,
+    NOT_POSITIVE,
+    anchor_forces_kernel,
+    closure_rows_kernel,
+    frame_rates_kernel,
+    kkt_along_kernel,
+    kkt_solve_kernel,
+    linearize_kernel,
+    point_turning_kernel,
+    reduced_gain_kernel,
+)
 from .dynamics import forward_dynamics_tree
 from .effects import JointEffects, at_rest, passive_forces
 from .pose import skew
@@ -206,11 +218,8 @@ def closure_rates(clm: ClosedLoopModel, data: pin.Data, v: np.ndarray,
         raise InputError("q", q, f"{clm.name} has joint couplings: their rows need q")
     lay = layout_of(clm)
     rates = frame_rates(clm.model, data, lay.frame_set, v, a, lay.world)
-    nv = clm.model.nv
-    out = []
-    for field in (rates.acc_q, rates.acc_v, rates.jac, rates.vel_q):
-        flat = field.reshape(-1, nv)
-        out.append(flat[lay.rows1] - flat[lay.rows2])
+    out = list(closure_rows_kernel(rates.acc_q, rates.acc_v, rates.jac, rates.vel_q,
+                                   lay.rows1, lay.rows2))
     for k, c in lay.welds:
         _weld_rows(rates, 2 * k, relative_action(data, c.frame1, c.frame2),
                    [arr[c.rows] for arr in out])
@@ -343,22 +352,17 @@ class Layout:
         each ``(frame, (f, m))``: force and moment (world axes, moment about the frame
         origin) on that frame. ``data``: frame placements; ``rot``: the anchors' world
         rotations (2 n, 3, 3) when known (else read from ``data``)."""
-        n = len(self.anchors)
-        local = np.zeros((n, 6))               # in each anchor's axes
-        pts = self.point_anchors
-        if pts.size:
-            if rot is None:
-                rot = np.array([data.oMf[self.anchors[k]].rotation for k in pts])
-            else:
-                rot = rot[pts]
-            lam = np.repeat(multipliers[self.point_rows].reshape(-1, 3), 2, axis=0)
-            lam[1::2] *= -1.0
-            local[pts, :3] = (np.swapaxes(rot, 1, 2) @ lam[:, :, None])[..., 0]
+        local = np.zeros((len(self.anchors), 6))        # in each anchor's axes
+        if rot is None and self.point_anchors.size:
+            rot = np.array([data.oMf[f].rotation for f in self.anchors])
         for k, c in self.welds:   # mu on anchor 1, -Ad(M12)^T mu on anchor 2 (J_rel^T mu)
             lam = multipliers[c.rows]
             local[2 * k] = lam
             local[2 * k + 1] = -(relative_action(data, c.frame1, c.frame2).T @ lam)
-        per_touched = (self._to_joints @ local.reshape(-1)).reshape(-1, 6)
+        per_touched = anchor_forces_kernel(np.zeros((0, 3, 3)) if rot is None else rot,
+                                           np.asarray(multipliers, dtype=float),
+                                           self.point_rows, self.point_anchors, local,
+                                           self._to_joints)
         views = self._fext_views
         for j, wrench in zip(self._touched, per_touched):
             views[j][:] = wrench
@@ -447,11 +451,11 @@ def point_force_turning(clm: ClosedLoopModel, multipliers: np.ndarray,
     lay = layout_of(clm)
     if not lay.point_rows.size:
         return 0.0
-    nv = clm.model.nv
-    turn = skew(multipliers[lay.point_rows].reshape(-1, 3))
-    j1, j2 = anchor_jac[lay.point_anchors[0::2]], anchor_jac[lay.point_anchors[1::2]]
-    return (j1[:, :3].reshape(-1, nv).T @ (turn @ j1[:, 3:]).reshape(-1, nv)
-            - j2[:, :3].reshape(-1, nv).T @ (turn @ j2[:, 3:]).reshape(-1, nv))
+    out = np.zeros((clm.model.nv, clm.model.nv))
+    point_turning_kernel(np.ascontiguousarray(anchor_jac, dtype=float),
+                         np.asarray(multipliers, dtype=float), lay.point_rows,
+                         lay.point_anchors, out)
+    return -out
 
 
 def weld_force_turning(clm: ClosedLoopModel, data: pin.Data, multipliers: np.ndarray,
@@ -511,6 +515,12 @@ def closure_force_derivative(clm: ClosedLoopModel, data: pin.Data, q: np.ndarray
     return gravity - with_forces + turning
 
 
+def _matrix(x: npt.ArrayLike) -> np.ndarray:
+    """``x`` as a C-contiguous float (n, k) matrix (a vector (n,) as one column)."""
+    x = np.asarray(x, dtype=float)
+    return np.ascontiguousarray(x if x.ndim == 2 else x.reshape(x.shape[0], -1))
+
+
 class KKTLinearization:
     """The linearised KKT system of one forward-dynamics solution (module docstring).
 
@@ -549,27 +559,25 @@ class KKTLinearization:
         self.frames = frame_rates(model, data, frame_set(clm, frames), v, a,
                                   np.ones(len(frames), dtype=bool)) if len(frames) else None
         # E: rnea with the closure forces as external forces, their turning, the effects
-        forces = self._forces = weld_multipliers(clm, data, multipliers)
-        fext = layout_of(clm).joint_forces(clm, forces, data, wrenches, rates.anchors.rot)
+        lay = layout_of(clm)
+        forces = weld_multipliers(clm, data, multipliers)
+        fext = lay.joint_forces(clm, forces, data, wrenches, rates.anchors.rot)
         dtau_dq, dtau_dv, mass = pin.computeRNEADerivatives(model, data, q, v, a, fext)
-        self.mass = np.where(layout_of(clm).upper, mass, mass.T)
-        self.e_q = np.array(dtau_dq) - self._turning(rates.anchors.jac) \
-            - self._wrench_turning(wrenches)
-        self.e_v = np.array(dtau_dv)
+        nv, eff = model.nv, clm.effects
+        self.mass, self.e_q, self.e_v = np.empty((nv, nv)), np.empty((nv, nv)), np.empty((nv, nv))
+        # M, E_q, E_v with the point forces' turning and damping, then the factors: compiled
+        status, basis, pinv, gain, norm_m, norm_j = linearize_kernel(
+            mass, dtau_dq, dtau_dv, rates.anchors.jac, forces, lay.point_rows,
+            lay.point_anchors, eff.damping, self.jac, FULL_RANK_RTOL, self.mass, self.e_q,
+            self.e_v)
+        if lay.welds or wrenches:
+            self.e_q -= weld_force_turning(clm, data, forces, rates.anchors.jac) \
+                + self._wrench_turning(wrenches)
         if couplings is not None:   # -d(J^T lambda)/dq of the couplings' forces
             self.e_q -= couplings.transpose_force_dq(q, multipliers[clm.n_closure_rows:])
-        eff = clm.effects
-        if eff.damping.any():
-            self.e_v[np.diag_indices(model.nv)] += eff.damping
         if eff.stiffness.any():
             self.e_q -= spring_jacobian(model, eff, q)
-        self._factor()
-
-    def _turning(self, anchor_jac: np.ndarray) -> np.ndarray | float:
-        """:func:`point_force_turning` and :func:`weld_force_turning` of the closure
-        forces."""
-        return point_force_turning(self.clm, self._forces, anchor_jac) + \
-            weld_force_turning(self.clm, self.data, self._forces, anchor_jac)
+        self._factor(status, basis, pinv, gain, (norm_m, norm_j))
 
     def _wrench_turning(self, wrenches: Sequence[tuple[int, np.ndarray]]) -> np.ndarray | float:
         """The turning of world-fixed frame wrenches ``(f, m)`` (as :meth:`_turning`):
@@ -582,37 +590,40 @@ class KKTLinearization:
                 + jac[3:].T @ skew(wrench[3:]) @ jac[3:]
         return out
 
-    def _factor(self) -> None:
+    def _factor(self, status: int, basis: np.ndarray, pinv: np.ndarray, gain: np.ndarray,
+                norms: tuple[float, float]) -> None:
         """The null-space basis, ``J_c^+`` and the inverse Cholesky factor of ``N^T M N``:
-        the compiled pivoted QR of ``J_c^T``
-        (:func:`~hexapod_pin.core.closure_motion.row_basis`) when its rows are independent
-        (every pivot above FULL_RANK_RTOL times the first), else an SVD (rank to
-        :data:`~hexapod_pin.core.closed_loop.RANK_RTOL`)."""
+        those of :func:`~hexapod_pin.core.derivative_kernels.linearize_kernel` (the
+        compiled pivoted QR of ``J_c^T``) when its rows are independent (every pivot above
+        FULL_RANK_RTOL times the first), else an SVD (rank to
+        :data:`~hexapod_pin.core.closed_loop.RANK_RTOL`) and
+        :func:`~hexapod_pin.core.derivative_kernels.reduced_gain_kernel`."""
         nv, jac = self.model.nv, self.jac
         n_rows = jac.shape[0]
+        self._norms = norms                                  # of the residual checks
         #: the orthonormal basis (n_rows, rank) of range(J_c) (its complement: the
         #: multipliers that do no work); empty when the rows are independent
         self._left = np.zeros((n_rows, 0))
-        rows = row_basis(jac, FULL_RANK_RTOL) if 0 < n_rows <= nv else None
-        if not n_rows:
-            rank, self.basis, self._pinv = 0, np.eye(nv), np.zeros((nv, 0))
-        elif rows is not None and rows.rows.size == n_rows:
-            rank, self.basis = n_rows, rows.null
-            self._pinv = np.empty((nv, n_rows))
-            self._pinv[:, rows.rows] = rows.pinv     # J_c[rows] pinv = I, in range(J_c^T)
+        if status == NOT_FINITE:
+            raise SolverError("closure row basis", "non-finite", "NaN or inf in the Jacobian")
+        if status == DEPENDENT_ROWS:
+            if not n_rows:
+                rank, basis, pinv = 0, np.eye(nv), np.zeros((nv, 0))
+            else:
+                u_mat, sv, vt = np.linalg.svd(jac)
+                tol = max(RANK_RTOL * sv[0], max(jac.shape) * np.finfo(float).eps)
+                rank = int(np.sum(sv > tol))
+                self._left = u_mat[:, :rank]
+                pinv = (vt[:rank].T / sv[:rank]) @ u_mat[:, :rank].T
+                basis = np.ascontiguousarray(vt[rank:].T)
+            gain = np.empty(basis.shape)
+            status = reduced_gain_kernel(basis, self.mass, gain)
         else:
-            u_mat, sv, vt = np.linalg.svd(jac)
-            tol = max(RANK_RTOL * sv[0], max(jac.shape) * np.finfo(float).eps)
-            rank = int(np.sum(sv > tol))
-            self._left = u_mat[:, :rank]
-            self._pinv = (vt[:rank].T / sv[:rank]) @ u_mat[:, :rank].T
-            self.basis = vt[rank:].T
-        self.rank = rank
-        self._norms = (max_abs(self.mass), max_abs(jac))     # of the residual checks
+            rank = n_rows
+        self.rank, self.basis, self._pinv = rank, basis, pinv
         #: ``G = N L^-T`` (nv, m), ``N^T M N = L L^T``: ``G G^T = N (N^T M N)^-1 N^T``
-        self.basis = np.ascontiguousarray(self.basis)
-        self._gain = np.empty(self.basis.shape)
-        if reduced_gain_kernel(self.basis, self.mass, self._gain):
+        self._gain = gain
+        if status == NOT_POSITIVE:
             raise SingularityError("mass matrix on the closures' null space (N^T M N not "
                                    "positive definite: massless motion)", 0.0, None,
                                    "Cholesky pivot")
@@ -634,21 +645,20 @@ class KKTLinearization:
             SolverError: a residual above :data:`DERIVATIVE_SOLVE_RTOL` (relative), e.g. a
                 ``rhs_c`` outside the range of ``J_c`` (a direction off the closures).
         """
-        da_p = self.pinv(rhs_c)
-        gain = self._gain
-        da = da_p + gain @ (gain.T @ (rhs_e - self.mass @ da_p))
-        force = self.mass @ da - rhs_e
-        dlam = self._pinv_t(force)
-        size = max_abs(da)
-        scale = max(1.0, max_abs(rhs_e), self._norms[0] * size)
-        eom = max_abs(force - self.jac.T @ dlam) / scale
-        con = max_abs(self.jac @ da - rhs_c) / max(1.0, max_abs(rhs_c), self._norms[1] * size)
+        da, dlam, eom, con = kkt_solve_kernel(self.mass, self.jac, self._pinv, self._gain,
+                                              *self._norms, _matrix(rhs_e), _matrix(rhs_c))
+        self._check(eom, con)
+        return (da, dlam) if np.ndim(rhs_e) == 2 else (da[:, 0], dlam[:, 0])
+
+    @staticmethod
+    def _check(eom: float, con: float) -> None:
+        """Raises SolverError when a relative residual of a solve is above
+        :data:`DERIVATIVE_SOLVE_RTOL` (or NaN)."""
         if not (eom <= DERIVATIVE_SOLVE_RTOL and con <= DERIVATIVE_SOLVE_RTOL):
             raise SolverError("forward-dynamics derivatives", "unverified",
                               f"linearised equation of motion residual {eom:.3e}, closure "
                               f"residual {con:.3e} (relative, tolerance "
                               f"{DERIVATIVE_SOLVE_RTOL:g})")
-        return da, dlam
 
     def transport(self, dq: np.ndarray) -> np.ndarray:
         """``dv`` (nv, k) carrying ``v`` along ``dq`` (nv, k) by its Euclidean projection
@@ -664,13 +674,16 @@ class KKTLinearization:
         With redundant rows the minimum-norm multipliers also turn with the range of
         ``J_c``: ``dlambda`` gets ``P dJ_c[dq] J_c^+ lambda`` (``P`` the projector on
         ``null(J_c^T)``)."""
-        rhs_e = -(self.e_q @ dq + self.e_v @ dv)
-        if force is not None:
-            rhs_e += force
-        da, dlam = self.solve(rhs_e, -(self.c_q @ dq + self.c_v @ dv))
+        vector = np.ndim(dq) == 1
+        dq, dv = _matrix(dq), _matrix(dv)
+        force = np.zeros(dq.shape) if force is None else _matrix(force)
+        da, dlam, eom, con = kkt_along_kernel(self.e_q, self.e_v, self.c_q, self.c_v, self.mass,
+                                              self.jac, self._pinv, self._gain, *self._norms,
+                                              dq, dv, force)
+        self._check(eom, con)
         if self.rank < self.clm.n_rows and dq.any():
             dlam += self._range_turn(dq)
-        return da, dlam
+        return (da[:, 0], dlam[:, 0]) if vector else (da, dlam)
 
     def _range_turn(self, dq: np.ndarray) -> np.ndarray:
         """``P dJ_c[dq] J_c^+ lambda`` (n_rows, k): the closure rates at the velocity ``w =

@@ -36,6 +36,7 @@ import robot_registry
 
 import hexapod_pin as hp
 from hexapod_pin.calibration import random_as_built
+from hexapod_pin.core import derivative_kernels as dk
 from hexapod_pin.core.derivative_kernels import reduced_gain_kernel
 from hexapod_pin.core.dynamics import forward_dynamics_tree
 from hexapod_pin.core.dynamics_derivatives import (
@@ -234,12 +235,110 @@ def test_reduced_gain_against_numpy_and_its_refusal():
     assert abs(basis[:, 0] @ massless @ basis[:, 0]) < 1e-12
     assert reduced_gain_kernel(basis, massless, gain) == 1
     assert reduced_gain_kernel(basis, np.full((nv, nv), np.nan), gain) == 1
-    robot = robot_registry.get("four-bar")
+
+@pytest.mark.parametrize("name", ["four-bar", "hexapod"])
+def test_a_massless_null_space_is_refused(name, monkeypatch):
+    """KKTLinearization turns a refused Cholesky into a SingularityError, on the SVD route
+    of redundant rows (four-bar) and the compiled QR route (hexapod): Pinocchio's mass
+    matrix replaced by zeros."""
+    robot = robot_registry.get(name)
     clm, q = robot.model, robot.home_configuration
-    lin = linearize_tree(clm, q, np.zeros(clm.nv), np.zeros(clm.n_actuated))
-    lin.mass = np.zeros_like(lin.mass)
+    rnea_derivatives = pin.computeRNEADerivatives
+
+    def massless(*args):
+        dq, dv, mass = rnea_derivatives(*args)
+        return dq, dv, np.zeros_like(mass)
+    monkeypatch.setattr(pin, "computeRNEADerivatives", massless)
     with pytest.raises(SingularityError, match="null space"):
-        lin._factor()
+        linearize_tree(clm, q, np.zeros(clm.nv), np.zeros(clm.n_actuated))
+
+
+def test_compiled_linearisation_kernels_against_numpy():
+    """The compiled pieces of KKTLinearization against numpy written here: the point
+    forces' turning (einsum), the closure rows and anchor forces (fancy indexing), the
+    factors of linearize_kernel (J N = 0, N^T N = I, J J^+ = I, G G^T = N (N^T M N)^-1
+    N^T) and its statuses (dependent rows, NaN, no mass), and the verified solve against a
+    dense KKT solve (numpy lstsq) with its residuals."""
+    rng = np.random.default_rng(3)
+    nv, n_pts = 9, 2
+    anchor_jac = rng.normal(size=(2 * n_pts, 6, nv))
+    forces = rng.normal(size=3 * n_pts + 2)
+    point_rows = np.array([0, 1, 2, 5, 6, 7])
+    point_anchors = np.arange(2 * n_pts)
+    out = np.zeros((nv, nv))
+    dk.point_turning_kernel(anchor_jac, forces, point_rows, point_anchors, out)
+    lam = forces[point_rows].reshape(n_pts, 3)
+    expected = np.zeros((nv, nv))
+    for k in range(n_pts):
+        for anchor, sign in ((2 * k, 1.0), (2 * k + 1, -1.0)):
+            turned = np.cross(lam[k][:, None], anchor_jac[anchor, 3:], axis=0)
+            expected -= sign * anchor_jac[anchor, :3].T @ turned
+    np.testing.assert_allclose(out, expected, rtol=0, atol=1e-13)
+    rows1, rows2 = np.array([0, 1, 2, 15]), np.array([6, 7, 8, 21])
+    fields = [rng.normal(size=(2 * n_pts, 6, nv)) for _ in range(4)]
+    for got, field in zip(dk.closure_rows_kernel(*fields, rows1, rows2), fields):
+        flat = field.reshape(-1, nv)
+        np.testing.assert_array_equal(got, flat[rows1] - flat[rows2])
+    rot = np.array([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(2 * n_pts)])
+    to_joints = rng.normal(size=(12, 6 * 2 * n_pts))
+    local = np.zeros((2 * n_pts, 6))
+    local[:, 3:] = rng.normal(size=(2 * n_pts, 3))
+    want = local.copy()
+    for k in range(n_pts):
+        want[2 * k, :3], want[2 * k + 1, :3] = rot[2 * k].T @ lam[k], -rot[2 * k + 1].T @ lam[k]
+    got = dk.anchor_forces_kernel(rot, forces, point_rows, point_anchors, local, to_joints)
+    np.testing.assert_allclose(got, (to_joints @ want.reshape(-1)).reshape(-1, 6), atol=1e-13)
+
+    n_rows = 5
+    jac = rng.normal(size=(n_rows, nv))
+    root = rng.normal(size=(nv, nv))
+    mass_full = root @ root.T + np.eye(nv)
+    mass_up = np.triu(mass_full) + np.tril(rng.normal(size=(nv, nv)), -1)   # junk below
+    dtau_dq, dtau_dv, damping = rng.normal(size=(nv, nv)), rng.normal(size=(nv, nv)), \
+        rng.uniform(size=nv)
+    mass, e_q, e_v = np.empty((nv, nv)), np.empty((nv, nv)), np.empty((nv, nv))
+
+    def linearize(jac_c, mass_in=mass_up):
+        return dk.linearize_kernel(mass_in, dtau_dq, dtau_dv, anchor_jac, forces, point_rows,
+                                   point_anchors, damping, jac_c, 1e-8, mass, e_q, e_v)
+    status, basis, pinv, gain, norm_m, norm_j = linearize(jac)
+    assert status == dk.LINEARIZED
+    np.testing.assert_array_equal(mass, mass_full)
+    np.testing.assert_allclose(e_q, dtau_dq + expected, atol=1e-13)
+    np.testing.assert_array_equal(e_v, dtau_dv + np.diag(damping))
+    assert basis.shape == (nv, nv - n_rows)
+    np.testing.assert_allclose(jac @ basis, 0.0, atol=1e-13)
+    np.testing.assert_allclose(basis.T @ basis, np.eye(nv - n_rows), atol=1e-13)
+    np.testing.assert_allclose(jac @ pinv, np.eye(n_rows), atol=1e-12)
+    np.testing.assert_allclose(gain @ gain.T, basis @ np.linalg.inv(basis.T @ mass_full @ basis)
+                               @ basis.T, atol=1e-12)
+    assert (norm_m, norm_j) == (np.max(np.abs(mass_full)), np.max(np.abs(jac)))
+    assert linearize(np.vstack([jac, jac[:1]]))[0] == dk.DEPENDENT_ROWS
+    assert linearize(np.full((n_rows, nv), np.nan))[0] == dk.NOT_FINITE
+    assert linearize(np.zeros((0, nv)))[0] == dk.DEPENDENT_ROWS
+    assert linearize(jac, np.zeros((nv, nv)))[0] == dk.NOT_POSITIVE
+
+    rhs_e, rhs_c = rng.normal(size=(nv, 3)), jac @ rng.normal(size=(nv, 3))
+    da, dlam, eom, con = dk.kkt_solve_kernel(mass_full, jac, pinv, gain, norm_m, norm_j,
+                                             rhs_e, rhs_c)
+    kkt = np.block([[mass_full, -jac.T], [jac, np.zeros((n_rows, n_rows))]])
+    dense = np.linalg.lstsq(kkt, np.vstack([rhs_e, rhs_c]), rcond=None)[0]
+    np.testing.assert_allclose(da, dense[:nv], atol=1e-10)
+    np.testing.assert_allclose(dlam, dense[nv:], atol=1e-10)
+    assert eom < 1e-13 and con < 1e-13
+    off = dk.kkt_solve_kernel(mass_full, jac, pinv, gain, norm_m, norm_j, rhs_e,
+                              rhs_c + 1.0)                  # still solvable: rows independent
+    assert off[3] < 1e-13
+    bad = dk.kkt_solve_kernel(mass_full, jac, pinv, gain, norm_m, norm_j, rhs_e * np.nan,
+                              rhs_c)
+    assert np.isnan(bad[2])
+    dq, dv, force = (rng.normal(size=(nv, 2)) for _ in range(3))
+    along = dk.kkt_along_kernel(e_q, e_v, jac, 2 * jac, mass_full, jac, pinv, gain, norm_m,
+                                norm_j, dq, dv, force)
+    direct = dk.kkt_solve_kernel(mass_full, jac, pinv, gain, norm_m, norm_j,
+                                 force - e_q @ dq - e_v @ dv, -(jac @ dq + 2 * jac @ dv))
+    for x, y in zip(along[:2], direct[:2]):
+        np.testing.assert_allclose(x, y, atol=1e-12)
 
 
 def test_given_basis_and_its_check():
