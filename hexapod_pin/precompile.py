@@ -29,6 +29,7 @@ from .core.compiled import COMPILE_NOTICE, PACKAGE_DIR, compiled_modules, kernel
 from .core.dynamics import inverse_dynamics_tree
 from .core.dynamics_derivatives import forward_dynamics_derivatives_tree
 from .core.integrator_kernels import normalise_pairs
+from .core.linear_kernels import reduced_kkt_solve
 from .core.robot import ClosedLoopRobot
 from .core.robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS, ParallelRobot
 from .core.simulate import simulate
@@ -220,6 +221,9 @@ def _tree_routes(planar: Planar3PRR) -> None:
         inverse_dynamics_tree(model, q, rest, rest, bounds=bounds, method=method)
     forward_dynamics_derivatives_tree(model, q, rest, np.zeros(model.n_actuated))
     normalise_pairs(np.array([1.0, 0.0]), np.zeros(1, dtype=np.int64))  # quaternion-free here
+    # the exact solve the redundant-row route falls back to (rarely reached by these inputs)
+    reduced_kkt_solve(np.eye(2), np.zeros(2), np.zeros(2), np.ones((1, 2)), np.zeros(1),
+                      np.zeros(1, dtype=np.int64), np.empty(2), np.empty(1))
 
 
 def _steps() -> Iterator[tuple[str, Callable[[], None]]]:
