@@ -15,7 +15,8 @@ from hexapod_pin.hexapod import batch, kernels
 @pytest.mark.parametrize("kernel", [kernels.leg_state, batch._inverse.serial, batch._inverse.parallel])
 def test_package_kernels_use_the_package_stamp(kernel):
     locator = kernel._cache._impl.locator
-    assert isinstance(locator, (compiled.PackageInTreeLocator, compiled.PackageUserWideLocator))
+    assert isinstance(locator, (compiled.PackageInTreeLocator, compiled.PackageUserWideLocator,
+                                compiled.PackageUserProvidedLocator))   # NUMBA_CACHE_DIR set
     assert locator.get_source_stamp() == compiled.source_stamp()
 
 
