@@ -13,7 +13,11 @@ Weighted least squares (Gautier's method):
    squares first, then re-weighted with the estimate (:data:`NOISE_ITERATIONS` solves in
    all: a noisy actuator's residual leaks into the others' through the fit);
 3. the rows of actuator ``i`` divided by ``sigma_i``: ``beta = argmin |W_w beta - u_w|``
-   (column-scaled ``lstsq``), covariance ``s^2 (W_w^T W_w)^-1`` with ``s^2 = |e_w|^2 /
+   (column-scaled, by SVD), solved on the data reduced once per actuator
+   (:class:`ActuatorFactors`: the QR ``W_i = Q_i R_i`` of actuator ``i``'s rows, in chunks,
+   and ``c_i = Q_i^T u_i``; ``|W_w beta - u_w|^2 = sum_i (|R_i beta - c_i|^2 + rho_i^2) /
+   sigma_i^2``, so every solve and the covariance below use the (n_act r, r) stack
+   ``[R_i / sigma_i]`` and give what the full (N n_act, r) matrix gives), covariance ``s^2 (W_w^T W_w)^-1`` with ``s^2 = |e_w|^2 /
    (N n_act - r)`` (the weights' scale re-estimated: standard errors stay right when the
    given noise levels are off by a common factor), standard errors its diagonal's roots;
 4. the physically consistent estimate of the full parameters (:mod:`.consistent`) on
@@ -35,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -59,6 +64,8 @@ DATA_RTOL = 1e-10
 #: physically consistent, or the data do not fit the model)
 GAP_WARNING = 3.0
 LOGGER = logging.getLogger(__name__)
+#: rows per QR of :class:`ActuatorFactors` (bounds its memory)
+CHUNK_ROWS = 20_000
 #: the identified robot's actuator-space mass matrix must be within this factor of the
 #: nominal one in every direction (module docstring, step 4)
 MASS_MATRIX_RATIO = 100.0
@@ -73,17 +80,66 @@ def _check_base(base: object, reg: ClosedLoopRegressor) -> BaseParameters:
     return base
 
 
-def _data_rank(wb: np.ndarray, names: tuple[str, ...]) -> None:
-    scaled = wb / np.maximum(np.linalg.norm(wb, axis=0), np.finfo(float).tiny)
+@dataclass(frozen=True)
+class ActuatorFactors:
+    """The data of least squares reduced per actuator (module docstring, step 3): the
+    economic QR ``W_i = Q_i R_i`` of actuator ``i``'s rows of the base regressor (its
+    rows ``i, i + n_act, ...``), with ``c_i = Q_i^T u_i`` and ``rho_i^2 = |u_i - Q_i
+    c_i|^2``, so that ``|W_i beta - u_i|^2 = |R_i beta - c_i|^2 + rho_i^2`` for every
+    ``beta``. Every weighted solve then works on the ``(n_act r, r)`` stack.
+
+    Attributes:
+        r: (n_act, r, r) the triangular factors.
+        c: (n_act, r) the projected forces.
+        rho2: (n_act,) the squared residuals outside the columns' span.
+        rows: the number of rows of the full problem (``N n_act``).
+    """
+
+    r: np.ndarray
+    c: np.ndarray
+    rho2: np.ndarray
+    rows: int
+
+    @classmethod
+    def of(cls, wb: np.ndarray, u: np.ndarray, n_act: int) -> ActuatorFactors:
+        """The factors of the base regressor ``wb`` (N n_act, r) and forces ``u`` (N n_act,),
+        sample-major, one actuator at a time in chunks of :data:`CHUNK_ROWS` rows (the
+        factor of ``[R; next chunk]`` at each step: memory of one chunk)."""
+        r = wb.shape[1]
+        facs, cs, rho2 = np.zeros((n_act, r, r)), np.zeros((n_act, r)), np.zeros(n_act)
+        for i in range(n_act):
+            rows_i, u_i = wb[i::n_act], u[i::n_act]
+            for start in range(0, rows_i.shape[0], CHUNK_ROWS):
+                block = np.vstack([facs[i], rows_i[start:start + CHUNK_ROWS]])
+                rhs = np.concatenate([cs[i], u_i[start:start + CHUNK_ROWS]])
+                q_mat, facs[i] = scipy.linalg.qr(block, mode="economic")  # block: >= r rows
+                cs[i] = q_mat.T @ rhs
+                rho2[i] += float(np.sum((rhs - q_mat @ cs[i]) ** 2))
+        return cls(facs, cs, rho2, int(wb.shape[0]))
+
+    def stacked(self, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``([R_i / sigma_i], [c_i / sigma_i])`` ((n_act r, r), (n_act r,)): the weighted
+        problem, reduced."""
+        return ((self.r / sigma[:, None, None]).reshape(-1, self.r.shape[2]),
+                (self.c / sigma[:, None]).reshape(-1))
+
+    def residuals2(self, beta: np.ndarray) -> np.ndarray:
+        """``|W_i beta - u_i|^2`` (n_act,) per actuator."""
+        return np.sum((self.r @ beta - self.c) ** 2, axis=1) + self.rho2
+
+
+def _data_rank(factors: ActuatorFactors, names: tuple[str, ...]) -> None:
+    mat = factors.stacked(np.ones(factors.r.shape[0]))[0]
+    scaled = mat / np.maximum(np.linalg.norm(mat, axis=0), np.finfo(float).tiny)
     _, sv, vt = np.linalg.svd(scaled, full_matrices=False)
     rank = int(np.sum(sv > DATA_RTOL * sv[0])) if sv.size else 0
-    if rank < wb.shape[1]:
+    if rank < mat.shape[1]:
         combos = []
         for row in vt[rank:][:5]:
             top = np.argsort(-np.abs(row))[:3]
             combos.append(" ".join(f"{row[j]:+.2g} {names[j]}" for j in top))
         raise IdentifiabilityError("the data do not excite every base parameter "
-                                   "(too few samples or too little motion)", wb.shape[1],
+                                   "(too few samples or too little motion)", mat.shape[1],
                                    rank, combos)
 
 
@@ -119,7 +175,8 @@ def _verify_mass_matrix(reg: ClosedLoopRegressor, nominal: np.ndarray,
 
 
 def _solve(mat: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """``(x, (A^T A)^-1, condition)`` of column-scaled least squares."""
+    """``(x, (A^T A)^-1, condition)`` of column-scaled least squares (``A`` the reduced
+    stack of :meth:`ActuatorFactors.stacked`: the same normal matrix as the full one)."""
     norms = np.linalg.norm(mat, axis=0)
     u_mat, sv, vt = np.linalg.svd(mat / norms, full_matrices=False)
     y = vt.T @ ((u_mat.T @ rhs) / sv)
@@ -175,32 +232,30 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
         raise IdentifiabilityError(f"{full.shape[0]} force rows for {r} base parameters",
                                    r, full.shape[0])
     wb = base.regressor(full)
-    _data_rank(wb, base.names)
     u = forces.reshape(-1)
+    factors = ActuatorFactors.of(wb, u, n_act)
+    _data_rank(factors, base.names)
     if noise_std is None:
         sigma = np.ones(n_act)
         for _ in range(NOISE_ITERATIONS):       # OLS, then re-weighted
-            w = np.tile(1.0 / sigma, n)
-            beta_it = _solve(wb * w[:, None], u * w)[0]
-            e = (u - wb @ beta_it).reshape(n, n_act)
-            sigma = np.sqrt(np.sum(e ** 2, axis=0) / max(n - r / n_act, 1.0))
+            beta_it = _solve(*factors.stacked(sigma))[0]
+            sigma = np.sqrt(factors.residuals2(beta_it) / max(n - r / n_act, 1.0))
             sigma = np.maximum(sigma, 1e-12 * max(float(np.max(np.abs(u))), 1e-300))
     else:
         sigma = bounds(noise_std, n_act, "noise_std")
         if not np.all(np.isfinite(sigma)):
             raise InputError("noise_std", noise_std, "must be finite")
-    weights = np.tile(1.0 / sigma, n)
-    ww, uw = wb * weights[:, None], u * weights
-    beta, inv, cond = _solve(ww, uw)
-    ew = uw - ww @ beta
-    s2 = float(ew @ ew) / (ww.shape[0] - r)
+    rw, cw = factors.stacked(sigma)
+    beta, inv, cond = _solve(rw, cw)
+    s2 = float(np.sum(factors.residuals2(beta) / sigma ** 2)) / (factors.rows - r)
     cov = s2 * inv
     nominal = nominal_parameters(robot, reg.layout.drive)
     beta_nom = base.values(nominal)
     fit = None
     if consistent:
-        information = scipy.linalg.qr(ww, mode="r")[0][:r]     # R (r, r)
-        scale = np.linalg.norm(full * weights[:, None], axis=0)
+        information = scipy.linalg.qr(rw, mode="r")[0][:r]     # R (r, r)
+        by_sample = full.reshape(n, n_act, -1)
+        scale = np.sqrt(np.einsum("kij,kij,i->j", by_sample, by_sample, sigma ** -2.0))
         fit = consistent_fit(reg.layout, information, base.regrouping, beta, scale,
                              nominal, prior)
         _verify_mass_matrix(reg, nominal, fit.parameters)

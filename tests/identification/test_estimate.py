@@ -202,3 +202,36 @@ def test_refusals():
         identify(robot, MotionData(np.zeros(50), np.zeros((50, 3)), np.zeros((50, 3))))
     with pytest.raises(InputError, match="data.actuator_forces"):
         identify(robot, MotionData(np.arange(50.0), np.zeros((50, 3)), np.zeros((49, 3))))
+
+
+@pytest.mark.parametrize("chunk", [None, 7])
+def test_reduced_least_squares_equals_the_full_problem(monkeypatch, chunk):
+    """The per-actuator QR reduction (in chunks of 7 rows too) gives the estimate, the
+    noise levels and the standard errors of weighted least squares on the full stacked
+    matrix (numpy lstsq and the normal-matrix inverse, written here) to 1e-9."""
+    from hexapod_pin.identification import estimate
+    if chunk is not None:
+        monkeypatch.setattr(estimate, "CHUNK_ROWS", chunk)
+    robot = robot_registry.get("planar")
+    rng = np.random.default_rng(21)
+    truth = perturbed(robot, DRIVE, rng)
+    base = base_parameters(robot, DRIVE)
+    states, clean, reg = _data(robot, truth, 40, seed=22)
+    measured = clean + rng.normal(size=clean.shape) * np.array([0.05, 0.2, 0.1])
+    res = identify_from_states(robot, *states, measured, base=base, consistent=False)
+    wb = base.regressor(reg.batch(*states))
+    u = measured.reshape(-1)
+    sigma = np.ones(3)
+    for _ in range(estimate.NOISE_ITERATIONS):              # the documented re-weighting
+        w = np.tile(1.0 / sigma, 40)
+        beta = np.linalg.lstsq(wb * w[:, None], u * w, rcond=None)[0]
+        e = (u - wb @ beta).reshape(40, 3)
+        sigma = np.sqrt(np.sum(e ** 2, axis=0) / (40 - base.count / 3))
+    assert np.allclose(res.noise_std, sigma, rtol=1e-9, atol=0.0)
+    w = np.tile(1.0 / sigma, 40)
+    ww, uw = wb * w[:, None], u * w
+    beta = np.linalg.lstsq(ww, uw, rcond=None)[0]
+    s2 = np.sum((uw - ww @ beta) ** 2) / (ww.shape[0] - base.count)
+    std = np.sqrt(np.diag(s2 * np.linalg.inv(ww.T @ ww)))
+    assert np.allclose(res.values, beta, rtol=1e-9, atol=1e-12 * np.max(np.abs(beta)))
+    assert np.allclose(res.std_errors, std, rtol=1e-9, atol=0.0)
