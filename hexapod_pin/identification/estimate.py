@@ -50,7 +50,12 @@ from ..core.checks import as_array, bounds, flag, real_number
 from ..errors import IdentifiabilityError, InputError, SolverError
 from .base import BaseParameters, base_parameters
 from .consistent import PRIOR_WEIGHT, consistent_fit
-from .motion_data import DEFAULT_TRIM, states_from_motion
+from .motion_data import (
+    DEFAULT_TRIM,
+    derivative_noise_gain,
+    resolve_cutoff,
+    states_from_motion,
+)
 from .parameters import DEFAULT_DRIVE, nominal_parameters, tree_with_parameters
 from .regressor import ClosedLoopRegressor
 from .results import ForceResiduals, IdentificationResult
@@ -64,6 +69,11 @@ DATA_RTOL = 1e-10
 #: physically consistent, or the data do not fit the model)
 GAP_WARNING = 3.0
 LOGGER = logging.getLogger(__name__)
+#: :func:`identify` warns when the position noise's force errors exceed this fraction of
+#: the force noise (the acceleration noise grows as ``cutoff^2.5``: 0.2 lets the
+#: estimates' bias stay within their standard errors in the measured cases of
+#: docs/tutorials/identification.md)
+INPUT_NOISE_WARNING = 0.2
 #: rows per QR of :class:`ActuatorFactors` (bounds its memory)
 CHUNK_ROWS = 20_000
 #: the identified robot's actuator-space mass matrix must be within this factor of the
@@ -272,16 +282,64 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
     return result
 
 
+def input_noise_force(robot: object, times: np.ndarray, cutoff: float,
+                      position_noise_std: npt.ArrayLike,
+                      drive: object = DEFAULT_DRIVE) -> np.ndarray:
+    """The force errors (n_act,) (N, N m) that white actuator-position noise makes through
+    the filtered, twice differentiated positions (errors in the variables): ``sqrt(diag(M_a
+    diag(s_a^2) M_a))`` with ``s_a = gain * position_noise_std`` the acceleration noise
+    (:func:`~.motion_data.derivative_noise_gain`) and ``M_a`` the nominal robot's mass
+    matrix in actuator coordinates at home (:func:`actuator_mass_matrix`). The velocity
+    noise's part (through damping and Coulomb steps) is left out: smaller by the ratio
+    of the two gains, ``cutoff`` times over.
+
+    Raises:
+        InputError: a position noise that is not positive and finite (scalar or (n_act,)).
+    """
+    reg = ClosedLoopRegressor(robot, drive)
+    sigma = bounds(position_noise_std, reg.n_actuators, "position_noise_std")
+    if not np.all(np.isfinite(sigma)):
+        raise InputError("position_noise_std", position_noise_std, "must be finite")
+    gain = derivative_noise_gain(times, cutoff)[1]
+    mass = actuator_mass_matrix(reg, nominal_parameters(robot, reg.layout.drive))
+    return np.sqrt((mass ** 2) @ (gain * sigma) ** 2)
+
+
 def identify(robot: object, data: object, *, cutoff: float | None = None,
-             trim: int | None = DEFAULT_TRIM, **options: object) -> IdentificationResult:
+             trim: int | None = DEFAULT_TRIM, position_noise_std: npt.ArrayLike | None = None,
+             **options: object) -> IdentificationResult:
     """Identify from a measured motion (:class:`~.motion_data.MotionData`): its states
     by :func:`~.motion_data.states_from_motion` (zero-phase Butterworth at ``cutoff`` Hz,
     default a fifth of the Nyquist frequency; ``trim`` samples dropped at each end,
     default three periods of the cut-off), then
     :func:`identify_from_states` with ``options`` (``drive``, ``base``, ``noise_std``,
-    ``consistent``, ``prior``). Errors as both."""
+    ``consistent``, ``prior``). Errors as both.
+
+    The standard errors assume exact states. With ``position_noise_std`` (the actuator
+    positions' white noise, m or rad, scalar or (n_act,)) the force errors that this
+    noise makes through the differentiated positions are computed
+    (:func:`input_noise_force`, in the result's ``input_noise_force``), and when any
+    exceeds :data:`INPUT_NOISE_WARNING` of that actuator's force noise a warning names
+    the cut-off that would bring it there: beyond it the estimates are biased (errors
+    in the variables) by more than their standard errors say. Lower the cut-off (it
+    must stay well above the motion's bandwidth) rather than trusting them.
+    """
     st = states_from_motion(robot, data, cutoff, trim)
     result = identify_from_states(robot, st.poses, st.twists, st.twist_dots,
                                   st.actuator_forces, times=st.times,
                                   **options)   # type: ignore[arg-type]
-    return dataclasses.replace(result, cutoff=cutoff, trim=trim)
+    induced = None
+    if position_noise_std is not None:
+        times = np.asarray(getattr(data, "times"), dtype=float)
+        cut = resolve_cutoff(times, cutoff)
+        induced = input_noise_force(robot, times, cut, position_noise_std,
+                                    options.get("drive", DEFAULT_DRIVE))
+        ratio = float(np.max(induced / result.noise_std))
+        if ratio > INPUT_NOISE_WARNING:
+            better = cut * (INPUT_NOISE_WARNING / ratio) ** 0.4
+            LOGGER.warning("the position noise makes force errors of up to %.3g of the force "
+                           "noise through the accelerations filtered at %.4g Hz (above %g): "
+                           "the standard errors understate the errors; a cut-off of %.3g Hz "
+                           "would bring it to %g", ratio, cut, INPUT_NOISE_WARNING, better,
+                           INPUT_NOISE_WARNING)
+    return dataclasses.replace(result, cutoff=cutoff, trim=trim, input_noise_force=induced)

@@ -85,6 +85,10 @@ class IdentificationResult:
         condition_number: of the weighted base regressor with unit-norm columns.
         consistent: the physically consistent estimate (None when not asked for).
         cutoff, trim: the filter settings used for motion data (None for states).
+        input_noise_force: (n_act,) (N, N m) the force errors that the given position
+            noise makes through the filtered accelerations (``identify(...,
+            position_noise_std=...)``, :func:`~.estimate.input_noise_force`); None when
+            not asked for.
     """
 
     robot: object
@@ -100,6 +104,7 @@ class IdentificationResult:
     consistent: ConsistentFit | None
     cutoff: float | None = None
     trim: int | None = DEFAULT_TRIM
+    input_noise_force: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
