@@ -30,6 +30,9 @@ with ``w = E(rpy) d(rpy)/dt`` (:func:`hexapod_pin.core.pose.euler_rates_matrix`)
 the pose has all three angles, each angle's rate otherwise
 (:meth:`hexapod_pin.core.robot_api.PoseLayout.twists_from_poses`).
 
+A measurement log (:func:`read_actuator_log`, read by ``hexapod-pin identify``) is the
+same format with the pose optional and ``t``, ``q`` and the actuator forces required.
+
 Files are written atomically (:func:`hexapod_pin.files.write_text_atomic`).
 """
 
