@@ -30,6 +30,9 @@ with ``w = E(rpy) d(rpy)/dt`` (:func:`hexapod_pin.core.pose.euler_rates_matrix`)
 the pose has all three angles, each angle's rate otherwise
 (:meth:`hexapod_pin.core.robot_api.PoseLayout.twists_from_poses`).
 
+A measurement log (:func:`read_actuator_log`, read by ``hexapod-pin identify``) is the
+same format with the pose optional and ``t``, ``q`` and the actuator forces required.
+
 Files are written atomically (:func:`hexapod_pin.files.write_text_atomic`).
 """
 
@@ -333,16 +336,14 @@ def write_motion(path: str | os.PathLike[str], motion: Motion,
     return write_text_atomic(path, text)
 
 
-def _motion_from_csv(path: Path, columns: MotionColumns) -> Motion:
+def _csv_columns(path: Path) -> dict[str, np.ndarray]:
+    """The columns of a CSV motion file by name (header row, then numbers)."""
     numbered = [(n, ln) for n, ln in enumerate(read_text(path).splitlines(), 1)
                 if ln.strip() and not ln.lstrip().startswith("#")]
     if len(numbered) < 2:
         raise DescriptionError(str(path), "needs a header row and at least one data row")
     rows = list(csv.reader([ln for _, ln in numbered]))
     header = check_columns(rows[0], str(path), numbered[0][0])
-    missing = [c for c in ("t",) + columns.pose if c not in header]
-    if missing:
-        raise DescriptionError(str(path), f"missing columns {missing} (header: {header})")
     values = []
     for row_index, (row, (line, _)) in enumerate(zip(rows[1:], numbered[1:])):
         where = f"row {row_index} (line {line})"        # rows count from 0, as in errors of ID
@@ -357,14 +358,25 @@ def _motion_from_csv(path: Path, columns: MotionColumns) -> Motion:
                                               f"{row[header.index(column)].strip()!r} is not a "
                                               f"number", column) from None
     data = np.array(values, dtype=float)
-    col = {name: data[:, i] for i, name in enumerate(header)}
-    groups = {}
-    for field, names in columns.groups().items():
-        present = [n for n in names if n in col]
-        if present and len(present) != len(names):
-            raise DescriptionError(str(path), f"columns {list(names)} must come together",
-                                   present[0])
-        groups[field] = np.stack([col[n] for n in names], axis=1) if present else None
+    return {name: data[:, i] for i, name in enumerate(header)}
+
+
+def _csv_group(path: Path, col: dict[str, np.ndarray],
+               names: tuple[str, ...]) -> np.ndarray | None:
+    """The (N, len(names)) block of a column group, None when none of it is there."""
+    present = [n for n in names if n in col]
+    if present and len(present) != len(names):
+        raise DescriptionError(str(path), f"columns {list(names)} must come together",
+                               present[0])
+    return np.stack([col[n] for n in names], axis=1) if present else None
+
+
+def _motion_from_csv(path: Path, columns: MotionColumns) -> Motion:
+    col = _csv_columns(path)
+    missing = [c for c in ("t",) + columns.pose if c not in col]
+    if missing:
+        raise DescriptionError(str(path), f"missing columns {missing} (header: {list(col)})")
+    groups = {field: _csv_group(path, col, names) for field, names in columns.groups().items()}
     return _checked_motion(path, columns, col["t"],
                            np.stack([col[n] for n in columns.pose], axis=1),
                            residual=col.get("residual"), **groups)
@@ -396,12 +408,21 @@ def _motion_from_json(path: Path, columns: MotionColumns) -> Motion:
 
 def _checked_motion(path: Path, columns: MotionColumns, t: np.ndarray, poses: np.ndarray,
                     residual: np.ndarray | None = None, **arrays: np.ndarray | None) -> Motion:
+    residual = _check_arrays(path, columns, t, {"pose": poses, **arrays}, residual)
+    return Motion(t, poses, closure_residual=residual, **arrays)
+
+
+def _check_arrays(path: Path, columns: MotionColumns, t: np.ndarray,
+                  arrays: dict[str, np.ndarray | None],
+                  residual: np.ndarray | None = None) -> np.ndarray | None:
+    """Check times, shapes and values of a file's arrays (None: absent); the residual
+    as (N,)."""
     n = len(t) if t.ndim == 1 else 0
     if n == 0:
         raise DescriptionError(str(path), "t must be a non-empty list of times", "t")
     if n > 1 and np.any(np.diff(t) <= 0):
         raise DescriptionError(str(path), "t must be strictly increasing", "t")
-    checks = {"pose": poses, **{k: v for k, v in arrays.items() if v is not None}}
+    checks = {k: v for k, v in arrays.items() if v is not None}
     widths = {"pose": len(columns.pose), **{field: len(names)
                                             for field, names in columns.groups().items()}}
     for key, value in checks.items():
@@ -417,7 +438,80 @@ def _checked_motion(path: Path, columns: MotionColumns, t: np.ndarray, poses: np
     for key, item in finite.items():
         if item is not None:
             check_values(item, str(path), key)
-    return Motion(t, poses, closure_residual=residual, **arrays)
+    return residual
+
+
+@dataclass(frozen=True)
+class ActuatorLog:
+    """A measurement log: actuator positions and forces sampled in time, and the platform
+    poses when the file has them (:func:`read_actuator_log`).
+
+    Attributes:
+        t: (N,) times (s), strictly increasing.
+        q: (N, n_act) actuator positions (m or rad).
+        actuator_forces: (N, n_act) actuator forces (N or N m).
+        poses: (N, dim) platform poses (m, rad), or None (the file has no pose columns).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    actuator_forces: np.ndarray
+    poses: np.ndarray | None = None
+
+
+def read_actuator_log(path: str | os.PathLike[str],
+                      robot: ParallelRobot | None = None) -> ActuatorLog:
+    """Read the actuator positions and forces of a motion file whose pose columns are
+    optional (a real robot's log: times, ``q0..``, ``tau0..``; other columns of the
+    motion format are ignored).
+
+    Args:
+        path: the file (.csv / .txt: columns ``t``, ``q0..``, ``tau0..`` and optionally
+            the pose; .json: keys ``"t"``, ``"q"``, ``"actuator_forces"`` and optionally
+            ``"pose"``).
+        robot: the robot whose motion it is (:func:`motion_columns`; default the
+            hexapod's).
+
+    Raises:
+        MissingFileError: the file does not exist.
+        DescriptionError: unknown suffix; missing time, position or force columns;
+            malformed, non-finite or misshaped values; times not increasing (the message
+            names the file and column).
+    """
+    path = Path(file_path(path))
+    columns = motion_columns(robot)
+    if path.is_dir() or not path.is_file():
+        read_text(path, "motion file")  # a folder or a missing file: its error
+    suffix = path.suffix.lower()
+    if suffix in (".csv", ".txt"):
+        col = _csv_columns(path)
+        if "t" not in col:
+            raise DescriptionError(str(path), f"missing column 't' (header: {list(col)})", "t")
+        t = col["t"]
+        arrays = {"pose": _csv_group(path, col, columns.pose),
+                  "q": _csv_group(path, col, columns.q),
+                  "actuator_forces": _csv_group(path, col, columns.actuator_forces)}
+    elif suffix == ".json":
+        data = load_json(read_text(path), str(path))
+        if not isinstance(data, dict) or "t" not in data:
+            raise DescriptionError(str(path), 'expected an object with "t"')
+        try:
+            t = np.asarray(data["t"], dtype=float)
+            arrays = {key: None if data.get(key) is None else np.asarray(data[key],
+                                                                           dtype=float)
+                      for key in ("pose", "q", "actuator_forces")}
+        except (TypeError, ValueError) as exc:
+            raise DescriptionError(str(path), f"non-numeric entries: {exc}") from None
+    else:
+        raise DescriptionError(str(path), "motion file must be .csv or .json")
+    q, forces = arrays["q"], arrays["actuator_forces"]
+    if q is None or forces is None:
+        key, names = ("q", columns.q) if q is None else \
+            ("actuator_forces", columns.actuator_forces)
+        raise DescriptionError(str(path), f"missing the actuator {key} (columns "
+                                          f"{', '.join(names)})", key)
+    _check_arrays(path, columns, t, arrays)
+    return ActuatorLog(t, q, forces, arrays["pose"])
 
 
 # -- rates and reference motions ---------------------------------------------------------

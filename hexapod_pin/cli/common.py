@@ -330,12 +330,42 @@ def read_robot_motion(path: Path, robot: CliRobot) -> motions.Motion:
     if isinstance(robot, Hexapod):
         return motions.read_motion(path)
     columns = motions.motion_columns(as_parallel(robot))
+    fits = f"does not fit {robot.geometry.name}"
+    _check_header(path, robot, ("t", *columns.pose))
+    try:
+        return motions.read_motion(path, as_parallel(robot))
+    except DescriptionError as exc:
+        if exc.culprit not in ("pose", *columns.groups()):
+            raise
+        raise DescriptionError(str(path), f"{fits}: {exc.reason}; expected columns "
+                                          f"{expected_columns(robot)}", exc.culprit) from None
+
+
+def read_robot_log(path: Path, robot: CliRobot) -> motions.ActuatorLog:
+    """The actuator positions and forces of a motion file of the command's robot, pose
+    columns optional (:func:`hexapod_pin.motion.read_actuator_log`; a CSV file of a
+    loaded robot checked for another robot's columns as by :func:`read_robot_motion`).
+
+    Raises:
+        DescriptionError: a malformed file, one of another robot, or one without the
+            times, positions or forces.
+    """
+    if isinstance(robot, Hexapod):
+        return motions.read_actuator_log(path)
+    _check_header(path, robot, ("t",))
+    return motions.read_actuator_log(path, as_parallel(robot))
+
+
+def _check_header(path: Path, robot: CliRobot, required: tuple[str, ...]) -> None:
+    """Refuse a CSV file of a loaded robot whose header lacks a ``required`` column or has
+    motion columns of another robot (:func:`read_robot_motion`)."""
+    columns = motions.motion_columns(as_parallel(robot))
     own = {"t", *columns.pose, *(n for names in columns.groups().values() for n in names)}
     fits = f"does not fit {robot.geometry.name}"
     if path.suffix.lower() in (".csv", ".txt") and path.is_file():
         header = _csv_header(path)
         if header is not None:
-            missing = [c for c in ("t", *columns.pose) if c not in header]
+            missing = [c for c in required if c not in header]
             foreign = [c for c in header if c not in own
                        and (c in _MOTION_NAMES or _ACTUATOR_COLUMN.fullmatch(c))]
             if missing or foreign:
@@ -345,13 +375,6 @@ def read_robot_motion(path: Path, robot: CliRobot) -> motions.Motion:
                     if part)
                 raise DescriptionError(str(path), f"{fits} ({what}); expected columns "
                                                   f"{expected_columns(robot)}")
-    try:
-        return motions.read_motion(path, as_parallel(robot))
-    except DescriptionError as exc:
-        if exc.culprit not in ("pose", *columns.groups()):
-            raise
-        raise DescriptionError(str(path), f"{fits}: {exc.reason}; expected columns "
-                                          f"{expected_columns(robot)}", exc.culprit) from None
 
 
 def _csv_header(path: Path) -> list[str] | None:

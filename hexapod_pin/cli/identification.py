@@ -36,7 +36,7 @@ from .common import (
     parse_numbers,
     progress_bar,
     quantity_table,
-    read_robot_motion,
+    read_robot_log,
     robot_fields,
     write_robot_motion,
 )
@@ -118,8 +118,9 @@ def excite(out: Annotated[Path, typer.Option(
 
 @guard
 def identify(data: Annotated[Path, typer.Argument(
-                 help="motion file (.csv / .json) with t, the pose columns, q0.. (actuator "
-                      "positions) and tau0.. (measured actuator forces)")],
+                 help="motion file (.csv / .json) with t, q0.. (actuator positions) and "
+                      "tau0.. (measured actuator forces); pose columns optional (used "
+                      "with --use-poses)")],
              drive: Drive = "viscous,coulomb,offset",
              cutoff: Annotated[float | None, typer.Option(
                  help="low-pass cut-off of the positions (Hz); default a fifth of the "
@@ -149,12 +150,12 @@ def identify(data: Annotated[Path, typer.Argument(
     base parameter (nominal, estimate, standard error, consistent estimate)."""
     quiet = quiet or as_json
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
-    motion = read_robot_motion(data, bot)
-    if motion.q is None or motion.actuator_forces is None:
-        raise InputError("data", str(data), "the file needs the actuator positions q0.. "
-                                            "and forces tau0..")
-    measured = MotionData(motion.t, motion.q, motion.actuator_forces,
-                          motion.poses if use_poses else None)
+    log = read_robot_log(data, bot)
+    if use_poses and log.poses is None:
+        raise InputError("use_poses", True, f"{data} has no pose columns (leave out "
+                                            "--use-poses: forward kinematics)")
+    measured = MotionData(log.t, log.q, log.actuator_forces,
+                          log.poses if use_poses else None)
     with progress_bar(quiet, "identifying"):
         res = identify_motion(bot, measured, cutoff=cutoff, trim=trim, drive=_drive(drive),
                               consistent=consistent)

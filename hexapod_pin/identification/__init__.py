@@ -5,7 +5,8 @@ parameters, least-squares and physically consistent estimates.
   the drive parameters per actuator, their names, the nominal values of a robot and the
   robot rebuilt with other values;
 * :mod:`.regressor`: ``u = Y pi + Y_d pi_d`` at closure-consistent states
-  (:func:`regressor`, :func:`regressor_batch`, :class:`ClosedLoopRegressor`);
+  (:func:`regressor`, :func:`regressor_batch`, :class:`ClosedLoopRegressor`), and at a
+  tree state of any closed-loop model (:func:`closed_loop_regressor_tree`);
 * :mod:`.base`: :func:`base_parameters` (count, names, regrouping rules);
 * :mod:`.estimate`: :func:`identify_from_states`, :func:`identify` (weighted least squares,
   standard errors, the physically consistent fit of :mod:`.consistent`);
@@ -27,17 +28,26 @@ from .parameters import (
     DEFAULT_DRIVE,
     DRIVE_KINDS,
     ParameterLayout,
+    model_with_parameters,
     nominal_parameters,
     robot_with_parameters,
 )
-from .regressor import ClosedLoopRegressor, TreeMotion, regressor, regressor_batch
+from .regressor import (
+    ClosedLoopRegressor,
+    TreeMotion,
+    TreeRegressorRows,
+    closed_loop_regressor_tree,
+    regressor,
+    regressor_batch,
+)
 from .results import ForceResiduals, IdentificationResult, ValidationReport
 
 __all__ = [
     "DEFAULT_DRIVE", "DRIVE_KINDS", "BaseParameters", "ClosedLoopRegressor", "ConsistentFit",
     "Excitation", "FourierSeries", "optimise_excitation",
     "ForceResiduals", "IdentifiabilityError", "IdentificationResult", "MotionData",
-    "MotionStates", "ParameterLayout", "TreeMotion", "ValidationReport", "base_from_regressor",
+    "MotionStates", "ParameterLayout", "TreeMotion", "TreeRegressorRows", "ValidationReport",
+    "base_from_regressor", "closed_loop_regressor_tree", "model_with_parameters",
     "base_parameters", "identify", "identify_from_states", "nominal_parameters",
     "random_states", "regressor", "regressor_batch", "robot_with_parameters",
     "states_from_motion",

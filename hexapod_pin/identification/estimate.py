@@ -13,7 +13,11 @@ Weighted least squares (Gautier's method):
    squares first, then re-weighted with the estimate (:data:`NOISE_ITERATIONS` solves in
    all: a noisy actuator's residual leaks into the others' through the fit);
 3. the rows of actuator ``i`` divided by ``sigma_i``: ``beta = argmin |W_w beta - u_w|``
-   (column-scaled ``lstsq``), covariance ``s^2 (W_w^T W_w)^-1`` with ``s^2 = |e_w|^2 /
+   (column-scaled, by SVD), solved on the data reduced once per actuator
+   (:class:`ActuatorFactors`: the QR ``W_i = Q_i R_i`` of actuator ``i``'s rows, in chunks,
+   and ``c_i = Q_i^T u_i``; ``|W_w beta - u_w|^2 = sum_i (|R_i beta - c_i|^2 + rho_i^2) /
+   sigma_i^2``, so every solve and the covariance below use the (n_act r, r) stack
+   ``[R_i / sigma_i]`` and give what the full (N n_act, r) matrix gives), covariance ``s^2 (W_w^T W_w)^-1`` with ``s^2 = |e_w|^2 /
    (N n_act - r)`` (the weights' scale re-estimated: standard errors stay right when the
    given noise levels are off by a common factor), standard errors its diagonal's roots;
 4. the physically consistent estimate of the full parameters (:mod:`.consistent`) on
@@ -35,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -45,7 +50,12 @@ from ..core.checks import as_array, bounds, flag, real_number
 from ..errors import IdentifiabilityError, InputError, SolverError
 from .base import BaseParameters, base_parameters
 from .consistent import PRIOR_WEIGHT, consistent_fit
-from .motion_data import DEFAULT_TRIM, states_from_motion
+from .motion_data import (
+    DEFAULT_TRIM,
+    derivative_noise_gain,
+    resolve_cutoff,
+    states_from_motion,
+)
 from .parameters import DEFAULT_DRIVE, nominal_parameters, tree_with_parameters
 from .regressor import ClosedLoopRegressor
 from .results import ForceResiduals, IdentificationResult
@@ -59,6 +69,13 @@ DATA_RTOL = 1e-10
 #: physically consistent, or the data do not fit the model)
 GAP_WARNING = 3.0
 LOGGER = logging.getLogger(__name__)
+#: :func:`identify` warns when the position noise's force errors exceed this fraction of
+#: the force noise (the acceleration noise grows as ``cutoff^2.5``: 0.2 lets the
+#: estimates' bias stay within their standard errors in the measured cases of
+#: docs/tutorials/identification.md)
+INPUT_NOISE_WARNING = 0.2
+#: rows per QR of :class:`ActuatorFactors` (bounds its memory)
+CHUNK_ROWS = 20_000
 #: the identified robot's actuator-space mass matrix must be within this factor of the
 #: nominal one in every direction (module docstring, step 4)
 MASS_MATRIX_RATIO = 100.0
@@ -73,17 +90,66 @@ def _check_base(base: object, reg: ClosedLoopRegressor) -> BaseParameters:
     return base
 
 
-def _data_rank(wb: np.ndarray, names: tuple[str, ...]) -> None:
-    scaled = wb / np.maximum(np.linalg.norm(wb, axis=0), np.finfo(float).tiny)
+@dataclass(frozen=True)
+class ActuatorFactors:
+    """The data of least squares reduced per actuator (module docstring, step 3): the
+    economic QR ``W_i = Q_i R_i`` of actuator ``i``'s rows of the base regressor (its
+    rows ``i, i + n_act, ...``), with ``c_i = Q_i^T u_i`` and ``rho_i^2 = |u_i - Q_i
+    c_i|^2``, so that ``|W_i beta - u_i|^2 = |R_i beta - c_i|^2 + rho_i^2`` for every
+    ``beta``. Every weighted solve then works on the ``(n_act r, r)`` stack.
+
+    Attributes:
+        r: (n_act, r, r) the triangular factors.
+        c: (n_act, r) the projected forces.
+        rho2: (n_act,) the squared residuals outside the columns' span.
+        rows: the number of rows of the full problem (``N n_act``).
+    """
+
+    r: np.ndarray
+    c: np.ndarray
+    rho2: np.ndarray
+    rows: int
+
+    @classmethod
+    def of(cls, wb: np.ndarray, u: np.ndarray, n_act: int) -> ActuatorFactors:
+        """The factors of the base regressor ``wb`` (N n_act, r) and forces ``u`` (N n_act,),
+        sample-major, one actuator at a time in chunks of :data:`CHUNK_ROWS` rows (the
+        factor of ``[R; next chunk]`` at each step: memory of one chunk)."""
+        r = wb.shape[1]
+        facs, cs, rho2 = np.zeros((n_act, r, r)), np.zeros((n_act, r)), np.zeros(n_act)
+        for i in range(n_act):
+            rows_i, u_i = wb[i::n_act], u[i::n_act]
+            for start in range(0, rows_i.shape[0], CHUNK_ROWS):
+                block = np.vstack([facs[i], rows_i[start:start + CHUNK_ROWS]])
+                rhs = np.concatenate([cs[i], u_i[start:start + CHUNK_ROWS]])
+                q_mat, facs[i] = scipy.linalg.qr(block, mode="economic")  # block: >= r rows
+                cs[i] = q_mat.T @ rhs
+                rho2[i] += float(np.sum((rhs - q_mat @ cs[i]) ** 2))
+        return cls(facs, cs, rho2, int(wb.shape[0]))
+
+    def stacked(self, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``([R_i / sigma_i], [c_i / sigma_i])`` ((n_act r, r), (n_act r,)): the weighted
+        problem, reduced."""
+        return ((self.r / sigma[:, None, None]).reshape(-1, self.r.shape[2]),
+                (self.c / sigma[:, None]).reshape(-1))
+
+    def residuals2(self, beta: np.ndarray) -> np.ndarray:
+        """``|W_i beta - u_i|^2`` (n_act,) per actuator."""
+        return np.sum((self.r @ beta - self.c) ** 2, axis=1) + self.rho2
+
+
+def _data_rank(factors: ActuatorFactors, names: tuple[str, ...]) -> None:
+    mat = factors.stacked(np.ones(factors.r.shape[0]))[0]
+    scaled = mat / np.maximum(np.linalg.norm(mat, axis=0), np.finfo(float).tiny)
     _, sv, vt = np.linalg.svd(scaled, full_matrices=False)
     rank = int(np.sum(sv > DATA_RTOL * sv[0])) if sv.size else 0
-    if rank < wb.shape[1]:
+    if rank < mat.shape[1]:
         combos = []
         for row in vt[rank:][:5]:
             top = np.argsort(-np.abs(row))[:3]
             combos.append(" ".join(f"{row[j]:+.2g} {names[j]}" for j in top))
         raise IdentifiabilityError("the data do not excite every base parameter "
-                                   "(too few samples or too little motion)", wb.shape[1],
+                                   "(too few samples or too little motion)", mat.shape[1],
                                    rank, combos)
 
 
@@ -119,7 +185,8 @@ def _verify_mass_matrix(reg: ClosedLoopRegressor, nominal: np.ndarray,
 
 
 def _solve(mat: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """``(x, (A^T A)^-1, condition)`` of column-scaled least squares."""
+    """``(x, (A^T A)^-1, condition)`` of column-scaled least squares (``A`` the reduced
+    stack of :meth:`ActuatorFactors.stacked`: the same normal matrix as the full one)."""
     norms = np.linalg.norm(mat, axis=0)
     u_mat, sv, vt = np.linalg.svd(mat / norms, full_matrices=False)
     y = vt.T @ ((u_mat.T @ rhs) / sv)
@@ -175,32 +242,30 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
         raise IdentifiabilityError(f"{full.shape[0]} force rows for {r} base parameters",
                                    r, full.shape[0])
     wb = base.regressor(full)
-    _data_rank(wb, base.names)
     u = forces.reshape(-1)
+    factors = ActuatorFactors.of(wb, u, n_act)
+    _data_rank(factors, base.names)
     if noise_std is None:
         sigma = np.ones(n_act)
         for _ in range(NOISE_ITERATIONS):       # OLS, then re-weighted
-            w = np.tile(1.0 / sigma, n)
-            beta_it = _solve(wb * w[:, None], u * w)[0]
-            e = (u - wb @ beta_it).reshape(n, n_act)
-            sigma = np.sqrt(np.sum(e ** 2, axis=0) / max(n - r / n_act, 1.0))
+            beta_it = _solve(*factors.stacked(sigma))[0]
+            sigma = np.sqrt(factors.residuals2(beta_it) / max(n - r / n_act, 1.0))
             sigma = np.maximum(sigma, 1e-12 * max(float(np.max(np.abs(u))), 1e-300))
     else:
         sigma = bounds(noise_std, n_act, "noise_std")
         if not np.all(np.isfinite(sigma)):
             raise InputError("noise_std", noise_std, "must be finite")
-    weights = np.tile(1.0 / sigma, n)
-    ww, uw = wb * weights[:, None], u * weights
-    beta, inv, cond = _solve(ww, uw)
-    ew = uw - ww @ beta
-    s2 = float(ew @ ew) / (ww.shape[0] - r)
+    rw, cw = factors.stacked(sigma)
+    beta, inv, cond = _solve(rw, cw)
+    s2 = float(np.sum(factors.residuals2(beta) / sigma ** 2)) / (factors.rows - r)
     cov = s2 * inv
     nominal = nominal_parameters(robot, reg.layout.drive)
     beta_nom = base.values(nominal)
     fit = None
     if consistent:
-        information = scipy.linalg.qr(ww, mode="r")[0][:r]     # R (r, r)
-        scale = np.linalg.norm(full * weights[:, None], axis=0)
+        information = scipy.linalg.qr(rw, mode="r")[0][:r]     # R (r, r)
+        by_sample = full.reshape(n, n_act, -1)
+        scale = np.sqrt(np.einsum("kij,kij,i->j", by_sample, by_sample, sigma ** -2.0))
         fit = consistent_fit(reg.layout, information, base.regrouping, beta, scale,
                              nominal, prior)
         _verify_mass_matrix(reg, nominal, fit.parameters)
@@ -217,16 +282,64 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
     return result
 
 
+def input_noise_force(robot: object, times: np.ndarray, cutoff: float,
+                      position_noise_std: npt.ArrayLike,
+                      drive: object = DEFAULT_DRIVE) -> np.ndarray:
+    """The force errors (n_act,) (N, N m) that white actuator-position noise makes through
+    the filtered, twice differentiated positions (errors in the variables): ``sqrt(diag(M_a
+    diag(s_a^2) M_a))`` with ``s_a = gain * position_noise_std`` the acceleration noise
+    (:func:`~.motion_data.derivative_noise_gain`) and ``M_a`` the nominal robot's mass
+    matrix in actuator coordinates at home (:func:`actuator_mass_matrix`). The velocity
+    noise's part (through damping and Coulomb steps) is left out: smaller by the ratio
+    of the two gains, ``cutoff`` times over.
+
+    Raises:
+        InputError: a position noise that is not positive and finite (scalar or (n_act,)).
+    """
+    reg = ClosedLoopRegressor(robot, drive)
+    sigma = bounds(position_noise_std, reg.n_actuators, "position_noise_std")
+    if not np.all(np.isfinite(sigma)):
+        raise InputError("position_noise_std", position_noise_std, "must be finite")
+    gain = derivative_noise_gain(times, cutoff)[1]
+    mass = actuator_mass_matrix(reg, nominal_parameters(robot, reg.layout.drive))
+    return np.sqrt((mass ** 2) @ (gain * sigma) ** 2)
+
+
 def identify(robot: object, data: object, *, cutoff: float | None = None,
-             trim: int | None = DEFAULT_TRIM, **options: object) -> IdentificationResult:
+             trim: int | None = DEFAULT_TRIM, position_noise_std: npt.ArrayLike | None = None,
+             **options: object) -> IdentificationResult:
     """Identify from a measured motion (:class:`~.motion_data.MotionData`): its states
     by :func:`~.motion_data.states_from_motion` (zero-phase Butterworth at ``cutoff`` Hz,
     default a fifth of the Nyquist frequency; ``trim`` samples dropped at each end,
     default three periods of the cut-off), then
     :func:`identify_from_states` with ``options`` (``drive``, ``base``, ``noise_std``,
-    ``consistent``, ``prior``). Errors as both."""
+    ``consistent``, ``prior``). Errors as both.
+
+    The standard errors assume exact states. With ``position_noise_std`` (the actuator
+    positions' white noise, m or rad, scalar or (n_act,)) the force errors that this
+    noise makes through the differentiated positions are computed
+    (:func:`input_noise_force`, in the result's ``input_noise_force``), and when any
+    exceeds :data:`INPUT_NOISE_WARNING` of that actuator's force noise a warning names
+    the cut-off that would bring it there: beyond it the estimates are biased (errors
+    in the variables) by more than their standard errors say. Lower the cut-off (it
+    must stay well above the motion's bandwidth) rather than trusting them.
+    """
     st = states_from_motion(robot, data, cutoff, trim)
     result = identify_from_states(robot, st.poses, st.twists, st.twist_dots,
                                   st.actuator_forces, times=st.times,
                                   **options)   # type: ignore[arg-type]
-    return dataclasses.replace(result, cutoff=cutoff, trim=trim)
+    induced = None
+    if position_noise_std is not None:
+        times = np.asarray(getattr(data, "times"), dtype=float)
+        cut = resolve_cutoff(times, cutoff)
+        induced = input_noise_force(robot, times, cut, position_noise_std,
+                                    options.get("drive", DEFAULT_DRIVE))
+        ratio = float(np.max(induced / result.noise_std))
+        if ratio > INPUT_NOISE_WARNING:
+            better = cut * (INPUT_NOISE_WARNING / ratio) ** 0.4
+            LOGGER.warning("the position noise makes force errors of up to %.3g of the force "
+                           "noise through the accelerations filtered at %.4g Hz (above %g): "
+                           "the standard errors understate the errors; a cut-off of %.3g Hz "
+                           "would bring it to %g", ratio, cut, INPUT_NOISE_WARNING, better,
+                           INPUT_NOISE_WARNING)
+    return dataclasses.replace(result, cutoff=cutoff, trim=trim, input_noise_force=induced)

@@ -201,8 +201,8 @@ def sampled_motion(robot: object, series: FourierSeries, times: np.ndarray) -> M
     positions and the nominal robot's forces (``bounded=False``).
 
     Raises:
-        BatchUnreachablePoseError: a sample out of the robot's reach (its batch error).
-        BatchSingularityError: a singular sample (its batch error).
+        BatchUnreachablePoseError: a pose out of reach (the robot's batch error).
+        BatchSingularityError: a singular pose (the robot's batch error).
     """
     bot: ParallelRobot = robot   # type: ignore[assignment]
     poses, twists, twist_dots = series.evaluate(times)

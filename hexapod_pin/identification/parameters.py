@@ -38,6 +38,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..core.checks import as_array
@@ -53,6 +54,8 @@ DRIVE_PREFIX = {"armature": "Ia", "viscous": "fv", "coulomb": "fc", "offset": "o
 #: rail, the hexapod's, it cannot be told from the mass of the carriage; see
 #: :mod:`.base` for which kinds merge on which robot)
 DEFAULT_DRIVE = ("viscous", "coulomb", "offset")
+#: the model's effect field of each drive kind that has one (offsets have none)
+EFFECT_FIELDS = {"armature": "armature", "viscous": "damping", "coulomb": "coulomb"}
 #: the ten inertial parameter names of a body, Pinocchio's order
 INERTIAL_NAMES = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 #: the unit of each inertial parameter
@@ -101,7 +104,15 @@ class ParameterLayout:
             ArgumentTypeError: no closed-loop model.
             InputError: bad ``drive``.
         """
-        clm = closed_loop_model(robot)
+        return cls.of_model(closed_loop_model(robot), drive)
+
+    @classmethod
+    def of_model(cls, clm: ClosedLoopModel, drive: object = DEFAULT_DRIVE) -> ParameterLayout:
+        """The layout of a closed-loop model (bodies of its tree, its actuated joints).
+
+        Raises:
+            InputError: bad ``drive``.
+        """
         names = tuple(clm.model.names[j] for j in range(1, clm.model.njoints))
         return cls(names, tuple(clm.actuated_joints), check_drive(drive))
 
@@ -201,12 +212,35 @@ def robot_with_parameters(robot: object, parameters: np.ndarray,
             with a mass <= 0 and other parameters not zero.
     """
     clm = closed_loop_model(robot)
-    layout = ParameterLayout.of(robot, drive)
+    new = model_with_parameters(clm, parameters, drive)
+    return ClosedLoopRobot(new, robot_platform_frame(robot), robot_pose_axes(robot),
+                           home=robot_home(robot), max_actuator_force=np.inf)
+
+
+def model_with_parameters(clm: ClosedLoopModel, parameters: npt.ArrayLike,
+                          drive: object = DEFAULT_DRIVE) -> ClosedLoopModel:
+    """A closed-loop model with other dynamic parameters: a copy of the tree of ``clm``
+    with the bodies' inertias of ``parameters`` (:func:`tree_with_parameters`), the same
+    closures, actuation, gravity and effects, with the armature, damping and Coulomb
+    friction of the actuated coordinates replaced by the drive parameters present in
+    ``drive`` (offsets have no model field and are left out). The tree-level route of
+    :func:`robot_with_parameters`.
+
+    Args:
+        clm: the closed-loop model.
+        parameters: the full parameter vector (``ParameterLayout.of_model(clm, drive)``).
+        drive: the drive kinds of ``parameters``.
+
+    Raises:
+        InputError: bad ``drive``; a vector of the wrong length or not finite; negative
+            armature, viscous or Coulomb parameters; a body with a mass <= 0 and other
+            parameters not zero.
+    """
+    layout = ParameterLayout.of_model(clm, drive)
     values = as_array(parameters, (layout.size,), "parameters")
     tree = tree_with_parameters(clm, values)
     changes: dict[str, np.ndarray] = {}
-    fields = {"armature": "armature", "viscous": "damping", "coulomb": "coulomb"}
-    for kind, field in fields.items():
+    for kind, field in EFFECT_FIELDS.items():
         if kind not in layout.drive:
             continue
         per_act = values[layout.drive_slice(kind)]
@@ -217,10 +251,8 @@ def robot_with_parameters(robot: object, parameters: np.ndarray,
         full[clm.actuated_v] = per_act
         changes[field] = full
     effects = clm.effects.replace(**changes) if changes else clm.effects
-    new = ClosedLoopModel(tree, clm.loops, name=clm.name, urdf_xml=clm.urdf_xml,
-                          effects=effects)
-    return ClosedLoopRobot(new, robot_platform_frame(robot), robot_pose_axes(robot),
-                           home=robot_home(robot), max_actuator_force=np.inf)
+    return ClosedLoopModel(tree, clm.loops, name=clm.name, urdf_xml=clm.urdf_xml,
+                           effects=effects)
 
 
 def tree_with_parameters(clm: ClosedLoopModel, parameters: np.ndarray) -> pin.Model:

@@ -41,6 +41,7 @@ unactuated joints) and springs are not parameters of the regressor.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -48,17 +49,41 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ..core.checks import as_array
+from ..core.closed_loop import ClosedLoopModel
+from ..core.dynamics import dynamics_of
+from ..core.effects import effect_forces
 from ..core.platform_map import PlatformMap, solve_checked_square
 from ..core.robot_kinematics import RobotKinematics
 from ..errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
 from .parameters import (
     DEFAULT_DRIVE,
+    EFFECT_FIELDS,
     ParameterLayout,
     closed_loop_model,
     robot_home,
     robot_platform_frame,
     robot_pose_axes,
 )
+
+#: a tree state given to :func:`closed_loop_regressor_tree` must keep the closures'
+#: acceleration: ``|J_c a + gamma| <= ACCELERATION_RTOL (|J_c| |a| + |gamma| + 1)``
+ACCELERATION_RTOL = 1e-9
+
+
+def _stacked_rows(layout: ParameterLayout, actuated_v: np.ndarray, projection: np.ndarray,
+                  y_tree: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """``[P Y_tree | P S^T Y_d]`` (k, layout.size) for a projection ``P`` (k, nv) of the
+    tree equation: ``G^T`` gives the actuator forces' rows, a basis of the unactuated
+    motions (transposed) their balance rows (``P S^T`` the identity, resp. zero)."""
+    out = np.empty((projection.shape[0], layout.size))
+    out[:, :layout.n_inertial] = projection @ y_tree
+    qd, qdd = v[actuated_v], a[actuated_v]
+    column = {"armature": qdd, "viscous": qd, "coulomb": np.sign(qd),
+              "offset": np.ones(actuated_v.size)}
+    on_actuated = projection[:, actuated_v]
+    for kind in layout.drive:
+        out[:, layout.drive_slice(kind)] = on_actuated * column[kind]
+    return out
 
 
 class TreeMotion(NamedTuple):
@@ -143,17 +168,9 @@ class ClosedLoopRegressor:
 
     def rows_of(self, motion: TreeMotion) -> np.ndarray:
         """``[Y | Y_d]`` (n_act, layout.size) at a tree state (module docstring)."""
-        out = np.empty((self.n_actuators, self.layout.size))
-        n_in = self.layout.n_inertial
-        out[:, :n_in] = motion.actuated_map.T @ self.tree_regressor(motion.q, motion.v,
-                                                                    motion.a)
-        act = self.clm.actuated_v
-        qd, qdd = motion.v[act], motion.a[act]
-        column = {"armature": qdd, "viscous": qd, "coulomb": np.sign(qd),
-                  "offset": np.ones(self.n_actuators)}
-        for kind in self.layout.drive:
-            out[:, self.layout.drive_slice(kind)] = np.diag(column[kind])
-        return out
+        y_tree = self.tree_regressor(motion.q, motion.v, motion.a)
+        return _stacked_rows(self.layout, self.clm.actuated_v, motion.actuated_map.T, y_tree,
+                             motion.v, motion.a)
 
     def rows(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
              twist_dot: npt.ArrayLike) -> np.ndarray:
@@ -208,6 +225,108 @@ class ClosedLoopRegressor:
             except HexapodPinError as exc:
                 raise MotionSampleError(k, float(stamp[k]), exc) from exc
         return out
+
+
+@dataclass(frozen=True)
+class TreeRegressorRows:
+    """The closed-loop regressor at a tree state (:func:`closed_loop_regressor_tree`).
+
+    For a motion the model performs (every motion keeping the closures when the actuators
+    determine it; for an under-actuated model such as Cassie, one its unactuated
+    directions allow, e.g. from forward dynamics)::
+
+        actuator_forces = rows @ pi + known
+        unactuated_rows @ pi + unactuated_known = 0
+
+    Attributes:
+        rows: ``[G^T Y_tree | Y_d]`` (n_act, n_params) (N or N m per parameter unit).
+        known: ``G^T tau_known`` (n_act,) (N, N m): the actuator forces of the model's
+            effects that are not parameters (springs; damping, friction and armature of
+            passive coordinates; those of the actuated coordinates whose kind is not in
+            ``drive``).
+        unactuated_rows: ``Z^T [Y_tree | S^T Y_d]`` (k, n_params), ``Z`` an orthonormal
+            basis (nv, k) of the closure-keeping motions with the actuators held
+            (``J_c Z = 0``, ``S Z = 0``; k = 0 when the actuators determine the motion).
+        unactuated_known: ``Z^T tau_known`` (k,).
+    """
+
+    rows: np.ndarray
+    known: np.ndarray
+    unactuated_rows: np.ndarray
+    unactuated_known: np.ndarray
+
+
+def _known_effect_force(clm: ClosedLoopModel, drive: tuple[str, ...], q: np.ndarray,
+                        v: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """``tau_known`` (nv,): armature times ``a`` minus the joints' effect forces
+    (:func:`~hexapod_pin.core.effects.effect_forces`), the actuated coordinates' entries
+    of the drive kinds in ``drive`` left out (they are parameters)."""
+    changes = {}
+    for kind, field in EFFECT_FIELDS.items():
+        if kind in drive:
+            values = np.array(getattr(clm.effects, field), dtype=float)
+            values[clm.actuated_v] = 0.0
+            changes[field] = values
+    effects = clm.effects.replace(**changes) if changes else clm.effects
+    out = effects.armature * a
+    if effects.has_forces:
+        out = out - effect_forces(clm.model, effects, q, v, a)
+    return out
+
+
+def closed_loop_regressor_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.ArrayLike,
+                               a: npt.ArrayLike,
+                               drive: object = DEFAULT_DRIVE) -> TreeRegressorRows:
+    """The closed-loop regressor at a tree state of any closed-loop model (no platform
+    pose needed: Cassie), the tree-level form of :class:`ClosedLoopRegressor`.
+
+    The equation of motion ``M a + h = Y_tree pi``, ``(M + diag(armature)) a + h -
+    effects = S^T u + J_c^T lambda`` is projected (module docstring, step 3) with ``G``
+    (nv, n_act), the actuated velocity map of
+    :meth:`~hexapod_pin.core.closed_loop.ClosedLoopModel.actuated_velocity_map`
+    (``J_c G = 0``, ``S G = I``; the least-norm one where the actuators leave motion
+    free), and with a basis ``Z`` of the unactuated motions (``null(J_c) & null(S)``):
+    see :class:`TreeRegressorRows`. Parameters in
+    ``ParameterLayout.of_model(clm, drive)`` order.
+
+    Args:
+        clm: the closed-loop model (its tree's inertias are not used).
+        q: configuration (nq,), closures assembled.
+        v: velocity (nv,), ``J_c v = 0``.
+        a: acceleration (nv,), ``J_c a + gamma = 0`` (to :data:`ACCELERATION_RTOL`).
+        drive: the drive kinds of the columns (:data:`~.parameters.DRIVE_KINDS`).
+
+    Raises:
+        InputError: bad shapes, NaN / inf, bad ``drive``; ``q`` off the closures, ``v`` or
+            ``a`` breaking them (the residual named).
+        InconsistentMotionError: a configuration where the actuators cannot move
+            independently (no ``G``).
+    """
+    layout = ParameterLayout.of_model(clm, drive)
+    q, v, a = clm.check_q(q), clm.check_v(v), clm.check_v(a, "a")
+    dynamics_of(clm).check_state(q, v)
+    jac = clm.constraint_jacobian(q)
+    gamma = clm.constraint_drift(q, v)
+    miss = float(np.max(np.abs(jac @ a + gamma), initial=0.0))
+    scale = float(np.max(np.abs(jac), initial=0.0) * np.max(np.abs(a)) +
+                  np.max(np.abs(gamma), initial=0.0) + 1.0)
+    if not miss <= ACCELERATION_RTOL * scale:
+        raise InputError("a", a, f"breaks the closures: |J_c a + gamma| = {miss:.3g} "
+                         f"above {ACCELERATION_RTOL:g} x {scale:.3g}")
+    gmap = clm.actuated_velocity_map(q)
+    _, sv, vt = np.linalg.svd(jac) if jac.shape[0] else (None, np.zeros(0), np.eye(clm.nv))
+    rank = int(np.sum(sv > 1e-10 * sv[0])) if sv.size else 0
+    basis = vt[rank:].T                                            # null(J_c)
+    _, sv_a, vt_a = np.linalg.svd(basis[clm.actuated_v])
+    rank_a = int(np.sum(sv_a > 1e-10 * sv_a[0])) if sv_a.size else 0
+    unactuated = basis @ vt_a[rank_a:].T                           # null(J_c) & null(S)
+    y_tree = np.array(pin.computeJointTorqueRegressor(clm.model, clm.model.createData(),
+                                                      q, v, a))
+    known = _known_effect_force(clm, layout.drive, q, v, a)
+    return TreeRegressorRows(
+        _stacked_rows(layout, clm.actuated_v, gmap.T, y_tree, v, a), gmap.T @ known,
+        _stacked_rows(layout, clm.actuated_v, unactuated.T, y_tree, v, a),
+        unactuated.T @ known)
 
 
 def regressor(robot: object, pose: npt.ArrayLike, twist: npt.ArrayLike,

@@ -84,8 +84,14 @@ class IdentificationResult:
         after: residuals of the estimate on the data.
         condition_number: of the weighted base regressor with unit-norm columns.
         consistent: the physically consistent estimate (None when not asked for).
-        cutoff: the filter's cut-off used for motion data (None for states).
-        trim: the samples dropped at each end of motion data (None for states).
+        cutoff: the filter cut-off used for motion data (Hz; None: the default, or
+            states).
+        trim: the samples dropped at each end of motion data (None: the default, or
+            states).
+        input_noise_force: (n_act,) (N, N m) the force errors that the given position
+            noise makes through the filtered accelerations (``identify(...,
+            position_noise_std=...)``, :func:`~.estimate.input_noise_force`); None when
+            not asked for.
     """
 
     robot: object
@@ -101,6 +107,7 @@ class IdentificationResult:
     consistent: ConsistentFit | None
     cutoff: float | None = None
     trim: int | None = DEFAULT_TRIM
+    input_noise_force: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property

@@ -92,7 +92,7 @@ def test_errors(robot, excite_file, tmp_path):
     motion = read_motion(path, robot)
     no_forces = tmp_path / "no_forces.csv"
     write_motion(no_forces, Motion(motion.t, motion.poses, q=motion.q), robot)
-    one_line_error(invoke("identify", no_forces, *ROBOT), 1, "data")
+    one_line_error(invoke("identify", no_forces, *ROBOT), 1, "no_forces.csv", "tau0")
     one_line_error(invoke("identify", path, *ROBOT, "--drive", "viscous,friction"), 1,
                    "drive")
     one_line_error(invoke("excite", *ROBOT, "--harmonics", 1, "--out", tmp_path / "x.csv"),
@@ -100,3 +100,52 @@ def test_errors(robot, excite_file, tmp_path):
     one_line_error(invoke("excite", "--platform", "crank", "--out", tmp_path / "x.csv"), 2,
                    "--robot")
     one_line_error(invoke("excite", *ROBOT, "--out", tmp_path / "x.txt"), 1, "out")
+
+
+def _log_file(path, columns, rows):
+    """A CSV log written here with the csv module (no library writer)."""
+    import csv
+    with open(path, "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(columns)
+        writer.writerows(rows)
+    return path
+
+
+def test_identify_reads_a_log_without_pose_columns(robot, excite_file, tmp_path):
+    """A real log has times, actuator positions and forces only: identification from it
+    equals identification from the same samples with the pose columns (poses are
+    recomputed from the positions either way), CSV and JSON; --use-poses needs poses."""
+    path, _ = excite_file
+    motion = read_motion(path, robot)
+    truth = nominal_parameters(robot, DRIVE) * 1.2
+    reg = ClosedLoopRegressor(robot, DRIVE)
+    truth[reg.layout.drive_slice("viscous")] = 0.04
+    forces = (reg.batch(motion.poses, motion.twists, motion.twist_dots) @ truth)
+    with_poses = tmp_path / "with_poses.csv"
+    write_motion(with_poses, Motion(motion.t, motion.poses, q=motion.q,
+                                    actuator_forces=forces.reshape(-1, 1)), robot)
+    rows = np.column_stack([motion.t, motion.q, forces]).tolist()
+    log = _log_file(tmp_path / "log.csv", ["t", "q0", "tau0"], rows)
+    log_json = tmp_path / "log.json"
+    log_json.write_text(json.dumps({"t": motion.t.tolist(), "q": motion.q.tolist(),
+                                    "actuator_forces": forces.reshape(-1, 1).tolist()}))
+    runs = [invoke("identify", f, *ROBOT, "--json", "--no-consistent")
+            for f in (with_poses, log, log_json)]
+    for run in runs:
+        assert run.exit_code == 0, run.output
+    ref, *others = (json.loads(run.stdout) for run in runs)
+    assert ref["residual_rms_after"] < 0.05 * ref["residual_rms_before"]
+    for out in others:
+        assert out["samples"] == ref["samples"]
+        assert np.allclose(out["values"], ref["values"], rtol=1e-9, atol=1e-12)
+        assert np.allclose(out["std_errors"], ref["std_errors"], rtol=1e-9)
+    one_line_error(invoke("identify", log, *ROBOT, "--use-poses"), 1, "use_poses",
+                   "no pose columns")
+    no_tau = _log_file(tmp_path / "no_tau.csv", ["t", "q0"],
+                       np.column_stack([motion.t, motion.q]).tolist())
+    one_line_error(invoke("identify", no_tau, *ROBOT), 1, "no_tau.csv", "tau0")
+    foreign = _log_file(tmp_path / "foreign.csv", ["t", "q0", "q1", "tau0", "tau1"],
+                        np.column_stack([motion.t, motion.q, motion.q, forces,
+                                         forces]).tolist())
+    one_line_error(invoke("identify", foreign, *ROBOT), 1, "q1")

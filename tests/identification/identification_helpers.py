@@ -13,12 +13,13 @@ from hexapod_pin.identification import ClosedLoopRegressor, nominal_parameters
 ROBOTS = ("hexapod", "planar", "stewart")
 
 
-def random_consistent(robot, drive, rng) -> np.ndarray:
+def random_consistent(robot, drive, rng, layout=None) -> np.ndarray:
     """A random physically consistent full parameter vector: every body a random mass
     (0.1 - 2 kg), centre of mass (+-0.1 m) and positive-definite inertia about it with the
     triangle inequalities (principal moments from random positive semi-axes, rotated);
-    drive parameters positive, offsets signed."""
-    layout = ClosedLoopRegressor(robot, drive).layout
+    drive parameters positive, offsets signed. ``layout``: given (a model without a
+    platform, e.g. Cassie's), else the robot's."""
+    layout = ClosedLoopRegressor(robot, drive).layout if layout is None else layout
     out = np.empty(layout.size)
     for b in range(len(layout.bodies)):
         mass = rng.uniform(0.1, 2.0)

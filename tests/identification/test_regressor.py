@@ -4,6 +4,7 @@ the robots' KKT / closed-form inverse dynamics of a robot built with the paramet
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pytest
 import robot_registry
 from identification_helpers import ROBOTS, random_consistent
@@ -124,3 +125,78 @@ def test_log_cholesky_body_map_against_finite_differences():
     lifted = pseudo_inertia(nominal) + LIFT * 0.5 * 0.2 ** 2 * np.diag([1.0, 1.0, 1.0, 0.0])
     assert np.allclose(pseudo_inertia(ref.parameters(np.zeros(10))[0]), lifted, atol=1e-15)
     assert np.linalg.eigvalsh(pseudo_inertia(pi))[0] > 0
+
+
+def _cassie_states(clm, rng, count):
+    """Closure-consistent Cassie states: assembled ``q`` (actuated joints moved), ``v``
+    with ``J_c v = 0`` from random actuated speeds well away from zero (the Coulomb
+    columns are ``sign(qd)``)."""
+    out = []
+    for _ in range(count):
+        dq = np.zeros(clm.nv)
+        dq[clm.actuated_v] = 0.1 * rng.normal(size=clm.n_actuated)
+        q = clm.assemble(pin.integrate(clm.model, pin.neutral(clm.model), dq)).q
+        v = rng.normal(size=clm.nv)
+        v[clm.actuated_v] = rng.choice([-1.0, 1.0], clm.n_actuated) * rng.uniform(
+            0.2, 1.0, clm.n_actuated)
+        v = clm.complete_velocity(q, clm.actuated_v, v[clm.actuated_v])
+        out.append((q, v))
+    return out
+
+
+def test_cassie_tree_regressor_matches_closed_loop_inverse_dynamics():
+    """Cassie (under-actuated: 12 degrees of freedom, 10 actuators, springs and damping
+    on passive joints): at motions the robot performs with random consistent parameters
+    (forward dynamics of the model rebuilt with them under random actuator forces),
+    ``rows @ pi + known`` is ``inverse_dynamics_tree`` of that model (1e-10) and the
+    given forces; the unactuated balance rows vanish there and not at a motion the
+    robot cannot perform."""
+    from hexapod_pin.core.dynamics import forward_dynamics_tree, inverse_dynamics_tree
+    from hexapod_pin.identification import (
+        ParameterLayout,
+        closed_loop_regressor_tree,
+        model_with_parameters,
+    )
+    from hexapod_pin.loaders import robots
+    clm = robots.cassie()
+    drive = ("armature", "viscous", "coulomb")
+    layout = ParameterLayout.of_model(clm, drive)
+    rng = np.random.default_rng(17)
+    for q, v in _cassie_states(clm, rng, 3):
+        pi = random_consistent(None, drive, rng, layout)
+        other = model_with_parameters(clm, pi, drive)
+        u_in = rng.normal(scale=20.0, size=clm.n_actuated)
+        a = forward_dynamics_tree(other, q, v, u_in, method="kkt").a
+        rows = closed_loop_regressor_tree(clm, q, v, a, drive)
+        assert rows.rows.shape == (10, layout.size) and rows.unactuated_rows.shape[0] == 2
+        u = inverse_dynamics_tree(other, q, v, a, method="kkt").actuator_forces
+        scale = max(1.0, float(np.max(np.abs(u))))
+        assert np.max(np.abs(rows.rows @ pi + rows.known - u)) <= 1e-10 * scale
+        assert np.max(np.abs(u - u_in)) <= 1e-8 * scale
+        balance = rows.unactuated_rows @ pi + rows.unactuated_known
+        assert np.max(np.abs(balance)) <= 1e-10 * scale
+        # an acceleration the actuators cannot produce: the balance rows see it
+        inertial_only = closed_loop_regressor_tree(clm, q, v, a, ())
+        assert inertial_only.rows.shape == (10, layout.n_inertial)
+        jac = clm.constraint_jacobian(q)
+        *_, vt = np.linalg.svd(np.vstack([jac, np.eye(clm.nv)[clm.actuated_v]]))
+        free = vt[-1]                                   # J_c free = 0, S free = 0
+        off = closed_loop_regressor_tree(clm, q, v, a + 5.0 * free, drive)
+        assert np.max(np.abs(off.unactuated_rows @ pi + off.unactuated_known)) > 1e-3
+
+
+def test_tree_regressor_refuses_states_off_the_closures():
+    from hexapod_pin.identification import closed_loop_regressor_tree
+    from hexapod_pin.loaders import robots
+    clm = robots.cassie()
+    rng = np.random.default_rng(4)
+    (q, v), = _cassie_states(clm, rng, 1)
+    a = clm.acceleration_from_actuated(q, v, np.zeros(clm.n_actuated))
+    with pytest.raises(InputError, match="a"):
+        closed_loop_regressor_tree(clm, q, v, a + 1.0)
+    with pytest.raises(InputError, match="v"):
+        closed_loop_regressor_tree(clm, q, v + 1.0, a)
+    with pytest.raises(InputError, match="drive"):
+        closed_loop_regressor_tree(clm, q, v, a, drive=("friction",))
+    with pytest.raises(InputError, match="q"):
+        closed_loop_regressor_tree(clm, q[:3], v, a)
