@@ -78,6 +78,18 @@ class ComputedDetails:
         return float(self.residual_)
 
 
+def new_result(kind: type, values: dict[str, object]) -> object:
+    """An instance of the frozen result dataclass ``kind`` holding ``values`` (every field,
+    by name), made without the generated ``__init__`` (one ``object.__setattr__`` per
+    field): the fast construction of the single-state routes. The instance is the same as
+    ``kind(**values)``: same type, fields, ``cached_property`` parts and immutability (the
+    class's ``__setattr__`` is untouched); ``tests/core/test_results.py`` checks the two
+    against each other. Only for classes without ``__post_init__``."""
+    obj = object.__new__(kind)
+    obj.__dict__.update(values)
+    return obj
+
+
 class LazyConditioning:
     """The singularity measures of a result's pose, computed on first call under the
     robot's lock (the measure routes share the robot's scratch) and kept.
