@@ -11,6 +11,8 @@ import dataclasses
 import functools
 import math
 import numbers
+import operator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -390,6 +392,9 @@ def check_finite_result(function: str, value: Any, field: str = "value") -> Any:
         NonFiniteResultError: a NaN anywhere, or an inf outside ``condition_number``
             (naming the function and the field).
     """
+    layout = _result_layout(type(value))
+    if layout is not None and _result_finite(layout, value):
+        return value                    # a result type's fast path: every field finite
     if isinstance(value, np.ndarray):
         if value.dtype == np.float64:
             bad = not all_finite(value.reshape(-1))
@@ -412,6 +417,43 @@ def check_finite_result(function: str, value: Any, field: str = "value") -> Any:
         if not _fields_finite(function, value, fields):
             _name_nonfinite_field(function, value, fields)
     return value
+
+
+def _result_finite(layout: tuple[Callable, Callable], value: Any) -> bool:
+    """Whether a result of a known layout (:func:`_result_layout`) is finite: its float64
+    vectors in one compiled call, its other fields labels or counts. False also when a
+    field holds something else (the caller then walks it field by field)."""
+    vectors, others = layout[0](value), layout[1](value)
+    for item in vectors:
+        if type(item) is not np.ndarray or item.dtype is not _FLOAT64 or item.ndim != 1:
+            return False
+    for item in others:
+        if type(item) not in _SCALAR_KINDS:
+            return False
+    return all_finite4(*vectors)
+
+
+@functools.cache
+def _result_layout(kind: type) -> tuple[Callable, Callable] | None:
+    """For a dataclass whose public fields are one to four vectors (annotated
+    ``np.ndarray``) and labels or counts (``str``, ``int``): getters of the vectors (padded
+    to four with an empty one) and of the others; None for any other type."""
+    if not dataclasses.is_dataclass(kind):
+        return None
+    public = [item for item in dataclasses.fields(kind) if not item.name.startswith("_")]
+    vectors = [item.name for item in public if item.type == "np.ndarray"
+               and item.name not in _INF_ALLOWED]
+    others = [item.name for item in public if item.name not in vectors]
+    if not 1 <= len(vectors) <= 4 or any(item.type not in ("str", "int") for item in public
+                                         if item.name in others):
+        return None
+    pad = (_NO_VECTOR,) * (4 - len(vectors))
+    get = operator.attrgetter(*vectors)
+    vectors_of = (lambda value: (get(value), *pad)) if len(vectors) == 1 else \
+        (lambda value: (*get(value), *pad))
+    others_of = operator.attrgetter(*others) if len(others) > 1 else \
+        (lambda value: (getattr(value, others[0]),)) if others else (lambda value: ())
+    return vectors_of, others_of
 
 
 def _fields_finite(function: str, value: Any, fields: tuple[str, ...]) -> bool:

@@ -124,3 +124,25 @@ def test_the_grouped_scan_names_the_first_bad_field_in_order(bad, named):
         check_finite_result("f", _Six(**values))
     assert named in str(info.value)
     assert check_finite_result("f", _Six(**{k: np.ones(3) for k in "abcde"}, nested=[1.0]))
+
+
+@pytest.mark.parametrize("field, bad", [("actuator_forces", math.nan),
+                                        ("acceleration", math.inf),
+                                        ("iterations", math.nan),       # not a count
+                                        ("configuration", "matrix")])   # not a vector
+def test_the_result_type_fast_path_finds_every_bad_field(robot, field, bad):
+    """A result of a known layout (vectors and labels / counts) is checked in one compiled
+    call; a NaN / inf in a vector, or a field of another kind, goes to the exact walk."""
+    res = robot.inverse_dynamics(POSE, TWIST, TWIST_DOT)
+    values = _fields(res)
+    if field in ("actuator_forces", "acceleration"):
+        values[field] = values[field].copy()
+        values[field][3] = bad
+    elif field == "configuration":
+        values[field] = np.array([[1.0, math.nan]])           # 2-D: walked, NaN found
+    else:
+        values[field] = bad
+    broken = type(res)(**values)
+    with pytest.raises(hp.NonFiniteResultError, match=field):
+        check_finite_result("f", broken)
+    assert check_finite_result("f", res) is res
