@@ -621,6 +621,50 @@ def wrapper_cost(peers: HexapodPeers, repeats: int) -> str:
                        "needs")
 
 
+
+# -- single-call overhead ---------------------------------------------------------------------
+def single_call(peers: HexapodPeers, repeats: int) -> str:
+    """One inverse / forward dynamics call of the facade on the default route against
+    MuJoCo's bare ``mj_inverse`` / ``mj_forward`` on the same mechanism (issue 32 item 3).
+
+    MuJoCo's data are prepared per state beforehand (one ``MjData`` each, the tree state
+    set): its rows time the bare call only, no state transfer, no reduction to actuator
+    forces, soft closures. Ours start from the platform state (closed-form tree state,
+    input checks, lock, result object, finiteness check included)."""
+    r, s = peers.robot, peers
+    pool = min(64, peers.n_tree)
+    peers.prepare_tree(pool)
+    items = [
+        ("ours Hexapod.inverse_dynamics (defaults: kkt, bounded)", "inverse",
+         lambda i: r.inverse_dynamics(s.poses[i], s.twists[i], s.twist_dots[i])),
+        ("ours Hexapod.inverse_dynamics with a wrench", "inverse",
+         lambda i: r.inverse_dynamics(s.poses[i], s.twists[i], s.twist_dots[i], s.wrenches[i])),
+        ("ours Hexapod.forward_dynamics (defaults: nullspace)", "forward",
+         lambda i: r.forward_dynamics(s.poses[i], s.twists[i], s.forces[i])),
+        ("ours Hexapod.forward_dynamics with a wrench", "forward",
+         lambda i: r.forward_dynamics(s.poses[i], s.twists[i], s.forces[i], s.wrenches[i])),
+    ]
+    base: dict[str, float] = {}
+    if peers.mj is not None:
+        m = peers.mj.model
+        datas = []
+        for i in range(pool):
+            d = mujoco.MjData(m)
+            d.qpos[:], d.qvel[:], d.qacc[:] = s.mj_state[i]
+            datas.append(d)
+        items = [("MuJoCo mj_inverse (bare, tree state set)", "inverse",
+                  lambda i: mujoco.mj_inverse(m, datas[i])),
+                 ("MuJoCo mj_forward (bare, tree state set)", "forward",
+                  lambda i: mujoco.mj_forward(m, datas[i]))] + items
+    rows = []
+    for name, kind, fn in items:
+        counter = iter(range(10 ** 12))
+        t = measure(lambda: fn(next(counter) % pool), repeats=repeats)
+        base.setdefault(kind, t.median)
+        rows.append([name, fmt_us(t), f"{t.median / base[kind]:.2f}"])
+    return table(["one call, random states", "us per call", "/ MuJoCo bare call"], rows,
+                 title="## Single-call overhead: the facade against MuJoCo's bare calls")
+
 # -- simulation throughput ------------------------------------------------------------------
 def simulation_throughput(peers: HexapodPeers, repeats: int, steps: int = 200) -> str:
     """Microseconds per step of a run of ``steps`` steps at dt = 1 ms from one state."""
@@ -826,6 +870,9 @@ def main(argv=None) -> int:
                         help="skip a timing cell estimated to take longer (s)")
     parser.add_argument("--mem-limit", type=float, default=4.0, help="GiB per timing cell")
     parser.add_argument("--no-timing", action="store_true")
+    parser.add_argument("--single-call", action="store_true",
+                        help="only the single-call table (the facade against MuJoCo's bare "
+                             "mj_inverse / mj_forward)")
     parser.add_argument("--perturb-numpy-mass", type=float, default=0.0,
                         help="relative error put on the numpy peer's platform mass (to "
                              "check that a disagreement is caught)")
@@ -843,6 +890,9 @@ def main(argv=None) -> int:
     if args.perturb_numpy_mass:
         peers.p = dataclasses.replace(
             peers.p, platform_mass=peers.p.platform_mass * (1 + args.perturb_numpy_mass))
+    if args.single_call:
+        print(single_call(peers, args.repeats))
+        return 0
     failures = []
     if peers.mj is not None:
         rows, worst = model_check(peers, n=min(20, args.states))
@@ -869,6 +919,7 @@ def main(argv=None) -> int:
                   f"max {counts.max()} (stop at 1e-12 relative change)")
         failures += fails
     if not args.no_timing:
+        print(single_call(peers, args.repeats))
         print(wrapper_cost(peers, args.repeats))
         print(simulation_throughput(peers, args.repeats, steps=20 if args.smoke else 200))
         print("\n## Speed: microseconds per state, median [inter-quartile range] over "

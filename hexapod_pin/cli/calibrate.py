@@ -5,16 +5,11 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import numpy as np
 import typer
 
-from .. import calibration as cal
-from ..calibration.measurements import read_measurements
-from ..calibration.problem import Measurements
-from ..calibration.selection import select_measurements
-from ..files import GEOMETRY_SUFFIXES, save_geometry
 from .common import (
     AsJson,
     Degrees,
@@ -32,8 +27,13 @@ from .common import (
     robot_of,
 )
 
+if TYPE_CHECKING:
+    from .. import calibration as cal
+    from ..calibration.problem import Measurements
+
 
 def _subset(data: Measurements, rows: np.ndarray) -> Measurements:
+    from ..calibration.problem import Measurements
     return Measurements(data.actuators[rows],
                         None if data.poses is None else data.poses[rows],
                         None if data.points is None else data.points[rows],
@@ -88,6 +88,10 @@ def calibrate(measurements: Annotated[Path, typer.Argument(
     poses or points and the actuator readings, by least squares on the base parameter
     set; report the residuals, the identifiability and the estimates with their standard
     errors."""
+    from .. import calibration as cal
+    from ..calibration.measurements import read_measurements
+    from ..calibration.selection import select_measurements
+    from ..files import GEOMETRY_SUFFIXES, save_geometry
     quiet = quiet or as_json
     check_suffix("out", out, GEOMETRY_SUFFIXES)
     check_suffix("out-robot-frame", out_robot_frame, GEOMETRY_SUFFIXES)

@@ -31,7 +31,7 @@ import re
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Annotated, Any, cast
+from typing import TYPE_CHECKING, Annotated, Any, cast
 
 import numpy as np
 import typer
@@ -50,16 +50,13 @@ from rich.table import Table
 from rich.text import Text
 from typer.core import TyperCommand, TyperGroup
 
-from .. import motion as motions
-from ..core.description import read_effects_file
-from ..core.effects import COORDINATE_FIELDS
-from ..core.robot import ClosedLoopRobot
-from ..core.robot_api import ParallelRobot
 from ..errors import DescriptionError, HexapodPinError, InputError
-from ..files import load_geometry, read_text
-from ..hexapod.robot import Hexapod
-from ..loaders.any_robot import load_robot
-from ..motion import POSE_NAMES
+
+if TYPE_CHECKING:
+    from .. import motion as motions
+    from ..core.robot import ClosedLoopRobot
+    from ..core.robot_api import ParallelRobot
+    from ..hexapod.robot import Hexapod
 
 #: the exit codes of every command
 EXIT_CODES = {0: "success", 1: "a computed failure or bad input", 2: "a usage error"}
@@ -118,7 +115,10 @@ EffectsFile = Annotated[Path | None, typer.Option(
     "loops file's effects: format; see docs/drives.md)", show_default=False)]
 
 #: the robot of a command: the hexapod, or a robot loaded with ``--robot``
-CliRobot = Hexapod | ClosedLoopRobot
+if TYPE_CHECKING:
+    CliRobot = Hexapod | ClosedLoopRobot
+else:       # annotations only (the command line imports the library on first use)
+    CliRobot = object
 #: angular pose components (``--degrees`` converts them)
 ANGLES = ("roll", "pitch", "yaw")
 #: the twist and wrench component of each pose component
@@ -147,6 +147,8 @@ class ValueCountError(InputError):
 
 def robot_of(geometry_file: Path | None, overrides: list[str] | None) -> Hexapod:
     """The hexapod of ``--geometry`` and ``--set`` (see :func:`hexapod_pin.files.load_geometry`)."""
+    from ..files import load_geometry
+    from ..hexapod.robot import Hexapod
     return Hexapod(load_geometry(geometry_file, overrides))
 
 
@@ -165,6 +167,7 @@ def load_cli_robot(robot: Path | None, platform: str | None, pose_axes: str | No
             frame, pose axes that do not match the mechanism's mobility, a malformed
             effects file.
     """
+    from ..loaders.any_robot import load_robot
     if robot is None:
         if platform is not None or pose_axes is not None:
             raise CliUsageError("--platform and --pose-axes need --robot PATH")
@@ -185,6 +188,7 @@ def with_effects_file(robot: CliRobot, path: Path | None) -> CliRobot:
         DescriptionError: a malformed file, an unknown joint or key, a bad value (naming
             the file, the joint, the key and its line).
     """
+    from ..core.description import read_effects_file
     if path is None:
         return robot
     section = read_effects_file(path)
@@ -197,6 +201,7 @@ def effects_on(robot: CliRobot) -> dict[str, list[str]]:
     """The joint and drive effects ``robot`` carries: each field that is on (a nonzero
     armature, damping, coulomb, stiffness; a gear other than 1; a finite effort limit)
     -> the joints that have it, in the tree's order."""
+    from ..core.effects import COORDINATE_FIELDS
     effects, model = robot.effects, robot.model.tree_model
     joint_of = [""] * model.nv
     for jid in range(1, model.njoints):
@@ -260,6 +265,7 @@ def hexapod_only(robot: CliRobot, **options: object) -> None:
     Raises:
         CliUsageError: one of ``options`` was given for a loaded robot.
     """
+    from ..hexapod.robot import Hexapod
     if isinstance(robot, Hexapod):
         return
     given = [name for name, value in options.items() if value not in (None, False, [])]
@@ -271,12 +277,15 @@ def hexapod_only(robot: CliRobot, **options: object) -> None:
 
 def pose_axes_of(robot: CliRobot) -> tuple[str, ...]:
     """The pose components of the robot, e.g. ``("x", "z")`` (the hexapod: all six)."""
+    from ..core.robot import ClosedLoopRobot
+    from ..motion import POSE_NAMES
     return robot.geometry.pose_axes if isinstance(robot, ClosedLoopRobot) else POSE_NAMES
 
 
 def actuator_names(robot: CliRobot) -> tuple[str, ...]:
     """The actuators in order: the actuated joints of a loaded robot, ``q0 .. q5`` for
     the hexapod's carriages."""
+    from ..core.robot import ClosedLoopRobot
     if isinstance(robot, ClosedLoopRobot):
         return tuple(robot.model.actuated_joints)
     return tuple(f"q{i}" for i in range(robot.n_actuators))
@@ -285,15 +294,21 @@ def actuator_names(robot: CliRobot) -> tuple[str, ...]:
 def robot_fields(robot: CliRobot) -> dict[str, Any]:
     """What ``--json`` adds for a loaded robot: its name, pose axes and actuators (nothing
     for the hexapod)."""
+    from ..core.robot import ClosedLoopRobot
     if not isinstance(robot, ClosedLoopRobot):
         return {}
     return {"robot": robot.geometry.name, "platform": robot.geometry.platform,
             "pose_axes": list(pose_axes_of(robot)), "actuators": list(actuator_names(robot))}
 
 
-#: the column names a motion file of some robot may have (:func:`motion_columns`)
-_MOTION_NAMES = frozenset(motions.POSE_NAMES + motions.TWIST_NAMES
-                          + motions.TWIST_DOT_NAMES + motions.WRENCH_NAMES)
+@functools.cache
+def _motion_names() -> frozenset[str]:
+    """The column names a motion file of some robot may have (:func:`motion_columns`)."""
+    from .. import motion as motions
+    return frozenset(motions.POSE_NAMES + motions.TWIST_NAMES + motions.TWIST_DOT_NAMES
+                     + motions.WRENCH_NAMES)
+
+
 _ACTUATOR_COLUMN = re.compile(r"(q|tau)\d+")
 
 
@@ -301,6 +316,7 @@ def as_parallel(robot: CliRobot) -> ParallelRobot:
     """``robot`` typed as the shared robot API (a loaded robot serves the protocol at run
     time; its ``default`` and ``n_actuators`` are instance members, so mypy needs the cast
     until :mod:`hexapod_pin.core.robot_api` says so)."""
+    from ..core.robot_api import ParallelRobot
     return cast(ParallelRobot, robot)
 
 
@@ -308,6 +324,8 @@ def expected_columns(robot: CliRobot) -> str:
     """The motion-file columns of ``robot`` as one line: ``t`` and the pose, then the
     optional groups, e.g. ``t, x, z; optional vx, vz | ax, az | fx, fz | q0, q1 | tau0,
     tau1 | residual`` (:func:`hexapod_pin.motion.motion_columns`)."""
+    from .. import motion as motions
+    from ..hexapod.robot import Hexapod
     columns = motions.motion_columns(None if isinstance(robot, Hexapod)
                                      else as_parallel(robot))
     groups = " | ".join(", ".join(names) for names in columns.groups().values())
@@ -327,6 +345,8 @@ def read_robot_motion(path: Path, robot: CliRobot) -> motions.Motion:
         DescriptionError: a malformed file, or one of another robot (the message names
             the columns expected, :func:`expected_columns`).
     """
+    from .. import motion as motions
+    from ..hexapod.robot import Hexapod
     if isinstance(robot, Hexapod):
         return motions.read_motion(path)
     columns = motions.motion_columns(as_parallel(robot))
@@ -367,7 +387,7 @@ def _check_header(path: Path, robot: CliRobot, required: tuple[str, ...]) -> Non
         if header is not None:
             missing = [c for c in required if c not in header]
             foreign = [c for c in header if c not in own
-                       and (c in _MOTION_NAMES or _ACTUATOR_COLUMN.fullmatch(c))]
+                       and (c in _motion_names() or _ACTUATOR_COLUMN.fullmatch(c))]
             if missing or foreign:
                 what = "; ".join(part for part in (
                     f"missing columns {', '.join(missing)}" if missing else "",
@@ -380,6 +400,7 @@ def _check_header(path: Path, robot: CliRobot, required: tuple[str, ...]) -> Non
 def _csv_header(path: Path) -> list[str] | None:
     """The header row of a CSV motion file (its first line that is neither blank nor a
     ``#`` comment), None when it has none (read_motion says so)."""
+    from ..files import read_text
     for line in read_text(path).splitlines():
         if line.strip() and not line.lstrip().startswith("#"):
             return [name.strip() for name in next(csv.reader([line]))]
@@ -389,6 +410,8 @@ def _csv_header(path: Path) -> list[str] | None:
 def write_robot_motion(path: Path, motion: motions.Motion, robot: CliRobot) -> Path:
     """Write ``motion`` in the columns of the command's robot
     (:func:`hexapod_pin.motion.write_motion`; the hexapod's without ``--robot``)."""
+    from .. import motion as motions
+    from ..hexapod.robot import Hexapod
     if isinstance(robot, Hexapod):
         return motions.write_motion(path, motion)
     return motions.write_motion(path, motion, as_parallel(robot))
@@ -563,10 +586,19 @@ def parse_numbers(tokens: Sequence[str] | None, count: int | None, name: str,
     return array
 
 
+def hexapod_axes(axes: tuple[str, ...] | None) -> tuple[str, ...]:
+    """``axes``, or when None the hexapod's pose components
+    (:data:`hexapod_pin.motion.POSE_NAMES`)."""
+    from ..motion import POSE_NAMES
+    return POSE_NAMES if axes is None else axes
+
+
 def pose_in(tokens: Sequence[str] | None, degrees: bool, name: str = "pose",
-            axes: tuple[str, ...] = POSE_NAMES) -> np.ndarray:
+            axes: tuple[str, ...] | None = None) -> np.ndarray:
     """A pose (len(axes),) from the command line in m, rad (angles in degrees with
-    ``degrees``); ``axes`` the robot's pose components (:func:`pose_axes_of`)."""
+    ``degrees``); ``axes`` the robot's pose components (:func:`pose_axes_of`; default the
+    hexapod's)."""
+    axes = hexapod_axes(axes)
     pose = parse_numbers(tokens, len(axes), name, ", ".join(axes))
     if degrees:
         angular = _angular(axes)
@@ -574,10 +606,11 @@ def pose_in(tokens: Sequence[str] | None, degrees: bool, name: str = "pose",
     return pose
 
 
-def pose_out(pose: ArrayLike, degrees: bool, axes: tuple[str, ...] = POSE_NAMES
+def pose_out(pose: ArrayLike, degrees: bool, axes: tuple[str, ...] | None = None
              ) -> list[float]:
     """A pose of components ``axes`` (default the hexapod's) as plain floats for output
     (angles in degrees with ``degrees``)."""
+    axes = hexapod_axes(axes)
     pose = np.array(pose, dtype=float)
     if degrees:
         angular = _angular(axes)
@@ -605,6 +638,7 @@ def robot_pose_in(robot: CliRobot, tokens: Sequence[str] | None, degrees: bool,
 def actuators_in(robot: CliRobot, tokens: Sequence[str] | None, name: str = "q") -> np.ndarray:
     """Actuator values (n_act,) of ``robot`` from the command line (m or rad, actuator
     order)."""
+    from ..hexapod.robot import Hexapod
     names = actuator_names(robot)
     meaning = "q0 .. q5" if isinstance(robot, Hexapod) else ", ".join(names)
     return parse_numbers(tokens, len(names), name, meaning)
@@ -687,9 +721,10 @@ def progress_bar(quiet: bool, label: str, total: int | None = None) -> Iterator[
 
 
 def pose_table(title: str, poses: Sequence[np.ndarray] | np.ndarray, degrees: bool,
-               axes: tuple[str, ...] = POSE_NAMES) -> Table:
-    """A table of poses of components ``axes``, one row each, with units in the column
-    names."""
+               axes: tuple[str, ...] | None = None) -> Table:
+    """A table of poses of components ``axes`` (default the hexapod's), one row each, with
+    units in the column names."""
+    axes = hexapod_axes(axes)
     unit = "deg" if degrees else "rad"
     table = Table(title=title)
     table.add_column("#", justify="right")
@@ -703,6 +738,7 @@ def pose_table(title: str, poses: Sequence[np.ndarray] | np.ndarray, degrees: bo
 def actuator_table(robot: CliRobot, title: str, columns: dict[str, np.ndarray]) -> Table:
     """A table with one row per actuator and the given columns (the hexapod:
     :func:`carriage_table`, with each carriage's rail)."""
+    from ..hexapod.robot import Hexapod
     if isinstance(robot, Hexapod):
         return carriage_table(title, columns)
     table = Table(title=title)

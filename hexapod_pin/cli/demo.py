@@ -5,17 +5,13 @@ from __future__ import annotations
 
 import tempfile
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import numpy as np
 import typer
 from rich.table import Table
 from rich.text import Text
 
-from .. import motion as motions
-from ..viz import scenes
-from ..precompile import N_STEPS, WarmupReport
-from ..precompile import warmup as warmup_kernels
 from .common import (
     AsJson,
     GeometryFile,
@@ -31,6 +27,9 @@ from .common import (
     robot_of,
 )
 
+if TYPE_CHECKING:
+    from ..precompile import WarmupReport
+
 #: the tilted pose of the IK / FK round trip: home plus this offset (m, rad)
 ROUND_TRIP_OFFSET = np.array([0.01, -0.015, -0.02, 0.04, -0.03, 0.08])
 
@@ -44,6 +43,8 @@ def demo(as_json: AsJson = False,
     """The main job in one command: home pose, IK/FK round trip, statics, a short
     simulation, and an HTML view of the home pose (`--geometry`, `--set`: another
     design)."""
+    from .. import motion as motions
+    from ..viz import scenes
     quiet = quiet or as_json
     robot = robot_of(geometry, set_)
     report = compile_kernels(quiet)
@@ -112,6 +113,8 @@ def demo_table(result: dict) -> Table:
 def compile_kernels(quiet: bool) -> WarmupReport:
     """:func:`hexapod_pin.precompile.warmup` with a progress bar on a terminal (none when
     ``quiet``)."""
+    from ..precompile import N_STEPS
+    from ..precompile import warmup as warmup_kernels
     with progress_bar(quiet, "compiling the kernels (once per install)",
                       total=N_STEPS) as progress:
         return warmup_kernels(progress)

@@ -14,20 +14,12 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Annotated, NamedTuple
+from typing import TYPE_CHECKING, Annotated, NamedTuple
 
 import numpy as np
 import typer
 
-from .. import motion as motions
-from ..core.controllers import ComputedTorque
-from ..core.robot import ClosedLoopRobot
-from ..core.simulate import Trajectory
-from ..core.simulate import simulate as simulate_robot
-from ..core.simulation import INTEGRATORS
 from ..errors import InputError
-from ..hexapod.robot import Hexapod
-from ..viz import hexapod_scenes, plotting, scenes
 from .common import (
     TWIST_OF,
     WRENCH_OF,
@@ -67,6 +59,15 @@ from .common import (
     write_robot_motion,
 )
 
+if TYPE_CHECKING:
+    from .. import motion as motions
+    from ..core.robot import ClosedLoopRobot
+    from ..core.simulate import Trajectory
+
+#: the integrators ``simulate --integrator`` takes, for its help: those of
+#: :data:`hexapod_pin.core.simulation.INTEGRATORS` (``--help`` imports no library module;
+#: tests/cli/test_startup.py checks that the two agree)
+INTEGRATOR_NAMES = ("auto", "rk4", "semi_implicit_euler", "stick_slip")
 #: the controllers of ``simulate --robot``
 ROBOT_CONTROLLERS = ("none", "computed-torque")
 
@@ -85,6 +86,7 @@ def statics(pose: Values = None,
     With `--robot`: in its pose axes; `--wrench` has one value per pose axis (fx for x,
     mx for roll, ...); forces in N or N m along each actuated joint. With `--effects`:
     the springs' forces included (damping and friction give none at rest)."""
+    from ..core.robot import ClosedLoopRobot
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_, effects)
     p = robot_pose_in(bot, pose, degrees)
     w = component_values(bot, wrench, "wrench", WRENCH_OF)
@@ -104,6 +106,7 @@ def statics(pose: Values = None,
 def force_unit(robot: object) -> str:
     """The column name of actuator forces: ``tau (N)`` for the hexapod, ``tau (N | N m)``
     for a loaded robot (each in its joint's unit)."""
+    from ..core.robot import ClosedLoopRobot
     return "tau (N | N m)" if isinstance(robot, ClosedLoopRobot) else "tau (N)"
 
 
@@ -187,6 +190,8 @@ def inverse_dynamics(motion_file: Annotated[Path, typer.Argument(
     With `--effects`: the forces also balance the effects (rotor inertia, damping,
     Coulomb friction of the moving joints, springs).
     """
+    from .. import motion as motions
+    from ..hexapod.robot import Hexapod
     quiet = quiet or as_json
     check_suffix("out", out, motions.MOTION_SUFFIXES)
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_, effects)
@@ -235,7 +240,7 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
                  help="with --robot and no controller: constant actuator forces "
                       "'u0,u1,...' (N or N m, actuator order); default zero")] = None,
              integrator: Annotated[str, typer.Option(
-                 help=f"{', '.join(INTEGRATORS)}: auto picks stick_slip (exact Coulomb "
+                 help=f"{', '.join(INTEGRATOR_NAMES)}: auto picks stick_slip (exact Coulomb "
                       "friction at velocity level) when the joints have Coulomb friction, "
                       "else rk4; the hexapod's fast engine steps rk4 or "
                       "semi_implicit_euler (auto runs stick_slip on the python engine)")
@@ -273,6 +278,9 @@ def simulate(duration: Annotated[float, typer.Option(help="simulated time (s)")]
     With `--effects` (or a robot whose description has effects): the summary reports the
     integrator that ran and the work the damping and friction dissipated
     (`dissipated_work_j`)."""
+    from .. import motion as motions
+    from ..core.robot import ClosedLoopRobot
+    from ..viz import hexapod_scenes, plotting
     quiet = quiet or as_json
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_, effects)
     check_suffix("out", out, motions.MOTION_SUFFIXES)
@@ -380,6 +388,7 @@ def trajectory_motion(traj: Trajectory) -> motions.Motion:
     Raises:
         InputError: a trajectory without poses (a bare model has no platform).
     """
+    from .. import motion as motions
     return motions.Motion.from_trajectory(traj)
 
 
@@ -389,6 +398,10 @@ def _simulate_loaded(robot: ClosedLoopRobot, duration: float, dt: float | None,
                      urdf: Path | None, allow_saturation: bool = False) -> None:
     """``simulate --robot``: the generic simulation from home at rest, its files, its
     summary, and exit code 1 unless it completed (:func:`end_of_run`)."""
+    from ..core.controllers import ComputedTorque
+    from ..core.simulate import simulate as simulate_robot
+    from ..core.simulation import INTEGRATORS
+    from ..viz import plotting, scenes
     html = files.html
     if controller not in ROBOT_CONTROLLERS:
         raise InputError("controller", controller,

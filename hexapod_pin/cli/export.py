@@ -11,12 +11,7 @@ from typing import Annotated
 
 import typer
 
-from ..core.mujoco_export import closed_loop_mjcf
-from ..core.robot import ClosedLoopRobot
 from ..errors import InputError
-from ..files import load_geometry, write_text_atomic
-from ..planar.geometry import PlanarGeometry
-from ..planar.robot import Planar3PRR
 from .common import (
     AsJson,
     GeometryFile,
@@ -46,6 +41,9 @@ def urdf(out: Annotated[Path | None, typer.Option(
          geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """The URDF of the robot's tree for a geometry (``--geometry`` / ``--set`` take the
     fields of HexapodGeometry, or of PlanarGeometry with ``--robot planar``)."""
+    from ..files import load_geometry
+    from ..planar.geometry import PlanarGeometry
+    from ..planar.robot import Planar3PRR
     quiet = quiet or as_json
     if robot not in ROBOTS:
         raise InputError("robot", robot, f"expected one of {', '.join(ROBOTS)}")
@@ -67,6 +65,8 @@ def mjcf(out: Annotated[Path | None, typer.Option(
          geometry: GeometryFile = None, set_: SetFields = None) -> None:
     """The MuJoCo model (MJCF) of the hexapod, or of any robot with `--robot`: the tree,
     every loop closure as an equality constraint, one motor per actuated joint."""
+    from ..core.mujoco_export import closed_loop_mjcf
+    from ..core.robot import ClosedLoopRobot
     quiet = quiet or as_json
     check_suffix("out", out, (".xml", ".mjcf"))
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
@@ -79,6 +79,7 @@ def _deliver(text: str, kind: str, name: str, out: Path | None, as_json: bool,
              quiet: bool) -> None:
     """A description's text to ``out`` (atomic write, a note) or to stdout; with
     ``--json``, ``{"robot", kind: text}`` or ``{"robot", "out", "characters"}``."""
+    from ..files import write_text_atomic
     if out is None:
         if as_json:
             emit_json({"robot": name, kind: text})

@@ -10,12 +10,7 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from ..core.robot import ClosedLoopRobot
 from ..errors import AssemblyError, InputError
-from ..hexapod.robot import Hexapod
-from ..motion import POSE_NAMES
-from ..viz import hexapod_scenes, scenes
-from ..viz.workspace_plots import CONDITION_LABEL
 from .common import (
     TWIST_OF,
     AsJson,
@@ -49,10 +44,11 @@ from .common import (
     robot_urdf,
 )
 
-#: what the fields of ``Hexapod.singularity`` are: (label with unit, meaning)
+#: what the fields of ``Hexapod.singularity`` are: (label with unit, meaning); the
+#: condition number's, :data:`hexapod_pin.viz.workspace_plots.CONDITION_LABEL`, is added by
+#: :func:`singularity_labels` (the command line imports the library on first use)
 SINGULARITY_LABELS = {
     "jacobian_singular_values": ("singular values of J", "J unscaled (m and rad columns)"),
-    "condition_number": (CONDITION_LABEL, "sigma_max / sigma_min of J; inf at type I"),
     "type_one": ("type I: min |cos(leg, rail)|",
                  "0 at a type-I singularity (a leg perpendicular to its rail: J unbounded)"),
     "type_one_actuator": ("type I: carriage", "the carriage attaining the type-I measure"),
@@ -77,6 +73,14 @@ LOADED_SINGULARITY_LABELS = {
                                  "of the dimensionless closure map"),
     "characteristic_length": ("length (m)", "relates the angular and linear coordinates"),
 }
+
+
+def singularity_labels(loaded: bool) -> dict[str, tuple[str, str]]:
+    """What the singularity measures are (label with unit, meaning), for a robot loaded with
+    ``--robot`` when ``loaded``, else for the hexapod."""
+    from ..viz.workspace_plots import CONDITION_LABEL
+    return {**(LOADED_SINGULARITY_LABELS if loaded else SINGULARITY_LABELS),
+            "condition_number": (CONDITION_LABEL, "sigma_max / sigma_min of J; inf at type I")}
 
 
 #: ``--no-limits``: carriage positions beyond the strokes / gaps accepted
@@ -127,6 +131,7 @@ def ik(pose: Values = None,
 def actuator_unit(robot: CliRobot, name: str = "q") -> str:
     """The column name of actuator positions: ``q (m)`` for the hexapod, ``q (m | rad)``
     for a loaded robot (each actuator in its joint's unit)."""
+    from ..hexapod.robot import Hexapod
     return f"{name} (m)" if isinstance(robot, Hexapod) else f"{name} (m | rad)"
 
 
@@ -208,6 +213,8 @@ def mode_configurations(robot: CliRobot, carriages: np.ndarray, poses: list) -> 
     ``carriages`` (a loaded robot: those its multi-start search assembled,
     :meth:`~hexapod_pin.core.robot_kinematics.RobotKinematics.assembly_configurations`,
     in the order of ``robot.assembly_modes``)."""
+    from ..hexapod.robot import Hexapod
+    from ..viz import hexapod_scenes
     if isinstance(robot, Hexapod):
         return np.asarray(hexapod_scenes.hexapod_configurations(
             robot, poses, [carriages] * len(poses)))
@@ -220,6 +227,8 @@ def mode_configurations(robot: CliRobot, carriages: np.ndarray, poses: list) -> 
 def write_modes(path: Path, robot: CliRobot, carriages: np.ndarray, poses: list,
                 layout: str, degrees: bool = False, urdf: Path | None = None) -> Path:
     """The HTML page of the assembly modes ``poses`` of carriage positions ``carriages``."""
+    from ..hexapod.robot import Hexapod
+    from ..viz import scenes
     qs = mode_configurations(robot, carriages, poses)
     if isinstance(robot, Hexapod):
         labels = [f"z = {p[2]:+.3f} m" for p in poses]
@@ -260,8 +269,9 @@ def jacobian(pose: Values = None, degrees: Degrees = False, as_json: AsJson = Fa
 
 def singularity_table(measures: dict, robot: CliRobot | None = None) -> Table:
     """The singularity measures as a table: measure, value, what it means."""
+    from ..core.robot import ClosedLoopRobot
     loaded = isinstance(robot, ClosedLoopRobot)
-    labels = LOADED_SINGULARITY_LABELS if loaded else SINGULARITY_LABELS
+    labels = singularity_labels(loaded)
     table = Table(title=f"singularity measures "
                         f"({'ClosedLoopRobot' if loaded else 'Hexapod'}.singularity)")
     for name in ("measure", "value", "meaning"):
@@ -277,6 +287,8 @@ def singularity_table(measures: dict, robot: CliRobot | None = None) -> Table:
 def jacobian_table(jac: np.ndarray, robot: CliRobot | None = None) -> Table:
     """The Jacobian as a table: one row per actuator, one column per twist component
     (the hexapod: carriages, vx .. wz)."""
+    from ..core.robot import ClosedLoopRobot
+    from ..motion import POSE_NAMES
     table = Table(title="workspace Jacobian J: qdot = J (v, w), v in m/s, w in rad/s")
     axes = pose_axes_of(robot) if robot is not None else POSE_NAMES
     rows = actuator_names(robot) if isinstance(robot, ClosedLoopRobot) else \

@@ -7,17 +7,11 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import numpy as np
 import typer
 
-from .. import motion as motions
-from ..hexapod.robot import Hexapod
-from ..planning import Limits, Payload, TimedTrajectory, time_optimal
-from ..planning.feasibility import check_feasibility
-from ..planning.path import read_waypoints
-from ..viz import hexapod_scenes, planning_plots, plotting, scenes
 from .common import (
     WRENCH_OF,
     AsJson,
@@ -42,6 +36,9 @@ from .common import (
     robot_urdf,
     write_robot_motion,
 )
+
+if TYPE_CHECKING:
+    from ..planning import Limits, Payload, TimedTrajectory
 
 # -- the limit options shared by both commands ------------------------------------------------
 MaxForce = Annotated[float | None, typer.Option(
@@ -68,6 +65,7 @@ NoStrokes = Annotated[bool, typer.Option(
 
 def _limits(max_force: float | None, max_velocity: float, max_acceleration: float,
             max_linear: float, max_angular: float, no_strokes: bool) -> Limits:
+    from ..planning import Limits
     return Limits(actuator_force=max_force, actuator_velocity=max_velocity,
                   actuator_acceleration=max_acceleration, linear_speed=max_linear,
                   angular_speed=max_angular, strokes=not no_strokes)
@@ -76,6 +74,8 @@ def _limits(max_force: float | None, max_velocity: float, max_acceleration: floa
 def _payload(robot: CliRobot, mass: float, wrench: str | None) -> Payload:
     """The payload of ``--payload-mass`` and ``--payload-wrench`` (one value per pose axis
     of the robot, :data:`~hexapod_pin.cli.common.WRENCH_OF`)."""
+    from ..hexapod.robot import Hexapod
+    from ..planning import Payload
     if wrench is None:
         return Payload(mass=mass)
     if isinstance(robot, Hexapod):
@@ -121,6 +121,11 @@ def retime(path_file: Annotated[Path, typer.Argument(
     With `--robot`: waypoints with one column per pose axis (e.g. `x, z`), the output
     motion file in its columns (`hexapod-pin id --help`), bounds per actuator in its
     joint's unit."""
+    from .. import motion as motions
+    from ..hexapod.robot import Hexapod
+    from ..planning import time_optimal
+    from ..planning.path import read_waypoints
+    from ..viz import planning_plots, plotting
     quiet = quiet or as_json
     check_suffix("out", out, motions.MOTION_SUFFIXES)
     check_suffix("plot", plot, plotting.IMAGE_SUFFIXES)
@@ -174,6 +179,8 @@ def _retime_html(html: Path, robot: CliRobot, timed: TimedTrajectory, caption: s
                  urdf: Path | None) -> None:
     """The animation of a retimed motion with its actuator forces: the hexapod's view, or
     the tree configurations of a loaded robot's poses (``robot.configuration``)."""
+    from ..hexapod.robot import Hexapod
+    from ..viz import hexapod_scenes, scenes
     if isinstance(robot, Hexapod):
         hexapod_scenes.write_hexapod_trajectory_html(
             html, robot, timed.t, timed.poses, carriages=timed.actuator_positions,
@@ -207,6 +214,9 @@ def check(motion_file: Annotated[Path, typer.Argument(
 
     With `--robot`: a motion file in its columns (`hexapod-pin id --help`); a file of
     another robot is an error naming the columns expected."""
+    from .. import motion as motions
+    from ..hexapod.robot import Hexapod
+    from ..planning.feasibility import check_feasibility
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     limits = _limits(max_force, max_velocity, max_acceleration, max_linear_speed,
                      max_angular_speed, no_strokes)

@@ -15,8 +15,6 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from ..core import stiffness_maps as sm
-from ..viz import plotting, stiffness_plots
 from .common import (
     ANGLES,
     WRENCH_OF,
@@ -88,6 +86,8 @@ def stiffness(actuator_stiffness: ActuatorStiffness, pose: Values = None,
     K_x phi = omega^2 M_x phi. With `--map`: the same measures over a slice (`--axes`,
     `--half-width`, `--resolution`), poses out of reach, beyond a stroke, singular or
     statically unstable marked; `--out` writes the figure."""
+    from ..core import stiffness_maps as sm
+    from ..viz import plotting
     quiet = quiet or as_json
     if not as_map:
         given = [flag for flag, value in (("--axes", axes), ("--half-width", half_width),
@@ -151,6 +151,8 @@ def _map(bot: CliRobot, center: np.ndarray, k: float | np.ndarray, axes: str | N
          half_width: str | None, resolution: int | None, out: Path | None, degrees: bool,
          as_json: bool, quiet: bool, effects: Path | None) -> None:
     """``stiffness --map``: the slice, its summary (or JSON), the figure with ``out``."""
+    from ..core import stiffness_maps as sm
+    from ..viz import stiffness_plots
     widths = None if half_width is None else parse_numbers([half_width], None, "half-width")
     with progress_bar(quiet, "stiffness over the slice", 100) as update:
         ws = sm.stiffness_slice(bot, k, axes, center=center, half_width=widths,

@@ -4,17 +4,12 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import numpy as np
 import typer
 
-from .. import motion as motions
-from ..core.platform_map import angular_coordinates
-from ..core.robot import ClosedLoopRobot
 from ..errors import InputError
-from ..hexapod.robot import Hexapod
-from ..viz import hexapod_scenes, plotting, scenes, workspace_plots
 from .common import (
     AsJson,
     CliRobot,
@@ -50,6 +45,11 @@ from .common import (
 )
 from .kinematics import NoLimits, assembly_modes_of, write_modes
 
+if TYPE_CHECKING:
+    from .. import motion as motions
+    from ..core.robot import ClosedLoopRobot
+    from ..hexapod.robot import Hexapod
+
 PLOT_KINDS = ("trajectory", "residual", "conditioning", "workspace")
 
 
@@ -82,6 +82,8 @@ def view(values: Values = None,
     With `--robot`: a pose in its pose axes (default home), the pose of its actuator
     positions (`-c`), its assembly modes (`--modes`), or a motion file in its columns
     (`--trajectory`, see `hexapod-pin id --help`)."""
+    from .. import motion as motions
+    from ..core.robot import ClosedLoopRobot
     quiet = quiet or as_json
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     check_suffix("out", out, (".html", ".htm"))
@@ -136,6 +138,7 @@ def _view_loaded(out: Path, robot: ClosedLoopRobot, values: list[str] | None,
     """``view --robot``: one pose (of a pose, or of actuator positions with
     ``carriages``), or the assembly modes of actuator positions (default home); with
     ``forces`` the actuator and closure forces holding the pose at rest."""
+    from ..viz import scenes
     if all_modes:
         act = robot.home_actuators if not values else actuators_in(robot, values)
         with progress_bar(quiet, "solving the assembly modes"):
@@ -170,6 +173,8 @@ def _view_loaded_motion(out: Path, robot: ClosedLoopRobot, path: Path, forces: b
     tree configurations those of the poses (``robot.configuration``, the home working
     mode); with ``forces``, the file's actuator forces, or those of inverse dynamics
     (with the closure forces) when it has none."""
+    from .. import motion as motions
+    from ..viz import scenes
     motion = read_robot_motion(path, robot)
     tau = closures = None
     if forces:
@@ -191,6 +196,8 @@ def _view_motion(out: Path, robot: Hexapod, motion: motions.Motion, forces: bool
                  quiet: bool, label: object) -> dict:
     """The animation of a motion; with ``forces``, the actuator forces of the motion
     file, or those of inverse dynamics (with the closure forces) when it has none."""
+    from .. import motion as motions
+    from ..viz import hexapod_scenes
     tau = closures = None
     if forces:
         tau = motion.actuator_forces
@@ -209,6 +216,7 @@ def _view_motion(out: Path, robot: Hexapod, motion: motions.Motion, forces: bool
 def _view_pose(out: Path, robot: Hexapod, pose: np.ndarray, q: np.ndarray, forces: bool) -> None:
     """One pose on the branch of carriage positions ``q``; with ``forces``, the actuator
     and closure forces holding it at rest (inverse dynamics at zero twist)."""
+    from ..viz import hexapod_scenes, scenes
     tau = closures = None
     caption = "pose " + fmt(pose, "+.3f")
     if forces:
@@ -262,6 +270,9 @@ def plot(kind: Annotated[str, typer.Argument(
 
     With `--robot`: its motion files (`hexapod-pin id --help`), its actuators, and slices
     and sweeps of its own pose axes (`--axes`), through its home pose or `--at`."""
+    from ..core.robot import ClosedLoopRobot
+    from ..hexapod.robot import Hexapod
+    from ..viz import plotting, workspace_plots
     quiet = quiet or as_json
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     if kind not in PLOT_KINDS:
@@ -333,6 +344,8 @@ def _plot_conditioning(out: Path, robot: CliRobot, motion_file: Path | None,
     """cond(J) along the poses of a motion file, or along a sweep of one pose axis through
     ``center`` (default home) over +- the half width (default the reach scale); the
     hexapod's default: the vertical sweep from 0.3 to 1.2 times the home height."""
+    from ..hexapod.robot import Hexapod
+    from ..viz import workspace_plots
     if motion_file is not None:
         if axes is not None or center is not None or widths is not None:
             raise CliUsageError("plot conditioning MOTION_FILE: the poses are the file's "
@@ -364,6 +377,9 @@ def _plot_trajectory(out: Path, robot: CliRobot, motion: motions.Motion, forces:
     """Actuator positions (from the file, else inverse kinematics of the poses) and
     actuator forces (from the file, else inverse dynamics with ``forces``), labelled with
     the robot's actuators (the hexapod's carriages, m and N)."""
+    from .. import motion as motions
+    from ..hexapod.robot import Hexapod
+    from ..viz import plotting
     q = motions.actuators_along(as_parallel(robot), motion)  # a pose out of reach names its row
     tau = motion.actuator_forces
     if tau is None and forces:
@@ -380,6 +396,7 @@ def _plot_trajectory(out: Path, robot: CliRobot, motion: motions.Motion, forces:
 def _actuator_units(robot: ClosedLoopRobot) -> tuple[str, str]:
     """The units of a loaded robot's actuator positions and forces: m and N (prismatic
     joints), rad and N m (revolute), ``m | rad`` and ``N | N m`` for a mix."""
+    from ..core.platform_map import angular_coordinates
     angular = angular_coordinates(robot.model.model)[robot.model.actuated_v]
     if np.all(angular):
         return "rad", "N m"

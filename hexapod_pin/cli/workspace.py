@@ -9,8 +9,6 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ..core import workspace_maps
-from ..core.checks import count, real_number, within_magnitude
 from ..errors import InputError
 from .common import (AsJson, GeometryFile, PlatformFrame, PoseAxes, Quiet, RobotFile,
                      SetFields, as_parallel, component_values, console, emit_json, guard,
@@ -43,6 +41,8 @@ def workspace(samples: Annotated[int, typer.Option("--samples", help="uniform sa
     singularities (the routes' own thresholds); with `--max-condition`, also the part
     where cond(J) stays below the bound. Volumes are in the product of the pose
     components' units (m^3 rad^3 for a 6-D pose), with their one-sigma sampling error."""
+    from ..core import workspace_maps
+    from ..core.checks import count, real_number, within_magnitude
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     count(samples, "--samples")
     if samples > workspace_maps.MAX_POSES:

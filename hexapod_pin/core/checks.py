@@ -11,6 +11,8 @@ import dataclasses
 import functools
 import math
 import numbers
+import operator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +21,7 @@ import numpy.typing as npt
 
 from ..errors import (ArgumentTypeError, GeometryError, InputError, MissingFileError,
                       NonFiniteResultError, SolverError)
-from .compiled import all_finite, all_within
+from .compiled import all_finite, all_finite4, all_within
 
 #: the largest magnitude an input may have: above it, squares and products of two inputs
 #: overflow double precision (sqrt of the largest double is 1.34e154), so no answer
@@ -153,6 +155,22 @@ def vector(value, size: int, name: str) -> np.ndarray:
 
 def vec6(value, name: str) -> np.ndarray:
     """:func:`vector` of size 6 (a pose, twist or wrench in space)."""
+    return vector(value, 6, name)
+
+
+#: the float64 dtype (:func:`vec6_unscanned` compares by identity, falling back on ``==``)
+_FLOAT64 = np.dtype(np.float64)
+
+
+def vec6_unscanned(value, name: str) -> np.ndarray:
+    """:func:`vec6` for a caller whose compiled kernel scans the entries itself: a
+    C-contiguous float64 (6,) array is passed through as given, unscanned (the kernel
+    must refuse an entry beyond :data:`MAX_MAGNITUDE` or NaN / inf, and the caller then
+    name it with :func:`as_array`, e.g. ``kernels.tree_state_within``); anything else is
+    :func:`vec6` (checked here)."""
+    if type(value) is np.ndarray and value.dtype is _FLOAT64 and value.shape == (6,) \
+            and value.flags.c_contiguous:
+        return value
     return vector(value, 6, name)
 
 
@@ -374,6 +392,9 @@ def check_finite_result(function: str, value: Any, field: str = "value") -> Any:
         NonFiniteResultError: a NaN anywhere, or an inf outside ``condition_number``
             (naming the function and the field).
     """
+    layout = _result_layout(type(value))
+    if layout is not None and _result_finite(layout, value):
+        return value                    # a result type's fast path: every field finite
     if isinstance(value, np.ndarray):
         if value.dtype == np.float64:
             bad = not all_finite(value.reshape(-1))
@@ -392,17 +413,91 @@ def check_finite_result(function: str, value: Any, field: str = "value") -> Any:
         for key, item in value.items():
             check_finite_result(function, item, f"{field}[{key!r}]")
     elif not isinstance(value, (str, int, bool, type(None))):
-        for name in _public_fields(type(value)):
-            item = getattr(value, name)
-            # the common fields inline (a float64 vector, a label, a count): a result's
-            # check costs one compiled scan per array, not one recursive call per field
-            kind = type(item)
-            if kind is np.ndarray and item.dtype == np.float64 and item.ndim == 1:
-                if not all_finite(item) and not (name in _INF_ALLOWED and (item > 0).all()):
-                    raise NonFiniteResultError(function, name)
-            elif kind not in _SCALAR_KINDS:
-                check_finite_result(function, item, name)
+        fields = _public_fields(type(value))
+        if not _fields_finite(function, value, fields):
+            _name_nonfinite_field(function, value, fields)
     return value
+
+
+def _result_finite(layout: tuple[Callable, Callable], value: Any) -> bool:
+    """Whether a result of a known layout (:func:`_result_layout`) is finite: its float64
+    vectors in one compiled call, its other fields labels or counts. False also when a
+    field holds something else (the caller then walks it field by field)."""
+    vectors, others = layout[0](value), layout[1](value)
+    for item in vectors:
+        if type(item) is not np.ndarray or item.dtype is not _FLOAT64 or item.ndim != 1:
+            return False
+    for item in others:
+        if type(item) not in _SCALAR_KINDS:
+            return False
+    return all_finite4(*vectors)
+
+
+@functools.cache
+def _result_layout(kind: type) -> tuple[Callable, Callable] | None:
+    """For a dataclass whose public fields are one to four vectors (annotated
+    ``np.ndarray``) and labels or counts (``str``, ``int``): getters of the vectors (padded
+    to four with an empty one) and of the others; None for any other type."""
+    if not dataclasses.is_dataclass(kind):
+        return None
+    public = [item for item in dataclasses.fields(kind) if not item.name.startswith("_")]
+    vectors = [item.name for item in public if item.type == "np.ndarray"
+               and item.name not in _INF_ALLOWED]
+    others = [item.name for item in public if item.name not in vectors]
+    if not 1 <= len(vectors) <= 4 or any(item.type not in ("str", "int") for item in public
+                                         if item.name in others):
+        return None
+    pad = (_NO_VECTOR,) * (4 - len(vectors))
+    get = operator.attrgetter(*vectors)
+    vectors_of = (lambda value: (get(value), *pad)) if len(vectors) == 1 else \
+        (lambda value: (*get(value), *pad))
+    others_of = operator.attrgetter(*others) if len(others) > 1 else \
+        (lambda value: (getattr(value, others[0]),)) if others else (lambda value: ())
+    return vectors_of, others_of
+
+
+def _fields_finite(function: str, value: Any, fields: tuple[str, ...]) -> bool:
+    """Whether every public field of a result is finite, its float64 vectors scanned four
+    to a compiled call (:func:`~hexapod_pin.core.compiled.all_finite4`), a label or a count
+    skipped, anything else by :func:`check_finite_result` (False when that raises)."""
+    vectors: list[np.ndarray] = []
+    for name in fields:
+        item = getattr(value, name)
+        kind = type(item)
+        if kind is np.ndarray and item.dtype is _FLOAT64 and item.ndim == 1 \
+                and name not in _INF_ALLOWED:
+            vectors.append(item)
+            if len(vectors) == 4:
+                if not all_finite4(*vectors):
+                    return False
+                vectors.clear()
+        elif kind not in _SCALAR_KINDS:
+            try:
+                check_finite_result(function, item, name)
+            except NonFiniteResultError:
+                return False
+    if vectors:
+        vectors += [_NO_VECTOR] * (4 - len(vectors))
+        return all_finite4(*vectors)
+    return True
+
+
+#: pads the vectors of :func:`_fields_finite` to the four of ``all_finite4``
+_NO_VECTOR = np.empty(0)
+
+
+def _name_nonfinite_field(function: str, value: Any, fields: tuple[str, ...]) -> None:
+    """Raise the :class:`NonFiniteResultError` of the first field (in order) of a result
+    that :func:`_fields_finite` found not finite; return when none is (``condition_number``
+    may be ``+inf``)."""
+    for name in fields:
+        item = getattr(value, name)
+        kind = type(item)
+        if kind is np.ndarray and item.dtype == np.float64 and item.ndim == 1:
+            if not all_finite(item) and not (name in _INF_ALLOWED and (item > 0).all()):
+                raise NonFiniteResultError(function, name)
+        elif kind not in _SCALAR_KINDS:
+            check_finite_result(function, item, name)
 
 
 #: field types that hold no float to check (inlined by :func:`check_finite_result`)
@@ -410,6 +505,7 @@ _SCALAR_KINDS = frozenset({str, int, bool, type(None)})
 
 
 @functools.lru_cache(maxsize=None)
+@functools.cache
 def _public_fields(kind: type) -> tuple[str, ...]:
     """The public dataclass fields of a type (empty for a type that is not a dataclass)."""
     if not dataclasses.is_dataclass(kind):

@@ -46,6 +46,7 @@ platform origin; actuator forces (n_act,) in N or N m).
 from __future__ import annotations
 
 import abc
+import math
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from types import MappingProxyType
@@ -323,6 +324,14 @@ class ClosedFormDynamics(ClosedFormKernels):
     def bounds(self, bounded: bool) -> np.ndarray | None:
         """The actuator bounds (n_act,) (N or N m) enforced with ``bounded``, or None."""
         return self.limits if flag(bounded, "bounded") else None
+
+    def passing_magnitude(self, bounds: np.ndarray | None) -> float:
+        """A magnitude up to which every force passes :meth:`check_bounds` under ``bounds``
+        (``inf`` without bounds, the smallest bound with its slack for the robot's own,
+        -1 otherwise: check each), for a kernel that compares ``max |tau_i|`` with it."""
+        if bounds is None:
+            return math.inf
+        return self._least_limit if bounds is self.limits else -1.0
 
     def check_bounds(self, tau: np.ndarray, bounds: np.ndarray | None) -> None:
         """Raise :class:`ActuatorSaturationError` (the needed forces, the bounds) when a

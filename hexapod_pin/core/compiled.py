@@ -192,6 +192,13 @@ def all_finite(vec) -> bool:
 
 
 @jit
+def all_finite4(a, b, c, d) -> bool:
+    """Whether every entry of the four 1-D arrays is finite (one call for the vectors of a
+    result: :func:`~hexapod_pin.core.checks.check_finite_result`)."""
+    return all_finite(a) and all_finite(b) and all_finite(c) and all_finite(d)
+
+
+@jit
 def all_within(vec, limit: float) -> bool:
     """Whether every entry of the 1-D array ``vec`` is finite and at most ``limit`` in
     magnitude (False for NaN)."""

@@ -27,7 +27,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from types import MappingProxyType
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -76,6 +76,22 @@ class ComputedDetails:
 
     def residual(self) -> float:
         return float(self.residual_)
+
+
+#: a result type (:func:`new_result`)
+_R = TypeVar("_R")
+
+
+def new_result(kind: type[_R], values: dict[str, object]) -> _R:
+    """An instance of the frozen result dataclass ``kind`` holding ``values`` (every field,
+    by name), made without the generated ``__init__`` (one ``object.__setattr__`` per
+    field): the fast construction of the single-state routes. The instance is the same as
+    ``kind(**values)``: same type, fields, ``cached_property`` parts and immutability (the
+    class's ``__setattr__`` is untouched); ``tests/core/test_results.py`` checks the two
+    against each other. Only for classes without ``__post_init__``."""
+    obj: _R = object.__new__(kind)
+    obj.__dict__.update(values)
+    return obj
 
 
 class LazyConditioning:

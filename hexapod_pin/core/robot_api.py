@@ -458,19 +458,15 @@ class delegate(Generic[P, R]):
 
         where = f"{type(obj).__name__}.{self.name}"
 
+        # a robot facade's single-state methods: their poses may be placements
+        layout = getattr(obj, "pose_layout", None) if _takes_pose(self.function) else None
+
         def serialized(*args: P.args, **kwargs: P.kwargs) -> R:
+            if layout is not None and ((args and is_placement(args[0])) or "pose" in kwargs):
+                args, kwargs = _pose_arguments(layout, args, kwargs)  # type: ignore[assignment]
             with lock:
                 out = bound(*args, **kwargs)
             return check_finite_result(where, out)
-
-        layout = getattr(obj, "pose_layout", None) if _takes_pose(self.function) else None
-        if layout is not None:              # a robot facade: its poses may be placements
-            plain = serialized
-
-            def serialized(*args: P.args, **kwargs: P.kwargs) -> R:  # type: ignore[misc]
-                if (args and is_placement(args[0])) or "pose" in kwargs:
-                    args, kwargs = _pose_arguments(layout, args, kwargs)  # type: ignore[assignment]
-                return plain(*args, **kwargs)
 
         serialized.__wrapped__ = bound    # type: ignore[attr-defined]
         serialized.__doc__ = self.function.__doc__

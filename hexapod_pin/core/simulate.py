@@ -40,6 +40,7 @@ The library never prints: pass ``progress`` to follow a long run.
 from __future__ import annotations
 
 import contextlib
+import importlib
 import math
 import time as _time
 from collections.abc import Callable
@@ -359,7 +360,8 @@ class _Failure(HexapodPinError):
 def register_compiled_simulator(kind: type, run: Callable[..., Trajectory], *,
                                 supports_effects: bool = False) -> None:
     """Register a robot class's compiled simulator for ``simulate(..., backend="compiled")``
-    (called by the robot's own package when it is imported: core names no robot).
+    (called by the robot's own package when it is imported: core names no robot; a robot
+    class's ``COMPILED_SIMULATOR`` names that module, imported on the first compiled run).
 
     Args:
         kind: the robot class (its subclasses use the same simulator).
@@ -381,7 +383,11 @@ def _compiled(robot, duration: float, dt: float, controller, actuator_forces,
               integrator: str, method: str, initial, record_every: int, progress,
               friction_regularisation: float | None) -> Trajectory:
     """The robot's registered compiled simulator, after checking that the run asks for
-    nothing it does not do."""
+    nothing it does not do. A robot class names the module that registers its simulator in
+    ``COMPILED_SIMULATOR``, imported here on first use (the package imports it lazily)."""
+    registering = getattr(type(robot), "COMPILED_SIMULATOR", None)
+    if isinstance(registering, str):
+        importlib.import_module(registering)
     sim = next((COMPILED_SIMULATORS[kind] for kind in type(robot).__mro__
                 if kind in COMPILED_SIMULATORS), None)
     if sim is None:

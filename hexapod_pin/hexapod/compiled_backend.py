@@ -2,7 +2,8 @@
 
 ``hp.simulate(hexapod, duration, dt, backend="compiled")`` (registered with
 :func:`~hexapod_pin.core.simulate.register_compiled_simulator` when this module is
-imported, as ``hexapod_pin`` does) runs
+imported: ``simulate`` imports it on the first compiled run, named by
+``Hexapod.COMPILED_SIMULATOR``) runs
 :func:`~hexapod_pin.hexapod.fast.simulate_fast` (the dynamics in platform coordinates, in
 compiled code, the closures held by construction) and returns the generic
 :class:`~hexapod_pin.core.simulate.Trajectory`: each recorded platform state mapped to the

@@ -44,7 +44,8 @@ from ..core.closed_loop import ClosedLoopModel
 from ..core.compiled import all_finite
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                             ForwardDynamicsResult, InverseDynamicsDerivatives,
-                            InverseDynamicsResult, ReducedDynamics, SingularityMeasures)
+                            InverseDynamicsResult, ReducedDynamics, SingularityMeasures,
+                            new_result)
 from ..core.dynamics import (INVERSE_METHODS, QP_SOLVED, QP_STATUS, RESIDUAL_RTOL,
                              ClosedLoopDynamics)
 from .derivatives import DerivativesWorkspace, analytic_derivatives
@@ -55,7 +56,7 @@ from ..errors import (
     SolverError,
 )
 from ..core.pose import rotation_from_rpy
-from ..core.checks import owned_copy, vec6
+from ..core.checks import MAX_MAGNITUDE, owned_copy, vec6, vec6_unscanned
 from .geometry import HexapodGeometry
 
 #: the hexapod's forward-dynamics routes: the tree routes and the null-space one
@@ -113,6 +114,9 @@ class _HexapodWorkspace:
     a: np.ndarray = field(default_factory=lambda: np.empty(24))
     tau: np.ndarray = field(default_factory=lambda: np.empty(6))
     multipliers: np.ndarray = field(default_factory=lambda: np.empty(6))
+    #: scratch of the single-state inverse dynamics (under the lock, never in a result)
+    rhs: np.ndarray = field(default_factory=lambda: np.empty(6))
+    mult: np.ndarray = field(default_factory=lambda: np.empty(6))
     jac_t: np.ndarray = field(default_factory=lambda: np.empty((6, 6)))
     work: np.ndarray = field(default_factory=lambda: np.empty((36, 6)))
     qps: dict = field(default_factory=dict)
@@ -331,14 +335,15 @@ class HexapodDynamics(ClosedFormDynamics):
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
         signs = ck.signs if branch is None else check_branch(branch)
-        pose_a, twist_a = vec6(pose, "pose"), vec6(twist, "twist")
-        tdot_a = vec6(twist_dot, "twist_dot")
+        # plain float64 inputs are scanned (finite, within MAX_MAGNITUDE) by the kernel
+        pose_a, twist_a = vec6_unscanned(pose, "pose"), vec6_unscanned(twist, "twist")
+        tdot_a = vec6_unscanned(twist_dot, "twist_dot")
         wrench_a = None if wrench is None else vec6(wrench, "wrench")
         bounds = self.bounds(bounded)
         q, v, a = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
         s = ck.scratch
-        code = kernels.tree_state(ck.geo, signs, pose_a, twist_a, tdot_a, 2, q, v, a, s.rot,
-                                  s.wk)
+        code = kernels.tree_state_within(ck.geo, signs, pose_a, twist_a, tdot_a, 2, q, v, a,
+                                         s.rot, s.wk, MAX_MAGNITUDE)
         if code != kernels.OK or (wrench_a is not None and not all_finite(wrench_a)):
             self.refuse(code, ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot"),
                                (wrench, "wrench")))
@@ -349,8 +354,10 @@ class HexapodDynamics(ClosedFormDynamics):
         # the lazy parts (ws.inverse_parts): the closure forces from the legs' tree rows
         details = TreeDetails(ws.inverse_parts, (q, v, a), tau, wrench_kept, kept, signs,
                               force=force, wanted=joint_wrenches)
-        return InverseDynamicsResult(tau, q, v, a, method, status, iters, details,
-                                     self.conditioning(kept, signs))
+        return new_result(InverseDynamicsResult, {
+            "actuator_forces": tau, "configuration": q, "velocity": v, "acceleration": a,
+            "method": method, "status": status, "iterations": iters, "_details": details,
+            "_conditioning": self.conditioning(kept, signs)})
 
     # -- the lazy parts of results (ws.inverse_parts, ws.forward_parts: core.closed_form) ----
     def _tree_wrench(self, details: TreeDetails) -> np.ndarray:
@@ -393,16 +400,19 @@ class HexapodDynamics(ClosedFormDynamics):
 
     def _solve_tree(self, ws, force, wrench_a, method, bounds):
         """``J^T tau = G^T force - wrench`` at the legs of the last tree state, under the
-        bounds by ``method``: ``(tau, status, iterations, rhs)``. Raises
+        bounds by ``method``: ``(tau, status, iterations, rhs)`` (``rhs`` the workspace's
+        scratch: valid until the next call under the lock). Raises
         :class:`SingularityError` at a type-II singularity."""
         ck = ws.compiled
         s = ck.scratch
-        rhs = np.empty(6)
-        kernels.project(ck.geo, s.rot, s.wk, force, kernels.ZERO6 if wrench_a is None
-                        else wrench_a, wrench_a is not None, rhs)
-        tau, mult = np.empty(6), np.empty(6)
-        code = kernels.solve_forces(ck.geo, s.wk, s.mats, rhs, tau, mult, ws.jac_t)
-        if code != kernels.OK:
+        rhs, tau, mult = ws.rhs, np.empty(6), ws.mult
+        code = kernels.project_and_solve(ck.geo, s.rot, s.wk, s.mats, force,
+                                         kernels.ZERO6 if wrench_a is None else wrench_a,
+                                         wrench_a is not None, rhs, tau, mult, ws.jac_t,
+                                         self.passing_magnitude(bounds))
+        if code == kernels.OK and method == "kkt":
+            return tau, "solved", 0, rhs        # every |tau_i| within the bounds: passed
+        if code not in (kernels.OK, kernels.SATURATED):
             raise ck.error(code)
         tau, status, iters = self._bounded_forces(ws, ws.jac_t, rhs, tau, mult, method,
                                                   bounds)
@@ -571,7 +581,8 @@ class HexapodDynamics(ClosedFormDynamics):
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
         signs = ck.signs if branch is None else check_branch(branch)
-        pose_a, twist_a = vec6(pose, "pose"), vec6(twist, "twist")
+        # plain float64 pose and twist are scanned (finite, within MAX_MAGNITUDE) by the kernel
+        pose_a, twist_a = vec6_unscanned(pose, "pose"), vec6_unscanned(twist, "twist")
         tau_a = vec6(actuator_forces, "actuator_forces")
         wrench_a = None if wrench is None else vec6(wrench, "wrench")
         inputs = ((pose, "pose"), (twist, "twist"), (actuator_forces, "actuator_forces"),
@@ -580,8 +591,8 @@ class HexapodDynamics(ClosedFormDynamics):
         # the drift a_0 (tree acceleration at twist_dot = 0) only for the null-space route
         level = 2 if method == "nullspace" else 1
         s = ck.scratch
-        code = kernels.tree_state(ck.geo, signs, pose_a, twist_a, kernels.ZERO6, level, q,
-                                  v, acc0, s.rot, s.wk)
+        code = kernels.tree_state_within(ck.geo, signs, pose_a, twist_a, kernels.ZERO6, level,
+                                         q, v, acc0, s.rot, s.wk, MAX_MAGNITUDE)
         if code != kernels.OK:
             self.refuse(code, inputs)
         twist_dot = np.empty(6)
@@ -609,9 +620,10 @@ class HexapodDynamics(ClosedFormDynamics):
                 ws, owned_copy(pose_a, pose), q, v, acc, owned_copy(tau_a, actuator_forces),
                 signs, effect)
             details = TreeDetails(ws.forward_parts, (q, v, acc), lazy.forces, multipliers=lazy)
-            return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
-                                         "solved", 0, details,
-                                         self.conditioning(lazy.pose, signs))
+            return new_result(ForwardDynamicsResult, {
+                "twist_dot": twist_dot, "actuator_accelerations": acc[self.indices.carriage_v],
+                "tree_acceleration": acc, "method": method, "status": "solved", "iterations": 0,
+                "_details": details, "_conditioning": self.conditioning(lazy.pose, signs)})
         if not all_finite(tau_a) or (wrench_a is not None and not all_finite(wrench_a)):
             self.refuse(kernels.NONFINITE, inputs)
         tau = np.zeros(dyn.nv)

@@ -88,7 +88,7 @@ import threading
 import numpy as np
 
 from ..core import effects_projection as drv
-from ..core.compiled import all_finite, jit_inline
+from ..core.compiled import all_finite, all_within, jit_inline
 from ..core.compiled import jit_fast as jit
 from ..core.measures import TYPE_I_TOL, TYPE_II_TOL
 from ..core.pose import quaternion_rpy, rotation_quat, rotation_rpy, rpy_of
@@ -1096,6 +1096,18 @@ def tree_state(geo, signs, pose, twist, twist_dot, level, q, v, a, rot, wk):
     return OK
 
 
+
+@jit
+def tree_state_within(geo, signs, pose, twist, twist_dot, level, q, v, a, rot, wk, limit):
+    """:func:`tree_state` of inputs passed unscanned (float64 arrays as given): NONFINITE
+    also when an entry that ``level`` reads exceeds ``limit`` in magnitude (NaN included),
+    the scan of :func:`~hexapod_pin.core.checks.vec6` made in this call (the caller then
+    names the input: :meth:`~hexapod_pin.core.closed_form.ClosedFormDynamics.refuse`)."""
+    if not all_within(pose, limit) or (level >= 1 and not all_within(twist, limit)) or (
+            level >= 2 and not all_within(twist_dot, limit)):
+        return NONFINITE
+    return tree_state(geo, signs, pose, twist, twist_dot, level, q, v, a, rot, wk)
+
 @jit
 def tree_motion(geo, rot, wk, twist, twist_dot, level, v, a):
     """Tree ``v`` (``level`` >= 1) and ``a`` (``level`` 2) of the legs in ``wk`` (after
@@ -1297,6 +1309,23 @@ def solve_forces(geo, wk, mats, rhs, tau, multipliers, jac_t):
         multipliers[j] /= geo[RADIUS]
     return OK
 
+
+
+@jit
+def project_and_solve(geo, rot, wk, mats, force, wrench, has_wrench, rhs, tau, multipliers,
+                      jac_t, passing):
+    """:func:`project` into ``rhs`` then :func:`solve_forces`, in one call (the
+    single-state inverse dynamics: one dispatch less). Returns OK, TYPE_II, or SATURATED
+    when some ``|tau_i|`` exceeds ``passing`` (NaN included: the caller then checks the
+    bounds one by one)."""
+    project(geo, rot, wk, force, wrench, has_wrench, rhs)
+    code = solve_forces(geo, wk, mats, rhs, tau, multipliers, jac_t)
+    if code != OK:
+        return code
+    for i in range(6):
+        if not abs(tau[i]) <= passing:
+            return SATURATED
+    return OK
 
 @jit
 def leg_forces(geo, wk, force, tau, out):

@@ -99,6 +99,9 @@ class Hexapod(RobotBase):
     pose_dim = 6
     n_actuators = 6
     POSE_AXES = ("x", "y", "z", "roll", "pitch", "yaw")
+    #: the module that registers this class's ``simulate(..., backend="compiled")``,
+    #: imported by :func:`~hexapod_pin.core.simulate.simulate` on first use
+    COMPILED_SIMULATOR = "hexapod_pin.hexapod.compiled_backend"
 
     def __init__(self, geometry: HexapodGeometry | None = None,
                  effects: JointEffects | None = None) -> None:

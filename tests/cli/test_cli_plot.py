@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import hexapod_pin as hp
-from hexapod_pin.cli import views
+from hexapod_pin.viz import plotting
 from hexapod_pin.viz import workspace_plots as wpl
 from test_cli_any_robot import BASE, LEG_OFFSET, PLATFORM, invoke, one_line_error, stewart_ik
 
@@ -48,15 +48,16 @@ def stewart() -> hp.ClosedLoopRobot:
 
 @pytest.fixture
 def figures(monkeypatch) -> list:
-    """The figures the command draws (the library's return values, kept)."""
+    """The figures the command draws (the library's return values, kept; the command
+    imports these modules on first use, so they are patched in place)."""
     drawn: list = []
     for name in ("plot_trajectory", "plot_closure_residual"):
-        original = getattr(views.plotting, name)
-        monkeypatch.setattr(views.plotting, name,
+        original = getattr(plotting, name)
+        monkeypatch.setattr(plotting, name,
                             lambda *a, _f=original, **k: drawn.append(_f(*a, **k)) or drawn[-1])
     for name in ("plot_conditioning", "plot_workspace_slice"):
-        original = getattr(views.workspace_plots, name)
-        monkeypatch.setattr(views.workspace_plots, name,
+        original = getattr(wpl, name)
+        monkeypatch.setattr(wpl, name,
                             lambda *a, _f=original, **k: drawn.append(_f(*a, **k)) or drawn[-1])
     return drawn
 

@@ -1,0 +1,148 @@
+"""The single-state fast path of the hexapod's inverse and forward dynamics (issue 32 item 3):
+inputs scanned by the kernel, project + solve + the bound test in one call, results built
+without the dataclass ``__init__``, the result check four vectors to a compiled call. Each
+check here compares the fast path with the route it replaces (or with the exact check)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+import hexapod_pin as hp
+from hexapod_pin.core.checks import check_finite_result
+from hexapod_pin.core.results import new_result
+
+POSE = np.array([0.01, -0.02, 0.34, 0.05, -0.03, 0.1])
+TWIST = np.array([0.05, 0.02, -0.01, 0.1, -0.2, 0.05])
+TWIST_DOT = np.array([0.1, -0.2, 0.3, 0.5, 0.2, -0.1])
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return hp.Hexapod.default()
+
+
+def _fields(result) -> dict:
+    return {f.name: getattr(result, f.name) for f in dataclasses.fields(result)}
+
+
+@pytest.mark.parametrize("route", ["inverse", "forward"])
+def test_a_fast_result_is_the_dataclass_its_constructor_makes(robot, route):
+    if route == "inverse":
+        res = robot.inverse_dynamics(POSE, TWIST, TWIST_DOT)
+    else:
+        tau = robot.inverse_dynamics(POSE, TWIST, TWIST_DOT).actuator_forces
+        res = robot.forward_dynamics(POSE, TWIST, tau)
+    again = type(res)(**_fields(res))
+    assert set(vars(res)) == set(vars(again))          # every field, nothing else
+    for name, value in _fields(res).items():
+        assert getattr(again, name) is value
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.method = "other"
+    assert res.closure_forces.shape == (6, 3)                       # lazy parts work
+    assert res.singularity.condition_number > 1
+
+
+def test_new_result_keeps_the_frozen_semantics():
+    @dataclasses.dataclass(frozen=True, eq=False)
+    class Pair:
+        a: np.ndarray
+        b: str
+
+    made = new_result(Pair, {"a": np.ones(2), "b": "x"})
+    assert type(made) is Pair and made.b == "x" and repr(made).startswith("test_")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        made.b = "y"
+
+
+@pytest.mark.parametrize("name", ["pose", "twist", "twist_dot"])
+@pytest.mark.parametrize("bad", [math.nan, math.inf, 1e200])
+def test_the_kernel_scan_names_the_input(robot, name, bad):
+    args = {"pose": POSE.copy(), "twist": TWIST.copy(), "twist_dot": TWIST_DOT.copy()}
+    args[name][1] = bad
+    with pytest.raises(hp.InputError, match=name):
+        robot.inverse_dynamics(**args)
+    if name != "twist_dot":
+        tau = robot.inverse_dynamics(POSE, TWIST, TWIST_DOT).actuator_forces
+        with pytest.raises(hp.InputError, match=name):
+            robot.forward_dynamics(args["pose"], args["twist"], tau)
+
+
+def test_inputs_off_the_fast_path_give_the_same_numbers(robot):
+    """A list, a strided view and a big-endian array take the checked route."""
+    want = robot.inverse_dynamics(POSE, TWIST, TWIST_DOT).actuator_forces
+    strided = np.repeat(POSE, 2)[::2]
+    swapped = TWIST.astype(">f8")
+    got = robot.inverse_dynamics(strided, swapped, TWIST_DOT.tolist()).actuator_forces
+    assert np.array_equal(got, want)
+
+
+def test_the_bound_test_in_the_kernel_matches_check_bounds():
+    """Forces just inside the bound (with its relative slack) pass, just outside raise."""
+    robot = hp.Hexapod.default()
+    tau = robot.inverse_dynamics(POSE, TWIST, TWIST_DOT, bounded=False).actuator_forces
+    peak = float(np.abs(tau).max())
+    inside = hp.Hexapod(hp.HexapodGeometry(max_actuator_force=peak))
+    assert np.array_equal(inside.inverse_dynamics(POSE, TWIST, TWIST_DOT).actuator_forces, tau)
+    outside = hp.Hexapod(hp.HexapodGeometry(max_actuator_force=peak * (1 - 1e-6)))
+    with pytest.raises(hp.ActuatorSaturationError):
+        outside.inverse_dynamics(POSE, TWIST, TWIST_DOT)
+    assert outside.inverse_dynamics(POSE, TWIST, TWIST_DOT, bounded=False).status == "solved"
+    with pytest.raises(hp.ActuatorSaturationError):
+        outside.inverse_dynamics(POSE, TWIST, TWIST_DOT, method="qp")
+
+
+@dataclasses.dataclass
+class _Six:
+    a: np.ndarray
+    b: np.ndarray
+    nested: object
+    c: np.ndarray
+    d: np.ndarray
+    e: np.ndarray
+    label: str = "x"
+
+
+@pytest.mark.parametrize("bad, named", [
+    (("b", "e"), "b"), (("e",), "e"), (("nested", "c"), "nested"), (("c", "nested"), "nested"),
+    (("d", "e"), "d")])
+def test_the_grouped_scan_names_the_first_bad_field_in_order(bad, named):
+    """Vectors are scanned four to a call; the error still names the first field, in
+    field order, that is not finite (the exact walk names it)."""
+    values = {k: np.ones(3) for k in "abcde"}
+    values["nested"] = [1.0]
+    for key in bad:
+        if key == "nested":
+            values["nested"] = [math.nan]
+        else:
+            values[key] = np.array([1.0, math.nan, 1.0])
+    first = next(k for k in ("a", "b", "nested", "c", "d", "e") if k in bad)
+    with pytest.raises(hp.NonFiniteResultError, match=first) as info:
+        check_finite_result("f", _Six(**values))
+    assert named in str(info.value)
+    assert check_finite_result("f", _Six(**{k: np.ones(3) for k in "abcde"}, nested=[1.0]))
+
+
+@pytest.mark.parametrize("field, bad", [("actuator_forces", math.nan),
+                                        ("acceleration", math.inf),
+                                        ("iterations", math.nan),       # not a count
+                                        ("configuration", "matrix")])   # not a vector
+def test_the_result_type_fast_path_finds_every_bad_field(robot, field, bad):
+    """A result of a known layout (vectors and labels / counts) is checked in one compiled
+    call; a NaN / inf in a vector, or a field of another kind, goes to the exact walk."""
+    res = robot.inverse_dynamics(POSE, TWIST, TWIST_DOT)
+    values = _fields(res)
+    if field in ("actuator_forces", "acceleration"):
+        values[field] = values[field].copy()
+        values[field][3] = bad
+    elif field == "configuration":
+        values[field] = np.array([[1.0, math.nan]])           # 2-D: walked, NaN found
+    else:
+        values[field] = bad
+    broken = type(res)(**values)
+    with pytest.raises(hp.NonFiniteResultError, match=field):
+        check_finite_result("f", broken)
+    assert check_finite_result("f", res) is res
