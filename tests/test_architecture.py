@@ -280,3 +280,32 @@ def test_a_bare_import_stays_light():
                   "hexapod_pin.planning", "hexapod_pin.cli", "hexapod_pin.viz",
                   "scipy.signal", "matplotlib", "meshcat", "typer"):
         assert heavy not in loaded
+
+
+def _type_checking_only(tree: ast.Module) -> set[str]:
+    """Names a module imports only under ``if TYPE_CHECKING:``."""
+    guarded, plain = set(), set()
+    for node in tree.body:
+        target = guarded if (isinstance(node, ast.If)
+                             and "TYPE_CHECKING" in ast.unparse(node.test)) else plain
+        for sub in ast.walk(node) if target is guarded else [node]:
+            if isinstance(sub, (ast.Import, ast.ImportFrom)):
+                target.update((a.asname or a.name).split(".")[0] for a in sub.names)
+    return guarded - plain
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_names_imported_for_type_checkers_are_not_used_at_run_time(module):
+    """The lazy imports (the package root, the command line) keep some names under
+    ``TYPE_CHECKING``: a function body that uses one without importing it itself raises
+    NameError at run time (annotations are strings here and may name them)."""
+    tree = ast.parse(MODULES[module].read_text(encoding="utf-8"))
+    only = _type_checking_only(tree)
+    bad = []
+    for fn in (n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))):
+        local = {(a.asname or a.name).split(".")[0] for stmt in fn.body for sub in ast.walk(stmt)
+                 if isinstance(sub, (ast.Import, ast.ImportFrom)) for a in sub.names}
+        bad += [f"{fn.name}:{sub.lineno} {sub.id}" for stmt in fn.body for sub in ast.walk(stmt)
+                if isinstance(sub, ast.Name) and isinstance(sub.ctx, ast.Load)
+                and sub.id in only and sub.id not in local]
+    assert not bad, f"{module}: {bad}"

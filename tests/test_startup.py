@@ -95,3 +95,9 @@ def test_the_help_of_simulate_names_the_library_integrators():
     from hexapod_pin.cli.dynamics import INTEGRATOR_NAMES
     from hexapod_pin.core.simulation import INTEGRATORS
     assert tuple(INTEGRATOR_NAMES) == tuple(INTEGRATORS)
+
+
+def test_the_help_of_identify_names_the_library_drive_kinds():
+    from hexapod_pin.cli.identification import DRIVE_NAMES
+    from hexapod_pin.identification.parameters import DRIVE_KINDS
+    assert tuple(DRIVE_NAMES) == tuple(DRIVE_KINDS)

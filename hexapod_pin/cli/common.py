@@ -370,6 +370,8 @@ def read_robot_log(path: Path, robot: CliRobot) -> motions.ActuatorLog:
         DescriptionError: a malformed file, one of another robot, or one without the
             times, positions or forces.
     """
+    from .. import motion as motions
+    from ..hexapod.robot import Hexapod
     if isinstance(robot, Hexapod):
         return motions.read_actuator_log(path)
     _check_header(path, robot, ("t",))
@@ -379,6 +381,7 @@ def read_robot_log(path: Path, robot: CliRobot) -> motions.ActuatorLog:
 def _check_header(path: Path, robot: CliRobot, required: tuple[str, ...]) -> None:
     """Refuse a CSV file of a loaded robot whose header lacks a ``required`` column or has
     motion columns of another robot (:func:`read_robot_motion`)."""
+    from .. import motion as motions
     columns = motions.motion_columns(as_parallel(robot))
     own = {"t", *columns.pose, *(n for names in columns.groups().values() for n in names)}
     fits = f"does not fit {robot.geometry.name}"

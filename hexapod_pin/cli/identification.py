@@ -10,13 +10,7 @@ from typing import Annotated, Any
 import numpy as np
 import typer
 
-from .. import motion as motions
 from ..errors import InputError
-from ..identification import MotionData, optimise_excitation
-from ..identification import identify as identify_motion
-from ..identification.motion_data import states_from_motion
-from ..identification.parameters import DRIVE_KINDS, check_drive
-from ..viz.identification_plots import plot_force_prediction, plot_parameter_estimates
 from .common import (
     AsJson,
     CliRobot,
@@ -41,12 +35,19 @@ from .common import (
     write_robot_motion,
 )
 
+#: the drive parameter kinds of the ``--drive`` help, a copy of
+#: ``hexapod_pin.identification.parameters.DRIVE_KINDS`` (``--help`` does not import the
+#: library; a test keeps them equal)
+DRIVE_NAMES = ("armature", "viscous", "coulomb", "offset")
+
 Drive = Annotated[str, typer.Option(
-    help=f"drive parameters per actuator, comma-separated, of {', '.join(DRIVE_KINDS)} "
+    help=f"drive parameters per actuator, comma-separated, of {', '.join(DRIVE_NAMES)} "
          "(none: 'none')")]
 
 
 def _drive(text: str) -> tuple[str, ...]:
+    from ..identification.parameters import check_drive
+
     if text.strip().lower() in ("", "none"):
         return ()
     return check_drive(tuple(part.strip() for part in text.split(",")))
@@ -81,6 +82,9 @@ def excite(out: Annotated[Path, typer.Option(
     singularity margins and actuator force bounds, and checked at 10x its sampling rate
     (hexapod_pin.identification.excitation). The file has `t`, the pose, twist and its
     derivative, `q0..` and `tau0..` (the nominal robot's forces)."""
+    from .. import motion as motions
+    from ..identification import optimise_excitation
+
     quiet = quiet or as_json
     check_suffix("out", out, motions.MOTION_SUFFIXES)
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
@@ -148,6 +152,9 @@ def identify(data: Annotated[Path, typer.Argument(
     The actuator positions are low-pass filtered zero-phase and differentiated; the
     forces are used as measured (hexapod_pin.identification.motion_data). Prints every
     base parameter (nominal, estimate, standard error, consistent estimate)."""
+    from ..identification import MotionData
+    from ..identification import identify as identify_motion
+
     quiet = quiet or as_json
     bot = load_cli_robot(robot, platform, pose_axes, geometry, set_)
     log = read_robot_log(data, bot)
@@ -185,8 +192,12 @@ def identify(data: Annotated[Path, typer.Argument(
                     "of the least-squares one")
 
 
-def _figures(path: Path, bot: CliRobot, res: Any, measured: MotionData) -> None:
-    """The two figures of ``--figure``."""
+def _figures(path: Path, bot: CliRobot, res: Any, measured: Any) -> None:
+    """The two figures of ``--figure`` (``measured``: the
+    :class:`~hexapod_pin.identification.MotionData`)."""
+    from ..identification.motion_data import states_from_motion
+    from ..viz.identification_plots import plot_force_prediction, plot_parameter_estimates
+
     st = states_from_motion(bot, measured, res.cutoff, res.trim)
     predicted = res.predict(st.poses, st.twists, st.twist_dots)
     plot_force_prediction(st.times, st.actuator_forces, predicted, path=path,
