@@ -22,6 +22,7 @@ import numpy as np
 
 from .closure_motion import row_basis_kernel
 from .compiled import jit
+from .linear_kernels import cholesky_lower
 
 
 @jit
@@ -182,19 +183,12 @@ def reduced_gain_kernel(basis, mass, gain):
     not finite)."""
     nv, m = basis.shape
     reduced = basis.T @ (mass @ basis)
+    for i in range(m):                         # symmetrised (the lower triangle is read)
+        for j in range(i):
+            reduced[i, j] = 0.5 * (reduced[i, j] + reduced[j, i])
     low = np.zeros((m, m))
-    for j in range(m):
-        diag = reduced[j, j]
-        for p in range(j):
-            diag -= low[j, p] * low[j, p]
-        if not diag > 0.0 or not math.isfinite(diag):
-            return 1
-        low[j, j] = math.sqrt(diag)
-        for i in range(j + 1, m):
-            s = 0.5 * (reduced[i, j] + reduced[j, i])
-            for p in range(j):
-                s -= low[i, p] * low[j, p]
-            low[i, j] = s / low[j, j]
+    if not cholesky_lower(reduced, m, low):
+        return 1
     # gain = N L^-T: solve gain L^T = N row by row (forward substitution on L)
     for r in range(nv):
         for j in range(m):

@@ -64,6 +64,7 @@ from .closed_loop import ClosedLoopModel
 from .compiled import jit_inline
 from .effects import JointEffects, friction_forces, passive_forces
 from .kernel_status import NOT_PD, OK, RESIDUAL
+from .linear_kernels import cholesky_lower
 
 #: the note a result's status carries when the passive coordinates' effects sent it to
 #: the tree routes
@@ -242,26 +243,6 @@ def add_reduced(drives, at, n, dim, jac_t, q, qd, qdd0, mass, bias):
 
 
 @jit_inline
-def _factor(mat, n, low):
-    """Cholesky ``mat = low low^T`` of the leading (n, n) block (lower triangle of ``low``
-    written, ``mat`` read whole); False when not positive definite."""
-    for j in range(n):
-        d = mat[j, j]
-        for k in range(j):
-            d -= low[j, k] * low[j, k]
-        if not d > 0.0:
-            return False
-        d = math.sqrt(d)
-        low[j, j] = d
-        for i in range(j + 1, n):
-            s = mat[i, j]
-            for k in range(j):
-                s -= low[i, k] * low[j, k]
-            low[i, j] = s / d
-    return True
-
-
-@jit_inline
 def _substitute(low, n, vec):
     """``vec = (low low^T)^-1 vec`` in place (leading n entries)."""
     for i in range(n):
@@ -309,7 +290,7 @@ def box_qp(hess, grad, bound, n, f, state, sub, free, x):
             x[a] = s
             for b in range(nf):
                 sub[a, b] = hess[i, int(free[b])]
-        if nf and not _factor(sub, nf, sub):
+        if nf and not cholesky_lower(sub, nf, sub):
             return NOT_PD
         _substitute(sub, nf, x)
         alpha, block, side = 1.0, -1, 0.0
@@ -360,7 +341,7 @@ def stick_slip(drives, at, n, dim, mass, jac_t, qd, qdd0, rhs, twist_dot, fricti
     low, cols, resp, sub = mats[0], mats[1], mats[2], mats[3]
     rest, a0, bound, f, state, free, x = (vecs[0], vecs[1], vecs[2], vecs[3], vecs[4],
                                           vecs[5], vecs[6])
-    if not _factor(mass, dim, low):
+    if not cholesky_lower(mass, dim, low):
         return NOT_PD
     for r in range(dim):
         twist_dot[r] = rhs[r]

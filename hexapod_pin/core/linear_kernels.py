@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .compiled import jit
+from .compiled import jit, jit_inline
 
 
 def forward_residuals(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: np.ndarray,
@@ -26,6 +26,30 @@ def forward_residuals(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: 
     :func:`kkt_residuals` with the target ``-drift``. Returns ``(eom, closure)`` (also
     written to ``out``)."""
     return kkt_residuals(mass, bias, tau, jac, -drift, acc, lam, out)
+
+
+
+@jit_inline
+def cholesky_lower(mat, n, low):
+    """Cholesky ``mat = low low^T`` of the leading (n, n) block: the lower triangle of
+    ``low`` written, the lower triangle of ``mat`` read (``low`` may be ``mat``: in place).
+    Returns False when a pivot is not positive and finite (not positive definite, or NaN /
+    inf). The one Cholesky of the compiled routes (linear solves, the drive effects'
+    projection, the derivatives' reduced gain)."""
+    for j in range(n):
+        d = mat[j, j]
+        for k in range(j):
+            d -= low[j, k] * low[j, k]
+        if not (d > 0.0 and math.isfinite(d)):
+            return False
+        d = math.sqrt(d)
+        low[j, j] = d
+        for i in range(j + 1, n):
+            x = mat[i, j]
+            for k in range(j):
+                x -= low[i, k] * low[j, k]
+            low[i, j] = x / d
+    return True
 
 
 @jit
@@ -310,19 +334,8 @@ def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
         for j in range(m):
             red[i, j] *= einv[i] * einv[j]
     # Cholesky of the scaled reduced matrix (lower triangle, in place), two triangular solves
-    for j in range(m):
-        d = red[j, j]
-        for k in range(j):
-            d -= red[j, k] * red[j, k]
-        if not d > 0.0:
-            return NULLSPACE_NOT_POSITIVE
-        d = math.sqrt(d)
-        red[j, j] = d
-        for i in range(j + 1, m):
-            x = red[i, j]
-            for k in range(j):
-                x -= red[i, k] * red[j, k]
-            red[i, j] = x / d
+    if not cholesky_lower(red, m, red):
+        return NULLSPACE_NOT_POSITIVE
     z = rhs.copy()
     for i in range(m):
         for k in range(i):
