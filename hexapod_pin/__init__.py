@@ -158,7 +158,8 @@ _MODULE_EXPORTS = {"robots": "hexapod_pin.loaders.robots"}
 
 #: the package's subpackages and modules, reachable as attributes (``hexapod_pin.core``)
 _SUBMODULES = frozenset({"core", "hexapod", "planar", "loaders", "viz", "cli", "calibration",
-                         "planning", "motion", "files", "errors", "precompile"})
+                         "planning", "identification", "motion", "files", "errors",
+                         "precompile"})
 
 
 def __getattr__(name: str) -> Any:

@@ -101,3 +101,19 @@ def test_the_help_of_identify_names_the_library_drive_kinds():
     from hexapod_pin.cli.identification import DRIVE_NAMES
     from hexapod_pin.identification.parameters import DRIVE_KINDS
     assert tuple(DRIVE_NAMES) == tuple(DRIVE_KINDS)
+
+
+def test_every_subpackage_is_an_attribute_of_the_lazy_root():
+    """Each subpackage and top-level module of the package is reachable as
+    ``hexapod_pin.<name>`` in a fresh interpreter without importing it first (the lazy
+    root's list is complete)."""
+    code = ("import importlib, pathlib, hexapod_pin\n"
+            "root = pathlib.Path(hexapod_pin.__file__).parent\n"
+            "names = {p.name for p in root.iterdir() if (p / '__init__.py').is_file()}\n"
+            "names |= {p.stem for p in root.glob('*.py') if not p.stem.startswith('_')}\n"
+            "missing = sorted(n for n in names if not hasattr(hexapod_pin, n))\n"
+            "assert not missing, missing\n"
+            "for n in sorted(names):\n"
+            "    assert getattr(hexapod_pin, n) is importlib.import_module('hexapod_pin.' + n)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
