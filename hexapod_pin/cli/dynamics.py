@@ -52,7 +52,6 @@ from .common import (
     quantity_table,
     read_robot_motion,
     robot_fields,
-    robot_of,
     robot_pose_in,
     robot_pose_out,
     robot_urdf,

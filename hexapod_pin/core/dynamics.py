@@ -86,7 +86,7 @@ import numpy.typing as npt
 import pinocchio as pin
 import proxsuite
 
-from ..errors import InputError, SolverError
+from ..errors import InputError
 from .checks import as_array, solve_checked, vector
 from .compiled import all_finite
 from .closed_loop import ClosedLoopModel

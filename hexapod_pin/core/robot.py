@@ -15,7 +15,6 @@ is returned, or a typed error is raised.
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -24,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..errors import ArgumentTypeError, AssemblyError, DescriptionError, InputError
+from ..errors import ArgumentTypeError, AssemblyError, DescriptionError
 from .checks import bounds, real_number
 from .closed_loop import ClosedLoopModel
 from .platform_map import PlatformMap, check_pose_axes

@@ -71,7 +71,7 @@ from ..core.simulate import real_time_factor
 from .kernels import (GAP, GIMBAL, NONFINITE, NOT_PD, OK, SATURATED, STROKE, TYPE_I, TYPE_II,
                       UNREACHABLE)
 from .robot import Hexapod
-from .simulation import (PID_KD, ReferenceTrajectory, Trajectory, check_run_arguments,
+from .simulation import (PID_KD, ReferenceTrajectory, check_run_arguments,
                          saturation_status)
 
 __all__ = ["FastDynamics", "FastStepper", "FastTrajectory", "compiled_geometry",
