@@ -30,6 +30,23 @@ def forward_residuals(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: 
 
 
 @jit_inline
+def diagonal_scaling(mat, n, out):
+    """``out[i] = 1 / sqrt(max(mat[i, i], floor))`` for the leading (n, n) block, ``floor``
+    1e-12 of the largest diagonal entry (1 when none is positive): the Jacobi scaling of the
+    exact solves (a unit diagonal after scaling; an entry below the floor raised to it).
+    Returns False when a diagonal entry is not finite."""
+    big = 0.0
+    for i in range(n):
+        if not math.isfinite(mat[i, i]):
+            return False
+        big = max(big, mat[i, i])
+    floor = 1e-12 * big if big > 0.0 else 1.0
+    for i in range(n):
+        out[i] = 1.0 / math.sqrt(max(mat[i, i], floor))
+    return True
+
+
+@jit_inline
 def cholesky_lower(mat, n, low):
     """Cholesky ``mat = low low^T`` of the leading (n, n) block: the lower triangle of
     ``low`` written, the lower triangle of ``mat`` read (``low`` may be ``mat``: in place).
@@ -320,15 +337,9 @@ def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
     basis = np.ascontiguousarray(vt[r:, :].T)          # (nv, m)
     red = basis.T @ (m_full @ basis)
     rhs = basis.T @ (tau - bias - m_full @ a_p)
-    big = 0.0
-    for i in range(m):
-        if not math.isfinite(red[i, i]):
-            return NULLSPACE_NOT_FINITE
-        big = max(big, red[i, i])
-    floor = 1e-12 * big if big > 0.0 else 1.0
     einv = np.empty(m)
-    for i in range(m):
-        einv[i] = 1.0 / math.sqrt(max(red[i, i], floor))
+    if not diagonal_scaling(red, m, einv):
+        return NULLSPACE_NOT_FINITE
     for i in range(m):
         rhs[i] *= einv[i]
         for j in range(m):
@@ -388,15 +399,9 @@ def reduced_kkt_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray, jac: 
     nv = acc.shape[0]
     r = rows.shape[0]
     n = nv + r
-    big = 0.0
-    for i in range(nv):
-        if not math.isfinite(mass[i, i]):
-            return NULLSPACE_NOT_FINITE
-        big = max(big, mass[i, i])
-    floor = 1e-12 * big if big > 0.0 else 1.0
     dinv = np.empty(nv)
-    for i in range(nv):
-        dinv[i] = 1.0 / math.sqrt(max(mass[i, i], floor))
+    if not diagonal_scaling(mass, nv, dinv):
+        return NULLSPACE_NOT_FINITE
     kkt = np.zeros((n, n))
     rhs = np.empty(n)
     for i in range(nv):
