@@ -129,3 +129,15 @@ def one_line_error(result, code: int, *words: str) -> str:
     for word in words:
         assert word in lines[0], (word, lines[0])
     return lines[0]
+
+
+def null_space_kkt(mass, force, jac, rhs):
+    """The unique ``a`` with ``mass a = force + jac^T lambda``, ``jac a = rhs`` (jac may
+    have dependent rows): least-norm particular solution plus the null-space part (a numpy
+    reference written for the tests, independent of the library's solves)."""
+    u, s, vt = np.linalg.svd(jac)
+    rank = int(np.sum(s > 1e-10 * s[0]))
+    basis = vt[rank:].T
+    particular = vt[:rank].T @ ((u[:, :rank].T @ rhs) / s[:rank])
+    z = np.linalg.solve(basis.T @ mass @ basis, basis.T @ (force - mass @ particular))
+    return particular + basis @ z

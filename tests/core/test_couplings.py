@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import null_space_kkt
 
 import hexapod_pin as hp
 from hexapod_pin.core.closed_loop import ClosedLoopModel
@@ -114,17 +115,6 @@ def hand_terms(clm, q, v):
     jac = np.vstack(rows + [crow])
     gamma = np.concatenate(drift + [cdrift])
     return mass, bias, jac, gamma
-
-
-def null_space_kkt(mass, force, jac, rhs):
-    """The unique ``a`` with ``M a = force + J^T lambda``, ``J a = rhs`` (J may have
-    dependent rows)."""
-    u, s, vt = np.linalg.svd(jac)
-    rank = int(np.sum(s > 1e-10 * s[0]))
-    basis = vt[rank:].T
-    particular = vt[:rank].T @ ((u[:, :rank].T @ rhs) / s[:rank])
-    z = np.linalg.solve(basis.T @ mass @ basis, basis.T @ (force - mass @ particular))
-    return particular + basis @ z
 
 
 def states(clm, n=3, seed=0):

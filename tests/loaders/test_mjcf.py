@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import null_space_kkt
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -115,17 +116,6 @@ def rigid_rows(mj, d):
         jac.append(blocks[0])
         drift.append(blocks[1] @ d.qvel)
     return np.vstack(jac), np.concatenate(drift)
-
-
-def null_space_kkt(mass, force, jac, rhs):
-    """The unique ``a`` with ``mass a = force + jac^T lambda``, ``jac a = rhs`` (jac may
-    have dependent rows): least-norm particular solution plus the null-space part."""
-    u, s, vt = np.linalg.svd(jac)
-    rank = int(np.sum(s > 1e-10 * s[0]))
-    basis = vt[rank:].T
-    particular = vt[:rank].T @ ((u[:, :rank].T @ rhs) / s[:rank])
-    z = np.linalg.solve(basis.T @ mass @ basis, basis.T @ (force - mass @ particular))
-    return particular + basis @ z
 
 
 def projector(rows, rtol=1e-9):
