@@ -49,6 +49,7 @@ import re
 import threading
 import warnings
 import xml.parsers.expat
+from collections.abc import Iterator
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -835,16 +836,8 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
     if len(set(actuated)) != len(actuated):
         raise DescriptionError(source, "duplicate actuated joint", "actuated")
     closures = []
-    for index, entry in enumerate(raw_closures):
-        label = f"closures[{index}]"
-        if not isinstance(entry, dict):
-            raise DescriptionError(source, "a closure must be a mapping", label)
-        missing = {"name", "type", "frame1", "frame2"} - set(entry)
-        if missing:
-            raise DescriptionError(source, f"missing keys {sorted(missing)}", label)
-        extra = set(entry) - {"name", "type", "frame1", "frame2", "offset1", "offset2"}
-        if extra:
-            raise DescriptionError(source, f"unknown keys {sorted(extra)}", label)
+    for entry in _list_entries(raw_closures, "closures", "closure", source,
+                               ("name", "type", "frame1", "frame2"), ("offset1", "offset2")):
         name = str(entry["name"])
         ctype = str(entry["type"])
         if ctype not in CLOSURE_TYPES:
@@ -866,22 +859,39 @@ def parse_loops(text: str, source: str = "<loops>") -> LoopsSpec:
                      effects, _couplings(data.get("couplings"), source))
 
 
+def _list_entries(raw: Any, section: str, what: str, source: str,
+                  required: tuple[str, ...], optional: tuple[str, ...]) -> Iterator[dict]:
+    """The mappings of a list section of the loops file (``closures:``, ``couplings:``),
+    each checked as it is reached (so the first bad entry is the one reported): a mapping
+    (else "a <what> must be a mapping"), with the ``required`` keys and no key beyond them
+    and the ``optional`` ones (missing keys reported first).
+
+    Raises:
+        DescriptionError: naming ``<section>[index]``.
+    """
+    if not isinstance(raw, list):
+        raise DescriptionError(source, f"'{section}' must be a list", section)
+    for index, entry in enumerate(raw):
+        label = f"{section}[{index}]"
+        if not isinstance(entry, dict):
+            raise DescriptionError(source, f"a {what} must be a mapping", label)
+        missing = set(required) - set(entry)
+        if missing:
+            raise DescriptionError(source, f"missing keys {sorted(missing)}", label)
+        extra = set(entry) - set(required) - set(optional)
+        if extra:
+            raise DescriptionError(source, f"unknown keys {sorted(extra)}", label)
+        yield entry
+
+
 def _couplings(raw: Any, source: str) -> tuple[JointCoupling, ...]:
     """The ``couplings:`` section (a list of mappings name, joint1, joint2, polycoef)."""
     if raw is None:
         return ()
-    if not isinstance(raw, list):
-        raise DescriptionError(source, "'couplings' must be a list", "couplings")
     out = []
-    for index, entry in enumerate(raw):
+    for index, entry in enumerate(_list_entries(raw, "couplings", "coupling", source,
+                                                ("name", "joint1", "polycoef"), ("joint2",))):
         label = f"couplings[{index}]"
-        if not isinstance(entry, dict):
-            raise DescriptionError(source, "a coupling must be a mapping", label)
-        missing = {"name", "joint1", "polycoef"} - set(entry)
-        extra = set(entry) - {"name", "joint1", "joint2", "polycoef"}
-        if missing or extra:
-            raise DescriptionError(source, f"missing keys {sorted(missing)}" if missing
-                                   else f"unknown keys {sorted(extra)}", label)
         coef = entry["polycoef"]
         if not isinstance(coef, list) or not all(
                 isinstance(c, (int, float)) and not isinstance(c, bool) for c in coef):
