@@ -102,29 +102,38 @@ def dispatchers() -> dict[str, Dispatcher]:
     return out
 
 
-def _hexapod_single(robot: Hexapod) -> None:
-    pose = robot.home_pose + np.array([0.005, -0.004, 0.003, 0.02, -0.01, 0.03])
-    twist = np.array([0.01, -0.02, 0.01, 0.05, 0.02, -0.03])
-    acc = np.array([0.1, 0.0, -0.1, 0.2, 0.1, 0.0])
+def _single_state(robot: Hexapod | Planar3PRR, pose: np.ndarray, twist: np.ndarray,
+                  acc: np.ndarray) -> np.ndarray:
+    """The protocol's single-state routes of a robot with a closed form (kinematics, every
+    dynamics method, statics, reduced dynamics, inverse-dynamics derivatives); returns the
+    inverse-dynamics forces."""
     q = robot.inverse_kinematics(pose)
     robot.forward_kinematics(q)
     robot.assembly_modes(q)
     robot.jacobian(pose)
     robot.jacobian_derivative(pose, twist)
     robot.singularity(pose)
-    robot.leg_motion(pose, twist, acc)
-    result = robot.inverse_dynamics(pose, twist, acc)
-    result.joint_wrenches
+    tau = robot.inverse_dynamics(pose, twist, acc).actuator_forces
     for method in INVERSE_DYNAMICS_METHODS:
         robot.inverse_dynamics(pose, twist, acc, method=method)
     for method in FORWARD_DYNAMICS_METHODS:
-        robot.forward_dynamics(pose, twist, result.actuator_forces, method=method)
-    robot.dynamics.actuator_forces_at(robot.configuration(pose), twist, acc)
+        robot.forward_dynamics(pose, twist, tau, method=method)
     robot.static_forces(pose)
     robot.reduced_dynamics(pose, twist)
-    robot.energies(pose, twist)
     robot.inverse_dynamics_derivatives(pose, twist, acc)
-    robot.forward_dynamics_derivatives(pose, twist, result.actuator_forces)  # independent rows
+    return tau
+
+
+def _hexapod_single(robot: Hexapod) -> None:
+    pose = robot.home_pose + np.array([0.005, -0.004, 0.003, 0.02, -0.01, 0.03])
+    twist = np.array([0.01, -0.02, 0.01, 0.05, 0.02, -0.03])
+    acc = np.array([0.1, 0.0, -0.1, 0.2, 0.1, 0.0])
+    tau = _single_state(robot, pose, twist, acc)
+    robot.leg_motion(pose, twist, acc)
+    robot.inverse_dynamics(pose, twist, acc).joint_wrenches
+    robot.dynamics.actuator_forces_at(robot.configuration(pose), twist, acc)
+    robot.energies(pose, twist)
+    robot.forward_dynamics_derivatives(pose, twist, tau)      # independent rows
     poses = np.repeat(pose[None, :], 2, axis=0)
     workspace.evaluate(robot, poses)
     workspace.leg_reachable(robot, poses)
@@ -161,20 +170,7 @@ def _parallel_batches() -> None:
 def _planar_single(robot: Planar3PRR) -> None:
     pose = robot.home_pose + np.array([0.01, -0.01, 0.05])
     twist = np.array([0.02, -0.01, 0.1])
-    q = robot.inverse_kinematics(pose)
-    robot.forward_kinematics(q)
-    robot.assembly_modes(q)
-    robot.jacobian(pose)
-    robot.jacobian_derivative(pose, twist)
-    robot.singularity(pose)
-    tau = robot.inverse_dynamics(pose, twist, twist).actuator_forces
-    for method in INVERSE_DYNAMICS_METHODS:
-        robot.inverse_dynamics(pose, twist, twist, method=method)
-    for method in FORWARD_DYNAMICS_METHODS:
-        robot.forward_dynamics(pose, twist, tau, method=method)
-    robot.static_forces(pose)
-    robot.reduced_dynamics(pose, twist)
-    robot.inverse_dynamics_derivatives(pose, twist, twist)
+    _single_state(robot, pose, twist, twist)
 
 
 def _simulators(robot: Hexapod) -> None:
