@@ -135,6 +135,8 @@ def _hexapod_single(robot: Hexapod) -> None:
     robot.energies(pose, twist)
     robot.forward_dynamics_derivatives(pose, twist, tau)      # independent rows
     poses = np.repeat(pose[None, :], 2, axis=0)
+    robot.dynamics.regressor(pose, twist, acc)                # the closed-form regressor
+    robot.dynamics.regressor_batch(poses, poses * 0.0, poses * 0.0)
     workspace.evaluate(robot, poses)
     workspace.leg_reachable(robot, poses)
     try:                                    # a type-II singular pose: its error's measure

@@ -36,6 +36,10 @@ What a closed form may provide, and what the base derives when it does not:
 ``static_batch_kernel``    ``inverse_batch_kernel`` at zero twists and twist_dots
 ``energies``               :func:`~hexapod_pin.core.energy.energy_totals` on
                            ``tree_state``
+``regressor``              none (``supplies_regressor`` False): the dynamic regressor of
+                           :mod:`hexapod_pin.identification` then comes from the tree
+                           (``route="tree"``; ``"auto"`` falls back to it)
+``regressor_batch_kernel`` ``regressor``, state by state
 =========================  ===============================================================
 
 Conventions: those of :mod:`hexapod_pin.core.robot_api` (pose (dim,) in m and rad, twist
@@ -56,7 +60,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..errors import ActuatorSaturationError, BatchActuatorSaturationError, InputError
+from ..errors import (ActuatorSaturationError, BatchActuatorSaturationError,
+                      DescriptionError, InputError)
 from . import kernel_status
 from .checks import as_array, check_batch, flag, max_abs, vector
 from .closed_loop import ClosedLoopModel
@@ -197,6 +202,31 @@ class TreeDetails:
             full -= jac.T @ self.multipliers()
             self._residual = max_abs(full)
         return float(self._residual)
+
+
+class ClosedFormRegressor(NamedTuple):
+    """A closed form's dynamic regressor (:meth:`ClosedFormDynamics.regressor`): the
+    actuator forces of a platform state, linear in the inertial parameters of every body
+    of the robot's tree, ``tau = inertial @ pi`` (gravity included, no drive effect), with
+    the actuators' rates that the drive columns of
+    :mod:`hexapod_pin.identification.regressor` need.
+
+    One state: the shapes below; N states (:meth:`ClosedFormDynamics.regressor_batch`):
+    a leading axis N.
+
+    Attributes:
+        inertial: (n_act, 10 nb) (N or N m per parameter unit): columns ten per tree body,
+            the body of joint ``1 .. njoints - 1`` in joint order, Pinocchio's parameters
+            ``(m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)`` in the body
+            (joint) frame about its origin (``pin.Inertia.toDynamicParameters``); rows the
+            actuators in ``model.actuated_joints`` order.
+        actuator_velocities: (n_act,) (m/s or rad/s).
+        actuator_accelerations: (n_act,) (m/s^2 or rad/s^2).
+    """
+
+    inertial: np.ndarray
+    actuator_velocities: np.ndarray
+    actuator_accelerations: np.ndarray
 
 
 class ClosedFormKernels(abc.ABC):
@@ -443,6 +473,63 @@ class ClosedFormDynamics(ClosedFormKernels):
         conventions)."""
         kinetic, potential = energy_totals(self.model, q, v)
         return Energies(kinetic, potential, kinetic + potential)
+
+    # -- the dynamic regressor (a closed form may supply it) -------------------------------
+    #: whether the closed form supplies :meth:`regressor` (the closed-form route of
+    #: :mod:`hexapod_pin.identification`'s regressor)
+    supplies_regressor: bool = False
+
+    def regressor(self, pose: npt.ArrayLike, twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
+                  branch: npt.ArrayLike | None = None) -> ClosedFormRegressor:
+        """The closed form's dynamic regressor of one platform state
+        (:class:`ClosedFormRegressor`), from its own body kinematics and force projection;
+        a closed form that supplies it sets :attr:`supplies_regressor`.
+
+        Args:
+            pose: (dim,) (m, rad).
+            twist: (dim,) world axes (m/s, rad/s).
+            twist_dot: (dim,) its time derivative.
+            branch: the working mode (default home).
+
+        Raises:
+            DescriptionError: this closed form supplies none (the base's answer).
+            InputError: bad shapes, NaN / inf.
+            UnreachablePoseError: the pose is out of reach.
+            SingularityError: a singular state.
+        """
+        raise self.no_regressor()
+
+    def no_regressor(self) -> DescriptionError:
+        """The error of a closed form that supplies no :meth:`regressor`."""
+        return DescriptionError(type(self).__name__, "this closed form supplies no dynamic "
+                                "regressor: use the tree route (route='tree')")
+
+    def regressor_batch_kernel(self, poses: np.ndarray, twists: np.ndarray,
+                               twist_dots: np.ndarray,
+                               branch: npt.ArrayLike | None = None) -> ClosedFormRegressor:
+        """:meth:`regressor` of N checked states (N, dim); default: state by state."""
+        res = batch_of_states(len(poses), lambda k: self.regressor(
+            poses[k], twists[k], twist_dots[k], branch))
+        return ClosedFormRegressor(*(np.array([r[f] for r in res]) for f in range(3)))
+
+    def regressor_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
+                        twist_dots: npt.ArrayLike,
+                        branch: npt.ArrayLike | None = None) -> ClosedFormRegressor:
+        """:meth:`regressor` of N states (leading axis N; one ``branch`` for all, default
+        home), by the closed form's batch kernel.
+
+        Raises:
+            DescriptionError: this closed form supplies no regressor.
+            InputError: bad shapes, NaN / inf, rows of different lengths.
+            BatchUnreachablePoseError: a pose out of reach (the first such state,
+                ``index``).
+            BatchSingularityError: a singular state (the first, ``index``).
+        """
+        if not self.supplies_regressor:
+            raise self.no_regressor()
+        poses, twists, twist_dots = self.check_batch(poses=poses, twists=twists,
+                                                     twist_dots=twist_dots)
+        return self.regressor_batch_kernel(poses, twists, twist_dots, branch)
 
     # -- batch kernels (a closed form overrides those it has) -----------------------------
     def inverse_batch_kernel(self, poses: np.ndarray, twists: np.ndarray,

@@ -23,7 +23,7 @@ from ..core.checks import as_array
 from ..core.compiled import FAST_FLAGS
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                             InverseKinematicsBatch, JacobianBatch)
-from ..errors import BatchActuatorSaturationError, InputError
+from ..errors import BatchActuatorSaturationError, InputError, NonFiniteResultError
 from . import kernels as K
 
 #: the batch loops: states are argument 2 (``poses``), fast-math kernels
@@ -82,6 +82,19 @@ def _reduced(geo, signs, poses, twists, mass, bias, jac, codes):
         for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             codes[k] = K.reduced_dynamics(geo, signs[k if ss else 0], poses[k], twists[k],
                                           mass[k], bias[k], jac[k], rot, wk, mats)
+
+
+@batch_jit
+def _regressor(geo, signs, poses, twists, twist_dots, rows, qd, qdd, codes):
+    n = poses.shape[0]
+    ss = signs.shape[0] > 1
+    for c in numba.prange(n_chunks(n)):
+        rot, wk, mats = np.empty(9), np.zeros((K.WK_ROWS, 6)), np.empty((K.N_MATS, 6, 6))
+        motion, actuated, body = np.empty((6, 6, 3)), np.empty((24, 6)), np.empty((6, 10))
+        for k in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            codes[k] = K.regressor(geo, signs[k if ss else 0], poses[k], twists[k],
+                                   twist_dots[k], rows[k], qd[k], qdd[k], rot, wk, mats,
+                                   motion, actuated, body)
 
 
 @batch_jit
@@ -283,6 +296,28 @@ def reduced_dynamics_batch(geo, poses, twists, signs=None) -> BatchReducedDynami
     _reduced(geo, signs, poses, twists, mass, bias, jac, codes)
     _raise_first(codes, geo, signs, poses)
     return BatchReducedDynamics(mass, bias, jac)
+
+
+def regressor_batch(geo, poses, twists, twist_dots, signs=None):
+    """The inertial regressor of N states (:func:`~hexapod_pin.hexapod.kernels.regressor`;
+    validated (N, 6) arrays): ``(rows (N, 6, N_INERTIAL), qd (N, 6), qdd (N, 6))``.
+
+    Raises:
+        BatchUnreachablePoseError: a pose out of reach (the first such state).
+        BatchSingularityError: a singular state (type I, gimbal lock, type II; the first).
+        NonFiniteResultError: the rows of the first failed state are not finite (inputs
+            near the largest magnitude accepted).
+    """
+    signs = K.HOME_BRANCH[None] if signs is None else signs
+    n = poses.shape[0]
+    rows, qd, qdd = np.empty((n, 6, K.N_INERTIAL)), np.empty((n, 6)), np.empty((n, 6))
+    codes = np.zeros(n, dtype=np.int64)
+    _regressor(geo, signs, poses, twists, twist_dots, rows, qd, qdd, codes)
+    bad = np.flatnonzero(codes)
+    if bad.size and codes[bad[0]] == K.NONFINITE:
+        raise NonFiniteResultError("regressor_batch", f"rows of state {int(bad[0])}")
+    _raise_first(codes, geo, signs, poses)
+    return rows, qd, qdd
 
 
 def kinematics_batch(geo, poses, signs, with_jacobian: bool):

@@ -39,7 +39,8 @@ import proxsuite
 
 from . import kernels
 from . import batch
-from ..core.closed_form import ClosedFormDynamics, Inputs, LazyParts, TreeDetails
+from ..core.closed_form import (ClosedFormDynamics, ClosedFormRegressor, Inputs, LazyParts,
+                                TreeDetails)
 from ..core.closed_loop import ClosedLoopModel
 from ..core.compiled import all_finite
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
@@ -53,6 +54,7 @@ from .kinematics import HexapodKinematics, check_branch
 from ..errors import (
     ActuatorSaturationError,
     HexapodPinError,
+    NonFiniteResultError,
     SolverError,
 )
 from ..core.pose import rotation_from_rpy
@@ -692,6 +694,61 @@ class HexapodDynamics(ClosedFormDynamics):
         vmap, m_x, h_x = np.empty((dyn.nv, 6)), np.empty((6, 6)), np.empty(6)
         kernels.reduced_tree(ck.geo, s.rot, s.wk, mass, bias, vmap, m_x, h_x)
         return ReducedDynamics(m_x, h_x, vmap[self.indices.carriage_v].copy(), vmap)
+
+    # -- the dynamic regressor (the closed-form route of hexapod_pin.identification) -------
+    supplies_regressor = True
+
+    def regressor(self, pose: npt.ArrayLike, twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
+                  branch: npt.ArrayLike | None = None) -> ClosedFormRegressor:
+        """The dynamic regressor of one platform state in closed form
+        (:func:`kernels.regressor`): ``tau = inertial @ pi`` for the inertial parameters
+        of the 19 tree bodies (Pinocchio's convention and body frames, the tree's joint
+        order: ``carriage_i``, ``u_i_a`` (the cross), ``u_i_b`` (the leg) for i = 0..5,
+        then ``platform_joint``), from the closed form's body kinematics and its force
+        projection ``G_a^T = J^-T G^T``, no Pinocchio call; the carriages' rates for the
+        drive columns. Equal to the tree route of
+        :class:`~hexapod_pin.identification.ClosedLoopRegressor` to round-off (tests).
+
+        Args:
+            pose: ``(x, y, z, roll, pitch, yaw)`` (m, rad), (6,).
+            twist: ``(v, w)`` of the platform origin, world axes (m/s, rad/s), (6,).
+            twist_dot: its time derivative (m/s^2, rad/s^2), (6,).
+            branch: the IK branch (six +1 / -1); default home.
+
+        Returns:
+            :class:`~hexapod_pin.core.closed_form.ClosedFormRegressor`: ``inertial``
+            (6, 190) (N per parameter unit), carriage rates (m/s) and accelerations
+            (m/s^2) (6,).
+
+        Raises:
+            InputError: bad shape, non-finite or non-real values, a bad branch.
+            UnreachablePoseError: a leg cannot reach the pose.
+            SingularityError: type I, gimbal lock or type II.
+            NonFiniteResultError: the rows overflow (inputs near the largest magnitude).
+        """
+        ck = self.closed_form
+        signs = ck.signs if branch is None else check_branch(branch)
+        pose_a, twist_a = vec6(pose, "pose"), vec6(twist, "twist")
+        tdot_a = vec6(twist_dot, "twist_dot")
+        rows, qd, qdd = np.empty((6, kernels.N_INERTIAL)), np.empty(6), np.empty(6)
+        s = ck.scratch
+        code = kernels.regressor(ck.geo, signs, pose_a, twist_a, tdot_a, rows, qd, qdd,
+                                 s.rot, s.wk, s.mats, np.empty((6, 6, 3)),
+                                 np.empty((24, 6)), np.empty((6, 10)))
+        if code == kernels.NONFINITE:
+            raise NonFiniteResultError("HexapodDynamics.regressor", "inertial rows")
+        if code != kernels.OK:
+            self.refuse(code, ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot")))
+        return ClosedFormRegressor(rows, qd, qdd)
+
+    def regressor_batch_kernel(self, poses: np.ndarray, twists: np.ndarray,
+                               twist_dots: np.ndarray,
+                               branch: npt.ArrayLike | None = None) -> ClosedFormRegressor:
+        """:meth:`regressor` of N checked states by the compiled batch
+        (:func:`batch.regressor_batch`; the same kernel: the same numbers)."""
+        signs = batch.batch_signs(branch, len(poses))
+        return ClosedFormRegressor(*batch.regressor_batch(self.closed_form.geo, poses, twists,
+                                                          twist_dots, signs))
 
     # -- batch kernels (the drivers: ClosedFormDynamics) -----------------------------------
     def inverse_batch_kernel(self, poses: np.ndarray, twists: np.ndarray,

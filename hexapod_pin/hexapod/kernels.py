@@ -88,6 +88,7 @@ import threading
 import numpy as np
 
 from ..core import effects_projection as drv
+from ..core.body_regressor import body_regressor
 from ..core.compiled import all_finite, all_within, jit_inline
 from ..core.compiled import jit_fast as jit
 from ..core.measures import TYPE_I_TOL, TYPE_II_TOL
@@ -632,6 +633,16 @@ def solve_legs(geo, wk, mats, rhs):
     _lu_solve(mats[0], wk[PERM], vec, rhs)
     for i in range(6):
         rhs[i] *= geo[BLOCK * i + SCALE]
+
+
+@jit_inline
+def solve_transposed(geo, wk, mats, vec):
+    """Solve ``J^T x = vec`` in place with the factors of :func:`factor_legs`: ``J =
+    diag(1 / n_i.u_k) A``, so ``A^T t = vec`` (:func:`solve_legs`) and ``x_i = (n_i.u_k)
+    t_i`` (the actuator forces of a platform wrench ``vec``)."""
+    solve_legs(geo, wk, mats, vec)
+    for i in range(6):
+        vec[i] *= wk[NU, i]
 
 
 # --------------------------------------------------------------------------------------
@@ -1282,9 +1293,7 @@ def solve_forces(geo, wk, mats, rhs, tau, multipliers, jac_t):
         return code
     for j in range(6):
         tau[j] = rhs[j]
-    solve_legs(geo, wk, mats, tau)
-    for i in range(6):
-        tau[i] *= wk[NU, i]
+    solve_transposed(geo, wk, mats, tau)
     jacobian(wk, mats[1])
     for r in range(6):
         for c in range(6):
@@ -1461,6 +1470,130 @@ def check_mass_structure(mass) -> None:
         raise HexapodPinError("the compiled reduced dynamics needs a block-diagonal tree "
                               "mass matrix (each leg chain and the platform attached to "
                               "the world)")
+
+
+# --------------------------------------------------------------------------------------
+# the dynamic regressor (the closed-form route of hexapod_pin.identification)
+# --------------------------------------------------------------------------------------
+#: columns of :func:`regressor`: Pinocchio's ten inertial parameters of each tree body,
+#: in the tree's joint order (carriage_i, u_i_a (the cross), u_i_b (the leg) for
+#: i = 0..5, then the platform)
+N_INERTIAL = 190
+
+
+@jit_inline
+def _add_body(body, actuated, tree_row, col, sfx, sfy, sfz, snx, sny, snz, out):
+    """``out[:, col:col + 10] += actuated[tree_row] (s_f . f + s_n . n)``: the body
+    wrench columns ``body`` (6, 10) (``(f, n)``, body axes) as the tree generalised force
+    of one joint (``s_f``, ``s_n``: its axis as it acts on the body's force and moment, in
+    body axes), mapped to the actuators by the row ``actuated[tree_row]`` (6,) of ``G_a``."""
+    for c in range(10):
+        val = (sfx * body[0, c] + sfy * body[1, c] + sfz * body[2, c]
+               + snx * body[3, c] + sny * body[4, c] + snz * body[5, c])
+        if val != 0.0:
+            for a in range(6):
+                out[a, col + c] += actuated[tree_row, a] * val
+
+
+@jit
+def regressor(geo, signs, pose, twist, twist_dot, out, qd, qdd, rot, wk, mats, motion,
+              actuated, body):
+    """The inertial regressor ``Y`` (6, :data:`N_INERTIAL`) into ``out``: ``tau = Y pi``
+    for the inertial parameters ``pi`` of every tree body (Pinocchio's convention, body
+    frames; gravity included), and the carriage rates ``qd`` (6,) and accelerations
+    ``qdd`` (6,) (the drive columns' variables). Scratch: ``motion`` (6, 6, 3),
+    ``actuated`` (24, 6), ``body`` (6, 10). Returns OK, NONFINITE (inputs or ``Y``),
+    UNREACHABLE, TYPE_I, GIMBAL or TYPE_II.
+
+    The closed form's kinematics and projection: each body's angular velocity and
+    acceleration and the classical acceleration of its origin from the legs
+    (:func:`leg_motion`: the leg's ``w`` with its spin; the cross turns with the leg's
+    component along ``u``; carriage, cross and leg have their origin at the joint centre
+    ``c_i``, accelerating by ``qddot_i u``), the platform's from the twist; the body
+    wrench linear in the parameters
+    (:func:`~hexapod_pin.core.body_regressor.body_regressor`, in the frames of the
+    URDF's links: carriage ``(u, l, w)``, cross ``(u, y_c, u x y_c)`` with the second
+    universal axis ``y_c = (X l + Y w) / rho``, leg ``(y_c x e, y_c, e)``, platform
+    ``R``); its tree generalised force (the carriage's, the cross's and the leg's force
+    along ``u`` on the carriage joint, their moments about ``u`` on ``u_i_a``, the leg's
+    about ``y_c`` on ``u_i_b``; the platform's wrench in body axes on its free flyer)
+    mapped to the actuators by ``G_a^T = J^-T G^T`` (:func:`velocity_map`,
+    :func:`solve_transposed`), the projection of the single-state inverse dynamics."""
+    code = motion_state(geo, signs, pose, twist, twist_dot, ZERO6, rot, wk)
+    if code != OK:
+        return code
+    tip_accelerations(wk, twist_dot)
+    tree_angles(geo, wk)
+    code = leg_motion(geo, wk, True, motion)
+    if code != OK:
+        return code
+    code = factor_legs(geo, wk, mats)
+    if code != OK:
+        return code
+    velocity_map(geo, rot, wk, actuated)
+    for r in range(24):                                 # row r of G J^-1 = J^-T G[r]
+        solve_transposed(geo, wk, mats, actuated[r])
+    for a in range(6):
+        qd[a], qdd[a] = wk[QD, a], wk[QDD, a]
+        for c in range(N_INERTIAL):
+            out[a, c] = 0.0
+    g = geo[GRAV]
+    for i in range(6):
+        b = BLOCK * i
+        ux, uy, uz = geo[b + UX], geo[b + UY], geo[b + UZ]
+        lx, ly, lz = geo[b + LX], geo[b + LY], geo[b + LZ]
+        wx, wy, wz = geo[b + WX], geo[b + WY], geo[b + WZ]
+        inv_rho = 1.0 / math.sqrt(wk[RHO2, i])
+        ca, sa = wk[XA, i] * inv_rho, wk[YA, i] * inv_rho
+        yx, yy, yz = ca * lx + sa * wx, ca * ly + sa * wy, ca * lz + sa * wz
+        zx, zy, zz = ca * wx - sa * lx, ca * wy - sa * ly, ca * wz - sa * lz
+        ex, ey, ez = motion[0, i, 0], motion[0, i, 1], motion[0, i, 2]
+        xx, xy, xz = yy * ez - yz * ey, yz * ex - yx * ez, yx * ey - yy * ex
+        qdd_i = wk[QDD, i]
+        ax, ay, az = qdd_i * ux, qdd_i * uy, qdd_i * uz + g      # c_i'' - gravity
+        col = 30 * i
+        # the carriage: its force along u on the carriage joint
+        body_regressor(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, ax * ux + ay * uy + az * uz,
+                       ax * lx + ay * ly + az * lz, ax * wx + ay * wy + az * wz, body)
+        _add_body(body, actuated, 3 * i, col, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, out)
+        # the cross: turns about u with the leg's rate about u
+        om_x, om_y, om_z = motion[2, i, 0], motion[2, i, 1], motion[2, i, 2]
+        al_x, al_y, al_z = motion[4, i, 0], motion[4, i, 1], motion[4, i, 2]
+        body_regressor(om_x * ux + om_y * uy + om_z * uz, 0.0, 0.0,
+                       al_x * ux + al_y * uy + al_z * uz, 0.0, 0.0,
+                       ax * ux + ay * uy + az * uz, ax * yx + ay * yy + az * yz,
+                       ax * zx + ay * zy + az * zz, body)
+        _add_body(body, actuated, 3 * i, col + 10, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, out)
+        _add_body(body, actuated, 3 * i + 1, col + 10, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, out)
+        # the leg, in its frame (x_l, y_c, e); u in leg axes
+        body_regressor(om_x * xx + om_y * xy + om_z * xz, om_x * yx + om_y * yy + om_z * yz,
+                       om_x * ex + om_y * ey + om_z * ez,
+                       al_x * xx + al_y * xy + al_z * xz, al_x * yx + al_y * yy + al_z * yz,
+                       al_x * ex + al_y * ey + al_z * ez,
+                       ax * xx + ay * xy + az * xz, ax * yx + ay * yy + az * yz,
+                       ax * ex + ay * ey + az * ez, body)
+        ul_x, ul_y = ux * xx + uy * xy + uz * xz, ux * yx + uy * yy + uz * yz
+        ul_z = ux * ex + uy * ey + uz * ez
+        _add_body(body, actuated, 3 * i, col + 20, ul_x, ul_y, ul_z, 0.0, 0.0, 0.0, out)
+        _add_body(body, actuated, 3 * i + 1, col + 20, 0.0, 0.0, 0.0, ul_x, ul_y, ul_z, out)
+        _add_body(body, actuated, 3 * i + 2, col + 20, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, out)
+    # the platform: body axes (R^T), its wrench in body axes on the free flyer
+    wb, db, ab = wk[TMP], wk[TMP2], wk[RHS0]
+    _rotate_back(rot, twist[3], twist[4], twist[5], wb, 0)
+    _rotate_back(rot, twist_dot[3], twist_dot[4], twist_dot[5], db, 0)
+    _rotate_back(rot, twist_dot[0], twist_dot[1], twist_dot[2] + g, ab, 0)
+    body_regressor(wb[0], wb[1], wb[2], db[0], db[1], db[2], ab[0], ab[1], ab[2], body)
+    for j in range(6):                  # free-flyer row 18 + j: wrench component j
+        for c in range(10):
+            val = body[j, c]
+            if val != 0.0:
+                for a in range(6):
+                    out[a, 180 + c] += actuated[18 + j, a] * val
+    for a in range(6):
+        for c in range(N_INERTIAL):
+            if not math.isfinite(out[a, c]):
+                return NONFINITE
+    return OK
 
 
 # --------------------------------------------------------------------------------------

@@ -33,6 +33,16 @@ parameters (:mod:`.parameters`). Derivation (tree coordinates, Pinocchio's ``q``
    actuated robot (more actuators than degrees of freedom) has no unique ``u`` and is
    refused.
 
+Two routes give the same matrix (``route``, :data:`ROUTES`): "tree" (the default) builds
+it as above for any robot; "closed_form" asks the robot's closed form
+(:class:`~hexapod_pin.core.closed_form.ClosedFormDynamics` with ``supplies_regressor``:
+the hexapod's) for ``Y``, computed from its own body kinematics and force projection with
+the Newton-Euler wrench of each body written linear in its ten parameters
+(:mod:`hexapod_pin.core.body_regressor`), no Pinocchio call; the drive columns are the
+same algebra on its actuator rates. The tests hold the two routes equal entry by entry
+(1e-10 of each column's scale). "auto" takes the closed form where the robot supplies
+one and the tree otherwise.
+
 The Coulomb column uses ``sign(qd_i)`` with ``sign(0) = 0``: at rest the friction force is
 set by stick / slip and is not a function of the state; leave such samples out of
 identification data. Joint effects on PASSIVE coordinates (damping, friction, armature of
@@ -49,12 +59,20 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ..core.checks import as_array
+from ..core.closed_form import ClosedFormDynamics, ClosedFormRegressor
 from ..core.closed_loop import ClosedLoopModel
 from ..core.dynamics import dynamics_of
 from ..core.effects import effect_forces
 from ..core.platform_map import PlatformMap, solve_checked_square
 from ..core.robot_kinematics import RobotKinematics
-from ..errors import DescriptionError, HexapodPinError, InputError, MotionSampleError
+from ..errors import (
+    BatchSingularityError,
+    BatchUnreachablePoseError,
+    DescriptionError,
+    HexapodPinError,
+    InputError,
+    MotionSampleError,
+)
 from .parameters import (
     DEFAULT_DRIVE,
     EFFECT_FIELDS,
@@ -68,6 +86,20 @@ from .parameters import (
 #: a tree state given to :func:`closed_loop_regressor_tree` must keep the closures'
 #: acceleration: ``|J_c a + gamma| <= ACCELERATION_RTOL (|J_c| |a| + |gamma| + 1)``
 ACCELERATION_RTOL = 1e-9
+#: the routes of the regressor (module docstring)
+ROUTES = ("tree", "closed_form", "auto")
+
+
+def _drive_columns(layout: ParameterLayout, on_actuated: np.ndarray, qd: np.ndarray,
+                   qdd: np.ndarray, out: np.ndarray) -> None:
+    """``out[..., drive columns] = P S^T Y_d``: the drive columns of the rows ``out`` (...,
+    k, layout.size) for the actuated columns ``on_actuated`` (k, n_act) of the projection
+    ``P`` and the actuator rates ``qd``, ``qdd`` (..., n_act) (one state, or a leading axis
+    of states)."""
+    column = {"armature": qdd, "viscous": qd, "coulomb": np.sign(qd),
+              "offset": np.ones_like(qd)}
+    for kind in layout.drive:
+        out[..., layout.drive_slice(kind)] = on_actuated * column[kind][..., None, :]
 
 
 def _stacked_rows(layout: ParameterLayout, actuated_v: np.ndarray, projection: np.ndarray,
@@ -77,13 +109,25 @@ def _stacked_rows(layout: ParameterLayout, actuated_v: np.ndarray, projection: n
     motions (transposed) their balance rows (``P S^T`` the identity, resp. zero)."""
     out = np.empty((projection.shape[0], layout.size))
     out[:, :layout.n_inertial] = projection @ y_tree
-    qd, qdd = v[actuated_v], a[actuated_v]
-    column = {"armature": qdd, "viscous": qd, "coulomb": np.sign(qd),
-              "offset": np.ones(actuated_v.size)}
-    on_actuated = projection[:, actuated_v]
-    for kind in layout.drive:
-        out[:, layout.drive_slice(kind)] = on_actuated * column[kind]
+    _drive_columns(layout, projection[:, actuated_v], v[actuated_v], a[actuated_v], out)
     return out
+
+
+def _closed_form_of(robot: object, route: object, name: str) -> ClosedFormDynamics | None:
+    """The closed form that gives the regressor of ``robot`` by ``route`` (None: the tree).
+
+    Raises:
+        InputError: an unknown route; "closed_form" for a robot whose closed form supplies
+            no regressor.
+    """
+    if not isinstance(route, str) or route not in ROUTES:
+        raise InputError("route", route, f"expected one of {ROUTES}")
+    dyn = getattr(robot, "dynamics", None)
+    supplied = isinstance(dyn, ClosedFormDynamics) and dyn.supplies_regressor
+    if route == "closed_form" and not supplied:
+        raise InputError("route", route, f"robot {name!r} has no closed form that supplies "
+                         "a dynamic regressor: use route='tree' (or 'auto')")
+    return dyn if supplied and route != "tree" else None     # type: ignore[return-value]
 
 
 class TreeMotion(NamedTuple):
@@ -109,23 +153,32 @@ class ClosedLoopRegressor:
     Args:
         robot: a robot of the library.
         drive: the drive kinds of the columns (:data:`~.parameters.DRIVE_KINDS`).
+        route: "tree" (default), "closed_form" or "auto" (:data:`ROUTES`, module
+            docstring): where :meth:`rows` and :meth:`batch` come from. The tree-state
+            methods (:meth:`tree_motion`, :meth:`rows_of`) are the tree route's.
 
     Attributes:
         layout: the :class:`~.parameters.ParameterLayout` of the columns.
         n_actuators: rows per state.
+        route: the route :meth:`rows` and :meth:`batch` take ("tree" or "closed_form";
+            "auto" resolved).
 
     Raises:
         ArgumentTypeError: not a robot of the library.
-        InputError: bad ``drive``.
+        InputError: bad ``drive``; an unknown ``route``, or "closed_form" for a robot
+            whose closed form supplies no regressor.
         DescriptionError: a redundantly actuated robot (more actuators than degrees of
             freedom: the forces are not determined by the motion).
     """
 
-    def __init__(self, robot: object, drive: object = DEFAULT_DRIVE) -> None:
+    def __init__(self, robot: object, drive: object = DEFAULT_DRIVE,
+                 route: str = "tree") -> None:
         clm = closed_loop_model(robot)
         self.robot = robot
         self.clm = clm
         self.layout = ParameterLayout.of(robot, drive)
+        self.closed_form = _closed_form_of(robot, route, clm.name)
+        self.route = "tree" if self.closed_form is None else "closed_form"
         geometry = getattr(robot, "geometry", None)
         length = float(getattr(geometry, "characteristic_length", 1.0))
         self.platform = PlatformMap(clm, robot_platform_frame(robot), robot_pose_axes(robot),
@@ -143,17 +196,18 @@ class ClosedLoopRegressor:
 
     # -- states ------------------------------------------------------------------------------
     def tree_motion(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
-                    twist_dot: npt.ArrayLike) -> TreeMotion:
-        """The tree state of a platform state (module docstring, step 1).
+                    twist_dot: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> TreeMotion:
+        """The tree state of a platform state (module docstring, step 1) on the robot's
+        working mode ``branch`` (its ``configuration(pose, branch)``; default home).
 
         Raises:
-            InputError: bad shapes, NaN / inf.
+            InputError: bad shapes, NaN / inf, a bad branch.
             UnreachablePoseError: the pose is out of reach.
             SingularityError: a singular pose.
         """
         twist = as_array(twist, (self.dim,), "twist")
         twist_dot = as_array(twist_dot, (self.dim,), "twist_dot")
-        q = np.asarray(getattr(self.robot, "configuration")(pose), dtype=float)
+        q = np.asarray(getattr(self.robot, "configuration")(pose, branch), dtype=float)
         kin = self.kinematics
         maps = kin.regular_maps(q)
         v = kin.tree_velocity(maps, twist)
@@ -173,27 +227,48 @@ class ClosedLoopRegressor:
                              motion.v, motion.a)
 
     def rows(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
-             twist_dot: npt.ArrayLike) -> np.ndarray:
+             twist_dot: npt.ArrayLike, branch: npt.ArrayLike | None = None) -> np.ndarray:
         """``[Y | Y_d]`` (n_act, layout.size) of one platform state: ``u = rows @ params``
-        (N, N m; parameters in :class:`~.parameters.ParameterLayout` order).
+        (N, N m; parameters in :class:`~.parameters.ParameterLayout` order), by
+        :attr:`route`.
 
         Args:
             pose: (dim,) (m, rad).
             twist: (dim,) world axes (m/s, rad/s).
             twist_dot: (dim,) its time derivative.
+            branch: the robot's working mode (its ``branch`` argument; default home).
 
         Raises:
-            InputError: bad shapes, NaN / inf.
+            InputError: bad shapes, NaN / inf, a bad branch.
             UnreachablePoseError: the pose is out of reach.
             SingularityError: a singular pose.
         """
-        return self.rows_of(self.tree_motion(pose, twist, twist_dot))
+        if self.closed_form is None:
+            return self.rows_of(self.tree_motion(pose, twist, twist_dot, branch))
+        return self._closed_form_rows(self.closed_form.regressor(pose, twist, twist_dot,
+                                                                 branch))
+
+    def _closed_form_rows(self, cf: ClosedFormRegressor) -> np.ndarray:
+        """``[Y | Y_d]`` of a closed form's regressor (one state, or N: (N, n_act, size))
+        (``P = G^T`` maps each actuated coordinate's drive force to its own actuator)."""
+        inertial = cf.inertial
+        if inertial.shape[-1] != self.layout.n_inertial:
+            raise DescriptionError(self.clm.name, f"the closed form's regressor has "
+                                   f"{inertial.shape[-1]} inertial columns, the tree "
+                                   f"{self.layout.n_inertial}")
+        out = np.empty(inertial.shape[:-1] + (self.layout.size,))
+        out[..., :self.layout.n_inertial] = inertial
+        _drive_columns(self.layout, self._eye, cf.actuator_velocities,
+                       cf.actuator_accelerations, out)
+        return out
 
     def batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike, twist_dots: npt.ArrayLike,
-              times: npt.ArrayLike | None = None) -> np.ndarray:
+              times: npt.ArrayLike | None = None, branch: npt.ArrayLike | None = None) -> np.ndarray:
         """The rows of N states stacked, shape (N n_act, layout.size): rows ``k n_act ..
         (k + 1) n_act`` are state ``k``'s (sample-major, the order of
-        ``actuator_forces.reshape(-1)`` for forces of shape (N, n_act)).
+        ``actuator_forces.reshape(-1)`` for forces of shape (N, n_act)), by
+        :attr:`route` (the closed form's compiled batch kernel; the tree route state by
+        state).
 
         Args:
             poses: (N, dim) platform poses (m, rad).
@@ -201,9 +276,10 @@ class ClosedLoopRegressor:
             twist_dots: (N, dim) the twists' time derivatives.
             times: (N,) the samples' times (s), for error messages only (default: the
                 row index).
+            branch: the robot's working mode for every state (default home).
 
         Raises:
-            InputError: bad shapes, NaN / inf, different lengths.
+            InputError: bad shapes, NaN / inf, different lengths, a bad branch.
             MotionSampleError: a state fails (``index``: its row; the cause, an
                 :class:`~hexapod_pin.errors.UnreachablePoseError` or a singular pose, in
                 ``error``).
@@ -217,11 +293,18 @@ class ClosedLoopRegressor:
                 raise InputError(name, arr, f"expected {n} rows (one per pose), got "
                                  f"{arr.shape[0]}")
         stamp = np.arange(n, dtype=float) if times is None else np.asarray(times, dtype=float)
-        out = np.empty((n * self.n_actuators, self.layout.size))
         m = self.n_actuators
+        if self.closed_form is not None:
+            try:
+                cf = self.closed_form.regressor_batch(poses, twists, twist_dots, branch)
+            except (BatchUnreachablePoseError, BatchSingularityError) as exc:
+                raise MotionSampleError(exc.index, float(stamp[exc.index]), exc) from exc
+            return self._closed_form_rows(cf).reshape(n * m, self.layout.size)
+        out = np.empty((n * m, self.layout.size))
         for k in range(n):
             try:
-                out[k * m:(k + 1) * m] = self.rows(poses[k], twists[k], twist_dots[k])
+                out[k * m:(k + 1) * m] = self.rows(poses[k], twists[k], twist_dots[k],
+                                                   branch)
             except HexapodPinError as exc:
                 raise MotionSampleError(k, float(stamp[k]), exc) from exc
         return out
@@ -330,15 +413,18 @@ def closed_loop_regressor_tree(clm: ClosedLoopModel, q: npt.ArrayLike, v: npt.Ar
 
 
 def regressor(robot: object, pose: npt.ArrayLike, twist: npt.ArrayLike,
-              twist_dot: npt.ArrayLike, drive: object = DEFAULT_DRIVE) -> np.ndarray:
+              twist_dot: npt.ArrayLike, drive: object = DEFAULT_DRIVE, *,
+              route: str = "tree", branch: npt.ArrayLike | None = None) -> np.ndarray:
     """The closed-loop regressor ``[Y | Y_d]`` (n_act, n_params) of one platform state:
-    ``actuator_forces = regressor(...) @ parameters`` (module docstring; errors as
-    :meth:`ClosedLoopRegressor.rows`)."""
-    return ClosedLoopRegressor(robot, drive).rows(pose, twist, twist_dot)
+    ``actuator_forces = regressor(...) @ parameters`` (module docstring; ``route`` and
+    errors as :class:`ClosedLoopRegressor` and its :meth:`~ClosedLoopRegressor.rows`)."""
+    return ClosedLoopRegressor(robot, drive, route).rows(pose, twist, twist_dot, branch)
 
 
 def regressor_batch(robot: object, poses: npt.ArrayLike, twists: npt.ArrayLike,
-                    twist_dots: npt.ArrayLike, drive: object = DEFAULT_DRIVE) -> np.ndarray:
+                    twist_dots: npt.ArrayLike, drive: object = DEFAULT_DRIVE, *,
+                    route: str = "tree", branch: npt.ArrayLike | None = None) -> np.ndarray:
     """The regressor of N states, (N n_act, n_params), sample-major
     (:meth:`ClosedLoopRegressor.batch`)."""
-    return ClosedLoopRegressor(robot, drive).batch(poses, twists, twist_dots)
+    return ClosedLoopRegressor(robot, drive, route).batch(poses, twists, twist_dots,
+                                                          branch=branch)
