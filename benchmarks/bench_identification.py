@@ -13,6 +13,13 @@ regressor alone (``ClosedLoopRegressor.batch``), the part that grows with the sa
     python benchmarks/bench_identification.py               # 1e3 and 1e4 samples
     python benchmarks/bench_identification.py --large       # also 1e5
     python benchmarks/bench_identification.py --smoke       # small sizes, a quick check
+    python benchmarks/bench_identification.py --routes      # the regressor's two routes
+
+``--routes`` times the regressor alone by each route (``route="tree"``: Pinocchio's
+joint-torque regressor projected through the closures; ``route="closed_form"``: the
+robot's closed form, where it supplies one), per state: one state at a time
+(``ClosedLoopRegressor.rows``) and in a batch (``ClosedLoopRegressor.batch``), medians of
+alternated repeats, and checks that the routes agree (1e-10 of each column's scale).
 """
 
 from __future__ import annotations
@@ -99,17 +106,60 @@ def run(name: str, sizes: list[int]) -> bool:
     return ok
 
 
+def routes(name: str, n_single: int = 200, n_batch: int = 2000, repeats: int = 5) -> bool:
+    """The time per state of each regressor route (module docstring); True when the
+    routes agree."""
+    robot = ROBOTS[name]()
+    regs = {route: ClosedLoopRegressor(robot, DRIVE, route=route)
+            for route in ("tree", "closed_form") if route == "tree"
+            or ClosedLoopRegressor(robot, DRIVE, route="auto").route == route}
+    states = random_states(robot, n_batch, seed=1)
+    single = [s[:n_single] for s in states]
+    times: dict[tuple[str, str], list[float]] = {}
+    for reg in regs.values():                       # compile and load before timing
+        reg.batch(*(s[:2] for s in states))
+    for _ in range(repeats):                        # the routes alternated
+        for route, reg in regs.items():
+            t0 = time.perf_counter()
+            for k in range(n_single):
+                reg.rows(single[0][k], single[1][k], single[2][k])
+            times.setdefault((route, "single"), []).append(
+                (time.perf_counter() - t0) / n_single)
+            t0 = time.perf_counter()
+            reg.batch(*states)
+            times.setdefault((route, "batch"), []).append(
+                (time.perf_counter() - t0) / n_batch)
+    print(f"\n### {name}: regressor routes, us per state (median of {repeats})\n")
+    print(f"| route | single (rows, {n_single} states) | batch ({n_batch} states) |")
+    print("|---|---:|---:|")
+    for route in regs:
+        print(f"| {route} | {1e6 * np.median(times[route, 'single']):.1f} | "
+              f"{1e6 * np.median(times[route, 'batch']):.1f} |")
+    if len(regs) < 2:
+        return True
+    tree, closed = (regs[r].batch(*single) for r in ("tree", "closed_form"))
+    scale = np.max(np.abs(tree), axis=0)
+    agree = bool(np.all(np.abs(closed - tree) <= 1e-10 * scale))
+    print(f"\nroutes agree to 1e-10 of each column's scale: {agree}")
+    return agree
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--smoke", action="store_true", help="small sizes, a quick check")
     parser.add_argument("--large", action="store_true", help="also 1e5 samples")
     parser.add_argument("--robots", default="hexapod,planar")
+    parser.add_argument("--routes", action="store_true",
+                        help="only the regressor's routes, time per state")
     args = parser.parse_args()
     sizes = [100] if args.smoke else [1000, 10000] + ([100000] if args.large else [])
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
           f"Python {platform.python_version()}, numpy {np.__version__}, scipy "
           f"{scipy.__version__}, pinocchio {pin.__version__}, hexapod_pin {hp.__version__}")
-    passed = [run(name, sizes) for name in args.robots.split(",")]   # every robot runs
+    if args.routes:
+        passed = [routes(name) for name in args.robots.split(",")]
+    else:
+        passed = [run(name, sizes) for name in args.robots.split(",")]   # every robot runs
     ok = all(passed)
     print("\nall checks passed" if ok else "\nCHECK FAILED")
     raise SystemExit(0 if ok else 1)
