@@ -40,6 +40,9 @@ What a closed form may provide, and what the base derives when it does not:
                            :mod:`hexapod_pin.identification` then comes from the tree
                            (``route="tree"``; ``"auto"`` falls back to it)
 ``regressor_batch_kernel`` ``regressor``, state by state
+``inverse_dynamics_        the core's tree route (None): the analytic partials of the
+partials``                 unbounded inverse dynamics, behind the core chain rule of
+                           :mod:`~hexapod_pin.core.platform_derivatives`
 =========================  ===============================================================
 
 Conventions: those of :mod:`hexapod_pin.core.robot_api` (pose (dim,) in m and rad, twist
@@ -293,6 +296,26 @@ class ClosedFormKernels(abc.ABC):
     def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                          branch: npt.ArrayLike | None = None) -> ReducedDynamics:
         """``J^T tau + wrench = M_x twist_dot + h_x`` at a platform state."""
+
+    def inverse_dynamics_partials(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                                  twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None,
+                                  branch: npt.ArrayLike | None = None
+                                  ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The closed form's analytic derivatives of the unbounded inverse-dynamics forces,
+        or None where it has none (or does not model the robot's effects): the core then
+        derives them from the tree (:mod:`~hexapod_pin.core.platform_derivatives`).
+
+        Returns:
+            ``(tau, partials)``: the forces (n_act,) and their partials (n_act, 4 dim),
+            columns the world tangent ``(dp, dtheta)`` of the pose (``R -> exp(dtheta)
+            R``), the twist, the twist_dot and the wrench, all held in world axes.
+
+        Raises:
+            InputError: bad inputs; Coulomb friction at rest (not differentiable).
+            UnreachablePoseError: the pose is out of reach.
+            SingularityError: a singular pose.
+        """
+        return None
 
 
 class ClosedFormDynamics(ClosedFormKernels):

@@ -355,3 +355,22 @@ def anchor_forces_kernel(rot, forces, point_rows, point_anchors, local, to_joint
                 local[anchor, r] = sign * (rot[anchor, 0, r] * l0 + rot[anchor, 1, r] * l1
                                            + rot[anchor, 2, r] * l2)
     return (to_joints @ local.reshape(-1)).reshape(-1, 6)
+
+
+@jit
+def implicit_kernel(b, partials):
+    """The implicit-function theorem for a map ``X(y, z)`` solved for ``z``: with the square
+    ``b = dX/dz`` (n, n) and ``partials = dX/dy`` (n, k), the partials of ``z(y, X)``:
+    ``(B^-1, -B^-1 partials, residual)``, ``residual`` the relative miss of ``b B^-1 = I``
+    (max-abs, over ``max(1, |b| |B^-1|)``; inf when not finite). Raises numpy's LinAlgError
+    when ``b`` is exactly singular."""
+    n = b.shape[0]
+    inv = np.linalg.inv(b)
+    out = -(inv @ partials)
+    check = b @ inv
+    for i in range(n):
+        check[i, i] -= 1.0
+    miss = _max_abs(check)
+    if not math.isfinite(miss) or not math.isfinite(_max_abs(out)):
+        return inv, out, math.inf
+    return inv, out, miss / max(1.0, _max_abs(b) * _max_abs(inv))

@@ -22,6 +22,19 @@ frame, ``T a + bias``. Derivatives hold the twist and the wrench fixed in world 
 
 :func:`linearize` assembles them into the state-space model of ``x = (dp, dtheta,
 twist)``. Equations and tests: ``docs/derivations.md`` (section 8).
+
+One chain rule for every robot. A robot whose closed form supplies the analytic partials of
+its inverse dynamics ``u = ID(pose, twist, twist_dot, wrench)``
+(:meth:`~hexapod_pin.core.closed_form.ClosedFormKernels.inverse_dynamics_partials`: the
+hexapod's Newton-Euler kernel) gets its inverse-dynamics derivatives from them, and its
+forward-dynamics derivatives by the implicit-function theorem at ``twist_dot = FD(pose,
+twist, u, wrench)`` (the robot's verified forward dynamics): ``ID(y, FD(y, u)) = u`` gives
+``d FD / d y = -B^-1 d ID / d y`` (``y``: pose, twist, wrench) and ``d FD / d u = B^-1``
+with ``B = d ID / d twist_dot = J^-T M_x`` (:func:`implicit_inverse`; ``B^-1 = M_x^-1
+J^T``). Every other robot (and a closed-form robot whose passive coordinates carry
+effects) gets its forward-dynamics derivatives from the tree as above, and its
+inverse-dynamics derivatives by the same theorem the other way round (``d ID / d y = -(d
+FD / d u)^-1 d FD / d y``). ``d_pose`` comes from ``d_world`` in both (:func:`pose_columns`).
 """
 
 from __future__ import annotations
@@ -34,9 +47,11 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import InputError, SingularityError, SolverError
+from ..errors import InconsistentMotionError, InputError, SingularityError, SolverError
 from .checks import as_array, max_abs
+from .closed_form import ClosedFormKernels
 from .closed_loop import ClosedLoopModel
+from .derivative_kernels import implicit_kernel
 from .dynamics_common import characteristic_length
 from .dynamics_derivatives import KKTLinearization, linearize_tree
 from .effects_projection import batch_of_states
@@ -224,13 +239,9 @@ class PlatformLinearization:
         d_world = self.acc_q @ vmap + self.acc_v @ dv + rows @ da[:, :dim]
         d_twist = self.acc_v @ vmap + rows @ da[:, dim:2 * dim]
         response = rows @ da[:, 2 * dim:]
-        d_pose = d_world
-        if self.layout.full_rotation:
-            rates = np.eye(self.layout.dim)
-            ang = self.layout.angular
-            rates[np.ix_(ang, ang)] = euler_rates_matrix(self.pose[ang])
-            d_pose = d_world @ rates
-        return ForwardDynamicsDerivatives(self.acc.copy(), d_pose, d_world, d_twist,
+        return ForwardDynamicsDerivatives(self.acc.copy(),
+                                          pose_columns(self.layout, self.pose, d_world),
+                                          d_world, d_twist,
                                           response[:, :self.act.size],
                                           response[:, self.act.size:])
 
@@ -260,8 +271,121 @@ def forward_dynamics_derivatives(robot: PlatformRobot, pose: npt.ArrayLike,
             dimension, or a mass matrix singular on the closures.
         SolverError: a solve misses its equations.
     """
+    closed = _forward_by_closed_form(robot, pose, twist, actuator_forces, wrench, branch)
+    if closed is not None:
+        return closed
     return PlatformLinearization(robot, pose, twist, actuator_forces, wrench,
                                  branch).derivatives()
+
+
+def pose_columns(layout: PoseLayout, pose: np.ndarray, d_world: np.ndarray) -> np.ndarray:
+    """The pose-coordinate columns of derivatives along the world tangent ``(dp, dtheta)``:
+    ``d_world @ blockdiag(I, E(rpy))`` with all three angles in the pose (``w = E
+    d(rpy)/dt``, :func:`~hexapod_pin.core.pose.euler_rates_matrix`), a copy of ``d_world``
+    otherwise (a plane's angle is its own tangent coordinate)."""
+    if not layout.full_rotation:
+        return np.array(d_world, dtype=float)
+    ang = layout.angular
+    out = np.array(d_world, dtype=float)
+    out[:, ang] = d_world[:, ang] @ euler_rates_matrix(pose[ang])
+    return out
+
+
+def implicit_inverse(b: np.ndarray, partials: np.ndarray,
+                     what: str) -> tuple[np.ndarray, np.ndarray]:
+    """The implicit-function theorem for ``X(y, z)`` solved for ``z``: ``(B^-1, -B^-1
+    partials)`` from the square ``b = dX/dz`` (n, n) and ``partials = dX/dy`` (n, k)
+    (compiled, :func:`~hexapod_pin.core.derivative_kernels.implicit_kernel`; verified:
+    ``b B^-1 = I`` to :data:`~hexapod_pin.core.platform_map.MAP_RTOL` relative).
+
+    Raises:
+        InconsistentMotionError: ``b`` singular (a type-II singularity), named ``what``.
+    """
+    try:
+        inv, out, miss = implicit_kernel(np.ascontiguousarray(b, dtype=float),
+                                         np.ascontiguousarray(partials, dtype=float))
+    except np.linalg.LinAlgError:
+        raise InconsistentMotionError(what, float("inf")) from None
+    if not miss <= MAP_RTOL:
+        raise InconsistentMotionError(what, miss)
+    return inv, out
+
+
+def closed_form_partials(robot: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                         twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None,
+                         branch: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """``robot``'s closed-form inverse-dynamics partials ``(tau, partials (n_act, 4
+    dim))`` (:meth:`~hexapod_pin.core.closed_form.ClosedFormKernels.inverse_dynamics_partials`),
+    or None when it has none (a robot without a closed form, or whose closed form does not
+    model its effects)."""
+    dyn = getattr(robot, "dynamics", None)
+    if not isinstance(dyn, ClosedFormKernels):
+        return None
+    return dyn.inverse_dynamics_partials(pose, twist, twist_dot, wrench, branch)
+
+
+def _forward_by_closed_form(robot: PlatformRobot, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                            actuator_forces: npt.ArrayLike, wrench: npt.ArrayLike | None,
+                            branch: Any) -> ForwardDynamicsDerivatives | None:
+    """:func:`forward_dynamics_derivatives` from the closed form's inverse-dynamics partials
+    at the robot's verified forward-dynamics answer (module docstring), or None (no
+    closed-form partials: the tree route answers)."""
+    dyn = getattr(robot, "dynamics", None)
+    if not isinstance(dyn, ClosedFormKernels):
+        return None
+    layout = robot.pose_layout
+    dim = layout.dim
+    forward = dyn.forward_dynamics(pose, twist, actuator_forces, wrench, branch=branch)
+    twist_dot = forward.twist_dot
+    got = dyn.inverse_dynamics_partials(pose, twist, twist_dot, wrench, branch)
+    if got is None:
+        return None
+    tau, part = got
+    u = as_array(actuator_forces, (dyn.n_actuators,), "actuator_forces")
+    miss = max_abs(tau - u)
+    if not miss <= 1e-8 * max(1.0, max_abs(u), max_abs(tau)):
+        raise SolverError("forward_dynamics_derivatives", "unverified",
+                          f"the inverse dynamics of the forward-dynamics answer misses the "
+                          f"actuator forces by {miss:.3e}")
+    others = np.concatenate([part[:, :2 * dim], part[:, 3 * dim:]], axis=1)
+    inv, sol = implicit_inverse(part[:, 2 * dim:3 * dim], others, "d ID / d twist_dot")
+    d_world = sol[:, :dim]
+    pose_a = np.asarray(pose, dtype=float)
+    return ForwardDynamicsDerivatives(np.array(twist_dot, dtype=float),
+                                      pose_columns(layout, pose_a, d_world), d_world,
+                                      sol[:, dim:2 * dim], inv, sol[:, 2 * dim:])
+
+
+def robot_inverse_dynamics_derivatives(robot: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                                       twist_dot: npt.ArrayLike,
+                                       wrench: npt.ArrayLike | None = None
+                                       ) -> InverseDynamicsDerivatives:
+    """``robot.inverse_dynamics_derivatives`` of every robot (home working mode; module
+    docstring): the closed form's partials where the robot has them, else the forces of
+    ``robot.inverse_dynamics`` (unbounded) and :func:`inverse_dynamics_derivatives` (the
+    implicit-function theorem on the tree's forward-dynamics derivatives).
+
+    Raises:
+        InputError: bad shapes, NaN / inf, redundant actuation, Coulomb friction at rest
+            (not differentiable).
+        UnreachablePoseError: the pose is out of reach.
+        SingularityError: a singular pose (type II: InconsistentMotionError on the tree
+            route).
+        SolverError: a solve misses its equations.
+    """
+    got = closed_form_partials(robot, pose, twist, twist_dot, wrench, None)
+    if got is not None:
+        tau, part = got
+        dim = robot.pose_layout.dim
+        d_world = part[:, :dim]
+        return InverseDynamicsDerivatives(
+            tau, pose_columns(robot.pose_layout, np.asarray(pose, dtype=float), d_world),
+            d_world, part[:, dim:2 * dim], part[:, 2 * dim:3 * dim], part[:, 3 * dim:])
+    branch = robot.configuration(pose) if getattr(robot, "branch_is_configuration",
+                                                  False) else None
+    forces = robot.inverse_dynamics(pose, twist, twist_dot, wrench, branch=branch,
+                                    bounded=False, joint_wrenches=False).actuator_forces
+    return inverse_dynamics_derivatives(robot, pose, twist, twist_dot, forces, wrench, branch)
 
 
 def inverse_dynamics_derivatives(robot: PlatformRobot, pose: npt.ArrayLike,
@@ -311,9 +435,11 @@ def inverse_dynamics_derivatives(robot: PlatformRobot, pose: npt.ArrayLike,
         raise SolverError("inverse_dynamics_derivatives", "unverified",
                           f"the forward dynamics with these actuator forces misses "
                           f"twist_dot by {miss:.3e}")
-    inv = solve_checked_square(der.d_actuator_forces, np.eye(dim), "d twist_dot / d u")
-    return InverseDynamicsDerivatives(lin.u.copy(), -inv @ der.d_pose, -inv @ der.d_world,
-                                      -inv @ der.d_twist, inv, -inv @ der.d_wrench)
+    inv, sol = implicit_inverse(der.d_actuator_forces, np.concatenate(
+        [der.d_world, der.d_twist, der.d_wrench], axis=1), "d twist_dot / d u")
+    d_world = sol[:, :dim]
+    return InverseDynamicsDerivatives(lin.u.copy(), pose_columns(lin.layout, lin.pose, d_world),
+                                      d_world, sol[:, dim:2 * dim], inv, sol[:, 2 * dim:])
 
 
 def forward_dynamics_derivatives_batch(robot: PlatformRobot, poses: npt.ArrayLike,
@@ -374,17 +500,20 @@ def linearize(robot: PlatformRobot, pose: npt.ArrayLike, twist: npt.ArrayLike,
         SingularityError: see :func:`forward_dynamics_derivatives`.
         SolverError: see :func:`forward_dynamics_derivatives`.
     """
-    lin = PlatformLinearization(robot, pose, twist, actuator_forces, wrench, branch)
-    der = lin.derivatives()
-    dim, n_act = lin.layout.dim, lin.u.size
+    layout = robot.pose_layout
+    dim, n_act = layout.dim, robot.model.n_actuated
+    pose_a, twist_a = as_array(pose, (dim,), "pose"), as_array(twist, (dim,), "twist")
+    u = as_array(actuator_forces, (n_act,), "actuator_forces")
+    wrench_a = np.zeros(dim) if wrench is None else as_array(wrench, (dim,), "wrench")
+    der = forward_dynamics_derivatives(robot, pose_a, twist_a, u, wrench, branch)
     a_mat = np.zeros((2 * dim, 2 * dim))
     a_mat[:dim, dim:] = np.eye(dim)
-    if lin.layout.full_rotation:
-        ang = lin.layout.angular
-        a_mat[np.ix_(ang, ang)] = skew(lin.twist[ang])
+    if layout.full_rotation:
+        ang = layout.angular
+        a_mat[np.ix_(ang, ang)] = skew(twist_a[ang])
     a_mat[dim:, :dim] = der.d_world
     a_mat[dim:, dim:] = der.d_twist
     b_mat = np.zeros((2 * dim, n_act))
     b_mat[dim:] = der.d_actuator_forces
-    return StateSpaceModel(a_mat, b_mat, lin.pose.copy(), lin.twist.copy(), lin.u.copy(),
-                           lin.wrench.copy(), der.twist_dot, der)
+    return StateSpaceModel(a_mat, b_mat, pose_a.copy(), twist_a.copy(), u.copy(),
+                           wrench_a.copy(), der.twist_dot, der)

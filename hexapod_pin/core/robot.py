@@ -294,8 +294,6 @@ class ClosedLoopRobot(RobotBase):
     static_forces = delegate("dynamics", RobotDynamics.static_forces)
     reduced_dynamics = delegate("dynamics", RobotDynamics.reduced_dynamics)
     energies = delegate("dynamics", RobotDynamics.energies)
-    inverse_dynamics_derivatives = delegate("dynamics",
-                                            RobotDynamics.inverse_dynamics_derivatives)
     inverse_dynamics_batch = delegate("dynamics", RobotDynamics.inverse_dynamics_batch)
     forward_dynamics_batch = delegate("dynamics", RobotDynamics.forward_dynamics_batch)
     static_forces_batch = delegate("dynamics", RobotDynamics.static_forces_batch)

@@ -25,6 +25,7 @@ from .checks import as_array
 from .closed_loop import ClosedLoopModel
 from .effects import JointEffects
 from .closed_form import ClosedFormDynamics
+from .results import InverseDynamicsDerivatives
 from .robot_api import PoseLayout, delegate, pose_layout, takes_placement
 
 
@@ -215,6 +216,38 @@ class RobotBase:
             return np.asarray(vel.vector, dtype=float)[self.pose_layout.components].copy()
 
     # -- derivatives, linearisation, stiffness (core.platform_derivatives, core.stiffness) --
+    @takes_placement
+    def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                                     twist_dot: npt.ArrayLike,
+                                     wrench: npt.ArrayLike | None = None
+                                     ) -> InverseDynamicsDerivatives:
+        """Analytic derivatives of the (unbounded) inverse-dynamics actuator forces with
+        respect to the pose, the twist, the twist_dot and the wrench (home working mode;
+        twist, twist_dot and wrench held in world axes): a
+        :class:`~hexapod_pin.core.results.InverseDynamicsDerivatives`, from the one chain
+        rule of every robot
+        (:func:`~hexapod_pin.core.platform_derivatives.robot_inverse_dynamics_derivatives`:
+        the closed form's compiled partials where the robot has them, else the tree's
+        forward-dynamics derivatives by the implicit-function theorem; the joint effects
+        included).
+
+        Args:
+            pose: (dim,) (m, rad).
+            twist: (dim,) world axes (m/s, rad/s).
+            twist_dot: (dim,) world axes (m/s^2, rad/s^2).
+            wrench: (dim,) on the platform, world axes, moment about its origin; None: 0.
+
+        Raises:
+            InputError: bad shapes, NaN / inf, redundant actuation, a coordinate with
+                Coulomb friction at rest (not differentiable).
+            UnreachablePoseError: the pose is out of reach.
+            SingularityError: a singular pose.
+            SolverError: a solve misses its equations.
+        """
+        from .platform_derivatives import robot_inverse_dynamics_derivatives
+        return self._checked("inverse_dynamics_derivatives",
+                             robot_inverse_dynamics_derivatives, pose, twist, twist_dot, wrench)
+
     @takes_placement
     def forward_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                                      actuator_forces: npt.ArrayLike,

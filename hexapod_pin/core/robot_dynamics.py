@@ -19,12 +19,11 @@ platform's selected twist rows. Then:
 * ``closure_forces``: per closure, the force (N, world axes) that the body of ``frame2``
   exerts on the body of ``frame1`` (a weld: the force part of its spatial force), shape
   (n_closures, 3);
-* inverse-dynamics derivatives: analytic, the implicit-function theorem on the core's
-  forward-dynamics derivatives at the inverse-dynamics forces
-  (:func:`~hexapod_pin.core.platform_derivatives.inverse_dynamics_derivatives`, the KKT
-  derivatives of :mod:`~hexapod_pin.core.dynamics_derivatives`): ``d tau / d y = -B^-1 d
-  twist_dot / d y`` with ``B = M_x^-1 J^T``, so ``d tau / d twist_dot = J^-T M_x`` and
-  ``d tau / d wrench = -J^-T``.
+* inverse-dynamics derivatives (the facade's ``inverse_dynamics_derivatives``, the one
+  chain rule of every robot in :mod:`~hexapod_pin.core.platform_derivatives`): the
+  implicit-function theorem on the core's forward-dynamics derivatives at the
+  inverse-dynamics forces, ``d tau / d y = -B^-1 d twist_dot / d y`` with ``B = M_x^-1
+  J^T``, so ``d tau / d twist_dot = J^-T M_x`` and ``d tau / d wrench = -J^-T``.
 """
 
 from __future__ import annotations
@@ -44,30 +43,16 @@ from .closure_forces import closure_world_forces
 from .dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
 from .effects_projection import batch_of_states
 from .energy import energy_totals
-from .platform_derivatives import \
-    inverse_dynamics_derivatives as platform_inverse_dynamics_derivatives
 from .platform_map import VelocityMaps, solve_checked_square
 from .results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                       ComputedDetails, Energies, ForwardDynamicsResult,
-                      InverseDynamicsDerivatives, InverseDynamicsResult, LazyConditioning,
+                      InverseDynamicsResult, LazyConditioning,
                       ReducedDynamics)
-from .robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS, pose_layout
+from .robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS
 from .robot_kinematics import RobotKinematics
 
 #: relative residual of the tree equation of motion accepted from the "nullspace" route
 NULLSPACE_RTOL = 1e-9
-
-
-class _PlatformView:
-    """What :mod:`~hexapod_pin.core.platform_derivatives` reads of a robot, from its
-    dynamics (model, pose axes, platform frame, configuration)."""
-
-    def __init__(self, dyn: "RobotDynamics") -> None:
-        self.model = dyn.clm
-        self.pose_axes = dyn.platform.axes
-        self.pose_layout = pose_layout(dyn.platform.axes)
-        self.platform_frame_id = dyn.platform.frame
-        self.configuration = dyn.kin.configuration
 
 
 class TreeState(NamedTuple):
@@ -336,28 +321,6 @@ class RobotDynamics:
             fext = {frame.parentJoint: self.data.oMi[frame.parentJoint].actInv(world)}
         out, _ = dynamics_of(self.clm).joint_wrenches(q, v, a, multipliers, fext)
         return out
-
-    # -- derivatives -----------------------------------------------------------------------
-    def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
-                                     twist_dot: npt.ArrayLike,
-                                     wrench: npt.ArrayLike | None = None
-                                     ) -> InverseDynamicsDerivatives:
-        """Derivatives of the (unbounded) inverse-dynamics forces (module docstring): the
-        forces of :meth:`inverse_dynamics`, their derivatives from the core's KKT
-        derivatives (:func:`~hexapod_pin.core.platform_derivatives.inverse_dynamics_derivatives`).
-
-        Raises:
-            InputError: bad shapes, NaN / inf, redundant actuation, Coulomb friction at
-                rest (not differentiable).
-            UnreachablePoseError: the pose is out of reach.
-            SingularityError: a singular pose.
-            SolverError: a solve misses its equations.
-        """
-        q0 = self.kin.configuration(pose)
-        forces = self.inverse_dynamics(pose, twist, twist_dot, wrench, branch=q0,
-                                       bounded=False, joint_wrenches=False).actuator_forces
-        return platform_inverse_dynamics_derivatives(_PlatformView(self), pose, twist,
-                                                     twist_dot, forces, wrench, q0)
 
     # -- batches -------------------------------------------------------------------------
     def _arrays(self, **arrays):

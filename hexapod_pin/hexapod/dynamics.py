@@ -44,12 +44,11 @@ from ..core.closed_form import (ClosedFormDynamics, ClosedFormRegressor, Inputs,
 from ..core.closed_loop import ClosedLoopModel
 from ..core.compiled import all_finite
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
-                            ForwardDynamicsResult, InverseDynamicsDerivatives,
-                            InverseDynamicsResult, ReducedDynamics, SingularityMeasures,
+                            ForwardDynamicsResult, InverseDynamicsResult, ReducedDynamics, SingularityMeasures,
                             new_result)
 from ..core.dynamics import (INVERSE_METHODS, QP_SOLVED, QP_STATUS, RESIDUAL_RTOL,
                              ClosedLoopDynamics)
-from .derivatives import DerivativesWorkspace, analytic_derivatives
+from . import derivatives
 from .kinematics import HexapodKinematics, check_branch
 from ..errors import (
     ActuatorSaturationError,
@@ -148,7 +147,7 @@ class HexapodDynamics(ClosedFormDynamics):
             :class:`~hexapod_pin.hexapod.kinematics.HexapodKinematics` on ``closed_form``.
 
     It keeps its per-robot workspace (its own generic tree workspace, buffers, ProxSuite
-    problems, the derivatives' workspace) as explicit attributes, built on first use.
+    problems) as explicit attributes, built on first use.
 
     Conventions (see the README): pose ``(x, y, z, roll, pitch, yaw)``, twist
     ``(v, w)`` of the platform origin in world axes, ``twist_dot`` its plain time
@@ -184,7 +183,6 @@ class HexapodDynamics(ClosedFormDynamics):
         self.indices = indices
         self.closed_form = closed_form
         self._ws: _HexapodWorkspace | None = None
-        self._derivatives: DerivativesWorkspace | None = None
 
     # -- workspace ---------------------------------------------------------------------
     @property
@@ -778,37 +776,12 @@ class HexapodDynamics(ClosedFormDynamics):
         """``M_x``, ``h_x``, ``J`` of N checked states (:mod:`hexapod_pin.hexapod.batch`)."""
         return batch.reduced_dynamics_batch(self.closed_form.dynamics_geo, poses, twists)
 
-    # -- derivatives ------------------------------------------------------------------------
-    def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
-                                     twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None
-                                     ) -> InverseDynamicsDerivatives:
-        """Derivatives of the inverse-dynamics actuator forces (no bounds applied), analytic.
-
-        The implicit-function theorem on Pinocchio's constrained forward-dynamics
-        derivatives (``pin.computeConstraintDynamicsDerivatives`` on the tree with the
-        loop closures) and the closed-form derivatives of the platform -> tree map; see
-        :mod:`hexapod_pin.hexapod.derivatives`. Exact up to round-off (the tests compare with
-        finite differences). ``d_pose`` is in pose coordinates, with the twist, twist_dot
-        and wrench held in world axes; :func:`hexapod_pin.hexapod.derivatives.analytic_derivatives`
-        also gives the derivative along a world-frame tangent ``(dp, dtheta)``.
-
-        Args:
-            pose: as in :meth:`inverse_dynamics`.
-            twist: as in :meth:`inverse_dynamics`.
-            twist_dot: as in :meth:`inverse_dynamics`.
-            wrench: as in :meth:`inverse_dynamics`.
-
-        Returns:
-            :class:`~hexapod_pin.core.results.InverseDynamicsDerivatives` (``actuator_forces``,
-            ``d_pose``, ``d_world``, ``d_twist``, ``d_twist_dot``, ``d_wrench``).
-
-        Raises:
-            InputError: bad shape, non-finite or non-real values.
-            UnreachablePoseError: a leg cannot reach the pose.
-            SingularityError: at a singular configuration.
-            SolverError: a solve that does not verify.
-        """
-        if self._derivatives is None:
-            self._derivatives = DerivativesWorkspace(self.model, self.closed_form,
-                                                     self.indices, self.geometry)
-        return analytic_derivatives(self._derivatives, pose, twist, twist_dot, wrench)
+    # -- derivatives (the kernel behind core.platform_derivatives) --------------------------
+    def inverse_dynamics_partials(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                                  twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None,
+                                  branch: npt.ArrayLike | None = None
+                                  ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The Newton-Euler closed form's analytic inverse-dynamics partials
+        (:func:`hexapod_pin.hexapod.derivatives.inverse_partials`), or None when passive
+        coordinates carry effects."""
+        return derivatives.inverse_partials(self, pose, twist, twist_dot, wrench, branch)

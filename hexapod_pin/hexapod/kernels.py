@@ -679,7 +679,7 @@ def end_loads(geo, wk):
 
 
 @jit_inline
-def _inertia_world(geo, rot, vx, vy, vz):
+def inertia_world(geo, rot, vx, vy, vz):
     """``R I R^T v`` (3 floats)."""
     b0 = geo[IA] * (rot[0] * vx + rot[3] * vy + rot[6] * vz)
     b1 = geo[IB] * (rot[1] * vx + rot[4] * vy + rot[7] * vz)
@@ -700,8 +700,8 @@ def platform_rhs(geo, rot, wk, twist, twist_dot, wrench, out):
     out[1] += m_p * twist_dot[1]
     out[2] += m_p * (twist_dot[2] + geo[GRAV])
     wx, wy, wz = twist[3], twist[4], twist[5]
-    hx, hy, hz = _inertia_world(geo, rot, wx, wy, wz)
-    ix, iy, iz = _inertia_world(geo, rot, twist_dot[3], twist_dot[4], twist_dot[5])
+    hx, hy, hz = inertia_world(geo, rot, wx, wy, wz)
+    ix, iy, iz = inertia_world(geo, rot, twist_dot[3], twist_dot[4], twist_dot[5])
     out[3] += ix + wy * hz - wz * hy
     out[4] += iy + wz * hx - wx * hz
     out[5] += iz + wx * hy - wy * hx

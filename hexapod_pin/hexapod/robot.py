@@ -174,8 +174,6 @@ class Hexapod(RobotBase):
     static_forces = delegate("dynamics", HexapodDynamics.static_forces)
     reduced_dynamics = delegate("dynamics", HexapodDynamics.reduced_dynamics)
     tree_energies = delegate("dynamics", HexapodDynamics.tree_energies)
-    inverse_dynamics_derivatives = delegate("dynamics",
-                                            HexapodDynamics.inverse_dynamics_derivatives)
 
     @classmethod
     def default(cls) -> "Hexapod":

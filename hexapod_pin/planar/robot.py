@@ -27,13 +27,11 @@ import numpy.typing as npt
 
 from ..core.closed_loop import ClosedLoopModel
 from ..core.effects import JointEffects
-from ..core.results import (InverseDynamicsDerivatives)
-from ..core.robot_api import delegate, takes_placement
+from ..core.robot_api import delegate
 from ..core.robot import tree_robot
 from ..core.robot_base import RobotBase, gravity_along
 from ..errors import ArgumentTypeError
 from .assembly_modes import PlanarAssembly
-from .derivatives import inverse_dynamics_derivatives
 from .dynamics import PlanarDynamics
 from .geometry import N_ACTUATORS, PlanarGeometry, planar_model, set_gravity
 from .kinematics import PlanarKinematics, PlanarWorkspace
@@ -151,12 +149,3 @@ class Planar3PRR(RobotBase):
     forward_dynamics = delegate("dynamics", PlanarDynamics.forward_dynamics)
     static_forces = delegate("dynamics", PlanarDynamics.static_forces)
     reduced_dynamics = delegate("dynamics", PlanarDynamics.reduced_dynamics)
-
-    @takes_placement
-    def inverse_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
-                                     twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None
-                                     ) -> InverseDynamicsDerivatives:
-        """Derivatives of the actuator forces w.r.t. pose, twist, twist_dot and wrench
-        (analytic); see :mod:`hexapod_pin.planar.derivatives`."""
-        with self.lock:
-            return inverse_dynamics_derivatives(self.dynamics, pose, twist, twist_dot, wrench)
