@@ -227,6 +227,20 @@ def inverse_load(drives, at, k, q, qd, qdd):
 
 
 @jit_inline
+def inverse_load_rate(drives, at, k, qd, dq, dqd, dqdd):
+    """The derivative of :func:`inverse_load` at the rate ``qd`` (a coordinate not at rest)
+    along ``(dq, dqd, dqdd)``: ``a dqdd + d dqd + K dq``, plus ``c (1 - tanh^2(qd / eps))
+    / eps dqd`` for a smooth friction (exact Coulomb friction is constant while sliding)."""
+    b = at + HEAD + BLOCK * k
+    out = drives[b + ARM] * dqdd + drives[b + DAMP] * dqd + drives[b + STIFF] * dq
+    eps, c = drives[at + SMOOTH], drives[b + COUL]
+    if eps > 0.0 and c != 0.0:
+        th = math.tanh(qd / eps)
+        out += c * (1.0 - th * th) / eps * dqd
+    return out
+
+
+@jit_inline
 def add_reduced(drives, at, n, dim, jac_t, q, qd, qdd0, mass, bias):
     """``mass += J^T diag(a) J`` (dim, dim) and ``bias += J^T (a qdd0 - drive_force)``
     (dim,) for ``n`` actuators with ``J^T`` ``jac_t`` (dim, n), positions ``q``, rates ``qd``

@@ -34,7 +34,6 @@ core's tree route (docs/derivations.md, section 8).
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -115,13 +114,7 @@ def _column(geo, rot, wk, mats, twist, twist_dot, d, drives, rhs, out, col):
         rhs[5] += drx * hfy - dry * hfx + rx * gy - ry * gx
         part = m_leg * dqdd + m_side * (ux * d_ax + uy * d_ay + uz * d_az) + dnu * t
         if drives:
-            at = K.DRIVES + drv.HEAD + drv.BLOCK * i
-            part += geo[at + drv.ARM] * dqdd + geo[at + drv.DAMP] * dqd \
-                + geo[at + drv.STIFF] * dq
-            eps, coulomb = geo[K.DRIVES + drv.SMOOTH], geo[at + drv.COUL]
-            if eps > 0.0 and coulomb != 0.0:
-                th = math.tanh(wk[K.QD, i] / eps)
-                part += coulomb * (1.0 - th * th) / eps * dqd
+            part += drv.inverse_load_rate(geo, K.DRIVES, i, wk[K.QD, i], dq, dqd, dqdd)
         out[i, col] = part
     # the platform body: m_p dvdot, d(I_w wdot + w x I_w w)
     rhs[0] += m_p * dax

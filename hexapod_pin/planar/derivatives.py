@@ -1,137 +1,197 @@
-"""Analytic derivatives of the planar 3-PRR's inverse dynamics.
+"""The planar 3-PRR's inverse-dynamics derivatives: its closed form
+(:mod:`~hexapod_pin.planar.kernels`) differentiated, compiled.
 
-``tau = ID(pose, twist, twist_dot, wrench)`` (the unbounded closed-form route) solves the
-tree equations (conventions of :mod:`hexapod_pin.planar.dynamics`)::
+The planar robot's kernel behind the core chain rule
+(:mod:`hexapod_pin.core.platform_derivatives`), as :mod:`hexapod_pin.hexapod.derivatives` is
+the hexapod's: the closed form supplies the partials of the unbounded inverse-dynamics
+forces (:meth:`~hexapod_pin.core.closed_form.ClosedFormKernels.inverse_dynamics_partials`),
+the core assembles the derivatives and, by the implicit-function theorem, the
+forward-dynamics ones. Effects on passive coordinates (which the closed form does not
+model) and a state whose closed form misses its own residual check send the core to the
+tree route instead.
 
-    rnea(q, v, a) - tau_ext(wrench) = S^T tau + A(q)^T lambda
-    Phi(q) = 0,   A(q) v = 0,   A(q) a + gamma(q, v) = 0
+Columns (12): the pose ``(x, y, theta)`` (in the plane its own world tangent), the twist,
+the twist_dot and the wrench, world axes. Per leg ``k`` (symbols of
+:mod:`~hexapod_pin.planar.kernels`; ``e = dn/dt = v + omega z x r - s' u``, ``b = a_xy +
+alpha z x r + phi'^2 n - omega^2 r``), along a direction::
 
-with ``A`` the in-plane closure rows (per loop k, columns slider k: ``u_k``, link k:
-``z x n_k``, platform: ``(-I, -(z x r_k))``) and ``gamma_k = -phi'_k^2 n_k + omega^2 r_k``.
-The implicit-function theorem on that square system gives every derivative exactly:
-along a direction of (pose, twist, twist_dot, wrench) with the platform rows of the tree
-state prescribed (``dq = G dpose``, ``G`` the velocity map), the closures give the leg
-rows of ``dv`` and ``da`` from the second derivatives of ``Phi`` (``d(z x n_k)/dphi_k =
--n_k``, ``d(z x r_k)/dtheta = -r_k``)::
+    dr = dtheta z x r,   D = dp + dr,   ds = (n.D) / nu,   dn = D - ds u
+    dV = dv + domega z x r + omega z x dr,   ds' = (n.dV + dn.e) / nu,   de = dV - ds' u
+    dphi' = (dn x e + n x de) / L^2
+    db = da_xy + dalpha z x r + alpha z x dr + 2 phi' dphi' n + phi'^2 dn
+         - 2 omega domega r - omega^2 dr
+    beta = db - phi'' z x dn:   ds'' = (beta.n) / nu,   dphi'' = (u x beta) / nu
 
-    A dv = n_k phi'_k dphi_k - omega r_k dtheta                    (pose)
-    A da = n_k phi''_k dphi_k - alpha r_k dtheta + phi'^2 (z x n_k) dphi_k
-           - omega^2 (z x r_k) dtheta + 2 phi'_k n_k dphi'_k - 2 omega r_k domega
-
-Pinocchio's ``computeRNEADerivatives`` gives ``d rnea``; then
-``[S^T A^T] (dtau, dlambda) = d rnea - d(tau_ext) - d(A^T) lambda`` with
-``d(A^T lambda)`` ``-n_k . lambda_k dphi_k`` on link k's row and
-``sum_k r_k . lambda_k dtheta`` on the theta row. The pose is ``(x, y, theta)``: its
-coordinates are world tangent coordinates, and the twist, twist_dot and wrench are held
-in world axes. The joint effects (``robot.effects``) move ``tau_e(q, v, a)`` to the left,
-``rnea - tau_e``: its derivative adds ``diag(K)`` to ``d rnea / dq`` and ``diag(D)`` to
-``d rnea / dv`` (every joint of the planar tree has one coordinate, so ``dDifference`` is the
-identity; Coulomb friction is piecewise constant, the armature is in Pinocchio's ``M``). The
-ID is linear in twist_dot and wrench, so those blocks are exact coefficients; the tests
-check every block against Richardson-extrapolated central differences of the inverse
-dynamics, and against the core's route (``core.platform_derivatives.
-inverse_dynamics_derivatives``, the implicit-function theorem on the core's KKT
-derivatives, which every loaded robot uses; this closed form stays as the faster kernel).
+(``u s'' + (z x n) phi'' = b`` differentiated), then the Newton-Euler rows of
+:func:`~hexapod_pin.planar.kernels.tree_forces` differentiated (``df``), and the tree rows
+``f = S^T tau + J_c^T lambda + tau_ext`` differentiated: the same square system in ``(dtau,
+dlambda)`` with the right-hand side ``df`` less the turning of the held closure forces,
+``(z x dn_k).lambda_k`` on link ``k``'s row and ``-sum_k dr_k x lambda_k`` on the
+platform's moment row, solved by :func:`~hexapod_pin.planar.kernels.solve_inverse` (its
+type-II and residual checks included). The sliders' drives add
+:func:`~hexapod_pin.core.effects_projection.inverse_load_rate`; a slider with exact Coulomb
+friction at rest is refused (not differentiable). The tests check every block against
+central differences of ``robot.inverse_dynamics`` and against the core's tree route
+(docs/derivations.md, section 8).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-import pinocchio as pin
 
-from ..core.results import InverseDynamicsDerivatives
-from ..errors import SingularityError
-from .dynamics import PlanarDynamics
+from ..core import effects_projection as drv
+from ..core.checks import vector
+from ..core.compiled import jit
+from ..errors import InputError
+from . import kernels as K
 from .geometry import N_ACTUATORS
 
-#: the square system ``[S^T A^T]`` is called singular (type II) below this reciprocal
-#: condition number
-_RCOND = 1e-12
+__all__ = ["N_COLUMNS", "inverse_partials", "inverse_partials_kernel"]
+
+#: the columns of the partials: pose (world tangent), twist, twist_dot, wrench (3 each)
+N_COLUMNS = 12
 
 
-def inverse_dynamics_derivatives(dynamics: PlanarDynamics, pose: npt.ArrayLike,
-                                 twist: npt.ArrayLike, twist_dot: npt.ArrayLike,
-                                 wrench: npt.ArrayLike | None = None) -> InverseDynamicsDerivatives:
-    """The derivatives of the module docstring at one state (home branch).
+@jit
+def _column(geo, buf, closure, twist, twist_dot, d, drives, force, info, out, col):
+    """Column ``col`` of the partials along the direction ``d`` (12,) (module docstring)
+    at the state in the leg buffer ``buf`` with the closure forces ``closure`` (3, 2) (the
+    negated multipliers); ``force`` (9,), ``info`` scratch. Returns the status of
+    :func:`~hexapod_pin.planar.kernels.solve_inverse`."""
+    length = geo[K.G_LEN]
+    length2 = length * length
+    m_s, m_l = geo[K.G_MS], geo[K.G_ML]
+    i_l = m_l * length2 / 12.0
+    g = geo[K.G_G]
+    dth, dom, dal = d[2], d[5], d[8]
+    omega, alpha = twist[2], twist_dot[2]
+    moment = 0.0
+    for k in range(N_ACTUATORS):
+        leg = buf[k]
+        ux, uy = geo[7 * k + 2], geo[7 * k + 3]
+        nx, ny, rx, ry, nu = leg[K.NX], leg[K.NY], leg[K.RX], leg[K.RY], leg[K.NU]
+        sd, pd, sdd, pdd = leg[K.SD], leg[K.PD], leg[K.SDD], leg[K.PDD]
+        lam_x, lam_y = -closure[k, 0], -closure[k, 1]
+        # position
+        drx, dry = -dth * ry, dth * rx
+        big_dx, big_dy = d[0] + drx, d[1] + dry
+        ds = (nx * big_dx + ny * big_dy) / nu
+        dnx, dny = big_dx - ds * ux, big_dy - ds * uy
+        # velocity: e = v + omega z x r - s' u
+        ex = twist[0] - omega * ry - sd * ux
+        ey = twist[1] + omega * rx - sd * uy
+        dvx = d[3] - dom * ry - omega * dry
+        dvy = d[4] + dom * rx + omega * drx
+        dsd = (nx * dvx + ny * dvy + dnx * ex + dny * ey) / nu
+        dex, dey = dvx - dsd * ux, dvy - dsd * uy
+        dpd = (dnx * ey - dny * ex + nx * dey - ny * dex) / length2
+        # acceleration: u s'' + (z x n) phi'' = b
+        dbx = (d[6] - dal * ry - alpha * dry + 2.0 * pd * dpd * nx + pd * pd * dnx
+               - 2.0 * omega * dom * rx - omega * omega * drx)
+        dby = (d[7] + dal * rx + alpha * drx + 2.0 * pd * dpd * ny + pd * pd * dny
+               - 2.0 * omega * dom * ry - omega * omega * dry)
+        bx, by = dbx + pdd * dny, dby - pdd * dnx
+        dsdd, dpdd = (bx * nx + by * ny) / nu, (ux * by - uy * bx) / nu
+        # the Newton-Euler rows (tree_forces) differentiated
+        ax = sdd * ux - 0.5 * (pdd * ny + pd * pd * nx)
+        ay = sdd * uy + 0.5 * (pdd * nx - pd * pd * ny) + g
+        dax = dsdd * ux - 0.5 * (dpdd * ny + pdd * dny + 2.0 * pd * dpd * nx + pd * pd * dnx)
+        day = dsdd * uy + 0.5 * (dpdd * nx + pdd * dnx - 2.0 * pd * dpd * ny - pd * pd * dny)
+        force[k] = m_s * dsdd + m_l * (dax * ux + day * uy)
+        force[3 + k] = (i_l * dpdd + 0.5 * m_l * (dnx * ay + nx * day - dny * ax - ny * dax)
+                        - (dnx * lam_y - dny * lam_x))          # less (z x dn).lambda
+        moment += drx * lam_y - dry * lam_x                     # + dr x lambda
+        out[k, col] = 0.0
+        if drives:
+            out[k, col] = drv.inverse_load_rate(geo, K.DRIVES, k, sd, ds, dsd, dsdd)
+    m_p = geo[K.G_MP]
+    force[6], force[7] = m_p * d[6], m_p * d[7]
+    force[8] = geo[K.G_IP] * d[8] + moment
+    rows = np.empty(N_ACTUATORS)
+    status = K.solve_inverse(geo, buf, force, d[9:12], True, rows, np.empty((N_ACTUATORS, 2)),
+                             info)
+    for k in range(N_ACTUATORS):
+        out[k, col] += rows[k]
+    return status
+
+
+@jit
+def inverse_partials_kernel(geo, idx, signs, pose, twist, twist_dot, wrench, has_wrench, q,
+                            v, a, tau, closure, buf, info, out):
+    """The unbounded inverse-dynamics forces ``tau`` (3,) of the closed form and their
+    partials ``out`` (3, 12) (columns: module docstring) at one state on the branch
+    ``signs`` (the arguments of :func:`~hexapod_pin.planar.kernels.inverse_dynamics`).
+
+    Returns ``(status, rest)``: the closed form's status (the partials are written only
+    when OK) and the first slider whose exact Coulomb friction is at rest (-1: none; the
+    partials are then not written)."""
+    status = K.inverse_dynamics(geo, idx, pose, twist, twist_dot, wrench, has_wrench, signs,
+                                q, v, a, tau, closure, buf, info)
+    if status != K.OK:
+        return status, -1
+    drives = geo[K.DRIVES + drv.FLAG] != 0.0
+    if drives:
+        for k in range(N_ACTUATORS):
+            if drv.at_rest(geo, K.DRIVES, k, buf[k, K.SD]):
+                return K.OK, k
+    direction, force, scratch = np.empty(N_COLUMNS), np.empty(9), np.empty(K.INFO_SIZE)
+    for col in range(N_COLUMNS):
+        direction[:] = 0.0
+        direction[col] = 1.0
+        status = _column(geo, buf, closure, twist, twist_dot, direction, drives, force,
+                         scratch, out, col)
+        if status != K.OK:
+            return status, -1
+    return K.OK, -1
+
+
+def inverse_partials(dynamics: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                     twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None,
+                     branch: npt.ArrayLike | None = None
+                     ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The planar robot's :meth:`~hexapod_pin.core.closed_form.ClosedFormKernels.
+    inverse_dynamics_partials`: ``(tau (3,), partials (3, 12))`` (columns: module
+    docstring), or None (effects on passive coordinates, or a state the closed form cannot
+    verify: the core's tree route answers).
+
+    Args:
+        dynamics: the robot's :class:`~hexapod_pin.planar.dynamics.PlanarDynamics`.
+        pose: ``(x, y, theta)`` (m, rad).
+        twist: ``(v_x, v_y, omega)`` world axes (m/s, rad/s).
+        twist_dot: its time derivative (m/s^2, rad/s^2).
+        wrench: ``(f_x, f_y, m_z)`` ON the platform, moment about its origin (N, N m);
+            None: zero.
+        branch: the IK branch (three +-1); None: home.
 
     Raises:
-        InputError: bad shape, non-finite or non-real values.
+        InputError: bad shapes, NaN / inf; a slider with Coulomb friction at rest (the
+            dynamics is not differentiable there: stick / slip).
         UnreachablePoseError: a leg cannot reach the pose.
-        SingularityError: at a singular configuration (type I, or type II where the square system is
-            singular).
+        SingularityError: a type-I or type-II singular pose.
     """
-    res = dynamics.inverse_dynamics(pose, twist, twist_dot, wrench, method="kkt",
-                                    bounded=False, joint_wrenches=False)
-    ws, clm = dynamics.ws, dynamics.model
-    q, v, a = res.configuration, res.velocity, res.acceleration
-    idx = ws.indices
-    vmap = dynamics.reduced_dynamics(pose, twist).velocity_map
-    model, data = clm.model, dynamics.data
-    d_q, d_v, mass = pin.computeRNEADerivatives(model, data, q, v, a)
-    d_q, d_v, mass = d_q.copy(), d_v.copy(), np.triu(mass) + np.triu(mass, 1).T
-    effects = clm.effects                # the springs' and dampers' share of rnea - tau_e
-    d_q[np.diag_indices(ws.nv)] += effects.stiffness
-    d_v[np.diag_indices(ws.nv)] += effects.damping
-    rows = np.concatenate([[r, r + 1] for r in ws.rows])
-    a_c = dynamics.dyn.constraint_jacobian(q)[rows]                # (6, nv) in-plane rows
-    square = np.zeros((ws.nv, ws.nv))
-    square[idx.slider, np.arange(N_ACTUATORS)] = 1.0
-    square[:, N_ACTUATORS:] = a_c.T
-    if np.linalg.cond(square) * _RCOND > 1.0:
-        raise SingularityError("closed-loop dynamics [S^T A^T] (type-II singularity)",
-                               float(np.linalg.svd(square, compute_uv=False)[-1]))
-    lam = res.multipliers[rows].reshape(N_ACTUATORS, 2)
-    theta, omega, alpha = q[idx.platform[2]], v[idx.platform[2]], a[idx.platform[2]]
-    c, s = np.cos(theta), np.sin(theta)
-    arms = ws.pts @ np.array([[c, s], [-s, c]])             # r_k, world axes
-    links = np.stack([arms[k] + q[idx.platform[:2]] - ws.mids[k]
-                      - q[idx.slider[k]] * ws.dirs[k] for k in range(N_ACTUATORS)])
-    phid, phidd = v[idx.link], a[idx.link]
-
-    def leg_rows(rhs: Sequence[np.ndarray]) -> np.ndarray:
-        """Solve the closures' leg block: (s, phi) rates of each loop from its 2 rows."""
-        out = np.zeros(ws.nv)
-        for k in range(N_ACTUATORS):
-            u, n = ws.dirs[k], links[k]
-            block = np.array([[u[0], -n[1]], [u[1], n[0]]])
-            out[idx.slider[k]], out[idx.link[k]] = np.linalg.solve(block, rhs[k])
-        return out
-
-    def cross_z(w):
-        return np.array([-w[1], w[0]])
-
-    def solve(rhs_tree: np.ndarray) -> np.ndarray:
-        return np.linalg.solve(square, rhs_tree)[:N_ACTUATORS]
-
-    d_pose = np.empty((N_ACTUATORS, 3))
-    for j in range(3):
-        dq = vmap[:, j]
-        dphi, dth = dq[idx.link], dq[idx.platform[2]]
-        dv = leg_rows([links[k] * phid[k] * dphi[k] - omega * arms[k] * dth
-                       for k in range(N_ACTUATORS)])
-        dphid = dv[idx.link]
-        da = leg_rows([links[k] * phidd[k] * dphi[k] - alpha * arms[k] * dth
-                       + phid[k] ** 2 * cross_z(links[k]) * dphi[k]
-                       - omega ** 2 * cross_z(arms[k]) * dth
-                       + 2.0 * phid[k] * links[k] * dphid[k] for k in range(N_ACTUATORS)])
-        rhs = d_q @ dq + d_v @ dv + mass @ da
-        rhs[idx.link] += np.einsum("ki,ki->k", links, lam) * dphi
-        rhs[idx.platform[2]] -= np.einsum("ki,ki->", arms, lam) * dth
-        d_pose[:, j] = solve(rhs)
-    d_twist = np.empty((N_ACTUATORS, 3))
-    for j in range(3):
-        dv = vmap[:, j]
-        dphid, domega = dv[idx.link], dv[idx.platform[2]]
-        da = leg_rows([2.0 * phid[k] * links[k] * dphid[k] - 2.0 * omega * arms[k] * domega
-                       for k in range(N_ACTUATORS)])
-        d_twist[:, j] = solve(d_v @ dv + mass @ da)
-    d_twist_dot = np.linalg.solve(square, mass @ vmap)[:N_ACTUATORS]
-    ext = np.zeros((ws.nv, 3))
-    ext[idx.platform, np.arange(3)] = -1.0
-    d_wrench = np.linalg.solve(square, ext)[:N_ACTUATORS]
-    # in the plane the world tangent (dx, dy, dtheta) is the pose's own coordinates
-    return InverseDynamicsDerivatives(res.actuator_forces.copy(), d_pose, d_pose.copy(),
-                                      d_twist, d_twist_dot, d_wrench)
+    ws = dynamics.ws
+    geo = ws.dynamics_geo
+    if geo[K.PASSIVE]:
+        return None
+    inputs = ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot"), (wrench, "wrench"))
+    pose_a, twist_a = vector(pose, 3, "pose"), vector(twist, 3, "twist")
+    tdot_a = vector(twist_dot, 3, "twist_dot")
+    wrench_a = None if wrench is None else vector(wrench, 3, "wrench")
+    nv = ws.nv
+    tau, out = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, N_COLUMNS))
+    status, rest = inverse_partials_kernel(
+        geo, ws.idx, ws.signs(branch), pose_a, twist_a, tdot_a,
+        ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None, np.empty(nv),
+        np.empty(nv), np.empty(nv), tau, np.empty((N_ACTUATORS, 2)), ws.buf, ws.info, out)
+    if status == K.RESIDUAL:
+        return None
+    if status != K.OK:
+        dynamics.refuse(status, inputs)
+    if rest >= 0:
+        raise InputError("twist", twist, f"slider {rest} with Coulomb friction is at rest "
+                         f"(|s'| <= {geo[K.DRIVES + drv.THRESHOLD]:g}): the dynamics is not "
+                         "differentiable there (stick / slip)")
+    return tau, out

@@ -52,7 +52,7 @@ from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchRed
                             ComputedDetails, ForwardDynamicsResult, InverseDynamicsResult,
                             ReducedDynamics, SingularityMeasures)
 from ..errors import InputError, SolverError
-from . import kernels
+from . import derivatives, kernels
 from .geometry import N_ACTUATORS, PlanarGeometry
 from .kinematics import PlanarKinematics, PlanarWorkspace, vec3
 
@@ -421,6 +421,16 @@ class PlanarDynamics(ClosedFormDynamics):
                                              vmap, q, v, a0)
             m_x, h_x = m_x + d_mass, h_x + d_bias
         return ReducedDynamics(m_x, h_x, jac, vmap)
+
+    # -- derivatives (the kernel behind core.platform_derivatives) ------------------------------
+    def inverse_dynamics_partials(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
+                                  twist_dot: npt.ArrayLike, wrench: npt.ArrayLike | None = None,
+                                  branch: npt.ArrayLike | None = None
+                                  ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The closed form's analytic inverse-dynamics partials
+        (:func:`hexapod_pin.planar.derivatives.inverse_partials`), or None (effects on
+        passive coordinates, or a state the closed form cannot verify)."""
+        return derivatives.inverse_partials(self, pose, twist, twist_dot, wrench, branch)
 
     # -- batch kernels (the drivers: ClosedFormDynamics) ---------------------------------------
     def inverse_batch_kernel(self, poses: np.ndarray, twists: np.ndarray,

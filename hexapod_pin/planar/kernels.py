@@ -78,7 +78,7 @@ RESIDUAL_RTOL = 1e-9
 
 # geometry vector: per leg k, 7 values from 7 k: m (2), u (2), p (2), a_k; then scalars
 # (the singularity thresholds are packed, not read as globals: compiled code caches globals)
-_G_LEN, _G_TOL, _G_MS, _G_ML, _G_MP, _G_IP, _G_G, _G_RP, _G_TOL2 = range(21, 30)
+G_LEN, G_TOL, G_MS, G_ML, G_MP, G_IP, G_G, G_RP, G_TOL2 = range(21, 30)
 #: 1.0 when passive coordinates (links, the platform's joints) carry effects, which the
 #: kernels do not model: the Python routes then answer on the tree
 PASSIVE = 30
@@ -107,11 +107,11 @@ def pack_geometry(geometry: PlanarGeometry, drives: np.ndarray | None = None,
             geometry.rail_midpoints, geometry.rail_directions, geometry.platform_points,
             rail_angles())):
         geo[7 * k:7 * k + 7] = (*mid, *dirn, *pt, angle)
-    geo[_G_LEN], geo[_G_TOL] = geometry.link_length, TYPE_I_TOL
-    geo[_G_MS], geo[_G_ML] = geometry.slider_mass, geometry.link_mass
-    geo[_G_MP], geo[_G_IP] = geometry.platform_mass, geometry.platform_inertia
-    geo[_G_G], geo[_G_RP] = geometry.gravity, geometry.platform_radius
-    geo[_G_TOL2] = TYPE_II_TOL
+    geo[G_LEN], geo[G_TOL] = geometry.link_length, TYPE_I_TOL
+    geo[G_MS], geo[G_ML] = geometry.slider_mass, geometry.link_mass
+    geo[G_MP], geo[G_IP] = geometry.platform_mass, geometry.platform_inertia
+    geo[G_G], geo[G_RP] = geometry.gravity, geometry.platform_radius
+    geo[G_TOL2] = TYPE_II_TOL
     geo[PASSIVE] = float(passive)
     if drives is not None:
         geo[DRIVES:] = drives
@@ -132,7 +132,7 @@ def legs(geo, pose, signs, buf, info):
     """
     x, y, theta = pose[0], pose[1], pose[2]
     cos_t, sin_t = math.cos(theta), math.sin(theta)
-    length = geo[_G_LEN]
+    length = geo[G_LEN]
     length2 = length * length
     status = OK
     worst, s_max = math.inf, 0.0
@@ -189,7 +189,7 @@ def velocity_map(geo, idx, buf, out):
 def rates(geo, buf, twist):
     """Slider velocities ``s'`` and link rates ``phi'`` of a twist (leg buffer)."""
     vx, vy, omega = twist[0], twist[1], twist[2]
-    length2 = geo[_G_LEN] * geo[_G_LEN]
+    length2 = geo[G_LEN] * geo[G_LEN]
     for k in range(N_ACTUATORS):
         leg = buf[k]
         sdot = leg[J0] * vx + leg[J1] * vy + leg[J2] * omega
@@ -225,7 +225,7 @@ def leg_state(geo, pose, twist, twist_dot, signs, level, singular, buf, info):
     status = legs(geo, pose, signs, buf, info)
     if status != OK:
         return status
-    if singular and info[X_WORST] < geo[_G_TOL]:
+    if singular and info[X_WORST] < geo[G_TOL]:
         return TYPE_I
     if level >= 1:
         rates(geo, buf, twist)
@@ -290,7 +290,7 @@ def singularity_parts(geo, buf, cosines, a_hat):
     """``|cos|`` between each link and its rail (``|nu| / L``) and the dimensionless
     closure matrix rows ``(n / L, (r x n) / (L r_p))`` (characteristic length: the
     platform radius ``r_p``), for :func:`hexapod_pin.core.measures.singularity_measures`."""
-    length, radius = geo[_G_LEN], geo[_G_RP]
+    length, radius = geo[G_LEN], geo[G_RP]
     for k in range(N_ACTUATORS):
         leg = buf[k]
         cosines[k] = abs(leg[NU]) / length
@@ -308,9 +308,9 @@ def tree_forces(geo, buf, pd, sdd, pdd, twist_dot, gravity, out):
     ``pd``, ``sdd``, ``pdd`` (3,) the link rates and the slider and link accelerations,
     ``twist_dot`` the platform's, ``gravity`` 1.0 (with gravity) or 0.0 (without).
     """
-    g = geo[_G_G] * gravity
-    length = geo[_G_LEN]
-    m_s, m_l = geo[_G_MS], geo[_G_ML]
+    g = geo[G_G] * gravity
+    length = geo[G_LEN]
+    m_s, m_l = geo[G_MS], geo[G_ML]
     i_l = m_l * length * length / 12.0
     for k in range(N_ACTUATORS):
         leg = buf[k]
@@ -320,10 +320,10 @@ def tree_forces(geo, buf, pd, sdd, pdd, twist_dot, gravity, out):
         ay = sdd[k] * uy + 0.5 * (pdd[k] * nx - phid2 * ny) + g
         out[k] = m_s * (sdd[k] + g * uy) + m_l * (ax * ux + ay * uy)
         out[3 + k] = i_l * pdd[k] + 0.5 * m_l * (nx * ay - ny * ax)
-    m_p = geo[_G_MP]
+    m_p = geo[G_MP]
     out[6] = m_p * twist_dot[0]
     out[7] = m_p * (twist_dot[1] + g)
-    out[8] = geo[_G_IP] * twist_dot[2]
+    out[8] = geo[G_IP] * twist_dot[2]
 
 
 @jit
@@ -369,7 +369,7 @@ def type_two_sigma(geo, buf):
     the platform radius). The lower bound ``|det| / (|A_hat|_F^2 / 2) <= sigma_min`` is
     returned when it clears :data:`TYPE_II_TOL` (the state is then certainly regular);
     below it, the exact ``sigma_min`` from the SVD."""
-    inv_len, inv_rad = 1.0 / geo[_G_LEN], 1.0 / geo[_G_RP]
+    inv_len, inv_rad = 1.0 / geo[G_LEN], 1.0 / geo[G_RP]
     a = np.empty((N_ACTUATORS, 3))
     for k in range(N_ACTUATORS):
         leg = buf[k]
@@ -382,7 +382,7 @@ def type_two_sigma(geo, buf):
     for k in range(N_ACTUATORS):
         for c in range(3):
             frob2 += a[k, c] * a[k, c]
-    if frob2 > 0.0 and abs(det) / (0.5 * frob2) >= geo[_G_TOL2]:
+    if frob2 > 0.0 and abs(det) / (0.5 * frob2) >= geo[G_TOL2]:
         return abs(det) / (0.5 * frob2)
     return np.linalg.svd(a)[1][-1]
 
@@ -402,7 +402,7 @@ def solve_inverse(geo, buf, force, wrench, has_wrench, tau, closure, info):
     fx, fy, fth = force[6], force[7], force[8]
     if has_wrench:
         fx, fy, fth = fx - wrench[0], fy - wrench[1], fth - wrench[2]
-    length2 = geo[_G_LEN] * geo[_G_LEN]
+    length2 = geo[G_LEN] * geo[G_LEN]
     px, py, pth = -fx, -fy, -fth            # right-hand side of the 3x3 in mu
     for k in range(N_ACTUATORS):
         leg = buf[k]
@@ -417,7 +417,7 @@ def solve_inverse(geo, buf, force, wrench, has_wrench, tau, closure, info):
                       l2[RX] * l2[NY] - l2[RY] * l2[NX], px, py, pth, mu)
     sigma = type_two_sigma(geo, buf) if hadamard > 0.0 else 0.0
     info[X_TYPE_TWO] = sigma
-    if not sigma >= geo[_G_TOL2]:
+    if not sigma >= geo[G_TOL2]:
         return TYPE_II
     res, sum_x, sum_y, sum_m = 0.0, 0.0, 0.0, 0.0
     scale = max(1.0, abs(fx), abs(fy), abs(fth))
@@ -537,8 +537,8 @@ def forward(geo, buf, twist, forces, wrench, has_wrench, twist_dot, closure, inf
         phid2 = leg[PD] * leg[PD]
         sdd, pdd = leg[SDD], leg[PDD]
         # relative to the terms' magnitudes (round-off of their sum)
-        acc_scale = max(acc_scale, abs(sdd), abs(pdd) * geo[_G_LEN], phid2 * geo[_G_LEN],
-                        omega2 * geo[_G_RP], abs(alpha) * geo[_G_RP])
+        acc_scale = max(acc_scale, abs(sdd), abs(pdd) * geo[G_LEN], phid2 * geo[G_LEN],
+                        omega2 * geo[G_RP], abs(alpha) * geo[G_RP])
         cres = max(cres,
                    abs(ux * sdd - ny * pdd - (ax - alpha * ry) - phid2 * nx + omega2 * rx),
                    abs(uy * sdd + nx * pdd - (ay + alpha * rx) - phid2 * ny + omega2 * ry))
@@ -621,7 +621,7 @@ def inverse_kinematics_batch(geo, signs, poses, positions, reachable, regular, i
             for k in range(N_ACTUATORS):
                 positions[i, k] = buf[k, S]
             reachable[i] = status == OK
-            regular[i] = status == OK and infos[i, X_WORST] >= geo[_G_TOL]
+            regular[i] = status == OK and infos[i, X_WORST] >= geo[G_TOL]
 
 
 @prange_jit(2)
@@ -633,7 +633,7 @@ def jacobian_batch(geo, signs, poses, jacobians, positions, reachable, regular, 
         buf = np.empty((N_ACTUATORS, LEG_COLS))
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             status = legs(geo, poses[i], signs, buf, infos[i])
-            ok = status == OK and infos[i, X_WORST] >= geo[_G_TOL]
+            ok = status == OK and infos[i, X_WORST] >= geo[G_TOL]
             for k in range(N_ACTUATORS):
                 positions[i, k] = buf[k, S]
                 for j in range(3):
