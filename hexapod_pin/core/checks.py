@@ -464,9 +464,9 @@ def _fields_finite(function: str, value: Any, fields: tuple[str, ...]) -> bool:
     for name in fields:
         item = getattr(value, name)
         kind = type(item)
-        if kind is np.ndarray and item.dtype is _FLOAT64 and item.ndim == 1 \
-                and name not in _INF_ALLOWED:
-            vectors.append(item)
+        if kind is np.ndarray and (item.dtype is _FLOAT64 or item.dtype == _FLOAT64) \
+                and name not in _INF_ALLOWED and (item.ndim == 1 or item.flags.c_contiguous):
+            vectors.append(item if item.ndim == 1 else item.reshape(-1))
             if len(vectors) == 4:
                 if not all_finite4(*vectors):
                     return False

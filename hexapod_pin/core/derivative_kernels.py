@@ -374,3 +374,30 @@ def implicit_kernel(b, partials):
     if not math.isfinite(miss) or not math.isfinite(_max_abs(out)):
         return inv, out, math.inf
     return inv, out, miss / max(1.0, _max_abs(b) * _max_abs(inv))
+
+
+@jit
+def forward_from_inverse_kernel(part, tau, u, rates):
+    """The forward-dynamics derivatives of a square-actuated robot from its inverse-dynamics
+    partials ``part`` (n, 4 n) (columns: world tangent, twist, twist_dot, wrench) at the
+    forward-dynamics answer, by :func:`implicit_kernel` with ``B = d ID / d twist_dot``:
+    ``(d_pose, d_world, d_twist, d_u, d_wrench, miss, force_miss)``, each derivative (n, n)
+    C-contiguous, ``d_pose = d_world @ rates`` (``rates``: the pose-rate map (n, n)),
+    ``miss`` the solve's relative residual and ``force_miss`` the relative miss of the
+    inverse dynamics' forces ``tau`` against the forces ``u`` (n,) the forward dynamics
+    was given."""
+    n = part.shape[0]
+    others = np.empty((n, 3 * n))
+    others[:, :2 * n] = part[:, :2 * n]
+    others[:, 2 * n:] = part[:, 3 * n:]
+    inv, sol, miss = implicit_kernel(np.ascontiguousarray(part[:, 2 * n:3 * n]), others)
+    d_world = np.ascontiguousarray(sol[:, :n])
+    scale, worst = 1.0, 0.0
+    for i in range(n):
+        scale = max(scale, abs(u[i]), abs(tau[i]))
+        worst = max(worst, abs(tau[i] - u[i]))
+    if not math.isfinite(worst):
+        worst = math.inf
+    return (d_world @ rates, d_world, np.ascontiguousarray(sol[:, n:2 * n]),
+            np.ascontiguousarray(inv), np.ascontiguousarray(sol[:, 2 * n:]), miss,
+            worst / scale)

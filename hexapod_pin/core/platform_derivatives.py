@@ -51,7 +51,7 @@ from ..errors import InconsistentMotionError, InputError, SingularityError, Solv
 from .checks import as_array, max_abs
 from .closed_form import ClosedFormKernels
 from .closed_loop import ClosedLoopModel
-from .derivative_kernels import implicit_kernel
+from .derivative_kernels import forward_from_inverse_kernel, implicit_kernel
 from .dynamics_common import characteristic_length
 from .dynamics_derivatives import KKTLinearization, linearize_tree
 from .effects_projection import batch_of_states
@@ -278,17 +278,23 @@ def forward_dynamics_derivatives(robot: PlatformRobot, pose: npt.ArrayLike,
                                  branch).derivatives()
 
 
+def pose_rates(layout: PoseLayout, pose: np.ndarray) -> np.ndarray:
+    """The map (dim, dim) from pose-coordinate rates to the world tangent ``(dp, dtheta)``:
+    ``blockdiag(I, E(rpy))`` with all three angles in the pose (``w = E d(rpy)/dt``,
+    :func:`~hexapod_pin.core.pose.euler_rates_matrix`), the identity otherwise (a plane's
+    angle is its own tangent coordinate)."""
+    out = np.eye(layout.dim)
+    if layout.full_rotation:              # the three angles, last in the pose
+        out[-3:, -3:] = euler_rates_matrix(pose[-3:])
+    return out
+
+
 def pose_columns(layout: PoseLayout, pose: np.ndarray, d_world: np.ndarray) -> np.ndarray:
     """The pose-coordinate columns of derivatives along the world tangent ``(dp, dtheta)``:
-    ``d_world @ blockdiag(I, E(rpy))`` with all three angles in the pose (``w = E
-    d(rpy)/dt``, :func:`~hexapod_pin.core.pose.euler_rates_matrix`), a copy of ``d_world``
-    otherwise (a plane's angle is its own tangent coordinate)."""
+    ``d_world @`` :func:`pose_rates` (a copy of ``d_world`` without all three angles)."""
     if not layout.full_rotation:
         return np.array(d_world, dtype=float)
-    ang = layout.angular
-    out = np.array(d_world, dtype=float)
-    out[:, ang] = d_world[:, ang] @ euler_rates_matrix(pose[ang])
-    return out
+    return d_world @ pose_rates(layout, pose)
 
 
 def implicit_inverse(b: np.ndarray, partials: np.ndarray,
@@ -334,26 +340,25 @@ def _forward_by_closed_form(robot: PlatformRobot, pose: npt.ArrayLike, twist: np
     if not isinstance(dyn, ClosedFormKernels):
         return None
     layout = robot.pose_layout
-    dim = layout.dim
     forward = dyn.forward_dynamics(pose, twist, actuator_forces, wrench, branch=branch)
-    twist_dot = forward.twist_dot
-    got = dyn.inverse_dynamics_partials(pose, twist, twist_dot, wrench, branch)
+    got = dyn.inverse_dynamics_partials(pose, twist, forward.twist_dot, wrench, branch)
     if got is None:
         return None
     tau, part = got
-    u = as_array(actuator_forces, (dyn.n_actuators,), "actuator_forces")
-    miss = max_abs(tau - u)
-    if not miss <= 1e-8 * max(1.0, max_abs(u), max_abs(tau)):
+    try:
+        d_pose, d_world, d_twist, d_u, d_wrench, miss, force_miss = \
+            forward_from_inverse_kernel(part, tau, np.asarray(actuator_forces, dtype=float),
+                                        pose_rates(layout, np.asarray(pose, dtype=float)))
+    except np.linalg.LinAlgError:
+        raise InconsistentMotionError("d ID / d twist_dot", float("inf")) from None
+    if not force_miss <= 1e-8:
         raise SolverError("forward_dynamics_derivatives", "unverified",
-                          f"the inverse dynamics of the forward-dynamics answer misses the "
-                          f"actuator forces by {miss:.3e}")
-    others = np.concatenate([part[:, :2 * dim], part[:, 3 * dim:]], axis=1)
-    inv, sol = implicit_inverse(part[:, 2 * dim:3 * dim], others, "d ID / d twist_dot")
-    d_world = sol[:, :dim]
-    pose_a = np.asarray(pose, dtype=float)
-    return ForwardDynamicsDerivatives(np.array(twist_dot, dtype=float),
-                                      pose_columns(layout, pose_a, d_world), d_world,
-                                      sol[:, dim:2 * dim], inv, sol[:, 2 * dim:])
+                          "the inverse dynamics of the forward-dynamics answer misses the "
+                          f"actuator forces by {force_miss:.3e} (relative)")
+    if not miss <= MAP_RTOL:
+        raise InconsistentMotionError("d ID / d twist_dot", miss)
+    return ForwardDynamicsDerivatives(np.array(forward.twist_dot, dtype=float), d_pose,
+                                      d_world, d_twist, d_u, d_wrench)
 
 
 def robot_inverse_dynamics_derivatives(robot: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,

@@ -41,8 +41,8 @@ import numpy.typing as npt
 
 from ..core import effects_projection as drv
 from ..core.checks import vec6
-from ..core.compiled import jit_inline
 from ..core.compiled import jit_fast as jit
+from ..core.compiled import jit_inline
 from ..errors import InputError
 from . import kernels as K
 from .kinematics import check_branch

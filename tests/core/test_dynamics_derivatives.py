@@ -697,9 +697,9 @@ def test_loaded_inverse_dynamics_derivatives_match_finite_differences(name, effe
 @pytest.mark.parametrize("effects", [False, True], ids=["rigid", "effects"])
 @pytest.mark.parametrize("name", ["hexapod", "planar", "hexapod-other", "planar-other"])
 def test_core_inverse_dynamics_derivatives_match_the_closed_forms(name, effects):
-    """The core chain rule and the hexapod's / planar robot's own derivations (Pinocchio's
-    constraint-dynamics derivatives with the closed-form leg maps; the planar closed form)
-    agree: two independent routes."""
+    """The core's tree route and the hexapod's / planar robot's closed-form kernels (their
+    Newton-Euler closed forms differentiated, what the robots answer) agree: two
+    independent routes."""
     from hexapod_pin.core.platform_derivatives import inverse_dynamics_derivatives
 
     robot = robot_registry.get(name)

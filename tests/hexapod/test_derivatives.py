@@ -1,17 +1,20 @@
-"""Analytic derivatives of the hexapod's inverse dynamics (hexapod_pin.hexapod.derivatives).
+"""Analytic derivatives of the hexapod's inverse dynamics (the compiled kernel of
+hexapod_pin.hexapod.derivatives behind the core chain rule).
 
 Independent routes, built here:
 
 * central differences (Richardson, fourth order) of ``robot.inverse_dynamics(...,
-  method="kkt", bounded=False)`` in the pose coordinates and along world rotations
-  ``R -> exp([dtheta]) R`` (``pin.exp3``); exact central differences in the twist,
-  twist_dot and wrench, in which the forces are polynomials of degree <= 2;
+  method="kkt", bounded=False)`` (the Pinocchio tree route) in the pose coordinates and
+  along world rotations ``R -> exp([dtheta]) R`` (``pin.exp3``); exact central differences
+  in the twist, twist_dot and wrench, in which the forces are polynomials of degree <= 2;
 * the reduced dynamics ``d tau / d twist_dot = J^-T M_x`` (crba-based route);
 * the chain rule along a smooth motion with exact twist, twist_dot and jerk;
-* Pinocchio's constrained-dynamics derivatives (which the route relies on) against
-  central differences of ``pin.constraintDynamics`` along ``pin.integrate``;
 * mutants (a wrong frame convention, a wrong sign, the twist held in body axes) that the
   comparison must reject.
+
+The kernel against the core's tree route: tests/core/test_closed_form_derivatives.py;
+Pinocchio's constrained-dynamics derivatives on the hexapod's closures (which the retired
+derivation relied on): tests/core/test_dynamics_derivatives.py.
 """
 
 import numpy as np
@@ -183,47 +186,6 @@ def test_wrong_conventions_are_detected(robot):
                     twist_dot, wrench)
 
     assert _rel_err(d.d_pose, _richardson(held_in_body, 5e-5)) > 100 * FD_RTOL
-
-
-# -- what the route relies on -------------------------------------------------------------------
-def test_pinocchio_constraint_dynamics_derivatives_on_loop_closures(any_robot, rng):
-    """``pin.computeConstraintDynamicsDerivatives`` with the hexapod's CONTACT_3D closures
-    between two moving joints: ddq_dq, ddq_dv, ddq_dtau against central differences of
-    ``pin.constraintDynamics`` along ``pin.integrate``."""
-    robot = any_robot
-    model = robot.model.model
-    cms = pin.StdVec_RigidConstraintModel()
-    for cm in robot.model.constraint_models:
-        cms.append(cm)
-    prox = pin.ProximalSettings(1e-14, 0.0, 1)
-    data = model.createData()
-    cds = pin.StdVec_RigidConstraintData()
-    for cm in cms:
-        cds.append(cm.createData())
-    pin.initConstraintDynamics(model, data, cms, cds)
-
-    def acc(q, v, tau):
-        return pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox).copy()
-
-    pose, twist, _, _ = next(_states(robot, rng, 1))
-    q = robot.configuration(pose)
-    v = robot.inverse_dynamics(pose, twist, np.zeros(6), method="kkt", bounded=False).velocity
-    tau = 5.0 * rng.normal(size=model.nv)
-    acc(q, v, tau)
-    pin.computeConstraintDynamicsDerivatives(model, data, cms, cds, prox)
-    got = data.ddq_dq.copy(), data.ddq_dv.copy(), data.ddq_dtau.copy()
-    eye = np.eye(model.nv)
-
-    def central(fun, h):
-        return np.array([(fun(h * e) - fun(-h * e)) / (2 * h) for e in eye]).T
-
-    d_q = (4 * central(lambda s: acc(pin.integrate(model, q, s), v, tau), 5e-5)
-           - central(lambda s: acc(pin.integrate(model, q, s), v, tau), 1e-4)) / 3
-    d_v = central(lambda s: acc(q, v + s, tau), 1.0)      # quadratic in v: exact
-    d_tau = central(lambda s: acc(q, v, tau + s), 1.0)    # affine in tau: exact
-    assert _rel_err(got[0], d_q) < 1e-7
-    assert _rel_err(got[1], d_v) < EXACT_RTOL
-    assert _rel_err(got[2], d_tau) < EXACT_RTOL
 
 
 # -- errors -------------------------------------------------------------------------------------
