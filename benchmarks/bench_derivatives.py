@@ -15,7 +15,17 @@ level (``robot.forward_dynamics_derivatives`` at the home pose: inverse kinemati
 the platform rows). "FD miss" is the max relative difference between the analytic and the
 central-difference derivatives (the smoke run exits 1 above 1e-5).
 
-A second table, per robot at its home pose (twist 0.05, held static forces): the
+A robot-level table, per robot near its home pose (seeded: pose within 1 cm / 0.01 rad,
+twist 0.05 N(0, 1), forces the static ones plus N(0, 1), no wrench): one verified
+``robot.forward_dynamics`` call (the unit), ``robot.forward_dynamics_derivatives`` and
+their ratio (the issue's target: below 3x), the route that answered ("closed form": the
+robot's compiled inverse-dynamics partials and the implicit-function theorem; "tree": the
+KKT derivatives), a central-difference Jacobian of the same call in the pose coordinates,
+the twist and the forces (``2 (2 dim + n_act) + 1`` calls, step 1e-5) and
+``robot.inverse_dynamics_derivatives`` at the forward answer; "FD miss" the analytic
+against those differences.
+
+A last table, per robot at its home pose (twist 0.05, held static forces): the
 inverse-dynamics derivatives as the robot answers them (the hexapod's and planar robot's
 closed forms, a loaded robot's core route) and by the core route
 (``platform_derivatives.inverse_dynamics_derivatives``, the implicit-function theorem on
@@ -31,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -151,11 +162,97 @@ def main() -> int:
                     "central differences", "pin constraint derivs", "robot level",
                     "FD miss"], rows,
                    title="Forward-dynamics derivatives, per call (µs)"))
+    level_rows, level_worst = robot_level_rows(args.smoke, repeats)
+    worst = max(worst, level_worst)
+    print(bc.table(["robot", "dim / n_act", "one FD call", "FD derivatives",
+                    "derivatives / FD call", "route", "central differences",
+                    "ID derivatives", "FD miss"], level_rows,
+                   title="Robot level: forward-dynamics derivatives, per call (µs)"))
     print(bc.table(["robot", "ID derivs (robot)", "ID derivs (core)", "rk4 step",
                     "rk4 step Jacobians", "Euler step", "Euler step Jacobians"],
                    robot_rows(args.smoke, repeats),
                    title="Inverse-dynamics derivatives and step Jacobians, per call (µs)"))
     return 0 if worst <= 1e-5 else 1
+
+
+def paired(first, second, repeats: int) -> tuple[bc.Timing, bc.Timing]:
+    """``bc.measure`` of two calls with their samples interleaved (first, second, first,
+    ...), so that a load spike of the shared machine hits both: their ratio is the
+    figure compared."""
+    counts = []
+    for fn in (first, second):
+        fn()
+        t0 = time.perf_counter()
+        fn()
+        counts.append(max(1, int(bc.MIN_SAMPLE["seconds"] / max(time.perf_counter() - t0,
+                                                                1e-9))))
+    samples: list[list[float]] = [[], []]
+    for _ in range(repeats):
+        for j, fn in enumerate((first, second)):
+            t0 = time.perf_counter()
+            for _ in range(counts[j]):
+                fn()
+            samples[j].append((time.perf_counter() - t0) / counts[j])
+    out = []
+    for j in range(2):
+        arr = np.array(samples[j])
+        out.append(bc.Timing(float(np.median(arr)), float(np.percentile(arr, 25)),
+                             float(np.percentile(arr, 75)), repeats, counts[j]))
+    return out[0], out[1]
+
+
+def robot_central(robot, pose, twist, u):
+    """Central differences of ``robot.forward_dynamics(...).twist_dot`` in the pose
+    coordinates, the twist and the forces (step 1e-5): ``(d_pose, d_twist, d_u)``."""
+    def acc(p, t, f):
+        return robot.forward_dynamics(p, t, f).twist_dot
+
+    acc(pose, twist, u)
+    out = []
+    for arg in range(3):
+        base = [pose, twist, u]
+        cols = []
+        for k in range(len(base[arg])):
+            step = np.zeros(len(base[arg]))
+            step[k] = STEP
+            plus, minus = list(base), list(base)
+            plus[arg], minus[arg] = base[arg] + step, base[arg] - step
+            cols.append((acc(*plus) - acc(*minus)) / (2 * STEP))
+        out.append(np.array(cols).T)
+    return out
+
+
+def robot_level_rows(smoke: bool, repeats: int) -> tuple[list[list[str]], float]:
+    """The robot-level table (module docstring) and its worst FD miss."""
+    rows, worst = [], 0.0
+    for name, robot, _, _, _ in robots(smoke):
+        if robot is None:
+            continue
+        dim, n_act = robot.pose_layout.dim, robot.model.n_actuated
+        rng = np.random.default_rng(1)
+        pose = robot.home_pose + 0.01 * rng.uniform(-1, 1, dim)
+        twist = 0.05 * rng.normal(size=dim)
+        u = robot.static_forces(pose, bounded=False) + rng.normal(size=n_act)
+        der = robot.forward_dynamics_derivatives(pose, twist, u)
+        num = robot_central(robot, pose, twist, u)
+        scale = max(1.0, *(float(np.max(np.abs(x))) for x in num))
+        miss = max(float(np.max(np.abs(a - b))) for a, b in zip(
+            num, (der.d_pose, der.d_twist, der.d_actuator_forces))) / scale
+        worst = max(worst, miss)
+        partials = getattr(getattr(robot, "dynamics", None), "inverse_dynamics_partials",
+                           None)
+        closed = partials is not None and partials(pose, twist, der.twist_dot) is not None
+        one, analytic = paired(lambda: robot.forward_dynamics(pose, twist, u),
+                               lambda: robot.forward_dynamics_derivatives(pose, twist, u),
+                               repeats)
+        central = bc.measure(lambda: robot_central(robot, pose, twist, u), repeats=repeats)
+        inverse = bc.measure(lambda: robot.inverse_dynamics_derivatives(
+            pose, twist, der.twist_dot), repeats=repeats)
+        rows.append([name, f"{dim} / {n_act}", bc.fmt_us(one), bc.fmt_us(analytic),
+                     f"{analytic.median / one.median:.1f}x",
+                     "closed form" if closed else "tree", bc.fmt_us(central),
+                     bc.fmt_us(inverse), f"{miss:.1e}"])
+    return rows, worst
 
 
 def robot_rows(smoke: bool, repeats: int) -> list[list[str]]:

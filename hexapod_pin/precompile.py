@@ -172,7 +172,8 @@ def _parallel_batches() -> None:
 def _planar_single(robot: Planar3PRR) -> None:
     pose = robot.home_pose + np.array([0.01, -0.01, 0.05])
     twist = np.array([0.02, -0.01, 0.1])
-    _single_state(robot, pose, twist, twist)
+    tau = _single_state(robot, pose, twist, twist)
+    robot.forward_dynamics_derivatives(pose, twist, tau)      # the closed-form chain rule
 
 
 def _simulators(robot: Hexapod) -> None:
@@ -203,6 +204,7 @@ def _tree_routes(planar: Planar3PRR) -> None:
     for method in FORWARD_DYNAMICS_METHODS:
         robot.forward_dynamics(pose, twist, tau, method=method)
     robot.forward_dynamics_derivatives(pose, twist, tau)     # redundant rows: the SVD route
+    robot.inverse_dynamics_derivatives(pose, twist, twist)   # the tree's implicit function
     robot.inverse_dynamics_batch(pose[None, :], twist[None, :], twist[None, :])
     model, q = robot.model, robot.home_configuration
     model.velocity_from_actuated(q, np.full(model.n_actuated, 0.01))

@@ -23,6 +23,7 @@ import numpy as np
 from .closure_motion import row_basis_kernel
 from .compiled import jit
 from .linear_kernels import cholesky_lower
+from .pose import euler_rates
 
 
 @jit
@@ -358,14 +359,52 @@ def anchor_forces_kernel(rot, forces, point_rows, point_anchors, local, to_joint
 
 
 @jit
+def small_inverse(b):
+    """``b^-1`` (n, n) of a small square matrix by Gauss-Jordan elimination with partial
+    pivoting (no LAPACK call: the derivatives' ``B`` are at most a few dozen wide); NaN
+    where a pivot vanishes (``b`` exactly singular or not finite)."""
+    n = b.shape[0]
+    a = np.empty((n, n))
+    inv = np.zeros((n, n))
+    for r in range(n):
+        inv[r, r] = 1.0
+        for c in range(n):
+            a[r, c] = b[r, c]
+    for col in range(n):
+        piv, best = col, abs(a[col, col])
+        for r in range(col + 1, n):
+            if abs(a[r, col]) > best:
+                piv, best = r, abs(a[r, col])
+        if not best > 0.0:
+            inv[:, :] = np.nan
+            return inv
+        if piv != col:
+            for c in range(n):
+                a[col, c], a[piv, c] = a[piv, c], a[col, c]
+                inv[col, c], inv[piv, c] = inv[piv, c], inv[col, c]
+        for r in range(n):               # the pivot row unscaled: equal rows cancel exactly
+            if r == col or a[r, col] == 0.0:
+                continue
+            f = a[r, col] / a[col, col]
+            for c in range(n):
+                a[r, c] -= f * a[col, c]
+                inv[r, c] -= f * inv[col, c]
+    for r in range(n):
+        d = 1.0 / a[r, r]
+        for c in range(n):
+            inv[r, c] *= d
+    return inv
+
+
+@jit
 def implicit_kernel(b, partials):
     """The implicit-function theorem for a map ``X(y, z)`` solved for ``z``: with the square
     ``b = dX/dz`` (n, n) and ``partials = dX/dy`` (n, k), the partials of ``z(y, X)``:
-    ``(B^-1, -B^-1 partials, residual)``, ``residual`` the relative miss of ``b B^-1 = I``
-    (max-abs, over ``max(1, |b| |B^-1|)``; inf when not finite). Raises numpy's LinAlgError
-    when ``b`` is exactly singular."""
+    ``(B^-1, -B^-1 partials, residual)`` (:func:`small_inverse`), ``residual`` the relative
+    miss of ``b B^-1 = I`` (max-abs, over ``max(1, |b| |B^-1|)``; inf when anything is not
+    finite, e.g. a singular ``b``)."""
     n = b.shape[0]
-    inv = np.linalg.inv(b)
+    inv = small_inverse(b)
     out = -(inv @ partials)
     check = b @ inv
     for i in range(n):
@@ -377,12 +416,24 @@ def implicit_kernel(b, partials):
 
 
 @jit
-def forward_from_inverse_kernel(part, tau, u, rates):
+def pose_rates_kernel(pose, full_rotation):
+    """The map (dim, dim) from pose-coordinate rates to the world tangent ``(dp,
+    dtheta)`` of a pose (dim,): ``blockdiag(I, E(rpy))`` with all three angles in the
+    pose (last, :func:`~hexapod_pin.core.pose.euler_rates`), else the identity."""
+    n = pose.shape[0]
+    out = np.eye(n)
+    if full_rotation:
+        euler_rates(pose[n - 2], pose[n - 1], out[n - 3:, n - 3:])
+    return out
+
+
+@jit
+def forward_from_inverse_kernel(part, tau, u, pose, full_rotation):
     """The forward-dynamics derivatives of a square-actuated robot from its inverse-dynamics
     partials ``part`` (n, 4 n) (columns: world tangent, twist, twist_dot, wrench) at the
     forward-dynamics answer, by :func:`implicit_kernel` with ``B = d ID / d twist_dot``:
     ``(d_pose, d_world, d_twist, d_u, d_wrench, miss, force_miss)``, each derivative (n, n)
-    C-contiguous, ``d_pose = d_world @ rates`` (``rates``: the pose-rate map (n, n)),
+    C-contiguous, ``d_pose = d_world @`` :func:`pose_rates_kernel` of ``pose`` (n,),
     ``miss`` the solve's relative residual and ``force_miss`` the relative miss of the
     inverse dynamics' forces ``tau`` against the forces ``u`` (n,) the forward dynamics
     was given."""
@@ -398,6 +449,6 @@ def forward_from_inverse_kernel(part, tau, u, rates):
         worst = max(worst, abs(tau[i] - u[i]))
     if not math.isfinite(worst):
         worst = math.inf
-    return (d_world @ rates, d_world, np.ascontiguousarray(sol[:, n:2 * n]),
-            np.ascontiguousarray(inv), np.ascontiguousarray(sol[:, 2 * n:]), miss,
+    return (d_world @ pose_rates_kernel(pose, full_rotation), d_world, np.ascontiguousarray(sol[:, n:2 * n]),
+            inv, np.ascontiguousarray(sol[:, 2 * n:]), miss,
             worst / scale)

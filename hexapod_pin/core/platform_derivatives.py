@@ -49,16 +49,17 @@ import numpy.typing as npt
 
 from ..errors import InconsistentMotionError, InputError, SingularityError, SolverError
 from .checks import as_array, max_abs
-from .closed_form import ClosedFormKernels
+from .closed_form import ClosedFormDynamics
 from .closed_loop import ClosedLoopModel
-from .derivative_kernels import forward_from_inverse_kernel, implicit_kernel
+from .derivative_kernels import (forward_from_inverse_kernel, implicit_kernel,
+                                 pose_rates_kernel)
 from .dynamics_common import characteristic_length
 from .dynamics_derivatives import KKTLinearization, linearize_tree
 from .effects_projection import batch_of_states
 from .measures import TREE_TYPE_I_TOL, inverse_condition
 from .platform_map import MAP_RTOL, PlatformMap, solve_checked_square
-from .pose import euler_rates_matrix, skew
-from .results import InverseDynamicsDerivatives
+from .pose import skew
+from .results import InverseDynamicsDerivatives, new_result
 from .robot_api import PoseLayout
 
 
@@ -281,12 +282,10 @@ def forward_dynamics_derivatives(robot: PlatformRobot, pose: npt.ArrayLike,
 def pose_rates(layout: PoseLayout, pose: np.ndarray) -> np.ndarray:
     """The map (dim, dim) from pose-coordinate rates to the world tangent ``(dp, dtheta)``:
     ``blockdiag(I, E(rpy))`` with all three angles in the pose (``w = E d(rpy)/dt``,
-    :func:`~hexapod_pin.core.pose.euler_rates_matrix`), the identity otherwise (a plane's
-    angle is its own tangent coordinate)."""
-    out = np.eye(layout.dim)
-    if layout.full_rotation:              # the three angles, last in the pose
-        out[-3:, -3:] = euler_rates_matrix(pose[-3:])
-    return out
+    :func:`~hexapod_pin.core.pose.euler_rates`), the identity otherwise (a plane's angle is
+    its own tangent coordinate); compiled
+    (:func:`~hexapod_pin.core.derivative_kernels.pose_rates_kernel`)."""
+    return pose_rates_kernel(np.asarray(pose, dtype=float), layout.full_rotation)
 
 
 def pose_columns(layout: PoseLayout, pose: np.ndarray, d_world: np.ndarray) -> np.ndarray:
@@ -307,11 +306,8 @@ def implicit_inverse(b: np.ndarray, partials: np.ndarray,
     Raises:
         InconsistentMotionError: ``b`` singular (a type-II singularity), named ``what``.
     """
-    try:
-        inv, out, miss = implicit_kernel(np.ascontiguousarray(b, dtype=float),
-                                         np.ascontiguousarray(partials, dtype=float))
-    except np.linalg.LinAlgError:
-        raise InconsistentMotionError(what, float("inf")) from None
+    inv, out, miss = implicit_kernel(np.ascontiguousarray(b, dtype=float),
+                                     np.ascontiguousarray(partials, dtype=float))
     if not miss <= MAP_RTOL:
         raise InconsistentMotionError(what, miss)
     return inv, out
@@ -325,7 +321,7 @@ def closed_form_partials(robot: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,
     or None when it has none (a robot without a closed form, or whose closed form does not
     model its effects)."""
     dyn = getattr(robot, "dynamics", None)
-    if not isinstance(dyn, ClosedFormKernels):
+    if not isinstance(dyn, ClosedFormDynamics):
         return None
     return dyn.inverse_dynamics_partials(pose, twist, twist_dot, wrench, branch)
 
@@ -337,28 +333,26 @@ def _forward_by_closed_form(robot: PlatformRobot, pose: npt.ArrayLike, twist: np
     at the robot's verified forward-dynamics answer (module docstring), or None (no
     closed-form partials: the tree route answers)."""
     dyn = getattr(robot, "dynamics", None)
-    if not isinstance(dyn, ClosedFormKernels):
+    if not isinstance(dyn, ClosedFormDynamics):
         return None
-    layout = robot.pose_layout
     forward = dyn.forward_dynamics(pose, twist, actuator_forces, wrench, branch=branch)
     got = dyn.inverse_dynamics_partials(pose, twist, forward.twist_dot, wrench, branch)
     if got is None:
         return None
     tau, part = got
-    try:
-        d_pose, d_world, d_twist, d_u, d_wrench, miss, force_miss = \
-            forward_from_inverse_kernel(part, tau, np.asarray(actuator_forces, dtype=float),
-                                        pose_rates(layout, np.asarray(pose, dtype=float)))
-    except np.linalg.LinAlgError:
-        raise InconsistentMotionError("d ID / d twist_dot", float("inf")) from None
+    d_pose, d_world, d_twist, d_u, d_wrench, miss, force_miss = forward_from_inverse_kernel(
+        part, tau, np.asarray(actuator_forces, dtype=float), np.asarray(pose, dtype=float),
+        robot.pose_layout.full_rotation)
     if not force_miss <= 1e-8:
         raise SolverError("forward_dynamics_derivatives", "unverified",
                           "the inverse dynamics of the forward-dynamics answer misses the "
                           f"actuator forces by {force_miss:.3e} (relative)")
     if not miss <= MAP_RTOL:
         raise InconsistentMotionError("d ID / d twist_dot", miss)
-    return ForwardDynamicsDerivatives(np.array(forward.twist_dot, dtype=float), d_pose,
-                                      d_world, d_twist, d_u, d_wrench)
+    return new_result(ForwardDynamicsDerivatives, {
+        "twist_dot": np.array(forward.twist_dot, dtype=float), "d_pose": d_pose,
+        "d_world": d_world, "d_twist": d_twist, "d_actuator_forces": d_u,
+        "d_wrench": d_wrench})
 
 
 def robot_inverse_dynamics_derivatives(robot: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,

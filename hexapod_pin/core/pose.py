@@ -109,19 +109,31 @@ def rotation_from_quaternion(x: float, y: float, z: float, w: float) -> np.ndarr
     return out.reshape(3, 3)
 
 
+@jit_inline
+def euler_rates(pitch, yaw, out):
+    """``out`` (3, 3) = ``E`` with ``w = E @ d(rpy)/dt`` (world-axes angular velocity of
+    ``Rz(yaw) Ry(pitch) Rx(roll)``; ``E`` does not depend on the roll)."""
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    out[0, 0], out[0, 1], out[0, 2] = cy * cp, -sy, 0.0
+    out[1, 0], out[1, 1], out[1, 2] = sy * cp, cy, 0.0
+    out[2, 0], out[2, 1], out[2, 2] = -sp, 0.0, 1.0
+
+
+@jit_lean
+def _euler_rates_many(rpy, out):
+    for k in range(rpy.shape[0]):
+        euler_rates(rpy[k, 1], rpy[k, 2], out[k])
+
+
 def euler_rates_matrix(rpy: np.ndarray) -> np.ndarray:
-    """``E`` with ``w = E @ d(rpy)/dt`` (world-axes angular velocity), shape (..., 3, 3)."""
+    """``E`` with ``w = E @ d(rpy)/dt`` (world-axes angular velocity), shape (..., 3, 3)
+    (:func:`euler_rates`)."""
     rpy = np.asarray(rpy, dtype=float)
-    cp, sp = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
-    cy, sy = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
-    out = np.zeros(rpy.shape[:-1] + (3, 3))
-    out[..., 0, 0] = cy * cp
-    out[..., 1, 0] = sy * cp
-    out[..., 2, 0] = -sp
-    out[..., 0, 1] = -sy
-    out[..., 1, 1] = cy
-    out[..., 2, 2] = 1.0
-    return out
+    flat = np.ascontiguousarray(rpy.reshape(-1, 3))
+    out = np.empty((flat.shape[0], 3, 3))
+    _euler_rates_many(flat, out)
+    return out.reshape(rpy.shape[:-1] + (3, 3))
 
 
 def skew(vec: np.ndarray) -> np.ndarray:

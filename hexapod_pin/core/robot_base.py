@@ -21,7 +21,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import DescriptionError, InputError
-from .checks import as_array
+from .checks import as_array, check_finite_result
 from .closed_loop import ClosedLoopModel
 from .effects import JointEffects
 from .closed_form import ClosedFormDynamics
@@ -435,7 +435,6 @@ class RobotBase:
 
     def _checked(self, name: str, function: Any, *args: Any) -> Any:
         """``function(self, *args)`` under the robot's lock, every number checked finite."""
-        from .checks import check_finite_result
         with self.lock:
             out = function(self, *args)
         return check_finite_result(f"{type(self).__name__}.{name}", out)
