@@ -138,31 +138,33 @@ def _column(geo, rot, wk, mats, twist, twist_dot, d, drives, rhs, out, col):
 
 
 @jit
-def inverse_partials_kernel(geo, signs, pose, twist, twist_dot, wrench, tau, out, rot, wk,
-                            mats, scratch):
+def inverse_partials_kernel(geo, signs, pose, twist, twist_dot, wrench, rot, wk, mats):
     """The unbounded inverse-dynamics forces ``tau`` (6,) and their partials ``out`` (6, 24)
-    (columns: module docstring) of one state on the branch ``signs``; ``scratch`` (2, 24).
+    (columns: module docstring) of one state on the branch ``signs`` (the scratch ``rot``,
+    ``wk``, ``mats`` of :func:`~hexapod_pin.hexapod.kernels.inverse_dynamics`, written as
+    there).
 
-    Returns ``(code, rest)``: the status of
+    Returns ``(code, rest, tau, out)``: the status of
     :func:`~hexapod_pin.hexapod.kernels.inverse_dynamics` (the partials are written only
     when OK) and the first carriage whose exact Coulomb friction is at rest (-1: none;
     the partials are then not written)."""
+    tau, out = np.empty(6), np.zeros((6, N_COLUMNS))
     code = K.inverse_dynamics(geo, signs, pose, twist, twist_dot, wrench, False, tau, rot,
                               wk, mats)
     if code != K.OK:
-        return code, -1
+        return code, -1, tau, out
     drives = geo[K.DRIVES + drv.FLAG] != 0.0
     if drives:
         for i in range(6):
             if drv.at_rest(geo, K.DRIVES, i, wk[K.QD, i]):
-                return K.OK, i
-    direction, rhs = scratch[0], scratch[1]
+                return K.OK, i, tau, out
+    direction, rhs = np.empty(N_COLUMNS), np.empty(6)
     for col in range(N_COLUMNS):
         for j in range(N_COLUMNS):
             direction[j] = 0.0
         direction[col] = 1.0
         _column(geo, rot, wk, mats, twist, twist_dot, direction, drives, rhs, out, col)
-    return K.OK, -1
+    return K.OK, -1, tau, out
 
 
 def inverse_partials(dynamics: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,
@@ -197,10 +199,9 @@ def inverse_partials(dynamics: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,
     pose_a, twist_a = vec6(pose, "pose"), vec6(twist, "twist")
     tdot_a = vec6(twist_dot, "twist_dot")
     wrench_a = K.ZERO6 if wrench is None else vec6(wrench, "wrench")
-    tau, out = np.empty(6), np.empty((6, N_COLUMNS))
     s = closed_form.scratch
-    code, rest = inverse_partials_kernel(geo, signs, pose_a, twist_a, tdot_a, wrench_a, tau,
-                                         out, s.rot, s.wk, s.mats, np.empty((2, N_COLUMNS)))
+    code, rest, tau, out = inverse_partials_kernel(geo, signs, pose_a, twist_a, tdot_a,
+                                                   wrench_a, s.rot, s.wk, s.mats)
     if code != K.OK:
         dynamics.refuse(code, inputs)
     if rest >= 0:

@@ -56,11 +56,12 @@ N_COLUMNS = 12
 
 
 @jit
-def _column(geo, buf, closure, twist, twist_dot, d, drives, force, info, out, col):
+def _column(geo, buf, closure, twist, twist_dot, d, drives, force, info, rows, spare, out,
+            col):
     """Column ``col`` of the partials along the direction ``d`` (12,) (module docstring)
     at the state in the leg buffer ``buf`` with the closure forces ``closure`` (3, 2) (the
-    negated multipliers); ``force`` (9,), ``info`` scratch. Returns the status of
-    :func:`~hexapod_pin.planar.kernels.solve_inverse`."""
+    negated multipliers); ``force`` (9,), ``info``, ``rows`` (3,), ``spare`` (3, 2)
+    scratch. Returns the status of :func:`~hexapod_pin.planar.kernels.solve_inverse`."""
     length = geo[K.G_LEN]
     length2 = length * length
     m_s, m_l = geo[K.G_MS], geo[K.G_ML]
@@ -110,42 +111,46 @@ def _column(geo, buf, closure, twist, twist_dot, d, drives, force, info, out, co
     m_p = geo[K.G_MP]
     force[6], force[7] = m_p * d[6], m_p * d[7]
     force[8] = geo[K.G_IP] * d[8] + moment
-    rows = np.empty(N_ACTUATORS)
-    status = K.solve_inverse(geo, buf, force, d[9:12], True, rows, np.empty((N_ACTUATORS, 2)),
-                             info)
+    status = K.solve_inverse(geo, buf, force, d[9:12], True, rows, spare, info)
     for k in range(N_ACTUATORS):
         out[k, col] += rows[k]
     return status
 
 
 @jit
-def inverse_partials_kernel(geo, idx, signs, pose, twist, twist_dot, wrench, has_wrench, q,
-                            v, a, tau, closure, buf, info, out):
+def inverse_partials_kernel(geo, idx, signs, pose, twist, twist_dot, wrench, has_wrench, buf,
+                            info):
     """The unbounded inverse-dynamics forces ``tau`` (3,) of the closed form and their
     partials ``out`` (3, 12) (columns: module docstring) at one state on the branch
-    ``signs`` (the arguments of :func:`~hexapod_pin.planar.kernels.inverse_dynamics`).
+    ``signs`` (the arguments of :func:`~hexapod_pin.planar.kernels.inverse_dynamics`; the
+    leg buffer ``buf`` and ``info`` written as there).
 
-    Returns ``(status, rest)``: the closed form's status (the partials are written only
-    when OK) and the first slider whose exact Coulomb friction is at rest (-1: none; the
-    partials are then not written)."""
+    Returns ``(status, rest, tau, out)``: the closed form's status (the partials are
+    written only when OK) and the first slider whose exact Coulomb friction is at rest (-1:
+    none; the partials are then not written)."""
+    nv = K.I_ROW                     # the tree coordinates (idx before the row starts)
+    q, v, a = np.empty(nv), np.empty(nv), np.empty(nv)
+    tau, closure = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, 2))
+    out = np.zeros((N_ACTUATORS, N_COLUMNS))
     status = K.inverse_dynamics(geo, idx, pose, twist, twist_dot, wrench, has_wrench, signs,
                                 q, v, a, tau, closure, buf, info)
     if status != K.OK:
-        return status, -1
+        return status, -1, tau, out
     drives = geo[K.DRIVES + drv.FLAG] != 0.0
     if drives:
         for k in range(N_ACTUATORS):
             if drv.at_rest(geo, K.DRIVES, k, buf[k, K.SD]):
-                return K.OK, k
+                return K.OK, k, tau, out
     direction, force, scratch = np.empty(N_COLUMNS), np.empty(9), np.empty(K.INFO_SIZE)
+    rows, spare = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, 2))
     for col in range(N_COLUMNS):
         direction[:] = 0.0
         direction[col] = 1.0
         status = _column(geo, buf, closure, twist, twist_dot, direction, drives, force,
-                         scratch, out, col)
+                         scratch, rows, spare, out, col)
         if status != K.OK:
-            return status, -1
-    return K.OK, -1
+            return status, -1, tau, out
+    return K.OK, -1, tau, out
 
 
 def inverse_partials(dynamics: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,
@@ -180,12 +185,9 @@ def inverse_partials(dynamics: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,
     pose_a, twist_a = vector(pose, 3, "pose"), vector(twist, 3, "twist")
     tdot_a = vector(twist_dot, 3, "twist_dot")
     wrench_a = None if wrench is None else vector(wrench, 3, "wrench")
-    nv = ws.nv
-    tau, out = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, N_COLUMNS))
-    status, rest = inverse_partials_kernel(
+    status, rest, tau, out = inverse_partials_kernel(
         geo, ws.idx, ws.signs(branch), pose_a, twist_a, tdot_a,
-        ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None, np.empty(nv),
-        np.empty(nv), np.empty(nv), tau, np.empty((N_ACTUATORS, 2)), ws.buf, ws.info, out)
+        ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None, ws.buf, ws.info)
     if status == K.RESIDUAL:
         return None
     if status != K.OK:
