@@ -59,7 +59,7 @@ import numpy.typing as npt
 
 from ..errors import (ActuatorSaturationError, BatchActuatorSaturationError,
                       BatchSingularityError, BatchUnreachablePoseError, DescriptionError,
-                      SingularityError, UnreachablePoseError)
+                      InputError, SingularityError, UnreachablePoseError)
 from .closed_loop import ClosedLoopModel
 from .compiled import jit_inline
 from .effects import JointEffects, friction_forces, passive_forces
@@ -145,6 +145,16 @@ class PackedDrives:
             self._vector = self._pack(pack_drives(clm), passive)
             self._seen = arm
         return self._vector
+
+
+def at_rest_error(value: Any, which: str, drives: np.ndarray, at: int) -> InputError:
+    """The :class:`InputError` (on the twist ``value``) of an actuated coordinate ``which``
+    (e.g. ``"carriage 2"``) whose exact Coulomb friction is at rest: the dynamics is not
+    differentiable there (stick / slip). ``drives``: the packed vector holding the drive
+    vector at ``at`` (its velocity threshold)."""
+    return InputError("twist", value, f"{which} with Coulomb friction is at rest (rate <= "
+                      f"{drives[at + THRESHOLD]:g} in magnitude): the dynamics is not "
+                      "differentiable there (stick / slip)")
 
 
 def passive_effect_coordinates(clm: ClosedLoopModel) -> np.ndarray:

@@ -47,12 +47,18 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import InconsistentMotionError, InputError, SingularityError, SolverError
-from .checks import as_array, max_abs
+from ..errors import (
+    InconsistentMotionError,
+    InputError,
+    NonFiniteResultError,
+    SingularityError,
+    SolverError,
+)
+from .checks import as_array, check_finite_result, max_abs
 from .closed_form import ClosedFormDynamics
 from .closed_loop import ClosedLoopModel
-from .derivative_kernels import (forward_from_inverse_kernel, implicit_kernel,
-                                 pose_rates_kernel)
+from .compiled import all_finite
+from .derivative_kernels import forward_from_inverse_kernel, implicit_kernel, pose_rates_kernel
 from .dynamics_common import characteristic_length
 from .dynamics_derivatives import KKTLinearization, linearize_tree
 from .effects_projection import batch_of_states
@@ -274,9 +280,9 @@ def forward_dynamics_derivatives(robot: PlatformRobot, pose: npt.ArrayLike,
     """
     closed = _forward_by_closed_form(robot, pose, twist, actuator_forces, wrench, branch)
     if closed is not None:
-        return closed
-    return PlatformLinearization(robot, pose, twist, actuator_forces, wrench,
-                                 branch).derivatives()
+        return closed                       # every number checked in its kernel
+    return check_finite_result("forward_dynamics_derivatives", PlatformLinearization(
+        robot, pose, twist, actuator_forces, wrench, branch).derivatives())
 
 
 def pose_rates(layout: PoseLayout, pose: np.ndarray) -> np.ndarray:
@@ -372,9 +378,13 @@ def robot_inverse_dynamics_derivatives(robot: Any, pose: npt.ArrayLike, twist: n
             route).
         SolverError: a solve misses its equations.
     """
+    name = "inverse_dynamics_derivatives"
     got = closed_form_partials(robot, pose, twist, twist_dot, wrench, None)
     if got is not None:
         tau, part = got
+        if not (all_finite(tau) and all_finite(part.reshape(-1))):
+            raise NonFiniteResultError(name, "d_world" if all_finite(tau)
+                                       else "actuator_forces")
         dim = robot.pose_layout.dim
         d_world = part[:, :dim]
         return InverseDynamicsDerivatives(
@@ -384,7 +394,8 @@ def robot_inverse_dynamics_derivatives(robot: Any, pose: npt.ArrayLike, twist: n
                                                   False) else None
     forces = robot.inverse_dynamics(pose, twist, twist_dot, wrench, branch=branch,
                                     bounded=False, joint_wrenches=False).actuator_forces
-    return inverse_dynamics_derivatives(robot, pose, twist, twist_dot, forces, wrench, branch)
+    return check_finite_result(name, inverse_dynamics_derivatives(
+        robot, pose, twist, twist_dot, forces, wrench, branch))
 
 
 def inverse_dynamics_derivatives(robot: PlatformRobot, pose: npt.ArrayLike,

@@ -245,8 +245,8 @@ class RobotBase:
             SolverError: a solve misses its equations.
         """
         from .platform_derivatives import robot_inverse_dynamics_derivatives
-        return self._checked("inverse_dynamics_derivatives",
-                             robot_inverse_dynamics_derivatives, pose, twist, twist_dot, wrench)
+        with self.lock:                     # the route checks its numbers finite itself
+            return robot_inverse_dynamics_derivatives(self, pose, twist, twist_dot, wrench)
 
     @takes_placement
     def forward_dynamics_derivatives(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
@@ -274,8 +274,9 @@ class RobotBase:
             SolverError: a solve misses its equations.
         """
         from .platform_derivatives import forward_dynamics_derivatives
-        return self._checked("forward_dynamics_derivatives", forward_dynamics_derivatives,
-                             pose, twist, actuator_forces, wrench, branch)
+        with self.lock:                     # the route checks its numbers finite itself
+            return forward_dynamics_derivatives(self, pose,  # type: ignore[arg-type]
+                                                twist, actuator_forces, wrench, branch)
 
     def forward_dynamics_derivatives_batch(self, poses: npt.ArrayLike, twists: npt.ArrayLike,
                                            actuator_forces: npt.ArrayLike,

@@ -43,7 +43,6 @@ from ..core import effects_projection as drv
 from ..core.checks import vec6
 from ..core.compiled import jit_fast as jit
 from ..core.compiled import jit_inline
-from ..errors import InputError
 from . import kernels as K
 from .kinematics import check_branch
 
@@ -205,7 +204,5 @@ def inverse_partials(dynamics: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,
     if code != K.OK:
         dynamics.refuse(code, inputs)
     if rest >= 0:
-        raise InputError("twist", twist, f"carriage {rest} with Coulomb friction is at rest "
-                         f"(|qdot| <= {geo[K.DRIVES + drv.THRESHOLD]:g}): the dynamics is not "
-                         "differentiable there (stick / slip)")
+        raise drv.at_rest_error(twist, f"carriage {rest}", geo, K.DRIVES)
     return tau, out

@@ -45,7 +45,6 @@ import numpy.typing as npt
 from ..core import effects_projection as drv
 from ..core.checks import vector
 from ..core.compiled import jit
-from ..errors import InputError
 from . import kernels as K
 from .geometry import N_ACTUATORS
 
@@ -193,7 +192,5 @@ def inverse_partials(dynamics: Any, pose: npt.ArrayLike, twist: npt.ArrayLike,
     if status != K.OK:
         dynamics.refuse(status, inputs)
     if rest >= 0:
-        raise InputError("twist", twist, f"slider {rest} with Coulomb friction is at rest "
-                         f"(|s'| <= {geo[K.DRIVES + drv.THRESHOLD]:g}): the dynamics is not "
-                         "differentiable there (stick / slip)")
+        raise drv.at_rest_error(twist, f"slider {rest}", geo, K.DRIVES)
     return tau, out
