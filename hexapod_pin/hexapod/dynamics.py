@@ -1,22 +1,28 @@
 """The hexapod's dynamics at the platform level (pose, twist, twist_dot, wrench).
 
-Single states build the tree state in closed form (the kernels of
-:mod:`hexapod_pin.hexapod.kernels`) and need one or two Pinocchio calls
-(``rnea``, ``computeGeneralizedGravity``, ``crba`` or ``constraintDynamics``) and a 6x6
-solve; the ``*_batch`` methods run the Newton-Euler kernels over N states
-(:mod:`hexapod_pin.hexapod.batch`). Generic tree dynamics: :mod:`hexapod_pin.core.dynamics`.
+The default inverse dynamics ("kkt") of a single state is the compiled closed form in one
+kernel call (:func:`~hexapod_pin.hexapod.kernels.inverse_dynamics_tree`: the tree state,
+the Newton-Euler closed form, the closure forces and the verification of the answer, the
+residual of the platform equation it solved); the other single-state routes build the
+tree state in closed form (the kernels of :mod:`hexapod_pin.hexapod.kernels`) and need one
+or two Pinocchio calls (``rnea``, ``computeGeneralizedGravity``, ``crba`` or
+``constraintDynamics``) and a 6x6 solve; the ``*_batch`` methods run the Newton-Euler
+kernels over N states (:mod:`hexapod_pin.hexapod.batch`). The Pinocchio tree routes
+(:mod:`hexapod_pin.core.dynamics`) are the independent reference the tests compare them
+with; a result's lazy ``residual`` is that of the tree equation of motion on Pinocchio.
 
 Joint and drive effects (``robot.effects``, :mod:`hexapod_pin.core.effects`): the
-single-state routes are generic over every coordinate of the tree. Pinocchio's ``crba`` and
+Pinocchio routes are generic over every coordinate of the tree. Pinocchio's ``crba`` and
 ``rnea`` carry the armature (``model.armature``), and the effects' generalised force
 ``tau_e`` joins the tree force before it is projected with ``G^T`` (``G^T (rnea(q, v, a) -
 tau_e)``: inverse dynamics, statics with the springs; ``h_x = G^T (rnea(q, v, a_0) -
 tau_e)``: reduced and null-space forward dynamics, ``tau_e`` without the friction of the
 coordinates at rest). A coordinate with Coulomb friction at rest makes the "nullspace"
-forward dynamics answer on the tree (its stick / slip solve). The batches run the compiled
-closed form, which carries the carriages' drives; a robot whose passive coordinates
-(universal joints, the platform's free flyer) carry effects runs its batches state by state
-on the single-state routes (the same numbers).
+forward dynamics answer on the tree (its stick / slip solve). The batches and the default
+inverse dynamics run the compiled closed form, which carries the carriages' drives; a
+robot whose passive coordinates (universal joints, the platform's free flyer) carry
+effects answers its inverse dynamics on the Pinocchio route and runs its batches state by
+state on the single-state routes (the same numbers).
 
 The plumbing (bounds, input and method checks, status codes to errors, the batch drivers,
 the lazy parts of results, the energies) is
@@ -41,7 +47,7 @@ from . import kernels
 from . import batch
 from ..core.closed_form import ClosedFormDynamics, Inputs, LazyParts, TreeDetails
 from ..core.closed_loop import ClosedLoopModel
-from ..core.compiled import all_finite
+from ..core.compiled import all_finite, all_within
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                             ForwardDynamicsResult, InverseDynamicsDerivatives,
                             InverseDynamicsResult, ReducedDynamics, SingularityMeasures,
@@ -154,7 +160,9 @@ class HexapodDynamics(ClosedFormDynamics):
     ``(f, m)`` applied on the platform by the environment, world axes, moment about the
     platform origin (N, N m).
 
-    Single states go through the Pinocchio tree. The tree state comes in closed form
+    The default inverse dynamics is the Newton-Euler closed form of the kernels (the
+    batches' kernels), the tree state included, in one compiled call; the other single
+    states go through the Pinocchio tree. The tree state comes in closed form
     (the kernels of :mod:`~hexapod_pin.hexapod.kernels`): ``q`` from the inverse kinematics
     (on the given branch) and the leg directions, ``v = G twist`` and ``a`` from the leg
     kinematics (they keep the closures by construction), the free-flyer part
@@ -162,8 +170,10 @@ class HexapodDynamics(ClosedFormDynamics):
     free-flyer generalised force ``(R^T f, R^T m)``. By virtual power the tree equation
     ``M a + h - tau_ext = S^T tau + J_c^T lambda`` projected with ``G^T`` (``J_c G = 0``,
     ``S G = J``) is ``J^T tau = G^T rnea(q, v, a) - wrench``: one ``pin.rnea`` and a 6x6
-    solve. Batches (``*_batch``) run the Newton-Euler kernels (:mod:`hexapod_pin.hexapod.batch`),
-    independent of ``pin.rnea``; the tests check that both agree to 1e-10.
+    solve (the "qp" inverse dynamics, and "kkt" when passive coordinates carry effects).
+    The Newton-Euler kernels (the default "kkt", the batches ``*_batch``,
+    :mod:`hexapod_pin.hexapod.batch`) are independent of ``pin.rnea``; the tests check
+    that they agree with the Pinocchio tree routes to 1e-10.
     """
 
     dim = 6
@@ -292,9 +302,17 @@ class HexapodDynamics(ClosedFormDynamics):
         """Actuator forces that produce a platform motion (closed-loop inverse dynamics).
 
         Includes the inertia and weight of the platform, legs and carriages. The tree
-        state ``(q, v, a)`` comes in closed form and one ``pin.rnea`` gives the tree's
-        generalised forces; their projection on the platform's motions (virtual power)
-        is ``J^T tau + wrench`` (see the class docstring).
+        state ``(q, v, a)`` comes in closed form. "kkt" (the default) runs the
+        Newton-Euler closed form in the same compiled call
+        (:func:`~hexapod_pin.hexapod.kernels.inverse_dynamics_tree`) and verifies its
+        answer there: the platform equation ``A^T t = rhs`` it solved holds to
+        :data:`~hexapod_pin.core.kernel_status.RESIDUAL_RTOL` (relative, a backward-error
+        test), the forces and closure forces are finite, the type-II test passed, else a
+        :class:`SolverError` / :class:`SingularityError`. "qp" (and "kkt" when passive
+        coordinates carry joint effects) is the Pinocchio tree route: one ``pin.rnea``
+        gives the tree's generalised forces, whose projection on the platform's motions
+        (virtual power) is ``J^T tau + wrench`` (see the class docstring). The result's
+        ``residual`` (first access) is that of the tree equation of motion on Pinocchio.
 
         Args:
             pose: ``(x, y, z, roll, pitch, yaw)`` (m, rad), shape (6,).
@@ -304,7 +322,8 @@ class HexapodDynamics(ClosedFormDynamics):
                 moment about the platform origin (N, N m), (6,); default zero.
             branch: the IK branch of the legs (six +1 / -1, see
                 :meth:`HexapodKinematics.inverse_kinematics`); default the home branch.
-            method: "kkt" (default: the 6x6 LU solve, the bounds then checked) or "qp"
+            method: "kkt" (default: the closed form, its 6x6 LU solve, the bounds then
+                checked) or "qp"
                 (ProxSuite: minimise ``1/2 |tau|^2`` subject to ``J^T tau =
                 G^T rnea - wrench`` and the box bounds, i.e. the tree QP of
                 :func:`inverse_dynamics_tree` with the closure multipliers eliminated by
@@ -329,26 +348,49 @@ class HexapodDynamics(ClosedFormDynamics):
             SingularityError: a leg perpendicular to its rail (type I), a leg along its
                 rail (universal joint in gimbal lock) or a type-II singularity.
             InputError: bad shapes, NaN / inf, unknown method.
-            SolverError: the QP failed for another reason.
+            SolverError: the QP failed for another reason, or the closed form's answer
+                failed its verification.
         """
         self.check_method(method, self.INVERSE_METHODS)
         ws = self._workspace()
-        ck, dyn = ws.compiled, ws.dyn
+        ck = ws.compiled
         signs = ck.signs if branch is None else check_branch(branch)
         # plain float64 inputs are scanned (finite, within MAX_MAGNITUDE) by the kernel
         pose_a, twist_a = vec6_unscanned(pose, "pose"), vec6_unscanned(twist, "twist")
         tdot_a = vec6_unscanned(twist_dot, "twist_dot")
-        wrench_a = None if wrench is None else vec6(wrench, "wrench")
+        wrench_a = None if wrench is None else vec6_unscanned(wrench, "wrench")
         bounds = self.bounds(bounded)
-        q, v, a = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
+        q, v, a = np.empty(25), np.empty(24), np.empty(24)
         s = ck.scratch
+        geo = ck.dynamics_geo
+        if method == "kkt" and not geo[kernels.PASSIVE]:
+            # the closed form (Newton-Euler), verified in the same call
+            tau, closure = np.empty(6), np.empty((6, 3))
+            code = kernels.inverse_dynamics_tree(
+                geo, signs, pose_a, twist_a, tdot_a,
+                kernels.ZERO6 if wrench_a is None else wrench_a, bounds is not None,
+                MAX_MAGNITUDE, q, v, a, tau, closure, s.rot, s.wk, s.mats)
+            if code != kernels.OK:
+                self._refuse_inverse(code, tau, bounds, ((pose, "pose"), (twist, "twist"),
+                                                         (twist_dot, "twist_dot"),
+                                                         (wrench, "wrench")))
+            kept = owned_copy(pose_a, pose)
+            wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
+            # the lazy parts: the residual of the tree equation on Pinocchio (rnea)
+            details = TreeDetails(ws.inverse_parts, (q, v, a), tau, wrench_kept, kept, signs,
+                                  closure=closure, wanted=joint_wrenches)
+            return new_result(InverseDynamicsResult, {
+                "actuator_forces": tau, "configuration": q, "velocity": v,
+                "acceleration": a, "method": method, "status": "solved", "iterations": 0,
+                "_details": details, "_conditioning": self.conditioning(kept, signs)})
         code = kernels.tree_state_within(ck.geo, signs, pose_a, twist_a, tdot_a, 2, q, v, a,
                                          s.rot, s.wk, MAX_MAGNITUDE)
-        if code != kernels.OK or (wrench_a is not None and not all_finite(wrench_a)):
+        if code != kernels.OK or (wrench_a is not None
+                                  and not all_within(wrench_a, MAX_MAGNITUDE)):
             self.refuse(code, ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot"),
                                (wrench, "wrench")))
         force = self._tree_force(ws, q, v, a)
-        tau, status, iters, rhs = self._solve_tree(ws, force, wrench_a, method, bounds)
+        tau, status, iters, _ = self._solve_tree(ws, force, wrench_a, method, bounds)
         kept = owned_copy(pose_a, pose)
         wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
         # the lazy parts (ws.inverse_parts): the closure forces from the legs' tree rows
@@ -358,6 +400,22 @@ class HexapodDynamics(ClosedFormDynamics):
             "actuator_forces": tau, "configuration": q, "velocity": v, "acceleration": a,
             "method": method, "status": status, "iterations": iters, "_details": details,
             "_conditioning": self.conditioning(kept, signs)})
+
+    def _refuse_inverse(self, code: int, tau: np.ndarray, bounds: np.ndarray | None,
+                        inputs: Inputs) -> NoReturn:
+        """Raise the error of a refused closed-form inverse dynamics (``code`` not OK):
+        saturation (the needed forces ``tau``), an answer that failed its verification
+        (:class:`SolverError` with the platform equation's residual), else
+        :meth:`refuse` (a malformed input by name, or the pose's error)."""
+        if code == kernels.SATURATED:
+            raise ActuatorSaturationError(tau, bounds)
+        if code == kernels.RESIDUAL:
+            wk = self._workspace().compiled.scratch.wk
+            raise SolverError("hexapod closed-form inverse dynamics", "unverified",
+                              f"platform equation A^T t = rhs off by "
+                              f"{kernels.platform_residual(wk):.3e} (N, N m), forces "
+                              f"{tau.tolist()}")
+        self.refuse(code, inputs)
 
     # -- the lazy parts of results (ws.inverse_parts, ws.forward_parts: core.closed_form) ----
     def _tree_wrench(self, details: TreeDetails) -> np.ndarray:

@@ -1,7 +1,10 @@
 """The single-state fast path of the hexapod's inverse and forward dynamics (issue 32 item 3):
-inputs scanned by the kernel, project + solve + the bound test in one call, results built
-without the dataclass ``__init__``, the result check four vectors to a compiled call. Each
-check here compares the fast path with the route it replaces (or with the exact check)."""
+inputs scanned by the kernel, the default inverse dynamics as the compiled closed form in
+one call (tree state, Newton-Euler, closure forces, the verification of its answer, the
+bound test; no Pinocchio call), results built without the dataclass ``__init__``, the
+result check four vectors to a compiled call. Each check here compares the fast path with
+the route it replaces (or with the exact check); the closed form's agreement with the
+Pinocchio tree routes is tests/hexapod/test_tree_map.py's."""
 
 from __future__ import annotations
 
@@ -9,11 +12,13 @@ import dataclasses
 import math
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 import hexapod_pin as hp
-from hexapod_pin.core.checks import check_finite_result
+from hexapod_pin.core.checks import MAX_MAGNITUDE, check_finite_result
 from hexapod_pin.core.results import new_result
+from hexapod_pin.hexapod import kernels
 
 POSE = np.array([0.01, -0.02, 0.34, 0.05, -0.03, 0.1])
 TWIST = np.array([0.05, 0.02, -0.01, 0.1, -0.2, 0.05])
@@ -146,3 +151,70 @@ def test_the_result_type_fast_path_finds_every_bad_field(robot, field, bad):
     with pytest.raises(hp.NonFiniteResultError, match=field):
         check_finite_result("f", broken)
     assert check_finite_result("f", res) is res
+
+
+# -- the default inverse dynamics: the closed form, verified in its own call ------------------
+def _closed_form_state(robot, wrench=kernels.ZERO6):
+    """The closed-form kernel at (POSE, TWIST, TWIST_DOT): its outputs and scratch."""
+    ck = robot.dynamics.closed_form
+    q, v, a = np.empty(25), np.empty(24), np.empty(24)
+    tau, closure = np.empty(6), np.empty((6, 3))
+    rot, wk, mats = np.empty(9), np.zeros((kernels.WK_ROWS, 6)), np.empty((kernels.N_MATS, 6, 6))
+    code = kernels.inverse_dynamics_tree(ck.dynamics_geo, ck.signs, POSE, TWIST, TWIST_DOT,
+                                         wrench, False, MAX_MAGNITUDE, q, v, a, tau, closure,
+                                         rot, wk, mats)
+    return code, ck.dynamics_geo, wk, tau, closure
+
+
+def test_the_default_route_calls_no_pinocchio_dynamics(robot, monkeypatch):
+    """"kkt" answers without ``pin.rnea`` (the closed form); its lazy residual, "qp" and
+    the tree route use it (the reference stays Pinocchio's)."""
+    want = robot.inverse_dynamics(POSE, TWIST, TWIST_DOT)
+    calls = []
+    rnea = pin.rnea
+
+    def counted(*args):
+        calls.append(len(args))
+        return rnea(*args)
+
+    monkeypatch.setattr(pin, "rnea", counted)
+    res = robot.inverse_dynamics(POSE, TWIST, TWIST_DOT)
+    assert calls == [] and np.array_equal(res.actuator_forces, want.actuator_forces)
+    assert res.residual < 1e-10 and len(calls) == 1           # the tree equation, on access
+    robot.inverse_dynamics(POSE, TWIST, TWIST_DOT, method="qp")
+    assert len(calls) == 2
+
+
+def test_the_closed_form_verification_catches_a_corrupted_answer(robot):
+    """The check run inside the kernel (the residual of the platform equation ``A^T t =
+    rhs`` relative to its data, finite forces and closure forces) passes the computed
+    answer and fails each corruption: an axial force off by 1e-7 relative, a NaN force, a
+    NaN closure force."""
+    code, geo, wk, tau, closure = _closed_form_state(robot, np.array([1.0, -2, 3, 0.1, 0, 0.2]))
+    assert code == kernels.OK and kernels.inverse_verified(geo, wk, tau, closure)
+    for corrupt in ("axial", "tau", "closure"):
+        wk2, tau2, closure2 = wk.copy(), tau.copy(), closure.copy()
+        if corrupt == "axial":
+            wk2[kernels.AXIAL, 3] *= 1.0 + 1e-7
+        elif corrupt == "tau":
+            tau2[2] = math.nan
+        else:
+            closure2[4, 1] = math.nan
+        assert not kernels.inverse_verified(geo, wk2, tau2, closure2), corrupt
+
+
+def test_an_unverified_closed_form_answer_is_a_typed_error(robot, monkeypatch):
+    """A kernel that refuses its answer (RESIDUAL) reaches the caller as a SolverError that
+    gives the residual and the forces; no result is returned."""
+    real = kernels.inverse_dynamics_tree
+
+    def corrupted(*args):
+        code = real(*args)
+        wk = args[-2]
+        wk[kernels.AXIAL, 0] += 1.0                 # as a wrong solve would leave it
+        assert not kernels.inverse_verified(args[0], wk, args[11], args[12])
+        return kernels.RESIDUAL if code == kernels.OK else code
+
+    monkeypatch.setattr(kernels, "inverse_dynamics_tree", corrupted)
+    with pytest.raises(hp.SolverError, match=r"A\^T t = rhs off by .*forces"):
+        robot.inverse_dynamics(POSE, TWIST, TWIST_DOT)
