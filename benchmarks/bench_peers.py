@@ -32,6 +32,7 @@ import argparse  # noqa: E402
 import dataclasses  # noqa: E402
 import sys  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
+from functools import partial  # noqa: E402
 from typing import Callable  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -665,6 +666,70 @@ def single_call(peers: HexapodPeers, repeats: int) -> str:
     return table(["one call, random states", "us per call", "/ MuJoCo bare call"], rows,
                  title="## Single-call overhead: the facade against MuJoCo's bare calls")
 
+def _cycled(call: Callable[[object], object], items: list) -> Callable[[], object]:
+    """A zero-argument function calling ``call`` on the next item of ``items``, cycling."""
+    counter = iter(range(10 ** 12))
+    return lambda: call(items[next(counter) % len(items)])
+
+
+def _ratio(ours: Timing, peer: Timing | None) -> str:
+    return "" if peer is None else f"{ours.median / peer.median:.2f}"
+
+
+def single_call_robots(repeats: int, n_states: int = 64) -> str:
+    """The same single-call comparison for the planar 3-PRR (its compiled closed form) and
+    robots loaded from descriptions (``hp.ClosedLoopRobot``: the tree routes): each
+    against MuJoCo's bare ``mj_inverse`` / ``mj_forward`` on its exported twin
+    (:func:`hexapod_pin.core.mujoco_export.to_mujoco`, tree state set beforehand, as in
+    :func:`single_call`). States: :func:`bench_robots.states` (regular, near home), cycled;
+    a loaded robot solves its configuration in every call (the last one is no help)."""
+    import bench_robots
+
+    from hexapod_pin.core.mujoco_export import mujoco_state, to_mujoco
+
+    hexapod = hp.Hexapod.default()
+    data = bench_robots.DATA
+    robots = {
+        "planar 3-PRR (closed form)": hp.Planar3PRR.default(),
+        "hexapod loaded (ClosedLoopRobot on its tree)": hp.ClosedLoopRobot(
+            hexapod.model, "platform", home=hexapod.home_configuration),
+        "Stewart 6-UPS (hp.load_robot)": hp.load_robot(data / "stewart" / "stewart.urdf"),
+    }
+    rows = []
+    for name, robot in robots.items():
+        states = bench_robots.states(robot, n_states)
+        inv = [robot.inverse_dynamics(p, t, a, bounded=False) for p, t, a in states]
+        taus = [r.actuator_forces for r in inv]
+        mj_inv = mj_fwd = None
+        if mujoco is not None:
+            try:
+                model = to_mujoco(robot.model)
+            except hp.InputError:
+                model = None
+            if model is not None:
+                datas = []
+                for r, u in zip(inv, taus):
+                    d = mujoco.MjData(model)
+                    st = mujoco_state(robot.model, r.configuration, r.velocity, r.acceleration)
+                    d.qpos[:], d.qvel[:], d.qacc[:], d.ctrl[:] = st.qpos, st.qvel, st.qacc, u
+                    datas.append(d)
+                mj_inv = measure(_cycled(partial(mujoco.mj_inverse, model), datas),
+                                 repeats=repeats)
+                mj_fwd = measure(_cycled(partial(mujoco.mj_forward, model), datas),
+                                 repeats=repeats)
+        ours_inv = measure(_cycled(lambda s, r=robot: r.inverse_dynamics(*s, bounded=False),
+                                   states), repeats=repeats)
+        ours_fwd = measure(_cycled(lambda s, r=robot: r.forward_dynamics(*s),
+                                   [(p, t, u) for (p, t, _), u in zip(states, taus)]),
+                           repeats=repeats)
+        rows.append([name, fmt_us(ours_inv), fmt_us(mj_inv), _ratio(ours_inv, mj_inv),
+                     fmt_us(ours_fwd), fmt_us(mj_fwd), _ratio(ours_fwd, mj_fwd)])
+    return table(["robot", "ours inverse_dynamics", "MuJoCo mj_inverse (bare)", "ratio",
+                  "ours forward_dynamics", "MuJoCo mj_forward (bare)", "ratio"], rows,
+                 title="## Single-call overhead of the other robots: the facade (defaults, "
+                       "bounded=False) against MuJoCo's bare calls on the exported twin")
+
+
 # -- simulation throughput ------------------------------------------------------------------
 def simulation_throughput(peers: HexapodPeers, repeats: int, steps: int = 200) -> str:
     """Microseconds per step of a run of ``steps`` steps at dt = 1 ms from one state."""
@@ -892,6 +957,7 @@ def main(argv=None) -> int:
             peers.p, platform_mass=peers.p.platform_mass * (1 + args.perturb_numpy_mass))
     if args.single_call:
         print(single_call(peers, args.repeats))
+        print(single_call_robots(args.repeats))
         return 0
     failures = []
     if peers.mj is not None:
