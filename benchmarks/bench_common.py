@@ -56,6 +56,29 @@ def measure(fn, repeats: int = 7, min_sample: float | None = None) -> Timing:
                   float(np.percentile(s, 75)), repeats, k)
 
 
+def measure_interleaved(fns, repeats: int = 7, min_sample: float | None = None) -> list[Timing]:
+    """:func:`measure` of several functions with their samples interleaved (sample 1 of
+    each, then sample 2 of each, ...): on a shared machine a change of load hits every
+    function alike, so that their ratios hold even when the absolute times drift."""
+    if min_sample is None:
+        min_sample = MIN_SAMPLE["seconds"]
+    counts = []
+    for fn in fns:
+        fn()
+        t0 = time.perf_counter()
+        fn()
+        counts.append(max(1, int(min_sample / max(time.perf_counter() - t0, 1e-9))))
+    samples: list[list[float]] = [[] for _ in fns]
+    for _ in range(repeats):
+        for fn, k, out in zip(fns, counts, samples):
+            t0 = time.perf_counter()
+            for _ in range(k):
+                fn()
+            out.append((time.perf_counter() - t0) / k)
+    return [Timing(float(np.median(s)), float(np.percentile(s, 25)),
+                   float(np.percentile(s, 75)), repeats, k) for s, k in zip(samples, counts)]
+
+
 def first_call_seconds(fn) -> float:
     t0 = time.perf_counter()
     fn()

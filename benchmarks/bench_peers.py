@@ -43,7 +43,8 @@ import hexapod_pin.core.dynamics as hpd  # noqa: E402
 import numpy_hexapod as nh  # noqa: E402
 import pinocchio_raw as pr  # noqa: E402
 from bench_common import (MIN_SAMPLE, NO_ROUTE, NOT_IMPLEMENTED, States, Timing, fmt_us,  # noqa: E402
-                          measure, peak_memory, print_machine_info, random_states, table)
+                          measure, measure_interleaved, peak_memory, print_machine_info,
+                          random_states, table)
 
 try:
     import mujoco
@@ -658,9 +659,10 @@ def single_call(peers: HexapodPeers, repeats: int) -> str:
                  ("MuJoCo mj_forward (bare, tree state set)", "forward",
                   lambda i: mujoco.mj_forward(m, datas[i]))] + items
     rows = []
-    for name, kind, fn in items:
-        counter = iter(range(10 ** 12))
-        t = measure(lambda: fn(next(counter) % pool), repeats=repeats)
+    # samples interleaved: a change of load hits ours and MuJoCo's alike (the ratios hold)
+    timings = measure_interleaved([_cycled(fn, list(range(pool))) for _, _, fn in items],
+                                  repeats=repeats)
+    for (name, kind, _), t in zip(items, timings):
         base.setdefault(kind, t.median)
         rows.append([name, fmt_us(t), f"{t.median / base[kind]:.2f}"])
     return table(["one call, random states", "us per call", "/ MuJoCo bare call"], rows,
@@ -701,6 +703,7 @@ def single_call_robots(repeats: int, n_states: int = 64) -> str:
         inv = [robot.inverse_dynamics(p, t, a, bounded=False) for p, t, a in states]
         taus = [r.actuator_forces for r in inv]
         mj_inv = mj_fwd = None
+        mj_calls: list = []
         if mujoco is not None:
             try:
                 model = to_mujoco(robot.model)
@@ -713,15 +716,16 @@ def single_call_robots(repeats: int, n_states: int = 64) -> str:
                     st = mujoco_state(robot.model, r.configuration, r.velocity, r.acceleration)
                     d.qpos[:], d.qvel[:], d.qacc[:], d.ctrl[:] = st.qpos, st.qvel, st.qacc, u
                     datas.append(d)
-                mj_inv = measure(_cycled(partial(mujoco.mj_inverse, model), datas),
-                                 repeats=repeats)
-                mj_fwd = measure(_cycled(partial(mujoco.mj_forward, model), datas),
-                                 repeats=repeats)
-        ours_inv = measure(_cycled(lambda s, r=robot: r.inverse_dynamics(*s, bounded=False),
-                                   states), repeats=repeats)
-        ours_fwd = measure(_cycled(lambda s, r=robot: r.forward_dynamics(*s),
-                                   [(p, t, u) for (p, t, _), u in zip(states, taus)]),
-                           repeats=repeats)
+                mj_calls = [_cycled(partial(mujoco.mj_inverse, model), datas),
+                            _cycled(partial(mujoco.mj_forward, model), datas)]
+        calls = [_cycled(lambda s, r=robot: r.inverse_dynamics(*s, bounded=False), states),
+                 _cycled(lambda s, r=robot: r.forward_dynamics(*s),
+                         [(p, t, u) for (p, t, _), u in zip(states, taus)])]
+        if mj_calls:
+            ours_inv, ours_fwd, mj_inv, mj_fwd = measure_interleaved(calls + mj_calls,
+                                                                     repeats=repeats)
+        else:
+            ours_inv, ours_fwd = measure_interleaved(calls, repeats=repeats)
         rows.append([name, fmt_us(ours_inv), fmt_us(mj_inv), _ratio(ours_inv, mj_inv),
                      fmt_us(ours_fwd), fmt_us(mj_fwd), _ratio(ours_fwd, mj_fwd)])
     return table(["robot", "ours inverse_dynamics", "MuJoCo mj_inverse (bare)", "ratio",

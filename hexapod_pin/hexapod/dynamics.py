@@ -323,8 +323,7 @@ class HexapodDynamics(ClosedFormDynamics):
             branch: the IK branch of the legs (six +1 / -1, see
                 :meth:`HexapodKinematics.inverse_kinematics`); default the home branch.
             method: "kkt" (default: the closed form, its 6x6 LU solve, the bounds then
-                checked) or "qp"
-                (ProxSuite: minimise ``1/2 |tau|^2`` subject to ``J^T tau =
+                checked) or "qp" (ProxSuite: minimise ``1/2 |tau|^2`` subject to ``J^T tau =
                 G^T rnea - wrench`` and the box bounds, i.e. the tree QP of
                 :func:`inverse_dynamics_tree` with the closure multipliers eliminated by
                 ``G^T``); they agree to 1e-10 when no bound
@@ -371,9 +370,11 @@ class HexapodDynamics(ClosedFormDynamics):
                 kernels.ZERO6 if wrench_a is None else wrench_a, bounds is not None,
                 MAX_MAGNITUDE, q, v, a, tau, closure, s.rot, s.wk, s.mats)
             if code != kernels.OK:
-                self._refuse_inverse(code, tau, bounds, ((pose, "pose"), (twist, "twist"),
-                                                         (twist_dot, "twist_dot"),
-                                                         (wrench, "wrench")))
+                self._refuse_inverse(code, (v, a, tau, closure), bounds,
+                                     ((pose, "pose"), (twist, "twist"),
+                                      (twist_dot, "twist_dot"), (wrench, "wrench")),
+                                     ((twist_a, "twist"), (tdot_a, "twist_dot"),
+                                      (wrench_a, "wrench")))
             kept = owned_copy(pose_a, pose)
             wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
             # the lazy parts: the residual of the tree equation on Pinocchio (rnea)
@@ -401,15 +402,22 @@ class HexapodDynamics(ClosedFormDynamics):
             "method": method, "status": status, "iterations": iters, "_details": details,
             "_conditioning": self.conditioning(kept, signs)})
 
-    def _refuse_inverse(self, code: int, tau: np.ndarray, bounds: np.ndarray | None,
-                        inputs: Inputs) -> NoReturn:
-        """Raise the error of a refused closed-form inverse dynamics (``code`` not OK):
-        saturation (the needed forces ``tau``), an answer that failed its verification
-        (:class:`SolverError` with the platform equation's residual), else
-        :meth:`refuse` (a malformed input by name, or the pose's error)."""
+    def _refuse_inverse(self, code: int, state: tuple[np.ndarray, ...],
+                        bounds: np.ndarray | None, inputs: Inputs,
+                        motion: tuple[tuple[np.ndarray | None, str], ...]) -> NoReturn:
+        """Raise the error of a refused closed-form inverse dynamics (``code`` not OK;
+        ``state``: its ``(v, a, tau, closure)``): saturation (the needed forces), finite
+        inputs whose motion overflowed (:meth:`overflow`, naming the input of ``motion``),
+        an answer that failed its verification (:class:`SolverError` with the platform
+        equation's residual), else :meth:`refuse` (a malformed input by name, or the
+        pose's error)."""
+        v, a, tau, closure = state
         if code == kernels.SATURATED:
             raise ActuatorSaturationError(tau, bounds)
         if code == kernels.RESIDUAL:
+            if not (all_finite(v) and all_finite(a) and all_finite(tau)
+                    and all_finite(closure.reshape(-1))):
+                raise self.overflow(motion, all_finite(v))
             wk = self._workspace().compiled.scratch.wk
             raise SolverError("hexapod closed-form inverse dynamics", "unverified",
                               f"platform equation A^T t = rhs off by "

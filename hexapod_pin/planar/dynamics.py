@@ -52,7 +52,7 @@ from ..core.effects_projection import (PASSIVE_STATUS, passive_effect_coordinate
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                             ComputedDetails, ForwardDynamicsResult, InverseDynamicsResult,
                             ReducedDynamics, SingularityMeasures, new_result)
-from ..errors import InputError, SolverError
+from ..errors import SolverError
 from . import kernels
 from .geometry import N_ACTUATORS, PlanarGeometry
 from .kinematics import PlanarKinematics, PlanarWorkspace, vec3
@@ -256,14 +256,8 @@ class PlanarDynamics(ClosedFormDynamics):
         if status in (kernels.NONFINITE, kernels.UNREACHABLE, kernels.TYPE_I, kernels.TYPE_II):
             self.refuse(status, inputs)
         if not (all_finite(v) and all_finite(a)):
-            # finite inputs whose products overflow (a twist of 1e160): name the user's
-            # argument, not the tree state it overflowed in
-            name, value = max(((twist_a, "twist"), (twist_dot_a, "twist_dot")),
-                              key=lambda pair: max_abs(pair[0]))[::-1]
-            if not all_finite(v):
-                name, value = "twist", twist
-            raise InputError(name, value, "too large: the motion's tree velocities or "
-                             "accelerations overflow double precision")
+            raise self.overflow(((twist_a, "twist"), (twist_dot_a, "twist_dot")),
+                                all_finite(v))
         bounds = self.bounds(bounded)
         wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
         conditioning = self.conditioning(owned_copy(pose_a, pose), signs)

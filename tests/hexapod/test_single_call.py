@@ -218,3 +218,25 @@ def test_an_unverified_closed_form_answer_is_a_typed_error(robot, monkeypatch):
     monkeypatch.setattr(kernels, "inverse_dynamics_tree", corrupted)
     with pytest.raises(hp.SolverError, match=r"A\^T t = rhs off by .*forces"):
         robot.inverse_dynamics(POSE, TWIST, TWIST_DOT)
+
+
+@pytest.mark.parametrize("where", ["velocity", "acceleration"])
+def test_a_motion_that_overflows_names_the_input(robot, monkeypatch, where):
+    """Finite inputs whose motion overflows double precision in the closed form (reachable
+    only near the singularities with inputs up to MAX_MAGNITUDE: planted here) fail its
+    verification and are refused naming the argument: ``twist`` for an overflowed tree
+    velocity, else the largest motion input; no NaN in the message."""
+    real = kernels.inverse_dynamics_tree
+
+    def overflowed(*args):
+        real(*args)
+        args[9 if where == "velocity" else 10][3] = math.inf      # v or a
+        args[11][2] = math.nan                                     # tau
+        return kernels.RESIDUAL
+
+    monkeypatch.setattr(kernels, "inverse_dynamics_tree", overflowed)
+    big = TWIST_DOT * 1e6
+    with pytest.raises(hp.InputError, match="overflow") as info:
+        robot.inverse_dynamics(POSE, TWIST, big, bounded=False)
+    assert info.value.name == ("twist" if where == "velocity" else "twist_dot")
+    assert "nan" not in str(info.value).lower()
