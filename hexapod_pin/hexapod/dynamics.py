@@ -412,7 +412,7 @@ class HexapodDynamics(ClosedFormDynamics):
         equation's residual), else :meth:`refuse` (a malformed input by name, or the
         pose's error)."""
         v, a, tau, closure = state
-        if code == kernels.SATURATED:
+        if code == kernels.SATURATED and bounds is not None:
             raise ActuatorSaturationError(tau, bounds)
         if code == kernels.RESIDUAL:
             if not (all_finite(v) and all_finite(a) and all_finite(tau)
