@@ -282,10 +282,7 @@ def solve_checked_square(mat: np.ndarray, rhs: npt.ArrayLike, what: str) -> np.n
         InconsistentMotionError: the solve misses (a singular ``mat``).
     """
     rhs = np.asarray(rhs, dtype=float)
-    try:
-        x = np.linalg.solve(mat, rhs)
-    except np.linalg.LinAlgError:
-        raise InconsistentMotionError(what, float("inf")) from None
+    x = _solve(mat, rhs, what)
     if not rhs.size:
         return x
     scale = max(1.0, float(np.abs(rhs).max()),
@@ -296,6 +293,14 @@ def solve_checked_square(mat: np.ndarray, rhs: npt.ArrayLike, what: str) -> np.n
     return x
 
 
+def _solve(mat: np.ndarray, rhs: np.ndarray, what: str) -> np.ndarray:
+    """``np.linalg.solve``; an exactly singular ``mat`` is an InconsistentMotionError."""
+    try:
+        return np.linalg.solve(mat, rhs)
+    except np.linalg.LinAlgError:
+        raise InconsistentMotionError(what, float("inf")) from None
+
+
 def solve_checked_columns(mat: np.ndarray, rhs: np.ndarray, what: str) -> np.ndarray:
     """:func:`solve_checked_square` of several right-hand sides (the columns of ``rhs``
     (n, k)) with one factorisation, each column verified on its own (as its own call
@@ -304,10 +309,7 @@ def solve_checked_columns(mat: np.ndarray, rhs: np.ndarray, what: str) -> np.nda
     Raises:
         InconsistentMotionError: a column's solve misses (a singular ``mat``).
     """
-    try:
-        x = np.linalg.solve(mat, rhs)
-    except np.linalg.LinAlgError:
-        raise InconsistentMotionError(what, float("inf")) from None
+    x = _solve(mat, rhs, what)
     if not rhs.size:
         return x
     scale = np.maximum(np.maximum(1.0, np.abs(rhs).max(axis=0)),
