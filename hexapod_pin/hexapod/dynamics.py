@@ -3,7 +3,10 @@
 The default inverse dynamics ("kkt") of a single state is the compiled closed form in one
 kernel call (:func:`~hexapod_pin.hexapod.kernels.inverse_dynamics_tree`: the tree state,
 the Newton-Euler closed form, the closure forces and the verification of the answer, the
-residual of the platform equation it solved); the other single-state routes build the
+residual of the platform equation it solved), and so is the default forward dynamics
+("nullspace") of a robot whose joints carry no effect force
+(:func:`~hexapod_pin.hexapod.kernels.forward_dynamics_tree`); the other single-state
+routes build the
 tree state in closed form (the kernels of :mod:`hexapod_pin.hexapod.kernels`) and need one
 or two Pinocchio calls (``rnea``, ``computeGeneralizedGravity``, ``crba`` or
 ``constraintDynamics``) and a 6x6 solve; the ``*_batch`` methods run the Newton-Euler
@@ -234,7 +237,8 @@ class HexapodDynamics(ClosedFormDynamics):
                                      closure=self._tip_closure,
                                      to_multipliers=self._closure_rows,
                                      fext=self._platform_force)
-        ws.forward_parts = LazyParts(dyn, self.lock, to_closure=self._leg_closure)
+        ws.forward_parts = LazyParts(dyn, self.lock, to_multipliers=self._closure_rows,
+                                     to_closure=self._leg_closure)
         home_q, _ = self.tree_state(self.geometry.home_pose, np.zeros(6), ws=ws)
         dyn.closure_rank(home_q)
         kernels.check_mass_structure(pin.crba(dyn.model, dyn.data, home_q))
@@ -618,10 +622,16 @@ class HexapodDynamics(ClosedFormDynamics):
 
         The tree state ``(q, v)`` comes in closed form (compiled,
         :mod:`~hexapod_pin.hexapod.kernels`). "nullspace" (default) is the
-        independent-coordinate method: ``M_x twist_dot = J^T tau + wrench - h_x`` with
-        ``M_x = G^T M G`` (``pin.crba``) and ``h_x = G^T rnea(q, v, a_0)``, one 6x6
-        Cholesky solve, then ``a = G twist_dot + a_0`` (closure multipliers from the
-        legs' tree rows, on first access). The other routes solve the constrained tree
+        independent-coordinate method: ``M_x twist_dot = J^T tau + wrench - h_x``, one 6x6
+        Cholesky solve, then ``a = G twist_dot + a_0``. For a robot whose joints carry no
+        effect force (damping, friction, springs; an armature on the carriages is held)
+        ``M_x`` and ``h_x`` are the Newton-Euler closed form's, in one compiled call that
+        verifies its answer (:func:`~hexapod_pin.hexapod.kernels.forward_dynamics_tree`:
+        the residual of the equation it solved relative to its data, a finite answer;
+        else a :class:`SolverError`), the closure forces from the legs' balance; otherwise
+        ``M_x = G^T M G`` (``pin.crba``) and ``h_x = G^T (rnea(q, v, a_0) - tau_e)``
+        (closure multipliers from the legs' tree rows, on first access). The other
+        routes solve the constrained tree
         for ``a`` and return ``twist_dot = (R a_lin + w x v, R a_ang)``. The joint effects
         enter every route (the module docstring); with Coulomb friction at rest
         "nullspace" answers with the tree's stick / slip solve ("kkt", said in the status).
@@ -647,12 +657,19 @@ class HexapodDynamics(ClosedFormDynamics):
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
         signs = ck.signs if branch is None else check_branch(branch)
-        # plain float64 pose and twist are scanned (finite, within MAX_MAGNITUDE) by the kernel
+        # plain float64 inputs are scanned (finite, within MAX_MAGNITUDE) by the kernels
         pose_a, twist_a = vec6_unscanned(pose, "pose"), vec6_unscanned(twist, "twist")
-        tau_a = vec6(actuator_forces, "actuator_forces")
-        wrench_a = None if wrench is None else vec6(wrench, "wrench")
+        tau_a = vec6_unscanned(actuator_forces, "actuator_forces")
+        wrench_a = None if wrench is None else vec6_unscanned(wrench, "wrench")
         inputs = ((pose, "pose"), (twist, "twist"), (actuator_forces, "actuator_forces"),
                   (wrench, "wrench"))
+        geo = ck.dynamics_geo
+        if method == "nullspace" and not ws.forces and not geo[kernels.PASSIVE]:
+            return self._closed_form_forward(ws, geo, signs, pose_a, twist_a, tau_a,
+                                             wrench_a, inputs, pose, actuator_forces)
+        if not all_within(tau_a, MAX_MAGNITUDE) or (
+                wrench_a is not None and not all_within(wrench_a, MAX_MAGNITUDE)):
+            self.refuse(kernels.NONFINITE, inputs)
         q, v, acc0 = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
         # the drift a_0 (tree acceleration at twist_dot = 0) only for the null-space route
         level = 2 if method == "nullspace" else 1
@@ -690,8 +707,6 @@ class HexapodDynamics(ClosedFormDynamics):
                 "twist_dot": twist_dot, "actuator_accelerations": acc[self.indices.carriage_v],
                 "tree_acceleration": acc, "method": method, "status": "solved", "iterations": 0,
                 "_details": details, "_conditioning": self.conditioning(lazy.pose, signs)})
-        if not all_finite(tau_a) or (wrench_a is not None and not all_finite(wrench_a)):
-            self.refuse(kernels.NONFINITE, inputs)
         tau = np.zeros(dyn.nv)
         tau[dyn.clm.actuated_v] = tau_a
         if wrench_a is not None:
@@ -714,6 +729,41 @@ class HexapodDynamics(ClosedFormDynamics):
         return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                      status, iters, details,
                                      self.conditioning(owned_copy(pose_a, pose), signs))
+
+    def _closed_form_forward(self, ws, geo, signs, pose_a, twist_a, tau_a, wrench_a, inputs,
+                             pose, actuator_forces) -> ForwardDynamicsResult:
+        """The "nullspace" forward dynamics of a robot whose joints carry no effect force:
+        the reduced closed form in one compiled call
+        (:func:`~hexapod_pin.hexapod.kernels.forward_dynamics_tree`, verified there: the
+        residual of ``M_x twist_dot = J^T tau + wrench - h_x`` it solved, finite answers),
+        the closure forces from the legs' Newton-Euler balance."""
+        s = ws.compiled.scratch
+        q, v, acc = np.empty(25), np.empty(24), np.empty(24)
+        twist_dot, closure = np.empty(6), np.empty((6, 3))
+        code = kernels.forward_dynamics_tree(
+            geo, signs, pose_a, twist_a, tau_a, kernels.ZERO6 if wrench_a is None else wrench_a,
+            MAX_MAGNITUDE, q, v, acc, twist_dot, closure, s.rot, s.wk, s.mats)
+        if code == kernels.NOT_PD:
+            raise SolverError("null-space forward dynamics", "mass matrix not positive "
+                              "definite", f"M_x = {s.mats[2].tolist()}")
+        if code == kernels.RESIDUAL:
+            if not (all_finite(v) and all_finite(twist_dot)):
+                raise self.overflow(((twist_a, "twist"), (tau_a, "actuator_forces"),
+                                     (wrench_a, "wrench")), all_finite(v))
+            raise SolverError("null-space forward dynamics", "unverified",
+                              f"M_x twist_dot = J^T tau + wrench - h_x missed, twist_dot "
+                              f"{twist_dot.tolist()}")
+        if code != kernels.OK:
+            self.refuse(code, inputs)
+        kept = owned_copy(pose_a, pose)
+        # the multipliers on first access (ws.forward_parts)
+        details = TreeDetails(ws.forward_parts, (q, v, acc), owned_copy(tau_a, actuator_forces),
+                              closure=closure)
+        return new_result(ForwardDynamicsResult, {
+            "twist_dot": twist_dot, "actuator_accelerations": acc[self.indices.carriage_v],
+            "tree_acceleration": acc, "method": "nullspace", "status": "solved",
+            "iterations": 0, "_details": details, "_conditioning": self.conditioning(kept,
+                                                                                  signs)})
 
     # -- reduced (null-space) dynamics ------------------------------------------------------
     def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,

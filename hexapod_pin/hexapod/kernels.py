@@ -1017,6 +1017,59 @@ def forward_dynamics(geo, signs, pose, twist, forces, wrench, twist_dot, qddot, 
 
 
 @jit
+def forward_verified(wk, mats, twist_dot):
+    """Whether a forward-dynamics answer of :func:`forward_core` (its Cholesky solve, no
+    carriage at rest with friction) passes its checks: the equation it solved, ``M_x
+    twist_dot = J^T tau + wrench - h_x`` (``mats[2]``, wk[RHS0]), holds to
+    :data:`~hexapod_pin.core.kernel_status.RESIDUAL_RTOL` relative to its data
+    (``max(1, |rhs|, |M_x| |twist_dot|)``: a backward-error test), and ``twist_dot`` is
+    finite (False for any NaN)."""
+    mass, rhs = mats[2], wk[RHS0]
+    big_m, big_x, scale, worst = 0.0, 0.0, 1.0, 0.0
+    for r in range(6):
+        if not math.isfinite(twist_dot[r]):
+            return False
+        big_x = max(big_x, abs(twist_dot[r]))
+        scale = max(scale, abs(rhs[r]))
+        acc = -rhs[r]
+        for c in range(6):
+            big_m = max(big_m, abs(mass[r, c]))
+            acc += mass[r, c] * twist_dot[c]
+        worst = max(worst, abs(acc))
+    return worst <= RESIDUAL_RTOL * max(scale, big_m * big_x)
+
+
+@jit
+def forward_dynamics_tree(geo, signs, pose, twist, forces, wrench, limit, q, v, a, twist_dot,
+                          closure, rot, wk, mats):
+    """The single-state forward dynamics in one call: the tree state ``q`` (25,), ``v``
+    (24,) (:func:`tree_state_within`: the four inputs, passed unscanned, refused beyond
+    ``limit`` or NaN / inf as NONFINITE), the reduced closed form (:func:`forward_core`:
+    ``twist_dot`` (6,)), its verification (:func:`forward_verified`: RESIDUAL when it
+    fails), the closure forces (6, 3) ON the platform (:func:`forward_closure_forces`) and
+    the tree acceleration ``a`` (24,) of ``twist_dot``. For a robot whose carriages carry
+    no effect force (damping, friction, springs; an armature is inertia: held). Returns
+    the first status that is not OK (NOT_PD: ``M_x`` not positive definite), else OK."""
+    if not (all_within(forces, limit) and all_within(wrench, limit)):
+        return NONFINITE
+    code = tree_state_within(geo, signs, pose, twist, ZERO6, 2, q, v, a, rot, wk, limit)
+    if code != OK:
+        return code
+    code = forward_core(geo, rot, twist, forces, wrench, wk, mats, twist_dot)
+    if code != OK:
+        return code
+    if not forward_verified(wk, mats, twist_dot):
+        return RESIDUAL
+    forward_closure_forces(geo, wk, twist_dot, forces, closure)
+    tree_acceleration(geo, rot, wk, twist, twist_dot, v, a)
+    for i in range(6):
+        if not (math.isfinite(closure[i, 0]) and math.isfinite(closure[i, 1])
+                and math.isfinite(closure[i, 2])):
+            return RESIDUAL
+    return OK
+
+
+@jit
 def forward_closure_forces(geo, wk, twist_dot, forces, out):
     """Closure forces (6, 3) ON the platform of a forward-dynamics answer (after
     :func:`forward_dynamics`): the end loads at the motion and the axial forces ``t_i =

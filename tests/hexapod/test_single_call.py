@@ -240,3 +240,72 @@ def test_a_motion_that_overflows_names_the_input(robot, monkeypatch, where):
         robot.inverse_dynamics(POSE, TWIST, big, bounded=False)
     assert info.value.name == ("twist" if where == "velocity" else "twist_dot")
     assert "nan" not in str(info.value).lower()
+
+
+# -- the default forward dynamics: the closed form, verified in its own call -----------------
+def test_the_default_forward_route_calls_no_pinocchio_dynamics(robot, monkeypatch):
+    """"nullspace" answers without ``pin.crba`` / ``pin.rnea`` (the reduced closed form)
+    and agrees with Pinocchio's constrained forward dynamics (the "pinocchio" route), the
+    closure forces and multipliers included."""
+    tau = robot.inverse_dynamics(POSE, TWIST, TWIST_DOT).actuator_forces
+    want = robot.forward_dynamics(POSE, TWIST, tau, method="pinocchio")
+    calls = []
+    for name in ("crba", "rnea"):
+        real = getattr(pin, name)
+        monkeypatch.setattr(pin, name, lambda *a, real=real, name=name: (calls.append(name),
+                                                                          real(*a))[1])
+    res = robot.forward_dynamics(POSE, TWIST, tau)
+    assert calls == [] and res.method == "nullspace"
+    for field in ("twist_dot", "tree_acceleration", "closure_forces", "multipliers"):
+        np.testing.assert_allclose(getattr(res, field), getattr(want, field), rtol=0,
+                                   atol=1e-10, err_msg=field)
+    np.testing.assert_allclose(res.twist_dot, TWIST_DOT, rtol=0, atol=1e-10)
+
+
+def test_the_forward_verification_catches_a_corrupted_answer(robot):
+    """The check run inside the kernel (the residual of ``M_x twist_dot = J^T tau + wrench
+    - h_x`` relative to its data, a finite answer) passes the computed answer and fails an
+    acceleration off by 1e-7 relative, and a NaN."""
+    ck = robot.dynamics.closed_form
+    tau = robot.inverse_dynamics(POSE, TWIST, TWIST_DOT).actuator_forces
+    q, v, a = np.empty(25), np.empty(24), np.empty(24)
+    twist_dot, closure = np.empty(6), np.empty((6, 3))
+    rot, wk, mats = np.empty(9), np.zeros((kernels.WK_ROWS, 6)), np.empty((kernels.N_MATS, 6, 6))
+    code = kernels.forward_dynamics_tree(ck.dynamics_geo, ck.signs, POSE, TWIST, tau,
+                                         kernels.ZERO6, MAX_MAGNITUDE, q, v, a, twist_dot,
+                                         closure, rot, wk, mats)
+    assert code == kernels.OK and kernels.forward_verified(wk, mats, twist_dot)
+    off = twist_dot.copy()
+    off[4] += 1e-7 * np.abs(twist_dot).max()
+    assert not kernels.forward_verified(wk, mats, off)
+    off[4] = math.nan
+    assert not kernels.forward_verified(wk, mats, off)
+
+
+@pytest.mark.parametrize("code, error", [("RESIDUAL", hp.SolverError),
+                                         ("NOT_PD", hp.SolverError)])
+def test_a_refused_forward_answer_is_a_typed_error(robot, monkeypatch, code, error):
+    real = kernels.forward_dynamics_tree
+
+    def refused(*args):
+        real(*args)
+        return getattr(kernels, code)
+
+    monkeypatch.setattr(kernels, "forward_dynamics_tree", refused)
+    tau = np.ones(6)
+    with pytest.raises(error, match="null-space forward dynamics"):
+        robot.forward_dynamics(POSE, TWIST, tau)
+
+
+@pytest.mark.parametrize("name", ["actuator_forces", "wrench"])
+@pytest.mark.parametrize("bad", [math.nan, -math.inf, 1e200])
+def test_the_forward_kernel_scan_names_the_input(robot, name, bad):
+    """The forces and the wrench, passed unscanned, are scanned by the closed-form kernel;
+    a refused one is named (the wrench of the inverse dynamics too)."""
+    args = {"actuator_forces": np.ones(6), "wrench": np.zeros(6)}
+    args[name][2] = bad
+    with pytest.raises(hp.InputError, match=name):
+        robot.forward_dynamics(POSE, TWIST, **args)
+    if name == "wrench":
+        with pytest.raises(hp.InputError, match=name):
+            robot.inverse_dynamics(POSE, TWIST, TWIST_DOT, args["wrench"])
