@@ -31,6 +31,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import argparse  # noqa: E402
 import dataclasses  # noqa: E402
 import sys  # noqa: E402
+import time  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
 from functools import partial  # noqa: E402
 from typing import Callable  # noqa: E402
@@ -42,7 +43,7 @@ import hexapod_pin as hp  # noqa: E402
 import hexapod_pin.core.dynamics as hpd  # noqa: E402
 import numpy_hexapod as nh  # noqa: E402
 import pinocchio_raw as pr  # noqa: E402
-from bench_common import (MIN_SAMPLE, NO_ROUTE, NOT_IMPLEMENTED, States, Timing, fmt_us,  # noqa: E402
+from bench_common import (CLOCK, MIN_SAMPLE, NO_ROUTE, NOT_IMPLEMENTED, States, Timing, fmt_us,  # noqa: E402
                           measure, measure_interleaved, peak_memory, print_machine_info,
                           random_states, table)
 
@@ -942,6 +943,9 @@ def main(argv=None) -> int:
     parser.add_argument("--single-call", action="store_true",
                         help="only the single-call table (the facade against MuJoCo's bare "
                              "mj_inverse / mj_forward)")
+    parser.add_argument("--cpu-time", action="store_true",
+                        help="time with the thread's CPU time (time.thread_time) instead of "
+                             "wall time: on a shared machine, waits for a core not counted")
     parser.add_argument("--perturb-numpy-mass", type=float, default=0.0,
                         help="relative error put on the numpy peer's platform mass (to "
                              "check that a disagreement is caught)")
@@ -950,6 +954,8 @@ def main(argv=None) -> int:
         args.states, args.sizes, args.repeats, args.budget = 12, "1,10", 2, 2.0
         MIN_SAMPLE["seconds"] = 1e-3
     sizes = [int(float(x)) for x in args.sizes.split(",")]
+    if args.cpu_time:
+        CLOCK["now"] = time.thread_time
     print_machine_info()
     if mujoco is None:
         print("mujoco is not installed: MuJoCo rows are skipped (pip install mujoco)")
