@@ -16,6 +16,10 @@ import numpy_hexapod as nh
 NOT_IMPLEMENTED = "n/a (not implemented)"
 #: minimum duration of one timing sample (s); smoke runs lower it
 MIN_SAMPLE = {"seconds": 0.02}
+#: the clock of the timings: wall time (``time.perf_counter``), or the calling thread's CPU
+#: time (``time.thread_time``, ``--cpu-time``: on a shared machine the time spent waiting
+#: for a core is not counted)
+CLOCK = {"now": time.perf_counter}
 NO_ROUTE = "-"
 
 
@@ -41,25 +45,52 @@ def measure(fn, repeats: int = 7, min_sample: float | None = None) -> Timing:
     if min_sample is None:
         min_sample = MIN_SAMPLE["seconds"]
     fn()
-    t0 = time.perf_counter()
+    t0 = CLOCK["now"]()
     fn()
-    one = time.perf_counter() - t0
+    one = CLOCK["now"]() - t0
     k = max(1, int(min_sample / max(one, 1e-9)))
     samples = []
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0 = CLOCK["now"]()
         for _ in range(k):
             fn()
-        samples.append((time.perf_counter() - t0) / k)
+        samples.append((CLOCK["now"]() - t0) / k)
     s = np.array(samples)
     return Timing(float(np.median(s)), float(np.percentile(s, 25)),
                   float(np.percentile(s, 75)), repeats, k)
 
 
+def measure_interleaved(fns, repeats: int = 7, min_sample: float | None = None) -> list[Timing]:
+    """:func:`measure` of several functions with their samples interleaved (sample 1 of
+    each, then sample 2 of each, ...): on a shared machine a change of load hits every
+    function alike, so that their ratios hold even when the absolute times drift. Each
+    sample follows a tenth of its calls untimed (the caches the previous function's sample
+    evicted refilled)."""
+    if min_sample is None:
+        min_sample = MIN_SAMPLE["seconds"]
+    counts = []
+    for fn in fns:
+        fn()
+        t0 = CLOCK["now"]()
+        fn()
+        counts.append(max(1, int(min_sample / max(CLOCK["now"]() - t0, 1e-9))))
+    samples: list[list[float]] = [[] for _ in fns]
+    for _ in range(repeats):
+        for fn, k, out in zip(fns, counts, samples):
+            for _ in range(max(1, k // 10)):    # untimed: the caches the last one evicted
+                fn()
+            t0 = CLOCK["now"]()
+            for _ in range(k):
+                fn()
+            out.append((CLOCK["now"]() - t0) / k)
+    return [Timing(float(np.median(s)), float(np.percentile(s, 25)),
+                   float(np.percentile(s, 75)), repeats, k) for s, k in zip(samples, counts)]
+
+
 def first_call_seconds(fn) -> float:
-    t0 = time.perf_counter()
+    t0 = CLOCK["now"]()
     fn()
-    return time.perf_counter() - t0
+    return CLOCK["now"]() - t0
 
 
 def peak_memory(fn) -> int:

@@ -31,7 +31,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import argparse  # noqa: E402
 import dataclasses  # noqa: E402
 import sys  # noqa: E402
+import time  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
+from functools import partial  # noqa: E402
 from typing import Callable  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -41,8 +43,9 @@ import hexapod_pin as hp  # noqa: E402
 import hexapod_pin.core.dynamics as hpd  # noqa: E402
 import numpy_hexapod as nh  # noqa: E402
 import pinocchio_raw as pr  # noqa: E402
-from bench_common import (MIN_SAMPLE, NO_ROUTE, NOT_IMPLEMENTED, States, Timing, fmt_us,  # noqa: E402
-                          measure, peak_memory, print_machine_info, random_states, table)
+from bench_common import (CLOCK, MIN_SAMPLE, NO_ROUTE, NOT_IMPLEMENTED, States, Timing, fmt_us,  # noqa: E402
+                          measure, measure_interleaved, peak_memory, print_machine_info,
+                          random_states, table)
 
 try:
     import mujoco
@@ -657,13 +660,80 @@ def single_call(peers: HexapodPeers, repeats: int) -> str:
                  ("MuJoCo mj_forward (bare, tree state set)", "forward",
                   lambda i: mujoco.mj_forward(m, datas[i]))] + items
     rows = []
-    for name, kind, fn in items:
-        counter = iter(range(10 ** 12))
-        t = measure(lambda: fn(next(counter) % pool), repeats=repeats)
+    # samples interleaved: a change of load hits ours and MuJoCo's alike (the ratios hold)
+    timings = measure_interleaved([_cycled(fn, list(range(pool))) for _, _, fn in items],
+                                  repeats=repeats)
+    for (name, kind, _), t in zip(items, timings):
         base.setdefault(kind, t.median)
         rows.append([name, fmt_us(t), f"{t.median / base[kind]:.2f}"])
     return table(["one call, random states", "us per call", "/ MuJoCo bare call"], rows,
                  title="## Single-call overhead: the facade against MuJoCo's bare calls")
+
+def _cycled(call: Callable[[object], object], items: list) -> Callable[[], object]:
+    """A zero-argument function calling ``call`` on the next item of ``items``, cycling."""
+    counter = iter(range(10 ** 12))
+    return lambda: call(items[next(counter) % len(items)])
+
+
+def _ratio(ours: Timing, peer: Timing | None) -> str:
+    return "" if peer is None else f"{ours.median / peer.median:.2f}"
+
+
+def single_call_robots(repeats: int, n_states: int = 64) -> str:
+    """The same single-call comparison for the planar 3-PRR (its compiled closed form) and
+    robots loaded from descriptions (``hp.ClosedLoopRobot``: the tree routes): each
+    against MuJoCo's bare ``mj_inverse`` / ``mj_forward`` on its exported twin
+    (:func:`hexapod_pin.core.mujoco_export.to_mujoco`, tree state set beforehand, as in
+    :func:`single_call`). States: :func:`bench_robots.states` (regular, near home), cycled;
+    a loaded robot solves its configuration in every call (the last one is no help)."""
+    import bench_robots
+
+    from hexapod_pin.core.mujoco_export import mujoco_state, to_mujoco
+
+    hexapod = hp.Hexapod.default()
+    data = bench_robots.DATA
+    robots = {
+        "planar 3-PRR (closed form)": hp.Planar3PRR.default(),
+        "hexapod loaded (ClosedLoopRobot on its tree)": hp.ClosedLoopRobot(
+            hexapod.model, "platform", home=hexapod.home_configuration),
+        "Stewart 6-UPS (hp.load_robot)": hp.load_robot(data / "stewart" / "stewart.urdf"),
+    }
+    rows = []
+    for name, robot in robots.items():
+        states = bench_robots.states(robot, n_states)
+        inv = [robot.inverse_dynamics(p, t, a, bounded=False) for p, t, a in states]
+        taus = [r.actuator_forces for r in inv]
+        mj_inv = mj_fwd = None
+        mj_calls: list = []
+        if mujoco is not None:
+            try:
+                model = to_mujoco(robot.model)
+            except hp.InputError:
+                model = None
+            if model is not None:
+                datas = []
+                for r, u in zip(inv, taus):
+                    d = mujoco.MjData(model)
+                    st = mujoco_state(robot.model, r.configuration, r.velocity, r.acceleration)
+                    d.qpos[:], d.qvel[:], d.qacc[:], d.ctrl[:] = st.qpos, st.qvel, st.qacc, u
+                    datas.append(d)
+                mj_calls = [_cycled(partial(mujoco.mj_inverse, model), datas),
+                            _cycled(partial(mujoco.mj_forward, model), datas)]
+        calls = [_cycled(lambda s, r=robot: r.inverse_dynamics(*s, bounded=False), states),
+                 _cycled(lambda s, r=robot: r.forward_dynamics(*s),
+                         [(p, t, u) for (p, t, _), u in zip(states, taus)])]
+        if mj_calls:
+            ours_inv, ours_fwd, mj_inv, mj_fwd = measure_interleaved(calls + mj_calls,
+                                                                     repeats=repeats)
+        else:
+            ours_inv, ours_fwd = measure_interleaved(calls, repeats=repeats)
+        rows.append([name, fmt_us(ours_inv), fmt_us(mj_inv), _ratio(ours_inv, mj_inv),
+                     fmt_us(ours_fwd), fmt_us(mj_fwd), _ratio(ours_fwd, mj_fwd)])
+    return table(["robot", "ours inverse_dynamics", "MuJoCo mj_inverse (bare)", "ratio",
+                  "ours forward_dynamics", "MuJoCo mj_forward (bare)", "ratio"], rows,
+                 title="## Single-call overhead of the other robots: the facade (defaults, "
+                       "bounded=False) against MuJoCo's bare calls on the exported twin")
+
 
 # -- simulation throughput ------------------------------------------------------------------
 def simulation_throughput(peers: HexapodPeers, repeats: int, steps: int = 200) -> str:
@@ -873,6 +943,9 @@ def main(argv=None) -> int:
     parser.add_argument("--single-call", action="store_true",
                         help="only the single-call table (the facade against MuJoCo's bare "
                              "mj_inverse / mj_forward)")
+    parser.add_argument("--cpu-time", action="store_true",
+                        help="time with the thread's CPU time (time.thread_time) instead of "
+                             "wall time: on a shared machine, waits for a core not counted")
     parser.add_argument("--perturb-numpy-mass", type=float, default=0.0,
                         help="relative error put on the numpy peer's platform mass (to "
                              "check that a disagreement is caught)")
@@ -881,6 +954,8 @@ def main(argv=None) -> int:
         args.states, args.sizes, args.repeats, args.budget = 12, "1,10", 2, 2.0
         MIN_SAMPLE["seconds"] = 1e-3
     sizes = [int(float(x)) for x in args.sizes.split(",")]
+    if args.cpu_time:
+        CLOCK["now"] = time.thread_time
     print_machine_info()
     if mujoco is None:
         print("mujoco is not installed: MuJoCo rows are skipped (pip install mujoco)")
@@ -892,6 +967,7 @@ def main(argv=None) -> int:
             peers.p, platform_mass=peers.p.platform_mass * (1 + args.perturb_numpy_mass))
     if args.single_call:
         print(single_call(peers, args.repeats))
+        print(single_call_robots(args.repeats))
         return 0
     failures = []
     if peers.mj is not None:

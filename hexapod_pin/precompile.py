@@ -131,6 +131,8 @@ def _hexapod_single(robot: Hexapod) -> None:
     tau = _single_state(robot, pose, twist, acc)
     robot.leg_motion(pose, twist, acc)
     robot.inverse_dynamics(pose, twist, acc).joint_wrenches
+    robot.inverse_dynamics(pose, twist, acc, method="qp").closure_forces   # the tree route's
+    robot.with_effects(damping={"carriage_0": 1.0}).forward_dynamics(pose, twist, tau)
     robot.dynamics.actuator_forces_at(robot.configuration(pose), twist, acc)
     robot.energies(pose, twist)
     robot.forward_dynamics_derivatives(pose, twist, tau)      # independent rows

@@ -417,6 +417,22 @@ class ClosedFormDynamics(ClosedFormKernels):
                                  else self.dim,), name)
         self.raise_kernel_status(code, inputs)
 
+    @staticmethod
+    def overflow(motion: Sequence[tuple[np.ndarray | None, str]],
+                 velocity_finite: bool) -> InputError:
+        """The :class:`InputError` of finite inputs whose motion overflows double precision
+        (a twist of 1e160: its square in the tree accelerations), naming the user's
+        argument rather than the tree state or force it overflowed in: ``twist`` when the
+        tree velocity overflowed, else the input of ``motion`` (``(checked array or None,
+        name)``) largest in magnitude."""
+        given = [(arr, name) for arr, name in motion if arr is not None]
+        if velocity_finite:
+            arr, name = max(given, key=lambda pair: max_abs(pair[0]))
+        else:
+            arr, name = next(pair for pair in given if pair[1] == "twist")
+        return InputError(name, arr, "too large: the motion's tree velocities, accelerations "
+                          "or forces overflow double precision")
+
     def raise_first(self, status: np.ndarray, infos: np.ndarray | None, poses: np.ndarray,
                     tau: np.ndarray | None = None, bounds: np.ndarray | None = None) -> None:
         """Raise the Batch* error of the first state (lowest index) that a batch kernel

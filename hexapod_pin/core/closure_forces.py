@@ -36,19 +36,41 @@ def rows_from_pinocchio(frames: Sequence[ClosureFrames], n_rows: int, lam_pin: n
     return out
 
 
+def closure_world_force(frame: ClosureFrames, lam: np.ndarray, data: pin.Data) -> pin.Force:
+    """Spatial force (world frame, about the world origin) on body 1 of one closure, from
+    its multipliers ``lam`` in our rows; ``data`` holds the frame placements."""
+    _, _, f1, f2, _, _ = frame
+    if frame.is_point:
+        return pin.Force(lam, np.cross(data.oMf[f1].translation, lam))
+    m21 = data.oMf[f2].actInv(data.oMf[f1])
+    local = pin.Force(pin.Jlog6(m21).T @ lam)      # in anchor-1 frame
+    return data.oMf[f1].act(local)
+
+
 def closure_world_forces(frames: Sequence[ClosureFrames], multipliers: np.ndarray,
                          data: pin.Data) -> list[pin.Force]:
-    """Spatial force (world frame, about the world origin) on body 1 of each closure, from
-    the multipliers in our rows; ``data`` holds the frame placements."""
-    out = []
-    for is_point, rows, f1, f2, _, _ in frames:
-        lam = multipliers[rows]
-        if is_point:
-            out.append(pin.Force(lam, np.cross(data.oMf[f1].translation, lam)))
-        else:
-            m21 = data.oMf[f2].actInv(data.oMf[f1])
-            local = pin.Force(pin.Jlog6(m21).T @ lam)      # in anchor-1 frame
-            out.append(data.oMf[f1].act(local))
+    """:func:`closure_world_force` of each closure, from the multipliers (n_rows,) in our
+    rows; ``data`` holds the frame placements."""
+    return [closure_world_force(frame, multipliers[frame.rows], data) for frame in frames]
+
+
+def closure_linear_forces(model: pin.Model, data: pin.Data, frames: Sequence[ClosureFrames],
+                          q: np.ndarray, multipliers: np.ndarray) -> np.ndarray:
+    """The force part (n_closures, 3) (N, world axes) of :func:`closure_world_force` of
+    each closure at ``q``: a point closure's is its three multipliers themselves (no
+    kinematics needed), a weld's that of its spatial force (the frame placements of ``q``
+    computed on ``data`` once, when there is a weld)."""
+    out = np.empty((len(frames), 3))
+    placed = False
+    for k, frame in enumerate(frames):
+        lam = multipliers[frame.rows]
+        if frame.is_point:
+            out[k] = lam
+            continue
+        if not placed:
+            pin.framesForwardKinematics(model, data, q)
+            placed = True
+        out[k] = closure_world_force(frame, lam, data).linear
     return out
 
 

@@ -27,10 +27,9 @@ from numba.extending import intrinsic
 
 from ..errors import InputError, SolverError
 from .compiled import jit
+from .kernel_status import RESIDUAL_RTOL  # the tolerance of every route (compiled too)
 from .linear_kernels import forward_residuals
 
-#: relative tolerance on equation residuals before a route is declared failed
-RESIDUAL_RTOL = 1e-9
 #: ProxSuite accuracy (absolute, on primal and dual residuals of the scaled problems)
 QP_EPS = 1e-12
 #: iteration cap of the tree QPs (redundant closure rows slow the proximal iterations down)

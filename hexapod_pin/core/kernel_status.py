@@ -31,6 +31,11 @@ SATURATED = 9
 #: a closed form that misses its own residual check (ill-conditioned near a singularity)
 RESIDUAL = 10
 
+#: relative residual above which a closed form refuses its own answer (:data:`RESIDUAL`):
+#: the one tolerance of the compiled closed forms' verification and of the tree routes
+#: (:mod:`~hexapod_pin.core.dynamics_common` imports it)
+RESIDUAL_RTOL = 1e-9
+
 #: every code, by name (messages and tests)
 NAMES = {OK: "ok", UNREACHABLE: "unreachable", TYPE_I: "type_i", GIMBAL: "gimbal",
          TYPE_II: "type_ii", NOT_PD: "not_pd", NONFINITE: "nonfinite", STROKE: "stroke",

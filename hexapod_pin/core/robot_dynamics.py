@@ -29,7 +29,7 @@ platform's selected twist rows. Then:
 from __future__ import annotations
 
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import NamedTuple
 
 import numpy as np
@@ -39,15 +39,21 @@ import pinocchio as pin
 from ..errors import InputError, SolverError
 from .checks import as_array, check_batch, flag, max_abs
 from .closed_loop import ClosedLoopModel
-from .closure_forces import closure_world_forces
+from .closure_forces import closure_linear_forces
 from .dynamics import dynamics_of, forward_dynamics_tree, inverse_dynamics_tree
 from .effects_projection import batch_of_states
 from .energy import energy_totals
 from .platform_map import VelocityMaps, solve_checked_square
-from .results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
-                      ComputedDetails, Energies, ForwardDynamicsResult,
-                      InverseDynamicsResult, LazyConditioning,
-                      ReducedDynamics)
+from .results import (
+    BatchForwardDynamics,
+    BatchInverseDynamics,
+    BatchReducedDynamics,
+    Energies,
+    ForwardDynamicsResult,
+    InverseDynamicsResult,
+    LazyConditioning,
+    ReducedDynamics,
+)
 from .robot_api import FORWARD_DYNAMICS_METHODS, INVERSE_DYNAMICS_METHODS
 from .robot_kinematics import RobotKinematics
 
@@ -67,28 +73,44 @@ class TreeState(NamedTuple):
     terms: tuple[np.ndarray, np.ndarray]
 
 
-class TreeDetails:
-    """The parts of a result computed on first access (:class:`ResultDetails`)."""
+class ClosureDetails:
+    """The parts of a forward-dynamics result (:class:`ForwardDetails`): the multipliers
+    (given, or a callable of the tree route giving them: called on first access), and the
+    closure forces computed from them on first access."""
 
-    def __init__(self, dyn: "RobotDynamics", q: np.ndarray, v: np.ndarray, a: np.ndarray,
-                 multipliers: np.ndarray, residual: float, wrench: np.ndarray | None,
-                 wrenches: bool) -> None:
-        self.dyn, self.q, self.v, self.a = dyn, q, v, a
-        self.multipliers_, self.residual_ = multipliers, residual
-        self.wrench, self.wrenches = wrench, wrenches
+    def __init__(self, dyn: RobotDynamics, q: np.ndarray,
+                 multipliers: np.ndarray | Callable[[], np.ndarray]) -> None:
+        self.dyn, self.q, self.multipliers_ = dyn, q, multipliers
 
     def multipliers(self) -> np.ndarray:
-        return self.multipliers_
+        value = self.multipliers_
+        if callable(value):                 # the route's lazy conversion (thread-safe)
+            value = self.multipliers_ = value()
+        return value
 
     def closure_forces(self) -> np.ndarray:
+        multipliers = self.multipliers()
         with self.dyn.lock:                 # the robot's Pinocchio data
-            return self.dyn.closure_forces(self.q, self.multipliers_)
+            return self.dyn.closure_forces(self.q, multipliers)
+
+
+class TreeDetails(ClosureDetails):
+    """The parts of an inverse-dynamics result computed on first access
+    (:class:`ResultDetails`)."""
+
+    def __init__(self, dyn: RobotDynamics, q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                 multipliers: np.ndarray | Callable[[], np.ndarray], residual: float,
+                 wrench: np.ndarray | None, wrenches: bool) -> None:
+        super().__init__(dyn, q, multipliers)
+        self.v, self.a = v, a
+        self.residual_ = residual
+        self.wrench, self.wrenches = wrench, wrenches
 
     def joint_wrenches(self) -> Mapping[str, np.ndarray]:
         if not self.wrenches:
             return {}
         with self.dyn.lock:
-            return self.dyn.joint_wrenches(self.q, self.v, self.a, self.multipliers_,
+            return self.dyn.joint_wrenches(self.q, self.v, self.a, self.multipliers(),
                                            self.wrench)
 
     def residual(self) -> float:
@@ -117,6 +139,11 @@ class RobotDynamics:
         self.lock = lock
         self.dim = self.platform.dim
         self.n_act = clm.actuated_v.size
+        bound = np.broadcast_to(np.asarray(max_force, dtype=float), (self.n_act,))
+        #: the actuator bounds (n_act,) (read-only), or None when none is finite
+        self.limits = np.array(bound) if np.isfinite(bound).any() else None
+        if self.limits is not None:
+            self.limits.setflags(write=False)
 
     # -- states -------------------------------------------------------------------------
     def state(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
@@ -146,10 +173,9 @@ class RobotDynamics:
                                 self.lock)
 
     def bounds(self, bounded: bool) -> np.ndarray | None:
-        bound = np.broadcast_to(np.asarray(self.max_force, dtype=float), (self.n_act,))
-        if not bounded or not np.isfinite(bound).any():
-            return None
-        return np.array(bound)
+        """The actuator bounds (n_act,) enforced with ``bounded`` (:attr:`limits`), or
+        None."""
+        return self.limits if bounded else None
 
     # -- inverse dynamics -----------------------------------------------------------------
     def inverse_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
@@ -184,7 +210,7 @@ class RobotDynamics:
         a, _ = self.kin.tree_acceleration(st.maps, st.v, twist_dot, st.terms)
         res = inverse_dynamics_tree(self.clm, st.q, st.v, a, tau_ext,
                                     self.bounds(flag(bounded, "bounded")), method)
-        details = TreeDetails(self, st.q, st.v, a, res.multipliers, res.residual, w,
+        details = TreeDetails(self, st.q, st.v, a, res.raw_multipliers, res.residual, w,
                               flag(joint_wrenches, "joint_wrenches"))
         return InverseDynamicsResult(res.actuator_forces.copy(), st.q, st.v, a, method,
                                      res.status, res.iterations, details,
@@ -230,7 +256,7 @@ class RobotDynamics:
                 res.iterations
         _, bias = st.terms
         twist_dot = st.maps.twist_rows @ a + bias
-        details = ComputedDetails(lam, self.closure_forces(st.q, lam))
+        details = ClosureDetails(self, st.q, lam)      # the closure forces on first access
         return ForwardDynamicsResult(twist_dot, a[self.clm.actuated_v].copy(), a, method,
                                      status, iterations, details,
                                      self.conditioning(pose, branch))
@@ -273,7 +299,7 @@ class RobotDynamics:
         effects, _ = dynamics_of(self.clm).effect_terms(st.q, st.v)
         if effects is not None:      # damping, springs, sliding friction: part of h
             nle -= effects
-        _, a0 = self.kin.tree_acceleration(st.maps, st.v, np.zeros(self.dim), st.terms)
+        a0 = self.kin.drift_acceleration(st.maps, st.v, st.terms)
         vmap = st.vmap
         mass = vmap.T @ mmat @ vmap
         mass = 0.5 * (mass + mass.T)
@@ -300,10 +326,10 @@ class RobotDynamics:
 
     # -- forces ----------------------------------------------------------------------------
     def closure_forces(self, q: np.ndarray, multipliers: np.ndarray) -> np.ndarray:
-        """(n_closures, 3): the force of each closure (module docstring)."""
-        pin.framesForwardKinematics(self.model, self.data, q)
-        forces = closure_world_forces(self.clm.closure_frames, multipliers, self.data)
-        return np.array([f.linear for f in forces]).reshape(len(forces), 3)
+        """(n_closures, 3): the force of each closure (module docstring;
+        :func:`~hexapod_pin.core.closure_forces.closure_linear_forces`)."""
+        return closure_linear_forces(self.model, self.data, self.clm.closure_frames, q,
+                                     multipliers)
 
     def joint_wrenches(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
                        multipliers: np.ndarray,

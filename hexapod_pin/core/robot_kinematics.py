@@ -37,7 +37,8 @@ from .compiled import all_within
 from .closed_loop import ClosedLoopModel
 from .measures import (TREE_TYPE_I_TOL, TREE_TYPE_II_TOL, inverse_condition,
                        tree_singularity_measures)
-from .platform_map import PlatformMap, VelocityMaps, solve_checked_square
+from .platform_map import (PlatformMap, VelocityMaps, solve_checked_columns,
+                           solve_checked_square)
 from .results import InverseKinematicsBatch, JacobianBatch, SingularityMeasures
 
 #: the smallest continuation sub-step, as a fraction of the way (inverse kinematics and
@@ -452,14 +453,27 @@ class RobotKinematics:
         """``(a, a0)``: the tree acceleration (nv,) of ``twist_dot`` (dim,) and the one at
         ``twist_dot = 0``, both keeping the closures (``J_c a = -gamma``); ``terms``: the
         state's ``(gamma, bias)`` of :meth:`PlatformMap.frame_bias` when already known."""
+        a_p, free = self._drift_terms(maps, v, terms)
+        both = solve_checked_columns(maps.a_map, np.stack([-free, twist_dot - free], axis=1),
+                                     "tree acceleration")
+        return a_p + maps.basis @ both[:, 1], a_p + maps.basis @ both[:, 0]
+
+    def drift_acceleration(self, maps: VelocityMaps, v: np.ndarray,
+                           terms: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """``a0``: the tree acceleration (nv,) at ``twist_dot = 0`` of :meth:`tree_acceleration`
+        alone (one solve)."""
+        a_p, free = self._drift_terms(maps, v, terms)
+        return a_p + maps.basis @ solve_checked_square(maps.a_map, -free, "tree acceleration")
+
+    def _drift_terms(self, maps: VelocityMaps, v: np.ndarray,
+                     terms: tuple[np.ndarray, np.ndarray] | None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """``(a_p, free)``: the least-norm acceleration keeping the closures' drift (nv,)
+        and the platform's acceleration bias it leaves (dim,)."""
         plat = self.platform
         gamma, bias = plat.frame_bias(maps.q, v) if terms is None else terms
         a_p = plat.particular(maps, -gamma, "closure drift")
-        free = bias + maps.twist_rows @ a_p
-        a0 = a_p + maps.basis @ solve_checked_square(maps.a_map, -free, "tree acceleration")
-        a = a_p + maps.basis @ solve_checked_square(maps.a_map, twist_dot - free,
-                                                    "tree acceleration")
-        return a, a0
+        return a_p, bias + maps.twist_rows @ a_p
 
     def jacobian_derivative(self, pose: npt.ArrayLike, twist: npt.ArrayLike,
                             branch: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
@@ -483,7 +497,7 @@ class RobotKinematics:
         kdot_v = self.platform.time_variation(maps, v, vmap)
         vdot = -np.linalg.lstsq(stacked, kdot_v, rcond=None)[0]
         jdot = vdot[self.clm.actuated_v]
-        _, a0 = self.tree_acceleration(maps, v, np.zeros(self.platform.dim))
+        a0 = self.drift_acceleration(maps, v)
         expected = a0[self.clm.actuated_v]
         miss = float(np.max(np.abs(jdot @ twist - expected), initial=0.0))
         scale = max(1e-300, float(np.max(np.abs(jdot), initial=0.0))

@@ -1,22 +1,31 @@
 """The hexapod's dynamics at the platform level (pose, twist, twist_dot, wrench).
 
-Single states build the tree state in closed form (the kernels of
-:mod:`hexapod_pin.hexapod.kernels`) and need one or two Pinocchio calls
-(``rnea``, ``computeGeneralizedGravity``, ``crba`` or ``constraintDynamics``) and a 6x6
-solve; the ``*_batch`` methods run the Newton-Euler kernels over N states
-(:mod:`hexapod_pin.hexapod.batch`). Generic tree dynamics: :mod:`hexapod_pin.core.dynamics`.
+The default inverse dynamics ("kkt") of a single state is the compiled closed form in one
+kernel call (:func:`~hexapod_pin.hexapod.kernels.inverse_dynamics_tree`: the tree state,
+the Newton-Euler closed form, the closure forces and the verification of the answer, the
+residual of the platform equation it solved), and so is the default forward dynamics
+("nullspace") of a robot whose joints carry no effect force
+(:func:`~hexapod_pin.hexapod.kernels.forward_dynamics_tree`); the other single-state
+routes build the
+tree state in closed form (the kernels of :mod:`hexapod_pin.hexapod.kernels`) and need one
+or two Pinocchio calls (``rnea``, ``computeGeneralizedGravity``, ``crba`` or
+``constraintDynamics``) and a 6x6 solve; the ``*_batch`` methods run the Newton-Euler
+kernels over N states (:mod:`hexapod_pin.hexapod.batch`). The Pinocchio tree routes
+(:mod:`hexapod_pin.core.dynamics`) are the independent reference the tests compare them
+with; a result's lazy ``residual`` is that of the tree equation of motion on Pinocchio.
 
 Joint and drive effects (``robot.effects``, :mod:`hexapod_pin.core.effects`): the
-single-state routes are generic over every coordinate of the tree. Pinocchio's ``crba`` and
+Pinocchio routes are generic over every coordinate of the tree. Pinocchio's ``crba`` and
 ``rnea`` carry the armature (``model.armature``), and the effects' generalised force
 ``tau_e`` joins the tree force before it is projected with ``G^T`` (``G^T (rnea(q, v, a) -
 tau_e)``: inverse dynamics, statics with the springs; ``h_x = G^T (rnea(q, v, a_0) -
 tau_e)``: reduced and null-space forward dynamics, ``tau_e`` without the friction of the
 coordinates at rest). A coordinate with Coulomb friction at rest makes the "nullspace"
-forward dynamics answer on the tree (its stick / slip solve). The batches run the compiled
-closed form, which carries the carriages' drives; a robot whose passive coordinates
-(universal joints, the platform's free flyer) carry effects runs its batches state by state
-on the single-state routes (the same numbers).
+forward dynamics answer on the tree (its stick / slip solve). The batches and the default
+inverse dynamics run the compiled closed form, which carries the carriages' drives; a
+robot whose passive coordinates (universal joints, the platform's free flyer) carry
+effects answers its inverse dynamics on the Pinocchio route and runs its batches state by
+state on the single-state routes (the same numbers).
 
 The plumbing (bounds, input and method checks, status codes to errors, the batch drivers,
 the lazy parts of results, the energies) is
@@ -42,7 +51,7 @@ from . import batch
 from ..core.closed_form import (ClosedFormDynamics, ClosedFormRegressor, Inputs, LazyParts,
                                 TreeDetails)
 from ..core.closed_loop import ClosedLoopModel
-from ..core.compiled import all_finite
+from ..core.compiled import all_finite, all_within
 from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
                             ForwardDynamicsResult, InverseDynamicsResult, ReducedDynamics, SingularityMeasures,
                             new_result)
@@ -155,7 +164,9 @@ class HexapodDynamics(ClosedFormDynamics):
     ``(f, m)`` applied on the platform by the environment, world axes, moment about the
     platform origin (N, N m).
 
-    Single states go through the Pinocchio tree. The tree state comes in closed form
+    The default inverse dynamics is the Newton-Euler closed form of the kernels (the
+    batches' kernels), the tree state included, in one compiled call; the other single
+    states go through the Pinocchio tree. The tree state comes in closed form
     (the kernels of :mod:`~hexapod_pin.hexapod.kernels`): ``q`` from the inverse kinematics
     (on the given branch) and the leg directions, ``v = G twist`` and ``a`` from the leg
     kinematics (they keep the closures by construction), the free-flyer part
@@ -163,8 +174,10 @@ class HexapodDynamics(ClosedFormDynamics):
     free-flyer generalised force ``(R^T f, R^T m)``. By virtual power the tree equation
     ``M a + h - tau_ext = S^T tau + J_c^T lambda`` projected with ``G^T`` (``J_c G = 0``,
     ``S G = J``) is ``J^T tau = G^T rnea(q, v, a) - wrench``: one ``pin.rnea`` and a 6x6
-    solve. Batches (``*_batch``) run the Newton-Euler kernels (:mod:`hexapod_pin.hexapod.batch`),
-    independent of ``pin.rnea``; the tests check that both agree to 1e-10.
+    solve (the "qp" inverse dynamics, and "kkt" when passive coordinates carry effects).
+    The Newton-Euler kernels (the default "kkt", the batches ``*_batch``,
+    :mod:`hexapod_pin.hexapod.batch`) are independent of ``pin.rnea``; the tests check
+    that they agree with the Pinocchio tree routes to 1e-10.
     """
 
     dim = 6
@@ -224,7 +237,8 @@ class HexapodDynamics(ClosedFormDynamics):
                                      closure=self._tip_closure,
                                      to_multipliers=self._closure_rows,
                                      fext=self._platform_force)
-        ws.forward_parts = LazyParts(dyn, self.lock, to_closure=self._leg_closure)
+        ws.forward_parts = LazyParts(dyn, self.lock, to_multipliers=self._closure_rows,
+                                     to_closure=self._leg_closure)
         home_q, _ = self.tree_state(self.geometry.home_pose, np.zeros(6), ws=ws)
         dyn.closure_rank(home_q)
         kernels.check_mass_structure(pin.crba(dyn.model, dyn.data, home_q))
@@ -292,9 +306,17 @@ class HexapodDynamics(ClosedFormDynamics):
         """Actuator forces that produce a platform motion (closed-loop inverse dynamics).
 
         Includes the inertia and weight of the platform, legs and carriages. The tree
-        state ``(q, v, a)`` comes in closed form and one ``pin.rnea`` gives the tree's
-        generalised forces; their projection on the platform's motions (virtual power)
-        is ``J^T tau + wrench`` (see the class docstring).
+        state ``(q, v, a)`` comes in closed form. "kkt" (the default) runs the
+        Newton-Euler closed form in the same compiled call
+        (:func:`~hexapod_pin.hexapod.kernels.inverse_dynamics_tree`) and verifies its
+        answer there: the platform equation ``A^T t = rhs`` it solved holds to
+        :data:`~hexapod_pin.core.kernel_status.RESIDUAL_RTOL` (relative, a backward-error
+        test), the forces and closure forces are finite, the type-II test passed, else a
+        :class:`SolverError` / :class:`SingularityError`. "qp" (and "kkt" when passive
+        coordinates carry joint effects) is the Pinocchio tree route: one ``pin.rnea``
+        gives the tree's generalised forces, whose projection on the platform's motions
+        (virtual power) is ``J^T tau + wrench`` (see the class docstring). The result's
+        ``residual`` (first access) is that of the tree equation of motion on Pinocchio.
 
         Args:
             pose: ``(x, y, z, roll, pitch, yaw)`` (m, rad), shape (6,).
@@ -304,8 +326,8 @@ class HexapodDynamics(ClosedFormDynamics):
                 moment about the platform origin (N, N m), (6,); default zero.
             branch: the IK branch of the legs (six +1 / -1, see
                 :meth:`HexapodKinematics.inverse_kinematics`); default the home branch.
-            method: "kkt" (default: the 6x6 LU solve, the bounds then checked) or "qp"
-                (ProxSuite: minimise ``1/2 |tau|^2`` subject to ``J^T tau =
+            method: "kkt" (default: the closed form, its 6x6 LU solve, the bounds then
+                checked) or "qp" (ProxSuite: minimise ``1/2 |tau|^2`` subject to ``J^T tau =
                 G^T rnea - wrench`` and the box bounds, i.e. the tree QP of
                 :func:`inverse_dynamics_tree` with the closure multipliers eliminated by
                 ``G^T``); they agree to 1e-10 when no bound
@@ -329,26 +351,51 @@ class HexapodDynamics(ClosedFormDynamics):
             SingularityError: a leg perpendicular to its rail (type I), a leg along its
                 rail (universal joint in gimbal lock) or a type-II singularity.
             InputError: bad shapes, NaN / inf, unknown method.
-            SolverError: the QP failed for another reason.
+            SolverError: the QP failed for another reason, or the closed form's answer
+                failed its verification.
         """
         self.check_method(method, self.INVERSE_METHODS)
         ws = self._workspace()
-        ck, dyn = ws.compiled, ws.dyn
+        ck = ws.compiled
         signs = ck.signs if branch is None else check_branch(branch)
         # plain float64 inputs are scanned (finite, within MAX_MAGNITUDE) by the kernel
         pose_a, twist_a = vec6_unscanned(pose, "pose"), vec6_unscanned(twist, "twist")
         tdot_a = vec6_unscanned(twist_dot, "twist_dot")
-        wrench_a = None if wrench is None else vec6(wrench, "wrench")
+        wrench_a = None if wrench is None else vec6_unscanned(wrench, "wrench")
         bounds = self.bounds(bounded)
-        q, v, a = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
+        q, v, a = np.empty(25), np.empty(24), np.empty(24)
         s = ck.scratch
+        geo = ck.dynamics_geo
+        if method == "kkt" and not geo[kernels.PASSIVE]:
+            # the closed form (Newton-Euler), verified in the same call
+            tau, closure = np.empty(6), np.empty((6, 3))
+            code = kernels.inverse_dynamics_tree(
+                geo, signs, pose_a, twist_a, tdot_a,
+                kernels.ZERO6 if wrench_a is None else wrench_a, bounds is not None,
+                MAX_MAGNITUDE, q, v, a, tau, closure, s.rot, s.wk, s.mats)
+            if code != kernels.OK:
+                self._refuse_inverse(code, (v, a, tau, closure), bounds,
+                                     ((pose, "pose"), (twist, "twist"),
+                                      (twist_dot, "twist_dot"), (wrench, "wrench")),
+                                     ((twist_a, "twist"), (tdot_a, "twist_dot"),
+                                      (wrench_a, "wrench")))
+            kept = owned_copy(pose_a, pose)
+            wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
+            # the lazy parts: the residual of the tree equation on Pinocchio (rnea)
+            details = TreeDetails(ws.inverse_parts, (q, v, a), tau, wrench_kept, kept, signs,
+                                  closure=closure, wanted=joint_wrenches)
+            return new_result(InverseDynamicsResult, {
+                "actuator_forces": tau, "configuration": q, "velocity": v,
+                "acceleration": a, "method": method, "status": "solved", "iterations": 0,
+                "_details": details, "_conditioning": self.conditioning(kept, signs)})
         code = kernels.tree_state_within(ck.geo, signs, pose_a, twist_a, tdot_a, 2, q, v, a,
                                          s.rot, s.wk, MAX_MAGNITUDE)
-        if code != kernels.OK or (wrench_a is not None and not all_finite(wrench_a)):
+        if code != kernels.OK or (wrench_a is not None
+                                  and not all_within(wrench_a, MAX_MAGNITUDE)):
             self.refuse(code, ((pose, "pose"), (twist, "twist"), (twist_dot, "twist_dot"),
                                (wrench, "wrench")))
         force = self._tree_force(ws, q, v, a)
-        tau, status, iters, rhs = self._solve_tree(ws, force, wrench_a, method, bounds)
+        tau, status, iters, _ = self._solve_tree(ws, force, wrench_a, method, bounds)
         kept = owned_copy(pose_a, pose)
         wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
         # the lazy parts (ws.inverse_parts): the closure forces from the legs' tree rows
@@ -358,6 +405,29 @@ class HexapodDynamics(ClosedFormDynamics):
             "actuator_forces": tau, "configuration": q, "velocity": v, "acceleration": a,
             "method": method, "status": status, "iterations": iters, "_details": details,
             "_conditioning": self.conditioning(kept, signs)})
+
+    def _refuse_inverse(self, code: int, state: tuple[np.ndarray, ...],
+                        bounds: np.ndarray | None, inputs: Inputs,
+                        motion: tuple[tuple[np.ndarray | None, str], ...]) -> NoReturn:
+        """Raise the error of a refused closed-form inverse dynamics (``code`` not OK;
+        ``state``: its ``(v, a, tau, closure)``): saturation (the needed forces), finite
+        inputs whose motion overflowed (:meth:`overflow`, naming the input of ``motion``),
+        an answer that failed its verification (:class:`SolverError` with the platform
+        equation's residual), else :meth:`refuse` (a malformed input by name, or the
+        pose's error)."""
+        v, a, tau, closure = state
+        if code == kernels.SATURATED and bounds is not None:
+            raise ActuatorSaturationError(tau, bounds)
+        if code == kernels.RESIDUAL:
+            if not (all_finite(v) and all_finite(a) and all_finite(tau)
+                    and all_finite(closure.reshape(-1))):
+                raise self.overflow(motion, all_finite(v))
+            wk = self._workspace().compiled.scratch.wk
+            raise SolverError("hexapod closed-form inverse dynamics", "unverified",
+                              f"platform equation A^T t = rhs off by "
+                              f"{kernels.platform_residual(wk):.3e} (N, N m), forces "
+                              f"{tau.tolist()}")
+        self.refuse(code, inputs)
 
     # -- the lazy parts of results (ws.inverse_parts, ws.forward_parts: core.closed_form) ----
     def _tree_wrench(self, details: TreeDetails) -> np.ndarray:
@@ -552,10 +622,16 @@ class HexapodDynamics(ClosedFormDynamics):
 
         The tree state ``(q, v)`` comes in closed form (compiled,
         :mod:`~hexapod_pin.hexapod.kernels`). "nullspace" (default) is the
-        independent-coordinate method: ``M_x twist_dot = J^T tau + wrench - h_x`` with
-        ``M_x = G^T M G`` (``pin.crba``) and ``h_x = G^T rnea(q, v, a_0)``, one 6x6
-        Cholesky solve, then ``a = G twist_dot + a_0`` (closure multipliers from the
-        legs' tree rows, on first access). The other routes solve the constrained tree
+        independent-coordinate method: ``M_x twist_dot = J^T tau + wrench - h_x``, one 6x6
+        Cholesky solve, then ``a = G twist_dot + a_0``. For a robot whose joints carry no
+        effect force (damping, friction, springs; an armature on the carriages is held)
+        ``M_x`` and ``h_x`` are the Newton-Euler closed form's, in one compiled call that
+        verifies its answer (:func:`~hexapod_pin.hexapod.kernels.forward_dynamics_tree`:
+        the residual of the equation it solved relative to its data, a finite answer;
+        else a :class:`SolverError`), the closure forces from the legs' balance; otherwise
+        ``M_x = G^T M G`` (``pin.crba``) and ``h_x = G^T (rnea(q, v, a_0) - tau_e)``
+        (closure multipliers from the legs' tree rows, on first access). The other
+        routes solve the constrained tree
         for ``a`` and return ``twist_dot = (R a_lin + w x v, R a_ang)``. The joint effects
         enter every route (the module docstring); with Coulomb friction at rest
         "nullspace" answers with the tree's stick / slip solve ("kkt", said in the status).
@@ -581,12 +657,19 @@ class HexapodDynamics(ClosedFormDynamics):
         ws = self._workspace()
         ck, dyn = ws.compiled, ws.dyn
         signs = ck.signs if branch is None else check_branch(branch)
-        # plain float64 pose and twist are scanned (finite, within MAX_MAGNITUDE) by the kernel
+        # plain float64 inputs are scanned (finite, within MAX_MAGNITUDE) by the kernels
         pose_a, twist_a = vec6_unscanned(pose, "pose"), vec6_unscanned(twist, "twist")
-        tau_a = vec6(actuator_forces, "actuator_forces")
-        wrench_a = None if wrench is None else vec6(wrench, "wrench")
+        tau_a = vec6_unscanned(actuator_forces, "actuator_forces")
+        wrench_a = None if wrench is None else vec6_unscanned(wrench, "wrench")
         inputs = ((pose, "pose"), (twist, "twist"), (actuator_forces, "actuator_forces"),
                   (wrench, "wrench"))
+        geo = ck.dynamics_geo
+        if method == "nullspace" and not ws.forces and not geo[kernels.PASSIVE]:
+            return self._closed_form_forward(ws, geo, signs, pose_a, twist_a, tau_a,
+                                             wrench_a, inputs, pose, actuator_forces)
+        if not all_within(tau_a, MAX_MAGNITUDE) or (
+                wrench_a is not None and not all_within(wrench_a, MAX_MAGNITUDE)):
+            self.refuse(kernels.NONFINITE, inputs)
         q, v, acc0 = np.empty(dyn.clm.nq), np.empty(dyn.nv), np.empty(dyn.nv)
         # the drift a_0 (tree acceleration at twist_dot = 0) only for the null-space route
         level = 2 if method == "nullspace" else 1
@@ -624,8 +707,6 @@ class HexapodDynamics(ClosedFormDynamics):
                 "twist_dot": twist_dot, "actuator_accelerations": acc[self.indices.carriage_v],
                 "tree_acceleration": acc, "method": method, "status": "solved", "iterations": 0,
                 "_details": details, "_conditioning": self.conditioning(lazy.pose, signs)})
-        if not all_finite(tau_a) or (wrench_a is not None and not all_finite(wrench_a)):
-            self.refuse(kernels.NONFINITE, inputs)
         tau = np.zeros(dyn.nv)
         tau[dyn.clm.actuated_v] = tau_a
         if wrench_a is not None:
@@ -648,6 +729,41 @@ class HexapodDynamics(ClosedFormDynamics):
         return ForwardDynamicsResult(twist_dot, acc[self.indices.carriage_v], acc, method,
                                      status, iters, details,
                                      self.conditioning(owned_copy(pose_a, pose), signs))
+
+    def _closed_form_forward(self, ws, geo, signs, pose_a, twist_a, tau_a, wrench_a, inputs,
+                             pose, actuator_forces) -> ForwardDynamicsResult:
+        """The "nullspace" forward dynamics of a robot whose joints carry no effect force:
+        the reduced closed form in one compiled call
+        (:func:`~hexapod_pin.hexapod.kernels.forward_dynamics_tree`, verified there: the
+        residual of ``M_x twist_dot = J^T tau + wrench - h_x`` it solved, finite answers),
+        the closure forces from the legs' Newton-Euler balance."""
+        s = ws.compiled.scratch
+        q, v, acc = np.empty(25), np.empty(24), np.empty(24)
+        twist_dot, closure = np.empty(6), np.empty((6, 3))
+        code = kernels.forward_dynamics_tree(
+            geo, signs, pose_a, twist_a, tau_a, kernels.ZERO6 if wrench_a is None else wrench_a,
+            MAX_MAGNITUDE, q, v, acc, twist_dot, closure, s.rot, s.wk, s.mats)
+        if code == kernels.NOT_PD:
+            raise SolverError("null-space forward dynamics", "mass matrix not positive "
+                              "definite", f"M_x = {s.mats[2].tolist()}")
+        if code == kernels.RESIDUAL:
+            if not (all_finite(v) and all_finite(twist_dot)):
+                raise self.overflow(((twist_a, "twist"), (tau_a, "actuator_forces"),
+                                     (wrench_a, "wrench")), all_finite(v))
+            raise SolverError("null-space forward dynamics", "unverified",
+                              f"M_x twist_dot = J^T tau + wrench - h_x missed, twist_dot "
+                              f"{twist_dot.tolist()}")
+        if code != kernels.OK:
+            self.refuse(code, inputs)
+        kept = owned_copy(pose_a, pose)
+        # the multipliers on first access (ws.forward_parts)
+        details = TreeDetails(ws.forward_parts, (q, v, acc), owned_copy(tau_a, actuator_forces),
+                              closure=closure)
+        return new_result(ForwardDynamicsResult, {
+            "twist_dot": twist_dot, "actuator_accelerations": acc[self.indices.carriage_v],
+            "tree_acceleration": acc, "method": "nullspace", "status": "solved",
+            "iterations": 0, "_details": details, "_conditioning": self.conditioning(kept,
+                                                                                  signs)})
 
     # -- reduced (null-space) dynamics ------------------------------------------------------
     def reduced_dynamics(self, pose: npt.ArrayLike, twist: npt.ArrayLike,

@@ -97,7 +97,8 @@ from ..errors import (BatchSingularityError, BatchUnreachablePoseError, HexapodP
                       SingularityError, SolverError, UnreachablePoseError)
 from .geometry import HOME_SIGNS, carriage_frames
 from ..core.kernel_status import (GAP, GIMBAL, NONFINITE, NOT_PD, OK, RESIDUAL,  # one numbering
-                                  SATURATED, STROKE, TYPE_I, TYPE_II, UNREACHABLE)
+                                  RESIDUAL_RTOL, SATURATED, STROKE, TYPE_I, TYPE_II,
+                                  UNREACHABLE)
 
 #: the home IK branch: even carriages on the smaller root
 HOME_BRANCH = HOME_SIGNS
@@ -734,6 +735,23 @@ def _axial_and_forces(geo, wk, mats, tau):
     return OK
 
 
+@jit_inline
+def _inverse_core(geo, rot, wk, mats, twist, twist_dot, wrench, tau):
+    """The Newton-Euler inverse dynamics of the legs in ``wk`` (after :func:`rates` with
+    drift and :func:`tip_accelerations`): end loads, the platform equation ``A^T t =
+    rhs`` (axial forces, the type-II test), ``tau`` (6,) with the carriages' drives.
+    Returns OK or TYPE_II."""
+    end_loads(geo, wk)
+    platform_rhs(geo, rot, wk, twist, twist_dot, wrench, wk[RHS])
+    code = _axial_and_forces(geo, wk, mats, tau)
+    if code != OK:
+        return code
+    if geo[DRIVES + drv.FLAG] != 0.0:
+        for i in range(6):
+            tau[i] += drv.inverse_load(geo, DRIVES, i, wk[Q, i], wk[QD, i], wk[QDD, i])
+    return OK
+
+
 @jit
 def inverse_dynamics(geo, signs, pose, twist, twist_dot, wrench, bounded, tau, rot, wk,
                      mats):
@@ -743,14 +761,56 @@ def inverse_dynamics(geo, signs, pose, twist, twist_dot, wrench, bounded, tau, r
     if code != OK:
         return code
     tip_accelerations(wk, twist_dot)
-    end_loads(geo, wk)
-    platform_rhs(geo, rot, wk, twist, twist_dot, wrench, wk[RHS])
-    code = _axial_and_forces(geo, wk, mats, tau)
+    code = _inverse_core(geo, rot, wk, mats, twist, twist_dot, wrench, tau)
     if code != OK:
         return code
-    if geo[DRIVES + drv.FLAG] != 0.0:
-        for i in range(6):
-            tau[i] += drv.inverse_load(geo, DRIVES, i, wk[Q, i], wk[QD, i], wk[QDD, i])
+    return check_bound(geo, tau, bounded)
+
+
+@jit
+def inverse_verified(geo, wk, tau, closure):
+    """Whether an inverse-dynamics answer (after :func:`_inverse_core` and
+    :func:`closure_forces`) passes its checks: the platform equation it solved, ``A^T t =
+    rhs``, holds to :data:`~hexapod_pin.core.kernel_status.RESIDUAL_RTOL` relative to
+    the data (``max(1, |rhs|, |t_i| L_i (1 + |r_k|))``: a backward-error test, the size of
+    each row of ``A`` times its unknown), and ``tau`` (6,) and ``closure`` (6, 3) are
+    finite (False for any NaN)."""
+    scale = 1.0
+    for j in range(6):
+        scale = max(scale, abs(wk[RHS0, j]))
+    for i in range(6):
+        arm = math.sqrt(wk[RX, i] ** 2 + wk[RY, i] ** 2 + wk[RZ, i] ** 2)
+        scale = max(scale, abs(wk[AXIAL, i]) * geo[BLOCK * i + LENI] * (1.0 + arm))
+    if not platform_residual(wk) <= RESIDUAL_RTOL * scale:
+        return False
+    for i in range(6):
+        if not (math.isfinite(tau[i]) and math.isfinite(closure[i, 0])
+                and math.isfinite(closure[i, 1]) and math.isfinite(closure[i, 2])):
+            return False
+    return True
+
+
+@jit
+def inverse_dynamics_tree(geo, signs, pose, twist, twist_dot, wrench, bounded, limit, q, v,
+                          a, tau, closure, rot, wk, mats):
+    """The single-state inverse dynamics in one call: the tree state ``q`` (25,), ``v``,
+    ``a`` (24,) (:func:`tree_state_within`: the four inputs, passed unscanned, refused
+    beyond ``limit`` or NaN / inf as NONFINITE), the Newton-Euler closed form
+    (:func:`_inverse_core`: ``tau`` (6,)), the closure forces (6, 3) ON the platform
+    (:func:`closure_forces`) and the answer's verification (:func:`inverse_verified`:
+    RESIDUAL when it fails), then the bound test (SATURATED; ``bounded``). Returns the
+    first status that is not OK, else OK."""
+    if not all_within(wrench, limit):
+        return NONFINITE
+    code = tree_state_within(geo, signs, pose, twist, twist_dot, 2, q, v, a, rot, wk, limit)
+    if code != OK:
+        return code
+    code = _inverse_core(geo, rot, wk, mats, twist, twist_dot, wrench, tau)
+    if code != OK:
+        return code
+    closure_forces(wk, closure)
+    if not inverse_verified(geo, wk, tau, closure):
+        return RESIDUAL
     return check_bound(geo, tau, bounded)
 
 
@@ -964,6 +1024,59 @@ def forward_dynamics(geo, signs, pose, twist, forces, wrench, twist_dot, qddot, 
         for a in range(6):
             s += jac_t[a, i] * twist_dot[a]
         qddot[i] = s
+    return OK
+
+
+@jit
+def forward_verified(wk, mats, twist_dot):
+    """Whether a forward-dynamics answer of :func:`forward_core` (its Cholesky solve, no
+    carriage at rest with friction) passes its checks: the equation it solved, ``M_x
+    twist_dot = J^T tau + wrench - h_x`` (``mats[2]``, wk[RHS0]), holds to
+    :data:`~hexapod_pin.core.kernel_status.RESIDUAL_RTOL` relative to its data
+    (``max(1, |rhs|, |M_x| |twist_dot|)``: a backward-error test), and ``twist_dot`` is
+    finite (False for any NaN)."""
+    mass, rhs = mats[2], wk[RHS0]
+    big_m, big_x, scale, worst = 0.0, 0.0, 1.0, 0.0
+    for r in range(6):
+        if not math.isfinite(twist_dot[r]):
+            return False
+        big_x = max(big_x, abs(twist_dot[r]))
+        scale = max(scale, abs(rhs[r]))
+        acc = -rhs[r]
+        for c in range(6):
+            big_m = max(big_m, abs(mass[r, c]))
+            acc += mass[r, c] * twist_dot[c]
+        worst = max(worst, abs(acc))
+    return worst <= RESIDUAL_RTOL * max(scale, big_m * big_x)
+
+
+@jit
+def forward_dynamics_tree(geo, signs, pose, twist, forces, wrench, limit, q, v, a, twist_dot,
+                          closure, rot, wk, mats):
+    """The single-state forward dynamics in one call: the tree state ``q`` (25,), ``v``
+    (24,) (:func:`tree_state_within`: the four inputs, passed unscanned, refused beyond
+    ``limit`` or NaN / inf as NONFINITE), the reduced closed form (:func:`forward_core`:
+    ``twist_dot`` (6,)), its verification (:func:`forward_verified`: RESIDUAL when it
+    fails), the closure forces (6, 3) ON the platform (:func:`forward_closure_forces`) and
+    the tree acceleration ``a`` (24,) of ``twist_dot``. For a robot whose carriages carry
+    no effect force (damping, friction, springs; an armature is inertia: held). Returns
+    the first status that is not OK (NOT_PD: ``M_x`` not positive definite), else OK."""
+    if not (all_within(forces, limit) and all_within(wrench, limit)):
+        return NONFINITE
+    code = tree_state_within(geo, signs, pose, twist, ZERO6, 2, q, v, a, rot, wk, limit)
+    if code != OK:
+        return code
+    code = forward_core(geo, rot, twist, forces, wrench, wk, mats, twist_dot)
+    if code != OK:
+        return code
+    if not forward_verified(wk, mats, twist_dot):
+        return RESIDUAL
+    forward_closure_forces(geo, wk, twist_dot, forces, closure)
+    tree_acceleration(geo, rot, wk, twist, twist_dot, v, a)
+    for i in range(6):
+        if not (math.isfinite(closure[i, 0]) and math.isfinite(closure[i, 1])
+                and math.isfinite(closure[i, 2])):
+            return RESIDUAL
     return OK
 
 

@@ -45,13 +45,21 @@ import pinocchio as pin
 from ..core.checks import as_array, max_abs, owned_copy
 from ..core.closed_form import ClosedFormDynamics, Inputs, LazyParts, TreeDetails
 from ..core.closed_loop import ClosedLoopModel
+from ..core.compiled import all_finite
 from ..core.dynamics import ClosedLoopDynamics, forward_dynamics_tree, inverse_dynamics_tree
-from ..core.effects_projection import (PASSIVE_STATUS, passive_effect_coordinates,
-                                       reduced_effects)
-from ..core.results import (BatchForwardDynamics, BatchInverseDynamics, BatchReducedDynamics,
-                            ComputedDetails, ForwardDynamicsResult, InverseDynamicsResult,
-                            ReducedDynamics, SingularityMeasures)
-from ..errors import InputError, SolverError
+from ..core.effects_projection import PASSIVE_STATUS, passive_effect_coordinates, reduced_effects
+from ..core.results import (
+    BatchForwardDynamics,
+    BatchInverseDynamics,
+    BatchReducedDynamics,
+    ComputedDetails,
+    ForwardDynamicsResult,
+    InverseDynamicsResult,
+    ReducedDynamics,
+    SingularityMeasures,
+    new_result,
+)
+from ..errors import SolverError
 from . import derivatives, kernels
 from .geometry import N_ACTUATORS, PlanarGeometry
 from .kinematics import PlanarKinematics, PlanarWorkspace, vec3
@@ -109,7 +117,8 @@ class PlanarDynamics(ClosedFormDynamics):
         self.data = model.model.createData()
         self.platform_joint = model.model.getJointId("platform_theta")
         #: how the lazy parts of results are computed
-        self.parts = LazyParts(self.dyn, self.lock, to_multipliers=self._multipliers_of,
+        self.parts = LazyParts(self.dyn, self.lock, tau_ext=self._tree_wrench,
+                               to_multipliers=self._multipliers_of,
                                to_closure=self._closure_of, fext=self._platform_force)
 
     # -- the contract's pieces ----------------------------------------------------------------
@@ -159,6 +168,10 @@ class PlanarDynamics(ClosedFormDynamics):
             self.ws.legs(0, False, None, (), pose)
         self.ws.raise_for(code, inputs, info, index=index)
         raise SolverError("planar closed form", f"status {code}", "no error for it")
+
+    def _tree_wrench(self, details: TreeDetails) -> np.ndarray:
+        """A result's wrench on the tree (nv,) (:meth:`tau_ext`)."""
+        return self.tau_ext(details.wrench)
 
     def _multipliers_of(self, closure: np.ndarray) -> np.ndarray:
         return multipliers_of(self.ws, closure)
@@ -242,32 +255,30 @@ class PlanarDynamics(ClosedFormDynamics):
         q, v, a = np.empty(nv), np.empty(nv), np.empty(nv)
         tau, closure = np.empty(N_ACTUATORS), np.empty((N_ACTUATORS, 2))
         geo = ws.dynamics_geo
+        signs = ws.signs(branch)
         status = kernels.inverse_dynamics(
             geo, ws.idx, pose_a, twist_a, twist_dot_a,
             ws.zero3 if wrench_a is None else wrench_a, wrench_a is not None,
-            ws.signs(branch), q, v, a, tau, closure, ws.buf, ws.info)
+            signs, q, v, a, tau, closure, ws.buf, ws.info)
         if status in (kernels.NONFINITE, kernels.UNREACHABLE, kernels.TYPE_I, kernels.TYPE_II):
             self.refuse(status, inputs)
-        if not (np.all(np.isfinite(v)) and np.all(np.isfinite(a))):
-            # finite inputs whose products overflow (a twist of 1e160): name the user's
-            # argument, not the tree state it overflowed in
-            name, value = max(((twist_a, "twist"), (twist_dot_a, "twist_dot")),
-                              key=lambda pair: max_abs(pair[0]))[::-1]
-            if not np.all(np.isfinite(v)):
-                name, value = "twist", twist
-            raise InputError(name, value, "too large: the motion's tree velocities or "
-                             "accelerations overflow double precision")
+        if not (all_finite(v) and all_finite(a)):
+            raise self.overflow(((twist_a, "twist"), (twist_dot_a, "twist_dot")),
+                                all_finite(v))
         bounds = self.bounds(bounded)
         wrench_kept = None if wrench_a is None else owned_copy(wrench_a, wrench)
-        tau_ext = self.tau_ext(wrench_kept)
-        conditioning = self.conditioning(owned_copy(pose_a, pose), ws.signs(branch))
+        conditioning = self.conditioning(owned_copy(pose_a, pose), signs)
         passive = bool(geo[kernels.PASSIVE])
         if method == "kkt" and status == kernels.OK and not passive:
             self.check_bounds(tau, bounds)
-            details = TreeDetails(self.parts, (q, v, a), tau, wrench_kept, tau_ext=tau_ext,
-                                  closure=closure, wanted=joint_wrenches)
-            return InverseDynamicsResult(tau, q, v, a, "kkt", STATUS_ID, 0, details,
-                                         conditioning)
+            # the wrench on the tree and the multipliers on first access (self.parts)
+            details = TreeDetails(self.parts, (q, v, a), tau, wrench_kept, closure=closure,
+                                  wanted=joint_wrenches)
+            return new_result(InverseDynamicsResult, {
+                "actuator_forces": tau, "configuration": q, "velocity": v,
+                "acceleration": a, "method": "kkt", "status": STATUS_ID, "iterations": 0,
+                "_details": details, "_conditioning": conditioning})
+        tau_ext = self.tau_ext(wrench_kept)
         res = inverse_dynamics_tree(self.model, q, v, a, tau_ext, bounds=bounds,
                                     method=method)
         tau = res.actuator_forces.copy()
@@ -368,10 +379,13 @@ class PlanarDynamics(ClosedFormDynamics):
                 q, v, a, twist_dot, closure, ws.buf, ws.info)
             if status != kernels.OK:
                 self.refuse(status, inputs)
-            details = ComputedDetails(multipliers_of(ws, closure), closure)
-            return ForwardDynamicsResult(twist_dot, a[ws.indices.slider], a, method,
-                                         STATUS_FD, 0, details,
-                                         self.conditioning(owned_copy(pose_a, pose), signs))
+            # the multipliers on first access (self.parts)
+            details = TreeDetails(self.parts, (q, v, a), forces_a, closure=closure)
+            return new_result(ForwardDynamicsResult, {
+                "twist_dot": twist_dot, "actuator_accelerations": a[ws.indices.slider],
+                "tree_acceleration": a, "method": method, "status": STATUS_FD,
+                "iterations": 0, "_details": details,
+                "_conditioning": self.conditioning(owned_copy(pose_a, pose), signs)})
         q, v, _ = ws.state(1, True, branch, inputs[:2], pose_a, twist_a)
         forces = as_array(actuator_forces, (N_ACTUATORS,), "actuator_forces")
         wrench_c = None if wrench is None else as_array(wrench, (3,), "wrench")

@@ -66,15 +66,12 @@ import numpy as np
 from ..core import effects_projection as drv
 from ..core.batching import CHUNK, n_chunks, prange_jit
 from ..core.compiled import all_finite, jit
-from ..core.kernel_status import (NONFINITE, OK, RESIDUAL, TYPE_I,  # one numbering: every robot
-                                  TYPE_II, UNREACHABLE)
+from ..core.kernel_status import (NONFINITE, OK, RESIDUAL,  # one numbering: every robot
+                                  RESIDUAL_RTOL, TYPE_I, TYPE_II, UNREACHABLE)
 from ..core.layouts import rail_angles
 from ..core.measures import TYPE_I_TOL, TYPE_II_TOL
 from .geometry import N_ACTUATORS, PlanarGeometry
 
-
-#: relative residual above which a closed-form solve is refused
-RESIDUAL_RTOL = 1e-9
 
 # geometry vector: per leg k, 7 values from 7 k: m (2), u (2), p (2), a_k; then scalars
 # (the singularity thresholds are packed, not read as globals: compiled code caches globals)

@@ -95,6 +95,39 @@ def test_weld_jacobian_and_drift_match_finite_differences(robot, rng):
     np.testing.assert_allclose(weld.constraint_drift(q_ref, v), second, atol=2e-5)
 
 
+def test_closure_linear_forces_of_points_and_welds(robot, rng):
+    """The force part of each closure's spatial force (what a result's closure_forces
+    holds) against a reference written here: a point closure's multipliers are its force
+    (world axes); a weld's six pair with its log6 rows, its force is ``R_1 (Jlog6(M21)^T
+    lambda)[:3]`` (the spatial force in anchor-1 axes rotated to the world)."""
+    from hexapod_pin.core.closure_forces import closure_linear_forces
+
+    q_ref = robot.configuration(random_pose(robot, rng))
+    weld = _weld_model(robot, q_ref)
+    q = _random_q(weld, rng, around=q_ref, scale=0.3)      # away from the closure: M21 != I
+    lam = rng.normal(size=weld.n_rows)
+    data = weld.model.createData()
+    got = closure_linear_forces(weld.model, data, weld.closure_frames, q, lam)
+    pin.framesForwardKinematics(weld.model, data, q)
+    want = []
+    for frame in weld.closure_frames:
+        part = lam[frame.rows]
+        if frame.is_point:
+            want.append(part)
+        else:
+            one, two = data.oMf[frame.frame1], data.oMf[frame.frame2]
+            local = pin.Jlog6(two.actInv(one)).T @ part
+            want.append(one.rotation @ local[:3])
+    assert [f.is_point for f in weld.closure_frames] == [False, True]
+    np.testing.assert_allclose(got, np.array(want), rtol=0, atol=1e-12)
+    # points only: the multipliers themselves, no kinematics (a fresh data stays unplaced)
+    fresh = robot.model.model.createData()
+    lam = rng.normal(size=robot.model.n_rows)
+    got = closure_linear_forces(robot.model.model, fresh, robot.model.closure_frames,
+                                robot.home_configuration, lam)
+    np.testing.assert_array_equal(got, lam.reshape(-1, 3))
+
+
 def test_point_drift_matches_second_differences(robot, rng):
     q = _random_q(robot.model, rng)
     v = rng.normal(size=robot.model.nv)

@@ -547,3 +547,33 @@ def test_twist_from_configuration_reads_the_robots_own_frame(delta, stewart):
     q[-4:] *= 3.0                                   # the platform quaternion, not unit
     with pytest.raises(InputError, match="not unit"):
         stewart.twist_from_configuration(q, np.zeros(stewart.model.nv))
+
+
+def test_solves_of_several_right_hand_sides_verify_each_column(monkeypatch):
+    """``solve_checked_columns`` (the tree acceleration's two right-hand sides in one
+    factorisation) answers as one ``solve_checked_square`` per column (to round-off), and
+    verifies each column against its own data: a small column off by 1e-6 of its size is
+    refused even next to a column a million times larger (whose scale would hide it in
+    one check of both)."""
+    from hexapod_pin.core import platform_map
+    from hexapod_pin.errors import InconsistentMotionError
+
+    rng = np.random.default_rng(3)
+    mat = rng.normal(size=(6, 6)) + 4.0 * np.eye(6)
+    rhs = np.stack([rng.normal(size=6), 1e6 * rng.normal(size=6)], axis=1)
+    both = platform_map.solve_checked_columns(mat, rhs, "test")
+    for j in range(2):
+        one = platform_map.solve_checked_square(mat, rhs[:, j], "test")
+        np.testing.assert_allclose(both[:, j], one, rtol=0, atol=1e-14 * np.abs(one).max())
+    with pytest.raises(InconsistentMotionError):
+        platform_map.solve_checked_columns(np.zeros((6, 6)), rhs, "test")
+    solve = np.linalg.solve
+
+    def off(a, b):
+        x = solve(a, b)
+        x[0, 0] += 1e-6 * np.abs(x[:, 0]).max()
+        return x
+
+    monkeypatch.setattr(platform_map.np.linalg, "solve", off)
+    with pytest.raises(InconsistentMotionError, match="test"):
+        platform_map.solve_checked_columns(mat, rhs, "test")
