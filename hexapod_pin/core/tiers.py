@@ -137,14 +137,24 @@ def read_settings(environ: Mapping[str, str]) -> Settings:
 SETTINGS = read_settings(os.environ)
 
 _LOCK = threading.Lock()
-_LOCAL = threading.local()
+class _ThreadState(threading.local):
+    """Per thread: depth of :func:`eager` blocks, of interpreted kernel calls, seconds
+    spent compiling through a :class:`Tier`, and why the current compilation runs."""
+
+    eager = 0
+    depth = 0
+    compiling = 0.0
+    reason = ""
+
+
+_LOCAL = _ThreadState()
 
 
 @contextlib.contextmanager
 def eager() -> Iterator[None]:
     """Within the block, kernels called by this thread compile on their first call (as in
     mode ``eager``)."""
-    _LOCAL.eager = getattr(_LOCAL, "eager", 0) + 1
+    _LOCAL.eager += 1
     try:
         yield
     finally:
@@ -154,7 +164,7 @@ def eager() -> Iterator[None]:
 def compile_reason() -> str:
     """Why the kernel being compiled by this thread is compiled now (empty when not by a
     :class:`Tier` decision); the compile notice quotes it."""
-    return str(getattr(_LOCAL, "reason", ""))
+    return _LOCAL.reason
 
 
 def supported(dispatcher: object) -> bool:
@@ -224,9 +234,10 @@ def closure(dispatcher: Any) -> tuple[Any, ...]:
 class _Record:
     """What a kernel did with one tuple of argument types."""
 
-    __slots__ = ("cached", "calls", "rate", "spent")
+    __slots__ = ("cached", "calls", "key", "rate", "spent")
 
-    def __init__(self) -> None:
+    def __init__(self, key: tuple) -> None:
+        self.key = key                     # the numba types of the arguments
         self.spent = 0.0                   # interpreted seconds (calls, compilations out)
         self.calls = 0                     # interpreted calls
         self.rate: float | None = None     # interpreted seconds per unit of work
@@ -253,6 +264,9 @@ class Tier:
         self.work = work
         self.always_compile = always_compile
         self._records: dict[tuple, _Record] = {}
+        self._by_fingerprint: dict[tuple, _Record] = {}
+        #: no argument defaults: numba passes the arguments as they are (no OmittedArg)
+        self.plain_args = not dispatcher.py_func.__defaults__
         self._closure: tuple[Any, ...] | None = None
         self._uncompiled = (-1, 1)         # (generation, kernels without machine code)
 
@@ -283,18 +297,14 @@ class Tier:
         return choice
 
     def _decide(self, args: tuple, kws: dict) -> Any:
-        in_eager_block = getattr(_LOCAL, "eager", 0) > 0
+        in_eager_block = _LOCAL.eager > 0
         if kws or self.always_compile or SETTINGS.mode != "tiered" or in_eager_block:
             return self._compile(args, kws, "")
-        try:
-            key = tuple(self.dispatcher.typeof_pyval(a.value if isinstance(a, OmittedArg)
-                                                     else a) for a in args)
-        except Exception:  # noqa: BLE001 - untypeable: numba reports it as it always did
+        record = self._record(args)
+        if record is None:                 # untypeable: numba reports it as it always did
             return self._compile(args, kws, "")
-        with _LOCK:
-            record = self._records.setdefault(key, _Record())
         if record.cached is None:
-            record.cached = self._in_disk_cache(key)
+            record.cached = self._in_disk_cache(record.key)
         if record.cached is not False:     # cached (or unknown): numba loads (compiles)
             return self._compile(args, kws, "")
         price = self.price()
@@ -311,15 +321,37 @@ class Tier:
                                  f"about what compiling takes")
         return _Interpreted(self, record, units)
 
+    def _record(self, args: tuple) -> _Record | None:
+        """The record of the arguments' numba types (None: numba cannot type them),
+        found by :func:`_fingerprint` when it can (numba's ``typeof`` costs microseconds
+        per argument)."""
+        fingerprint = tuple(map(_fingerprint, args))
+        known = None not in fingerprint
+        record = self._by_fingerprint.get(fingerprint) if known else None
+        if record is not None:
+            return record
+        try:
+            key = tuple(self.dispatcher.typeof_pyval(a.value if isinstance(a, OmittedArg)
+                                                     else a) for a in args)
+        except Exception:  # noqa: BLE001 - any: numba's own call reports it
+            return None
+        with _LOCK:
+            record = self._records.get(key)
+            if record is None:
+                record = self._records[key] = _Record(key)
+            if known:
+                self._by_fingerprint[fingerprint] = record
+        return record
+
     def _compile(self, args: tuple, kws: dict, reason: str) -> Any:
         """numba's own hook: machine code from memory, the disk cache or the compiler."""
-        previous, _LOCAL.reason = getattr(_LOCAL, "reason", ""), reason
+        previous, _LOCAL.reason = _LOCAL.reason, reason
         start = time.perf_counter()
         try:
             return _ORIGINAL(self.dispatcher, *args, **kws)  # type: ignore[misc]
         finally:
             _LOCAL.reason = previous
-            _LOCAL.compiling = _compiling() + time.perf_counter() - start
+            _LOCAL.compiling += time.perf_counter() - start
             _GENERATION[0] += 1
 
     def _in_disk_cache(self, key: tuple) -> bool | None:
@@ -336,11 +368,6 @@ class Tier:
             return None
 
 
-def _compiling() -> float:
-    """Seconds this thread has spent in compilations through a :class:`Tier`."""
-    return float(getattr(_LOCAL, "compiling", 0.0))
-
-
 class _Interpreted:
     """One interpreted call of a kernel (numba calls it with the call's arguments)."""
 
@@ -351,19 +378,32 @@ class _Interpreted:
         self.overhead = 0.0
 
     def __call__(self, *args: Any) -> Any:
-        values = tuple(a.value if isinstance(a, OmittedArg) else a for a in args)
-        saved = _snapshot(values)
-        compiling, start = _compiling(), time.perf_counter()
-        try:
-            result = run_interpreted(self.tier.dispatcher, values)
-        except Exception as exc:  # noqa: BLE001 - any: the compiled kernel decides
-            _restore(values, saved)
-            LOGGER.debug("%s raised %r interpreted: compiled and rerun",
-                         self.tier.dispatcher, exc)
-            entry = self.tier._compile(args, {}, "its interpreted run raised "
-                                       f"{type(exc).__name__}")
-            return entry(*args)
-        seconds = time.perf_counter() - start - (_compiling() - compiling)
+        values = args if self.tier.plain_args else tuple(
+            a.value if isinstance(a, OmittedArg) else a for a in args)
+        depth = _LOCAL.depth
+        compiling, start = _LOCAL.compiling, time.perf_counter()
+        if depth:          # inside an interpreted kernel: its exceptions go to the outermost
+            _LOCAL.depth = depth + 1
+            try:
+                result = _plain(self.tier.dispatcher.py_func(*values))
+            finally:
+                _LOCAL.depth = depth
+        else:
+            saved = _snapshot(values)
+            _LOCAL.depth = 1
+            try:
+                with np.errstate(all="ignore"):
+                    result = _plain(self.tier.dispatcher.py_func(*values))
+            except Exception as exc:  # noqa: BLE001 - any: the compiled kernel decides
+                _restore(values, saved)
+                LOGGER.debug("%s raised %r interpreted: compiled and rerun",
+                             self.tier.dispatcher, exc)
+                entry = self.tier._compile(args, {}, "its interpreted run raised "
+                                           f"{type(exc).__name__}")
+                return entry(*args)
+            finally:
+                _LOCAL.depth = 0
+        seconds = time.perf_counter() - start - (_LOCAL.compiling - compiling)
         with _LOCK:
             self.record.spent += seconds + self.overhead
             self.record.calls += 1
@@ -378,6 +418,25 @@ def run_interpreted(dispatcher: Any, args: tuple) -> Any:
     an exception propagates (no fallback, no bookkeeping). For tests and debugging."""
     with np.errstate(all="ignore"):
         return _plain(dispatcher.py_func(*args))
+
+
+def _fingerprint(value: Any) -> Any:
+    """A hashable key for the numba type of an argument (arrays: dtype number, ndim and
+    the flags: contiguity, writability, alignment; scalars: their type), or None when only
+    numba's ``typeof`` can tell. It serves the bookkeeping only (the cache lookup and the
+    time spent): numba types the arguments itself when it compiles."""
+    kind = type(value)
+    if kind is np.ndarray:
+        return value.dtype.num, value.ndim, value.flags.num
+    if kind is float or kind is bool or (isinstance(value, np.generic)
+                                         and kind.__module__ == "numpy"):
+        return kind
+    if kind is int:
+        return int if -2**63 <= value < 2**63 else None
+    if kind is tuple:
+        items = tuple(map(_fingerprint, value))
+        return None if None in items else ("tuple", items)
+    return None
 
 
 def _units(value: Any) -> int | None:

@@ -265,3 +265,20 @@ def test_the_price_counts_the_kernels_a_compilation_compiles(settings):
     with tiers.eager():
         inner(1.0)                                   # machine code: no longer counted
     assert tiers.tier_of(outer).price() == 0.25
+
+
+def test_an_exception_in_an_inner_kernel_reruns_the_outermost_one_compiled(settings):
+    settings.budget = math.inf
+    divide = kernel(PLAIN)(_divide_into)
+
+    def twice(out, x, d):
+        out[3] += 10.0                    # the outer kernel's own write, before the failure
+        return divide(out, x, d) + divide(out, x, d)
+
+    outer = kernel(PLAIN)(twice)
+    out = np.zeros(4)
+    assert outer(out, 6.0, 2.0) == 10.0 and not outer.signatures          # interpreted
+    np.testing.assert_array_equal(out, [2.0, 3.0, 2.0, 10.0])
+    out = np.zeros(4)
+    assert outer(out, 6.0, 0.0) == math.inf and outer.signatures          # compiled
+    np.testing.assert_array_equal(out, [2.0, math.inf, 2.0, 10.0])        # written once
