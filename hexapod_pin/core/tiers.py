@@ -31,19 +31,28 @@ Loops over states or steps (batch drivers, the simulator loop) declare the argum
 counts their work (``work=``): such a call is compiled at once when its predicted
 interpreted time (units times the seconds per unit measured by its earlier interpreted
 calls, else :data:`PRIOR_SECONDS_PER_UNIT`) would take the kernel past its price, so a
-large batch never crawls interpreted. Kernels that cannot run as Python (numba
-intrinsics, raw pointers) are marked ``always_compile``.
+large batch never crawls interpreted. A kernel that cannot run as Python may be marked
+``always_compile`` (none is: the raw-pointer reads of
+:func:`~hexapod_pin.core.dynamics_common.closure_state_errors` go through ctypes when
+interpreted, through a numba intrinsic when compiled).
 
 Same behaviour as machine code: an interpreted run executes under
 ``np.errstate(all="ignore")`` (numba's error model: 1/0 gives inf, never a warning); its
 numpy scalars are returned as Python scalars (as numba returns them); and on ANY exception
-(a Python float divided by zero, ``math.sqrt`` of a negative, an index out of range ...)
-the array arguments, and arrays inside tuple arguments, are restored from copies taken
-before the run (kernels write their outputs and scratch in place), the kernel is compiled
-and the call rerun as machine code: the caller sees exactly what the compiled kernel
-gives. Interpreted and compiled results agree to round-off (kernels compiled with
-fast-math flags reassociate sums): ``tests/test_compile_tiers.py`` checks it for every
-kernel :func:`hexapod_pin.warmup` reaches.
+in it (a Python float divided by zero, ``math.sqrt`` of a negative, an index out of
+range ..., raised by the kernel or by a kernel it calls interpreted) the array arguments
+of the outermost interpreted kernel, and arrays inside its tuple arguments, are restored
+from copies taken before its run (kernels write outputs and scratch in place; the kernels
+it calls write into those arrays or into arrays it made), that kernel is compiled (with
+the kernels it calls) and the call rerun as machine code: the caller sees exactly what
+the compiled kernel gives. Interpreted and compiled results agree to round-off (kernels
+compiled with fast-math flags reassociate sums): ``tests/core/test_tiers.py`` checks every
+call of every kernel that :func:`hexapod_pin.warmup`'s steps make (``tests/tier_verify.py``).
+
+Cost: an interpreted kernel is 20 to 400 times slower than its machine code (1.6 ms
+against 16 us for the hexapod's inverse dynamics; ``benchmarks/README.md``), about 5 us of
+it per kernel call for this bookkeeping. A kernel with machine code pays nothing: numba
+calls it before any of this.
 
 Control: the environment variable ``HEXAPOD_PIN_COMPILE`` = ``tiered`` (default) or
 ``eager`` (compile every kernel on its first call, as numba does: bit-for-bit the same
@@ -55,9 +64,9 @@ results in every call of a session), and ``HEXAPOD_PIN_COMPILE_BUDGET`` (seconds
 numba's ``_compile_for_args``, its cache index and the dispatcher's ``py_func`` are
 private API: :func:`install` checks them (:func:`supported`) and leaves a kernel to
 numba's plain behaviour (compile on first call) when this numba lacks them; a failure of
-the bookkeeping itself falls back to compiling. Thread-safe: the bookkeeping takes a lock,
-compilation takes numba's; interpreted runs of one kernel in several threads are
-independent (the kernels keep no state).
+the bookkeeping itself (an unreadable cache index included) falls back to compiling.
+Thread-safe: the bookkeeping takes a lock, compilation takes numba's; interpreted runs of
+one kernel in several threads are independent (the kernels keep no state).
 """
 
 from __future__ import annotations
@@ -291,34 +300,38 @@ class Tier:
 
     def __call__(self, *args: Any, **kws: Any) -> Any:
         start = time.perf_counter()
-        choice = self._decide(args, kws)
-        if isinstance(choice, _Interpreted):    # typing the arguments: a cost of not compiling
-            choice.overhead = time.perf_counter() - start
+        try:
+            choice = self._choose(args, kws)
+        except Exception:  # the bookkeeping failed: numba's plain behaviour
+            LOGGER.debug("tiered execution of %s failed", self.dispatcher, exc_info=True)
+            choice = ""
+        if isinstance(choice, str):
+            return self._compile(args, kws, choice)
+        choice.overhead = time.perf_counter() - start   # a cost of not compiling
         return choice
 
-    def _decide(self, args: tuple, kws: dict) -> Any:
+    def _choose(self, args: tuple, kws: dict) -> _Interpreted | str:
+        """An interpreted run, or the reason to compile now ("" for none to tell)."""
         in_eager_block = _LOCAL.eager > 0
         if kws or self.always_compile or SETTINGS.mode != "tiered" or in_eager_block:
-            return self._compile(args, kws, "")
+            return ""
         record = self._record(args)
         if record is None:                 # untypeable: numba reports it as it always did
-            return self._compile(args, kws, "")
+            return ""
         if record.cached is None:
             record.cached = self._in_disk_cache(record.key)
         if record.cached is not False:     # cached (or unknown): numba loads (compiles)
-            return self._compile(args, kws, "")
+            return ""
         price = self.price()
         units = _units(args[self.work]) if self.work is not None else None
         if units is not None:
             predicted = units * (record.rate if record.rate is not None
                                  else PRIOR_SECONDS_PER_UNIT)
             if record.spent + predicted > price:
-                return self._compile(args, kws, f"a call of {units} units of work: "
-                                     f"{predicted:.2g} s interpreted predicted, compiling "
-                                     f"about {price:.2g} s")
+                return (f"a call of {units} units of work: {predicted:.2g} s interpreted "
+                        f"predicted, compiling about {price:.2g} s")
         if record.spent >= price:
-            return self._compile(args, kws, f"after {record.spent:.2g} s interpreted, "
-                                 f"about what compiling takes")
+            return f"after {record.spent:.2g} s interpreted, about what compiling takes"
         return _Interpreted(self, record, units)
 
     def _record(self, args: tuple) -> _Record | None:

@@ -282,3 +282,10 @@ def test_an_exception_in_an_inner_kernel_reruns_the_outermost_one_compiled(setti
     out = np.zeros(4)
     assert outer(out, 6.0, 0.0) == math.inf and outer.signatures          # compiled
     np.testing.assert_array_equal(out, [2.0, math.inf, 2.0, 10.0])        # written once
+
+
+def test_a_failing_bookkeeping_falls_back_to_compiling(settings, monkeypatch):
+    settings.budget = math.inf
+    rows_sum = kernel(PLAIN)(_rows_sum)
+    monkeypatch.setattr(tiers.Tier, "price", lambda self: 1 / 0)
+    assert rows_sum(np.ones((2, 2))) == 2.0 and rows_sum.signatures
