@@ -100,8 +100,9 @@ BUDGET_VARIABLE = "HEXAPOD_PIN_COMPILE_BUDGET"
 DEFAULT_BUDGET = 0.5
 #: interpreted seconds per unit of work (a state of a batch, a step of a simulation)
 #: assumed before a loop kernel has run interpreted once: above the largest measured
-#: (1.7 ms per RK4 step of the hexapod's simulator; 0.1-0.9 ms per state of its batches)
-PRIOR_SECONDS_PER_UNIT = 2e-3
+#: (1.8 ms per RK4 step of the hexapod's simulator, 0.6 ms per state of its inverse
+#: dynamics batch: ``benchmarks/bench_cold_start.py --per-call``)
+PRIOR_SECONDS_PER_UNIT = 3e-3
 MODES = ("tiered", "eager")
 
 #: the numba hook replaced per kernel (None: this numba has none, kernels compile plainly)
