@@ -1,9 +1,10 @@
 """Compile every compiled (numba) kernel of the library at once: :func:`warmup`.
 
-The kernels are compiled on their first call and cached on disk
-(:mod:`hexapod_pin.core.compiled`): after an install (or an edit of a compiled module) the
-first calls of a session take seconds to minutes each. :func:`warmup` pays that once, up
-front, by running each family of kernels on small inputs: the hexapod's and the planar
+The kernels are cached on disk once compiled (:mod:`hexapod_pin.core.compiled`); until
+then a kernel runs its Python source and is compiled once that has cost it about as much
+time as compiling (:mod:`hexapod_pin.core.tiers`), so after an install (or an edit of a
+compiled module) a session's calls are slower at first and pause for compilations now and
+then. :func:`warmup` compiles everything once, up front, by running each family of kernels on small inputs: the hexapod's and the planar
 robot's closed forms (single state and batches, both the serial and the parallel
 compilation of every batch loop), the hexapod's compiled simulator (every integrator),
 the time-optimal planner, and the tree routes of a robot loaded from a description (the
@@ -15,7 +16,6 @@ from __future__ import annotations
 
 import importlib
 import time
-import types
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any, cast
@@ -24,6 +24,7 @@ import numpy as np
 import pinocchio as pin
 from numba.core.dispatcher import Dispatcher
 
+from .core import tiers
 from .core.batching import BatchDriver
 from .core.compiled import COMPILE_NOTICE, PACKAGE_DIR, compiled_modules, kernel_name
 from .core.dynamics import inverse_dynamics_tree
@@ -244,7 +245,7 @@ def _steps() -> Iterator[tuple[str, Callable[[], None]]]:
 N_STEPS = 8
 #: kernels of routes that the small inputs of :func:`warmup` do not reach (frame inverse
 #: kinematics' QP step with curvature, the tree inverse dynamics' kernels of redundant
-#: actuation and of active force bounds): compiled on their first use
+#: actuation and of active force bounds): run interpreted, then compiled, when first reached
 RARE = frozenset({
     "hexapod_pin.core.frame_ik._qp_data",
     "hexapod_pin.core.linear_kernels.box_active_set_solve",
@@ -258,9 +259,11 @@ def warmup(progress: Progress | None = None) -> WarmupReport:
     """Compile every compiled kernel of the library (or load it from the disk cache), so
     that no later call of the session waits for the compiler.
 
-    Each step runs one family of kernels on small inputs (module docstring); the compile
-    notice of :mod:`hexapod_pin.core.compiled` logs each first compilation (logger
-    ``"hexapod_pin"``, INFO).
+    Each step runs one family of kernels on small inputs (module docstring), compiling
+    every kernel it reaches on its first call (:func:`hexapod_pin.core.tiers.eager`: no
+    interpreted runs, whatever ``HEXAPOD_PIN_COMPILE`` says); the compile notice of
+    :mod:`hexapod_pin.core.compiled` logs each first compilation (logger ``"hexapod_pin"``,
+    INFO).
 
     Args:
         progress: called as ``progress(done, total)`` after each step (``total`` =
@@ -273,13 +276,14 @@ def warmup(progress: Progress | None = None) -> WarmupReport:
     steps: list[WarmupStep] = []
     if progress is not None:
         progress(0, N_STEPS)
-    for label, run in _steps():
-        before, start = COMPILE_NOTICE.compiled, time.perf_counter()
-        run()
-        steps.append(WarmupStep(label, time.perf_counter() - start,
-                                COMPILE_NOTICE.compiled - before))
-        if progress is not None:
-            progress(len(steps), N_STEPS)
+    with tiers.eager():                     # compile now, never interpret
+        for label, run in _steps():
+            before, start = COMPILE_NOTICE.compiled, time.perf_counter()
+            run()
+            steps.append(WarmupStep(label, time.perf_counter() - start,
+                                    COMPILE_NOTICE.compiled - before))
+            if progress is not None:
+                progress(len(steps), N_STEPS)
     kernels = dispatchers()
     return WarmupReport(tuple(steps), tuple(sorted(kernels)), uncompiled(kernels))
 
@@ -296,21 +300,6 @@ def uncompiled(kernels: dict[str, Dispatcher] | None = None) -> tuple[str, ...]:
         dispatcher = todo.pop()
         if id(dispatcher) not in ready:
             ready.add(id(dispatcher))
-            todo.extend(_callees(dispatcher))
+            todo.extend(tiers.callees(dispatcher))
     return tuple(sorted(name for name, d in kernels.items() if id(d) not in ready))
 
-
-def _callees(dispatcher: Dispatcher) -> list[Dispatcher]:
-    """The kernels a kernel's source names: global names (``leg_state(...)``) and
-    attributes of imported modules (``kernels.leg_state(...)``)."""
-    func = dispatcher.py_func
-    names, scope = func.__code__.co_names, func.__globals__
-    out = []
-    for name in names:
-        value = scope.get(name)
-        if isinstance(value, Dispatcher):
-            out.append(value)
-        elif isinstance(value, types.ModuleType):
-            out += [getattr(value, attr) for attr in names
-                    if isinstance(getattr(value, attr, None), Dispatcher)]
-    return out

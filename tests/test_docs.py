@@ -165,7 +165,7 @@ def test_public_modules_type_check():
 
 def unannotated(source: str) -> list[str]:
     """The public functions and methods of a module's source (module level and public
-    classes; compiled ``jit`` kernels excepted) with a parameter or the result not annotated."""
+    classes; compiled kernels, ``@jit...`` / ``@kernel(...)``, excepted) with a parameter or the result not annotated."""
     missing = []
 
     def visit(node: ast.AST, prefix: str) -> None:
@@ -174,7 +174,8 @@ def unannotated(source: str) -> list[str]:
                 visit(item, f"{prefix}{item.name}.")
             elif isinstance(item, ast.FunctionDef) and (not item.name.startswith("_")
                                                         or item.name == "__init__"):
-                if any("jit" in ast.unparse(d) for d in item.decorator_list):
+                if any("jit" in ast.unparse(d) or ast.unparse(d).startswith("kernel(")
+                       for d in item.decorator_list):
                     continue
                 a = item.args
                 params = [*a.posonlyargs, *a.args, *a.kwonlyargs,

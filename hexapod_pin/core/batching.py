@@ -10,15 +10,17 @@ size, and much more on a loaded machine. Both compilations give the same numbers
 The parallel twin is compiled from a copy of the function named ``<name>__parallel``: numba
 keys its disk cache on the function's name and signature only (not on ``parallel=True``),
 so two twins of one name would share one cache entry and load each other's machine code.
+
+Both twins have tiered execution (:mod:`hexapod_pin.core.tiers`) with the states as their
+work: a small batch may run interpreted (the parallel twin then runs its loop serially), a
+batch whose predicted interpreted time exceeds the budget compiles at once.
 """
 
 from __future__ import annotations
 
 import types
 
-import numba
-
-from .compiled import FLAGS, jit
+from .compiled import FLAGS, jit, kernel
 
 #: states per chunk of a prange loop (one scratch per chunk)
 CHUNK = 64
@@ -38,8 +40,9 @@ class BatchDriver:
     ``states_arg``)."""
 
     def __init__(self, func, states_arg: int, flags: dict = FLAGS):
-        self.parallel = numba.njit(parallel=True, **flags)(_renamed(func, "__parallel"))
-        self.serial = numba.njit(**flags)(func)
+        self.parallel = kernel(dict(flags, parallel=True), work=states_arg)(
+            _renamed(func, "__parallel"))
+        self.serial = kernel(flags, work=states_arg)(func)
         self.states_arg = states_arg
         self.__doc__ = func.__doc__
 

@@ -1,9 +1,13 @@
 """Shared pieces of the compiled (numba) kernels of every robot.
 
-Kernels are compiled with ``@njit(cache=True)``: the machine code is cached next to the
-module (or in numba's user cache directory when that is read-only), so only the first
-call after an install compiles. Kernels never raise: they return an integer status and
-the caller raises the library's exception with its values.
+Kernels are made by the decorators here (:func:`kernel`, :data:`jit`, :data:`jit_fast`,
+:data:`jit_lean`, :data:`jit_inline`): ``numba.njit(cache=True)``, the machine code cached
+next to the module (or in numba's user cache directory when that is read-only), with
+tiered execution (:mod:`hexapod_pin.core.tiers`): a kernel whose machine code is neither in
+memory nor in the disk cache runs its own Python source until that has cost about a
+compile time, then compiles (``HEXAPOD_PIN_COMPILE=eager``: compile on the first call).
+Kernels never raise: they return an integer status and the caller raises the library's
+exception with its values.
 
 Cache freshness: numba keys a cached kernel on its own source file only, but a kernel
 compiled into another module's kernel (``batch`` and ``fast`` inline ``kernels``) is
@@ -12,11 +16,12 @@ key every kernel of this package on the contents of ALL its compiled modules ins
 an edit to any of them recompiles every kernel on next use (never stale machine code).
 With ``NUMBA_CACHE_DIR`` set, the cache lives there (numba's own rule), stamped the same way.
 
-Compile notice: the first call of a kernel that is not in the cache compiles it (seconds to
-a minute for the largest); that compilation logs one line at level INFO on the logger
-``"hexapod_pin"`` (:class:`CompileNotice`; a call served from memory or from the disk cache
-logs nothing). ``hexapod_pin.warmup()`` / ``hexapod-pin warmup`` compile every kernel at
-once.
+Compile notice: compiling a kernel that is not in the cache (a fraction of a second to
+seconds each, the compilation of a kernel compiling the kernels it calls) logs one line at
+level INFO on the logger ``"hexapod_pin"`` (:class:`CompileNotice`, with the reason of the
+tiered execution: the interpreted time spent, a large call, an exception; a call served
+from memory, from the disk cache or interpreted logs nothing). ``hexapod_pin.warmup()`` /
+``hexapod-pin warmup`` compile every kernel at once.
 """
 
 from __future__ import annotations
@@ -30,6 +35,8 @@ from pathlib import Path
 
 import numba
 from numba.core import caching, event
+
+from . import tiers
 
 #: the library's logger (the compile notice, :class:`CompileNotice`)
 LOGGER = logging.getLogger("hexapod_pin")
@@ -122,7 +129,8 @@ def kernel_name(dispatcher: object) -> str:
 class CompileNotice(event.Listener):
     """Logs one INFO line on the ``"hexapod_pin"`` logger when a kernel of this package is
     compiled (numba's ``"numba:compile"`` event, sent only on a cache miss: not for a call
-    served from memory or loaded from the disk cache). Kernels compiled inside the
+    served from memory, loaded from the disk cache or interpreted); the line quotes why
+    tiered execution compiles it now (:func:`hexapod_pin.core.tiers.compile_reason`). Kernels compiled inside the
     compilation of another (its callees) add no line: one notice per first call."""
 
     def __init__(self) -> None:
@@ -139,9 +147,10 @@ class CompileNotice(event.Listener):
             return
         self.compiled += 1
         if depth == 0:
-            LOGGER.info("compiling %s for its first use (numba, once per install: the machine "
-                        "code is cached on disk; 'hexapod-pin warmup' compiles every kernel)",
-                        name)
+            reason = tiers.compile_reason()
+            LOGGER.info("compiling %s%s (numba, once per install: the machine code is cached "
+                        "on disk; 'hexapod-pin warmup' compiles every kernel)", name,
+                        f" ({reason})" if reason else "")
 
     def on_end(self, ev: event.Event) -> None:
         self._depth.value = max(getattr(self._depth, "value", 1) - 1, 0)
@@ -155,8 +164,25 @@ event.register("numba:compile", COMPILE_NOTICE)
 #: gives inf / NaN, which the kernels' finiteness checks catch, never an exception)
 FLAGS = {"cache": True, "error_model": "numpy"}
 
+
+def kernel(flags: dict, work: int | None = None, always_compile: bool = False):
+    """Decorator: a kernel compiled with the numba options ``flags``, with tiered execution
+    (:mod:`hexapod_pin.core.tiers`: its Python source runs until compiling it pays).
+
+    Args:
+        flags: numba's ``njit`` options.
+        work: index of the argument that counts the work of a call (an int, or an array
+            whose first axis counts states or steps), for a loop over states or steps;
+            None: each call does a bounded amount of work.
+        always_compile: compile on the first call (a kernel that cannot run as Python).
+    """
+    def decorate(func):
+        return tiers.install(numba.njit(**flags)(func), work, always_compile)
+    return decorate
+
+
 #: a compiled kernel (plain arithmetic)
-jit = numba.njit(**FLAGS)
+jit = kernel(FLAGS)
 #: the kernel options plus the fast-math flags ``contract, reassoc, nsz`` (no ``nnan`` /
 #: ``ninf``: the finiteness checks stay exact); results differ from plain arithmetic by
 #: round-off only
@@ -174,12 +200,14 @@ def _lean_options() -> dict:
 
 
 LEAN_FLAGS = dict(FAST_FLAGS, **_lean_options())
+#: inline options of the small helpers
+INLINE_FLAGS = dict(LEAN_FLAGS, forceinline=True)
 #: a compiled kernel with the fast-math flags
-jit_fast = numba.njit(**FAST_FLAGS)
+jit_fast = kernel(FAST_FLAGS)
 #: a compiled kernel that never allocates (no reference counting)
-jit_lean = numba.njit(**LEAN_FLAGS)
+jit_lean = kernel(LEAN_FLAGS)
 #: a small allocation-free helper, inlined by LLVM into its compiled callers
-jit_inline = numba.njit(forceinline=True, **LEAN_FLAGS)
+jit_inline = kernel(INLINE_FLAGS)
 
 
 @jit

@@ -13,6 +13,7 @@ Conventions (tree coordinates, Pinocchio's ``q``, ``v``, ``a``; see
 
 from __future__ import annotations
 
+import ctypes
 import math
 from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
@@ -23,7 +24,7 @@ import pinocchio as pin
 import proxsuite
 import scipy.linalg
 from numba import types
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
 from ..errors import InputError, SolverError
 from .compiled import jit
@@ -185,15 +186,28 @@ def characteristic_length(model: pin.Model) -> float:
     return best
 
 
+def float64_pointer(address: int) -> Any:
+    """The ``float64*`` at the integer ``address``, for ``numba.carray`` in
+    :func:`closure_state_errors`: a ctypes pointer when the kernel runs as Python (tiered
+    execution, :mod:`hexapod_pin.core.tiers`), the intrinsic :func:`_float64_pointer` in
+    compiled code (:func:`_float64_pointer_overload`)."""
+    return ctypes.cast(int(address), ctypes.POINTER(ctypes.c_double))
+
+
 @intrinsic
 def _float64_pointer(typingctx, address):
-    """The ``float64*`` at the integer ``address`` (a numba intrinsic, for
-    :func:`closure_state_status`)."""
+    """The ``float64*`` at the integer ``address`` (a numba intrinsic)."""
     sig = types.CPointer(types.float64)(types.int64)
 
     def codegen(context, builder, signature, args):
         return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
     return sig, codegen
+
+
+@overload(float64_pointer)
+def _float64_pointer_overload(address):
+    """:func:`float64_pointer` in compiled code: the intrinsic."""
+    return lambda address: _float64_pointer(address)
 
 
 @jit
@@ -207,8 +221,8 @@ def closure_state_errors(addresses, v, out):
     max-abs of v)``. A NaN propagates to its entry."""
     pl, pa, vl, va = 0.0, 0.0, 0.0, 0.0
     for k in range(addresses.shape[0] // 2):
-        p = numba.carray(_float64_pointer(addresses[2 * k]), (6,))
-        s = numba.carray(_float64_pointer(addresses[2 * k + 1]), (6,))
+        p = numba.carray(float64_pointer(addresses[2 * k]), (6,))
+        s = numba.carray(float64_pointer(addresses[2 * k + 1]), (6,))
         a = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
         b = math.sqrt(p[3] * p[3] + p[4] * p[4] + p[5] * p[5])
         c = math.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from .compiled import jit_inline, jit_lean
+from .compiled import LEAN_FLAGS, jit_inline, kernel
 
 
 @jit_inline
@@ -69,13 +69,13 @@ def rpy_of(rot):
     return math.atan2(rot[7], rot[8]), pitch, math.atan2(rot[3], rot[0])
 
 
-@jit_lean
+@kernel(LEAN_FLAGS, work=0)
 def _rotations_rpy(rpy, out):
     for k in range(rpy.shape[0]):
         rotation_rpy(rpy[k, 0], rpy[k, 1], rpy[k, 2], out[k])
 
 
-@jit_lean
+@kernel(LEAN_FLAGS, work=0)
 def _rpys(rot, out):
     for k in range(rot.shape[0]):
         out[k, 0], out[k, 1], out[k, 2] = rpy_of(rot[k])

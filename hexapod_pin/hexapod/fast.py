@@ -64,8 +64,7 @@ from ..core.compiled import all_finite
 from ..errors import ActuatorSaturationError, HexapodPinError, InputError, StrokeLimitError
 from ..core import effects_projection as drv
 from . import kernels as K
-from ..core.compiled import jit_inline, jit_lean
-from ..core.compiled import jit_fast as jit
+from ..core.compiled import FAST_FLAGS, LEAN_FLAGS, jit_inline, kernel
 from ..core.pose import quaternion_rpy, rotation_quat, rpy_of
 from ..core.simulate import real_time_factor
 from .kernels import (GAP, GIMBAL, NONFINITE, NOT_PD, OK, SATURATED, STROKE, TYPE_I, TYPE_II,
@@ -105,7 +104,7 @@ def _carriages(geo, state, rot, wk, twist):
     return OK
 
 
-@jit
+@kernel(FAST_FLAGS, work=1)
 def _set_points(geo, ref_poses, ref_twists, feedforward, setpoints):
     """Carriage set-points of the reference rows into ``setpoints`` (3, m, 6): ``q``
     (IK), ``qdot`` (``J twist``) and, with ``feedforward``, the static forces of the pose
@@ -194,7 +193,7 @@ def _euler_update(state, acc, dt):
     state[3], state[4], state[5], state[6] = qw * inv, qx * inv, qy * inv, qz * inv
 
 
-@jit_lean
+@kernel(LEAN_FLAGS, work=1)
 def simulate_kernel(geo: np.ndarray, n_steps: int, dt: float, record_every: int, integrator: int,
                     mode: int, forces_in: np.ndarray, wrench: np.ndarray, setpoints: np.ndarray,
                     bad_row: int, bad_code: int, gains: np.ndarray, saturation: int,
@@ -528,8 +527,8 @@ class FastTrajectory:
         message: details of a stop.
         dt: the step (s).
         wall_time: seconds spent in the compiled code (set-points of the reference, then
-            the loop; the first call of a process also compiles it or loads it from the
-            cache, see the benchmark).
+            the loop; the first calls of a process also load it from the disk cache, or
+            run it interpreted or compile it: :mod:`hexapod_pin.core.tiers`).
         integrator: "rk4", "rk2" or "semi_implicit_euler".
         dissipated_work: (n,) energy dissipated by the carriages' damping and friction since
             t = 0 (J; the integrator's quadrature of their power, see
@@ -839,7 +838,7 @@ def _quaternion_wxyz(rpy) -> np.ndarray:
     return np.array(quaternion_rpy(float(rpy[0]), float(rpy[1]), float(rpy[2])))
 
 
-@jit
+@kernel(FAST_FLAGS, work=1)
 def _poses_of(states, out):
     """Poses ``(x, y, z, roll, pitch, yaw)`` (n, 6) of recorded states ``(p, Q (w, x, y, z),
     ...)`` (:func:`hexapod_pin.core.pose.rpy_of`)."""

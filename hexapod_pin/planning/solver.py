@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from ..core.compiled import jit
+from ..core.compiled import FLAGS, jit, kernel
 
 #: kernel status codes
 OK, EMPTY_SET, START_OUTSIDE = 0, 1, 2
@@ -82,7 +82,7 @@ def _x_interval(rows, k, d, x_max, lo1, hi1, with_next, al, be, ga):
     return x_lo, x_hi
 
 
-@jit
+@kernel(FLAGS, work=0)
 def backward_pass(rows: np.ndarray, steps: np.ndarray, x_max: np.ndarray, x_end: float,
                   lo: np.ndarray, hi: np.ndarray) -> tuple[int, int]:
     """Controllable sets ``[lo_k, hi_k]`` (filled), back from ``x_{N-1} = x_end``.
@@ -107,7 +107,7 @@ def backward_pass(rows: np.ndarray, steps: np.ndarray, x_max: np.ndarray, x_end:
     return OK, -1
 
 
-@jit
+@kernel(FLAGS, work=0)
 def forward_pass(rows: np.ndarray, steps: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                  x_start: float, x: np.ndarray, u: np.ndarray) -> tuple[int, int]:
     """Greedy forward pass: ``x`` (N,) and ``u`` (N-1,) filled, ``x_0 = x_start``.
@@ -137,7 +137,7 @@ def forward_pass(rows: np.ndarray, steps: np.ndarray, lo: np.ndarray, hi: np.nda
     return OK, -1
 
 
-@jit
+@kernel(FLAGS, work=0)
 def max_velocity_curve(rows: np.ndarray, x_max: np.ndarray, out: np.ndarray) -> None:
     """The largest ``x`` at each grid point for which some ``u`` meets that point's rows
     (``inf`` where nothing bounds it): the maximum-velocity curve (squared)."""
