@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from .compiled import LEAN_FLAGS, jit_inline, kernel
+from .compiled import LEAN_FLAGS, jit_inline, jit_lean, kernel
 
 
 @jit_inline

@@ -68,21 +68,29 @@ def test_every_kernel_gives_the_same_numbers_interpreted_and_compiled(tmp_path):
     there, once per tuple of argument types (``tests/tier_verify.py``): result and
     arguments left by the Python source equal the machine code's (1e-12 relative, integers
     exactly). The kernels are in the disk cache when the demo ran the warmup before."""
-    out = tmp_path / "checks.json"
-    done = subprocess.run([sys.executable, str(ROOT / "tests" / "tier_verify.py"), str(out)],
-                          capture_output=True, text=True, env=_env(), cwd=ROOT, timeout=1800,
-                          check=False)
-    assert done.returncode == 0, done.stderr[-3000:]
-    checks = json.loads(out.read_text())
-    wrong = [c for c in checks if c.get("differences")]
-    assert not wrong, wrong[:10]
-    checked = {c["kernel"] for c in checks}
-    # every kernel of the package with tiered execution that warmup compiles was checked
+    # every kernel of the package with tiered execution that warmup compiles is checked
     # (a parallel twin runs the source of its serial twin; RARE: not reached by warmup)
     expected = {name for name, d in precompile.dispatchers().items()
                 if not name.endswith("[parallel]") and name not in precompile.RARE
                 and tiers.tier_of(d) is not None and not tiers.tier_of(d).always_compile}
-    missing = expected - {name for name in checked}
+    out = tmp_path / "checks.json"
+    for attempt in range(2):
+        done = subprocess.run([sys.executable, str(ROOT / "tests" / "tier_verify.py"),
+                               str(out)], capture_output=True, text=True, env=_env(),
+                              cwd=ROOT, timeout=1800, check=False)
+        assert done.returncode == 0, done.stderr[-3000:]
+        checks = json.loads(out.read_text())
+        missing = expected - {c["kernel"] for c in checks}
+        if not missing or attempt:
+            break
+        # a cold disk cache: compiling a twin compiles its callees into their own
+        # dispatchers, whose later calls then skip the checker; warm the cache and rerun
+        warm = subprocess.run([sys.executable, "-c", "import hexapod_pin; hexapod_pin.warmup()"],
+                              capture_output=True, text=True, env=_env(), cwd=ROOT,
+                              timeout=1800, check=False)
+        assert warm.returncode == 0, warm.stderr[-3000:]
+    wrong = [c for c in checks if c.get("differences")]
+    assert not wrong, wrong[:10]
     assert not missing, sorted(missing)
     # the Python source of a kernel raises only where its compiled run gives inf / NaN
     # (the fallback compiles then): none on warmup's finite, regular inputs
