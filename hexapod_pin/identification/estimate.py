@@ -31,8 +31,18 @@ Weighted least squares (Gautier's method):
    errors) above :data:`GAP_WARNING` is logged as a warning (logger
    ``hexapod_pin.identification.estimate``).
 
+With the states' noise (``state_noise``, :class:`~.input_noise.StateNoise`: states
+differentiated from noisy positions) three steps change (:mod:`.input_noise`): the rows
+inside the Coulomb deadband are left out (steps 2 - 4 count the rows kept); the solve
+of step 3 is bias-compensated, ``(W_w^T W_w - B) beta = W_w^T u_w``, its inverse taken
+from the generalised eigenvectors of ``(B, W_w^T W_w)``; and the covariance is the
+sandwich ``H^-1 S H^-1`` with the long-run covariance ``S`` of the per-sample scores,
+which needs no noise level (the weights only set the efficiency). The consistent fit of
+step 4 then uses ``H`` in place of ``W_w^T W_w``.
+
 :func:`identify` runs the same on a :class:`~.motion_data.MotionData` (positions and
-forces in time) after :func:`~.motion_data.states_from_motion`.
+forces in time) after :func:`~.motion_data.states_from_motion`, with the states' noise
+of the position noise, given or estimated (:func:`identify`).
 """
 
 from __future__ import annotations
@@ -86,11 +96,15 @@ DATA_RTOL = 1e-10
 #: physically consistent, or the data do not fit the model)
 GAP_WARNING = 3.0
 LOGGER = logging.getLogger(__name__)
-#: :func:`identify` warns when the position noise's force errors exceed this fraction of
-#: the force noise (the acceleration noise grows as ``cutoff^2.5``: 0.2 lets the
-#: estimates' bias stay within their standard errors in the measured cases of
-#: docs/tutorials/identification.md)
+#: :func:`identify` warns, when the position noise is not given, where the force errors
+#: that the estimated noise makes exceed this fraction of the force noise (the
+#: acceleration noise grows as ``cutoff^2.5``: 0.2 kept the plain estimates' bias within
+#: their standard errors in the measured cases of docs/tutorials/identification.md)
 INPUT_NOISE_WARNING = 0.2
+#: :func:`identify` warns, when the position noise is not given, where the bias that the
+#: estimated noise makes (the shift its compensation would make) exceeds this many
+#: standard errors of an estimate
+BIAS_WARNING = 1.0
 #: :func:`identify` warns when the positions' content above the cut-off exceeds the
 #: position noise given by this factor
 NOISE_MISMATCH = 1.5
@@ -244,40 +258,45 @@ def _solve_compensated(mat: np.ndarray, rhs: np.ndarray, correction: np.ndarray
 
 @dataclass(frozen=True)
 class _Fit:
-    """One weighted solve: the estimate, ``H^-1`` (the normal matrix's inverse, corrected
-    by ``B`` when compensated), the uncompensated estimate (the same weights), the
-    condition number, and when compensated the attenuation and ``B``."""
+    """One weighted solve: the estimate and the inverse of its normal matrix (``H^-1``
+    when compensated), the plain estimate (the same weights, no compensation), the
+    condition number, and with the attenuation terms: the compensated estimate, the
+    attenuation and ``H``."""
 
     beta: np.ndarray
     inv: np.ndarray
     plain: np.ndarray
     condition: float
-    attenuation: float | None
-    normal: np.ndarray | None
+    compensated: np.ndarray | None = None
+    attenuation: float | None = None
+    normal: np.ndarray | None = None
 
 
-def _weighted_fit(factors: ActuatorFactors, sigma: np.ndarray,
-                  parts: np.ndarray | None) -> _Fit:
-    """Weighted least squares with the weights ``1 / sigma_i^2``, bias-compensated by
-    ``B = sum_i parts_i / sigma_i^2`` when ``parts`` (:func:`~.input_noise.attenuation_terms`)
-    is given (:func:`_solve_compensated`; ``normal``: its ``H``)."""
+def _weighted_fit(factors: ActuatorFactors, sigma: np.ndarray, parts: np.ndarray | None,
+                  compensate: bool) -> _Fit:
+    """Weighted least squares with the weights ``1 / sigma_i^2``; with ``parts``
+    (:func:`~.input_noise.attenuation_terms`) also bias-compensated by ``B = sum_i
+    parts_i / sigma_i^2`` (:func:`_solve_compensated`), the estimate when
+    ``compensate``."""
     rw, cw = factors.stacked(sigma)
     beta, inv, cond = _solve(rw, cw)
     if parts is None:
-        return _Fit(beta, inv, beta, cond, None, None)
+        return _Fit(beta, inv, beta, cond)
     comp, inv_h, normal, attenuation = _solve_compensated(
         rw, cw, np.einsum("ipq,i->pq", parts, sigma ** -2.0))
-    return _Fit(comp, inv_h, beta, cond, attenuation, normal)
+    if compensate:
+        return _Fit(comp, inv_h, beta, cond, comp, attenuation, normal)
+    return _Fit(beta, inv, beta, cond, comp, attenuation)
 
 
-def _noise_levels(factors: ActuatorFactors, parts: np.ndarray | None,
+def _noise_levels(factors: ActuatorFactors, parts: np.ndarray | None, compensate: bool,
                   u: np.ndarray) -> np.ndarray:
     """The per-actuator noise ``sigma_i`` from the residuals (module docstring, step 2),
-    each fit compensated when ``parts`` is given."""
+    each fit compensated when ``compensate``."""
     n_act, r = factors.r.shape[0], factors.r.shape[1]
     sigma = np.ones(n_act)
     for _ in range(NOISE_ITERATIONS):       # OLS, then re-weighted
-        beta_it = _weighted_fit(factors, sigma, parts).beta
+        beta_it = _weighted_fit(factors, sigma, parts, compensate).beta
         sigma = np.sqrt(factors.residuals2(beta_it)
                         / np.maximum(factors.counts - r / n_act, 1.0))
         sigma = np.maximum(sigma, 1e-12 * max(float(np.max(np.abs(u))), 1e-300))
@@ -302,15 +321,15 @@ def _check_state_noise(value: object, n_act: int) -> StateNoise:
 @dataclass(frozen=True)
 class _NoiseTerms:
     """What the states' noise adds to a fit (:mod:`.input_noise`): the rows outside the
-    Coulomb deadband ``keep`` (N, n_act), and when compensated the sensitivity samples
-    ``rows`` (M,), their sensitivities (M, n_act, n_act, r) and the attenuation terms
-    ``parts`` (n_act, r, r)."""
+    Coulomb deadband ``keep`` (N, n_act), the sensitivity samples ``rows`` (M,), their
+    sensitivities (M, n_act, n_act, r) and the attenuation terms ``parts`` (n_act, r,
+    r)."""
 
     noise: StateNoise
     keep: np.ndarray
-    rows: np.ndarray | None
-    sens: np.ndarray | None
-    parts: np.ndarray | None
+    rows: np.ndarray
+    sens: np.ndarray
+    parts: np.ndarray
 
     @classmethod
     def of(cls, reg: ClosedLoopRegressor, base: BaseParameters, noise: StateNoise,
@@ -323,8 +342,6 @@ class _NoiseTerms:
         stamp = np.arange(n, dtype=float) if times is None else np.asarray(times, float)
         keep = coulomb_rows(actuator_velocities(reg.robot, pos, tw, stamp), noise,
                             reg.layout.drive)
-        if not noise.compensate:
-            return cls(noise, keep, None, None, None)
         rows = sensitivity_rows(n, noise)
         sens = acceleration_sensitivities(reg, base, pos[rows], tw[rows], td[rows],
                                           stamp[rows])
@@ -334,12 +351,14 @@ class _NoiseTerms:
     def long_run(self, wb: np.ndarray, u: np.ndarray, beta: np.ndarray,
                  sigma: np.ndarray) -> np.ndarray:
         """The long-run covariance of the fit's per-sample scores (:mod:`.input_noise`,
-        item 3) at the estimate ``beta`` with the weights ``1 / sigma^2``."""
+        item 3) at the estimate ``beta`` with the weights ``1 / sigma^2``: the
+        compensated one's scores when ``noise.compensate``, else the plain one's (no
+        ``B_k beta``: the spread about the plain estimate's biased limit)."""
         n, n_act = self.keep.shape
         r = beta.size
         residual = (u - wb @ beta).reshape(n, n_act) * self.keep
         scores = np.einsum("kip,ki->kp", wb.reshape(n, n_act, r), residual / sigma ** 2)
-        if self.sens is not None and self.rows is not None:
+        if self.noise.compensate:
             scores[self.rows] += score_correction(self.sens, self.keep[self.rows],
                                                   self.noise, n / self.rows.size, beta,
                                                   sigma)
@@ -405,18 +424,19 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
                                                        twist_dots, times)
     keep = None if terms is None else terms.keep
     parts = None if terms is None else terms.parts
+    compensate = noise is not None and noise.compensate
     factors = ActuatorFactors.of(wb, u, n_act, keep)
     if factors.rows <= r:
         raise IdentifiabilityError(f"{factors.rows} force rows outside the Coulomb "
                                    f"deadband for {r} base parameters", r, factors.rows)
     _data_rank(factors, base.names)
     if noise_std is None:
-        sigma = _noise_levels(factors, parts, u)
+        sigma = _noise_levels(factors, parts, compensate, u)
     else:
         sigma = bounds(noise_std, n_act, "noise_std")
         if not np.all(np.isfinite(sigma)):
             raise InputError("noise_std", noise_std, "must be finite")
-    fit = _weighted_fit(factors, sigma, parts)
+    fit = _weighted_fit(factors, sigma, parts, compensate)
     beta = fit.beta
     if terms is None:
         s2 = float(np.sum(factors.residuals2(beta) / sigma ** 2)) / (factors.rows - r)
@@ -441,7 +461,7 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
         ForceResiduals.of((u - wb @ beta_nom).reshape(n, n_act)),
         ForceResiduals.of((u - wb @ beta).reshape(n, n_act)), fit.condition, fitted,
         state_noise=noise, attenuation=fit.attenuation,
-        compensation=None if parts is None else beta - fit.plain,
+        compensation=None if fit.compensated is None else fit.compensated - fit.plain,
         deadband_rows=None if keep is None else n - np.sum(keep, axis=0))
     gap = result.consistent_gap
     if gap is not None and gap > GAP_WARNING:
@@ -479,6 +499,48 @@ def input_noise_force(robot: object, times: np.ndarray, cutoff: float,
                                                              reg.n_actuators))
 
 
+def _warn_input_noise(result: IdentificationResult, induced: np.ndarray,
+                      sigma_p: np.ndarray, given: bool, cut: float) -> None:
+    """The warnings of :func:`identify` about the position noise (its docstring); each
+    names the cut-off that would bring its number to the threshold (the bias and ``B``
+    fall as the cut-off's fifth power, the force errors as its 2.5th)."""
+    if result.compensation is None or result.attenuation is None:
+        return
+    shift = float(np.max(np.abs(result.compensation) / result.std_errors))
+    ratio = float(np.max(induced / result.noise_std))
+    if not given and (shift > BIAS_WARNING or ratio > INPUT_NOISE_WARNING):
+        better = cut * min((BIAS_WARNING / shift) ** 0.2 if shift > BIAS_WARNING else 1.0,
+                           (INPUT_NOISE_WARNING / ratio) ** 0.4
+                           if ratio > INPUT_NOISE_WARNING else 1.0)
+        LOGGER.warning("the actuator positions' noise, estimated at %s from the data above "
+                       "the cut-off, biases the estimates by up to %.3g standard errors "
+                       "(errors in the variables; its force errors up to %.3g of the force "
+                       "noise) through the accelerations filtered at %.4g Hz, and the "
+                       "standard errors do not cover it: give position_noise_std (the "
+                       "sensors' noise) to compensate it, or use a cut-off of %.3g Hz",
+                       np.array2string(sigma_p, precision=2), shift, ratio, cut, better)
+    share = result.attenuation
+    if given and share > ATTENUATION_WARNING:
+        # the share at a cut-off c': l' = l x / (1 - l + l x), x = (c' / c)^5
+        low = min(share, 0.999)
+        ratio = ATTENUATION_WARNING * (1.0 - low) / (low * (1.0 - ATTENUATION_WARNING))
+        LOGGER.warning("the position noise makes up to %.3g of the data's energy in a "
+                       "direction that the motion barely excites, through the "
+                       "accelerations filtered at %.4g Hz (above %g): the estimates of "
+                       "that combination are mostly noise (compensated up to %g); a "
+                       "cut-off of %.3g Hz would bring it to %g, or excite it more", share,
+                       cut, ATTENUATION_WARNING, COMPENSATION_CAP, cut * ratio ** 0.2,
+                       ATTENUATION_WARNING)
+    if given and shift > COMPENSATION_WARNING:
+        LOGGER.warning("the position noise biased the plain estimates by up to %.3g "
+                       "standard errors through the accelerations filtered at %.4g Hz "
+                       "(errors in the variables; above %g): compensated, but only as "
+                       "well as position_noise_std is known (10%% off in it leaves 20%% "
+                       "of the bias); a cut-off of %.3g Hz would bring it to %g", shift,
+                       cut, COMPENSATION_WARNING,
+                       cut * (COMPENSATION_WARNING / shift) ** 0.2, COMPENSATION_WARNING)
+
+
 def identify(robot: object, data: object, *, cutoff: float | None = None,
              trim: int | None = DEFAULT_TRIM, position_noise_std: npt.ArrayLike | None = None,
              **options: object) -> IdentificationResult:
@@ -487,27 +549,30 @@ def identify(robot: object, data: object, *, cutoff: float | None = None,
     default a fifth of the Nyquist frequency; ``trim`` samples dropped at each end,
     default three periods of the cut-off), then :func:`identify_from_states` with
     ``options`` (``drive``, ``base``, ``noise_std``, ``consistent``, ``prior``) and the
-    states' noise (:mod:`.input_noise`): errors as both.
+    states' noise (:class:`~.input_noise.StateNoise.of_filter`): errors as both.
 
-    The position noise makes errors in the variables (:mod:`.input_noise`). With
-    ``position_noise_std`` (the actuator positions' white noise, m or rad, scalar or
-    (n_act,): the sensors' noise, known) the fit leaves out the rows inside the Coulomb
-    deadband, compensates the attenuation bias and takes the long-run sandwich
-    covariance; when the compensation moves an estimate by more than
-    :data:`~.input_noise.COMPENSATION_WARNING` standard errors, a warning says that the
-    result leans on the noise given and names the cut-off that would shrink the
-    shift to that many; when the noise makes more than
-    :data:`~.input_noise.ATTENUATION_WARNING` of the data's energy in some direction (the
-    result's ``attenuation``: that combination's estimate is mostly noise), a warning
-    names the cut-off that would bring it there. Without
-    it the noise is estimated from the positions' content above the cut-off
-    (:func:`~.motion_data.position_noise_estimate`, an upper bound: vibration reads as
-    noise) and used for the deadband and the covariance but not for the compensation;
-    when the force errors that it makes (``input_noise_force`` of the result,
-    :func:`input_noise_force`) exceed :data:`INPUT_NOISE_WARNING` of an actuator's force
-    noise, the bias may exceed the standard errors and a warning says what to do: give
-    ``position_noise_std``, or lower the cut-off (it must stay well above the motion's
-    bandwidth) to the value it names.
+    The actuator positions' noise makes errors in the variables (:mod:`.input_noise`):
+
+    * ``position_noise_std`` given (the sensors' white noise, m or rad, scalar or
+      (n_act,)): the rows inside the Coulomb deadband are left out, the attenuation bias
+      is compensated, and the covariance is the long-run sandwich. Warnings: the
+      compensation moves an estimate by more than
+      :data:`~.input_noise.COMPENSATION_WARNING` standard errors (the result then leans
+      on the noise given; the cut-off that would bring it there is named); the noise
+      makes more than :data:`~.input_noise.ATTENUATION_WARNING` of the data's energy in
+      some direction (that combination is mostly noise; the cut-off named); the
+      positions carry more than :data:`NOISE_MISMATCH` times the given noise above the
+      cut-off (a noise given too small, or a motion faster than the cut-off).
+    * None: the noise is estimated from the positions' content above the cut-off
+      (:func:`~.motion_data.position_noise_estimate`: an upper bound, vibration reads as
+      noise) and used for the deadband and the sandwich covariance; the compensation is
+      computed but not applied (it would follow an overestimate): its shift, the
+      result's ``compensation``, estimates the bias. When that exceeds
+      :data:`BIAS_WARNING` standard errors, or the force errors that the noise makes
+      (``input_noise_force`` of the result, :func:`input_noise_force`) exceed
+      :data:`INPUT_NOISE_WARNING` of an actuator's force noise, a warning says what to
+      do: give ``position_noise_std``, or lower the cut-off (it must stay well above the
+      motion's bandwidth) to the value it names.
     """
     reg = ClosedLoopRegressor(robot, options.get("drive", DEFAULT_DRIVE))
     n_act = reg.n_actuators
@@ -533,36 +598,5 @@ def identify(robot: object, data: object, *, cutoff: float | None = None,
                                   st.actuator_forces, times=st.times, state_noise=noise,
                                   **options)   # type: ignore[arg-type]
     induced = _induced_force(reg, times, cut, sigma_p)
-    ratio = float(np.max(induced / result.noise_std))
-    if not given and ratio > INPUT_NOISE_WARNING:
-        LOGGER.warning("the actuator positions' noise, estimated at %s from the data above "
-                       "the cut-off, makes force errors of up to %.3g of the force noise "
-                       "through the accelerations filtered at %.4g Hz (above %g): the "
-                       "estimates are biased (errors in the variables) by more than their "
-                       "standard errors say; give position_noise_std (the sensors' noise) "
-                       "to compensate it, or a cut-off of %.3g Hz", np.array2string(
-                           sigma_p, precision=2), ratio, cut, INPUT_NOISE_WARNING,
-                       cut * (INPUT_NOISE_WARNING / ratio) ** 0.4)
-    share = result.attenuation
-    if share is not None and share > ATTENUATION_WARNING:
-        # the share at a cut-off c': l' = l x / (1 - l + l x), x = (c' / c)^5
-        low = min(share, 0.999)
-        ratio = ATTENUATION_WARNING * (1.0 - low) / (low * (1.0 - ATTENUATION_WARNING))
-        LOGGER.warning("the position noise makes up to %.3g of the data's energy in a "
-                       "direction that the motion barely excites, through the "
-                       "accelerations filtered at %.4g Hz (above %g): the estimates of "
-                       "that combination are mostly noise (compensated up to %g); a "
-                       "cut-off of %.3g Hz would bring it to %g, or excite it more", share,
-                       cut, ATTENUATION_WARNING, COMPENSATION_CAP, cut * ratio ** 0.2,
-                       ATTENUATION_WARNING)
-    if result.compensation is not None:
-        shift = float(np.max(np.abs(result.compensation) / result.std_errors))
-        if shift > COMPENSATION_WARNING:
-            LOGGER.warning("the position noise biased the plain estimates by up to %.3g "
-                           "standard errors through the accelerations filtered at %.4g Hz "
-                           "(errors in the variables; above %g): compensated, but only as "
-                           "well as position_noise_std is known (10%% off in it leaves 20%% "
-                           "of the bias); a cut-off of %.3g Hz would bring it to %g", shift,
-                           cut, COMPENSATION_WARNING,
-                           cut * (COMPENSATION_WARNING / shift) ** 0.2, COMPENSATION_WARNING)
+    _warn_input_noise(result, induced, sigma_p, given, cut)
     return dataclasses.replace(result, cutoff=cutoff, trim=trim, input_noise_force=induced)

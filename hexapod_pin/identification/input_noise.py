@@ -38,10 +38,11 @@ in docs/tutorials/identification.md):
    estimate by more than :data:`COMPENSATION_WARNING` standard errors. In the
    directions ``v`` of ``B v = l A^ v`` (``A^`` from the noisy data), ``l`` is the
    noise's share of the data's energy, and compensating divides by ``1 - l``: where the
-   motion barely excites a combination the noise can make most of it (``l`` of 0.7 -
-   0.8 on the tests' hexapod at 1 um and the default cut-off), and as ``l`` nears 1 the
-   division amplifies that component's noise without bound (``A^ - B`` is not even
-   positive definite on some noise draws). So ``l`` is capped at
+   motion barely excites a combination the noise can make most of it (on the hexapod
+   at 1 um and the default cut-off: 0.16 with the tests' excitation, condition number
+   450; 0.7 - 0.8 with one of condition number 833; 0.85 - 1.0 with one that passes
+   near a singularity), and as ``l`` nears 1 the division amplifies that component's
+   noise without bound (``A^ - B`` is not even positive definite on some noise draws). So ``l`` is capped at
    :data:`COMPENSATION_CAP` (the component's estimate and standard error at most 20
    times the plain ones; a component that weakly excited is within a few standard
    errors of zero, so what the cap leaves of its bias is small against them), the
@@ -117,9 +118,10 @@ class StateNoise:
         band: the long-run covariance's band, as a fraction of the Nyquist frequency
             (0 < band <= 1): ``floor(N band)`` cosine terms for N samples.
         stride: the attenuation bias is summed over every ``stride``-th sample (>= 1).
-        compensate: compensate the attenuation bias (the noise is known); False: only
-            the Coulomb deadband and the long-run covariance (the noise was estimated
-            from the data, an upper bound).
+        compensate: compensate the attenuation bias (the noise is known); False (the
+            noise estimated from the data, an upper bound): the Coulomb deadband and the
+            long-run covariance of the plain estimate, the compensation only computed
+            (its shift estimates the bias).
     """
 
     position_std: np.ndarray

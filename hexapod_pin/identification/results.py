@@ -74,7 +74,7 @@ class IdentificationResult:
         robot: the robot identified (its nominal parameters: the "before").
         base: the :class:`~.base.BaseParameters` (structure, names, regrouping).
         values: weighted least-squares estimates of the base parameters (r,)
-            (bias-compensated when ``compensation`` is not None).
+            (bias-compensated when ``state_noise.compensate``).
         std_errors: their standard errors (r,): square roots of the diagonal of
             ``covariance``.
         covariance: (r, r) for exact states ``s^2 (W_w^T W_w)^-1``, ``W_w`` the weighted
@@ -98,11 +98,13 @@ class IdentificationResult:
             states.
         state_noise: the states' noise used (:class:`~.input_noise.StateNoise`); None:
             exact states, the classical covariance.
-        attenuation: the largest fraction by which the acceleration noise shrinks the
-            weighted data in one direction (:mod:`.input_noise`, item 2); None when not
-            compensated.
-        compensation: (r,) the bias compensation's shift of the estimates (compensated
-            minus plain weighted least squares, same weights); None when not compensated.
+        attenuation: the largest share of the weighted data's energy that the
+            acceleration noise makes in one direction (:mod:`.input_noise`, item 2);
+            None for exact states.
+        compensation: (r,) the bias compensation's shift (compensated minus plain
+            weighted least squares, the same weights): applied to ``values`` when
+            ``state_noise.compensate``, else only the estimated bias of ``values``;
+            None for exact states.
         deadband_rows: (n_act,) the rows of each actuator left out inside the Coulomb
             deadband (:mod:`.input_noise`, item 1); None for exact states.
     """

@@ -285,8 +285,9 @@ def test_position_noise_at_a_high_cut_off_is_compensated_and_flagged(caplog):
     leave their standard errors (measured: 7.3 of them, 11.3 before the compensation in
     the weighted fit). With position_noise_std the bias is compensated (measured max |z|
     1.58) and a warning says that the result leans on that noise, with the cut-off to
-    use; without it the noise is estimated from the data (1.00 um) and a warning says to
-    give it; a noise given ten times too small is flagged too."""
+    use; without it the noise is estimated from the data (1.00 um), the estimates stay
+    plain, and a warning gives the bias that the compensation would remove and says to
+    give the noise; a noise given ten times too small is flagged too."""
     from hexapod_pin.identification.motion_data import (
         derivative_noise_gain,
         filtered_derivatives,
@@ -320,9 +321,10 @@ def test_position_noise_at_a_high_cut_off_is_compensated_and_flagged(caplog):
         estimated = identify(robot, data, base=base, consistent=False)
     assert "give position_noise_std" in caplog.text
     assert np.allclose(estimated.state_noise.position_std, 1e-6, rtol=0.05)
-    assert estimated.compensation is None and not estimated.state_noise.compensate
+    assert not estimated.state_noise.compensate
     z = (estimated.values - base.values(truth)) / estimated.std_errors
-    assert np.max(np.abs(z)) > 5.0
+    assert np.max(np.abs(z)) > 5.0                       # not compensated: biased
+    assert np.max(np.abs(estimated.compensation) / estimated.std_errors) > 5.0   # said
     caplog.clear()
     with caplog.at_level("WARNING", logger=logger):
         identify(robot, data, base=base, consistent=False, position_noise_std=1e-7)
