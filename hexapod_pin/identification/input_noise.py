@@ -16,40 +16,41 @@ in docs/tutorials/identification.md):
    (:func:`coulomb_rows`: a kept row's sign is wrong with probability below
    ``Phi(-DEADBAND)``, 3e-5).
 2. **Attenuation bias.** ``E[W^T W_w W^] = W^T W_w W + B`` (``W_w`` the weights ``1 /
-   sigma_i^2`` of actuator ``i``'s rows), so least squares shrinks ``beta`` by ``-(A)^-1
-   B beta`` along the accelerations' columns, with::
+   sigma_i^2`` of actuator ``i``'s rows), so least squares shrinks ``beta`` by ``-A^-1 B
+   beta`` along the accelerations' columns, with::
 
        B = sum_k sum_i sum_j s_a,j^2 g_kij g_kij^T / sigma_i^2,   g_kij = dW_ki / dqdd_j
 
    (``W_ki`` the base-regressor row of actuator ``i`` at sample ``k``; independent noise
    per actuator). The regressor is affine in the accelerations, so ``g_kij`` is the
    difference of the rows at the tree acceleration moved by actuator ``j``'s unit
-   acceleration and at the sample's own (:func:`acceleration_sensitivities`, exact). The bias-compensated
-   estimate (Stoica and Soderstrom's bias-compensated least squares) solves ``(A - B)
-   beta = W^T W_w u``, ``A = W^T W_w W``. ``B`` is a sum of smooth functions of the
-   configuration: it is summed over every ``stride``-th sample and scaled (the states
-   vary slower than the cut-off; ``stride`` samples at four times the cut-off, and at
-   most :data:`SENSITIVITY_SAMPLES` samples in all). The velocity noise's part (the
-   damping and Coriolis columns) is left out: smaller by ``(g_v / g_a)^2``, about ``(2
-   pi cutoff)^-2`` times. ``E[W^T W_w W^] = A + B`` holds exactly for the acceleration
-   noise (the regressor is affine in it), so the compensation is not a linearisation;
-   it is as right as the noise given (``B`` grows as its square: 10 % off in the noise
-   leaves 20 % of the bias), and :func:`~.estimate.identify` warns when it moves an
-   estimate by more than :data:`COMPENSATION_WARNING` standard errors. In the
+   acceleration and at the sample's own (:func:`acceleration_sensitivities`, exact), and
+   ``E[W^T W_w W^] = A + B`` holds exactly for the acceleration noise: the compensation
+   is not a linearisation. The bias-compensated estimate (Stoica and Soderstrom's
+   bias-compensated least squares) solves ``(A - B) beta = W^T W_w u``, ``A = W^T W_w
+   W``. ``B`` is a sum of smooth functions of the configuration: it is summed over every
+   ``stride``-th sample and scaled (the states vary slower than the cut-off; ``stride``
+   samples at four times the cut-off, and at most :data:`SENSITIVITY_SAMPLES` samples in
+   all). The velocity noise's part (the damping and Coriolis columns) is left out:
+   smaller by ``(g_v / g_a)^2`` (2e-5 at 500 Hz and a 50 Hz cut-off).
+
+   The compensation is as right as the noise given (``B`` grows as its square: 10 % off
+   in the noise leaves 20 % of the bias); :func:`~.estimate.identify` warns when it moves
+   an estimate by more than :data:`COMPENSATION_WARNING` standard errors. In the
    directions ``v`` of ``B v = l A^ v`` (``A^`` from the noisy data), ``l`` is the
-   noise's share of the data's energy, and compensating divides by ``1 - l``: where the
-   motion barely excites a combination the noise can make most of it (on the hexapod
-   at 1 um and the default cut-off: 0.16 with the tests' excitation, condition number
-   450; 0.7 - 0.8 with one of condition number 833; 0.85 - 1.0 with one that passes
-   near a singularity), and as ``l`` nears 1 the division amplifies that component's
-   noise without bound (``A^ - B`` is not even positive definite on some noise draws). So ``l`` is capped at
-   :data:`COMPENSATION_CAP` (the component's estimate and standard error at most 20
-   times the plain ones; a component that weakly excited is within a few standard
-   errors of zero, so what the cap leaves of its bias is small against them), the
-   largest ``l`` is the result's ``attenuation``, and ``identify`` warns above
+   noise's share of the data's energy, and compensating divides by ``1 - l``. Where the
+   motion barely excites a combination, the noise can make most of it (on the hexapod at
+   1 um and the default cut-off: 0.16 with the tests' excitation, condition number 450;
+   0.7 - 0.8 with one of condition number 833; 0.85 - 1.0 with one that passes near a
+   singularity), and as ``l`` nears 1 the division amplifies that component's noise
+   without bound (``A^ - B`` is not even positive definite on some noise draws). So ``l``
+   is capped at :data:`COMPENSATION_CAP` (the component's estimate and standard error at
+   most 20 times the plain ones; a component that weakly excited is within a few
+   standard errors of zero, so what the cap leaves of its bias is small against them),
+   the largest ``l`` is the result's ``attenuation``, and ``identify`` warns above
    :data:`ATTENUATION_WARNING` with the cut-off that brings it there (``B`` falls as the
-   cut-off's fifth power). A partial cap (0.5) was measured to leave the bias and shrink
-   the standard errors: 4 - 6 standard errors off on the hexapod.
+   cut-off's fifth power). A cap of 0.5 was measured to leave the bias and shrink the
+   standard errors: 4 - 6 standard errors off on the hexapod.
 3. **Correlated residuals.** The residual ``e - Delta beta`` is correlated in time (the
    filter), and ``Delta^T e`` and ``Delta^T Delta beta`` add spread that the classical
    covariance ``s^2 A^-1`` does not see; and it counts the position noise's part of the
@@ -231,8 +232,13 @@ def attenuation_terms(sens: np.ndarray, keep: np.ndarray, noise: StateNoise,
     sigma_i^2`` (module docstring, item 2): ``scale sum_m keep_mi sum_j s_a,j^2 g_mij
     g_mij^T`` over the M sensitivity samples (``keep`` (M, n_act) their rows of the fit;
     ``scale`` the samples per sensitivity sample)."""
-    return scale * np.einsum("mi,mijp,mijq,j->ipq", keep, sens, sens,
-                             noise.acceleration_std ** 2)
+    m, n_act, _, r = sens.shape
+    out = np.empty((n_act, r, r))
+    for i in range(n_act):
+        weight = np.sqrt(keep[:, i, None] * noise.acceleration_std ** 2)     # (M, n_act)
+        rows = (sens[:, i] * weight[:, :, None]).reshape(m * n_act, r)
+        out[i] = rows.T @ rows
+    return scale * out
 
 
 def score_correction(sens: np.ndarray, keep: np.ndarray, noise: StateNoise, scale: float,
@@ -241,7 +247,7 @@ def score_correction(sens: np.ndarray, keep: np.ndarray, noise: StateNoise, scal
     carrying the ``scale`` samples it stands for: their sum is ``B beta``."""
     mass = np.einsum("mijp,p->mij", sens, beta)           # the actuator-space mass matrix
     return scale * np.einsum("mi,mijp,mij,j,i->mp", keep, sens, mass,
-                             noise.acceleration_std ** 2, sigma ** -2.0)
+                             noise.acceleration_std ** 2, sigma ** -2.0, optimize=True)
 
 
 def long_run_covariance(scores: np.ndarray, terms: int) -> np.ndarray:
