@@ -11,6 +11,9 @@ parameters, least-squares and physically consistent estimates.
 * :mod:`.estimate`: :func:`identify_from_states`, :func:`identify` (weighted least squares,
   standard errors, the physically consistent fit of :mod:`.consistent`);
 * :mod:`.motion_data`: :class:`MotionData` and its zero-phase filtering;
+* :mod:`.input_noise`: errors in the variables (position noise through the
+  differentiated states): :class:`StateNoise`, the Coulomb deadband, the bias
+  compensation and the long-run sandwich covariance;
 * :mod:`.excitation`: :func:`optimise_excitation`, a pose-space Fourier series optimised
   for the base regressor's condition number within the robot's limits;
 * :mod:`.results`: :class:`IdentificationResult`, :class:`ValidationReport`.
@@ -23,6 +26,7 @@ from .base import BaseParameters, base_from_regressor, base_parameters, random_s
 from .consistent import ConsistentFit
 from .estimate import identify, identify_from_states
 from .excitation import Excitation, FourierSeries, optimise_excitation
+from .input_noise import StateNoise
 from .motion_data import MotionData, MotionStates, states_from_motion
 from .parameters import (
     DEFAULT_DRIVE,
@@ -46,7 +50,7 @@ __all__ = [
     "DEFAULT_DRIVE", "DRIVE_KINDS", "BaseParameters", "ClosedLoopRegressor", "ConsistentFit",
     "Excitation", "FourierSeries", "optimise_excitation",
     "ForceResiduals", "IdentifiabilityError", "IdentificationResult", "MotionData",
-    "MotionStates", "ParameterLayout", "TreeMotion", "TreeRegressorRows", "ValidationReport",
+    "MotionStates", "ParameterLayout", "StateNoise", "TreeMotion", "TreeRegressorRows", "ValidationReport",
     "base_from_regressor", "closed_loop_regressor_tree", "model_with_parameters",
     "base_parameters", "identify", "identify_from_states", "nominal_parameters",
     "random_states", "regressor", "regressor_batch", "robot_with_parameters",

@@ -132,6 +132,18 @@ def resolve_cutoff(times: np.ndarray, cutoff: float | None) -> float:
         real_number(cutoff, "cutoff", minimum=0.0)
 
 
+def resolve_trim(times: np.ndarray, cutoff: float, trim: int | None) -> int:
+    """The samples dropped at each end: ``trim`` (>= 0), or three periods of the cut-off
+    ``ceil(3 rate / cutoff)`` when None.
+
+    Raises:
+        InputError: a negative or non-integer ``trim``.
+    """
+    rate = (times.size - 1) / (times[-1] - times[0])
+    return int(np.ceil(3.0 * rate / cutoff)) if trim is None else \
+        count(trim, "trim", minimum=0)
+
+
 def filtered_derivatives(times: np.ndarray, positions: np.ndarray,
                          cutoff: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions (N, k) low-pass filtered, and their first and second derivatives (module
@@ -139,6 +151,17 @@ def filtered_derivatives(times: np.ndarray, positions: np.ndarray,
     pos = low_pass(times, positions, cutoff)
     vel = np.gradient(pos, times, axis=0, edge_order=2)
     return pos, vel, np.gradient(vel, times, axis=0, edge_order=2)
+
+
+def _impulse_response(times: np.ndarray, cutoff: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The response of :func:`filtered_derivatives` (positions, velocities, accelerations,
+    each (N,)) to a unit impulse at the middle sample: for a time-invariant pipeline on
+    uniform times, the weights of the middle sample's outputs, reversed."""
+    impulse = np.zeros((times.size, 1))
+    impulse[times.size // 2, 0] = 1.0
+    pos, vel, acc = filtered_derivatives(times, impulse, cutoff)
+    return pos[:, 0], vel[:, 0], acc[:, 0]
 
 
 def derivative_noise_gain(times: np.ndarray, cutoff: float) -> tuple[float, float]:
@@ -153,13 +176,31 @@ def derivative_noise_gain(times: np.ndarray, cutoff: float) -> tuple[float, floa
     Raises:
         InputError: a cut-off at or above the Nyquist frequency, too few samples.
     """
-    impulse = np.zeros((times.size, 1))
-    mid = times.size // 2
-    impulse[mid, 0] = 1.0
-    # the response at every sample to an impulse at ``mid``: for a time-invariant
-    # pipeline on uniform times, the weights of ``mid``'s output reversed
-    _, vel, acc = filtered_derivatives(times, impulse, cutoff)
+    _, vel, acc = _impulse_response(times, cutoff)
     return float(np.sqrt(np.sum(vel ** 2))), float(np.sqrt(np.sum(acc ** 2)))
+
+
+def position_noise_estimate(times: np.ndarray, positions: np.ndarray, cutoff: float,
+                            trim: int) -> np.ndarray:
+    """The white noise (n_act,) (m or rad) of sampled positions (N, n_act), estimated from
+    what the low-pass removes: the residual ``positions - low_pass(positions)`` over the
+    samples ``trim .. N - trim`` has the variance ``s^2 sum_k (delta_k - h_k)^2`` for
+    white noise ``s`` (``h`` the filter's weights, :func:`_impulse_response`), and no part
+    of a motion whose band lies well below the cut-off (the filtered-and-back Butterworth
+    passes it to ``(f / cutoff)^8``). Content above the cut-off that is not white noise
+    (vibration, a motion faster than the cut-off) reads as noise: an upper bound then.
+
+    Raises:
+        InputError: a cut-off at or above the Nyquist frequency, too few samples, nothing
+            left after ``trim``.
+    """
+    if times.size <= 2 * trim:
+        raise InputError("trim", trim, f"drops every one of the {times.size} samples")
+    residual = (positions - low_pass(times, positions, cutoff))[trim:times.size - trim]
+    pos = _impulse_response(times, cutoff)[0]
+    unit = -pos
+    unit[times.size // 2] += 1.0
+    return np.sqrt(np.mean(residual ** 2, axis=0) / float(np.sum(unit ** 2)))
 
 
 def states_from_motion(robot: object, data: object, cutoff: float | None = None,
@@ -182,9 +223,8 @@ def states_from_motion(robot: object, data: object, cutoff: float | None = None,
     dim = int(getattr(robot, "pose_dim"))
     data = check_motion(data, n_act, dim)
     t = data.times
-    rate = (t.size - 1) / (t[-1] - t[0])
     cut = resolve_cutoff(t, cutoff)
-    trim = int(np.ceil(3.0 * rate / cut)) if trim is None else count(trim, "trim", minimum=0)
+    trim = resolve_trim(t, cut, trim)
     pos, vel, acc = filtered_derivatives(t, data.actuator_positions, cut)
     forces = data.actuator_forces
     keep = np.arange(trim, t.size - trim)

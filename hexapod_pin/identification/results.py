@@ -21,6 +21,7 @@ from ..core.robot import ClosedLoopRobot
 from ..errors import InputError
 from .base import BaseParameters
 from .consistent import ConsistentFit
+from .input_noise import StateNoise
 from .motion_data import DEFAULT_TRIM, states_from_motion
 from .parameters import robot_with_parameters
 from .regressor import ClosedLoopRegressor
@@ -72,11 +73,14 @@ class IdentificationResult:
     Attributes:
         robot: the robot identified (its nominal parameters: the "before").
         base: the :class:`~.base.BaseParameters` (structure, names, regrouping).
-        values: weighted least-squares estimates of the base parameters (r,).
+        values: weighted least-squares estimates of the base parameters (r,)
+            (bias-compensated when ``state_noise.compensate``).
         std_errors: their standard errors (r,): square roots of the diagonal of
             ``covariance``.
-        covariance: ``s^2 (W_w^T W_w)^-1`` (r, r), ``W_w`` the weighted base regressor,
-            ``s^2`` the weighted residual variance (about 1 when the noise model is right).
+        covariance: (r, r) for exact states ``s^2 (W_w^T W_w)^-1``, ``W_w`` the weighted
+            base regressor, ``s^2`` the weighted residual variance (about 1 when the noise
+            model is right); with ``state_noise`` the long-run sandwich of
+            :mod:`.input_noise` (item 3).
         noise_std: the per-actuator force noise used as weights (n_act,) (N, N m): given,
             or estimated from the ordinary least-squares residuals.
         nominal_values: the nominal robot's base parameters (r,).
@@ -88,10 +92,21 @@ class IdentificationResult:
             states).
         trim: the samples dropped at each end of motion data (None: the default, or
             states).
-        input_noise_force: (n_act,) (N, N m) the force errors that the given position
-            noise makes through the filtered accelerations (``identify(...,
-            position_noise_std=...)``, :func:`~.estimate.input_noise_force`); None when
-            not asked for.
+        input_noise_force: (n_act,) (N, N m) the force errors that the position noise
+            (given, or estimated from the data) makes through the filtered accelerations
+            (:func:`~.estimate.identify`, :func:`~.estimate.input_noise_force`); None for
+            states.
+        state_noise: the states' noise used (:class:`~.input_noise.StateNoise`); None:
+            exact states, the classical covariance.
+        attenuation: the largest share of the weighted data's energy that the
+            acceleration noise makes in one direction (:mod:`.input_noise`, item 2);
+            None for exact states.
+        compensation: (r,) the bias compensation's shift (compensated minus plain
+            weighted least squares, the same weights): applied to ``values`` when
+            ``state_noise.compensate``, else only the estimated bias of ``values``;
+            None for exact states.
+        deadband_rows: (n_act,) the rows of each actuator left out inside the Coulomb
+            deadband (:mod:`.input_noise`, item 1); None for exact states.
     """
 
     robot: object
@@ -108,6 +123,10 @@ class IdentificationResult:
     cutoff: float | None = None
     trim: int | None = DEFAULT_TRIM
     input_noise_force: np.ndarray | None = None
+    state_noise: StateNoise | None = None
+    attenuation: float | None = None
+    compensation: np.ndarray | None = None
+    deadband_rows: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
