@@ -132,6 +132,11 @@ def identify(data: Annotated[Path, typer.Argument(
              trim: Annotated[int | None, typer.Option(
                  help="samples dropped at each end (default: three periods of the "
                       "cut-off)", show_default=False)] = None,
+             position_noise: Annotated[float | None, typer.Option(
+                 help="standard deviation of the actuator position sensors' white noise "
+                      "(m or rad, e.g. 1e-6): identify removes the bias it causes and "
+                      "widens the standard errors (default: estimated from the data, "
+                      "the bias reported, not removed)", show_default=False)] = None,
              use_poses: Annotated[bool, typer.Option(
                  "--use-poses", help="use the file's poses (default: forward kinematics "
                  "of the measured actuator positions)")] = False,
@@ -165,7 +170,7 @@ def identify(data: Annotated[Path, typer.Argument(
                           log.poses if use_poses else None)
     with progress_bar(quiet, "identifying"):
         res = identify_motion(bot, measured, cutoff=cutoff, trim=trim, drive=_drive(drive),
-                              consistent=consistent)
+                              position_noise_std=position_noise, consistent=consistent)
     if figure is not None:
         _figures(figure, bot, res, measured)
     payload: dict[str, Any] = {

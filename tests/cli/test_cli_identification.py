@@ -149,3 +149,32 @@ def test_identify_reads_a_log_without_pose_columns(robot, excite_file, tmp_path)
                         np.column_stack([motion.t, motion.q, motion.q, forces,
                                          forces]).tolist())
     one_line_error(invoke("identify", foreign, *ROBOT), 1, "q1")
+
+
+def test_identify_takes_the_position_noise(robot, excite_file, tmp_path):
+    """``--position-noise`` reaches ``identify(position_noise_std=...)``: the command's
+    numbers equal the library call's with the same noise, which differ from the call
+    without it (the errors-in-the-variables steps run); a negative noise is refused."""
+    from hexapod_pin.identification import MotionData, identify
+
+    path, _ = excite_file
+    motion = read_motion(path, robot)
+    truth = nominal_parameters(robot, DRIVE) * 1.2
+    reg = ClosedLoopRegressor(robot, DRIVE)
+    truth[reg.layout.drive_slice("viscous")] = 0.05
+    forces = reg.batch(motion.poses, motion.twists, motion.twist_dots) @ truth
+    q = motion.q + 1e-6 * np.random.default_rng(3).standard_normal(motion.q.shape)
+    data = _log_file(tmp_path / "noisy.csv", ["t", "q0", "tau0"],
+                     np.column_stack([motion.t, q, forces]).tolist())
+    run = invoke("identify", data, *ROBOT, "--json", "--no-consistent",
+                 "--position-noise", "1e-6")
+    assert run.exit_code == 0, run.output
+    out = json.loads(run.stdout)
+    measured = MotionData(motion.t, q, forces.reshape(len(motion.t), -1))
+    given = identify(robot, measured, drive=DRIVE, position_noise_std=1e-6, consistent=False)
+    plain = identify(robot, measured, drive=DRIVE, consistent=False)
+    np.testing.assert_allclose(out["std_errors"], given.std_errors, rtol=1e-9)
+    np.testing.assert_allclose(out["values"], given.values, rtol=1e-9, atol=1e-12)
+    assert not np.allclose(given.std_errors, plain.std_errors, rtol=1e-6)
+    one_line_error(invoke("identify", data, *ROBOT, "--position-noise", "-1e-6"), 1,
+                   "position_noise_std")

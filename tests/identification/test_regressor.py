@@ -44,7 +44,8 @@ def test_nominal_parameters_give_the_robots_own_inverse_dynamics(id_robot):
     poses, twists, twist_dots = random_states(robot, 3, seed=4)
     pi = nominal_parameters(driven, DRIVE_KINDS)
     for k in range(3):
-        rows = regressor(driven, poses[k], twists[k], twist_dots[k], DRIVE_KINDS)
+        rows = regressor(driven, poses[k], twists[k], twist_dots[k], DRIVE_KINDS,
+                         route="tree")
         u = driven.inverse_dynamics(poses[k], twists[k], twist_dots[k],
                                     bounded=False).actuator_forces
         assert np.max(np.abs(rows @ pi - u)) <= 1e-10 * max(1.0, np.max(np.abs(u)))
@@ -57,7 +58,7 @@ def test_random_consistent_parameters_match_inverse_dynamics(id_robot):
     rng = np.random.default_rng(11)
     drive = ("armature", "viscous", "coulomb", "offset")
     pi = random_consistent(robot, drive, rng)
-    reg = ClosedLoopRegressor(robot, drive)
+    reg = ClosedLoopRegressor(robot, drive, route="tree")
     pi[reg.layout.drive_slice("offset")] = 0.0
     other = robot_with_parameters(robot, pi, drive)
     poses, twists, twist_dots = random_states(robot, 4, seed=5)

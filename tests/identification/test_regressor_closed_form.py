@@ -73,7 +73,7 @@ def test_closed_form_regressor_equals_the_tree_route(hexapod, branch):
     rail or a joint absorbs) are zero in the closed form too; the leg's axial inertia
     column (the spin the universal joint imposes) is not."""
     signs = BRANCHES[branch]
-    tree = ClosedLoopRegressor(hexapod, DRIVE_KINDS)
+    tree = ClosedLoopRegressor(hexapod, DRIVE_KINDS, route="tree")
     closed = ClosedLoopRegressor(hexapod, DRIVE_KINDS, route="closed_form")
     assert (tree.route, closed.route) == ("tree", "closed_form")
     poses, twists, twist_dots = _states(hexapod, signs, 6, seed=21)
