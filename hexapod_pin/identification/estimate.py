@@ -247,7 +247,13 @@ def _solve_compensated(mat: np.ndarray, rhs: np.ndarray, correction: np.ndarray
     normal = mat.T @ mat
     norms = np.sqrt(np.diag(normal))
     outer = np.outer(norms, norms)
-    shares, vec = scipy.linalg.eigh(correction / outer, normal / outer)
+    try:
+        shares, vec = scipy.linalg.eigh(correction / outer, normal / outer)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise IdentifiabilityError(f"the normal matrix of the compensated fit is not "
+                                   f"positive definite ({exc}): the data do not excite "
+                                   "every base parameter", mat.shape[1],
+                                   int(np.linalg.matrix_rank(mat))) from None
     kept = 1.0 - np.minimum(shares, COMPENSATION_CAP)
     inv = (vec / kept) @ vec.T
     back = np.linalg.inv(vec)                    # H = V^-T diag(kept) V^-1
@@ -425,10 +431,23 @@ def identify_from_states(robot: object, poses: npt.ArrayLike, twists: npt.ArrayL
     keep = None if terms is None else terms.keep
     parts = None if terms is None else terms.parts
     compensate = noise is not None and noise.compensate
+    if not np.any(u):
+        raise InputError("actuator_forces", "all zero", "no force was measured: nothing "
+                         "to identify the parameters from")
     factors = ActuatorFactors.of(wb, u, n_act, keep)
     if factors.rows <= r:
         raise IdentifiabilityError(f"{factors.rows} force rows outside the Coulomb "
                                    f"deadband for {r} base parameters", r, factors.rows)
+    still = np.flatnonzero(factors.counts == 0)
+    if still.size:
+        raise IdentifiabilityError(
+            f"actuator(s) {still.tolist()} have no sample outside the Coulomb deadband "
+            "(their speed stays under 4 velocity-noise deviations): their friction cannot "
+            "be identified; move them faster or leave 'coulomb' out of drive", r,
+            factors.rows)
+    if terms is not None and n < r + 2:
+        raise IdentifiabilityError(f"{n} samples for the long-run covariance of {r} base "
+                                   f"parameters (at least {r + 2} needed)", r, n)
     _data_rank(factors, base.names)
     if noise_std is None:
         sigma = _noise_levels(factors, parts, compensate, u)

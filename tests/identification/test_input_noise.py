@@ -15,7 +15,7 @@ import robot_registry
 from identification_helpers import perturbed
 from test_estimate import DRIVE, _fourier_motion
 
-from hexapod_pin.errors import InputError
+from hexapod_pin.errors import IdentifiabilityError, InputError
 from hexapod_pin.identification import (
     ClosedLoopRegressor,
     MotionData,
@@ -140,3 +140,29 @@ def test_standard_errors_match_the_spread_under_strong_position_noise(caplog):
     assert 0.8 < np.median(ratio) < 1.25
     plain_rmse = np.sqrt(np.mean((np.array(plain) - base.values(truth)) ** 2, axis=0))
     assert np.max(plain_rmse / reported) > 2.5
+
+
+def test_degenerate_data_raise_typed_errors():
+    """Data that cannot identify what is asked raise IdentifiabilityError / InputError,
+    never a numpy error or NaN: an actuator whose every sample is inside the Coulomb
+    deadband (here by a velocity noise far above its speeds), too few samples for the
+    long-run covariance, forces all zero."""
+    robot = robot_registry.get("planar")
+    base = base_parameters(robot, DRIVE)
+    truth = perturbed(robot, DRIVE, np.random.default_rng(8))
+    states = random_states(robot, 200, seed=6)
+    forces = (ClosedLoopRegressor(robot, DRIVE).batch(*states) @ truth).reshape(200, 3)
+    still = StateNoise(np.full(3, 1e-6), np.array([0.01, 1e6, 0.01]), np.zeros(3), 0.1, 1,
+                       False)
+    with pytest.raises(IdentifiabilityError, match=r"actuator\(s\) \[1\]"):
+        identify_from_states(robot, *states, forces, base=base, consistent=False,
+                             state_noise=still)
+    few = base.count // 3 + 2            # more force rows than parameters, too few samples
+    noise = StateNoise(np.full(3, 1e-6), np.full(3, 1e-9), np.zeros(3), 0.1, 1, False)
+    short = tuple(s[:few] for s in states)
+    with pytest.raises(IdentifiabilityError, match="long-run covariance"):
+        identify_from_states(robot, *short, forces[:few], base=base, consistent=False,
+                             state_noise=noise)
+    with pytest.raises(InputError, match="actuator_forces"):
+        identify_from_states(robot, *states, np.zeros_like(forces), base=base,
+                             consistent=False)
