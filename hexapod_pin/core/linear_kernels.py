@@ -289,6 +289,20 @@ def within_bounds(u: np.ndarray, bounds: np.ndarray, rtol: float) -> bool:
 NULLSPACE_OK, NULLSPACE_NOT_POSITIVE, NULLSPACE_NOT_FINITE = 0, 1, 2
 
 
+@jit_inline
+def _add_pseudo_inverse(left, right, sv, r, vec, out):
+    """``out += sum_{i < r} right[:, i] (left[:, i] . vec) / sv[i]``: a rank-``r``
+    pseudo-inverse of an SVD applied to ``vec`` (``left`` / ``right`` the singular vectors
+    as columns; ``U, V`` for ``J^+``, ``V, U`` for ``J^+T``)."""
+    for i in range(r):
+        c = 0.0
+        for k in range(vec.shape[0]):
+            c += left[k, i] * vec[k]
+        c /= sv[i]
+        for j in range(out.shape[0]):
+            out[j] += right[j, i] * c
+
+
 @jit
 def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
                             jac: np.ndarray, target: np.ndarray, rank: int,
@@ -326,13 +340,7 @@ def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
     u, sv, vt = np.linalg.svd(js)
     r = min(rank, sv.shape[0]) if nr else 0
     a_p = np.zeros(nv)
-    for i in range(r):
-        c = 0.0
-        for k in range(nr):
-            c += u[k, i] * ts[k]
-        c /= sv[i]
-        for j in range(nv):
-            a_p[j] += vt[i, j] * c
+    _add_pseudo_inverse(u, vt.T, sv, r, ts, a_p)                # V_r S_r^-1 U_r^T target
     m = nv - r
     basis = np.ascontiguousarray(vt[r:, :].T)          # (nv, m)
     red = basis.T @ (m_full @ basis)
@@ -365,14 +373,7 @@ def nullspace_forward_solve(mass: np.ndarray, bias: np.ndarray, tau: np.ndarray,
     for k in range(nr):
         lam[k] = 0.0
     if r:
-        f = m_full @ a + bias - tau
-        for i in range(r):
-            c = 0.0
-            for j in range(nv):
-                c += vt[i, j] * f[j]
-            c /= sv[i]
-            for k in range(nr):
-                lam[k] += u[k, i] * c
+        _add_pseudo_inverse(vt.T, u, sv, r, m_full @ a + bias - tau, lam)  # U_r S_r^-1 V_r^T f
     for j in range(nv):
         if not math.isfinite(acc[j]):
             return NULLSPACE_NOT_FINITE

@@ -379,17 +379,23 @@ def register_compiled_simulator(kind: type, run: Callable[..., Trajectory], *,
     COMPILED_SIMULATORS[kind] = CompiledSimulator(run, bool(supports_effects))
 
 
+def compiled_simulator_of(kind: type) -> CompiledSimulator | None:
+    """The compiled simulator registered for the robot class ``kind`` or its nearest base
+    (None: none). A class names the module that registers it in ``COMPILED_SIMULATOR``,
+    imported here on first use (the package imports it lazily)."""
+    registering = getattr(kind, "COMPILED_SIMULATOR", None)
+    if isinstance(registering, str):
+        importlib.import_module(registering)
+    return next((COMPILED_SIMULATORS[k] for k in kind.__mro__ if k in COMPILED_SIMULATORS),
+                None)
+
+
 def _compiled(robot, duration: float, dt: float, controller, actuator_forces,
               integrator: str, method: str, initial, record_every: int, progress,
               friction_regularisation: float | None) -> Trajectory:
     """The robot's registered compiled simulator, after checking that the run asks for
-    nothing it does not do. A robot class names the module that registers its simulator in
-    ``COMPILED_SIMULATOR``, imported here on first use (the package imports it lazily)."""
-    registering = getattr(type(robot), "COMPILED_SIMULATOR", None)
-    if isinstance(registering, str):
-        importlib.import_module(registering)
-    sim = next((COMPILED_SIMULATORS[kind] for kind in type(robot).__mro__
-                if kind in COMPILED_SIMULATORS), None)
+    nothing it does not do (:func:`compiled_simulator_of`)."""
+    sim = compiled_simulator_of(type(robot))
     if sim is None:
         raise InputError("backend", "compiled", f"{type(robot).__name__} has no compiled "
                          "simulator (backend='tree' works for every robot)")

@@ -13,7 +13,6 @@ applied as a command.
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 import numpy as np
@@ -408,8 +407,7 @@ def test_the_compiled_backend_refuses_effects_it_does_not_model(monkeypatch):
 def test_the_hexapods_compiled_backend_follows_a_hand_written_armature():
     """The compiled batch once ignored an armature the tree routes follow (issue 27): the
     hexapod's compiled simulator now declares the effects and agrees with the tree one."""
-    importlib.import_module(hp.Hexapod.COMPILED_SIMULATOR)   # registers it (lazily imported)
-    assert simulate_module.COMPILED_SIMULATORS[hp.Hexapod].supports_effects
+    assert simulate_module.compiled_simulator_of(hp.Hexapod).supports_effects
     hexapod = hp.Hexapod.default()
     # an armature written by hand into the tree: the model's effects adopt it
     hexapod.model.model.armature[hexapod.model.actuated_v] = 0.5
